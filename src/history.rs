@@ -1,0 +1,353 @@
+//! The seek history: a state machine fed one seek at a time that yields, for every seek, the
+//! features of its history that bias depends on (the paper's P1–P7).
+//!
+//! Conventions: positions in tracks (0 at the outer diameter, OD); a positive seek length moves
+//! inbound, towards the inner diameter (ID); direction `+1` is inbound, `-1` outbound, `0` before
+//! the first move. Times in seconds.
+//!
+//! The *uncrossed rest positions* (the paper's memory effect, P6) are kept in [`RestMemory`]: two
+//! stacks, one on each side of the head, each sorted with the nearest position on top. A seek pops
+//! the positions it crosses from the stack ahead of it and pushes its source onto the stack behind,
+//! so an update costs amortised O(1) whatever the length of the history.
+//!
+//! ```
+//! use biasctl::history::History;
+//! let mut h = History::new();
+//! h.step(0.0, 100.0);          // first row: the head starts at track 100
+//! h.step(1.0, 150.0);          // rest at 100, move inbound to 150
+//! let f = h.step(2.0, 120.0);  // reverse: outbound to 120
+//! assert_eq!(f.seek_length, -30.0);
+//! assert!(f.direction_change);
+//! // 100 (OD side of 120) was never crossed since the head rested there:
+//! assert_eq!(f.rest_distance_od, Some(20.0));
+//! ```
+
+/// Features of one seek's history, as seen when the head arrives at the target.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeekFeatures {
+    /// 0-based index of the seek in the log (`seek_index`).
+    pub seek_index: u64,
+    /// Time of the seek, s.
+    pub time_s: f64,
+    /// Time since the first row, s (`elapsed_s`).
+    pub elapsed_s: f64,
+    /// Time since the previous row, s (`dwell_s`); 0 for the first row.
+    pub dwell_s: f64,
+    /// Source of the seek (the previous row's target), tracks.
+    pub source: f64,
+    /// Target of the seek (`position`), tracks.
+    pub target: f64,
+    /// Signed seek length target − source (`seek_length`), tracks; positive is inbound.
+    pub seek_length: f64,
+    /// Direction of the last non-zero move including this one (`direction`): +1 inbound, −1
+    /// outbound, 0 if the head has not moved yet.
+    pub direction: f64,
+    /// Whether this seek reverses the direction of the move into its source (`direction_change`).
+    /// False for zero-length seeks and for the first move.
+    pub direction_change: bool,
+    /// Tracks travelled since the last direction change, this seek included (`since_reversal`).
+    pub since_reversal: f64,
+    /// Distance from the target to the nearest uncrossed earlier rest position on the OD side
+    /// (smaller track numbers), not counting the source (`rest_distance_od`); `None` if there is none.
+    pub rest_distance_od: Option<f64>,
+    /// Distance to the nearest uncrossed earlier rest position on the ID side (`rest_distance_id`);
+    /// `None` if there is none.
+    pub rest_distance_id: Option<f64>,
+}
+
+impl SeekFeatures {
+    /// Absolute seek length in tracks (`seek_abs`).
+    pub fn seek_abs(&self) -> f64 {
+        self.seek_length.abs()
+    }
+
+    /// Distance to the nearest uncrossed rest position ahead of the approach, i.e. on the side
+    /// the head was moving towards (ID side for an inbound seek), if any.
+    pub fn rest_distance_ahead(&self) -> Option<f64> {
+        if self.direction > 0.0 {
+            self.rest_distance_id
+        } else if self.direction < 0.0 {
+            self.rest_distance_od
+        } else {
+            None
+        }
+    }
+}
+
+/// The uncrossed rest positions, kept in two stacks around the head (amortised O(1) per seek).
+#[derive(Debug, Clone, Default)]
+pub struct RestMemory {
+    /// Rest positions on the OD side of the head (smaller tracks), nearest last.
+    below: Vec<f64>,
+    /// Rest positions on the ID side of the head (larger tracks), nearest last.
+    above: Vec<f64>,
+}
+
+impl RestMemory {
+    /// An empty memory.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Nearest uncrossed rest positions on the OD and ID sides of `target`, as they would be
+    /// after a move from `source` to `target` but before `source` itself is remembered. Does not
+    /// change the memory. Costs O(number of positions the move crosses).
+    pub fn nearest_after_move(&self, source: f64, target: f64) -> (Option<f64>, Option<f64>) {
+        if target > source {
+            let od = self.below.last().copied();
+            let id = self.above.iter().rev().copied().find(|&p| p > target);
+            (od, id)
+        } else if target < source {
+            let od = self.below.iter().rev().copied().find(|&p| p < target);
+            let id = self.above.last().copied();
+            (od, id)
+        } else {
+            (self.below.last().copied(), self.above.last().copied())
+        }
+    }
+
+    /// Applies a move from `source` (where the head rested) to `target`: forgets every rest
+    /// position the move crosses or lands on, and remembers `source` behind the head.
+    pub fn apply_move(&mut self, source: f64, target: f64) {
+        if target > source {
+            while self.above.last().is_some_and(|&p| p <= target) {
+                self.above.pop();
+            }
+            self.below.push(source);
+        } else if target < source {
+            while self.below.last().is_some_and(|&p| p >= target) {
+                self.below.pop();
+            }
+            self.above.push(source);
+        }
+    }
+
+    /// Number of remembered positions (both sides).
+    pub fn len(&self) -> usize {
+        self.below.len() + self.above.len()
+    }
+
+    /// Whether no position is remembered.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// All remembered positions, OD side then ID side, in no particular order within a side.
+    pub fn positions(&self) -> impl Iterator<Item = f64> + '_ {
+        self.below.iter().chain(self.above.iter()).copied()
+    }
+}
+
+/// The seek-history state machine. Feed it each row's `(time_s, track)` with [`History::step`];
+/// ask about a candidate seek without changing it with [`History::peek`].
+#[derive(Debug, Clone, Default)]
+pub struct History {
+    position: Option<f64>,
+    start_time: f64,
+    last_time: f64,
+    seeks: u64,
+    direction: f64,
+    since_reversal: f64,
+    memory: RestMemory,
+}
+
+impl History {
+    /// A history before the first row.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Current head position (the last target), if any row was seen.
+    pub fn position(&self) -> Option<f64> {
+        self.position
+    }
+
+    /// Direction of the last non-zero move (+1, −1, or 0 before any move).
+    pub fn direction(&self) -> f64 {
+        self.direction
+    }
+
+    /// Number of seeks seen so far.
+    pub fn seeks(&self) -> u64 {
+        self.seeks
+    }
+
+    /// The uncrossed rest positions.
+    pub fn memory(&self) -> &RestMemory {
+        &self.memory
+    }
+
+    /// The features a seek to `target` at `time_s` would have, without changing the history.
+    pub fn peek(&self, time_s: f64, target: f64) -> SeekFeatures {
+        let source = self.position.unwrap_or(target);
+        let seek_length = target - source;
+        let move_dir = sign(seek_length);
+        let direction_change =
+            move_dir != 0.0 && self.direction != 0.0 && move_dir != self.direction;
+        let direction = if move_dir == 0.0 {
+            self.direction
+        } else {
+            move_dir
+        };
+        let since_reversal = if direction_change || self.direction == 0.0 {
+            seek_length.abs()
+        } else {
+            self.since_reversal + seek_length.abs()
+        };
+        let (od, id) = self.memory.nearest_after_move(source, target);
+        let first = self.position.is_none();
+        SeekFeatures {
+            seek_index: self.seeks,
+            time_s,
+            elapsed_s: if first { 0.0 } else { time_s - self.start_time },
+            dwell_s: if first { 0.0 } else { time_s - self.last_time },
+            source,
+            target,
+            seek_length,
+            direction,
+            direction_change,
+            since_reversal,
+            rest_distance_od: od.map(|p| target - p),
+            rest_distance_id: id.map(|p| p - target),
+        }
+    }
+
+    /// Records a seek to `target` at `time_s` and returns its features.
+    pub fn step(&mut self, time_s: f64, target: f64) -> SeekFeatures {
+        let f = self.peek(time_s, target);
+        if self.position.is_none() {
+            self.start_time = time_s;
+        }
+        self.memory.apply_move(f.source, target);
+        self.position = Some(target);
+        self.last_time = time_s;
+        self.seeks += 1;
+        self.direction = f.direction;
+        self.since_reversal = f.since_reversal;
+        f
+    }
+}
+
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SimRng;
+
+    /// Slow, obvious reference for the rest memory: keep every rest position with the time it was
+    /// made, and call it crossed if any later move's closed interval [min, max] covered it.
+    fn reference_nearest(moves: &[(f64, f64)], target: f64) -> (Option<f64>, Option<f64>) {
+        // moves: (source, target) pairs already made, plus the candidate as the last element.
+        let n = moves.len();
+        let mut od: Option<f64> = None;
+        let mut id: Option<f64> = None;
+        // rest position i is the source of move i (made before move i+1...n-1); the candidate
+        // move's source is excluded.
+        for i in 0..n - 1 {
+            let (p, t) = moves[i];
+            if p == t {
+                continue; // no move away: not a separate rest
+            }
+            let crossed = moves[i + 1..].iter().any(|&(a, b)| {
+                let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+                // a move crosses p if p lies in (lo, hi], measured from its source side
+                a != b && p != a && p >= lo && p <= hi
+            });
+            if crossed || p == target {
+                continue;
+            }
+            if p < target {
+                od = Some(od.map_or(p, |q: f64| q.max(p)));
+            } else {
+                id = Some(id.map_or(p, |q: f64| q.min(p)));
+            }
+        }
+        (od.map(|p| target - p), id.map(|p| p - target))
+    }
+
+    #[test]
+    fn rest_memory_matches_full_history_scan_on_random_histories() {
+        for seed in 0..20 {
+            let mut rng = SimRng::new(seed);
+            let mut h = History::new();
+            let mut moves: Vec<(f64, f64)> = Vec::new();
+            let mut pos = 500.0;
+            h.step(0.0, pos);
+            for k in 1..400 {
+                let target = (rng.below(60) as f64) + 470.0;
+                moves.push((pos, target));
+                let f = h.step(k as f64, target);
+                let (od, id) = reference_nearest(&moves, target);
+                assert_eq!(
+                    (f.rest_distance_od, f.rest_distance_id),
+                    (od, id),
+                    "seed {seed} seek {k}"
+                );
+                pos = target;
+            }
+        }
+    }
+
+    #[test]
+    fn table_vi_geometry_only_far_side_rests_survive() {
+        // Start at 1000, rest at p, go far OD (track 0), then approach target 300 inbound: a rest
+        // at 290 is crossed on the way in (the nearest ID-side rest is the start, 700 away); a
+        // rest at 310 is not.
+        for (p, expect_id) in [(290.0, Some(700.0)), (310.0, Some(10.0))] {
+            let mut h = History::new();
+            h.step(0.0, 1000.0);
+            h.step(1.0, p);
+            h.step(2.0, 0.0);
+            let f = h.step(3.0, 300.0);
+            assert_eq!(f.rest_distance_id, expect_id, "p = {p}");
+        }
+    }
+
+    #[test]
+    fn direction_change_and_since_reversal() {
+        let mut h = History::new();
+        let f0 = h.step(0.0, 10.0);
+        assert_eq!(
+            (f0.direction, f0.direction_change, f0.dwell_s),
+            (0.0, false, 0.0)
+        );
+        let f1 = h.step(0.5, 20.0);
+        assert_eq!(
+            (f1.direction, f1.direction_change, f1.since_reversal),
+            (1.0, false, 10.0)
+        );
+        let f2 = h.step(1.0, 25.0);
+        assert_eq!((f2.direction_change, f2.since_reversal), (false, 15.0));
+        let f3 = h.step(1.0, 25.0);
+        assert_eq!(
+            (f3.direction, f3.direction_change, f3.since_reversal),
+            (1.0, false, 15.0)
+        );
+        let f4 = h.step(2.0, 5.0);
+        assert_eq!(
+            (f4.direction, f4.direction_change, f4.since_reversal),
+            (-1.0, true, 20.0)
+        );
+        assert_eq!((f4.elapsed_s, f4.dwell_s, f4.seek_index), (2.0, 1.0, 4));
+    }
+
+    #[test]
+    fn peek_does_not_change_state() {
+        let mut h = History::new();
+        h.step(0.0, 100.0);
+        h.step(1.0, 200.0);
+        let before = format!("{h:?}");
+        let p = h.peek(2.0, 150.0);
+        assert_eq!(format!("{h:?}"), before);
+        assert_eq!(h.step(2.0, 150.0), p);
+    }
+}

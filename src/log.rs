@@ -1,0 +1,661 @@
+//! The measurement log: the one data format biasctl reads and writes.
+//!
+//! A log is a CSV file with a header row and one row per seek, in the order the seeks were made:
+//!
+//! | column   | unit   | meaning |
+//! |----------|--------|---------|
+//! | `time_s` | s      | time of the seek, non-decreasing |
+//! | `track`  | tracks | target of the seek (0 = outer diameter; a positive seek moves inbound) |
+//! | `bias`   | counts | measured bias at the target; an empty cell means "moved, not measured" |
+//! | any other| any    | a named numeric covariate (for example `temp_c`) |
+//!
+//! The source of each seek is the previous row's track. Lines starting with `#` before the
+//! header are metadata (generator, seed, drive parameters) and are kept in [`LogSchema::metadata`].
+//! The three required columns can be renamed with a [`ColumnMap`] (the CLI's `--time-col`,
+//! `--track-col` and `--bias-col`), so a rig that logs position in metres and force in newtons is
+//! read as it is.
+//!
+//! Reading is streaming ([`LogReader`]) and strict: every bad value is an error that names the
+//! file, line and column; nothing is skipped silently.
+//!
+//! ```
+//! use biasctl::log::{ColumnMap, LogReader};
+//! let text = "# seed 1\ntime_s,track,bias,temp_c\n0.0,100,12.5,40\n0.5,120,,40\n1.0,90,-3.25,41\n";
+//! let mut reader = LogReader::from_reader("example.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+//! assert_eq!(reader.schema().covariates, vec!["temp_c".to_string()]);
+//! let rows: Vec<_> = reader.by_ref().collect::<Result<_, _>>().unwrap();
+//! assert_eq!(rows.len(), 3);
+//! assert_eq!(rows[1].bias, None);
+//! ```
+
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, Read, Write};
+use std::path::Path;
+
+/// Names of the three required columns (defaults `time_s`, `track`, `bias`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ColumnMap {
+    /// Column holding the time of each seek in seconds.
+    pub time: String,
+    /// Column holding the seek target (tracks, or any position unit).
+    pub track: String,
+    /// Column holding the measured bias (counts, or any force/current unit).
+    pub bias: String,
+}
+
+impl Default for ColumnMap {
+    fn default() -> Self {
+        Self {
+            time: "time_s".into(),
+            track: "track".into(),
+            bias: "bias".into(),
+        }
+    }
+}
+
+/// An error reading a measurement log. Every variant names the file; value errors name the line
+/// (1-based, counting metadata lines) and the column.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LogError {
+    /// The file could not be opened or read.
+    #[error("{file}: cannot read: {source}")]
+    Io {
+        /// The log file.
+        file: String,
+        /// The operating-system error.
+        #[source]
+        source: io::Error,
+    },
+    /// The file holds no header row.
+    #[error("{file}: the file is empty (expected a header row such as `time_s,track,bias`)")]
+    Empty {
+        /// The log file.
+        file: String,
+    },
+    /// A required column is not in the header.
+    #[error(
+        "{file}: line {line}: missing required column `{column}` (columns found: {found}); name it with {flag}"
+    )]
+    MissingColumn {
+        /// The log file.
+        file: String,
+        /// Line of the header.
+        line: u64,
+        /// The column that was looked for.
+        column: String,
+        /// The columns the header holds.
+        found: String,
+        /// The flag that renames it.
+        flag: &'static str,
+    },
+    /// Two columns share a name.
+    #[error("{file}: line {line}: column `{column}` appears twice in the header")]
+    DuplicateColumn {
+        /// The log file.
+        file: String,
+        /// Line of the header.
+        line: u64,
+        /// The repeated name.
+        column: String,
+    },
+    /// A cell is not a finite number.
+    #[error("{file}: line {line}, column {column_index} (`{column}`): {problem}: `{value}`")]
+    BadValue {
+        /// The log file.
+        file: String,
+        /// 1-based line number.
+        line: u64,
+        /// 1-based column number.
+        column_index: usize,
+        /// Column name.
+        column: String,
+        /// The cell's text.
+        value: String,
+        /// What is wrong with it.
+        problem: &'static str,
+    },
+    /// Time decreased from one row to the next.
+    #[error(
+        "{file}: line {line}, column {column_index} (`{column}`): time goes backwards ({value} after {previous})"
+    )]
+    TimeBackwards {
+        /// The log file.
+        file: String,
+        /// 1-based line number.
+        line: u64,
+        /// 1-based column number.
+        column_index: usize,
+        /// Column name.
+        column: String,
+        /// Time on the previous row.
+        previous: f64,
+        /// Time on this row.
+        value: f64,
+    },
+    /// A row's shape is wrong (for example a different number of fields than the header).
+    #[error("{file}: line {line}: {message}")]
+    Malformed {
+        /// The log file.
+        file: String,
+        /// 1-based line number.
+        line: u64,
+        /// The CSV parser's description.
+        message: String,
+    },
+    /// The log has rows but none with a measured bias.
+    #[error("{file}: no measured rows: every `{column}` cell is empty")]
+    NoMeasuredRows {
+        /// The log file.
+        file: String,
+        /// The bias column's name.
+        column: String,
+    },
+}
+
+/// What a log's header says: metadata, column names and which column is which.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogSchema {
+    /// The file name used in error messages.
+    pub file: String,
+    /// Metadata lines before the header, without the leading `#` and surrounding space.
+    pub metadata: Vec<String>,
+    /// All column names in file order.
+    pub columns: Vec<String>,
+    /// The column map the log was read with.
+    pub map: ColumnMap,
+    /// Names of the covariate columns (all but the three required), in file order.
+    pub covariates: Vec<String>,
+    time_idx: usize,
+    track_idx: usize,
+    bias_idx: usize,
+    covariate_idx: Vec<usize>,
+}
+
+impl LogSchema {
+    /// Index of covariate `name` in [`Row::covariates`], if the log has it.
+    pub fn covariate_index(&self, name: &str) -> Option<usize> {
+        self.covariates.iter().position(|c| c == name)
+    }
+
+    /// The value of metadata key `key` from a line `key = value` or `key: value`.
+    pub fn metadata_value(&self, key: &str) -> Option<&str> {
+        self.metadata.iter().find_map(|line| {
+            let (k, v) = line.split_once('=').or_else(|| line.split_once(':'))?;
+            (k.trim() == key).then(|| v.trim())
+        })
+    }
+}
+
+/// One seek of the log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    /// 1-based line number in the file (for messages).
+    pub line: u64,
+    /// Time of the seek, s.
+    pub time_s: f64,
+    /// Target track of the seek.
+    pub track: f64,
+    /// Measured bias in counts, `None` when the move was made but not measured.
+    pub bias: Option<f64>,
+    /// Covariate values in the order of [`LogSchema::covariates`].
+    pub covariates: Vec<f64>,
+}
+
+/// A streaming reader of a measurement log: constant memory in the number of rows.
+///
+/// It yields `Result<Row, LogError>`; after the last row it yields one
+/// [`LogError::NoMeasuredRows`] if no row held a bias, then ends.
+pub struct LogReader<R: Read> {
+    schema: LogSchema,
+    csv: csv::Reader<BufReader<R>>,
+    record: csv::StringRecord,
+    line_offset: u64,
+    prev_time: Option<f64>,
+    measured: u64,
+    done: bool,
+}
+
+impl LogReader<File> {
+    /// Opens `path` and reads its metadata and header.
+    pub fn open(path: &Path, map: &ColumnMap) -> Result<Self, LogError> {
+        let file_name = path.display().to_string();
+        let file = File::open(path).map_err(|source| LogError::Io {
+            file: file_name.clone(),
+            source,
+        })?;
+        Self::from_reader(&file_name, file, map)
+    }
+}
+
+impl<R: Read> LogReader<R> {
+    /// Reads metadata and header from any reader; `file` names the source in messages.
+    pub fn from_reader(file: &str, reader: R, map: &ColumnMap) -> Result<Self, LogError> {
+        let mut buf = BufReader::new(reader);
+        let io_err = |source| LogError::Io {
+            file: file.to_string(),
+            source,
+        };
+        let mut metadata = Vec::new();
+        let mut line_no = 0u64;
+        // Metadata: lines starting with '#' (blank lines are allowed) before the header.
+        loop {
+            let bytes = buf.fill_buf().map_err(io_err)?;
+            if bytes.is_empty() {
+                return Err(LogError::Empty { file: file.into() });
+            }
+            if bytes[0] == b'#' || bytes[0] == b'\n' || bytes[0] == b'\r' {
+                let mut line = String::new();
+                buf.read_line(&mut line).map_err(io_err)?;
+                line_no += 1;
+                let text = line.trim_end_matches(['\n', '\r']);
+                if let Some(rest) = text.strip_prefix('#') {
+                    metadata.push(rest.trim().to_string());
+                }
+            } else {
+                break;
+            }
+        }
+        let mut csv = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .trim(csv::Trim::All)
+            .from_reader(buf);
+        let header_line = line_no + 1;
+        let headers = csv
+            .headers()
+            .map_err(|e| malformed(file, header_line, &e))?
+            .clone();
+        if headers.is_empty() || headers.iter().all(str::is_empty) {
+            return Err(LogError::Empty { file: file.into() });
+        }
+        let columns: Vec<String> = headers.iter().map(str::to_string).collect();
+        for (i, c) in columns.iter().enumerate() {
+            if columns[..i].contains(c) {
+                return Err(LogError::DuplicateColumn {
+                    file: file.into(),
+                    line: header_line,
+                    column: c.clone(),
+                });
+            }
+        }
+        let find = |name: &str, flag: &'static str| {
+            columns
+                .iter()
+                .position(|c| c == name)
+                .ok_or_else(|| LogError::MissingColumn {
+                    file: file.into(),
+                    line: header_line,
+                    column: name.into(),
+                    found: columns.join(", "),
+                    flag,
+                })
+        };
+        let time_idx = find(&map.time, "--time-col")?;
+        let track_idx = find(&map.track, "--track-col")?;
+        let bias_idx = find(&map.bias, "--bias-col")?;
+        let covariate_idx: Vec<usize> = (0..columns.len())
+            .filter(|i| ![time_idx, track_idx, bias_idx].contains(i))
+            .collect();
+        let covariates = covariate_idx.iter().map(|&i| columns[i].clone()).collect();
+        Ok(Self {
+            schema: LogSchema {
+                file: file.into(),
+                metadata,
+                columns,
+                map: map.clone(),
+                covariates,
+                time_idx,
+                track_idx,
+                bias_idx,
+                covariate_idx,
+            },
+            csv,
+            record: csv::StringRecord::new(),
+            line_offset: line_no,
+            prev_time: None,
+            measured: 0,
+            done: false,
+        })
+    }
+
+    /// The log's metadata and columns.
+    pub fn schema(&self) -> &LogSchema {
+        &self.schema
+    }
+
+    /// Reads the next row into `row` (reusing its allocation). Returns `Ok(false)` at the end of
+    /// the file; errors with [`LogError::NoMeasuredRows`] at the end if no row was measured.
+    pub fn read_into(&mut self, row: &mut Row) -> Result<bool, LogError> {
+        let file = &self.schema.file;
+        let more = self.csv.read_record(&mut self.record).map_err(|e| {
+            let line = e
+                .position()
+                .map(|p| p.line() + self.line_offset)
+                .unwrap_or(0);
+            malformed(file, line, &e)
+        })?;
+        if !more {
+            if self.measured == 0 {
+                return Err(LogError::NoMeasuredRows {
+                    file: file.clone(),
+                    column: self.schema.map.bias.clone(),
+                });
+            }
+            return Ok(false);
+        }
+        let line = self
+            .record
+            .position()
+            .map(|p| p.line() + self.line_offset)
+            .unwrap_or(0);
+        let s = &self.schema;
+        let cell = |idx: usize| self.record.get(idx).unwrap_or("");
+        let number = |idx: usize| -> Result<Option<f64>, LogError> {
+            let text = cell(idx);
+            if text.is_empty() {
+                return Ok(None);
+            }
+            let bad = |problem| LogError::BadValue {
+                file: file.clone(),
+                line,
+                column_index: idx + 1,
+                column: s.columns[idx].clone(),
+                value: text.to_string(),
+                problem,
+            };
+            let v: f64 = text.parse().map_err(|_| bad("not a number"))?;
+            if v.is_finite() {
+                Ok(Some(v))
+            } else {
+                Err(bad("not a finite number"))
+            }
+        };
+        let required = |idx: usize| -> Result<f64, LogError> {
+            number(idx)?.ok_or_else(|| LogError::BadValue {
+                file: file.clone(),
+                line,
+                column_index: idx + 1,
+                column: s.columns[idx].clone(),
+                value: String::new(),
+                problem: "empty cell in a required column",
+            })
+        };
+        let time_s = required(s.time_idx)?;
+        if let Some(prev) = self.prev_time
+            && time_s < prev
+        {
+            return Err(LogError::TimeBackwards {
+                file: file.clone(),
+                line,
+                column_index: s.time_idx + 1,
+                column: s.columns[s.time_idx].clone(),
+                previous: prev,
+                value: time_s,
+            });
+        }
+        let track = required(s.track_idx)?;
+        let bias = number(s.bias_idx)?;
+        row.covariates.clear();
+        for &idx in &s.covariate_idx {
+            row.covariates.push(required(idx)?);
+        }
+        row.line = line;
+        row.time_s = time_s;
+        row.track = track;
+        row.bias = bias;
+        self.prev_time = Some(time_s);
+        if bias.is_some() {
+            self.measured += 1;
+        }
+        Ok(true)
+    }
+}
+
+impl<R: Read> Iterator for LogReader<R> {
+    type Item = Result<Row, LogError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let mut row = Row {
+            line: 0,
+            time_s: 0.0,
+            track: 0.0,
+            bias: None,
+            covariates: Vec::with_capacity(self.schema.covariates.len()),
+        };
+        match self.read_into(&mut row) {
+            Ok(true) => Some(Ok(row)),
+            Ok(false) => {
+                self.done = true;
+                None
+            }
+            Err(e) => {
+                self.done = true;
+                Some(Err(e))
+            }
+        }
+    }
+}
+
+fn malformed(file: &str, line: u64, e: &csv::Error) -> LogError {
+    let message = match e.kind() {
+        csv::ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => format!("{len} fields, but the header has {expected_len}"),
+        _ => e.to_string(),
+    };
+    LogError::Malformed {
+        file: file.into(),
+        line,
+        message,
+    }
+}
+
+/// A whole log in memory: what the fitting and diagnosis commands work on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Log {
+    /// Metadata and columns.
+    pub schema: LogSchema,
+    /// All rows in file order.
+    pub rows: Vec<Row>,
+}
+
+impl Log {
+    /// Reads a whole log file.
+    pub fn read(path: &Path, map: &ColumnMap) -> Result<Self, LogError> {
+        let mut reader = LogReader::open(path, map)?;
+        let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            schema: reader.schema,
+            rows,
+        })
+    }
+
+    /// Reads a whole log from a reader; `file` names it in messages.
+    pub fn from_reader<R: Read>(file: &str, reader: R, map: &ColumnMap) -> Result<Self, LogError> {
+        let mut reader = LogReader::from_reader(file, reader, map)?;
+        let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            schema: reader.schema,
+            rows,
+        })
+    }
+
+    /// Number of rows with a measured bias.
+    pub fn measured_count(&self) -> usize {
+        self.rows.iter().filter(|r| r.bias.is_some()).count()
+    }
+}
+
+/// Writes a log: metadata lines, the header, then rows. Numbers are written with fixed decimals
+/// (time 6, track as given with up to 6, bias 4, covariates 6) so output is byte-identical for
+/// identical values.
+pub struct LogWriter<W: Write> {
+    out: W,
+    n_covariates: usize,
+}
+
+impl<W: Write> LogWriter<W> {
+    /// Writes `metadata` (each line prefixed with `# `) and the header `time_s,track,bias,<covariates>`.
+    pub fn new(mut out: W, metadata: &[String], covariates: &[String]) -> io::Result<Self> {
+        for m in metadata {
+            writeln!(out, "# {m}")?;
+        }
+        write!(out, "time_s,track,bias")?;
+        for c in covariates {
+            write!(out, ",{c}")?;
+        }
+        writeln!(out)?;
+        Ok(Self {
+            out,
+            n_covariates: covariates.len(),
+        })
+    }
+
+    /// Writes one row. `covariates` must have as many values as the header named.
+    pub fn write_row(
+        &mut self,
+        time_s: f64,
+        track: f64,
+        bias: Option<f64>,
+        covariates: &[f64],
+    ) -> io::Result<()> {
+        debug_assert_eq!(covariates.len(), self.n_covariates);
+        write!(
+            self.out,
+            "{},{}",
+            fmt_fixed(time_s, 6),
+            fmt_trimmed(track, 6)
+        )?;
+        match bias {
+            Some(b) => write!(self.out, ",{}", fmt_fixed(b, 4))?,
+            None => write!(self.out, ",")?,
+        }
+        for &c in covariates {
+            write!(self.out, ",{}", fmt_trimmed(c, 6))?;
+        }
+        writeln!(self.out)
+    }
+
+    /// Returns the underlying writer.
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+}
+
+/// `x` with exactly `decimals` decimals; negative zero is written as zero.
+pub fn fmt_fixed(x: f64, decimals: usize) -> String {
+    let s = format!("{:.*}", decimals, x);
+    if s.starts_with('-') && s[1..].bytes().all(|b| b == b'0' || b == b'.') {
+        s[1..].to_string()
+    } else {
+        s
+    }
+}
+
+/// `x` with at most `decimals` decimals and trailing zeros removed (`120`, `0.25`).
+pub fn fmt_trimmed(x: f64, decimals: usize) -> String {
+    let s = fmt_fixed(x, decimals);
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(text: &str) -> Result<Log, LogError> {
+        Log::from_reader("t.csv", text.as_bytes(), &ColumnMap::default())
+    }
+
+    #[test]
+    fn reads_metadata_covariates_and_unmeasured_rows() {
+        let log =
+            read("# generator = biasctl\n# seed: 7\ntime_s,track,bias,temp_c\n0,1,2,3\n1,2,,4\n")
+                .unwrap();
+        assert_eq!(log.schema.metadata_value("seed"), Some("7"));
+        assert_eq!(log.schema.metadata_value("generator"), Some("biasctl"));
+        assert_eq!(log.rows.len(), 2);
+        assert_eq!(log.rows[0].line, 4);
+        assert_eq!(log.rows[1].line, 5);
+        assert_eq!(log.rows[1].bias, None);
+        assert_eq!(log.rows[1].covariates, vec![4.0]);
+        assert_eq!(log.measured_count(), 1);
+    }
+
+    #[test]
+    fn column_map_renames_required_columns() {
+        let map = ColumnMap {
+            time: "t".into(),
+            track: "position_m".into(),
+            bias: "force_N".into(),
+        };
+        let log = Log::from_reader(
+            "r.csv",
+            "force_N,t,position_m,v\n1.5,0,0.001,2\n".as_bytes(),
+            &map,
+        )
+        .unwrap();
+        assert_eq!(log.rows[0].track, 0.001);
+        assert_eq!(log.rows[0].bias, Some(1.5));
+        assert_eq!(log.schema.covariates, vec!["v".to_string()]);
+    }
+
+    #[test]
+    fn every_bad_input_names_line_and_column() {
+        let cases: &[(&str, &str)] = &[
+            ("", "empty"),
+            ("# only metadata\n", "empty"),
+            ("time_s,track\n0,1\n", "missing required column `bias`"),
+            (
+                "time_s,track,bias\n0,1,x\n",
+                "line 2, column 3 (`bias`): not a number: `x`",
+            ),
+            (
+                "time_s,track,bias\n0,NaN,1\n",
+                "line 2, column 2 (`track`): not a finite number",
+            ),
+            ("time_s,track,bias\n0,inf,1\n", "not a finite number"),
+            (
+                "time_s,track,bias\n1,1,1\n0.5,2,1\n",
+                "line 3, column 1 (`time_s`): time goes backwards",
+            ),
+            ("time_s,track,bias\n0,1,\n1,2,\n", "no measured rows"),
+            ("time_s,track,bias\n", "no measured rows"),
+            ("time_s,track,bias\n0,1,1,5\n", "line 2: 4 fields"),
+            (
+                "time_s,track,bias\n0,,1\n",
+                "line 2, column 2 (`track`): empty cell",
+            ),
+            ("time_s,track,bias,track\n0,1,1,1\n", "appears twice"),
+        ];
+        for (text, want) in cases {
+            let err = read(text).expect_err(text).to_string();
+            assert!(
+                err.contains(want),
+                "input {text:?}: got `{err}`, want `{want}`"
+            );
+            assert!(err.starts_with("t.csv"), "{err}");
+        }
+    }
+
+    #[test]
+    fn writer_output_reads_back() {
+        let mut buf = Vec::new();
+        let mut w = LogWriter::new(&mut buf, &["seed = 3".into()], &["temp_c".into()]).unwrap();
+        w.write_row(0.0, 100.0, Some(-0.0), &[25.5]).unwrap();
+        w.write_row(0.5, 101.25, None, &[25.0]).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        assert_eq!(
+            text,
+            "# seed = 3\ntime_s,track,bias,temp_c\n0.000000,100,0.0000,25.5\n0.500000,101.25,,25\n"
+        );
+        let log = read(&text).unwrap();
+        assert_eq!(log.rows[1].track, 101.25);
+    }
+}
