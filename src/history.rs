@@ -41,7 +41,7 @@ pub struct SeekFeatures {
     pub seek_length: f64,
     /// Direction of the last non-zero move including this one (`direction`): +1 inbound, −1
     /// outbound, 0 if the head has not moved yet.
-    pub direction: f64,
+    pub direction: i8,
     /// Whether this seek reverses the direction of the move into its source (`direction_change`).
     /// False for zero-length seeks and for the first move.
     pub direction_change: bool,
@@ -64,9 +64,9 @@ impl SeekFeatures {
     /// Distance to the nearest uncrossed rest position ahead of the approach, i.e. on the side
     /// the head was moving towards (ID side for an inbound seek), if any.
     pub fn rest_distance_ahead(&self) -> Option<f64> {
-        if self.direction > 0.0 {
+        if self.direction > 0 {
             self.rest_distance_id
-        } else if self.direction < 0.0 {
+        } else if self.direction < 0 {
             self.rest_distance_od
         } else {
             None
@@ -146,7 +146,7 @@ pub struct History {
     start_time: f64,
     last_time: f64,
     seeks: u64,
-    direction: f64,
+    direction: i8,
     since_reversal: f64,
     memory: RestMemory,
 }
@@ -163,7 +163,7 @@ impl History {
     }
 
     /// Direction of the last non-zero move (+1, −1, or 0 before any move).
-    pub fn direction(&self) -> f64 {
+    pub fn direction(&self) -> i8 {
         self.direction
     }
 
@@ -182,14 +182,13 @@ impl History {
         let source = self.position.unwrap_or(target);
         let seek_length = target - source;
         let move_dir = sign(seek_length);
-        let direction_change =
-            move_dir != 0.0 && self.direction != 0.0 && move_dir != self.direction;
-        let direction = if move_dir == 0.0 {
+        let direction_change = move_dir != 0 && self.direction != 0 && move_dir != self.direction;
+        let direction = if move_dir == 0 {
             self.direction
         } else {
             move_dir
         };
-        let since_reversal = if direction_change || self.direction == 0.0 {
+        let since_reversal = if direction_change || self.direction == 0 {
             seek_length.abs()
         } else {
             self.since_reversal + seek_length.abs()
@@ -228,17 +227,19 @@ impl History {
     }
 }
 
-fn sign(x: f64) -> f64 {
+/// Sign of a seek length as a direction: +1 inbound, −1 outbound, 0 for no move.
+pub fn sign(x: f64) -> i8 {
     if x > 0.0 {
-        1.0
+        1
     } else if x < 0.0 {
-        -1.0
+        -1
     } else {
-        0.0
+        0
     }
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // positions are exact integers here; equality is meant
 mod tests {
     use super::*;
     use crate::rng::SimRng;
@@ -318,24 +319,24 @@ mod tests {
         let f0 = h.step(0.0, 10.0);
         assert_eq!(
             (f0.direction, f0.direction_change, f0.dwell_s),
-            (0.0, false, 0.0)
+            (0, false, 0.0)
         );
         let f1 = h.step(0.5, 20.0);
         assert_eq!(
             (f1.direction, f1.direction_change, f1.since_reversal),
-            (1.0, false, 10.0)
+            (1, false, 10.0)
         );
         let f2 = h.step(1.0, 25.0);
         assert_eq!((f2.direction_change, f2.since_reversal), (false, 15.0));
         let f3 = h.step(1.0, 25.0);
         assert_eq!(
             (f3.direction, f3.direction_change, f3.since_reversal),
-            (1.0, false, 15.0)
+            (1, false, 15.0)
         );
         let f4 = h.step(2.0, 5.0);
         assert_eq!(
             (f4.direction, f4.direction_change, f4.since_reversal),
-            (-1.0, true, 20.0)
+            (-1, true, 20.0)
         );
         assert_eq!((f4.elapsed_s, f4.dwell_s, f4.seek_index), (2.0, 1.0, 4));
     }
