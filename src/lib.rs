@@ -22,6 +22,7 @@
 //! - [`history`]: the seek-history state machine: direction, reversals, uncrossed rest positions.
 //! - [`rng`]: the seeded, portable random generator every simulation uses.
 //! - [`output`]: atomic file output.
+//! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
@@ -29,3 +30,4 @@ pub mod history;
 pub mod log;
 pub mod output;
 pub mod rng;
+pub mod stats;
