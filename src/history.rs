@@ -74,6 +74,92 @@ impl SeekFeatures {
     }
 }
 
+/// The built-in candidate features of a seek's history, by the names the CLI and JSON use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Feature {
+    /// `position`: the target track.
+    Position,
+    /// `seek_length`: signed seek length (positive inbound), tracks.
+    SeekLength,
+    /// `seek_abs`: absolute seek length, tracks.
+    SeekAbs,
+    /// `direction`: +1 inbound, −1 outbound, 0 before any move.
+    Direction,
+    /// `direction_change`: 1 if the seek reverses the move into its source, else 0.
+    DirectionChange,
+    /// `since_reversal`: tracks travelled since the last direction change.
+    SinceReversal,
+    /// `rest_distance_od`: distance to the nearest uncrossed rest position on the OD side.
+    RestDistanceOd,
+    /// `rest_distance_id`: distance to the nearest uncrossed rest position on the ID side.
+    RestDistanceId,
+    /// `dwell_s`: time since the previous row, s.
+    DwellS,
+    /// `elapsed_s`: time since the first row, s.
+    ElapsedS,
+    /// `seek_index`: 0-based index of the seek.
+    SeekIndex,
+}
+
+impl Feature {
+    /// Every built-in feature, in a fixed order.
+    pub const ALL: [Feature; 11] = [
+        Feature::Position,
+        Feature::SeekLength,
+        Feature::SeekAbs,
+        Feature::Direction,
+        Feature::DirectionChange,
+        Feature::SinceReversal,
+        Feature::RestDistanceOd,
+        Feature::RestDistanceId,
+        Feature::DwellS,
+        Feature::ElapsedS,
+        Feature::SeekIndex,
+    ];
+
+    /// The feature's name (`seek_length`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            Feature::Position => "position",
+            Feature::SeekLength => "seek_length",
+            Feature::SeekAbs => "seek_abs",
+            Feature::Direction => "direction",
+            Feature::DirectionChange => "direction_change",
+            Feature::SinceReversal => "since_reversal",
+            Feature::RestDistanceOd => "rest_distance_od",
+            Feature::RestDistanceId => "rest_distance_id",
+            Feature::DwellS => "dwell_s",
+            Feature::ElapsedS => "elapsed_s",
+            Feature::SeekIndex => "seek_index",
+        }
+    }
+
+    /// The feature called `name`, if it is a built-in one.
+    pub fn from_name(name: &str) -> Option<Feature> {
+        Feature::ALL.into_iter().find(|f| f.name() == name)
+    }
+}
+
+impl SeekFeatures {
+    /// The value of feature `f` for this seek; `None` where it is undefined (a rest distance with
+    /// no uncrossed rest position on that side).
+    pub fn value(&self, f: Feature) -> Option<f64> {
+        match f {
+            Feature::Position => Some(self.target),
+            Feature::SeekLength => Some(self.seek_length),
+            Feature::SeekAbs => Some(self.seek_length.abs()),
+            Feature::Direction => Some(f64::from(self.direction)),
+            Feature::DirectionChange => Some(f64::from(u8::from(self.direction_change))),
+            Feature::SinceReversal => Some(self.since_reversal),
+            Feature::RestDistanceOd => self.rest_distance_od,
+            Feature::RestDistanceId => self.rest_distance_id,
+            Feature::DwellS => Some(self.dwell_s),
+            Feature::ElapsedS => Some(self.elapsed_s),
+            Feature::SeekIndex => Some(self.seek_index as f64),
+        }
+    }
+}
+
 /// The uncrossed rest positions, kept in two stacks around the head (amortised O(1) per seek).
 #[derive(Debug, Clone, Default)]
 pub struct RestMemory {
@@ -339,6 +425,14 @@ mod tests {
             (-1, true, 20.0)
         );
         assert_eq!((f4.elapsed_s, f4.dwell_s, f4.seek_index), (2.0, 1.0, 4));
+    }
+
+    #[test]
+    fn feature_names_round_trip() {
+        for f in Feature::ALL {
+            assert_eq!(Feature::from_name(f.name()), Some(f));
+        }
+        assert_eq!(Feature::from_name("nope"), None);
     }
 
     #[test]
