@@ -1,0 +1,74 @@
+//! Helpers shared by the integration tests: run the `biasctl` binary and inspect its output.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The result of one `biasctl` run.
+pub struct Run {
+    pub code: i32,
+    pub stdout: String,
+    pub stderr: String,
+}
+
+/// Runs `biasctl` with `args` and captures its output.
+pub fn biasctl(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_biasctl"))
+        .args(args)
+        .output()
+        .expect("run biasctl");
+    Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+/// Runs `biasctl` and asserts it succeeded; returns stdout.
+pub fn ok(args: &[&str]) -> String {
+    let r = biasctl(args);
+    assert_eq!(r.code, 0, "biasctl {args:?} failed:\n{}", r.stderr);
+    r.stdout
+}
+
+/// Runs `biasctl`, asserts exit code 2 and that stderr contains every needle; returns stderr.
+pub fn fails_with(args: &[&str], needles: &[&str]) -> String {
+    let r = biasctl(args);
+    assert_eq!(
+        r.code, 2,
+        "biasctl {args:?}: expected exit 2, got {}\n{}",
+        r.code, r.stderr
+    );
+    for n in needles {
+        assert!(
+            r.stderr.contains(n),
+            "biasctl {args:?}: stderr lacks `{n}`:\n{}",
+            r.stderr
+        );
+    }
+    r.stderr
+}
+
+/// Writes `text` to `dir/name` and returns the path as a String.
+pub fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).expect("write fixture");
+    p.display().to_string()
+}
+
+/// Path of a file under the repository's `data/` folder.
+pub fn data(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("data")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+/// Path of a file under the shared real-data folder (`../shared/data/real/`), if present.
+pub fn real_data(rel: &str) -> Option<String> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/real")
+        .join(rel);
+    p.exists().then(|| p.display().to_string())
+}

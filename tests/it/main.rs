@@ -1,0 +1,5 @@
+//! The one integration-test binary: CLI contracts, paper reproduction, bad inputs, real data.
+//! One module per area; helpers for running the binary live in `common`.
+
+mod check;
+mod common;
