@@ -425,7 +425,11 @@ pub fn ladder(steps: &[LadderStep]) -> String {
                 .map(|(i, s)| (i as f64, s.term.clone()))
                 .collect(),
         )
-        .series(Series::new("", SeriesData::Bars { edges, heights }).color(0));
+        .series(
+            Series::new("", SeriesData::Bars { edges, heights })
+                .color(0)
+                .bar_width(0.6),
+        );
     if n > 0 {
         c = c.x_range(AxisRange::Fixed {
             lo: -0.5,

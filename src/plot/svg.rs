@@ -123,6 +123,8 @@ pub struct Series {
     pub faint: bool,
     /// Also draw a marker at every point of a line or step series.
     pub markers: bool,
+    /// Width of each bar as a fraction of its bin (bars series), in (0, 1]; 1 fills the bin.
+    pub bar_width: f64,
 }
 
 impl Series {
@@ -135,6 +137,7 @@ impl Series {
             dashed: false,
             faint: false,
             markers: false,
+            bar_width: 1.0,
         }
     }
 
@@ -153,6 +156,12 @@ impl Series {
     /// Draws the series in faint grey.
     pub fn faint(mut self) -> Self {
         self.faint = true;
+        self
+    }
+
+    /// Narrows bars to `fraction` of their bin (bars series); values outside (0, 1) fill the bin.
+    pub fn bar_width(mut self, fraction: f64) -> Self {
+        self.bar_width = fraction;
         self
     }
 
@@ -561,10 +570,12 @@ impl Chart {
             title_size + 16.0
         };
         // Legend: items in rows below the x-axis label, never over the data.
+        // A lone series needs no legend (the title and axis labels say what it is).
+        let named = self.series.iter().filter(|s| !s.name.is_empty()).count();
         let mut legend = Vec::new();
         let (mut lx, mut row) = (0.0f64, 0usize);
         for (i, s) in self.series.iter().enumerate() {
-            if s.name.is_empty() {
+            if s.name.is_empty() || named < 2 {
                 continue;
             }
             let w = 28.0 + text_width(&s.name, FONT) + 16.0;
@@ -650,8 +661,9 @@ impl Chart {
         for i in 0..self.series.len() {
             self.render_series(lay, i, out);
         }
+        let mut placed = Vec::new();
         for r in &self.references {
-            self.render_reference_line(lay, r, out);
+            self.render_reference_line(lay, r, &mut placed, out);
         }
         for a in &self.annotations {
             if a.x.is_finite() && a.y.is_finite() && lay.inside(a.x, a.y) {
@@ -839,7 +851,13 @@ impl Chart {
                         continue;
                     };
                     count += 1;
-                    let (a, b) = (a.max(xa), b.min(xb));
+                    let f = if s.bar_width > 0.0 && s.bar_width < 1.0 {
+                        s.bar_width
+                    } else {
+                        1.0
+                    };
+                    let (mid, half) = ((a + b) / 2.0, (b - a) * f / 2.0);
+                    let (a, b) = ((mid - half).max(xa), (mid + half).min(xb));
                     if a >= b {
                         continue;
                     }
@@ -918,8 +936,8 @@ impl Chart {
         if !label.is_empty() {
             let _ = write!(
                 out,
-                r##"<text x="{}" y="{}" font-size="11" fill="#33617d">{}</text>"##,
-                n(lay.left + 4.0),
+                r##"<text x="{}" y="{}" text-anchor="end" font-size="11" fill="#33617d">{}</text>"##,
+                n(lay.right - 4.0),
                 n(y0 - 3.0),
                 esc(label)
             );
@@ -927,7 +945,15 @@ impl Chart {
         out.push_str("</g>\n");
     }
 
-    fn render_reference_line(&self, lay: &Layout, r: &Reference, out: &mut String) {
+    /// Draws a reference line; its label is moved off labels already `placed` (boxes
+    /// `(x0, x1, baseline y)`) so that close lines keep readable labels.
+    fn render_reference_line(
+        &self,
+        lay: &Layout,
+        r: &Reference,
+        placed: &mut Vec<(f64, f64, f64)>,
+        out: &mut String,
+    ) {
         if lay.points == 0 {
             return;
         }
@@ -969,6 +995,35 @@ impl Chart {
             n(y2)
         );
         if !label.is_empty() {
+            let w = text_width(label, 11.0);
+            let (x0, x1) = if anchor == "end" {
+                (tx - w, tx)
+            } else {
+                (tx, tx + w)
+            };
+            let horizontal = anchor == "end";
+            let free = |y: f64, placed: &[(f64, f64, f64)]| {
+                placed
+                    .iter()
+                    .all(|&(a, b, py)| b < x0 || a > x1 || (py - y).abs() >= 12.0)
+            };
+            // Horizontal lines: above, below, then further out; vertical lines: step down.
+            let ty = (0..12)
+                .map(|i| {
+                    let k = f64::from(i);
+                    if horizontal {
+                        if i % 2 == 0 {
+                            ty - 6.0 * k
+                        } else {
+                            ty + 16.0 + 6.0 * (k - 1.0)
+                        }
+                    } else {
+                        ty + 12.0 * k
+                    }
+                })
+                .find(|&y| free(y, placed))
+                .unwrap_or(ty);
+            placed.push((x0, x1, ty));
             let _ = write!(
                 out,
                 r##"<text x="{}" y="{}" text-anchor="{anchor}" font-size="11" fill="#333333">{}</text>"##,
@@ -1009,6 +1064,14 @@ impl Chart {
                             ""
                         }
                     );
+                    if s.markers {
+                        let _ = write!(
+                            out,
+                            r#"<circle cx="{}" cy="{}" r="3" fill="{color}"/>"#,
+                            n(x + 11.0),
+                            n(y - 4.0)
+                        );
+                    }
                 }
                 SeriesData::Bars { .. } => {
                     let _ = write!(
