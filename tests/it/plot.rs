@@ -40,6 +40,14 @@ fn texts_of_class(doc: &Document, class: &str) -> Vec<String> {
         .collect()
 }
 
+/// The `d` attribute of the first path inside `g`.
+fn path_d<'a>(g: &Node<'a, 'a>) -> &'a str {
+    g.descendants()
+        .find(|n| n.has_tag_name("path"))
+        .and_then(|n| n.attribute("d"))
+        .expect("a path")
+}
+
 fn f(n: &Node, attr: &str) -> f64 {
     n.attribute(attr).unwrap().parse().unwrap()
 }
@@ -120,13 +128,7 @@ fn series_groups_hold_their_marks() {
         .collect();
     assert!(radii[1] > radii[0] && radii[0] > radii[2], "{radii:?}");
     // A step through 3 points has 2 horizontal and 2 vertical moves.
-    let d = s[4]
-        .1
-        .descendants()
-        .find(|n| n.has_tag_name("path"))
-        .unwrap()
-        .attribute("d")
-        .unwrap();
+    let d = path_d(&s[4].1);
     assert_eq!(d.matches('L').count(), 4, "{d}");
     assert_eq!(texts_of_class(&doc, "xlabel"), ["x (tracks)"]);
     assert_eq!(texts_of_class(&doc, "ylabel"), ["y (counts)"]);
@@ -287,13 +289,7 @@ fn non_finite_values_are_skipped_and_counted() {
     assert_eq!(count(&s[2].1, "rect", "bar"), 1);
     // The line has a gap at the non-finite point: one segment, not two.
     assert_eq!(s[1].1.attribute("data-points"), Some("3"));
-    let d = s[1]
-        .1
-        .descendants()
-        .find(|n| n.has_tag_name("path"))
-        .unwrap()
-        .attribute("d")
-        .unwrap();
+    let d = path_d(&s[1].1);
     assert_eq!(
         (d.matches('M').count(), d.matches('L').count()),
         (1, 1),
