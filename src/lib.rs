@@ -23,11 +23,15 @@
 //! - [`rng`]: the seeded, portable random generator every simulation uses.
 //! - [`output`]: atomic file output.
 //! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
+//! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
+//! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
 pub mod history;
 pub mod log;
 pub mod output;
+pub mod plot;
+pub mod report;
 pub mod rng;
 pub mod stats;

@@ -1,0 +1,921 @@
+//! Plots and the HTML report: every SVG parses as XML, holds the expected series and points, puts
+//! known data where the axis transform says, survives empty and non-finite data; the report is
+//! well-formed and self-contained.
+//!
+//! Set `BIASCTL_PLOT_DIR` to a directory to also write every figure there for a visual check.
+
+use biasctl::log::{ColumnMap, Log};
+use biasctl::plot::figures::*;
+use biasctl::plot::from_log;
+use biasctl::plot::svg::{AxisRange, Chart, ErrorPoint, Panel, Series, SeriesData};
+use biasctl::report::{Cell, Report, Table};
+use roxmltree::{Document, Node};
+
+fn parse(svg: &str) -> Document<'_> {
+    Document::parse(svg).unwrap_or_else(|e| panic!("SVG does not parse: {e}\n{svg}"))
+}
+
+fn has_class(n: &Node, class: &str) -> bool {
+    n.attribute("class") == Some(class)
+}
+
+/// `(data-name, node)` of every series group, in document order.
+fn series<'a>(doc: &'a Document<'a>) -> Vec<(String, Node<'a, 'a>)> {
+    doc.descendants()
+        .filter(|n| n.has_tag_name("g") && has_class(n, "series"))
+        .map(|n| (n.attribute("data-name").unwrap_or("").to_string(), n))
+        .collect()
+}
+
+fn count(n: &Node, tag: &str, class: &str) -> usize {
+    n.descendants()
+        .filter(|c| c.has_tag_name(tag) && has_class(c, class))
+        .count()
+}
+
+fn texts_of_class(doc: &Document, class: &str) -> Vec<String> {
+    doc.descendants()
+        .filter(|n| n.has_tag_name("text") && has_class(n, class))
+        .map(|n| n.text().unwrap_or("").to_string())
+        .collect()
+}
+
+/// The `d` attribute of the first path inside `g`.
+fn path_d<'a>(g: &Node<'a, 'a>) -> &'a str {
+    g.descendants()
+        .find(|n| n.has_tag_name("path"))
+        .and_then(|n| n.attribute("d"))
+        .expect("a path")
+}
+
+fn f(n: &Node, attr: &str) -> f64 {
+    n.attribute(attr).unwrap().parse().unwrap()
+}
+
+/// No token of the text is a non-finite number.
+fn assert_finite_text(s: &str) {
+    for tok in s.split(|c: char| !(c.is_ascii_alphanumeric())) {
+        let t = tok.to_ascii_lowercase();
+        assert!(
+            t != "nan" && t != "inf" && t != "infinity",
+            "non-finite number `{tok}` in output"
+        );
+    }
+}
+
+/// Parses, checks for non-finite text, optionally saves the SVG for a visual check.
+fn check(name: &str, svg: &str) {
+    parse(svg);
+    assert_finite_text(svg);
+    if let Ok(dir) = std::env::var("BIASCTL_PLOT_DIR") {
+        std::fs::write(std::path::Path::new(&dir).join(format!("{name}.svg")), svg).unwrap();
+    }
+}
+
+#[test]
+fn series_groups_hold_their_marks() {
+    let svg = Chart::new("kinds")
+        .x_label("x (tracks)")
+        .y_label("y (counts)")
+        .scatter(
+            "dots",
+            &[(0.0, 1.0), (1.0, 2.0), (2.0, 0.5), (3.0, 1.5), (4.0, 1.0)],
+        )
+        .line("curve", &[(0.0, 0.0), (2.0, 2.0), (4.0, 1.0)])
+        .bars("hist", &[0.0, 1.0, 2.0, 3.0, 4.0], &[1.0, 3.0, 2.0, 0.5])
+        .error_bars(
+            "binned",
+            &[
+                ErrorPoint {
+                    x: 0.5,
+                    y: 1.0,
+                    spread: 0.2,
+                    weight: 10.0,
+                },
+                ErrorPoint {
+                    x: 1.5,
+                    y: 1.2,
+                    spread: 0.3,
+                    weight: 40.0,
+                },
+                ErrorPoint {
+                    x: 2.5,
+                    y: 0.8,
+                    spread: 0.1,
+                    weight: 5.0,
+                },
+            ],
+        )
+        .step("stairs", &[(0.0, 0.2), (2.0, 0.4), (4.0, 0.3)])
+        .to_svg();
+    check("kinds", &svg);
+    let doc = parse(&svg);
+    let s = series(&doc);
+    let names: Vec<&str> = s.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["dots", "curve", "hist", "binned", "stairs"]);
+    assert_eq!(count(&s[0].1, "circle", "point"), 5);
+    assert_eq!(count(&s[1].1, "path", "line"), 1);
+    assert_eq!(count(&s[2].1, "rect", "bar"), 4);
+    assert_eq!(count(&s[3].1, "line", "err"), 3);
+    assert_eq!(count(&s[3].1, "circle", "point"), 3);
+    assert_eq!(count(&s[4].1, "path", "line"), 1);
+    // The heaviest bin has the largest marker.
+    let radii: Vec<f64> = s[3]
+        .1
+        .descendants()
+        .filter(|n| n.has_tag_name("circle"))
+        .map(|n| f(&n, "r"))
+        .collect();
+    assert!(radii[1] > radii[0] && radii[0] > radii[2], "{radii:?}");
+    // A step through 3 points has 2 horizontal and 2 vertical moves.
+    let d = path_d(&s[4].1);
+    assert_eq!(d.matches('L').count(), 4, "{d}");
+    assert_eq!(texts_of_class(&doc, "xlabel"), ["x (tracks)"]);
+    assert_eq!(texts_of_class(&doc, "ylabel"), ["y (counts)"]);
+    // Every named series is in the legend, with distinct colours.
+    let legend: Vec<_> = doc
+        .descendants()
+        .filter(|n| has_class(n, "legend-item"))
+        .collect();
+    assert_eq!(legend.len(), 5);
+}
+
+#[test]
+fn known_points_land_where_the_axis_transform_says() {
+    let pts = [(2.0, -1.0), (12.0, 4.0), (7.0, 0.5), (4.0, 3.0)];
+    let chart = Chart::new("known").scatter("p", &pts);
+    let lay = chart.layout();
+    let doc_text = chart.to_svg();
+    let doc = parse(&doc_text);
+    let circles: Vec<Node> = doc
+        .descendants()
+        .filter(|n| has_class(n, "point"))
+        .collect();
+    assert_eq!(circles.len(), pts.len());
+    for (c, &(x, y)) in circles.iter().zip(&pts) {
+        assert!((f(c, "cx") - lay.px(x)).abs() < 0.006, "x {x}");
+        assert!((f(c, "cy") - lay.py(y)).abs() < 0.006, "y {y}");
+    }
+    // Auto ranges: the extreme points lie on the plot-area edges.
+    assert!((f(&circles[0], "cx") - lay.left).abs() < 0.006);
+    assert!((f(&circles[1], "cx") - lay.right).abs() < 0.006);
+    assert!((f(&circles[0], "cy") - lay.bottom).abs() < 0.006);
+    assert!((f(&circles[1], "cy") - lay.top).abs() < 0.006);
+    // The frame is the plot area.
+    let frame = doc.descendants().find(|n| has_class(n, "frame")).unwrap();
+    assert!((f(&frame, "x") - lay.left).abs() < 0.006);
+    assert!((f(&frame, "width") - (lay.right - lay.left)).abs() < 0.006);
+
+    // A fixed range puts its midpoint in the middle of the plot area.
+    let fixed = Chart::new("fixed")
+        .scatter("p", &[(5.0, 2.5), (0.0, 0.0)])
+        .x_range(AxisRange::Fixed { lo: 0.0, hi: 10.0 })
+        .y_range(AxisRange::Fixed { lo: 0.0, hi: 5.0 });
+    let lay = fixed.layout();
+    let svg = fixed.to_svg();
+    let doc = parse(&svg);
+    let c = doc.descendants().find(|n| has_class(n, "point")).unwrap();
+    assert!((f(&c, "cx") - (lay.left + lay.right) / 2.0).abs() < 0.006);
+    assert!((f(&c, "cy") - (lay.top + lay.bottom) / 2.0).abs() < 0.006);
+}
+
+#[test]
+fn ticks_are_nice_and_inside_the_range() {
+    let chart = Chart::new("t").line("l", &[(-3.2, 0.013), (17.9, 0.087)]);
+    let doc_text = chart.to_svg();
+    let doc = parse(&doc_text);
+    let ticks = texts_of_class(&doc, "tick");
+    for want in ["-2", "0", "8", "16", "0.02", "0.08"] {
+        assert!(
+            ticks.iter().any(|t| t == want),
+            "tick {want} missing from {ticks:?}"
+        );
+    }
+    for t in &ticks {
+        assert!(t.len() <= 5, "long tick label {t}");
+    }
+}
+
+#[test]
+fn lines_outside_a_fixed_range_are_clipped_to_the_plot_area() {
+    let chart = Chart::new("clip")
+        .line("l", &[(-10.0, -10.0), (0.5, 0.5), (10.0, 30.0)])
+        .x_range(AxisRange::Fixed { lo: 0.0, hi: 1.0 })
+        .y_range(AxisRange::Fixed { lo: 0.0, hi: 1.0 });
+    let lay = chart.layout();
+    let svg = chart.to_svg();
+    let doc = parse(&svg);
+    let d = doc
+        .descendants()
+        .find(|n| has_class(n, "line"))
+        .unwrap()
+        .attribute("d")
+        .unwrap()
+        .to_string();
+    let nums: Vec<f64> = d
+        .split(['M', 'L', ' '])
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    assert!(nums.len() >= 4);
+    for xy in nums.chunks(2) {
+        assert!(xy[0] >= lay.left - 1e-6 && xy[0] <= lay.right + 1e-6, "{d}");
+        assert!(xy[1] >= lay.top - 1e-6 && xy[1] <= lay.bottom + 1e-6, "{d}");
+    }
+}
+
+#[test]
+fn empty_and_single_point_charts_say_so() {
+    let empty = Chart::new("empty")
+        .x_label("x (s)")
+        .scatter("none", &[])
+        .to_svg();
+    check("empty", &empty);
+    let doc = parse(&empty);
+    assert_eq!(texts_of_class(&doc, "message"), ["no data"]);
+    assert_eq!(series(&doc).len(), 1);
+
+    let one = Chart::new("one").scatter("single", &[(3.0, 3.0)]).to_svg();
+    check("one", &one);
+    let doc = parse(&one);
+    assert_eq!(texts_of_class(&doc, "message"), ["only one point"]);
+    assert_eq!(count(&series(&doc)[0].1, "circle", "point"), 1);
+
+    let zero_at_zero = Chart::new("zero").line("z", &[(0.0, 0.0)]).to_svg();
+    check("zero", &zero_at_zero);
+
+    let two = Chart::new("two")
+        .scatter("pair", &[(0.0, 1.0), (1.0, 2.0)])
+        .to_svg();
+    assert!(texts_of_class(&parse(&two), "message").is_empty());
+
+    let panel = Panel::new("nothing").to_svg();
+    check("empty_panel", &panel);
+    assert_eq!(texts_of_class(&parse(&panel), "message"), ["no data"]);
+}
+
+#[test]
+fn non_finite_values_are_skipped_and_counted() {
+    let chart = Chart::new("non-finite")
+        .scatter(
+            "s",
+            &[
+                (0.0, 1.0),
+                (f64::NAN, 2.0),
+                (2.0, f64::INFINITY),
+                (3.0, 0.5),
+            ],
+        )
+        .line(
+            "l",
+            &[(0.0, 1.0), (0.5, 1.5), (1.0, f64::NEG_INFINITY), (2.0, 2.0)],
+        )
+        .bars("b", &[0.0, 1.0, f64::NAN, 3.0], &[1.0, 2.0, 3.0])
+        .hline(f64::NAN, "bad")
+        .x_range(AxisRange::Fixed {
+            lo: f64::NAN,
+            hi: 1.0,
+        });
+    assert_eq!(chart.non_finite_count(), 6);
+    let svg = chart.to_svg();
+    check("nonfinite", &svg);
+    let doc = parse(&svg);
+    assert_eq!(
+        texts_of_class(&doc, "skipped"),
+        ["6 non-finite values skipped"]
+    );
+    let s = series(&doc);
+    assert_eq!(count(&s[0].1, "circle", "point"), 2);
+    assert_eq!(count(&s[2].1, "rect", "bar"), 1);
+    // The line has a gap at the non-finite point: one segment, not two.
+    assert_eq!(s[1].1.attribute("data-points"), Some("3"));
+    let d = path_d(&s[1].1);
+    assert_eq!(
+        (d.matches('M').count(), d.matches('L').count()),
+        (1, 1),
+        "{d}"
+    );
+
+    // All values non-finite: a "no data" chart.
+    let all_bad = Chart::new("bad")
+        .scatter("s", &[(f64::NAN, f64::NAN)])
+        .to_svg();
+    check("all_bad", &all_bad);
+    assert_eq!(texts_of_class(&parse(&all_bad), "message"), ["no data"]);
+}
+
+#[test]
+fn text_is_escaped() {
+    let svg = Chart::new("a < b & \"c\"")
+        .x_label("x <tracks>")
+        .scatter("in & out", &[(0.0, 0.0), (1.0, 1.0)])
+        .annotate(0.5, 0.5, "<script>")
+        .to_svg();
+    let doc = parse(&svg);
+    assert_eq!(texts_of_class(&doc, "title"), ["a < b & \"c\""]);
+    assert_eq!(series(&doc)[0].0, "in & out");
+    assert!(!svg.contains("<script"));
+}
+
+#[test]
+fn output_is_deterministic() {
+    let a = fig15_settle_bounds(&bounds());
+    let b = fig15_settle_bounds(&bounds());
+    assert_eq!(a, b);
+    assert_eq!(prediction_errors(&models()), prediction_errors(&models()));
+}
+
+// --- realistic inputs for every figure -------------------------------------------------------
+
+fn poly(x: f64) -> f64 {
+    20.0 + 0.01 * x - 1.2e-5 * x * x
+}
+
+/// Deterministic pseudo-noise in [-1, 1].
+fn noise(i: usize) -> f64 {
+    ((i as f64 * 12.9898).sin() * 43_758.545).fract()
+}
+
+fn models() -> Vec<ModelErrors> {
+    let position: Vec<f64> = (0..300).map(|i| 100.0 + (i * 37 % 250) as f64).collect();
+    let bimodal: Vec<f64> = (0..300)
+        .map(|i| if i % 2 == 0 { 18.0 } else { -18.0 } + 6.0 * noise(i) + 0.05 * (position[i] - 225.0))
+        .collect();
+    let gaussian: Vec<f64> = (0..300)
+        .map(|i| 8.0 * (noise(i) + noise(i + 1000)) / 1.2)
+        .collect();
+    vec![
+        ModelErrors {
+            name: "position + direction".into(),
+            position: position.clone(),
+            error: bimodal,
+        },
+        ModelErrors {
+            name: "calibration".into(),
+            position: position.clone(),
+            error: gaussian,
+        },
+        ModelErrors {
+            name: "Dahl".into(),
+            position,
+            error: (0..300).map(|i| 11.0 * noise(i + 7)).collect(),
+        },
+    ]
+}
+
+fn bounds() -> SettleBounds {
+    let n = 40;
+    let mut upper = Vec::new();
+    let mut lower = Vec::new();
+    for k in 0..n {
+        let a = (k as f64 * 0.4).sin() * (-(k as f64) / 15.0).exp() + 0.02;
+        let c = 3.0 * (-(k as f64) / 8.0).exp() * (k as f64 * 0.5).cos();
+        let (l, u) = ((-0.5 - c) / a, (0.5 - c) / a);
+        if a > 0.0 {
+            upper.push(u);
+            lower.push(l);
+        } else {
+            upper.push(l);
+            lower.push(u);
+        }
+    }
+    let mut upper_running = upper.clone();
+    let mut lower_running = lower.clone();
+    for k in (0..n - 1).rev() {
+        upper_running[k] = upper_running[k].min(upper_running[k + 1]);
+        lower_running[k] = lower_running[k].max(lower_running[k + 1]);
+    }
+    SettleBounds {
+        sample_period_ms: 0.1,
+        upper,
+        lower,
+        upper_running,
+        lower_running,
+        choices: vec![
+            ("zero feedforward".into(), 0.0),
+            ("robust optimal".into(), 4.2),
+        ],
+        settle_ms: Some(1.4),
+        unit: "counts".into(),
+    }
+}
+
+fn response(z: f64) -> Vec<f64> {
+    (0..40)
+        .map(|k| {
+            let t = k as f64;
+            15.0 * (-t / 6.0).exp() * (t * 0.35).cos() - z * 0.2 * t * (-t / 7.0).exp()
+        })
+        .collect()
+}
+
+fn all_figures() -> Vec<(&'static str, String, usize)> {
+    let xs: Vec<f64> = (0..=20).map(|i| i as f64 * 50.0).collect();
+    let fig3 = BiasVsPosition {
+        inbound: xs
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| (x, poly(x) + 6.0 + noise(i)))
+            .collect(),
+        outbound: xs
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| (x, poly(x) - 6.0 + noise(i + 50)))
+            .collect(),
+        inbound_fit: xs.iter().map(|&x| (x, poly(x) + 6.0)).collect(),
+        outbound_fit: xs.iter().map(|&x| (x, poly(x) - 6.0)).collect(),
+    };
+    let fig4 = BiasVsTime {
+        track: 500.0,
+        points: (0..30)
+            .map(|i| {
+                (
+                    i as f64 * 0.5,
+                    10.0 - 4.0 * (-(i as f64) / 6.0).exp() + 0.3 * noise(i),
+                )
+            })
+            .collect(),
+        fit: (0..30)
+            .map(|i| (i as f64 * 0.5, 10.0 - 4.0 * (-(i as f64) / 6.0).exp()))
+            .collect(),
+    };
+    let loop_up: Vec<(f64, f64)> = (0..=40)
+        .map(|n| (n as f64, -6.0 + 12.0 * (1.0 - (-(n as f64) / 10.0).exp())))
+        .collect();
+    let fig5 = Sweep {
+        figure: SweepFigure::Fig5SeekLength,
+        series: vec![
+            SweepSeries {
+                name: "inbound steps".into(),
+                points: loop_up.clone(),
+                joined: true,
+            },
+            SweepSeries {
+                name: "outbound steps".into(),
+                points: loop_up.iter().map(|&(n, b)| (n, -b)).collect(),
+                joined: true,
+            },
+        ],
+        levels: vec![
+            ("inbound curve".into(), 6.0),
+            ("outbound curve".into(), -6.0),
+        ],
+    };
+    let offsets: Vec<f64> = (-30..=30).map(|i| i as f64 * 10.0).collect();
+    let fig6 = Sweep {
+        figure: SweepFigure::Fig6SourceOffset,
+        series: vec![SweepSeries {
+            name: "measured".into(),
+            points: offsets
+                .iter()
+                .map(|&o| {
+                    (
+                        o,
+                        if o > 0.0 { -6.0 } else { 6.0 }
+                            * (1.0 + 0.4 * (-(o.abs() - 80.0).powi(2) / 800.0).exp()),
+                    )
+                })
+                .collect(),
+            joined: false,
+        }],
+        levels: vec![("inbound".into(), 6.0), ("outbound".into(), -6.0)],
+    };
+    let fig9 = Sweep {
+        figure: SweepFigure::Fig9RestOffset,
+        series: vec![SweepSeries {
+            name: "approach from OD".into(),
+            points: offsets
+                .iter()
+                .map(|&o| {
+                    (
+                        o,
+                        6.0 - if o > 0.0 {
+                            3.0 * (-o / 40.0).exp()
+                        } else {
+                            0.0
+                        },
+                    )
+                })
+                .collect(),
+            joined: true,
+        }],
+        levels: Vec::new(),
+    };
+    let dahl = DahlLoop {
+        measured: loop_up
+            .iter()
+            .enumerate()
+            .map(|(i, &(x, b))| (x, b + 0.5 * noise(i)))
+            .collect(),
+        predicted: loop_up.clone(),
+    };
+    let diag = vec![
+        FeatureResiduals {
+            feature: "since_reversal".into(),
+            unit: "tracks".into(),
+            raw: (0..200)
+                .map(|i| {
+                    (
+                        (i * 3 % 300) as f64,
+                        4.0 * noise(i) + if (i * 3 % 300) < 100 { 3.0 } else { 0.0 },
+                    )
+                })
+                .collect(),
+            bins: (0..6)
+                .map(|b| ResidualBin {
+                    center: 25.0 + 50.0 * b as f64,
+                    mean: if b < 2 { 3.0 } else { 0.1 },
+                    spread: 0.8,
+                    count: 10 + 15 * b,
+                })
+                .collect(),
+            note: "p < 0.001".into(),
+        },
+        FeatureResiduals {
+            feature: "dwell_s".into(),
+            unit: "s".into(),
+            raw: Vec::new(),
+            bins: (0..5)
+                .map(|b| ResidualBin {
+                    center: 0.5 * b as f64,
+                    mean: 0.2 * noise(b),
+                    spread: 0.5,
+                    count: 30,
+                })
+                .collect(),
+            note: String::new(),
+        },
+    ];
+    let steps = vec![
+        LadderStep {
+            term: "position + direction".into(),
+            error_std: 19.0,
+        },
+        LadderStep {
+            term: "+ seek length".into(),
+            error_std: 11.0,
+        },
+        LadderStep {
+            term: "+ rest memory".into(),
+            error_std: 7.9,
+        },
+    ];
+    let responses = SettleResponses {
+        sample_period_ms: 0.1,
+        delta_um: 0.5,
+        responses: vec![
+            Response {
+                name: "zero feedforward".into(),
+                error_um: response(0.0),
+                settle_ms: Some(2.6),
+            },
+            Response {
+                name: "robust optimal".into(),
+                error_um: response(4.2),
+                settle_ms: Some(1.4),
+            },
+        ],
+    };
+    vec![
+        ("fig3", fig3_bias_vs_position(&fig3), 4),
+        ("fig4", fig4_bias_vs_time(&fig4), 2),
+        ("fig5", calibration_sweep(&fig5), 2),
+        ("fig6", calibration_sweep(&fig6), 1),
+        ("fig9", calibration_sweep(&fig9), 1),
+        ("fig10_11", prediction_errors(&models()), 6),
+        ("dahl", dahl_loop(&dahl), 2),
+        ("diagnose", diagnose_panel(&diag), 3),
+        ("ladder", ladder(&steps), 1),
+        ("fig15", fig15_settle_bounds(&bounds()), 4),
+        ("fig16", fig16_responses(&responses), 4),
+    ]
+}
+
+#[test]
+fn every_figure_parses_and_holds_its_series() {
+    for (name, svg, n_series) in all_figures() {
+        check(name, &svg);
+        let doc = parse(&svg);
+        assert_eq!(series(&doc).len(), n_series, "{name}");
+        assert!(
+            texts_of_class(&doc, "message").is_empty(),
+            "{name}: unexpected message"
+        );
+        // The ladder's x axis is categorical (term names), so it has no unit.
+        let x_labels = if name == "ladder" {
+            Vec::new()
+        } else {
+            texts_of_class(&doc, "xlabel")
+        };
+        for label in x_labels.iter().chain(&texts_of_class(&doc, "ylabel")) {
+            assert!(
+                label.contains('(') && label.ends_with(')'),
+                "{name}: label without unit: {label}"
+            );
+        }
+    }
+}
+
+#[test]
+fn figures_use_the_right_units() {
+    let figs = all_figures();
+    let labels = |name: &str| {
+        let svg = &figs.iter().find(|f| f.0 == name).unwrap().1;
+        let doc = parse(svg);
+        let mut l = texts_of_class(&doc, "xlabel");
+        l.extend(texts_of_class(&doc, "ylabel"));
+        l
+    };
+    assert_eq!(labels("fig3"), ["position (tracks)", "bias (counts)"]);
+    assert_eq!(labels("fig4"), ["time (s)", "bias (counts)"]);
+    assert!(
+        labels("fig16")
+            .iter()
+            .all(|l| l.ends_with("(ms)") || l.ends_with("(µm)"))
+    );
+    assert!(labels("fig15").contains(&"time after handoff (ms)".to_string()));
+    assert!(labels("fig6")[0].ends_with("(tracks)"));
+}
+
+#[test]
+fn prediction_errors_has_a_column_per_model_with_std_in_titles() {
+    let m = models();
+    let svg = prediction_errors(&m);
+    let doc = parse(&svg);
+    let charts: Vec<Node> = doc
+        .descendants()
+        .filter(|n| has_class(n, "chart"))
+        .collect();
+    assert_eq!(charts.len(), 6);
+    let titles = texts_of_class(&doc, "title");
+    let want_std = biasctl::stats::std_dev(&m[1].error).unwrap();
+    let want = format!(
+        "calibration: error std {} counts",
+        biasctl::plot::svg::fmt_num(want_std)
+    );
+    assert!(
+        titles.iter().any(|t| t.starts_with(&want)),
+        "{titles:?} lacks {want}"
+    );
+    // Columns: the three scatters are in the first row, side by side.
+    let tx: Vec<&str> = charts
+        .iter()
+        .map(|c| c.attribute("transform").unwrap())
+        .collect();
+    assert_eq!(tx[0], "translate(0 30)");
+    assert!(tx[1].ends_with(" 30)") && tx[2].ends_with(" 30)") && !tx[3].ends_with(" 30)"));
+    // Histograms share bins: all models' bar counts sum to the number of errors.
+    for (i, (_, g)) in series(&doc).iter().enumerate().skip(3) {
+        let bars = count(g, "rect", "bar");
+        assert!(bars >= 5, "histogram {i} has {bars} bars");
+    }
+}
+
+#[test]
+fn ladder_labels_the_reduction() {
+    let svg = ladder(&[
+        LadderStep {
+            term: "pos+dir".into(),
+            error_std: 20.0,
+        },
+        LadderStep {
+            term: "+ seek".into(),
+            error_std: 10.0,
+        },
+    ]);
+    let doc = parse(&svg);
+    let notes = texts_of_class(&doc, "annotation");
+    assert_eq!(notes, ["20", "10 (−50 %)"]);
+    assert_eq!(count(&series(&doc)[0].1, "rect", "bar"), 2);
+    let ticks = texts_of_class(&doc, "tick");
+    assert!(ticks.contains(&"pos+dir".to_string()) && ticks.contains(&"+ seek".to_string()));
+}
+
+#[test]
+fn figures_with_empty_data_give_readable_messages() {
+    let empties = [
+        fig3_bias_vs_position(&BiasVsPosition::default()),
+        fig4_bias_vs_time(&BiasVsTime {
+            track: f64::NAN,
+            ..Default::default()
+        }),
+        calibration_sweep(&Sweep {
+            figure: SweepFigure::Fig12SeekCount,
+            series: Vec::new(),
+            levels: Vec::new(),
+        }),
+        prediction_errors(&[ModelErrors {
+            name: "m".into(),
+            ..Default::default()
+        }]),
+        dahl_loop(&DahlLoop::default()),
+        diagnose_panel(&[FeatureResiduals::default()]),
+        ladder(&[]),
+        fig15_settle_bounds(&SettleBounds::default()),
+        fig16_responses(&SettleResponses::default()),
+    ];
+    for svg in &empties {
+        check("empty_figure", svg);
+        let doc = parse(svg);
+        let msgs = texts_of_class(&doc, "message");
+        assert!(
+            !msgs.is_empty() && msgs.iter().all(|m| m == "no data"),
+            "{msgs:?}"
+        );
+    }
+    assert!(
+        parse(&prediction_errors(&[]))
+            .root_element()
+            .has_tag_name("svg")
+    );
+    assert!(
+        parse(&diagnose_panel(&[]))
+            .root_element()
+            .has_tag_name("svg")
+    );
+    // One row of data.
+    let one = fig4_bias_vs_time(&BiasVsTime {
+        track: 3.0,
+        points: vec![(1.0, 2.0)],
+        fit: Vec::new(),
+    });
+    assert_eq!(texts_of_class(&parse(&one), "message"), ["only one point"]);
+}
+
+fn log(text: &str) -> Log {
+    Log::from_reader("my.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
+}
+
+#[test]
+fn log_plots_split_by_direction_and_reversal() {
+    // 100 (first, not moved) → 400 in → 200 out (reversal) → 300 in (reversal) → 350 in → 350 (stay).
+    // (4: 350 not measured; 5, 6: stays at 350.)
+    let l =
+        log("time_s,track,bias\n0,100,5\n1,400,9\n2,200,3\n3,300,7\n4,350,\n5,350,8\n6,350,8.5\n");
+    let svg = from_log::bias_vs_position(&l);
+    check("log_position", &svg);
+    let doc = parse(&svg);
+    let s = series(&doc);
+    let by_name = |n: &str| {
+        s.iter()
+            .find(|(name, _)| name == n)
+            .map(|(_, g)| count(g, "circle", "point"))
+    };
+    assert_eq!(by_name("inbound"), Some(4));
+    assert_eq!(by_name("outbound"), Some(1));
+    assert_eq!(by_name("not moved yet"), Some(1));
+    assert!(texts_of_class(&doc, "title")[0].starts_with("my.csv"));
+
+    let svg = from_log::bias_vs_seek_length(&l);
+    check("log_seek", &svg);
+    let doc = parse(&svg);
+    let s = series(&doc);
+    assert_eq!(
+        count(&s[0].1, "circle", "point"),
+        2,
+        "reversals at 200 and 300"
+    );
+    assert_eq!(count(&s[1].1, "circle", "point"), 4);
+
+    assert_eq!(from_log::busiest_track(&l), Some(350.0));
+    let svg = from_log::bias_vs_time(&l, None);
+    let doc = parse(&svg);
+    assert!(texts_of_class(&doc, "title")[0].ends_with("track 350"));
+    assert_eq!(count(&series(&doc)[0].1, "circle", "point"), 2);
+    let svg = from_log::bias_vs_time(&l, Some(400.0));
+    assert_eq!(texts_of_class(&parse(&svg), "message"), ["only one point"]);
+    let svg = from_log::bias_vs_time(&l, Some(999.0));
+    assert_eq!(texts_of_class(&parse(&svg), "message"), ["no data"]);
+
+    // A log with no rows (the reader refuses such files, but a caller may filter all rows out).
+    let mut empty = log("time_s,track,bias\n0,1,2\n");
+    empty.rows.clear();
+    for svg in [
+        from_log::bias_vs_position(&empty),
+        from_log::bias_vs_time(&empty, None),
+        from_log::bias_vs_seek_length(&empty),
+    ] {
+        check("log_empty", &svg);
+        assert_eq!(texts_of_class(&parse(&svg), "message"), ["no data"]);
+    }
+}
+
+fn sample_report() -> Report {
+    let mut r = Report::new("Bias report <demo> & more");
+    r.intro("Random seeks in a 250-track range.");
+    r.section("Headline")
+        .headline(&[("error std", "7.9 counts"), ("reduction", "58 %")])
+        .paragraph("Errors < 8 & \"Gaussian\".")
+        .table(
+            Table::new(&["model", "std (counts)", "n"])
+                .caption("Error by model")
+                .row(vec![
+                    "position + direction".into(),
+                    19.04.into(),
+                    300usize.into(),
+                ])
+                .row(vec![
+                    "calibration".into(),
+                    Cell::Fixed(7.9, 2),
+                    Cell::Number(f64::NAN),
+                ]),
+        );
+    let figs = all_figures();
+    r.section("Figures")
+        .figure(figs[0].1.clone(), "Bias vs position.")
+        .figure(figs[5].1.clone(), "Errors by model.")
+        .code("biasctl fit --model calibration log.csv");
+    r.section("Bad figure")
+        .figure("<script>alert(1)</script>", "not svg");
+    r
+}
+
+#[test]
+fn report_is_well_formed_and_self_contained() {
+    let html = sample_report().to_html();
+    assert!(html.starts_with("<!DOCTYPE html>\n"));
+    assert!(!html.to_ascii_lowercase().contains("<script"));
+    assert!(!html.contains("http"), "no URL of any kind");
+    assert_finite_text(&html);
+    let body = html.trim_start_matches("<!DOCTYPE html>\n");
+    let doc = Document::parse(body).unwrap_or_else(|e| panic!("report is not well-formed: {e}"));
+    let root = doc.root_element();
+    assert!(root.has_tag_name("html"));
+    let count_tag = |t: &str| doc.descendants().filter(|n| n.has_tag_name(t)).count();
+    assert_eq!(count_tag("svg"), 2);
+    assert_eq!(count_tag("figure"), 3);
+    assert_eq!(count_tag("section"), 3);
+    assert_eq!(count_tag("style"), 1);
+    // Table of contents links to every section id.
+    let links: Vec<&str> = doc
+        .descendants()
+        .filter_map(|n| n.attribute("href"))
+        .collect();
+    assert_eq!(links, ["#section-1", "#section-2", "#section-3"]);
+    for l in links {
+        let id = &l[1..];
+        assert!(
+            doc.descendants().any(|n| n.attribute("id") == Some(id)),
+            "{id}"
+        );
+    }
+    // Escaping and number alignment.
+    let title = doc.descendants().find(|n| n.has_tag_name("h1")).unwrap();
+    assert_eq!(title.text(), Some("Bias report <demo> & more"));
+    let nums: Vec<&str> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("td") && n.attribute("class") == Some("num"))
+        .map(|n| n.text().unwrap_or(""))
+        .collect();
+    assert_eq!(nums, ["19.04", "300", "7.90", "n/a"]);
+    let captions: Vec<String> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("figcaption"))
+        .map(|n| n.text().unwrap_or("").to_string())
+        .collect();
+    assert_eq!(captions[0], "Figure 1. Bias vs position.");
+    assert!(html.contains("figure omitted"));
+}
+
+#[test]
+fn report_is_written_atomically() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("report.html");
+    sample_report().write(&path).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(text, sample_report().to_html());
+    if let Ok(d) = std::env::var("BIASCTL_PLOT_DIR") {
+        std::fs::write(std::path::Path::new(&d).join("report.html"), &text).unwrap();
+    }
+    let missing = dir.path().join("no/such/dir/report.html");
+    assert!(sample_report().write(&missing).is_err());
+}
+
+#[test]
+fn series_colours_follow_the_palette_and_overrides() {
+    let svg = Chart::new("c")
+        .scatter("a", &[(0.0, 0.0), (1.0, 1.0)])
+        .series(
+            Series::new("b", SeriesData::Line(vec![(0.0, 1.0), (1.0, 0.0)]))
+                .color(0)
+                .dashed(),
+        )
+        .scatter("c", &[(0.5, 0.5)])
+        .to_svg();
+    let doc = parse(&svg);
+    let s = series(&doc);
+    let fill = |g: &Node| {
+        g.descendants()
+            .find_map(|n| match n.tag_name().name() {
+                "circle" => n.attribute("fill"),
+                "path" => n.attribute("stroke"),
+                _ => None,
+            })
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(fill(&s[0].1), biasctl::plot::svg::PALETTE[0]);
+    assert_eq!(fill(&s[1].1), biasctl::plot::svg::PALETTE[0]);
+    assert_eq!(fill(&s[2].1), biasctl::plot::svg::PALETTE[1]);
+    assert!(svg.contains("stroke-dasharray"));
+}
