@@ -23,9 +23,11 @@
 //! - [`rng`]: the seeded, portable random generator every simulation uses.
 //! - [`output`]: atomic file output.
 //! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
+//! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per feature, permutation test, advice, ladder.
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
+pub mod diagnose;
 pub mod history;
 pub mod log;
 pub mod output;
