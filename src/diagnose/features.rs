@@ -91,8 +91,8 @@ impl FeatureTable {
         FeatureTable { lines, columns }
     }
 
-    /// An empty table for `rows` measured rows whose log lines are `lines` (one per row, for
-    /// messages); add features with [`FeatureTable::push_column`].
+    /// A table without features for measured rows whose log lines are `lines` (one per row,
+    /// used in messages); add features with [`FeatureTable::push_column`].
     pub fn with_lines(lines: Vec<u64>) -> FeatureTable {
         FeatureTable {
             lines,
