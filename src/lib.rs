@@ -25,9 +25,11 @@
 //! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
 //! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
+//! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per feature, permutation test, advice, ladder.
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
+pub mod diagnose;
 pub mod history;
 pub mod log;
 pub mod output;

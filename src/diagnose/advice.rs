@@ -1,0 +1,239 @@
+//! From a binned curve to plain words: the curve's shape and the model term that addresses it.
+
+use serde::{Deserialize, Serialize};
+
+use crate::history::Feature;
+
+use super::features::FeatureOrigin;
+
+/// The term suggested for the state-space (Dahl) model: `dahl:N` with the smallest N.
+pub const DAHL_TERM: &str = "dahl:1";
+
+/// Shape of the residual's binned curve against a feature.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shape {
+    /// No structure the cross-validation endorses (one bin).
+    Flat,
+    /// Rises roughly linearly.
+    Increasing,
+    /// Falls roughly linearly.
+    Decreasing,
+    /// Rises to an interior maximum and falls again.
+    Peaked,
+    /// Falls to an interior minimum and rises again.
+    Dip,
+    /// A jump up at one place, level on either side.
+    StepUp,
+    /// A jump down at one place, level on either side.
+    StepDown,
+    /// Rises quickly at small values, then levels off.
+    SaturatingRise,
+    /// Falls quickly at small values, then levels off.
+    SaturatingFall,
+    /// None of the above.
+    Irregular,
+}
+
+impl Shape {
+    /// The shape in plain words, with its location `at` where it has one.
+    pub fn describe(self, feature: &str, at: Option<f64>) -> String {
+        let at = at
+            .map(|x| format!(" near {feature} ≈ {}", short(x)))
+            .unwrap_or_default();
+        match self {
+            Shape::Flat => "flat".to_string(),
+            Shape::Increasing => format!("increases with {feature}"),
+            Shape::Decreasing => format!("decreases with {feature}"),
+            Shape::Peaked => format!("peaks{at}"),
+            Shape::Dip => format!("dips{at}"),
+            Shape::StepUp if at.is_empty() => format!("steps up with {feature}"),
+            Shape::StepDown if at.is_empty() => format!("steps down with {feature}"),
+            Shape::StepUp => format!("steps up{at}"),
+            Shape::StepDown => format!("steps down{at}"),
+            Shape::SaturatingRise => format!("rises at small {feature}, then levels off"),
+            Shape::SaturatingFall => format!("falls at small {feature}, then levels off"),
+            Shape::Irregular => "irregular".to_string(),
+        }
+    }
+}
+
+/// A number with about four significant digits for messages.
+pub(crate) fn short(x: f64) -> String {
+    let a = x.abs();
+    if a >= 1000.0 || a <= 0.0 {
+        format!("{x:.0}")
+    } else if a >= 10.0 {
+        format!("{x:.1}")
+    } else if a >= 0.1 {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+/// One defined bin of a curve, in increasing feature order.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Point {
+    /// Centre (mean feature value) of the bin.
+    pub x: f64,
+    /// Mean residual.
+    pub y: f64,
+}
+
+/// Classifies a curve of bin means (defined bins, increasing x). `linear` says a straight line
+/// explains nearly as much as the bins do.
+pub(crate) fn classify(points: &[Point], linear: bool) -> (Shape, Option<f64>) {
+    let k = points.len();
+    if k < 2 {
+        return (Shape::Flat, None);
+    }
+    let ys: Vec<f64> = points.iter().map(|p| p.y).collect();
+    let (imin, ymin) = extreme(&ys, |a, b| a < b);
+    let (imax, ymax) = extreme(&ys, |a, b| a > b);
+    let range = ymax - ymin;
+    if range.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return (Shape::Flat, None);
+    }
+    let (first, last) = (ys[0], ys[k - 1]);
+    let net = last - first;
+    let mid = |i: usize| 0.5 * (points[i].x + points[i + 1].x);
+    if k == 2 {
+        let shape = if net > 0.0 {
+            Shape::StepUp
+        } else {
+            Shape::StepDown
+        };
+        return (shape, Some(mid(0)));
+    }
+    if linear {
+        let shape = if net > 0.0 {
+            Shape::Increasing
+        } else {
+            Shape::Decreasing
+        };
+        return (shape, None);
+    }
+    if imax > 0 && imax < k - 1 && ymax - first.max(last) > 0.5 * range {
+        return (Shape::Peaked, Some(points[imax].x));
+    }
+    if imin > 0 && imin < k - 1 && first.min(last) - ymin > 0.5 * range {
+        return (Shape::Dip, Some(points[imin].x));
+    }
+    // A step: one jump, spread over at most two bins (the bin straddling it has a mean in
+    // between), with the curve level elsewhere.
+    let variation: f64 = ys.windows(2).map(|w| (w[1] - w[0]).abs()).sum();
+    let mut step: Option<(f64, usize, usize)> = None;
+    for width in 1..=2usize.min(k - 1) {
+        for i in 0..k - width {
+            let jump = ys[i + width] - ys[i];
+            if step.is_none_or(|(best, _, _)| jump.abs() > best.abs()) {
+                step = Some((jump, i, width));
+            }
+        }
+    }
+    if let Some((jump, i, width)) = step
+        && jump.abs() > 0.6 * range
+        && variation - jump.abs() < 0.3 * range
+    {
+        let shape = if jump > 0.0 {
+            Shape::StepUp
+        } else {
+            Shape::StepDown
+        };
+        return (shape, Some(0.5 * (points[i].x + points[i + width].x)));
+    }
+    if net.abs() > 0.6 * range {
+        let q = (k / 4).max(1);
+        let early = (ys[q] - first) / net;
+        let rising = net > 0.0;
+        let shape = match (early > 0.55, rising) {
+            (true, true) => Shape::SaturatingRise,
+            (true, false) => Shape::SaturatingFall,
+            (false, true) => Shape::Increasing,
+            (false, false) => Shape::Decreasing,
+        };
+        return (shape, None);
+    }
+    (Shape::Irregular, None)
+}
+
+/// Index and value of the first element that is `better` than all others.
+fn extreme(v: &[f64], better: impl Fn(f64, f64) -> bool) -> (usize, f64) {
+    let mut best = (0, v[0]);
+    for (i, &x) in v.iter().enumerate().skip(1) {
+        if better(x, best.1) {
+            best = (i, x);
+        }
+    }
+    best
+}
+
+/// The terms that address a feature, best first.
+pub(crate) fn candidate_terms(name: &str, origin: FeatureOrigin, linear: bool) -> Vec<String> {
+    let bins = format!("bins:{name}");
+    match origin {
+        FeatureOrigin::BuiltIn(f) => match f {
+            Feature::Position => vec!["table".into(), bins],
+            Feature::SeekLength | Feature::SeekAbs | Feature::DirectionChange => {
+                vec!["seek".into(), DAHL_TERM.into(), bins]
+            }
+            Feature::SinceReversal => vec![DAHL_TERM.into(), bins],
+            Feature::RestDistanceOd | Feature::RestDistanceId => vec!["memory".into(), bins],
+            Feature::ElapsedS | Feature::SeekIndex => vec!["drift".into(), bins],
+            Feature::Direction => vec!["direction".into(), DAHL_TERM.into(), bins],
+            Feature::DwellS => vec![bins],
+        },
+        FeatureOrigin::Covariate => {
+            let col = format!("col:{name}");
+            if linear {
+                vec![col, bins]
+            } else {
+                vec![bins, col]
+            }
+        }
+    }
+}
+
+/// Whether the model's term list `existing` already holds `term` (any `dahl:N` counts as a Dahl
+/// term).
+fn has_term(existing: &[String], term: &str) -> bool {
+    let dahl = |t: &str| t == "dahl" || t.starts_with("dahl:");
+    existing
+        .iter()
+        .any(|e| e.trim() == term || (dahl(term) && dahl(e.trim())))
+}
+
+/// The first candidate term the model does not have yet, and a note when a better one was
+/// skipped because it is already there.
+pub(crate) fn suggest(
+    candidates: &[String],
+    existing: &[String],
+) -> (Option<String>, Option<String>) {
+    let present: Vec<&String> = candidates
+        .iter()
+        .take_while(|t| has_term(existing, t))
+        .collect();
+    let chosen = candidates.get(present.len()).cloned();
+    let note = match (&chosen, present.is_empty()) {
+        (_, true) => None,
+        (Some(c), false) => Some(format!(
+            "the model already has {}; suggesting `{c}` instead",
+            list(&present)
+        )),
+        (None, false) => Some(format!(
+            "the model already has every term for this feature ({}); the residual left is what \
+             they cannot fit: give them more flexibility",
+            list(&present)
+        )),
+    };
+    (chosen, note)
+}
+
+fn list(terms: &[&String]) -> String {
+    terms
+        .iter()
+        .map(|t| format!("`{t}`"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}

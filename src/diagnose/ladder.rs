@@ -1,0 +1,161 @@
+//! The ladder: how the test-set error falls as terms are added one at a time. Generic: it takes
+//! each step's term list and error std, so it does not depend on the model code.
+
+use serde::{Deserialize, Serialize};
+
+use super::DiagnoseError;
+use super::advice::short;
+
+/// One rung as measured by the caller: the model's terms and its test-set error std.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LadderInput {
+    /// The model's terms at this step.
+    pub terms: Vec<String>,
+    /// Test-set error std, counts.
+    pub std: f64,
+}
+
+/// One rung of the ladder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LadderStep {
+    /// The model's terms at this step.
+    pub terms: Vec<String>,
+    /// Test-set error std, counts.
+    pub std: f64,
+    /// Reduction of the std relative to the first step, as a fraction (0.36 = 36 % lower;
+    /// negative if worse; 0 when the first std is 0).
+    pub reduction: f64,
+}
+
+/// The whole ladder; JSON `{"steps": [{"terms", "std", "reduction"}, ...]}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Ladder {
+    /// The rungs in the order given.
+    pub steps: Vec<LadderStep>,
+}
+
+/// Builds the ladder: each step's reduction relative to the first step. Errors on a std that is
+/// negative or not finite (it would put NaN or infinity in the JSON).
+pub fn ladder(steps: &[LadderInput]) -> Result<Ladder, DiagnoseError> {
+    if let Some((step, s)) = steps
+        .iter()
+        .enumerate()
+        .find(|(_, s)| !(s.std.is_finite() && s.std >= 0.0))
+    {
+        return Err(DiagnoseError::BadLadderStd {
+            step,
+            terms: s.terms.join(", "),
+            std: s.std,
+        });
+    }
+    let first = steps.first().map(|s| s.std).unwrap_or(0.0);
+    let steps = steps
+        .iter()
+        .map(|s| LadderStep {
+            terms: s.terms.clone(),
+            std: s.std,
+            reduction: if first > 0.0 {
+                1.0 - s.std / first
+            } else {
+                0.0
+            },
+        })
+        .collect();
+    Ok(Ladder { steps })
+}
+
+impl Ladder {
+    /// A text table: step, the terms (as `+ added` after the first step), std and reduction.
+    pub fn to_text(&self) -> String {
+        let mut out = format!(
+            "{:<4} {:<40} {:>10} {:>10}\n",
+            "step", "terms", "std", "reduction"
+        );
+        let mut previous: Option<&Vec<String>> = None;
+        for (i, s) in self.steps.iter().enumerate() {
+            let terms = match previous {
+                None => s.terms.join(", "),
+                Some(prev) => {
+                    let added: Vec<&str> = s
+                        .terms
+                        .iter()
+                        .filter(|t| !prev.contains(t))
+                        .map(String::as_str)
+                        .collect();
+                    let removed: Vec<&str> = prev
+                        .iter()
+                        .filter(|t| !s.terms.contains(t))
+                        .map(String::as_str)
+                        .collect();
+                    let mut parts: Vec<String> = added.iter().map(|t| format!("+ {t}")).collect();
+                    parts.extend(removed.iter().map(|t| format!("- {t}")));
+                    if parts.is_empty() {
+                        "(same terms)".to_string()
+                    } else {
+                        parts.join(", ")
+                    }
+                }
+            };
+            out.push_str(&format!(
+                "{:<4} {:<40} {:>10} {:>9.1}%\n",
+                i,
+                terms,
+                short(s.std),
+                100.0 * s.reduction
+            ));
+            previous = Some(&s.terms);
+        }
+        out
+    }
+
+    /// The JSON of the contract (pretty-printed).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn step(terms: &[&str], std: f64) -> LadderInput {
+        LadderInput {
+            terms: terms.iter().map(|t| t.to_string()).collect(),
+            std,
+        }
+    }
+
+    #[test]
+    fn ladder_reductions_are_relative_to_the_first_step() {
+        // Reference: the paper's headline, 19 → just under 8 is a reduction of more than 50 %;
+        // (19 − 7.6)/19 = 0.6 exactly.
+        let l = ladder(&[
+            step(&["poly", "direction"], 19.0),
+            step(&["poly", "direction", "seek"], 11.4),
+            step(&["poly", "direction", "seek", "memory"], 7.6),
+        ])
+        .unwrap();
+        assert!(l.steps[0].reduction.abs() < 1e-15);
+        assert!((l.steps[1].reduction - 0.4).abs() < 1e-12);
+        assert!((l.steps[2].reduction - 0.6).abs() < 1e-12);
+        let text = l.to_text();
+        assert!(
+            text.contains("+ seek") && text.contains("+ memory"),
+            "{text}"
+        );
+        assert!(text.contains("60.0%"), "{text}");
+        let v: serde_json::Value = serde_json::from_str(&l.to_json()).unwrap();
+        let keys: Vec<&String> = v["steps"][0].as_object().unwrap().keys().collect();
+        assert_eq!(keys, ["reduction", "std", "terms"]);
+        assert_eq!(v.as_object().unwrap().len(), 1);
+    }
+
+    #[test]
+    fn ladder_rejects_nan_std_and_handles_zero_first_std() {
+        let e = ladder(&[step(&["a"], 1.0), step(&["a", "b"], f64::NAN)]).unwrap_err();
+        assert!(e.to_string().contains("step 1 (a, b)"), "{e}");
+        let l = ladder(&[step(&["a"], 0.0), step(&["b"], 0.0)]).unwrap();
+        assert!(l.steps.iter().all(|s| s.reduction.abs() < 1e-15));
+        assert!(ladder(&[]).unwrap().steps.is_empty());
+    }
+}

@@ -1,0 +1,470 @@
+//! Model diagnosis: compare a model with the measurements, see where it fails, and learn which
+//! physical effect is missing (issue #5).
+//!
+//! The engine takes a [`FeatureTable`] (every candidate feature of every measured row) and the
+//! model's residuals (measured − predicted, one per measured row) and asks, for each feature,
+//! how much of the residual variance a flexible one-dimensional smoother of that feature
+//! explains **out of sample**. The strongest feature, the shape of the residual against it and
+//! the model term that addresses it become plain-words advice.
+//!
+//! ```
+//! use biasctl::diagnose::{diagnose, DiagnoseConfig, FeatureTable};
+//! use biasctl::log::{ColumnMap, Log};
+//! // A log whose residual jumps whenever the seek reverses direction.
+//! let mut text = String::from("time_s,track,bias\n");
+//! let mut residuals = Vec::new();
+//! let mut track = 100i64;
+//! for i in 0..400i64 {
+//!     track = (track + (i * 37 % 23) - 11).clamp(0, 250);
+//!     text.push_str(&format!("{},{track},0\n", i as f64 * 0.5));
+//! }
+//! let log = Log::from_reader("demo.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+//! let table = FeatureTable::from_log(&log);
+//! let change = table.column("direction_change").unwrap();
+//! for (i, v) in change.values.iter().enumerate() {
+//!     residuals.push(5.0 * v.unwrap_or(0.0) + ((i * 7919) % 13) as f64 * 0.1);
+//! }
+//! let config = DiagnoseConfig { permutations: 99, ..DiagnoseConfig::default() };
+//! let d = diagnose(&table, &residuals, &config).unwrap();
+//! assert_eq!(d.features[0].name, "direction_change");
+//! assert_eq!(d.features[0].suggested_term.as_deref(), Some("seek"));
+//! ```
+//!
+//! ## How the cross-validation folds are cut, and why
+//! Residuals of a drive are serially correlated (drift, slow thermal effects). Purely random
+//! folds let a held-out seek be "predicted" by its training neighbours in time through any
+//! feature that changes slowly; one contiguous block per fold goes wrong the other way: the
+//! held-out stretch of time has no training data at all, so a genuine drift could never be
+//! predicted from `elapsed_s`. We use **interleaved blocks**: the seek sequence is cut into
+//! contiguous blocks of [`DiagnoseConfig::block_len`] seeks (auto: about n/(25·folds), at most
+//! 50) and the blocks are dealt to the folds at random (seeded). Correlation shorter than a
+//! block cannot leak across folds, yet every stretch of time keeps training data in the
+//! neighbouring blocks, so a slow drift is predictable from `elapsed_s`/`seek_index` — and only
+//! from them — and ranks them first instead of smearing onto every feature.
+//!
+//! ## How significance is tested, and why
+//! For every feature the statistic is the smallest one-way-ANOVA F-test p-value over the
+//! candidate binnings (an adaptive test: it looks at every number of bins the smoother may pick,
+//! so picking the best does not inflate it). It is calibrated by permuting the residuals
+//! ([`DiagnoseConfig::permutations`] times, seeded), and the family of features is controlled
+//! with the Westfall–Young single-step min-p method: a feature's `p_value` is the fraction of
+//! permutations in which *any* feature looked at least as strong. So "no feature flagged at 1 %"
+//! fails on pure noise at most 1 % of the time, whatever the number of features and however
+//! correlated they are (`seek_length`, `seek_abs` and `direction` are). The uncorrected
+//! per-feature value is reported as `p_value_raw`. Permutation treats the residuals as
+//! exchangeable under the null; for a feature that is independent of time (random targets)
+//! that holds whatever the residuals' serial correlation, for a slowly varying feature it does
+//! not, so read `p_value` together with the whiteness check and the out-of-sample `explained`.
+
+mod advice;
+mod features;
+mod ladder;
+mod report;
+mod smoother;
+
+pub use advice::{DAHL_TERM, Shape};
+pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
+pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
+pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
+
+use crate::output::OutputError;
+use crate::rng::SimRng;
+use crate::stats;
+use smoother::{Binned, FTest, Unusable};
+
+/// Smallest number of measured rows per cross-validation fold.
+pub const MIN_ROWS_PER_FOLD: usize = 10;
+/// Smallest number of measured rows for any diagnosis.
+pub const MIN_ROWS: usize = 30;
+
+/// An error of the diagnosis engine.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DiagnoseError {
+    /// Too few measured rows to cross-validate.
+    #[error(
+        "too few measured rows for a diagnosis: {rows}, but {folds}-fold cross-validation needs \
+         at least {needed} (max({MIN_ROWS}, {MIN_ROWS_PER_FOLD} per fold)); measure more seeks \
+         or use fewer folds"
+    )]
+    TooFewRows {
+        /// Measured rows given.
+        rows: usize,
+        /// Rows needed.
+        needed: usize,
+        /// Folds configured.
+        folds: usize,
+    },
+    /// The residuals do not line up with the measured rows.
+    #[error(
+        "{residuals} residuals for {rows} measured rows: give exactly one residual per row with a \
+         measured bias, in log order"
+    )]
+    LengthMismatch {
+        /// Number of residuals given.
+        residuals: usize,
+        /// Number of measured rows in the feature table.
+        rows: usize,
+    },
+    /// A residual is NaN, infinite or too large to square.
+    #[error(
+        "residual {index} (log line {line}) is {value}: every residual must be a finite number below 1e100 in magnitude"
+    )]
+    BadResidual {
+        /// 0-based index among the measured rows.
+        index: usize,
+        /// Log line of that row (0 if unknown).
+        line: u64,
+        /// The value.
+        value: f64,
+    },
+    /// A configuration value is out of range.
+    #[error("invalid diagnosis setting `{field}`: {message}")]
+    InvalidConfig {
+        /// The setting.
+        field: &'static str,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// A column added to a feature table has the wrong length.
+    #[error("feature column `{name}` has {values} values but the table has {rows} measured rows")]
+    ColumnLength {
+        /// Column name.
+        name: String,
+        /// Values given.
+        values: usize,
+        /// Rows in the table.
+        rows: usize,
+    },
+    /// A column name is already taken.
+    #[error("feature column `{name}` is already in the table")]
+    DuplicateColumn {
+        /// Column name.
+        name: String,
+    },
+    /// A ladder step's error std is not a finite non-negative number.
+    #[error("ladder step {step} ({terms}): error std {std} is not a finite non-negative number")]
+    BadLadderStd {
+        /// 0-based step.
+        step: usize,
+        /// The step's terms, comma-separated.
+        terms: String,
+        /// The value.
+        std: f64,
+    },
+    /// Writing an output file failed.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+/// Settings of the diagnosis. Build with struct-update syntax from [`Default`]; [`diagnose`]
+/// checks them with [`DiagnoseConfig::validate`] before doing anything.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnoseConfig {
+    /// Cross-validation folds, 2..=50 (default 5).
+    pub folds: usize,
+    /// Length of the contiguous blocks dealt to folds, in seeks; `None` = auto
+    /// (clamp(n / (25·folds), 1, 50)). Must leave at least `folds` blocks.
+    pub block_len: Option<usize>,
+    /// Permutations of the significance test (default 199); at least ⌈1/alpha⌉ − 1 so that a
+    /// p-value can reach `alpha`, at most 100 000.
+    pub permutations: usize,
+    /// Seed of the fold assignment and the permutations.
+    pub seed: u64,
+    /// Family-wise significance level for flagging a feature, in (0, 0.5] (default 0.01).
+    pub alpha: f64,
+    /// Most quantile bins a continuous feature is cut into (rounded down to a power of two),
+    /// 2..=4096 (default 64).
+    pub max_bins: usize,
+    /// Fewest defined rows per quantile bin, ≥ 2 (default 10).
+    pub min_bin_rows: usize,
+    /// A feature with at most this many distinct values is discrete (one bin per value),
+    /// 2..=256 (default 12).
+    pub max_discrete: usize,
+    /// Lags of the Ljung–Box whiteness test, ≥ 1 (default 10).
+    pub ljung_box_lags: usize,
+    /// Terms the model already has (`seek`, `dahl:2`, `col:temp_c`, …): never suggested again.
+    pub existing_terms: Vec<String>,
+}
+
+impl Default for DiagnoseConfig {
+    fn default() -> Self {
+        Self {
+            folds: 5,
+            block_len: None,
+            permutations: 199,
+            seed: 1,
+            alpha: 0.01,
+            max_bins: 64,
+            min_bin_rows: 10,
+            max_discrete: 12,
+            ljung_box_lags: 10,
+            existing_terms: Vec::new(),
+        }
+    }
+}
+
+impl DiagnoseConfig {
+    /// Checks every setting's range; the error names the setting and what is allowed.
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
+        let bad = |field, message: String| Err(DiagnoseError::InvalidConfig { field, message });
+        if !(2..=50).contains(&self.folds) {
+            return bad("folds", format!("{} is not in 2..=50", self.folds));
+        }
+        if self.block_len == Some(0) {
+            return bad("block_len", "0 seeks; use at least 1 (or auto)".into());
+        }
+        if !(self.alpha > 0.0 && self.alpha <= 0.5) {
+            return bad("alpha", format!("{} is not in (0, 0.5]", self.alpha));
+        }
+        let needed = ((1.0 / self.alpha).ceil() as usize).saturating_sub(1);
+        if self.permutations < needed || self.permutations > 100_000 {
+            return bad(
+                "permutations",
+                format!(
+                    "{} is not in {needed}..=100000 (at least 1/alpha − 1 = {needed} so that a \
+                     p-value can reach alpha = {})",
+                    self.permutations, self.alpha
+                ),
+            );
+        }
+        if !(2..=4096).contains(&self.max_bins) {
+            return bad("max_bins", format!("{} is not in 2..=4096", self.max_bins));
+        }
+        if self.min_bin_rows < 2 {
+            return bad("min_bin_rows", format!("{} is below 2", self.min_bin_rows));
+        }
+        if !(2..=256).contains(&self.max_discrete) {
+            return bad(
+                "max_discrete",
+                format!("{} is not in 2..=256", self.max_discrete),
+            );
+        }
+        if self.ljung_box_lags == 0 {
+            return bad("ljung_box_lags", "0; use at least 1".into());
+        }
+        Ok(())
+    }
+
+    /// Fewest measured rows a diagnosis with these settings accepts.
+    pub fn min_rows(&self) -> usize {
+        MIN_ROWS.max(self.folds * MIN_ROWS_PER_FOLD)
+    }
+
+    fn block_len_for(&self, n: usize) -> usize {
+        self.block_len
+            .unwrap_or_else(|| (n / (25 * self.folds)).clamp(1, 50))
+    }
+}
+
+/// Residuals larger than this in magnitude are rejected (their squares would overflow sums).
+const MAX_RESIDUAL: f64 = 1e100;
+
+/// One feature's intermediate results.
+struct Analysed {
+    binned: Binned,
+    shift: u32,
+    explained: f64,
+    observed: f64,
+}
+
+/// Diagnoses `residuals` (measured − predicted, one per measured row of `table`, in log order).
+///
+/// For every feature: the out-of-sample explained fraction of the residual variance by a binned
+/// smoother (bins chosen by cross-validation), a family-wise permutation p-value, the curve's
+/// shape, the suggested term and the error std expected once it is added; plus whiteness and
+/// bimodality of the residuals. Features are sorted strongest first (explained, then p-value);
+/// constant or never-defined features are listed last with a note.
+pub fn diagnose(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &DiagnoseConfig,
+) -> Result<Diagnosis, DiagnoseError> {
+    config.validate()?;
+    let n = table.len();
+    if residuals.len() != n {
+        return Err(DiagnoseError::LengthMismatch {
+            residuals: residuals.len(),
+            rows: n,
+        });
+    }
+    if let Some((index, &value)) = residuals
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && v.abs() <= MAX_RESIDUAL))
+    {
+        return Err(DiagnoseError::BadResidual {
+            index,
+            line: table.lines().get(index).copied().unwrap_or(0),
+            value,
+        });
+    }
+    let needed = config.min_rows();
+    if n < needed {
+        return Err(DiagnoseError::TooFewRows {
+            rows: n,
+            needed,
+            folds: config.folds,
+        });
+    }
+    let block_len = config.block_len_for(n);
+    let n_blocks = n.div_ceil(block_len);
+    if n_blocks < config.folds {
+        return Err(DiagnoseError::InvalidConfig {
+            field: "block_len",
+            message: format!(
+                "blocks of {block_len} seeks cut {n} rows into {n_blocks} blocks, fewer than the \
+                 {} folds",
+                config.folds
+            ),
+        });
+    }
+
+    let mean = stats::mean(residuals).unwrap_or(0.0);
+    let y: Vec<f64> = residuals.iter().map(|v| v - mean).collect();
+    let sst: f64 = y.iter().map(|v| v * v).sum();
+    let variance = sst / n as f64;
+    let residual_std = stats::std_dev(residuals).unwrap_or(0.0);
+    let fold = assign_folds(n, block_len, config.folds, config.seed);
+
+    // Bin, cross-validate and compute the observed statistic of every usable feature.
+    let mut analysed: Vec<Result<Analysed, Unusable>> = Vec::with_capacity(table.columns().len());
+    for col in table.columns() {
+        let a = Binned::new(
+            &col.values,
+            config.max_bins,
+            config.min_bin_rows,
+            config.max_discrete,
+        )
+        .map(|binned| {
+            let cv = smoother::cross_validate(&binned, &y, &fold, config.folds);
+            let explained = if variance > 0.0 {
+                (1.0 - cv.mse / variance).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let observed = FTest::new(&binned).min_p(&binned, &y, sst);
+            Analysed {
+                binned,
+                shift: cv.shift,
+                explained,
+                observed,
+            }
+        });
+        analysed.push(a);
+    }
+
+    let (p_raw, p_adj) = permutation_test(&analysed, &y, sst, config);
+
+    let mut reports: Vec<FeatureReport> = table
+        .columns()
+        .iter()
+        .zip(&analysed)
+        .enumerate()
+        .map(|(j, (col, a))| match a {
+            Ok(a) => report::feature_report(
+                col,
+                a.shift,
+                &a.binned,
+                a.explained,
+                p_raw[j],
+                p_adj[j],
+                residuals,
+                residual_std,
+                config,
+            ),
+            Err(why) => report::skipped_report(col, why, residual_std),
+        })
+        .collect();
+    report::sort(&mut reports);
+
+    let whiteness = Whiteness::of(residuals, config.ljung_box_lags, config.alpha);
+    let bimodality = stats::bimodality_coefficient(residuals).filter(|b| b.is_finite());
+    let mut d = Diagnosis {
+        residual_std,
+        features: reports,
+        whiteness,
+        bimodality,
+        summary: String::new(),
+    };
+    d.summary = report::summary(&d, n, config.alpha);
+    Ok(d)
+}
+
+/// Deals contiguous blocks of `block_len` rows to `folds` folds at random, balanced.
+fn assign_folds(n: usize, block_len: usize, folds: usize, seed: u64) -> Vec<u32> {
+    let n_blocks = n.div_ceil(block_len);
+    let mut order: Vec<usize> = (0..n_blocks).collect();
+    shuffle(&mut order, &mut SimRng::substream(seed, 1));
+    let mut block_fold = vec![0u32; n_blocks];
+    for (pos, &b) in order.iter().enumerate() {
+        block_fold[b] = (pos % folds) as u32;
+    }
+    (0..n).map(|i| block_fold[i / block_len]).collect()
+}
+
+/// Fisher–Yates shuffle with the seeded generator.
+fn shuffle<T>(v: &mut [T], rng: &mut SimRng) {
+    for i in (1..v.len()).rev() {
+        let j = rng.below(i as u64 + 1) as usize;
+        v.swap(i, j);
+    }
+}
+
+/// Raw and Westfall–Young family-wise permutation p-values for every feature (1 for unusable
+/// ones).
+fn permutation_test(
+    analysed: &[Result<Analysed, Unusable>],
+    y: &[f64],
+    sst: f64,
+    config: &DiagnoseConfig,
+) -> (Vec<f64>, Vec<f64>) {
+    let m = analysed.len();
+    let mut raw_count = vec![0usize; m];
+    let mut adj_count = vec![0usize; m];
+    let usable: Vec<(usize, &Analysed)> = analysed
+        .iter()
+        .enumerate()
+        .filter_map(|(j, a)| a.as_ref().ok().map(|a| (j, a)))
+        .collect();
+    if sst > 0.0 && !usable.is_empty() {
+        let mut tests: Vec<FTest> = usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect();
+        let mut perm = y.to_vec();
+        let mut rng = SimRng::substream(config.seed, 2);
+        let mut stat = vec![0.0; usable.len()];
+        for _ in 0..config.permutations {
+            shuffle(&mut perm, &mut rng);
+            let mut min_stat = f64::INFINITY;
+            for (k, ((_, a), t)) in usable.iter().zip(tests.iter_mut()).enumerate() {
+                stat[k] = t.min_p(&a.binned, &perm, sst);
+                min_stat = min_stat.min(stat[k]);
+            }
+            for (k, &(j, a)) in usable.iter().enumerate() {
+                if stat[k] <= a.observed {
+                    raw_count[j] += 1;
+                }
+                if min_stat <= a.observed {
+                    adj_count[j] += 1;
+                }
+            }
+        }
+    }
+    let b = config.permutations as f64 + 1.0;
+    let p = |counts: Vec<usize>| -> Vec<f64> {
+        counts
+            .iter()
+            .zip(analysed)
+            .map(|(&c, a)| {
+                if a.is_ok() && sst > 0.0 {
+                    (c as f64 + 1.0) / b
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    };
+    (p(raw_count), p(adj_count))
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,556 @@
+//! The diagnosis as data (serde, JSON contract), as text, and as per-feature CSV curves.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::log::fmt_trimmed;
+use crate::output::write_atomic;
+use crate::stats;
+
+use super::advice::{self, Point, Shape, short};
+use super::features::FeatureColumn;
+use super::smoother::{BinKind, Binned, Unusable, accumulate};
+use super::{DiagnoseConfig, DiagnoseError};
+
+/// The result of [`super::diagnose`]. Serialises to the JSON contract
+/// `{"residual_std", "features": [...], "whiteness", "bimodality", "summary"}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Diagnosis {
+    /// Sample standard deviation of the residuals, counts.
+    pub residual_std: f64,
+    /// Every candidate feature, strongest first; skipped features last.
+    pub features: Vec<FeatureReport>,
+    /// Serial-correlation check of the residuals in seek order.
+    pub whiteness: Whiteness,
+    /// Sarle's bimodality coefficient of the residuals (> 5/9 suggests two modes); `null` when
+    /// undefined (zero spread).
+    pub bimodality: Option<f64>,
+    /// The diagnosis in a few plain sentences.
+    pub summary: String,
+}
+
+/// What one candidate feature says about the residual.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FeatureReport {
+    /// Feature name (built-in name or covariate header).
+    pub name: String,
+    /// Fraction of the residual variance the binned smoother explains out of sample
+    /// (1 − CV-MSE / variance, clamped to [0, 1]).
+    pub explained: f64,
+    /// Family-wise (Westfall–Young min-p) permutation p-value over all features.
+    pub p_value: f64,
+    /// The model term that addresses this feature and is not in the model yet; `null` if there
+    /// is none (or the feature was skipped).
+    pub suggested_term: Option<String>,
+    /// Per-feature permutation p-value, not corrected for the number of features.
+    pub p_value_raw: f64,
+    /// Whether the feature is flagged: `p_value` ≤ alpha and `explained` > 0.
+    pub flagged: bool,
+    /// Shape of the residual against the feature at the chosen binning.
+    pub shape: Shape,
+    /// Where the peak, dip or step is (feature units), if the shape has a location.
+    pub shape_at: Option<f64>,
+    /// Residual std expected once the suggested term is added: residual_std·√(1 − explained).
+    pub expected_std: f64,
+    /// Rows where the feature is defined.
+    pub n: usize,
+    /// Rows where it is undefined (kept as their own bin).
+    pub missing: usize,
+    /// Number of bins the cross-validation chose (the missing bin included).
+    pub bins: usize,
+    /// Least-squares slope of the residual against the feature (defined rows).
+    pub slope: Option<f64>,
+    /// Two-sided p-value of that slope.
+    pub slope_p: Option<f64>,
+    /// Whether a straight line explains nearly as much as the bins (≥ 85 % of their R²).
+    pub linear: bool,
+    /// Why the feature was skipped, or which better term the model already has.
+    pub note: Option<String>,
+    /// The residual's binned curve against the feature, for plotting (at least 8 bins where the
+    /// feature has that many).
+    pub curve: Vec<CurveBin>,
+}
+
+/// One bin of a residual-vs-feature curve.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CurveBin {
+    /// Smallest feature value in the bin; `null` for the bin of undefined values.
+    pub lower: Option<f64>,
+    /// Largest feature value in the bin; `null` for the bin of undefined values.
+    pub upper: Option<f64>,
+    /// Mean feature value in the bin; `null` for the bin of undefined values.
+    pub centre: Option<f64>,
+    /// Mean residual, counts.
+    pub mean: f64,
+    /// Sample std of the residuals in the bin (0 for a single row).
+    pub std: f64,
+    /// Rows in the bin.
+    pub count: usize,
+}
+
+/// Whiteness of the residuals in seek order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Whiteness {
+    /// Lag-1 autocorrelation.
+    pub lag1: f64,
+    /// Ljung–Box Q over `lags` lags; `null` with too few rows.
+    pub ljung_box_q: Option<f64>,
+    /// Its p-value (χ² with `lags` degrees of freedom).
+    pub ljung_box_p: Option<f64>,
+    /// Lags tested.
+    pub lags: usize,
+    /// Whether the residuals pass as white at the diagnosis' alpha.
+    pub white: bool,
+}
+
+impl Whiteness {
+    /// Lag-1 autocorrelation and Ljung–Box test of `r` over `lags` lags; white when p > `alpha`.
+    pub fn of(r: &[f64], lags: usize, alpha: f64) -> Whiteness {
+        let lb = stats::ljung_box(r, lags).filter(|(q, p)| q.is_finite() && p.is_finite());
+        Whiteness {
+            lag1: finite_or(stats::autocorrelation(r, 1), 0.0),
+            ljung_box_q: lb.map(|x| x.0),
+            ljung_box_p: lb.map(|x| x.1),
+            lags,
+            white: lb.is_none_or(|(_, p)| p > alpha),
+        }
+    }
+}
+
+fn finite_or(x: f64, default: f64) -> f64 {
+    if x.is_finite() { x } else { default }
+}
+
+fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then_some(x)
+}
+
+/// Curve of the residual `y` against `col` at level `shift`.
+fn curve(b: &Binned, shift: u32, col: &FeatureColumn, y: &[f64]) -> Vec<CurveBin> {
+    let acc = accumulate(b, shift, &col.values, y);
+    let defined = b.defined_bins(shift);
+    acc.iter()
+        .enumerate()
+        .filter(|(_, a)| a.count > 0)
+        .map(|(s, a)| {
+            let c = a.count as f64;
+            let mean = a.y_sum / c;
+            let var = if a.count > 1 {
+                ((a.y_sq - a.y_sum * mean) / (c - 1.0)).max(0.0)
+            } else {
+                0.0
+            };
+            let is_missing = s == defined;
+            CurveBin {
+                lower: (!is_missing).then(|| finite(a.x_min)).flatten(),
+                upper: (!is_missing).then(|| finite(a.x_max)).flatten(),
+                centre: (!is_missing).then(|| finite(a.x_sum / c)).flatten(),
+                mean: finite_or(mean, 0.0),
+                std: finite_or(var.sqrt(), 0.0),
+                count: a.count,
+            }
+        })
+        .collect()
+}
+
+/// In-sample R² of the binned means over the defined rows of a curve.
+fn binned_r2(curve: &[CurveBin]) -> f64 {
+    let defined: Vec<&CurveBin> = curve.iter().filter(|c| c.centre.is_some()).collect();
+    let n: f64 = defined.iter().map(|c| c.count as f64).sum();
+    if n < 2.0 {
+        return 0.0;
+    }
+    let total: f64 = defined.iter().map(|c| c.mean * c.count as f64).sum();
+    let grand = total / n;
+    let ssb: f64 = defined
+        .iter()
+        .map(|c| c.count as f64 * (c.mean - grand).powi(2))
+        .sum();
+    let ssw: f64 = defined
+        .iter()
+        .map(|c| c.std * c.std * (c.count as f64 - 1.0).max(0.0))
+        .sum();
+    if ssb + ssw > 0.0 {
+        ssb / (ssb + ssw)
+    } else {
+        0.0
+    }
+}
+
+/// The report of a usable feature.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn feature_report(
+    col: &FeatureColumn,
+    shift: u32,
+    b: &Binned,
+    explained: f64,
+    p_raw: f64,
+    p_adj: f64,
+    residuals: &[f64],
+    residual_std: f64,
+    config: &DiagnoseConfig,
+) -> FeatureReport {
+    let chosen = curve(b, shift, col, residuals);
+    let (xs, ys): (Vec<f64>, Vec<f64>) = col
+        .values
+        .iter()
+        .zip(residuals)
+        .filter_map(|(x, &y)| x.map(|x| (x, y)))
+        .unzip();
+    let trend = stats::linear_trend(&xs, &ys);
+    let r2_bins = binned_r2(&chosen);
+    let linear = trend.is_some_and(|t| r2_bins > 0.0 && t.r2 >= 0.85 * r2_bins);
+    let (shape, shape_at) = if explained > 0.0 {
+        let points: Vec<Point> = chosen
+            .iter()
+            .filter_map(|c| c.centre.map(|x| Point { x, y: c.mean }))
+            .collect();
+        advice::classify(&points, linear)
+    } else {
+        (Shape::Flat, None)
+    };
+    // Plot at least 8 bins where the feature has them.
+    let display_shift = match b.kind {
+        BinKind::Discrete => 0,
+        BinKind::Quantile => {
+            let want = b.n_fine.min(8);
+            if b.defined_bins(shift) >= want {
+                shift
+            } else {
+                (b.n_fine / want).trailing_zeros()
+            }
+        }
+    };
+    let display = if display_shift == shift {
+        chosen.clone()
+    } else {
+        curve(b, display_shift, col, residuals)
+    };
+    let candidates = advice::candidate_terms(&col.name, col.origin, linear);
+    let (suggested_term, note) = advice::suggest(&candidates, &config.existing_terms);
+    FeatureReport {
+        name: col.name.clone(),
+        explained,
+        p_value: p_adj,
+        suggested_term,
+        p_value_raw: p_raw,
+        flagged: p_adj <= config.alpha && explained > 0.0,
+        shape,
+        // A discrete feature's step is between its values; a location adds nothing.
+        shape_at: shape_at
+            .filter(|_| b.kind == BinKind::Quantile)
+            .and_then(finite),
+        expected_std: residual_std * (1.0 - explained).max(0.0).sqrt(),
+        n: xs.len(),
+        missing: col.values.len() - xs.len(),
+        bins: chosen.len(),
+        slope: trend.and_then(|t| finite(t.slope)),
+        slope_p: trend.and_then(|t| finite(t.p_value)),
+        linear,
+        note,
+        curve: display,
+    }
+}
+
+/// The report of a feature that cannot be smoothed.
+pub(crate) fn skipped_report(
+    col: &FeatureColumn,
+    why: &Unusable,
+    residual_std: f64,
+) -> FeatureReport {
+    let note = match why {
+        Unusable::Constant(v) => format!("skipped: constant (every value is {})", short(*v)),
+        Unusable::AllMissing => "skipped: undefined on every measured row".to_string(),
+    };
+    let defined = col.values.iter().flatten().count();
+    FeatureReport {
+        name: col.name.clone(),
+        explained: 0.0,
+        p_value: 1.0,
+        suggested_term: None,
+        p_value_raw: 1.0,
+        flagged: false,
+        shape: Shape::Flat,
+        shape_at: None,
+        expected_std: residual_std,
+        n: defined,
+        missing: col.values.len() - defined,
+        bins: 0,
+        slope: None,
+        slope_p: None,
+        linear: false,
+        note: Some(note),
+        curve: Vec::new(),
+    }
+}
+
+fn is_skipped(f: &FeatureReport) -> bool {
+    f.bins == 0
+}
+
+/// Strongest first: explained, then family-wise p, then raw p, then name; skipped last.
+pub(crate) fn sort(reports: &mut [FeatureReport]) {
+    reports.sort_by(|a, b| {
+        is_skipped(a)
+            .cmp(&is_skipped(b))
+            .then(b.explained.total_cmp(&a.explained))
+            .then(a.p_value.total_cmp(&b.p_value))
+            .then(a.p_value_raw.total_cmp(&b.p_value_raw))
+            .then(a.name.cmp(&b.name))
+    });
+}
+
+fn percent(x: f64) -> String {
+    format!("{:.1} %", 100.0 * x)
+}
+
+fn p_text(p: f64) -> String {
+    if p < 1e-3 {
+        format!("{p:.1e}")
+    } else {
+        format!("{p:.3}")
+    }
+}
+
+/// The advice sentence for one flagged feature.
+fn advice_line(f: &FeatureReport, residual_std: f64) -> String {
+    let mut s = format!(
+        "The residual follows `{}`: it {}; `{}` explains {} of the residual variance out of \
+         sample (p = {}, family-wise).",
+        f.name,
+        f.shape.describe(&f.name, f.shape_at),
+        f.name,
+        percent(f.explained),
+        p_text(f.p_value)
+    );
+    match &f.suggested_term {
+        Some(t) => {
+            s.push_str(&format!(
+                " Add `{t}`: expected error std ≈ {} counts (from {}).",
+                short(f.expected_std),
+                short(residual_std)
+            ));
+            if t == "seek" {
+                s.push_str(&format!(
+                    " In a state-space model use `{}` instead.",
+                    advice::DAHL_TERM
+                ));
+            }
+        }
+        None => s.push_str(" No further term addresses it."),
+    }
+    if let Some(note) = &f.note {
+        s.push_str(&format!(" Note: {note}."));
+    }
+    s
+}
+
+/// The plain-words summary of a diagnosis.
+pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
+    let mut parts = Vec::new();
+    let flagged: Vec<&FeatureReport> = d.features.iter().filter(|f| f.flagged).collect();
+    match flagged.first() {
+        Some(f) => {
+            parts.push(advice_line(f, d.residual_std));
+            if flagged.len() > 1 {
+                let others: Vec<String> = flagged[1..]
+                    .iter()
+                    .map(|f| format!("`{}` ({})", f.name, percent(f.explained)))
+                    .collect();
+                parts.push(format!(
+                    "Also flagged (may overlap with the first): {}.",
+                    others.join(", ")
+                ));
+            }
+        }
+        None => parts.push(format!(
+            "No candidate feature explains the residual (std {} counts, {n} rows) beyond noise \
+             at the {} level.",
+            short(d.residual_std),
+            percent(alpha)
+        )),
+    }
+    let w = &d.whiteness;
+    match (w.white, w.ljung_box_p) {
+        (false, Some(p)) => parts.push(format!(
+            "The residuals are not white in seek order (lag-1 autocorrelation {:.2}, Ljung–Box \
+             p = {}): something slow is left.",
+            w.lag1,
+            p_text(p)
+        )),
+        _ => parts.push(format!(
+            "The residuals look white in seek order (lag-1 autocorrelation {:.2}).",
+            w.lag1
+        )),
+    }
+    if let Some(b) = d.bimodality.filter(|&b| b > stats::BIMODALITY_THRESHOLD) {
+        parts.push(format!(
+            "Their histogram looks bimodal (coefficient {b:.2} > 5/9): two populations, as \
+             from a missing direction or hysteresis term."
+        ));
+    }
+    if let Some(pos) = d.features.iter().find(|f| f.name == "position")
+        && let (Some(slope), Some(p)) = (pos.slope, pos.slope_p)
+        && p <= alpha
+    {
+        parts.push(format!(
+            "A linear trend against position remains ({} counts/track, p = {}).",
+            short(slope),
+            p_text(p)
+        ));
+    }
+    let skipped: Vec<String> = d
+        .features
+        .iter()
+        .filter(|f| is_skipped(f))
+        .map(|f| format!("`{}`", f.name))
+        .collect();
+    if !skipped.is_empty() {
+        parts.push(format!(
+            "Skipped (constant or undefined): {}.",
+            skipped.join(", ")
+        ));
+    }
+    parts.join(" ")
+}
+
+impl Diagnosis {
+    /// The JSON of the contract (pretty-printed).
+    pub fn to_json(&self) -> String {
+        // Serialising plain structs of finite numbers and strings cannot fail.
+        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    }
+
+    /// The report of feature `name`, if present.
+    pub fn feature(&self, name: &str) -> Option<&FeatureReport> {
+        self.features.iter().find(|f| f.name == name)
+    }
+
+    /// A human-readable rendering: the ranking table, advice for every flagged feature, the
+    /// residual checks and the summary.
+    pub fn to_text(&self) -> String {
+        let mut out = String::new();
+        out.push_str(&format!(
+            "Residual std: {} counts\n\n",
+            short(self.residual_std)
+        ));
+        out.push_str(&format!(
+            "{:<20} {:>9} {:>9} {:>5}  {:<16} {:<22} {:>12}\n",
+            "feature", "explained", "p (fw)", "flag", "shape", "suggested term", "expected std"
+        ));
+        for f in &self.features {
+            out.push_str(&format!(
+                "{:<20} {:>9} {:>9} {:>5}  {:<16} {:<22} {:>12}\n",
+                f.name,
+                percent(f.explained),
+                p_text(f.p_value),
+                if f.flagged { "*" } else { "" },
+                serde_json::to_value(f.shape)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string))
+                    .unwrap_or_default(),
+                f.suggested_term.as_deref().unwrap_or("-"),
+                short(f.expected_std)
+            ));
+        }
+        let flagged: Vec<&FeatureReport> = self.features.iter().filter(|f| f.flagged).collect();
+        out.push_str("\nAdvice:\n");
+        if flagged.is_empty() {
+            out.push_str("  No feature is flagged: nothing to add.\n");
+        }
+        for (i, f) in flagged.iter().enumerate() {
+            out.push_str(&format!(
+                "  {}. {}\n",
+                i + 1,
+                advice_line(f, self.residual_std)
+            ));
+        }
+        for f in self.features.iter().filter(|f| is_skipped(f)) {
+            if let Some(note) = &f.note {
+                out.push_str(&format!("  `{}` {note}\n", f.name));
+            }
+        }
+        let w = &self.whiteness;
+        out.push_str("\nResidual checks:\n");
+        out.push_str(&format!(
+            "  whiteness: lag-1 autocorrelation {:.3}; Ljung–Box Q = {} over {} lags, p = {} → {}\n",
+            w.lag1,
+            w.ljung_box_q.map(short).unwrap_or_else(|| "-".into()),
+            w.lags,
+            w.ljung_box_p.map(p_text).unwrap_or_else(|| "-".into()),
+            if w.white { "white" } else { "NOT white" }
+        ));
+        out.push_str(&format!(
+            "  bimodality coefficient: {} (bimodal above {:.3})\n",
+            self.bimodality
+                .map(|b| format!("{b:.3}"))
+                .unwrap_or_else(|| "-".into()),
+            stats::BIMODALITY_THRESHOLD
+        ));
+        if let Some(pos) = self.feature("position")
+            && let (Some(s), Some(p)) = (pos.slope, pos.slope_p)
+        {
+            out.push_str(&format!(
+                "  trend against position: {} counts/track, p = {}\n",
+                short(s),
+                p_text(p)
+            ));
+        }
+        out.push_str(&format!("\nSummary: {}\n", self.summary));
+        out
+    }
+
+    /// Writes, for every flagged feature and at least the three strongest usable ones, a CSV
+    /// `residual_vs_<feature>.csv` in `dir` with columns
+    /// `bin,lower,upper,centre,mean,std,count` (the bin of undefined values is labelled
+    /// `missing` with empty lower/upper/centre). Returns the paths written.
+    pub fn write_feature_csvs(&self, dir: &Path) -> Result<Vec<PathBuf>, DiagnoseError> {
+        let mut written = Vec::new();
+        let usable = self.features.iter().filter(|f| !is_skipped(f));
+        for (rank, f) in usable.enumerate() {
+            if rank >= 3 && !f.flagged {
+                continue;
+            }
+            let path = dir.join(format!("residual_vs_{}.csv", file_safe(&f.name)));
+            write_atomic(&path, |w| -> std::io::Result<()> {
+                writeln!(w, "bin,lower,upper,centre,mean,std,count")?;
+                for (i, c) in f.curve.iter().enumerate() {
+                    let num = |x: Option<f64>| x.map(|v| fmt_trimmed(v, 6)).unwrap_or_default();
+                    let label = if c.centre.is_some() {
+                        i.to_string()
+                    } else {
+                        "missing".to_string()
+                    };
+                    writeln!(
+                        w,
+                        "{label},{},{},{},{},{},{}",
+                        num(c.lower),
+                        num(c.upper),
+                        num(c.centre),
+                        fmt_trimmed(c.mean, 6),
+                        fmt_trimmed(c.std, 6),
+                        c.count
+                    )?;
+                }
+                Ok(())
+            })?;
+            written.push(path);
+        }
+        Ok(written)
+    }
+}
+
+/// `name` with every character outside `[A-Za-z0-9_-]` replaced by `_`.
+fn file_safe(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
