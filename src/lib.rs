@@ -23,6 +23,7 @@
 //! - [`rng`]: the seeded, portable random generator every simulation uses.
 //! - [`output`]: atomic file output.
 //! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
+//! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
@@ -30,4 +31,5 @@ pub mod history;
 pub mod log;
 pub mod output;
 pub mod rng;
+pub mod sim;
 pub mod stats;
