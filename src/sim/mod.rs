@@ -841,3 +841,5 @@ pub fn simulate_to_files(
         end_time_s: 0.0,
     }))
 }
+#[cfg(test)]
+mod tests;
