@@ -48,6 +48,17 @@ pub struct Handoff {
     pub z0: f64,
 }
 
+impl Handoff {
+    /// A handoff with no position error or velocity and integrator `z0` counts.
+    pub fn at_rest(z0: f64) -> Handoff {
+        Handoff {
+            e0: 0.0,
+            v0: 0.0,
+            z0,
+        }
+    }
+}
+
 /// The result of one measurement.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Measured {
@@ -246,11 +257,7 @@ impl Servo {
     }
 
     fn precompute(&mut self) {
-        let zero = Handoff {
-            e0: 0.0,
-            v0: 0.0,
-            z0: 0.0,
-        };
+        let zero = Handoff::at_rest(0.0);
         let unit = |f: fn(&mut Handoff)| {
             let mut h = zero;
             f(&mut h);
@@ -349,11 +356,7 @@ mod tests {
         // Reference: at equilibrium (z0 = b, e0 = v0 = 0, no disturbance) the loop stays put and
         // u = b at every sample, so the average is b.
         let (s, _) = servo();
-        let h = Handoff {
-            e0: 0.0,
-            v0: 0.0,
-            z0: 42.0,
-        };
+        let h = Handoff::at_rest(42.0);
         let m = s.run(&h, 42.0, |_| 0.0);
         assert!((m.average - 42.0).abs() < 1e-9, "{m:?}");
         assert!((m.z_end - 42.0).abs() < 1e-9);
@@ -367,11 +370,7 @@ mod tests {
         // response of the discretised loop must decay (stability) and the handoff error must
         // have mostly left the average: a 50-count bias step leaves < 10 % in the average.
         let (s, _) = servo();
-        let h = Handoff {
-            e0: 0.0,
-            v0: 0.0,
-            z0: 0.0,
-        };
+        let h = Handoff::at_rest(0.0);
         let m = s.run(&h, 50.0, |_| 0.0);
         let left = 50.0 - m.average;
         assert!(left > 0.0 && left < 5.0, "left behind {left}");
@@ -390,11 +389,7 @@ mod tests {
         // Reference: a pure runout of 0.1 track at once per revolution would give a control
         // swing of ~Kp·0.1 = 10 counts; averaged over one revolution what is left is far smaller.
         let (s, _) = servo();
-        let h = Handoff {
-            e0: 0.0,
-            v0: 0.0,
-            z0: 0.0,
-        };
+        let h = Handoff::at_rest(0.0);
         let worst = (0..36)
             .map(|i| s.runout_parts(f64::from(i) * 10f64.to_radians()).0.abs())
             .fold(0.0, f64::max);
@@ -437,11 +432,7 @@ mod tests {
         // the final integrator and their correlation over 3000 measurements (standard error of a
         // std estimate ≈ 1.3 %, so a 6 % band is > 4 standard errors).
         let (s, _) = servo();
-        let h = Handoff {
-            e0: 0.0,
-            v0: 0.0,
-            z0: 0.0,
-        };
+        let h = Handoff::at_rest(0.0);
         let n = 3000;
         let sigma = 0.05;
         let collect = |fast: bool| {
