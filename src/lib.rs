@@ -26,6 +26,7 @@
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
 //! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
 //! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per feature, permutation test, advice, ladder.
+//! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
@@ -36,4 +37,5 @@ pub mod output;
 pub mod plot;
 pub mod report;
 pub mod rng;
+pub mod sim;
 pub mod stats;

@@ -3,6 +3,8 @@
 
 mod check;
 mod common;
+mod demo;
+mod simulate;
 
 use clap::{Parser, Subcommand};
 
@@ -18,11 +20,17 @@ pub struct Cli {
 enum Command {
     /// Read a measurement log, validate every row and print a summary.
     Check(check::Args),
+    /// Simulate the drive through a seek sequence and write a measurement log.
+    Simulate(simulate::Args),
+    /// Simulate the paper's tables, a dwell run and a random run into a folder.
+    Demo(demo::Args),
 }
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Check(a) => check::run(a),
+        Command::Simulate(a) => simulate::run(a),
+        Command::Demo(a) => demo::run(a),
     }
 }

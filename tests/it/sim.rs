@@ -1,0 +1,227 @@
+//! `biasctl simulate` and `biasctl demo`: byte-identical output per seed, metadata, truth file,
+//! flag validation with exit 2, nothing half-written on error.
+
+use crate::common::{data, fails_with, ok, write};
+
+fn sim(dir: &std::path::Path, name: &str, extra: &[&str]) -> (String, String) {
+    let out = dir.join(name).display().to_string();
+    let mut args = vec!["simulate", "--out", &out];
+    args.extend_from_slice(extra);
+    let stdout = ok(&args);
+    (std::fs::read_to_string(&out).unwrap(), stdout)
+}
+
+#[test]
+fn same_seed_byte_identical_other_seed_different() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = sim(
+        dir.path(),
+        "a.csv",
+        &["--sequence", "calibration", "--n", "200", "--seed", "5"],
+    )
+    .0;
+    let b = sim(
+        dir.path(),
+        "b.csv",
+        &["--sequence", "calibration", "--n", "200", "--seed", "5"],
+    )
+    .0;
+    let c = sim(
+        dir.path(),
+        "c.csv",
+        &["--sequence", "calibration", "--n", "200", "--seed", "6"],
+    )
+    .0;
+    assert_eq!(a, b);
+    assert_ne!(a, c);
+    for key in [
+        "# seed = 5",
+        "# generator = biasctl",
+        "# drive = paper1997",
+        "# sequence = calibration",
+        "# disabled = none",
+    ] {
+        assert!(a.contains(key), "missing {key}");
+    }
+}
+
+#[test]
+fn truth_file_is_separate_and_adds_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = dir.path().join("t.csv").display().to_string();
+    let (log, stdout) = sim(
+        dir.path(),
+        "l.csv",
+        &[
+            "--sequence",
+            "random",
+            "--n",
+            "50",
+            "--disable",
+            "drift,memory",
+            "--truth",
+            &truth,
+        ],
+    );
+    assert!(
+        stdout.contains("seed 1") && stdout.contains("50 measured"),
+        "{stdout}"
+    );
+    assert!(log.contains("# disabled = memory,drift"));
+    assert!(
+        log.contains("time_s,track,bias\n"),
+        "the log holds no truth columns"
+    );
+    let t = std::fs::read_to_string(&truth).unwrap();
+    let mut lines = t.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header.join(","), biasctl::sim::TRUTH_COLUMNS);
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    for line in lines {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        // Reference: bias_true is the sum of the noiseless contributions (4-decimal rounding).
+        let sum: f64 = [
+            "position",
+            "direction",
+            "overshoot",
+            "time",
+            "memory",
+            "drift",
+            "temperature",
+        ]
+        .iter()
+        .map(|n| v[col(n)])
+        .sum();
+        assert!((sum - v[col("bias_true")]).abs() < 1e-3, "{line}");
+        assert!(v[col("memory")].abs() < 1e-12 && v[col("drift")].abs() < 1e-12);
+    }
+}
+
+#[test]
+fn temperature_variant_logs_temp_c() {
+    let dir = tempfile::tempdir().unwrap();
+    let drive = data("drive_temperature.toml");
+    let (log, _) = sim(
+        dir.path(),
+        "t.csv",
+        &["--sequence", "random", "--n", "5", "--drive", &drive],
+    );
+    assert!(log.contains("time_s,track,bias,temp_c\n"), "{log}");
+    let (plain, _) = sim(dir.path(), "p.csv", &["--sequence", "random", "--n", "5"]);
+    assert!(!plain.contains("temp_c"));
+}
+
+#[test]
+fn script_sequence_runs_and_bad_rows_name_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = write(
+        dir.path(),
+        "s.csv",
+        "track,dwell_s,measure\n1000,0.1,0\n1100,0.5,1\n",
+    );
+    let (log, _) = sim(
+        dir.path(),
+        "o.csv",
+        &["--sequence", "script", "--script", &s],
+    );
+    let rows: Vec<&str> = log.lines().filter(|l| !l.starts_with('#')).collect();
+    assert_eq!(rows.len(), 3);
+    assert!(rows[1].ends_with(','), "unmeasured row: {}", rows[1]);
+    let bad = write(
+        dir.path(),
+        "bad.csv",
+        "track,dwell_s\n1000,0.1\n1100,soon\n",
+    );
+    let out = dir.path().join("x.csv").display().to_string();
+    fails_with(
+        &[
+            "simulate",
+            "--sequence",
+            "script",
+            "--script",
+            &bad,
+            "--out",
+            &out,
+        ],
+        &["--script", "bad.csv", "line 3", "column 2", "`dwell_s`"],
+    );
+}
+
+#[test]
+fn bad_flags_exit_2_naming_the_flag_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.csv");
+    let o = out.display().to_string();
+    let cases: &[(&[&str], &str)] = &[
+        (&["--sequence", "table9"], "--sequence"),
+        (
+            &["--sequence", "random", "--disable", "friction"],
+            "--disable",
+        ),
+        (&["--sequence", "random", "--n", "0"], "--n"),
+        (&["--sequence", "random", "--span", "0"], "--span"),
+        (&["--sequence", "random", "--span", "-5"], "--span"),
+        (&["--sequence", "random", "--center", "5000"], "--center"),
+        (&["--sequence", "random", "--center", "10"], "--span"),
+        (&["--sequence", "table4", "--center", "200"], "--center"),
+        (&["--sequence", "script"], "--script"),
+        (
+            &[
+                "--sequence",
+                "random",
+                "--dwell-min",
+                "1",
+                "--dwell-max",
+                "0.5",
+            ],
+            "--dwell-max",
+        ),
+    ];
+    for (extra, flag) in cases {
+        let mut args = vec!["simulate", "--out", &o];
+        args.extend_from_slice(extra);
+        fails_with(&args, &[flag]);
+        assert!(!out.exists(), "{extra:?} left {o}");
+    }
+    let bad_drive = write(dir.path(), "d.toml", "name = \"x\"\n");
+    fails_with(
+        &[
+            "simulate",
+            "--sequence",
+            "random",
+            "--drive",
+            &bad_drive,
+            "--out",
+            &o,
+        ],
+        &["d.toml", "missing field"],
+    );
+    // An unwritable output: nothing half-written, exit 2.
+    fails_with(
+        &[
+            "simulate",
+            "--sequence",
+            "random",
+            "--out",
+            "/nonexistent/dir/x.csv",
+        ],
+        &["/nonexistent/dir/x.csv"],
+    );
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "only the drive file"
+    );
+}
+
+#[test]
+fn demo_writes_tables_dwell_and_random() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let stdout = ok(&["demo", "--out", &out.display().to_string()]);
+    for name in ["table1", "table7", "dwell", "random"] {
+        assert!(out.join(format!("{name}.csv")).exists(), "{name}");
+        assert!(out.join(format!("{name}_truth.csv")).exists(), "{name}");
+        assert!(stdout.contains(name), "{stdout}");
+    }
+}
