@@ -23,11 +23,17 @@
 //! - [`rng`]: the seeded, portable random generator every simulation uses.
 //! - [`output`]: atomic file output.
 //! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
+//! - [`model`]: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl, col, bins), presets, the online predictor.
+//! - [`fit`]: one least-squares solve (streaming QR) for all linear parameters, variable projection for the Dahl rate.
+//! - [`score`]: error statistics of a model on a log: moments, percentiles, histogram, bimodality, trend.
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
+pub mod fit;
 pub mod history;
 pub mod log;
+pub mod model;
 pub mod output;
 pub mod rng;
+pub mod score;
 pub mod stats;

@@ -3,6 +3,9 @@
 
 mod check;
 mod common;
+mod fit;
+mod predict;
+mod score;
 
 use clap::{Parser, Subcommand};
 
@@ -18,11 +21,20 @@ pub struct Cli {
 enum Command {
     /// Read a measurement log, validate every row and print a summary.
     Check(check::Args),
+    /// Fit a bias model (a preset or a term list) to a log and write the model file.
+    Fit(fit::Args),
+    /// Replay a model over a log causally and write per-row predictions and contributions.
+    Predict(predict::Args),
+    /// Score a model on a log: error moments, percentiles, histogram, bimodality, trend.
+    Score(score::Args),
 }
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Check(a) => check::run(a),
+        Command::Fit(a) => fit::run(a),
+        Command::Predict(a) => predict::run(a),
+        Command::Score(a) => score::run(a),
     }
 }
