@@ -243,18 +243,64 @@ pub fn golden_min(
     (bx, bf, evals)
 }
 
-/// The running `R` factor of a tall least-squares problem `[X y]`, fed row by row (TSQR).
+/// The running `R` factor of a tall least-squares problem `[X y]`, fed row by row (TSQR: the
+/// current `R` stacked on up to [`CHUNK`] new rows is re-factorised by Householder reflections in
+/// a cache-resident column-major block).
 #[derive(Debug, Clone)]
 pub struct StreamingQr {
     cols: usize,
-    r: DMatrix<f64>,
-    block: DMatrix<f64>,
+    /// Column-major, `cols + CHUNK` rows: the first `cols` rows hold `R`, then the new rows.
+    block: Vec<f64>,
     fill: usize,
     colsq: Vec<f64>,
     rows: usize,
 }
 
-const CHUNK: usize = 1024;
+/// Rows added between two re-factorisations.
+pub const CHUNK: usize = 1024;
+
+/// Dot product with four accumulators (vectorises).
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    acc[0] + acc[1] + acc[2] + acc[3] + tail
+}
+
+/// Householder QR of the column-major `m × n` matrix `a` (m ≥ n), in place: on return the
+/// upper triangle of the first `n` rows is `R` (below it, zeros).
+fn householder_r(a: &mut [f64], m: usize, n: usize) {
+    for j in 0..n {
+        let (left, right) = a.split_at_mut((j + 1) * m);
+        let v = &mut left[j * m + j..j * m + m];
+        let norm = dot(v, v).sqrt();
+        if norm <= 0.0 {
+            continue;
+        }
+        let alpha = if v[0] > 0.0 { -norm } else { norm };
+        v[0] -= alpha;
+        let vv = dot(v, v);
+        if vv > 0.0 {
+            let tau = 2.0 / vv;
+            for k in 0..n - j - 1 {
+                let c = &mut right[k * m + j..k * m + m];
+                let s = tau * dot(v, c);
+                for (ci, vi) in c.iter_mut().zip(v.iter()) {
+                    *ci -= s * vi;
+                }
+            }
+        }
+        v[0] = alpha;
+        v[1..].fill(0.0);
+    }
+}
 
 impl StreamingQr {
     /// A problem with `p` regressors (plus the response column).
@@ -262,8 +308,7 @@ impl StreamingQr {
         let cols = p + 1;
         Self {
             cols,
-            r: DMatrix::zeros(cols, cols),
-            block: DMatrix::zeros(cols + CHUNK, cols),
+            block: vec![0.0; (cols + CHUNK) * cols],
             fill: 0,
             colsq: vec![0.0; cols],
             rows: 0,
@@ -272,9 +317,10 @@ impl StreamingQr {
 
     /// Adds one row `x` (length p) with response `y`.
     pub fn push(&mut self, x: &[f64], y: f64) {
+        let m = self.cols + CHUNK;
         let row = self.cols + self.fill;
         for (j, &v) in x.iter().chain(std::iter::once(&y)).enumerate() {
-            self.block[(row, j)] = v;
+            self.block[j * m + row] = v;
             self.colsq[j] += v * v;
         }
         self.fill += 1;
@@ -288,10 +334,14 @@ impl StreamingQr {
         if self.fill == 0 {
             return;
         }
-        let n = self.cols;
-        self.block.view_mut((0, 0), (n, n)).copy_from(&self.r);
-        let m = self.block.rows(0, n + self.fill).clone_owned();
-        self.r = m.qr().r();
+        let (n, m) = (self.cols, self.cols + CHUNK);
+        if self.fill < CHUNK {
+            // Partial chunk: factorise only the filled rows (zero the stale ones).
+            for j in 0..n {
+                self.block[j * m + n + self.fill..(j + 1) * m].fill(0.0);
+            }
+        }
+        householder_r(&mut self.block, m, n);
         self.fill = 0;
     }
 
@@ -300,10 +350,16 @@ impl StreamingQr {
         self.rows
     }
 
-    /// The final `R` of `[X y]` ((p+1) × (p+1)) and the column norms².
+    /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms².
     pub fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
         self.fold();
-        (self.r, self.colsq)
+        let (n, m) = (self.cols, self.cols + CHUNK);
+        let r = DMatrix::from_fn(
+            n,
+            n,
+            |i, j| if i <= j { self.block[j * m + i] } else { 0.0 },
+        );
+        (r, self.colsq)
     }
 }
 

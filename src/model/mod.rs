@@ -320,10 +320,7 @@ impl FittedModel {
 
     /// Reads a model file; `restore` rebuilds user terms from their name and saved settings
     /// (return `None` for names it does not know; built-ins are tried after it).
-    pub fn load_with(
-        path: &Path,
-        restore: &RestoreFn,
-    ) -> Result<Self, ModelError> {
+    pub fn load_with(path: &Path, restore: &RestoreFn) -> Result<Self, ModelError> {
         let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
             path: path.into(),
             source,
@@ -332,11 +329,7 @@ impl FittedModel {
     }
 
     /// Parses model JSON; `path` names it in messages.
-    pub fn from_json(
-        text: &str,
-        path: &Path,
-        restore: &RestoreFn,
-    ) -> Result<Self, ModelError> {
+    pub fn from_json(text: &str, path: &Path, restore: &RestoreFn) -> Result<Self, ModelError> {
         let corrupt = |why: String| ModelError::Corrupt {
             path: path.into(),
             why,
