@@ -680,3 +680,47 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
     Ok(model)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SimRng;
+
+    #[test]
+    fn streaming_qr_matches_svd_least_squares() {
+        // Reference: nalgebra's SVD least-squares solution of the same (well-scaled) problem,
+        // over several chunk boundaries (2500 rows = 2 full chunks + a partial one).
+        let mut rng = SimRng::new(1);
+        let (n, p) = (2500, 6);
+        let x = DMatrix::from_fn(n, p, |_, _| rng.normal());
+        let y = DMatrix::from_fn(n, 1, |i, _| x.row(i).sum() + 0.1 * rng.normal());
+        let mut qr = StreamingQr::new(p);
+        for i in 0..n {
+            let row: Vec<f64> = x.row(i).iter().copied().collect();
+            qr.push(&row, y[(i, 0)]);
+        }
+        let (r, colsq) = qr.finish();
+        let beta = r
+            .view((0, 0), (p, p))
+            .clone_owned()
+            .solve_upper_triangular(&r.view((0, p), (p, 1)).clone_owned())
+            .unwrap();
+        let svd = x.clone().svd(true, true).solve(&y, 1e-12).unwrap();
+        for j in 0..p {
+            assert!((beta[(j, 0)] - svd[(j, 0)]).abs() < 1e-10, "{j}");
+            assert!((colsq[j] - x.column(j).norm_squared()).abs() < 1e-8 * colsq[j]);
+        }
+        let rss = (&y - &x * &svd).norm_squared();
+        assert!((r[(p, p)].powi(2) - rss).abs() < 1e-9 * rss);
+    }
+
+    #[test]
+    fn golden_min_finds_a_parabola_minimum() {
+        // Reference: the minimum of (x − 0.3)² is at 0.3.
+        let (x, fx, ev) = golden_min(&|x: f64| (x - 0.3) * (x - 0.3), -2.0, 2.0, 10, 40);
+        assert!(
+            (x - 0.3).abs() < 1e-6 && fx < 1e-12 && ev == 52,
+            "{x} {fx} {ev}"
+        );
+    }
+}

@@ -40,8 +40,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     for p in model.params() {
         match p.se {
-            Some(se) => println!("  {:<32} {:>14.6} ± {:.6}", p.name, p.value, se),
-            None => println!("  {:<32} {:>14.6}", p.name, p.value),
+            Some(se) => println!("  {:<32} {:>14.6e} ± {:.3e}", p.name, p.value, se),
+            None => println!("  {:<32} {:>14.6e}", p.name, p.value),
         }
     }
     for w in &model.warnings {

@@ -2,19 +2,36 @@
 
 use super::common::LogArgs;
 use biasctl::log::{Log, fmt_fixed, fmt_trimmed};
-use biasctl::model::FittedModel;
+use biasctl::model::{FittedModel, Prediction};
 use biasctl::output::write_atomic;
 use std::io::Write;
 use std::path::PathBuf;
 
+/// A model file and a log to apply it to (shared by `predict` and `score`).
+#[derive(Debug, clap::Args)]
+pub struct ModelLogArgs {
+    /// The model file written by `biasctl fit`.
+    #[arg(long, value_name = "MODEL.json")]
+    pub model: PathBuf,
+    #[command(flatten)]
+    pub log: LogArgs,
+}
+
+impl ModelLogArgs {
+    /// Loads the model and the log and replays the model causally over the log.
+    pub fn replay(&self) -> anyhow::Result<(FittedModel, Log, Prediction)> {
+        let model = FittedModel::load(&self.model)?;
+        let log = Log::read(&self.log.data, &self.log.columns.map())?;
+        let pred = model.predict_log(&log)?;
+        Ok((model, log, pred))
+    }
+}
+
 /// Flags of `biasctl predict`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The model file written by `biasctl fit`.
-    #[arg(long, value_name = "MODEL.json")]
-    model: PathBuf,
     #[command(flatten)]
-    log: LogArgs,
+    input: ModelLogArgs,
     /// The CSV to write: input columns, `predicted`, `residual`, one column per term.
     #[arg(long, value_name = "PRED.csv")]
     out: PathBuf,
@@ -22,9 +39,7 @@ pub struct Args {
 
 /// Loads the model and log, replays, writes the CSV atomically.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let model = FittedModel::load(&args.model)?;
-    let log = Log::read(&args.log.data, &args.log.columns.map())?;
-    let pred = model.predict_log(&log)?;
+    let (model, log, pred) = args.input.replay()?;
     let s = &log.schema;
     write_atomic(&args.out, |w| -> std::io::Result<()> {
         write!(w, "{},{},{}", s.map.time, s.map.track, s.map.bias)?;

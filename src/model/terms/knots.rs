@@ -61,3 +61,11 @@ pub fn decaying_hinges(knots: &[f64], a: f64, out: &mut [f64]) {
 pub fn label(k: f64) -> String {
     crate::log::fmt_trimmed(k, 3)
 }
+
+/// Parameter names `curve@knot` of a term with one decaying-hinge curve per entry of `curves`.
+pub fn curve_param_names(curves: &[&str], knots: &[f64]) -> Vec<String> {
+    curves
+        .iter()
+        .flat_map(|c| knots.iter().map(move |&k| format!("{c}@{}", label(k))))
+        .collect()
+}

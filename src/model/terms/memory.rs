@@ -9,7 +9,7 @@
 //! exactly zero beyond the largest knot. **No rest position ahead is represented as an infinite
 //! distance: the contribution is 0** (the same as a rest position too far away to matter).
 
-use super::knots::{decaying_hinges, label, quantile_knots};
+use super::knots::{curve_param_names, decaying_hinges, quantile_knots};
 use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -57,10 +57,7 @@ impl Term for MemoryTerm {
         self.name.clone()
     }
     fn param_names(&self) -> Vec<String> {
-        ["out", "in"]
-            .iter()
-            .flat_map(|c| self.knots.iter().map(move |&k| format!("{c}@{}", label(k))))
-            .collect()
+        curve_param_names(&["out", "in"], &self.knots)
     }
     fn droppable(&self) -> bool {
         true

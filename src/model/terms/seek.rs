@@ -9,7 +9,7 @@
 //! direction at `a = 0`; the first seek (no direction yet) contributes 0. Coefficients in counts
 //! (the curve's value at `a = 0` is the sum of its coefficients weighted by `k_j/k_max`).
 
-use super::knots::{decaying_hinges, label, quantile_knots};
+use super::knots::{curve_param_names, decaying_hinges, quantile_knots};
 use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -73,10 +73,7 @@ impl Term for SeekTerm {
         self.name.clone()
     }
     fn param_names(&self) -> Vec<String> {
-        CURVES
-            .iter()
-            .flat_map(|c| self.knots.iter().map(move |&k| format!("{c}@{}", label(k))))
-            .collect()
+        curve_param_names(&CURVES, &self.knots)
     }
     fn droppable(&self) -> bool {
         true
