@@ -20,22 +20,34 @@
 //!
 //! - [`log`]: the measurement log (CSV), streaming reader with column mapping, atomic writer.
 //! - [`history`]: the seek-history state machine: direction, reversals, uncrossed rest positions.
-//! - [`rng`]: the seeded, portable random generator every simulation uses.
-//! - [`output`]: atomic file output.
-//! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
+//! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
+//! - [`model`]: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl,
+//!   col, bins), presets, the online predictor.
+//! - [`fit`]: one least-squares solve (streaming QR) for all linear parameters, variable
+//!   projection for the Dahl rate.
+//! - [`score`]: error statistics of a model on a log: moments, percentiles, histogram,
+//!   bimodality, trend.
+//! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per
+//!   feature, permutation test, advice, ladder.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
 //! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
-//! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per feature, permutation test, advice, ladder.
-//! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
+//!
+//! Shared utilities: [`rng`] (the seeded, portable random generator every simulation uses),
+//! [`stats`] (moments, histogram, bimodality, trend and whiteness tests), [`output`] (atomic
+//! file output).
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
 pub mod diagnose;
+pub mod fit;
 pub mod history;
 pub mod log;
-pub mod output;
+pub mod model;
 pub mod plot;
 pub mod report;
-pub mod rng;
+pub mod score;
 pub mod sim;
+
+pub mod output;
+pub mod rng;
 pub mod stats;

@@ -4,6 +4,9 @@
 mod check;
 mod common;
 mod demo;
+mod fit;
+mod predict;
+mod score;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -24,6 +27,12 @@ enum Command {
     Simulate(simulate::Args),
     /// Simulate the paper's tables, a dwell run and a random run into a folder.
     Demo(demo::Args),
+    /// Fit a bias model (a preset or a term list) to a log and write the model file.
+    Fit(fit::Args),
+    /// Replay a model over a log causally and write per-row predictions and contributions.
+    Predict(predict::Args),
+    /// Score a model on a log: error moments, percentiles, histogram, bimodality, trend.
+    Score(score::Args),
 }
 
 /// Runs the parsed command.
@@ -32,5 +41,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Check(a) => check::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Fit(a) => fit::run(a),
+        Command::Predict(a) => predict::run(a),
+        Command::Score(a) => score::run(a),
     }
 }

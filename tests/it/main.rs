@@ -3,5 +3,6 @@
 
 mod check;
 mod common;
+mod model;
 mod plot;
 mod sim;

@@ -1,0 +1,50 @@
+//! Fitting the `calibration` preset (poly2+direction+seek+memory+drift, eq. 1) on 1,000,000
+//! measured rows of a synthetic random-seek log. Target: under 1 s.
+
+use biasctl::fit::{FitOptions, fit};
+use biasctl::history::History;
+use biasctl::log::{ColumnMap, Log};
+use biasctl::model::ModelSpec;
+use biasctl::rng::SimRng;
+use criterion::{Criterion, criterion_group, criterion_main};
+use std::hint::black_box;
+
+fn log(n: usize) -> Log {
+    let mut rng = SimRng::new(3);
+    let mut h = History::new();
+    let mut text = String::with_capacity(n * 32);
+    text.push_str("time_s,track,bias\n");
+    let mut x = 500.0;
+    for k in 0..n {
+        x = if rng.uniform() < 0.5 {
+            (x + rng.below(41) as f64 - 20.0).clamp(0.0, 1000.0)
+        } else {
+            rng.below(1001) as f64
+        };
+        let f = h.step(k as f64 * 0.01, x);
+        let u = (x - 500.0) / 500.0;
+        let seek = if f.direction_change {
+            8.0 * (-f.seek_abs() / 40.0).exp()
+        } else {
+            0.0
+        };
+        let y = 20.0 + 10.0 * u - 5.0 * u * u + 15.0 * f64::from(f.direction)
+            - seek * f64::from(f.direction)
+            + 2.0 * rng.normal();
+        text.push_str(&format!("{:.2},{x},{y:.4}\n", k as f64 * 0.01));
+    }
+    Log::from_reader("bench.csv", text.as_bytes(), &ColumnMap::default()).expect("synthetic log")
+}
+
+fn bench(c: &mut Criterion) {
+    let log = log(1_000_000);
+    let spec = ModelSpec::preset("calibration").expect("preset");
+    let mut g = c.benchmark_group("fit");
+    g.bench_function("calibration_1M_rows", |b| {
+        b.iter(|| black_box(fit(&spec, black_box(&log), &FitOptions::default()).expect("fit")))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,52 @@
+//! `biasctl fit`: fit a model (a preset or a term list) to a log and write the model file.
+
+use super::common::LogArgs;
+use anyhow::Context;
+use biasctl::fit::{FitOptions, fit};
+use biasctl::log::Log;
+use biasctl::model::ModelSpec;
+use std::path::PathBuf;
+
+/// Flags of `biasctl fit`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    log: LogArgs,
+    /// A preset: position-direction, calibration or dahl.
+    #[arg(long, value_name = "PRESET", conflicts_with = "terms")]
+    model: Option<String>,
+    /// A comma-separated term list, e.g. `poly2,dahl:4,col:temp_c`.
+    #[arg(long, value_name = "T1,T2,...")]
+    terms: Option<String>,
+    /// The model file to write (JSON).
+    #[arg(long, value_name = "MODEL.json")]
+    out: PathBuf,
+}
+
+/// Validates the spec, reads the log, fits, prints the parameters and writes the model.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let spec = match (&args.model, &args.terms) {
+        (Some(p), None) => ModelSpec::preset(p).context("--model")?,
+        (None, Some(t)) => ModelSpec::parse(t).context("--terms")?,
+        _ => anyhow::bail!("give a model: --model PRESET or --terms T1,T2,..."),
+    };
+    let log = Log::read(&args.log.data, &args.log.columns.map())?;
+    let model = fit(&spec, &log, &FitOptions::default())?;
+    model.save(&args.out)?;
+    let f = &model.fit;
+    println!(
+        "{}: model `{}`, {} measured rows, {} parameters, residual std {:.4}, R² {:.4}",
+        log.schema.file, model.spec, f.rows_used, f.parameters, f.residual_std, f.r2
+    );
+    for p in model.params() {
+        match p.se {
+            Some(se) => println!("  {:<32} {:>14.6e} ± {:.3e}", p.name, p.value, se),
+            None => println!("  {:<32} {:>14.6e}", p.name, p.value),
+        }
+    }
+    for w in &model.warnings {
+        println!("warning: {w}");
+    }
+    println!("wrote {}", args.out.display());
+    Ok(())
+}

@@ -1,0 +1,27 @@
+//! `biasctl score`: error statistics of a model on a log.
+
+use super::predict::ModelLogArgs;
+use biasctl::score::score;
+
+/// Flags of `biasctl score`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    input: ModelLogArgs,
+    /// Print JSON (keys n, mean, std, rms, median_abs, percentiles, histogram, bimodality, bimodal, trend).
+    #[arg(long)]
+    json: bool,
+}
+
+/// Replays the model and prints the score.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (model, log, pred) = args.input.replay()?;
+    let s = score(&pred.residual, &pred.positions)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&s)?);
+    } else {
+        println!("{}: model `{}`", log.schema.file, model.spec);
+        print!("{}", s.to_text());
+    }
+    Ok(())
+}

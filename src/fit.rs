@@ -1,0 +1,726 @@
+//! Fitting a [`ModelSpec`] to a measurement log.
+//!
+//! 1. **Prepare**: every [`TermSpec`](crate::model::term::TermSpec) looks at the training data
+//!    once ([`FitData`]) and fixes its knots/centring; an `intercept` is added unless a term
+//!    spans a constant.
+//! 2. **One linear least-squares solve** for all linear parameters of all terms: the basis rows
+//!    of the measured rows are streamed through a chunked Householder QR (TSQR: the running
+//!    `R` factor stacked on 1024 new rows, re-factorised), so memory is O(p²) and nothing like
+//!    normal equations is ever formed. Terms supply centred/scaled columns (`poly2` uses
+//!    `(x − centre)/scale`, hinges are divided by their largest knot). Columns whose `R`
+//!    diagonal falls below `rank_tolerance` × their norm cannot be determined from the log:
+//!    for hinge terms they are fixed at 0 with a warning, otherwise the fit fails naming the
+//!    parameter. Covariance `s²·R⁻¹R⁻ᵀ`, `s² = RSS/(n − rank)`.
+//! 3. **Variable projection** for a term's nonlinear parameter (the Dahl rate): a 1-D search
+//!    (grid, then golden section) on the least-squares RSS with the linear parameters refitted
+//!    at each candidate. Its standard error comes from the curvature of the RSS.
+//! 4. **Causal offsets** (`drift`) are tuned on the residual series of the other terms.
+//! 5. The fitted model is replayed causally over the training log for the fit statistics.
+
+use crate::history::{History, SeekFeatures};
+use crate::log::Log;
+use crate::model::term::{Param, Seek, Term};
+use crate::model::terms::intercept::InterceptTerm;
+use crate::model::{ColumnsUsed, FittedModel, FittedTerm, ModelError, ModelSpec, SpecError};
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// An error fitting a model. Nothing is written when a fit fails.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FitError {
+    /// The spec string is invalid.
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// Fewer measured rows than the model needs.
+    #[error(
+        "{file}: {measured} measured rows, but the model `{spec}` has {params} linear parameters and needs at least {needed} measured rows"
+    )]
+    TooShort {
+        /// The log file.
+        file: String,
+        /// Measured rows in the log.
+        measured: usize,
+        /// Linear parameters of the model.
+        params: usize,
+        /// Rows needed.
+        needed: usize,
+        /// The model.
+        spec: String,
+    },
+    /// A parameter the log cannot determine (for example `poly2` on a log at one position).
+    #[error(
+        "{file}: parameter `{param}` cannot be determined from this log: its column is zero or a combination of the others ({hint})"
+    )]
+    RankDeficient {
+        /// The log file.
+        file: String,
+        /// Full parameter name.
+        param: String,
+        /// What usually causes it.
+        hint: String,
+    },
+    /// The log lacks a covariate column a term needs.
+    #[error(
+        "{file}: term `{term}` needs column `{column}`, which the log lacks (covariates in the log: {available})"
+    )]
+    MissingCovariate {
+        /// The log file.
+        file: String,
+        /// The term.
+        term: String,
+        /// The missing column.
+        column: String,
+        /// The covariates present.
+        available: String,
+    },
+    /// A term's setting does not suit the data.
+    #[error("term `{term}`: {why}")]
+    BadSetting {
+        /// The term.
+        term: String,
+        /// What is wrong.
+        why: String,
+    },
+    /// A term could not start on this log.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+}
+
+/// Fit settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
+    /// Relative size of an `R` diagonal below which a column is called undetermined.
+    pub rank_tolerance: f64,
+    /// Grid points of the nonlinear search before golden-section refinement.
+    pub grid: usize,
+    /// Golden-section iterations.
+    pub refine: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            rank_tolerance: 1e-9,
+            grid: 24,
+            refine: 40,
+        }
+    }
+}
+
+/// How a fit ended (saved in the model file under `fit`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitReport {
+    /// Measured rows used.
+    pub rows_used: usize,
+    /// Linear parameters fitted (after dropping undetermined hinge columns).
+    pub parameters: usize,
+    /// Standard deviation of the causal residuals on the training log, counts.
+    pub residual_std: f64,
+    /// RMS of the causal residuals, counts.
+    pub residual_rms: f64,
+    /// 1 − SS(residual)/SS(bias about its mean), causal prediction.
+    pub r2: f64,
+    /// Residual sum of squares of the least-squares solve (no causal offsets), counts².
+    pub ls_rss: f64,
+    /// Parameters fixed at 0 because the log cannot determine them.
+    pub dropped: Vec<String>,
+    /// Objective evaluations of the nonlinear search (0 if none).
+    pub evaluations: usize,
+    /// Whether every nonlinear search ended inside its interval.
+    pub converged: bool,
+}
+
+/// The training data as terms see it while they prepare: the log and every row's seek features.
+#[derive(Debug)]
+pub struct FitData<'a> {
+    log: &'a Log,
+    features: Vec<SeekFeatures>,
+}
+
+impl<'a> FitData<'a> {
+    /// Replays the log's seek history once.
+    pub fn new(log: &'a Log) -> Self {
+        let mut h = History::new();
+        let features = log.rows.iter().map(|r| h.step(r.time_s, r.track)).collect();
+        Self { log, features }
+    }
+
+    /// The log.
+    pub fn log(&self) -> &Log {
+        self.log
+    }
+
+    /// Seek features of every row, in log order.
+    pub fn features(&self) -> &[SeekFeatures] {
+        &self.features
+    }
+
+    /// `f` of every measured row, as `Option`s (in log order).
+    pub fn measured_map(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<Option<f64>> {
+        self.log
+            .rows
+            .iter()
+            .zip(&self.features)
+            .filter(|(r, _)| r.bias.is_some())
+            .map(|(r, feat)| {
+                f(&Seek {
+                    features: feat,
+                    covariates: &r.covariates,
+                })
+            })
+            .collect()
+    }
+
+    /// The defined values of `f` over the measured rows.
+    pub fn measured_values(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
+        self.measured_map(f).into_iter().flatten().collect()
+    }
+
+    /// Index of covariate `column`, or the error naming `term`.
+    pub fn covariate(&self, column: &str, term: &str) -> Result<usize, FitError> {
+        let s = &self.log.schema;
+        s.covariate_index(column)
+            .ok_or_else(|| FitError::MissingCovariate {
+                file: s.file.clone(),
+                term: term.into(),
+                column: column.into(),
+                available: if s.covariates.is_empty() {
+                    "none".into()
+                } else {
+                    s.covariates.join(", ")
+                },
+            })
+    }
+}
+
+/// Minimises `f` on [lo, hi]: `grid` evenly spaced points, then `iters` golden-section steps
+/// in the bracket around the best. Returns (x, f(x), evaluations).
+pub fn golden_min(
+    f: &dyn Fn(f64) -> f64,
+    lo: f64,
+    hi: f64,
+    grid: usize,
+    iters: usize,
+) -> (f64, f64, usize) {
+    let g = grid.max(3);
+    let xs: Vec<f64> = (0..g)
+        .map(|i| lo + (hi - lo) * i as f64 / (g - 1) as f64)
+        .collect();
+    let fs: Vec<f64> = xs.iter().map(|&x| f(x)).collect();
+    let mut evals = g;
+    let best = (0..g).min_by(|&a, &b| fs[a].total_cmp(&fs[b])).unwrap_or(0);
+    let (mut a, mut b) = (xs[best.saturating_sub(1)], xs[(best + 1).min(g - 1)]);
+    let (mut bx, mut bf) = (xs[best], fs[best]);
+    let phi = 0.5 * (5f64.sqrt() - 1.0);
+    let mut c = b - phi * (b - a);
+    let mut d = a + phi * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    evals += 2;
+    for _ in 0..iters {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - phi * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + phi * (b - a);
+            fd = f(d);
+        }
+        evals += 1;
+    }
+    for (x, v) in [(c, fc), (d, fd)] {
+        if v < bf {
+            bx = x;
+            bf = v;
+        }
+    }
+    (bx, bf, evals)
+}
+
+/// The running `R` factor of a tall least-squares problem `[X y]`, fed row by row (TSQR: the
+/// current `R` stacked on up to [`CHUNK`] new rows is re-factorised by Householder reflections in
+/// a cache-resident column-major block).
+#[derive(Debug, Clone)]
+pub struct StreamingQr {
+    cols: usize,
+    /// Column-major, `cols + CHUNK` rows: the first `cols` rows hold `R`, then the new rows.
+    block: Vec<f64>,
+    fill: usize,
+    colsq: Vec<f64>,
+    rows: usize,
+}
+
+/// Rows added between two re-factorisations.
+pub const CHUNK: usize = 1024;
+
+/// Dot product with four accumulators (vectorises).
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    acc[0] + acc[1] + acc[2] + acc[3] + tail
+}
+
+/// Householder QR of the column-major `m × n` matrix `a` (m ≥ n), in place: on return the
+/// upper triangle of the first `n` rows is `R` (below it, zeros).
+fn householder_r(a: &mut [f64], m: usize, n: usize) {
+    for j in 0..n {
+        let (left, right) = a.split_at_mut((j + 1) * m);
+        let v = &mut left[j * m + j..j * m + m];
+        let norm = dot(v, v).sqrt();
+        if norm <= 0.0 {
+            continue;
+        }
+        let alpha = if v[0] > 0.0 { -norm } else { norm };
+        v[0] -= alpha;
+        let vv = dot(v, v);
+        if vv > 0.0 {
+            let tau = 2.0 / vv;
+            for k in 0..n - j - 1 {
+                let c = &mut right[k * m + j..k * m + m];
+                let s = tau * dot(v, c);
+                for (ci, vi) in c.iter_mut().zip(v.iter()) {
+                    *ci -= s * vi;
+                }
+            }
+        }
+        v[0] = alpha;
+        v[1..].fill(0.0);
+    }
+}
+
+impl StreamingQr {
+    /// A problem with `p` regressors (plus the response column).
+    pub fn new(p: usize) -> Self {
+        let cols = p + 1;
+        Self {
+            cols,
+            block: vec![0.0; (cols + CHUNK) * cols],
+            fill: 0,
+            colsq: vec![0.0; cols],
+            rows: 0,
+        }
+    }
+
+    /// Adds one row `x` (length p) with response `y`.
+    pub fn push(&mut self, x: &[f64], y: f64) {
+        let m = self.cols + CHUNK;
+        let row = self.cols + self.fill;
+        for (j, &v) in x.iter().chain(std::iter::once(&y)).enumerate() {
+            self.block[j * m + row] = v;
+            self.colsq[j] += v * v;
+        }
+        self.fill += 1;
+        self.rows += 1;
+        if self.fill == CHUNK {
+            self.fold();
+        }
+    }
+
+    fn fold(&mut self) {
+        if self.fill == 0 {
+            return;
+        }
+        let (n, m) = (self.cols, self.cols + CHUNK);
+        if self.fill < CHUNK {
+            // Partial chunk: factorise only the filled rows (zero the stale ones).
+            for j in 0..n {
+                self.block[j * m + n + self.fill..(j + 1) * m].fill(0.0);
+            }
+        }
+        householder_r(&mut self.block, m, n);
+        self.fill = 0;
+    }
+
+    /// Rows pushed so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms².
+    pub fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
+        self.fold();
+        let (n, m) = (self.cols, self.cols + CHUNK);
+        let r = DMatrix::from_fn(
+            n,
+            n,
+            |i, j| if i <= j { self.block[j * m + i] } else { 0.0 },
+        );
+        (r, self.colsq)
+    }
+}
+
+/// The least-squares solution of one design.
+#[derive(Debug, Clone)]
+struct Solution {
+    coef: Vec<f64>,
+    /// Row-major p × p covariance (zero rows/cols for dropped columns).
+    cov: Vec<f64>,
+    rss: f64,
+    dropped: Vec<usize>,
+    rank: usize,
+    n: usize,
+}
+
+fn offsets(terms: &[Arc<dyn Term>]) -> (Vec<usize>, usize) {
+    let mut off = Vec::with_capacity(terms.len());
+    let mut p = 0;
+    for t in terms {
+        off.push(p);
+        p += t.param_names().len();
+    }
+    (off, p)
+}
+
+/// Replays the log and calls `visit(basis_row, y)` for each measured row.
+fn design_pass(
+    terms: &[Arc<dyn Term>],
+    data: &FitData<'_>,
+    mut visit: impl FnMut(&[f64], f64),
+) -> Result<(), FitError> {
+    let covs = &data.log.schema.covariates;
+    let mut states = terms
+        .iter()
+        .map(|t| t.start(covs))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (off, p) = offsets(terms);
+    let widths: Vec<usize> = terms.iter().map(|t| t.param_names().len()).collect();
+    let mut buf = vec![0.0; p];
+    for (row, f) in data.log.rows.iter().zip(&data.features) {
+        let seek = Seek {
+            features: f,
+            covariates: &row.covariates,
+        };
+        if let Some(y) = row.bias {
+            for (k, s) in states.iter().enumerate() {
+                s.basis(&seek, &mut buf[off[k]..off[k] + widths[k]]);
+            }
+            visit(&buf, y);
+        }
+        for s in &mut states {
+            s.update(&seek, None);
+        }
+    }
+    Ok(())
+}
+
+fn param_label(terms: &[Arc<dyn Term>], col: usize) -> (String, bool) {
+    let mut start = 0;
+    for t in terms {
+        let names = t.param_names();
+        if col < start + names.len() {
+            return (
+                format!("{}.{}", t.name(), names[col - start]),
+                t.droppable(),
+            );
+        }
+        start += names.len();
+    }
+    (format!("column {col}"), false)
+}
+
+fn solve(
+    terms: &[Arc<dyn Term>],
+    data: &FitData<'_>,
+    opts: &FitOptions,
+) -> Result<Solution, FitError> {
+    let (_, p) = offsets(terms);
+    // Essential columns first, so that a dependency is blamed on a droppable hinge if possible.
+    let droppable: Vec<bool> = (0..p).map(|c| param_label(terms, c).1).collect();
+    let mut order: Vec<usize> = (0..p).filter(|&c| !droppable[c]).collect();
+    order.extend((0..p).filter(|&c| droppable[c]));
+    let mut qr = StreamingQr::new(p);
+    let mut xp = vec![0.0; p];
+    design_pass(terms, data, |x, y| {
+        for (q, &c) in order.iter().enumerate() {
+            xp[q] = x[c];
+        }
+        qr.push(&xp, y);
+    })?;
+    let n = qr.rows();
+    let (r, colsq) = qr.finish();
+    let mut keep = Vec::new();
+    let mut dropped = Vec::new();
+    for q in 0..p {
+        let norm = colsq[q].sqrt();
+        if norm <= 0.0 || r[(q, q)].abs() <= opts.rank_tolerance * norm {
+            let (name, ok) = param_label(terms, order[q]);
+            if !ok {
+                return Err(FitError::RankDeficient {
+                    file: data.log.schema.file.clone(),
+                    param: name,
+                    hint: "too few distinct positions, seeks or covariate values for this term, or two terms describing the same thing".into(),
+                });
+            }
+            dropped.push(order[q]);
+        } else {
+            keep.push(q);
+        }
+    }
+    let k = keep.len();
+    // Re-factorise the kept columns of R (and y) when columns were dropped.
+    let r = if dropped.is_empty() {
+        r
+    } else {
+        let mut sel: Vec<usize> = keep.clone();
+        sel.push(p);
+        let sub = r.select_columns(sel.iter());
+        sub.qr().r()
+    };
+    let rk = r.view((0, 0), (k, k)).clone_owned();
+    let z = r.view((0, k), (k, 1)).clone_owned();
+    let rss = r[(k, k)].powi(2);
+    let beta = rk
+        .solve_upper_triangular(&z)
+        .unwrap_or_else(|| DMatrix::zeros(k, 1));
+    let rinv = rk
+        .solve_upper_triangular(&DMatrix::identity(k, k))
+        .unwrap_or_else(|| DMatrix::zeros(k, k));
+    let dof = n.saturating_sub(k).max(1) as f64;
+    let s2 = rss / dof;
+    let ck = &rinv * rinv.transpose() * s2;
+    let mut coef = vec![0.0; p];
+    let mut cov = vec![0.0; p * p];
+    for (a, &qa) in keep.iter().enumerate() {
+        coef[order[qa]] = beta[(a, 0)];
+        for (b, &qb) in keep.iter().enumerate() {
+            cov[order[qa] * p + order[qb]] = ck[(a, b)];
+        }
+    }
+    dropped.sort_unstable();
+    Ok(Solution {
+        coef,
+        cov,
+        rss,
+        dropped,
+        rank: k,
+        n,
+    })
+}
+
+/// Fits `spec` to the measured rows of `log`.
+pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel, FitError> {
+    let data = FitData::new(log);
+    let mut terms = spec
+        .terms
+        .iter()
+        .map(|t| t.prepare(&data))
+        .collect::<Result<Vec<_>, _>>()?;
+    if !terms.iter().any(|t| t.provides_intercept()) {
+        terms.insert(0, Arc::new(InterceptTerm));
+    }
+    let file = log.schema.file.clone();
+    for t in &terms {
+        t.start(&log.schema.covariates)?;
+    }
+    let (_, p) = offsets(&terms);
+    let measured = log.measured_count();
+    let needed = p + 2;
+    if measured < needed {
+        return Err(FitError::TooShort {
+            file,
+            measured,
+            params: p,
+            needed,
+            spec: spec.to_string(),
+        });
+    }
+
+    // Variable projection over nonlinear parameters (coordinate-wise if several).
+    let nl_terms: Vec<usize> = (0..terms.len())
+        .filter(|&k| terms[k].nonlinear().is_some())
+        .collect();
+    let mut evaluations = 0;
+    let mut converged = true;
+    let mut nl_se: Vec<Option<f64>> = vec![None; terms.len()];
+    let cycles = if nl_terms.len() > 1 { 2 } else { 1 };
+    for _ in 0..cycles {
+        for &k in &nl_terms {
+            let Some(nl) = terms[k].nonlinear() else {
+                continue;
+            };
+            let rss_at = |t: f64| -> f64 {
+                let mut trial = terms.clone();
+                match terms[k].with_nonlinear(t) {
+                    Some(term) => trial[k] = term,
+                    None => return f64::INFINITY,
+                }
+                solve(&trial, &data, opts).map_or(f64::INFINITY, |s| s.rss)
+            };
+            let (t, ft, ev) = golden_min(&rss_at, nl.lo, nl.hi, opts.grid, opts.refine);
+            evaluations += ev;
+            let span = nl.hi - nl.lo;
+            converged &= t > nl.lo + 1e-3 * span && t < nl.hi - 1e-3 * span;
+            // Standard error from the curvature of the RSS: var(t) ≈ 2 s² / RSS''(t).
+            let h = 1e-3 * span;
+            let (fm, fp) = (rss_at(t - h), rss_at(t + h));
+            evaluations += 2;
+            let curv = (fp - 2.0 * ft + fm) / (h * h);
+            let s2 = ft / (measured.saturating_sub(p + 1).max(1)) as f64;
+            nl_se[k] = (curv > 0.0 && ft.is_finite()).then(|| (2.0 * s2 / curv).sqrt());
+            if let Some(term) = terms[k].with_nonlinear(t) {
+                terms[k] = term;
+            }
+        }
+    }
+
+    let sol = solve(&terms, &data, opts)?;
+
+    // Causal offsets tuned on the static residuals.
+    if terms.iter().any(|t| t.param_names().is_empty()) {
+        let mut residuals = Vec::with_capacity(sol.n);
+        design_pass(&terms, &data, |x, y| {
+            residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
+        })?;
+        for t in &mut terms {
+            if let Some(tuned) = t.tune_on_residuals(&residuals) {
+                *t = tuned;
+            }
+        }
+    }
+
+    let (off, _) = offsets(&terms);
+    let mut warnings = Vec::new();
+    let mut fitted = Vec::with_capacity(terms.len());
+    for (k, t) in terms.iter().enumerate() {
+        let w = t.param_names().len();
+        let coef = sol.coef[off[k]..off[k] + w].to_vec();
+        let mut cov = vec![0.0; w * w];
+        for a in 0..w {
+            for b in 0..w {
+                cov[a * w + b] = sol.cov[(off[k] + a) * p + off[k] + b];
+            }
+        }
+        let params: Vec<Param> = t.report(&coef, &cov, nl_se[k]);
+        for prm in &params {
+            if let Some(se) = prm.se
+                && se > prm.value.abs()
+                && !sol
+                    .dropped
+                    .iter()
+                    .any(|&c| param_label(&terms, c).0 == prm.name)
+            {
+                warnings.push(format!(
+                    "{}: standard error {:.4e} exceeds |value| {:.4e}: not identifiable from this log",
+                    prm.name, se, prm.value
+                ));
+            }
+        }
+        if w == 0 && (t.name().starts_with("seek") || t.name().starts_with("memory")) {
+            warnings.push(format!(
+                "term `{}` has no knots: the log has no data for it",
+                t.name()
+            ));
+        }
+        fitted.push(FittedTerm {
+            term: t.clone(),
+            coefficients: coef,
+            params,
+        });
+    }
+    let dropped: Vec<String> = sol
+        .dropped
+        .iter()
+        .map(|&c| param_label(&terms, c).0)
+        .collect();
+    for d in &dropped {
+        warnings.push(format!(
+            "{d}: the log cannot determine this coefficient (no data, or a combination of others); fixed at 0"
+        ));
+    }
+    if !converged {
+        warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
+    }
+    let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
+    covariates.dedup();
+    let map = &log.schema.map;
+    let mut model = FittedModel {
+        spec: spec.to_string(),
+        columns: ColumnsUsed {
+            time: map.time.clone(),
+            track: map.track.clone(),
+            bias: map.bias.clone(),
+            covariates,
+        },
+        terms: fitted,
+        fit: FitReport {
+            rows_used: sol.n,
+            parameters: sol.rank,
+            residual_std: 0.0,
+            residual_rms: 0.0,
+            r2: 0.0,
+            ls_rss: sol.rss,
+            dropped,
+            evaluations,
+            converged,
+        },
+        warnings,
+    };
+    let pred = model.predict_log(log)?;
+    let sst: f64 = {
+        let m = crate::stats::mean(&pred.measured).unwrap_or(0.0);
+        pred.measured.iter().map(|y| (y - m) * (y - m)).sum()
+    };
+    let sse: f64 = pred.residual.iter().map(|e| e * e).sum();
+    model.fit.residual_std = crate::stats::std_dev(&pred.residual).unwrap_or(0.0);
+    model.fit.residual_rms = crate::stats::rms(&pred.residual).unwrap_or(0.0);
+    model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
+    Ok(model)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SimRng;
+
+    #[test]
+    fn streaming_qr_matches_svd_least_squares() {
+        // Reference: nalgebra's SVD least-squares solution of the same (well-scaled) problem,
+        // over several chunk boundaries (2500 rows = 2 full chunks + a partial one).
+        let mut rng = SimRng::new(1);
+        let (n, p) = (2500, 6);
+        let x = DMatrix::from_fn(n, p, |_, _| rng.normal());
+        let y = DMatrix::from_fn(n, 1, |i, _| x.row(i).sum() + 0.1 * rng.normal());
+        let mut qr = StreamingQr::new(p);
+        for i in 0..n {
+            let row: Vec<f64> = x.row(i).iter().copied().collect();
+            qr.push(&row, y[(i, 0)]);
+        }
+        let (r, colsq) = qr.finish();
+        let beta = r
+            .view((0, 0), (p, p))
+            .clone_owned()
+            .solve_upper_triangular(&r.view((0, p), (p, 1)).clone_owned())
+            .unwrap();
+        let svd = x.clone().svd(true, true).solve(&y, 1e-12).unwrap();
+        for j in 0..p {
+            assert!((beta[(j, 0)] - svd[(j, 0)]).abs() < 1e-10, "{j}");
+            assert!((colsq[j] - x.column(j).norm_squared()).abs() < 1e-8 * colsq[j]);
+        }
+        let rss = (&y - &x * &svd).norm_squared();
+        assert!((r[(p, p)].powi(2) - rss).abs() < 1e-9 * rss);
+    }
+
+    #[test]
+    fn golden_min_finds_a_parabola_minimum() {
+        // Reference: the minimum of (x − 0.3)² is at 0.3.
+        let (x, fx, ev) = golden_min(&|x: f64| (x - 0.3) * (x - 0.3), -2.0, 2.0, 10, 40);
+        assert!(
+            (x - 0.3).abs() < 1e-6 && fx < 1e-12 && ev == 52,
+            "{x} {fx} {ev}"
+        );
+    }
+}

@@ -1,0 +1,441 @@
+//! Bias models: sums of [`term::Term`]s, their unfitted specs, fitted models, replay over a log
+//! and the online [`Predictor`].
+//!
+//! ```
+//! use biasctl::model::ModelSpec;
+//! let spec = ModelSpec::parse("poly2,dahl:4,col:temp_c").unwrap();
+//! assert_eq!(spec.to_string(), "poly2,dahl:4,col:temp_c");
+//! assert_eq!(ModelSpec::preset("calibration").unwrap().to_string(), "poly2,direction,seek,memory,drift");
+//! assert!(ModelSpec::parse("poly2,frobnicate").is_err());
+//! ```
+
+pub mod predictor;
+pub mod preset;
+pub mod term;
+pub mod terms;
+
+pub use predictor::Predictor;
+
+use crate::fit::FitReport;
+use crate::log::Log;
+use crate::output::{OutputError, write_string_atomic};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use term::{Param, Term, TermSpec};
+
+/// Format name written into every model file.
+pub const FORMAT: &str = "biasctl-model";
+/// Version of the model file layout this build reads and writes.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// An error in a model spec string (`--terms`, `--model`); nothing has been read or fitted.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SpecError {
+    /// A term name that is not built in.
+    #[error("unknown term `{term}` (built-in terms: {})", terms::BUILTIN_NAMES)]
+    UnknownTerm {
+        /// The offending item.
+        term: String,
+    },
+    /// A term's argument is malformed.
+    #[error("term `{term}`: {why}")]
+    BadArgument {
+        /// The offending item.
+        term: String,
+        /// What is wrong.
+        why: String,
+    },
+    /// The same term twice.
+    #[error("term `{term}` appears twice in the model")]
+    Duplicate {
+        /// The repeated term.
+        term: String,
+    },
+    /// A preset name that does not exist.
+    #[error("unknown model preset `{name}` (presets: {})", preset::PRESETS.join(", "))]
+    UnknownPreset {
+        /// The name given.
+        name: String,
+    },
+    /// An empty item in a list (`poly2,,seek`).
+    #[error("empty term in the list `{list}`")]
+    EmptyItem {
+        /// The whole list.
+        list: String,
+    },
+}
+
+/// An error loading, saving or applying a fitted model.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelError {
+    /// The model file could not be read.
+    #[error("{path}: cannot read the model file: {source}")]
+    Io {
+        /// The model file.
+        path: PathBuf,
+        /// The operating-system error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not a valid model file.
+    #[error("{path}: not a valid biasctl model file: {why}")]
+    Corrupt {
+        /// The model file.
+        path: PathBuf,
+        /// What is wrong.
+        why: String,
+    },
+    /// A model file from another format version.
+    #[error(
+        "{path}: model format version {found}, but this biasctl reads version {expected}; refit the model"
+    )]
+    Version {
+        /// The model file.
+        path: PathBuf,
+        /// The version in the file.
+        found: u64,
+        /// The version this build reads.
+        expected: u32,
+    },
+    /// A term in the file cannot be rebuilt.
+    #[error("model term `{term}`: {why}")]
+    BadTerm {
+        /// The term.
+        term: String,
+        /// What is wrong.
+        why: String,
+    },
+    /// The log lacks a covariate column the model uses.
+    #[error(
+        "term `{term}` needs covariate column `{column}`, which this log lacks (covariates in the log: {available})"
+    )]
+    MissingCovariate {
+        /// The term.
+        term: String,
+        /// The missing column.
+        column: String,
+        /// The log's covariates.
+        available: String,
+    },
+    /// The log's required columns are named differently from the ones the model was fitted on.
+    #[error(
+        "the model was fitted with {what} column `{model}`, but this log is read with `{log}`; pass {flag} {model} or refit"
+    )]
+    ColumnMismatch {
+        /// Which column (time, track, bias).
+        what: &'static str,
+        /// Name at fit time.
+        model: String,
+        /// Name now.
+        log: String,
+        /// The flag that renames it.
+        flag: &'static str,
+    },
+    /// Writing the model file failed.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+/// An unfitted model: the list of term specs (see [`terms::parse_term`] for the names).
+#[derive(Debug, Clone, Default)]
+pub struct ModelSpec {
+    /// The terms, in order.
+    pub terms: Vec<Arc<dyn TermSpec>>,
+}
+
+impl ModelSpec {
+    /// Parses a comma-separated term list such as `poly2,dahl:4,col:temp_c`. An empty string is
+    /// an empty model (only an intercept), useful to add user terms with [`ModelSpec::with_term`].
+    pub fn parse(list: &str) -> Result<Self, SpecError> {
+        let mut spec = ModelSpec::default();
+        if list.trim().is_empty() {
+            return Ok(spec);
+        }
+        for item in list.split(',') {
+            if item.trim().is_empty() {
+                return Err(SpecError::EmptyItem { list: list.into() });
+            }
+            spec = spec.try_with_term(terms::parse_term(item)?)?;
+        }
+        Ok(spec)
+    }
+
+    /// A named preset: `position-direction`, `calibration` or `dahl` (see [`preset`]).
+    pub fn preset(name: &str) -> Result<Self, SpecError> {
+        preset::preset(name)
+    }
+
+    /// This spec with one more term (a built-in or a user's [`TermSpec`]); panics never, but a
+    /// duplicate name is kept as given (use [`ModelSpec::try_with_term`] to reject it).
+    pub fn with_term(mut self, term: Arc<dyn TermSpec>) -> Self {
+        self.terms.push(term);
+        self
+    }
+
+    /// This spec with one more term; errors if a term of the same name is already there.
+    pub fn try_with_term(self, term: Arc<dyn TermSpec>) -> Result<Self, SpecError> {
+        let name = term.name();
+        if self.terms.iter().any(|t| t.name() == name) {
+            return Err(SpecError::Duplicate { term: name });
+        }
+        Ok(self.with_term(term))
+    }
+}
+
+impl fmt::Display for ModelSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let names: Vec<String> = self.terms.iter().map(|t| t.name()).collect();
+        f.write_str(&names.join(","))
+    }
+}
+
+/// The log columns a model was fitted on.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ColumnsUsed {
+    /// Time column name.
+    pub time: String,
+    /// Position column name.
+    pub track: String,
+    /// Bias column name.
+    pub bias: String,
+    /// Covariate columns the terms read.
+    pub covariates: Vec<String>,
+}
+
+/// One fitted term: the term, its coefficients (basis order) and its reported parameters.
+#[derive(Debug, Clone)]
+pub struct FittedTerm {
+    /// The term with its data-dependent settings.
+    pub term: Arc<dyn Term>,
+    /// Coefficients of its basis, in [`Term::param_names`] order (0 for dropped columns).
+    pub coefficients: Vec<f64>,
+    /// Reported parameters with standard errors.
+    pub params: Vec<Param>,
+}
+
+/// A fitted model: what `biasctl fit` writes and `predict`/`score` read.
+#[derive(Debug, Clone)]
+pub struct FittedModel {
+    /// The spec string the model was fitted from.
+    pub spec: String,
+    /// The columns of the training log.
+    pub columns: ColumnsUsed,
+    /// Fitted terms (with an `intercept` first if the spec had no term spanning a constant).
+    pub terms: Vec<FittedTerm>,
+    /// How the fit ended.
+    pub fit: FitReport,
+    /// Warnings (parameters the log cannot determine, …).
+    pub warnings: Vec<String>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct ModelFile {
+    format: String,
+    version: u32,
+    spec: String,
+    columns: ColumnsUsed,
+    terms: Vec<TermFile>,
+    fit: FitReport,
+    warnings: Vec<String>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct TermFile {
+    term: String,
+    settings: serde_json::Value,
+    coefficients: Vec<f64>,
+    params: Vec<Param>,
+}
+
+/// Rebuilds a user term from its name and saved settings ([`Term::settings`]); `None` for a
+/// name it does not know.
+pub type RestoreFn = dyn Fn(&str, &serde_json::Value) -> Option<Arc<dyn Term>>;
+
+/// Per-row output of replaying a model over a log (measured rows only, in log order).
+#[derive(Debug, Clone, Default)]
+pub struct Prediction {
+    /// Names of the terms, in contribution order.
+    pub term_names: Vec<String>,
+    /// Index into `log.rows` of each measured row.
+    pub rows: Vec<usize>,
+    /// Target position of each row, tracks.
+    pub positions: Vec<f64>,
+    /// Measured bias, counts.
+    pub measured: Vec<f64>,
+    /// Causal prediction (from earlier rows and this row's seek/time/covariates), counts.
+    pub predicted: Vec<f64>,
+    /// measured − predicted, counts.
+    pub residual: Vec<f64>,
+    /// `contributions[t][i]`: term `t`'s contribution to row `i`, counts.
+    pub contributions: Vec<Vec<f64>>,
+}
+
+impl FittedModel {
+    /// All reported parameters, term by term.
+    pub fn params(&self) -> impl Iterator<Item = &Param> {
+        self.terms.iter().flat_map(|t| t.params.iter())
+    }
+
+    /// The parameter named `name` (`poly2.c1`, `dahl.Fc`, …).
+    pub fn param(&self, name: &str) -> Option<&Param> {
+        self.params().find(|p| p.name == name)
+    }
+
+    /// The model file as JSON text.
+    pub fn to_json(&self) -> String {
+        let file = ModelFile {
+            format: FORMAT.into(),
+            version: FORMAT_VERSION,
+            spec: self.spec.clone(),
+            columns: self.columns.clone(),
+            terms: self
+                .terms
+                .iter()
+                .map(|t| TermFile {
+                    term: t.term.name(),
+                    settings: t.term.settings(),
+                    coefficients: t.coefficients.clone(),
+                    params: t.params.clone(),
+                })
+                .collect(),
+            fit: self.fit.clone(),
+            warnings: self.warnings.clone(),
+        };
+        serde_json::to_string_pretty(&file).unwrap_or_default() + "\n"
+    }
+
+    /// Writes the model file atomically.
+    pub fn save(&self, path: &Path) -> Result<(), ModelError> {
+        Ok(write_string_atomic(path, &self.to_json())?)
+    }
+
+    /// Reads a model file with built-in terms only.
+    pub fn load(path: &Path) -> Result<Self, ModelError> {
+        Self::load_with(path, &|_, _| None)
+    }
+
+    /// Reads a model file; `restore` rebuilds user terms from their name and saved settings
+    /// (return `None` for names it does not know; built-ins are tried after it).
+    pub fn load_with(path: &Path, restore: &RestoreFn) -> Result<Self, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+            path: path.into(),
+            source,
+        })?;
+        Self::from_json(&text, path, restore)
+    }
+
+    /// Parses model JSON; `path` names it in messages.
+    pub fn from_json(text: &str, path: &Path, restore: &RestoreFn) -> Result<Self, ModelError> {
+        let corrupt = |why: String| ModelError::Corrupt {
+            path: path.into(),
+            why,
+        };
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| corrupt(e.to_string()))?;
+        if value.get("format").and_then(|v| v.as_str()) != Some(FORMAT) {
+            return Err(corrupt(format!("no `\"format\": \"{FORMAT}\"` field")));
+        }
+        let found = value
+            .get("version")
+            .and_then(|v| v.as_u64())
+            .ok_or_else(|| corrupt("no version".into()))?;
+        if found != u64::from(FORMAT_VERSION) {
+            return Err(ModelError::Version {
+                path: path.into(),
+                found,
+                expected: FORMAT_VERSION,
+            });
+        }
+        let file: ModelFile = serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))?;
+        let mut terms = Vec::with_capacity(file.terms.len());
+        for t in file.terms {
+            let term = match restore(&t.term, &t.settings) {
+                Some(term) => term,
+                None => terms::restore_term(&t.term, &t.settings)?,
+            };
+            let n = term.param_names().len();
+            if t.coefficients.len() != n || t.coefficients.iter().any(|c| !c.is_finite()) {
+                return Err(corrupt(format!(
+                    "term `{}` has {} coefficients, expected {n} finite values",
+                    t.term,
+                    t.coefficients.len()
+                )));
+            }
+            terms.push(FittedTerm {
+                term,
+                coefficients: t.coefficients,
+                params: t.params,
+            });
+        }
+        if terms.is_empty() {
+            return Err(corrupt("no terms".into()));
+        }
+        Ok(FittedModel {
+            spec: file.spec,
+            columns: file.columns,
+            terms,
+            fit: file.fit,
+            warnings: file.warnings,
+        })
+    }
+
+    /// Checks that `log` has the columns this model was fitted on (names of the three required
+    /// columns as read, and every covariate the terms use).
+    pub fn check_log(&self, log: &Log) -> Result<(), ModelError> {
+        let map = &log.schema.map;
+        for (what, model, now, flag) in [
+            ("time", &self.columns.time, &map.time, "--time-col"),
+            ("track", &self.columns.track, &map.track, "--track-col"),
+            ("bias", &self.columns.bias, &map.bias, "--bias-col"),
+        ] {
+            if model != now {
+                return Err(ModelError::ColumnMismatch {
+                    what,
+                    model: model.clone(),
+                    log: now.clone(),
+                    flag,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Replays the model over `log` from its first row (causal: each row's prediction uses only
+    /// earlier rows and the row's own seek, time and covariates).
+    pub fn predict_log(&self, log: &Log) -> Result<Prediction, ModelError> {
+        self.check_log(log)?;
+        let mut p = Predictor::new(self, &log.schema.covariates)?;
+        let nt = self.terms.len();
+        let m = log.measured_count();
+        let mut out = Prediction {
+            term_names: self.terms.iter().map(|t| t.term.name()).collect(),
+            contributions: vec![Vec::with_capacity(m); nt],
+            ..Default::default()
+        };
+        let mut contrib = vec![0.0; nt];
+        for (i, row) in log.rows.iter().enumerate() {
+            let pred = p.step_detailed(
+                row.time_s,
+                row.track,
+                &row.covariates,
+                row.bias,
+                &mut contrib,
+            );
+            if let Some(y) = row.bias {
+                out.rows.push(i);
+                out.positions.push(row.track);
+                out.measured.push(y);
+                out.predicted.push(pred);
+                out.residual.push(y - pred);
+                for (c, v) in out.contributions.iter_mut().zip(&contrib) {
+                    c.push(*v);
+                }
+            }
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,193 @@
+//! The [`Term`] trait: one physical effect's contribution to the predicted bias.
+//!
+//! A model is a sum of terms. Each term is split in two types, linfa style:
+//! - a [`TermSpec`]: the unfitted setting parsed from a string such as `seek` or `bins:dwell_s`;
+//!   [`TermSpec::prepare`] looks at the training data once (to place knots, centre a column) and
+//!   returns a
+//! - [`Term`]: a term whose data-dependent settings are fixed. It has `n` **linear** parameters
+//!   (fitted by the one least-squares solve of [`crate::fit`]) and at most one **nonlinear**
+//!   parameter (searched by variable projection). [`Term::start`] gives its per-log
+//!   [`TermState`], which turns each seek into `n` basis values; the contribution is the dot
+//!   product of the basis with the fitted coefficients, plus an optional causal offset.
+//!
+//! Everything is object safe, so a user can add a physical effect outside the crate:
+//!
+//! ```
+//! use std::sync::Arc;
+//! use biasctl::model::{term::*, ModelSpec, ModelError};
+//! use biasctl::fit::{fit, FitData, FitError, FitOptions};
+//!
+//! /// Bias proportional to the square of the seek length (a made-up effect), per track².
+//! #[derive(Debug)]
+//! struct SeekSquared;
+//! impl TermSpec for SeekSquared {
+//!     fn name(&self) -> String { "seek_squared".into() }
+//!     fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> { Ok(Arc::new(SeekSquared)) }
+//! }
+//! impl Term for SeekSquared {
+//!     fn name(&self) -> String { "seek_squared".into() }
+//!     fn param_names(&self) -> Vec<String> { vec!["k".into()] }
+//!     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+//!         Ok(Box::new(SeekSquaredState))
+//!     }
+//! }
+//! #[derive(Debug, Clone)]
+//! struct SeekSquaredState;
+//! impl TermState for SeekSquaredState {
+//!     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) { out[0] = seek.features.seek_length.powi(2); }
+//!     fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+//!     fn clone_box(&self) -> Box<dyn TermState> { Box::new(self.clone()) }
+//! }
+//!
+//! // Fit `poly2` plus the user term on a small synthetic log: bias = 3 + 0.01·s².
+//! let mut text = String::from("time_s,track,bias\n");
+//! let tracks = [100.0, 130.0, 90.0, 150.0, 120.0, 80.0, 110.0, 140.0, 95.0, 125.0];
+//! let mut prev = tracks[0];
+//! for (i, t) in tracks.iter().enumerate() {
+//!     let s: f64 = t - prev;
+//!     text += &format!("{i},{t},{}\n", 3.0 + 0.01 * s * s);
+//!     prev = *t;
+//! }
+//! let log = biasctl::log::Log::from_reader("x.csv", text.as_bytes(), &Default::default()).unwrap();
+//! let spec = ModelSpec::parse("").unwrap().with_term(Arc::new(SeekSquared));
+//! let model = fit(&spec, &log, &FitOptions::default()).unwrap();
+//! let k = model.param("seek_squared.k").unwrap();
+//! assert!((k.value - 0.01).abs() < 1e-9);
+//! ```
+
+use crate::fit::{FitData, FitError};
+use crate::history::SeekFeatures;
+use crate::model::ModelError;
+use serde::{Deserialize, Serialize};
+use std::fmt::Debug;
+use std::sync::Arc;
+
+/// One seek as the terms see it: the history features and the row's covariates.
+#[derive(Debug, Clone, Copy)]
+pub struct Seek<'a> {
+    /// Features of the seek's history ([`SeekFeatures`]).
+    pub features: &'a SeekFeatures,
+    /// The row's covariate values, in the order of the covariate names given to [`Term::start`].
+    pub covariates: &'a [f64],
+}
+
+/// A fitted parameter as reported in the model file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Param {
+    /// Full name, `term.param` (for example `poly2.c1`, `dahl.Fc`).
+    pub name: String,
+    /// Value, in the units the term documents (counts, counts per track, …).
+    pub value: f64,
+    /// Standard error; `None` where none is available (a setting chosen by search).
+    pub se: Option<f64>,
+}
+
+/// A term's nonlinear parameter, searched by variable projection (1-D search, the linear
+/// parameters refitted by least squares at every candidate).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Nonlinear {
+    /// Name (for messages and the search report).
+    pub name: String,
+    /// Current value, in the search coordinate.
+    pub value: f64,
+    /// Lower end of the search interval (search coordinate).
+    pub lo: f64,
+    /// Upper end of the search interval (search coordinate).
+    pub hi: f64,
+}
+
+/// The unfitted setting of a term: what the user asked for, before any data was seen.
+pub trait TermSpec: Debug + Send + Sync {
+    /// The spec string (`poly2`, `bins:dwell_s`, …).
+    fn name(&self) -> String;
+    /// Fixes the data-dependent settings (knots, centring) from the training data.
+    fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError>;
+}
+
+/// A term with its data-dependent settings fixed (see the module docs).
+pub trait Term: Debug + Send + Sync {
+    /// The spec string this term came from; also the name of its contribution column.
+    fn name(&self) -> String;
+    /// Names of the linear parameters (without the `term.` prefix); one per basis value.
+    fn param_names(&self) -> Vec<String>;
+    /// Whether the basis spans a constant (then the model adds no separate intercept).
+    fn provides_intercept(&self) -> bool {
+        false
+    }
+    /// Whether basis columns the data cannot determine may be fixed at 0 with a warning
+    /// (hinge knots) instead of failing the fit.
+    fn droppable(&self) -> bool {
+        false
+    }
+    /// Covariate columns this term reads.
+    fn covariates(&self) -> Vec<String> {
+        Vec::new()
+    }
+    /// The per-log state; `covariates` are the names of the columns [`Seek::covariates`] will
+    /// hold. Fails if a covariate the term needs is missing.
+    fn start(&self, covariates: &[String]) -> Result<Box<dyn TermState>, ModelError>;
+    /// The nonlinear parameter, if any.
+    fn nonlinear(&self) -> Option<Nonlinear> {
+        None
+    }
+    /// The same term with its nonlinear parameter set to `value` (search coordinate).
+    fn with_nonlinear(&self, _value: f64) -> Option<Arc<dyn Term>> {
+        None
+    }
+    /// For a term whose contribution is a causal function of past residuals (an offset, like
+    /// `drift`): choose its setting from the residual series of the rest of the model
+    /// (measured rows in log order). Returns the tuned term, or `None` if it has nothing to tune.
+    fn tune_on_residuals(&self, _residuals: &[f64]) -> Option<Arc<dyn Term>> {
+        None
+    }
+    /// The parameters to report, given the fitted coefficients, their covariance (row-major,
+    /// `n × n`) and the standard error of the nonlinear parameter (search coordinate).
+    /// Default: one parameter per coefficient, named by [`Term::param_names`].
+    fn report(&self, coef: &[f64], cov: &[f64], _nonlinear_se: Option<f64>) -> Vec<Param> {
+        let n = coef.len();
+        self.param_names()
+            .into_iter()
+            .zip(coef)
+            .enumerate()
+            .map(|(i, (name, &value))| Param {
+                name: format!("{}.{name}", self.name()),
+                value,
+                se: se_from_cov(cov, n, i),
+            })
+            .collect()
+    }
+    /// The data-dependent settings to save in the model file (knots, centre, rates).
+    fn settings(&self) -> serde_json::Value {
+        serde_json::Value::Null
+    }
+}
+
+/// A term's state while a log is replayed.
+pub trait TermState: Debug + Send {
+    /// Writes the basis values of `seek` into `out` (length = number of linear parameters)
+    /// WITHOUT changing the state; the seek is the next one after every seek passed to `update`.
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]);
+    /// A contribution not scaled by any coefficient (a causal offset such as `drift`), counts.
+    fn offset(&self, _seek: &Seek<'_>) -> f64 {
+        0.0
+    }
+    /// Advances the state past `seek`; `residual` is measured − predicted bias of the whole model
+    /// for this row, `None` when the row was not measured (and always `None` during the
+    /// least-squares passes, so the basis must not depend on residuals).
+    fn update(&mut self, seek: &Seek<'_>, residual: Option<f64>);
+    /// A boxed copy (so predictors can be cloned).
+    fn clone_box(&self) -> Box<dyn TermState>;
+}
+
+impl Clone for Box<dyn TermState> {
+    fn clone(&self) -> Self {
+        self.clone_box()
+    }
+}
+
+/// Standard error of coefficient `i` from a row-major `n × n` covariance; `None` if not finite.
+pub fn se_from_cov(cov: &[f64], n: usize, i: usize) -> Option<f64> {
+    cov.get(i * n + i)
+        .map(|v| v.max(0.0).sqrt())
+        .filter(|v| v.is_finite())
+}

@@ -1,0 +1,163 @@
+//! `bins:FEATURE[:KNOTS]`: a generic continuous piecewise-linear (hinge) term in any built-in
+//! history feature ([`Feature::from_name`]: `dwell_s`, `since_reversal`, …) or covariate column.
+//!
+//! Basis: `u = (v − centre)/scale` plus hinges `(v − k_j)₊/scale` at `KNOTS` (default 4) interior
+//! quantiles of the training values (fewer if the values have fewer distinct levels). Where the
+//! feature is undefined (a rest distance with no rest position) the hinges are 0 and, if the
+//! training data had both defined and undefined rows, an indicator column `missing` takes 1.
+//! Coefficients in counts per scaled unit (the curve shape, not meant for reading one by one).
+
+use super::covariate_position;
+use super::knots::{interior_knots, label};
+use crate::fit::{FitData, FitError};
+use crate::history::Feature;
+use crate::model::ModelError;
+use crate::model::term::{Seek, Term, TermSpec, TermState};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Default number of interior knots.
+pub const DEFAULT_KNOTS: usize = 4;
+
+/// Spec of the `bins:FEATURE` term.
+#[derive(Debug, Clone)]
+pub struct BinsSpec {
+    /// A built-in feature name or a covariate column.
+    pub source: String,
+    /// Number of interior knots asked for.
+    pub knots: usize,
+}
+
+impl TermSpec for BinsSpec {
+    fn name(&self) -> String {
+        if self.knots == DEFAULT_KNOTS {
+            format!("bins:{}", self.source)
+        } else {
+            format!("bins:{}:{}", self.source, self.knots)
+        }
+    }
+    fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        let covariate = Feature::from_name(&self.source).is_none();
+        let values: Vec<Option<f64>> = if covariate {
+            let idx = data.covariate(&self.source, &self.name())?;
+            data.measured_values(|s| Some(s.covariates[idx]))
+                .into_iter()
+                .map(Some)
+                .collect()
+        } else {
+            let f = Feature::from_name(&self.source).unwrap_or(Feature::Position);
+            data.measured_map(|s| s.features.value(f))
+        };
+        let defined: Vec<f64> = values.iter().flatten().copied().collect();
+        let centre = crate::stats::mean(&defined).unwrap_or(0.0);
+        let sd = crate::stats::std_dev(&defined).unwrap_or(0.0);
+        Ok(Arc::new(BinsTerm {
+            name: self.name(),
+            source: self.source.clone(),
+            covariate,
+            centre,
+            scale: if sd > 0.0 { sd } else { 1.0 },
+            knots: interior_knots(&defined, self.knots),
+            indicator: !defined.is_empty() && defined.len() < values.len(),
+        }))
+    }
+}
+
+/// The fitted `bins:FEATURE` term.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BinsTerm {
+    /// Spec string.
+    pub name: String,
+    /// Feature or covariate name.
+    pub source: String,
+    /// Whether `source` is a covariate column (else a built-in feature).
+    pub covariate: bool,
+    /// Centre of the linear part.
+    pub centre: f64,
+    /// Scale of the feature.
+    pub scale: f64,
+    /// Interior knots, increasing.
+    pub knots: Vec<f64>,
+    /// Whether the basis has a `missing` indicator column.
+    pub indicator: bool,
+}
+
+impl Term for BinsTerm {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn param_names(&self) -> Vec<String> {
+        let mut v = vec!["linear".to_string()];
+        v.extend(self.knots.iter().map(|&k| format!("hinge@{}", label(k))));
+        if self.indicator {
+            v.push("missing".into());
+        }
+        v
+    }
+    fn droppable(&self) -> bool {
+        true
+    }
+    fn covariates(&self) -> Vec<String> {
+        if self.covariate {
+            vec![self.source.clone()]
+        } else {
+            Vec::new()
+        }
+    }
+    fn start(&self, covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        let source = if self.covariate {
+            Source::Covariate(covariate_position(covariates, &self.source, &self.name)?)
+        } else {
+            Source::Feature(Feature::from_name(&self.source).ok_or_else(|| {
+                ModelError::BadTerm {
+                    term: self.name.clone(),
+                    why: format!("unknown feature `{}`", self.source),
+                }
+            })?)
+        };
+        Ok(Box::new(BinsState {
+            term: self.clone(),
+            source,
+        }))
+    }
+    fn settings(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Source {
+    Feature(Feature),
+    Covariate(usize),
+}
+
+#[derive(Debug, Clone)]
+struct BinsState {
+    term: BinsTerm,
+    source: Source,
+}
+
+impl TermState for BinsState {
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
+        out.fill(0.0);
+        let t = &self.term;
+        let v = match self.source {
+            Source::Feature(f) => seek.features.value(f),
+            Source::Covariate(i) => Some(seek.covariates[i]),
+        };
+        match v {
+            Some(v) => {
+                out[0] = (v - t.centre) / t.scale;
+                for (o, &k) in out[1..].iter_mut().zip(&t.knots) {
+                    *o = (v - k).max(0.0) / t.scale;
+                }
+            }
+            None if t.indicator => out[t.knots.len() + 1] = 1.0,
+            None => {}
+        }
+    }
+    fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(self.clone())
+    }
+}

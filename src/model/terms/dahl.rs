@@ -1,0 +1,287 @@
+//! `dahl` and `dahl:N`: the state-space friction model of eqs. 6–9 (paper Section III-B).
+//!
+//! One Dahl element with unit amplitude has the state `G` (dimensionless, in [−1, 1]):
+//! `G_k = s_k + (G_{k−1} − s_k)·r^{|Δx_k|}`, `s_k = sgn(Δx_k)`, `G_0 = 0` (eq. 8 divided by Fc);
+//! a zero-length seek leaves it unchanged. The friction force is `F = Fc·G`, so for a fixed
+//! `r = 1 − σ/Fc` the bias is linear in Fc: `dahl` searches `t = ln(1 − r)` (golden section after
+//! a grid, variable projection: the linear parameters are refitted at every candidate) and
+//! reports `Fc` (counts), `sigma = Fc·(1 − r)` (counts per track) and `r`.
+//!
+//! `dahl:N` has N elements with fixed rates whose characteristic lengths `L = −1/ln r` are
+//! spaced geometrically between the 5 % and 95 % quantiles of the measured |seek lengths|
+//! (at least 1 track apart), with signed weights (counts) fitted by least squares: fast and slow
+//! elements of opposite sign reproduce the overshoot/undershoot eq. 8 cannot. O(N) state.
+
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Powers `r^n` tabulated for integer seek lengths below this.
+const TABLE: usize = 256;
+
+/// One Dahl element with unit amplitude (Fc = 1): the fast, allocation-free state of eq. 8.
+#[derive(Debug, Clone)]
+pub struct DahlState {
+    ln_r: f64,
+    pow: Box<[f64]>,
+    g: f64,
+}
+
+impl DahlState {
+    /// An element with rate `r` in (0, 1) and state 0.
+    pub fn new(r: f64) -> Self {
+        let ln_r = r.ln();
+        let pow = (0..TABLE).map(|n| (ln_r * n as f64).exp()).collect();
+        Self { ln_r, pow, g: 0.0 }
+    }
+
+    /// `r^|dx|`, from the table for integer lengths.
+    #[inline]
+    fn decay(&self, dx: f64) -> f64 {
+        let a = dx.abs();
+        let n = a as usize;
+        if n < TABLE && (n as f64 - a).abs() <= 0.0 {
+            self.pow[n]
+        } else {
+            (self.ln_r * a).exp()
+        }
+    }
+
+    /// The state after a seek of signed length `dx` (tracks), without changing this one.
+    #[inline]
+    pub fn peek(&self, dx: f64) -> f64 {
+        if dx > 0.0 {
+            1.0 + (self.g - 1.0) * self.decay(dx)
+        } else if dx < 0.0 {
+            -1.0 + (self.g + 1.0) * self.decay(dx)
+        } else {
+            self.g
+        }
+    }
+
+    /// Applies a seek of signed length `dx` and returns the new state.
+    #[inline]
+    pub fn step(&mut self, dx: f64) -> f64 {
+        self.g = self.peek(dx);
+        self.g
+    }
+
+    /// The current state (dimensionless, in [−1, 1]).
+    pub fn value(&self) -> f64 {
+        self.g
+    }
+}
+
+/// The Dahl predictor of eq. 9 as a concrete, allocation-free object: `bias = c0 + c1·x + c2·x²
+/// + Fc·G` (counts, x in tracks). This is what a seek scheduler on a drive would run.
+#[derive(Debug, Clone)]
+pub struct DahlPredictor {
+    c: [f64; 3],
+    fc: f64,
+    state: DahlState,
+    position: Option<f64>,
+}
+
+impl DahlPredictor {
+    /// A predictor with position curve `c = [c0, c1, c2]`, `fc` (counts) and `sigma`
+    /// (counts per track, 0 < sigma < |fc|); `None` if sigma is out of range.
+    pub fn new(c: [f64; 3], fc: f64, sigma: f64) -> Option<Self> {
+        let r = 1.0 - sigma / fc.abs();
+        (sigma > 0.0 && r > 0.0 && r < 1.0).then(|| Self {
+            c,
+            fc,
+            state: DahlState::new(r),
+            position: None,
+        })
+    }
+
+    /// Predicted bias after a seek to `target` (tracks), without changing the state.
+    #[inline]
+    pub fn peek(&self, target: f64) -> f64 {
+        let dx = self.position.map_or(0.0, |p| target - p);
+        self.c[0] + target * (self.c[1] + target * self.c[2]) + self.fc * self.state.peek(dx)
+    }
+
+    /// Seeks to `target` and returns the predicted bias there (counts).
+    #[inline]
+    pub fn step(&mut self, target: f64) -> f64 {
+        let dx = self.position.map_or(0.0, |p| target - p);
+        self.position = Some(target);
+        self.c[0] + target * (self.c[1] + target * self.c[2]) + self.fc * self.state.step(dx)
+    }
+}
+
+/// Spec of the `dahl` / `dahl:N` term.
+#[derive(Debug, Clone, Copy)]
+pub struct DahlSpec {
+    /// `None` for one element with a searched rate (`dahl`); `Some(N)` for N fixed-rate elements.
+    pub elements: Option<usize>,
+}
+
+impl TermSpec for DahlSpec {
+    fn name(&self) -> String {
+        match self.elements {
+            Some(n) => format!("dahl:{n}"),
+            None => "dahl".into(),
+        }
+    }
+    fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        let rates = match self.elements {
+            None => vec![0.9],
+            Some(n) => {
+                let a = data
+                    .measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
+                let mut sorted = crate::stats::sorted(&a);
+                if sorted.is_empty() {
+                    sorted.push(1.0);
+                }
+                let lo = crate::stats::percentile_sorted(&sorted, 5.0)
+                    .unwrap_or(1.0)
+                    .max(1.0);
+                let hi = crate::stats::percentile_sorted(&sorted, 95.0)
+                    .unwrap_or(1.0)
+                    .max(lo + 1.0);
+                (0..n)
+                    .map(|i| {
+                        let f = if n == 1 {
+                            0.5
+                        } else {
+                            i as f64 / (n - 1) as f64
+                        };
+                        let l = lo * (hi / lo).powf(f);
+                        (-1.0 / l).exp()
+                    })
+                    .collect()
+            }
+        };
+        Ok(Arc::new(DahlTerm {
+            name: self.name(),
+            rates,
+            search: self.elements.is_none(),
+        }))
+    }
+}
+
+/// The fitted `dahl` / `dahl:N` term.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct DahlTerm {
+    /// Spec string.
+    pub name: String,
+    /// Rates r of the elements, each in (0, 1).
+    pub rates: Vec<f64>,
+    /// Whether the (single) rate is searched.
+    pub search: bool,
+}
+
+/// Search interval of `t = ln(1 − r)`: σ/Fc from 1e-4 to 0.9999.
+const T_LO: f64 = -9.210_340_371_976_182;
+const T_HI: f64 = -1.000_050_003_333_5e-4;
+
+impl Term for DahlTerm {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn param_names(&self) -> Vec<String> {
+        if self.search {
+            vec!["Fc".into()]
+        } else {
+            self.rates
+                .iter()
+                .map(|r| format!("w@L={}", crate::log::fmt_trimmed(-1.0 / r.ln(), 2)))
+                .collect()
+        }
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        Ok(Box::new(DahlTermState {
+            elements: self.rates.iter().map(|&r| DahlState::new(r)).collect(),
+        }))
+    }
+    fn nonlinear(&self) -> Option<Nonlinear> {
+        self.search.then(|| Nonlinear {
+            name: format!("{}.ln(1-r)", self.name),
+            value: (1.0 - self.rates[0]).ln(),
+            lo: T_LO,
+            hi: T_HI,
+        })
+    }
+    fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
+        self.search.then(|| {
+            Arc::new(DahlTerm {
+                name: self.name.clone(),
+                rates: vec![1.0 - t.clamp(T_LO, T_HI).exp()],
+                search: true,
+            }) as Arc<dyn Term>
+        })
+    }
+    fn report(&self, coef: &[f64], cov: &[f64], nl_se: Option<f64>) -> Vec<Param> {
+        if !self.search {
+            let n = coef.len();
+            return self
+                .param_names()
+                .into_iter()
+                .enumerate()
+                .map(|(i, p)| Param {
+                    name: format!("{}.{p}", self.name),
+                    value: coef[i],
+                    se: se_from_cov(cov, n, i),
+                })
+                .collect();
+        }
+        let r = self.rates[0];
+        let fc = coef[0];
+        let fc_se = se_from_cov(cov, 1, 0);
+        // dr/dt = −(1 − r); sigma = Fc (1 − r): delta method, Fc and t taken as independent.
+        let r_se = nl_se.map(|s| s * (1.0 - r));
+        let sigma = fc * (1.0 - r);
+        let sigma_se = match (fc_se, r_se) {
+            (Some(a), Some(b)) => Some(((1.0 - r) * a).hypot(fc * b)),
+            (Some(a), None) => Some((1.0 - r) * a),
+            _ => None,
+        };
+        vec![
+            Param {
+                name: format!("{}.Fc", self.name),
+                value: fc,
+                se: fc_se,
+            },
+            Param {
+                name: format!("{}.sigma", self.name),
+                value: sigma,
+                se: sigma_se,
+            },
+            Param {
+                name: format!("{}.r", self.name),
+                value: r,
+                se: r_se,
+            },
+        ]
+    }
+    fn settings(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
+
+#[derive(Debug, Clone)]
+struct DahlTermState {
+    elements: Vec<DahlState>,
+}
+
+impl TermState for DahlTermState {
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
+        let dx = seek.features.seek_length;
+        for (o, e) in out.iter_mut().zip(&self.elements) {
+            *o = e.peek(dx);
+        }
+    }
+    fn update(&mut self, seek: &Seek<'_>, _residual: Option<f64>) {
+        let dx = seek.features.seek_length;
+        for e in &mut self.elements {
+            e.step(dx);
+        }
+    }
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(self.clone())
+    }
+}

@@ -1,0 +1,50 @@
+//! `direction`: ±Fc by the direction of the last non-zero seek (+Fc after an inbound move,
+//! −Fc after an outbound one, 0 before the head has moved). Fc in counts: half the gap between
+//! the inbound and outbound curves of the paper's Fig. 3.
+
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Seek, Term, TermSpec, TermState};
+use std::sync::Arc;
+
+/// Spec of the `direction` term.
+#[derive(Debug, Clone, Copy)]
+pub struct DirectionSpec;
+
+impl TermSpec for DirectionSpec {
+    fn name(&self) -> String {
+        "direction".into()
+    }
+    fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        Ok(Arc::new(DirectionTerm))
+    }
+}
+
+/// The fitted `direction` term: parameter `Fc` (counts).
+#[derive(Debug, Clone, Copy)]
+pub struct DirectionTerm;
+
+impl Term for DirectionTerm {
+    fn name(&self) -> String {
+        "direction".into()
+    }
+    fn param_names(&self) -> Vec<String> {
+        vec!["Fc".into()]
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        Ok(Box::new(DirectionState))
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct DirectionState;
+
+impl TermState for DirectionState {
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
+        out[0] = f64::from(seek.features.direction);
+    }
+    fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(*self)
+    }
+}

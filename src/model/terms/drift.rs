@@ -1,0 +1,153 @@
+//! `drift[:ALPHA]`: the continually re-estimated constant of eq. 2 (paper P7), as a causal
+//! offset: after each measured row the drift estimate `m` moves a fraction `alpha` of the way
+//! towards the row's residual without drift, `m ← m + alpha·(y − ŷ)` where `ŷ` already includes
+//! `m` (exponential forgetting; a time constant of about `1/alpha` measurements). A row's
+//! contribution is `m` from the rows before it only; it starts at 0.
+//!
+//! `alpha` is given (`drift:0.05`) or chosen on the training data: a 1-D search on
+//! `ln alpha ∈ [ln 1e-4, 0]` (16-point grid, then five zooms around the best), minimising the one-step-ahead squared error
+//! of the other terms' residuals. It has no standard error (reported as `null`).
+
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Param, Seek, Term, TermSpec, TermState};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Spec of the `drift` term.
+#[derive(Debug, Clone, Copy)]
+pub struct DriftSpec {
+    /// Fixed forgetting factor, or `None` to choose it on the training data.
+    pub alpha: Option<f64>,
+}
+
+impl TermSpec for DriftSpec {
+    fn name(&self) -> String {
+        match self.alpha {
+            Some(a) => format!("drift:{a}"),
+            None => "drift".into(),
+        }
+    }
+    fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        Ok(Arc::new(DriftTerm {
+            name: self.name(),
+            alpha: self.alpha.unwrap_or(0.05),
+            fixed: self.alpha.is_some(),
+        }))
+    }
+}
+
+/// The fitted `drift` term.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct DriftTerm {
+    /// Spec string.
+    pub name: String,
+    /// Forgetting factor per measured row, in (0, 1].
+    pub alpha: f64,
+    /// Whether `alpha` was given rather than searched.
+    pub fixed: bool,
+}
+
+/// One-step-ahead sum of squared errors of exponential forgetting with factor `alpha` on `e`.
+pub fn forgetting_sse(e: &[f64], alpha: f64) -> f64 {
+    let (mut m, mut sse) = (0.0, 0.0);
+    for &v in e {
+        let d = v - m;
+        sse += d * d;
+        m += alpha * d;
+    }
+    sse
+}
+
+/// Candidates evaluated together in one pass over the residuals.
+const LANES: usize = 16;
+
+/// One-step-ahead SSE for `LANES` forgetting factors at once (independent recursions, so the
+/// pass is not latency bound).
+fn forgetting_sse_many(e: &[f64], alphas: &[f64; LANES]) -> [f64; LANES] {
+    let mut m = [0.0; LANES];
+    let mut sse = [0.0; LANES];
+    for &v in e {
+        for i in 0..LANES {
+            let d = v - m[i];
+            sse[i] += d * d;
+            m[i] += alphas[i] * d;
+        }
+    }
+    sse
+}
+
+/// Minimises the one-step SSE over `ln alpha ∈ [lo, hi]`: a 16-point grid, then five zooms into
+/// the bracket around the best point (resolution (hi − lo)·(2/15)⁵ ≈ 4e-4 in ln alpha).
+fn zoom_search(e: &[f64], mut lo: f64, mut hi: f64) -> f64 {
+    let mut best = 0.5 * (lo + hi);
+    for _ in 0..6 {
+        let step = (hi - lo) / (LANES - 1) as f64;
+        let ts: [f64; LANES] = std::array::from_fn(|i| lo + step * i as f64);
+        let sse = forgetting_sse_many(e, &ts.map(f64::exp));
+        let i = (0..LANES)
+            .min_by(|&a, &b| sse[a].total_cmp(&sse[b]))
+            .unwrap_or(0);
+        best = ts[i];
+        lo = ts[i.saturating_sub(1)];
+        hi = ts[(i + 1).min(LANES - 1)];
+    }
+    best
+}
+
+impl Term for DriftTerm {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn param_names(&self) -> Vec<String> {
+        Vec::new()
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        Ok(Box::new(DriftState {
+            alpha: self.alpha,
+            m: 0.0,
+        }))
+    }
+    fn tune_on_residuals(&self, residuals: &[f64]) -> Option<Arc<dyn Term>> {
+        if self.fixed || residuals.is_empty() {
+            return None;
+        }
+        let t = zoom_search(residuals, (1e-4f64).ln(), 0.0);
+        Some(Arc::new(DriftTerm {
+            name: self.name.clone(),
+            alpha: t.exp(),
+            fixed: false,
+        }))
+    }
+    fn report(&self, _coef: &[f64], _cov: &[f64], _nl: Option<f64>) -> Vec<Param> {
+        vec![Param {
+            name: format!("{}.alpha", self.name),
+            value: self.alpha,
+            se: None,
+        }]
+    }
+    fn settings(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
+
+#[derive(Debug, Clone)]
+struct DriftState {
+    alpha: f64,
+    m: f64,
+}
+
+impl TermState for DriftState {
+    fn basis(&self, _seek: &Seek<'_>, _out: &mut [f64]) {}
+    fn offset(&self, _seek: &Seek<'_>) -> f64 {
+        self.m
+    }
+    fn update(&mut self, _seek: &Seek<'_>, residual: Option<f64>) {
+        if let Some(e) = residual {
+            self.m += self.alpha * e;
+        }
+    }
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(self.clone())
+    }
+}

@@ -1,0 +1,52 @@
+//! `intercept`: a constant, counts. Added automatically when no other term spans a constant.
+
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Seek, Term, TermSpec, TermState};
+use std::sync::Arc;
+
+/// Spec of the `intercept` term.
+#[derive(Debug, Clone, Copy)]
+pub struct InterceptSpec;
+
+impl TermSpec for InterceptSpec {
+    fn name(&self) -> String {
+        "intercept".into()
+    }
+    fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        Ok(Arc::new(InterceptTerm))
+    }
+}
+
+/// The fitted `intercept` term: one parameter `c` in counts.
+#[derive(Debug, Clone, Copy)]
+pub struct InterceptTerm;
+
+impl Term for InterceptTerm {
+    fn name(&self) -> String {
+        "intercept".into()
+    }
+    fn param_names(&self) -> Vec<String> {
+        vec!["c".into()]
+    }
+    fn provides_intercept(&self) -> bool {
+        true
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        Ok(Box::new(Constant))
+    }
+}
+
+/// State of a term whose basis is the constant 1.
+#[derive(Debug, Clone, Copy)]
+pub struct Constant;
+
+impl TermState for Constant {
+    fn basis(&self, _seek: &Seek<'_>, out: &mut [f64]) {
+        out[0] = 1.0;
+    }
+    fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(*self)
+    }
+}

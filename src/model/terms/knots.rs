@@ -1,0 +1,71 @@
+//! Knot placement from data quantiles and the hinge bases the piecewise-linear terms share.
+
+/// Up to `k` knots at the quantiles `j/k` (j = 1..=k) of `values` (nearest rank), strictly
+/// above the smallest value, without repeats, increasing. The largest knot is the largest value.
+/// O(n·k) by selection, no full sort.
+pub fn quantile_knots(values: &[f64], k: usize) -> Vec<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() || k == 0 {
+        return Vec::new();
+    }
+    let n = v.len();
+    let min = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let mut knots = Vec::with_capacity(k);
+    for j in 1..=k {
+        let idx = ((j as f64 / k as f64) * (n - 1) as f64).round() as usize;
+        let (_, q, _) = v.select_nth_unstable_by(idx.min(n - 1), f64::total_cmp);
+        let q = *q;
+        if q > min && knots.last().is_none_or(|&l: &f64| q > l) {
+            knots.push(q);
+        }
+    }
+    knots.sort_by(f64::total_cmp);
+    knots.dedup_by(|a, b| (*a - *b).abs() <= 0.0);
+    knots
+}
+
+/// Knots strictly inside (min, max) of `values`: the quantiles `j/(k+1)`, j = 1..=k.
+pub fn interior_knots(values: &[f64], k: usize) -> Vec<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return Vec::new();
+    }
+    let n = v.len();
+    let min = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mut knots: Vec<f64> = Vec::new();
+    for j in 1..=k {
+        let idx = ((j as f64 / (k + 1) as f64) * (n - 1) as f64).round() as usize;
+        let (_, q, _) = v.select_nth_unstable_by(idx.min(n - 1), f64::total_cmp);
+        let q = *q;
+        if q > min && q < max && !knots.iter().any(|&l| (l - q).abs() <= 0.0) {
+            knots.push(q);
+        }
+    }
+    knots.sort_by(f64::total_cmp);
+    knots
+}
+
+/// Writes the "decaying hinge" basis `(k_j − a)₊ / k_max` for distance `a ≥ 0` into `out`
+/// (one value per knot). The resulting function is continuous, piecewise linear in `a` with
+/// breakpoints at the knots, and exactly zero beyond the largest knot.
+#[inline]
+pub fn decaying_hinges(knots: &[f64], a: f64, out: &mut [f64]) {
+    let scale = knots.last().copied().unwrap_or(1.0);
+    for (o, &k) in out.iter_mut().zip(knots) {
+        *o = (k - a).max(0.0) / scale;
+    }
+}
+
+/// Short label of a knot position for parameter names (`40`, `12.5`).
+pub fn label(k: f64) -> String {
+    crate::log::fmt_trimmed(k, 3)
+}
+
+/// Parameter names `curve@knot` of a term with one decaying-hinge curve per entry of `curves`.
+pub fn curve_param_names(curves: &[&str], knots: &[f64]) -> Vec<String> {
+    curves
+        .iter()
+        .flat_map(|c| knots.iter().map(move |&k| format!("{c}@{}", label(k))))
+        .collect()
+}

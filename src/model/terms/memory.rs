@@ -1,0 +1,91 @@
+//! `memory[:KNOTS]`: b_m of eq. 1, the rest-position memory (paper P6, Fig. 9).
+//!
+//! The feature is the distance `d` from the target to the nearest earlier rest position that no
+//! later motion has crossed, on the side the head is moving towards
+//! ([`SeekFeatures::rest_distance_ahead`](crate::history::SeekFeatures::rest_distance_ahead),
+//! kept by the two-stack [`RestMemory`](crate::history::RestMemory), amortised O(1) per seek).
+//! One curve per approach direction (outbound, inbound), each a sum of decaying hinges
+//! `(k_j − d)₊` with knots at the quantiles of the measured distances, so the effect fades to
+//! exactly zero beyond the largest knot. **No rest position ahead is represented as an infinite
+//! distance: the contribution is 0** (the same as a rest position too far away to matter).
+
+use super::knots::{curve_param_names, decaying_hinges, quantile_knots};
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Seek, Term, TermSpec, TermState};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Default number of knots per curve.
+pub const DEFAULT_KNOTS: usize = 4;
+
+/// Spec of the `memory` term.
+#[derive(Debug, Clone, Copy)]
+pub struct MemorySpec {
+    /// Knots per curve.
+    pub knots: usize,
+}
+
+impl TermSpec for MemorySpec {
+    fn name(&self) -> String {
+        if self.knots == DEFAULT_KNOTS {
+            "memory".into()
+        } else {
+            format!("memory:{}", self.knots)
+        }
+    }
+    fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        let d = data.measured_values(|s| s.features.rest_distance_ahead());
+        Ok(Arc::new(MemoryTerm {
+            name: self.name(),
+            knots: quantile_knots(&d, self.knots),
+        }))
+    }
+}
+
+/// The fitted `memory` term.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct MemoryTerm {
+    /// Spec string.
+    pub name: String,
+    /// Knots in rest distance, tracks, increasing.
+    pub knots: Vec<f64>,
+}
+
+impl Term for MemoryTerm {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn param_names(&self) -> Vec<String> {
+        curve_param_names(&["out", "in"], &self.knots)
+    }
+    fn droppable(&self) -> bool {
+        true
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        Ok(Box::new(self.clone()))
+    }
+    fn settings(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
+
+impl TermState for MemoryTerm {
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
+        out.fill(0.0);
+        let k = self.knots.len();
+        let f = seek.features;
+        let side = match f.direction {
+            1 => 1,
+            -1 => 0,
+            _ => return,
+        };
+        if let Some(d) = f.rest_distance_ahead() {
+            decaying_hinges(&self.knots, d, &mut out[side * k..(side + 1) * k]);
+        }
+    }
+    fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(self.clone())
+    }
+}

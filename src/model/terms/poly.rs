@@ -1,0 +1,100 @@
+//! `poly2`: the position curve of eq. 2, `c0 + c1·x + c2·x²` (x = target track, counts).
+//!
+//! Internally the basis is `1, u, u²` with `u = (x − centre)/scale` (centre = mean measured
+//! position, scale = half the position range), so the least-squares problem is well conditioned
+//! on raw track numbers; the reported `c0, c1, c2` are converted back to tracks, with standard
+//! errors carried through the exact linear map.
+
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Spec of the `poly2` term.
+#[derive(Debug, Clone, Copy)]
+pub struct Poly2Spec;
+
+impl TermSpec for Poly2Spec {
+    fn name(&self) -> String {
+        "poly2".into()
+    }
+    fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        let x = data.measured_values(|s| Some(s.features.target));
+        let centre = crate::stats::mean(&x).unwrap_or(0.0);
+        let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let half = 0.5 * (hi - lo);
+        let scale = if half > 0.0 { half } else { 1.0 };
+        Ok(Arc::new(Poly2Term { centre, scale }))
+    }
+}
+
+/// The fitted `poly2` term.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct Poly2Term {
+    /// Centre of the scaled position, tracks.
+    pub centre: f64,
+    /// Scale of the scaled position, tracks.
+    pub scale: f64,
+}
+
+impl Term for Poly2Term {
+    fn name(&self) -> String {
+        "poly2".into()
+    }
+    fn param_names(&self) -> Vec<String> {
+        vec!["a0".into(), "a1".into(), "a2".into()]
+    }
+    fn provides_intercept(&self) -> bool {
+        true
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        Ok(Box::new(*self))
+    }
+    fn report(&self, coef: &[f64], cov: &[f64], _nl: Option<f64>) -> Vec<Param> {
+        // c(x) = a0 + a1 u + a2 u², u = (x − m)/s  ⇒  c = J a.
+        let (m, s) = (self.centre, self.scale);
+        let j = [
+            [1.0, -m / s, m * m / (s * s)],
+            [0.0, 1.0 / s, -2.0 * m / (s * s)],
+            [0.0, 0.0, 1.0 / (s * s)],
+        ];
+        let mut c = [0.0; 3];
+        let mut cc = [0.0; 9];
+        for r in 0..3 {
+            c[r] = (0..3).map(|k| j[r][k] * coef[k]).sum();
+            for q in 0..3 {
+                cc[r * 3 + q] = (0..3)
+                    .flat_map(|a| (0..3).map(move |b| (a, b)))
+                    .map(|(a, b)| j[r][a] * cov[a * 3 + b] * j[q][b])
+                    .sum();
+            }
+        }
+        ["c0", "c1", "c2"]
+            .iter()
+            .enumerate()
+            .map(|(i, n)| Param {
+                name: format!("poly2.{n}"),
+                value: c[i],
+                se: se_from_cov(&cc, 3, i),
+            })
+            .collect()
+    }
+    fn settings(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
+
+impl TermState for Poly2Term {
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
+        let u = (seek.features.target - self.centre) / self.scale;
+        out[0] = 1.0;
+        out[1] = u;
+        out[2] = u * u;
+    }
+    fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(*self)
+    }
+}

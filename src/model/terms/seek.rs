@@ -1,0 +1,105 @@
+//! `seek[:KNOTS]`: b_s of eq. 1, the seek-length effect (paper P4/P5, Figs. 7–8).
+//!
+//! A continuous piecewise-linear function of |seek length| `a`, fitted separately for four
+//! cases: {no direction change at the source, direction change} × {outbound, inbound}. Each
+//! curve is a sum of decaying hinges `(k_j − a)₊` with knots `k_j` at the quantiles `j/K` of the
+//! measured |seek lengths| (K = `KNOTS`, default 4), so it is **zero for seeks longer than the
+//! largest knot**: long seeks land on the position/direction curves (the paper normalises the
+//! bias at the target to zero). A zero-length seek uses the "no change" curve of the current
+//! direction at `a = 0`; the first seek (no direction yet) contributes 0. Coefficients in counts
+//! (the curve's value at `a = 0` is the sum of its coefficients weighted by `k_j/k_max`).
+
+use super::knots::{curve_param_names, decaying_hinges, quantile_knots};
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Seek, Term, TermSpec, TermState};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Default number of knots per curve.
+pub const DEFAULT_KNOTS: usize = 4;
+
+/// Spec of the `seek` term.
+#[derive(Debug, Clone, Copy)]
+pub struct SeekSpec {
+    /// Knots per curve.
+    pub knots: usize,
+}
+
+impl TermSpec for SeekSpec {
+    fn name(&self) -> String {
+        if self.knots == DEFAULT_KNOTS {
+            "seek".into()
+        } else {
+            format!("seek:{}", self.knots)
+        }
+    }
+    fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        let a = data.measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
+        Ok(Arc::new(SeekTerm {
+            name: self.name(),
+            knots: quantile_knots(&a, self.knots),
+        }))
+    }
+}
+
+/// The fitted `seek` term.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SeekTerm {
+    /// Spec string.
+    pub name: String,
+    /// Knots in |seek length|, tracks, increasing.
+    pub knots: Vec<f64>,
+}
+
+/// Names of the four curves, in basis order.
+pub const CURVES: [&str; 4] = ["nochange.out", "nochange.in", "change.out", "change.in"];
+
+impl SeekTerm {
+    /// Which of the four curves a seek uses, or `None` before the first move.
+    pub fn curve(seek: &Seek<'_>) -> Option<usize> {
+        let f = seek.features;
+        let side = match f.direction {
+            1 => 1,
+            -1 => 0,
+            _ => return None,
+        };
+        Some(2 * usize::from(f.direction_change) + side)
+    }
+}
+
+impl Term for SeekTerm {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn param_names(&self) -> Vec<String> {
+        curve_param_names(&CURVES, &self.knots)
+    }
+    fn droppable(&self) -> bool {
+        true
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        Ok(Box::new(self.clone()))
+    }
+    fn settings(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
+
+impl TermState for SeekTerm {
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
+        out.fill(0.0);
+        let k = self.knots.len();
+        if let Some(c) = Self::curve(seek) {
+            decaying_hinges(
+                &self.knots,
+                seek.features.seek_length.abs(),
+                &mut out[c * k..(c + 1) * k],
+            );
+        }
+    }
+    fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(self.clone())
+    }
+}

@@ -1,0 +1,106 @@
+//! `table[:SPACING]`: a lookup table over position with linear interpolation between knots
+//! `spacing` tracks apart (default: a tenth of the measured range), constant beyond the end
+//! knots. Its values (counts) are the parameters; the hat basis sums to 1, so it spans the
+//! intercept.
+
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Seek, Term, TermSpec, TermState};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Spec of the `table` term.
+#[derive(Debug, Clone, Copy)]
+pub struct TableSpec {
+    /// Knot spacing in tracks; `None` = a tenth of the measured position range.
+    pub spacing: Option<f64>,
+}
+
+impl TermSpec for TableSpec {
+    fn name(&self) -> String {
+        match self.spacing {
+            Some(h) => format!("table:{}", crate::log::fmt_trimmed(h, 6)),
+            None => "table".into(),
+        }
+    }
+    fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        let x = data.measured_values(|s| Some(s.features.target));
+        let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let range = hi - lo;
+        let spacing = self
+            .spacing
+            .unwrap_or(if range > 0.0 { range / 10.0 } else { 1.0 });
+        let knots = ((range / spacing).ceil() as usize + 1).max(1);
+        if knots > 100_000 {
+            return Err(FitError::BadSetting {
+                term: self.name(),
+                why: format!("{knots} knots over {range} tracks; use a larger spacing"),
+            });
+        }
+        Ok(Arc::new(TableTerm {
+            name: self.name(),
+            x0: lo,
+            spacing,
+            knots,
+        }))
+    }
+}
+
+/// The fitted `table` term.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct TableTerm {
+    /// Spec string.
+    pub name: String,
+    /// Position of the first knot, tracks.
+    pub x0: f64,
+    /// Knot spacing, tracks.
+    pub spacing: f64,
+    /// Number of knots.
+    pub knots: usize,
+}
+
+impl Term for TableTerm {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn param_names(&self) -> Vec<String> {
+        (0..self.knots)
+            .map(|i| {
+                format!(
+                    "x={}",
+                    crate::log::fmt_trimmed(self.x0 + self.spacing * i as f64, 3)
+                )
+            })
+            .collect()
+    }
+    fn provides_intercept(&self) -> bool {
+        true
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        Ok(Box::new(self.clone()))
+    }
+    fn settings(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
+
+impl TermState for TableTerm {
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
+        out.fill(0.0);
+        if self.knots == 1 {
+            out[0] = 1.0;
+            return;
+        }
+        let u =
+            ((seek.features.target - self.x0) / self.spacing).clamp(0.0, (self.knots - 1) as f64);
+        let i = (u.floor() as usize).min(self.knots - 2);
+        let frac = u - i as f64;
+        out[i] = 1.0 - frac;
+        out[i + 1] = frac;
+    }
+    fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(self.clone())
+    }
+}

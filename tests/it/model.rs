@@ -1,0 +1,690 @@
+//! Model terms, fit, predict and score: recovery of known parameters, reference implementations,
+//! causality, the online predictor, and the CLI contract of `fit`/`predict`/`score`.
+
+use crate::common::{fails_with, ok, write};
+use biasctl::fit::{FitData, FitOptions, fit};
+use biasctl::history::History;
+use biasctl::log::{ColumnMap, Log};
+use biasctl::model::terms::dahl::{DahlPredictor, DahlState};
+use biasctl::model::terms::intercept::InterceptTerm;
+use biasctl::model::{ColumnsUsed, FittedModel, FittedTerm, ModelSpec, Predictor};
+use biasctl::rng::SimRng;
+use std::sync::Arc;
+
+/// A random seek sequence: mixed short and long seeks over `range` tracks, times 0.1 s apart,
+/// a temperature covariate drifting slowly.
+fn tracks(seed: u64, n: usize, range: f64) -> Vec<(f64, f64, f64)> {
+    let mut rng = SimRng::new(seed);
+    let mut x = range / 2.0;
+    let mut t = 0.0;
+    (0..n)
+        .map(|k| {
+            let step = if rng.uniform() < 0.5 {
+                (rng.below(21) as f64) - 10.0
+            } else {
+                (rng.below(range as u64) as f64) - x
+            };
+            x = (x + step).clamp(0.0, range);
+            t += ((0.05 + rng.uniform() * 0.2) * 1e6).round() / 1e6; // exact in the CSV
+            let c = ((30.0 + 5.0 * (k as f64 / n as f64) + rng.uniform()) * 1e6).round() / 1e6;
+            (t, x, c)
+        })
+        .collect()
+}
+
+fn csv(rows: &[(f64, f64, f64)], bias: &[f64]) -> String {
+    let mut s = String::from("# synthetic\ntime_s,track,bias,temp_c\n");
+    for (i, &(t, x, c)) in rows.iter().enumerate() {
+        s += &format!("{t:.6},{x},{:.12},{c:.6}\n", bias[i]);
+    }
+    s
+}
+
+fn parse(text: &str) -> Log {
+    Log::from_reader("synth.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
+}
+
+/// Generates a log from known parameters: prepares `spec`'s terms on the seek sequence, sets
+/// each term's coefficients with `coef`, replays causally with N(0, noise²) added.
+fn synth(
+    rows: &[(f64, f64, f64)],
+    spec: &str,
+    coef: &dyn Fn(&str, usize) -> f64,
+    nonlinear: Option<f64>,
+    noise: f64,
+    seed: u64,
+) -> (Log, FittedModel) {
+    let skeleton = parse(&csv(rows, &vec![0.0; rows.len()]));
+    let data = FitData::new(&skeleton);
+    let spec = ModelSpec::parse(spec).unwrap();
+    let mut terms: Vec<_> = spec
+        .terms
+        .iter()
+        .map(|t| t.prepare(&data).unwrap())
+        .collect();
+    if !terms.iter().any(|t| t.provides_intercept()) {
+        terms.insert(0, Arc::new(InterceptTerm));
+    }
+    for t in &mut terms {
+        if let (Some(v), Some(_)) = (nonlinear, t.nonlinear()) {
+            *t = t.with_nonlinear(v).unwrap();
+        }
+    }
+    let truth = FittedModel {
+        spec: spec.to_string(),
+        columns: ColumnsUsed {
+            time: "time_s".into(),
+            track: "track".into(),
+            bias: "bias".into(),
+            covariates: vec![],
+        },
+        terms: terms
+            .iter()
+            .map(|t| FittedTerm {
+                term: t.clone(),
+                coefficients: (0..t.param_names().len())
+                    .map(|i| coef(&t.name(), i))
+                    .collect(),
+                params: vec![],
+            })
+            .collect(),
+        fit: fit(
+            &ModelSpec::parse("").unwrap(),
+            &skeleton,
+            &FitOptions::default(),
+        )
+        .unwrap()
+        .fit,
+        warnings: vec![],
+    };
+    let mut p = Predictor::new(&truth, &["temp_c".to_string()]).unwrap();
+    let mut rng = SimRng::new(seed);
+    let bias: Vec<f64> = rows
+        .iter()
+        .map(|&(t, x, c)| {
+            let y = p.peek(t, x, &[c]) + noise * rng.normal();
+            p.step(t, x, &[c], Some(y));
+            y
+        })
+        .collect();
+    (parse(&csv(rows, &bias)), truth)
+}
+
+fn coef_table(term: &str, i: usize) -> f64 {
+    let h = term.bytes().map(u64::from).sum::<u64>() as f64;
+    match term {
+        "intercept" => 12.0,
+        "poly2" => [20.0, -8.0, 3.0][i],
+        "direction" => 15.0,
+        "dahl" => 14.0,
+        _ => ((h + 3.0 * i as f64).sin() * 10.0).round() + 1.0 + i as f64,
+    }
+}
+
+#[test]
+fn exact_recovery_of_every_term_from_noise_free_data() {
+    // Reference: the generating coefficients themselves (noise-free data, the true function is in
+    // the span of each term's basis, so least squares must return them to rounding).
+    let rows = tracks(1, 3000, 600.0);
+    for (spec, nl) in [
+        ("poly2,direction", None),
+        ("table:60", None),
+        ("poly2,direction,seek", None),
+        ("poly2,memory", None),
+        ("poly2,dahl", Some((0.05f64).ln())),
+        ("poly2,dahl:3", None),
+        ("poly2,col:temp_c", None),
+        ("poly2,bins:dwell_s", None),
+        ("direction,bins:position", None),
+    ] {
+        let (log, truth) = synth(&rows, spec, &coef_table, nl, 0.0, 0);
+        let model = fit(
+            &ModelSpec::parse(spec).unwrap(),
+            &log,
+            &FitOptions::default(),
+        )
+        .unwrap();
+        for (ft, tt) in model.terms.iter().zip(&truth.terms) {
+            assert_eq!(ft.term.name(), tt.term.name());
+            for (a, b) in ft.coefficients.iter().zip(&tt.coefficients) {
+                assert!(
+                    (a - b).abs() < 1e-5 * b.abs().max(1.0),
+                    "{spec}: {} fitted {a} true {b}",
+                    ft.term.name()
+                );
+            }
+        }
+        if let Some(t) = nl {
+            let r = model.param("dahl.r").unwrap().value;
+            assert!((r - (1.0 - t.exp())).abs() < 1e-6, "{spec}: r {r}");
+        }
+        assert!(
+            model.fit.residual_std < 1e-6,
+            "{spec}: {}",
+            model.fit.residual_std
+        );
+    }
+}
+
+#[test]
+fn noisy_recovery_within_reported_standard_errors() {
+    // Reference: the generating parameters; each estimate must lie within 4 reported standard
+    // errors (a 4-sigma band; seeds fixed).
+    let rows = tracks(2, 4000, 800.0);
+    let t_true = (0.1f64).ln();
+    let (log, truth) = synth(
+        &rows,
+        "poly2,direction,col:temp_c,dahl",
+        &coef_table,
+        Some(t_true),
+        2.0,
+        9,
+    );
+    let model = fit(
+        &ModelSpec::parse("poly2,direction,col:temp_c,dahl").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    let mut checked = 0;
+    for (ft, tt) in model.terms.iter().zip(&truth.terms) {
+        let n = tt.coefficients.len();
+        let truth_params = tt.term.report(&tt.coefficients, &vec![0.0; n * n], None);
+        for (p, q) in ft.params.iter().zip(&truth_params) {
+            let se = p.se.expect("standard error");
+            assert!(
+                (p.value - q.value).abs() < 4.0 * se,
+                "{}: {} vs {} (se {se})",
+                p.name,
+                p.value,
+                q.value
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 8);
+    assert!(
+        (model.fit.residual_std - 2.0).abs() < 0.15,
+        "{}",
+        model.fit.residual_std
+    );
+}
+
+#[test]
+fn dahl_one_track_runs_equal_eq7_closed_form() {
+    // Reference: eq. 7, F_n = s·Fc + (F_0 − s·Fc)·r^n for n one-track seeks in direction s.
+    let r: f64 = 0.93;
+    let mut st = DahlState::new(r);
+    for _ in 0..7 {
+        st.step(1.0);
+    }
+    let f0 = st.value();
+    for n in 1..=40 {
+        let g = st.step(-1.0);
+        let closed = -1.0 + (f0 + 1.0) * r.powi(n);
+        assert!((g - closed).abs() < 1e-12, "n {n}: {g} vs {closed}");
+    }
+}
+
+#[test]
+fn dahl_state_matches_naive_one_track_loop_and_stays_within_fc() {
+    // Reference: eq. 6 applied |dx| times, one track at a time (slow, obvious); eq. 8 must agree,
+    // and |F| ≤ Fc always.
+    let mut rng = SimRng::new(5);
+    let (fc, sigma) = (12.0, 1.5);
+    let r = 1.0 - sigma / fc;
+    let mut fast = DahlState::new(r);
+    let mut naive = 0.0f64;
+    for _ in 0..3000 {
+        let dx = rng.below(601) as f64 - 300.0;
+        let g = fast.step(dx);
+        let s = dx.signum();
+        for _ in 0..dx.abs() as usize {
+            naive = r * naive + sigma * s;
+        }
+        assert!((fc * g - naive).abs() < 1e-9 * fc, "{} vs {naive}", fc * g);
+        assert!((fc * g).abs() <= fc + 1e-12);
+    }
+    // Non-integer lengths use the exponential, still inside ±Fc.
+    for _ in 0..1000 {
+        let g = fast.step(rng.range(-1000.5, 1000.5));
+        assert!(g.abs() <= 1.0);
+    }
+}
+
+#[test]
+fn dahl_predictor_equals_generic_model_replay() {
+    // Reference: the generic term-sum predictor on the same parameters.
+    let rows = tracks(3, 500, 300.0);
+    let (log, _) = synth(
+        &rows,
+        "poly2,dahl",
+        &coef_table,
+        Some((0.2f64).ln()),
+        0.5,
+        1,
+    );
+    let model = fit(
+        &ModelSpec::preset("dahl").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    let c = ["poly2.c0", "poly2.c1", "poly2.c2"].map(|n| model.param(n).unwrap().value);
+    let fc = model.param("dahl.Fc").unwrap().value;
+    let sigma = model.param("dahl.sigma").unwrap().value;
+    let mut fast = DahlPredictor::new(c, fc, sigma).unwrap();
+    let pred = model.predict_log(&log).unwrap();
+    for (i, &r) in pred.rows.iter().enumerate() {
+        let y = fast.step(log.rows[r].track);
+        assert!(
+            (y - pred.predicted[i]).abs() < 1e-6,
+            "row {r}: {y} vs {}",
+            pred.predicted[i]
+        );
+    }
+}
+
+#[test]
+fn memory_term_matches_full_history_scan() {
+    // Reference: for every seek, scan the whole history for the nearest uncrossed rest position
+    // ahead (a rest position is crossed if any later move's closed interval from its source
+    // covers it), then apply the hinge formula.
+    let rows = tracks(4, 800, 80.0);
+    let (log, truth) = synth(&rows, "memory", &coef_table, None, 0.0, 0);
+    let pred = truth.predict_log(&log).unwrap();
+    let mem = truth
+        .terms
+        .iter()
+        .find(|t| t.term.name() == "memory")
+        .unwrap();
+    let knots: Vec<f64> = serde_json::from_value(mem.term.settings()["knots"].clone()).unwrap();
+    let k = knots.len();
+    let mut moves: Vec<(f64, f64)> = Vec::new();
+    let mut prev = rows[0].1;
+    for (i, &(_, x, _)) in rows.iter().enumerate() {
+        if i > 0 {
+            moves.push((prev, x));
+        }
+        let dir = moves
+            .iter()
+            .rev()
+            .map(|&(a, b)| b - a)
+            .find(|d| d.abs() > 0.0)
+            .map_or(0.0, f64::signum);
+        let mut best: Option<f64> = None;
+        for j in 0..moves.len().saturating_sub(1) {
+            let (p, t) = moves[j];
+            if (p - t).abs() <= 0.0 {
+                continue;
+            }
+            let crossed = moves[j + 1..].iter().any(|&(a, b)| {
+                (a - b).abs() > 0.0 && (p - a).abs() > 0.0 && p >= a.min(b) && p <= a.max(b)
+            });
+            let ahead = if dir > 0.0 { p > x } else { p < x };
+            if !crossed && ahead && dir != 0.0 {
+                let d = (p - x).abs();
+                best = Some(best.map_or(d, |b: f64| b.min(d)));
+            }
+        }
+        let side = usize::from(dir > 0.0);
+        let expect: f64 = match best {
+            Some(d) if dir != 0.0 => (0..k)
+                .map(|j| mem.coefficients[side * k + j] * (knots[j] - d).max(0.0) / knots[k - 1])
+                .sum(),
+            _ => 0.0,
+        };
+        let c = pred.contributions[pred.term_names.iter().position(|n| n == "memory").unwrap()][i];
+        assert!((c - expect).abs() < 1e-9, "row {i}: {c} vs {expect}");
+        prev = x;
+    }
+}
+
+#[test]
+fn hinge_fit_reproduces_a_known_piecewise_linear_function() {
+    // Reference: f(v) = 2 + 0.5·v − 1.5·(v − 40)₊ + 2·(v − 70)₊ on since_reversal (approximate,
+    // knots from quantiles), then an exact case whose quantile knots are the true breakpoints.
+    let rows = tracks(6, 2000, 200.0);
+    let mut h = History::new();
+    let feats: Vec<f64> = rows
+        .iter()
+        .map(|&(t, x, _)| h.step(t, x).since_reversal)
+        .collect();
+    let f = |v: f64| 2.0 + 0.5 * v - 1.5 * (v - 40.0).max(0.0) + 2.0 * (v - 70.0).max(0.0);
+    let bias: Vec<f64> = feats.iter().map(|&v| f(v)).collect();
+    let log = parse(&csv(&rows, &bias));
+    // Knots at data quantiles do not hit 40 and 70 exactly: with 30 knots the fit is close.
+    let model = fit(
+        &ModelSpec::parse("bins:since_reversal:30").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    assert!(model.fit.residual_rms < 0.8, "{}", model.fit.residual_rms);
+    // Exact case: targets sweep 0..=99 uniformly (each position 20 times), so the interior
+    // quantiles j/3 of position are 33 and 66 exactly.
+    let sweep: Vec<(f64, f64, f64)> = (0..2000)
+        .map(|i| (i as f64, ((i * 37) % 100) as f64, 0.0))
+        .collect();
+    let g = |v: f64| 1.0 - 0.2 * v + 0.7 * (v - 33.0).max(0.0) - 0.9 * (v - 66.0).max(0.0);
+    let log = parse(&csv(
+        &sweep,
+        &sweep.iter().map(|r| g(r.1)).collect::<Vec<_>>(),
+    ));
+    let model = fit(
+        &ModelSpec::parse("bins:position:2").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    assert!(model.fit.residual_rms < 1e-9, "{}", model.fit.residual_rms);
+    let knots: Vec<f64> =
+        serde_json::from_value(model.terms[1].term.settings()["knots"].clone()).unwrap();
+    assert_eq!(knots, vec![33.0, 66.0]);
+}
+
+#[test]
+fn drift_forgetting_factor_near_the_kalman_gain_of_a_random_walk() {
+    // Reference: for a random-walk offset (step sd q) plus white noise (sd s), the optimal
+    // steady-state exponential-forgetting gain is the local-level Kalman gain α with
+    // α²/(1 − α) = q²/s².
+    let rows = tracks(7, 20000, 400.0);
+    let (q, s) = (0.3, 2.0);
+    let mut rng = SimRng::new(11);
+    let mut w = 0.0;
+    let bias: Vec<f64> = rows
+        .iter()
+        .map(|&(_, x, _)| {
+            w += q * rng.normal();
+            5.0 + 0.01 * x + w + s * rng.normal()
+        })
+        .collect();
+    let log = parse(&csv(&rows, &bias));
+    let model = fit(
+        &ModelSpec::parse("poly2,drift").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    let alpha = model.param("drift.alpha").unwrap().value;
+    let l = (q / s) * (q / s);
+    let kalman = 0.5 * (-l + (l * l + 4.0 * l).sqrt());
+    assert!(
+        (alpha / kalman - 1.0).abs() < 0.35,
+        "alpha {alpha}, Kalman gain {kalman}"
+    );
+    let without = fit(
+        &ModelSpec::parse("poly2").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    assert!(model.fit.residual_std < 0.8 * without.fit.residual_std);
+}
+
+#[test]
+fn prediction_is_causal() {
+    // Reference: predictions of rows before k must not change when row k's bias changes.
+    let rows = tracks(8, 600, 300.0);
+    let (log, _) = synth(
+        &rows,
+        "poly2,direction,seek,memory",
+        &coef_table,
+        None,
+        1.0,
+        3,
+    );
+    let model = fit(
+        &ModelSpec::preset("calibration").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    let a = model.predict_log(&log).unwrap();
+    let mut changed = log.clone();
+    changed.rows[400].bias = Some(1e4);
+    let b = model.predict_log(&changed).unwrap();
+    assert_eq!(a.predicted[..=400], b.predicted[..=400]);
+    assert!(
+        a.predicted[401..]
+            .iter()
+            .zip(&b.predicted[401..])
+            .any(|(x, y)| (x - y).abs() > 1e-9),
+        "drift should react"
+    );
+}
+
+#[test]
+fn online_peek_equals_step() {
+    // Reference: Predictor::step after peek for the same seek.
+    let rows = tracks(9, 400, 300.0);
+    let (log, _) = synth(
+        &rows,
+        "poly2,direction,seek,memory,col:temp_c",
+        &coef_table,
+        None,
+        1.0,
+        3,
+    );
+    let model = fit(
+        &ModelSpec::parse("poly2,direction,seek,memory,drift,dahl:2,col:temp_c").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    let mut p = Predictor::new(&model, &log.schema.covariates).unwrap();
+    for r in &log.rows {
+        let candidates = [r.track - 7.0, r.track + 100.0, r.track];
+        let peeks: Vec<f64> = candidates
+            .iter()
+            .map(|&c| p.peek(r.time_s, c, &r.covariates))
+            .collect();
+        let stepped = p.step(r.time_s, r.track, &r.covariates, r.bias);
+        assert_eq!(peeks[2].to_bits(), stepped.to_bits());
+    }
+}
+
+#[test]
+fn spec_parsing_errors_are_clear() {
+    let e = ModelSpec::parse("poly2,wobble").unwrap_err().to_string();
+    assert!(e.contains("unknown term `wobble`"), "{e}");
+    assert!(
+        ModelSpec::parse("dahl:0")
+            .unwrap_err()
+            .to_string()
+            .contains("from 1 to 16")
+    );
+    assert!(
+        ModelSpec::parse("poly2,poly2")
+            .unwrap_err()
+            .to_string()
+            .contains("twice")
+    );
+    assert!(
+        ModelSpec::parse("table:-3")
+            .unwrap_err()
+            .to_string()
+            .contains("positive")
+    );
+    assert!(
+        ModelSpec::preset("nope")
+            .unwrap_err()
+            .to_string()
+            .contains("calibration")
+    );
+    assert_eq!(ModelSpec::preset("dahl").unwrap().to_string(), "poly2,dahl");
+}
+
+fn sample_log(dir: &std::path::Path) -> String {
+    let rows = tracks(10, 800, 300.0);
+    let (log, _) = synth(
+        &rows,
+        "poly2,direction,col:temp_c",
+        &coef_table,
+        None,
+        1.0,
+        4,
+    );
+    let bias: Vec<f64> = log.rows.iter().map(|r| r.bias.unwrap()).collect();
+    write(dir, "log.csv", &csv(&rows, &bias))
+}
+
+#[test]
+fn cli_fit_predict_score_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = sample_log(dir.path());
+    let model = dir.path().join("m.json").display().to_string();
+    let out = ok(&[
+        "fit",
+        "--data",
+        &data,
+        "--terms",
+        "poly2,direction,col:temp_c",
+        "--out",
+        &model,
+    ]);
+    assert!(out.contains("direction.Fc"), "{out}");
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["version"], 1);
+    assert_eq!(m["columns"]["covariates"][0], "temp_c");
+    assert!(m["fit"]["residual_std"].as_f64().unwrap() < 1.2);
+    assert!(m["warnings"].is_array());
+    let pred = dir.path().join("p.csv").display().to_string();
+    ok(&[
+        "predict", "--model", &model, "--data", &data, "--out", &pred,
+    ]);
+    let text = std::fs::read_to_string(&pred).unwrap();
+    assert!(
+        text.starts_with(
+            "time_s,track,bias,temp_c,predicted,residual,poly2,direction,col:temp_c\n"
+        ),
+        "{}",
+        &text[..80]
+    );
+    assert_eq!(text.lines().count(), 801);
+    let js = ok(&["score", "--model", &model, "--data", &data, "--json"]);
+    let s: serde_json::Value = serde_json::from_str(&js).unwrap();
+    for key in [
+        "n",
+        "mean",
+        "std",
+        "rms",
+        "histogram",
+        "bimodality",
+        "trend",
+    ] {
+        assert!(s.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(s["n"], 800);
+    assert!(
+        s["histogram"]["edges"].as_array().unwrap().len()
+            == s["histogram"]["counts"].as_array().unwrap().len() + 1
+    );
+    let txt = ok(&["score", "--model", &model, "--data", &data]);
+    assert!(txt.contains("rms"), "{txt}");
+}
+
+#[test]
+fn cli_bad_inputs_exit_2_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.json").display().to_string();
+    let one = write(
+        dir.path(),
+        "one.csv",
+        &(0..20).fold("time_s,track,bias\n".to_string(), |s, i| {
+            s + &format!("{i},100,{}\n", i % 3)
+        }),
+    );
+    fails_with(
+        &[
+            "fit",
+            "--data",
+            &one,
+            "--model",
+            "position-direction",
+            "--out",
+            &out,
+        ],
+        &["one.csv", "poly2.a1", "cannot be determined"],
+    );
+    let short = write(
+        dir.path(),
+        "short.csv",
+        "time_s,track,bias\n0,1,1\n1,5,2\n2,3,1\n",
+    );
+    fails_with(
+        &[
+            "fit",
+            "--data",
+            &short,
+            "--model",
+            "calibration",
+            "--out",
+            &out,
+        ],
+        &["short.csv", "3 measured rows", "needs at least"],
+    );
+    let data = sample_log(dir.path());
+    fails_with(
+        &[
+            "fit",
+            "--data",
+            &data,
+            "--terms",
+            "poly2,bogus",
+            "--out",
+            &out,
+        ],
+        &["--terms", "unknown term `bogus`"],
+    );
+    fails_with(
+        &[
+            "fit",
+            "--data",
+            &data,
+            "--terms",
+            "col:humidity",
+            "--out",
+            &out,
+        ],
+        &["humidity", "temp_c"],
+    );
+    assert!(!std::path::Path::new(&out).exists());
+
+    ok(&[
+        "fit",
+        "--data",
+        &data,
+        "--terms",
+        "poly2,col:temp_c",
+        "--out",
+        &out,
+    ]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let pred = dir.path().join("p.csv").display().to_string();
+    let v2 = write(
+        dir.path(),
+        "v2.json",
+        &text.replace("\"version\": 1", "\"version\": 2"),
+    );
+    fails_with(
+        &["predict", "--model", &v2, "--data", &data, "--out", &pred],
+        &["v2.json", "version 2", "refit"],
+    );
+    let bad = write(dir.path(), "bad.json", &text[..text.len() / 2]);
+    fails_with(
+        &["score", "--model", &bad, "--data", &data],
+        &["bad.json", "not a valid biasctl model"],
+    );
+    let nocov = write(
+        dir.path(),
+        "nocov.csv",
+        "time_s,track,bias\n0,1,1\n1,5,2\n2,3,1\n",
+    );
+    fails_with(
+        &["predict", "--model", &out, "--data", &nocov, "--out", &pred],
+        &["col:temp_c", "`temp_c`", "lacks"],
+    );
+    assert!(!std::path::Path::new(&pred).exists());
+}
