@@ -23,6 +23,7 @@
 //! - [`rng`]: the seeded, portable random generator every simulation uses.
 //! - [`output`]: atomic file output.
 //! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
+//! - [`servo`]: plant (rigid body + modes, ZOH with fractional delay), DARE/LQR, closed loop.
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
@@ -30,4 +31,5 @@ pub mod history;
 pub mod log;
 pub mod output;
 pub mod rng;
+pub mod servo;
 pub mod stats;
