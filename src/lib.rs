@@ -24,6 +24,7 @@
 //! - [`output`]: atomic file output.
 //! - [`stats`]: moments, histogram, bimodality, trend and whiteness tests shared by score and diagnose.
 //! - [`servo`]: plant (rigid body + modes, ZOH with fractional delay), DARE/LQR, closed loop.
+//! - [`settle`]: eq. 14–16 bounds, start-value choices (optimal, paper robust, worst-case robust), the allocation-free handoff.
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
@@ -32,4 +33,5 @@ pub mod log;
 pub mod output;
 pub mod rng;
 pub mod servo;
+pub mod settle;
 pub mod stats;

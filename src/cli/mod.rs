@@ -3,6 +3,7 @@
 
 mod check;
 mod common;
+mod settle;
 
 use clap::{Parser, Subcommand};
 
@@ -18,11 +19,14 @@ pub struct Cli {
 enum Command {
     /// Read a measurement log, validate every row and print a summary.
     Check(check::Args),
+    /// Settle-optimal integrator start value at the seek → track-following handoff.
+    Settle(settle::Args),
 }
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Check(a) => check::run(a),
+        Command::Settle(a) => settle::run(a),
     }
 }

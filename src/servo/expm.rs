@@ -84,7 +84,7 @@ pub fn expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, ExpmError> {
 
 /// Returns `(D⁻¹AD, diag D)` with D a diagonal of powers of two that roughly equalises the
 /// off-diagonal row and column norms (radix-2 Parlett–Reinsch; exact in floating point).
-fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+pub(crate) fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
     const RADIX: f64 = 2.0;
     let n = a.nrows();
     let mut m = a.clone();

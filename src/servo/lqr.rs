@@ -122,8 +122,15 @@ pub fn spectral_radius(m: &DMatrix<f64>) -> f64 {
 }
 
 /// Popov–Belevitch–Hautus: for each eigenvalue λ of A with |λ| ≥ 1 − 1e-9, [A − λI, B/‖B‖] must
-/// have full row rank (smallest singular value above 1e-8·max(1, ‖A‖)).
+/// have full row rank (smallest singular value above 1e-8·max(1, ‖A‖)). The test runs on the
+/// balanced pair (D⁻¹AD, D⁻¹B), which has the same rank structure but no unit-driven scaling.
 fn check_stabilisable(a: &DMatrix<f64>, b: &DMatrix<f64>) -> Result<(), DareError> {
+    let (a, d) = super::expm::balance(a);
+    let mut b = b.clone();
+    for (i, di) in d.iter().enumerate() {
+        b.row_mut(i).scale_mut(1.0 / di);
+    }
+    let (a, b) = (&a, &b);
     let n = a.nrows();
     let m = b.ncols();
     let bn = frob(b);
