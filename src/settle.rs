@@ -437,6 +437,54 @@ struct ZeroGain {
     cu: f64,
 }
 
+/// min(a, b) as one `minsd`: `b` if `b < a`, else `a` (inputs are never NaN here).
+#[inline(always)]
+fn fmin(a: f64, b: f64) -> f64 {
+    if b < a { b } else { a }
+}
+
+/// max(a, b) as one `maxsd`.
+#[inline(always)]
+fn fmax(a: f64, b: f64) -> f64 {
+    if b > a { b } else { a }
+}
+
+/// The backward scan of one handoff over the precomputed coefficients.
+struct Scan<'a> {
+    coef: &'a [Coef],
+    floor: usize,
+    e0: f64,
+    v0: f64,
+    du: f64,
+    delta: f64,
+}
+
+impl Scan<'_> {
+    /// Moves `k` down while `keep(U*, L*)` still holds after including sample k − 1;
+    /// `(umin, lmax)` are the running bounds over samples [k, N).
+    #[inline(always)]
+    fn advance<F: Fn(f64, f64) -> bool>(
+        &self,
+        k: &mut usize,
+        umin: &mut f64,
+        lmax: &mut f64,
+        keep: F,
+    ) {
+        while *k > self.floor {
+            let c = &self.coef[*k - 1];
+            let mid = c.pe * self.e0 + c.pv * self.v0 + c.pu * self.du;
+            let half = c.w * self.delta;
+            let (nu, nl) = (fmin(*umin, mid + half), fmax(*lmax, mid - half));
+            if !keep(nu, nl) {
+                break;
+            }
+            *umin = nu;
+            *lmax = nl;
+            *k -= 1;
+        }
+    }
+}
+
 /// Per-controller, per-horizon coefficients of the handoff bounds (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct HandoffTable {
@@ -528,6 +576,11 @@ impl HandoffTable {
     /// with the running min/max of eq. 15, stopping as soon as the interval is empty. Returns
     /// k* with the optimal interval (eq. 16), the robust interval for a bias uncertainty
     /// `delta_b` (counts, ≥ 0; its absolute value is used) and zero feedforward's worst case.
+    /// A non-finite handoff state settles nothing (all `None`).
+    ///
+    /// The three conditions (zero feedforward's worst case inside, width ≥ 2s, width ≥ 0) are
+    /// nested and each holds on a suffix of settle indices, so the pass runs in three phases,
+    /// each a tight loop with one exit test and no stores.
     pub fn solve(&self, h: &Handoff, window: &Window, delta_b: f64) -> HandoffSolution {
         let n = self.coef.len();
         let delta = window.half_width_um;
@@ -539,7 +592,9 @@ impl HandoffTable {
             zero_ff_worst: None,
             shift,
         };
-        if window.hold > n {
+        let du = h.u_prev_counts - h.bias_counts;
+        let (e0, v0) = (h.e0_um, h.v0_um_s);
+        if window.hold > n || !(e0.is_finite() && v0.is_finite() && du.is_finite()) {
             return out;
         }
         let top = n - window.hold;
@@ -547,61 +602,37 @@ impl HandoffTable {
         if floor > top {
             return out;
         }
-        let du = h.u_prev_counts - h.bias_counts;
-        let (e0, v0) = (h.e0_um, h.v0_um_s);
+        let bounds = |c: &Coef| {
+            let mid = c.pe * e0 + c.pv * v0 + c.pu * du;
+            let half = c.w * delta;
+            (mid + half, mid - half)
+        };
+        // Running bounds over samples [k, n): start with the samples after the last candidate.
         let mut umin = f64::INFINITY;
         let mut lmax = f64::NEG_INFINITY;
         for c in &self.coef[top + 1..] {
-            let mid = c.pe * e0 + c.pv * v0 + c.pu * du;
-            let half = c.w * delta;
-            umin = umin.min(mid + half);
-            lmax = lmax.max(mid - half);
+            let (u, l) = bounds(c);
+            umin = fmin(umin, u);
+            lmax = fmax(lmax, l);
         }
-        let mut k_opt = usize::MAX;
-        let (mut o_lo, mut o_hi) = (0.0, 0.0);
-        let mut k_rob = usize::MAX;
-        let (mut r_lo, mut r_hi) = (0.0, 0.0);
-        let mut k_zero = usize::MAX;
-        for k in (floor..=top).rev() {
-            let c = &self.coef[k];
-            let mid = c.pe * e0 + c.pv * v0 + c.pu * du;
-            let half = c.w * delta;
-            umin = umin.min(mid + half);
-            lmax = lmax.max(mid - half);
-            let width = umin - lmax;
-            // NaN width (corrupt input) also ends the search.
-            if width.is_nan() || width < 0.0 {
-                break;
-            }
-            k_opt = k;
-            o_lo = lmax;
-            o_hi = umin;
-            if width >= two_shift {
-                k_rob = k;
-                r_lo = lmax;
-                r_hi = umin;
-                if lmax <= -shift && umin >= shift {
-                    k_zero = k;
-                }
-            }
-        }
-        if k_opt != usize::MAX {
-            out.optimal = Some(Interval {
-                k: k_opt,
-                lo: o_lo,
-                hi: o_hi,
-            });
-        }
-        if k_rob != usize::MAX {
-            out.robust = Some(Interval {
-                k: k_rob,
-                lo: r_lo,
-                hi: r_hi,
-            });
-        }
-        if k_zero != usize::MAX {
-            out.zero_ff_worst = Some(k_zero);
-        }
+        let mut k = top + 1;
+        let scan = Scan {
+            coef: &self.coef,
+            floor,
+            e0,
+            v0,
+            du,
+            delta,
+        };
+        let interval = |k: usize, lo: f64, hi: f64| (k <= top).then_some(Interval { k, lo, hi });
+        scan.advance(&mut k, &mut umin, &mut lmax, |u, l| {
+            l <= -shift && u >= shift
+        });
+        out.zero_ff_worst = interval(k, lmax, umin).map(|i| i.k);
+        scan.advance(&mut k, &mut umin, &mut lmax, |u, l| u - l >= two_shift);
+        out.robust = interval(k, lmax, umin);
+        scan.advance(&mut k, &mut umin, &mut lmax, |u, l| u - l >= 0.0);
+        out.optimal = interval(k, lmax, umin);
         out
     }
 
