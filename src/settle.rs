@@ -124,6 +124,18 @@ pub struct SettleSpec {
     pub bias_uncertainty: f64,
 }
 
+/// A horizon must be 1 ..= [`MAX_HORIZON`] samples.
+fn check_horizon(horizon: usize) -> Result<(), SettleError> {
+    if horizon == 0 || horizon > MAX_HORIZON {
+        return Err(SettleError::Invalid {
+            field: "horizon (--horizon)",
+            what: "between 1 and 1000000 samples",
+            value: horizon as f64,
+        });
+    }
+    Ok(())
+}
+
 fn one() -> usize {
     1
 }
@@ -230,14 +242,7 @@ impl SettleSpec {
             }
             .into());
         }
-        if self.horizon == 0 || self.horizon > MAX_HORIZON {
-            return Err(SettleError::Invalid {
-                field: "horizon (--horizon)",
-                what: "between 1 and 1000000 samples",
-                value: self.horizon as f64,
-            }
-            .into());
-        }
+        check_horizon(self.horizon)?;
         if self.hold > self.horizon {
             return Err(SettleError::Invalid {
                 field: "hold (--hold)",
@@ -501,13 +506,7 @@ impl HandoffTable {
     /// Precomputes a_k, c_k's coefficients for k = 0 .. horizon − 1 from C·Acl^k (the
     /// measured-error row). `horizon` must be ≥ 1.
     pub fn new(controller: &Controller, horizon: usize) -> Result<Self, SettleError> {
-        if horizon == 0 || horizon > MAX_HORIZON {
-            return Err(SettleError::Invalid {
-                field: "horizon (--horizon)",
-                what: "between 1 and 1000000 samples",
-                value: horizon as f64,
-            });
-        }
+        check_horizon(horizon)?;
         let n = controller.order();
         let acl = controller.closed_loop();
         let mut row = controller.c().transpose();
