@@ -29,6 +29,10 @@
 //!   bimodality, trend.
 //! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per
 //!   feature, permutation test, advice, ladder.
+//! - [`servo`]: plant → controller: continuous plant with modes, ZOH with fractional delay,
+//!   DARE/LQR.
+//! - [`settle`]: the settle-optimal integrator start value at handoff (eq. 14–16), robust
+//!   choices, the allocation-free handoff table.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
 //! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
 //!
@@ -46,6 +50,8 @@ pub mod model;
 pub mod plot;
 pub mod report;
 pub mod score;
+pub mod servo;
+pub mod settle;
 pub mod sim;
 
 pub mod output;

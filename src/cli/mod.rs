@@ -7,6 +7,7 @@ mod demo;
 mod fit;
 mod predict;
 mod score;
+mod settle;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -33,6 +34,8 @@ enum Command {
     Predict(predict::Args),
     /// Score a model on a log: error moments, percentiles, histogram, bimodality, trend.
     Score(score::Args),
+    /// Settle-optimal integrator start value at the seek → track-following handoff.
+    Settle(settle::Args),
 }
 
 /// Runs the parsed command.
@@ -44,5 +47,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(a) => fit::run(a),
         Command::Predict(a) => predict::run(a),
         Command::Score(a) => score::run(a),
+        Command::Settle(a) => settle::run(a),
     }
 }

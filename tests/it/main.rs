@@ -5,4 +5,5 @@ mod check;
 mod common;
 mod model;
 mod plot;
+mod settle;
 mod sim;

@@ -1,0 +1,186 @@
+//! `biasctl settle`: the settle-optimal integrator start value at handoff (paper Section IV).
+
+use anyhow::Context;
+use biasctl::output::write_atomic;
+use biasctl::settle::{SettleReport, SettleSpec, analyse};
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Flags of `biasctl settle`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A built-in plant and scenario: paper1997 or modern (default paper1997).
+    #[arg(long, value_name = "NAME", conflicts_with = "plant")]
+    preset: Option<String>,
+    /// A plant TOML file with every preset parameter (see data/plant_*.toml).
+    #[arg(long, value_name = "FILE.toml")]
+    plant: Option<PathBuf>,
+    /// Step length in µm (handoff e0 = −step from rest).
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    step_um: Option<f64>,
+    /// Half-width δ of the settle window in µm.
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    window_um: Option<f64>,
+    /// Bias d in counts (sets the integrator's converged value).
+    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    bias: Option<f64>,
+    /// Bias uncertainty Δb in counts for the robust choice.
+    #[arg(long, value_name = "DB", allow_negative_numbers = true)]
+    bias_uncertainty: Option<f64>,
+    /// Horizon N in samples.
+    #[arg(long, value_name = "N")]
+    horizon: Option<usize>,
+    /// Samples M that must lie in the window at the end of the horizon.
+    #[arg(long, value_name = "M")]
+    hold: Option<usize>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Write the bounds (Fig. 15) as CSV: k, time_s, upper, lower, upper_min, lower_max.
+    #[arg(long, value_name = "FILE.csv")]
+    bounds_out: Option<PathBuf>,
+    /// Write the responses (Fig. 16) as CSV: k, time_s, one e column (µm) per start-value choice.
+    #[arg(long, value_name = "FILE.csv")]
+    response_out: Option<PathBuf>,
+}
+
+fn load_spec(args: &Args) -> anyhow::Result<SettleSpec> {
+    let mut spec = match &args.plant {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read plant file {}", path.display()))?;
+            toml::from_str::<SettleSpec>(&text)
+                .with_context(|| format!("invalid plant file {}", path.display()))?
+        }
+        None => SettleSpec::preset(args.preset.as_deref().unwrap_or("paper1997"))?,
+    };
+    if let Some(v) = args.step_um {
+        spec.step_um = v;
+    }
+    if let Some(v) = args.window_um {
+        spec.window_um = v;
+    }
+    if let Some(v) = args.bias {
+        spec.bias = v;
+    }
+    if let Some(v) = args.bias_uncertainty {
+        spec.bias_uncertainty = v;
+    }
+    if let Some(v) = args.horizon {
+        spec.horizon = v;
+    }
+    if let Some(v) = args.hold {
+        spec.hold = v;
+    }
+    Ok(spec)
+}
+
+/// Validates, designs, analyses; writes the CSVs (atomically) and prints the report.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let spec = load_spec(&args)?;
+    let cfg = spec.validate()?;
+    let report = analyse(&cfg)?;
+    if let Some(path) = &args.bounds_out {
+        write_atomic(path, |w| write_bounds(w, &report))?;
+    }
+    if let Some(path) = &args.response_out {
+        write_atomic(path, |w| write_responses(w, &report))?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_text(&report);
+    }
+    Ok(())
+}
+
+fn write_bounds(w: &mut impl Write, r: &SettleReport) -> std::io::Result<()> {
+    let b = &r.bounds;
+    writeln!(w, "k,time_s,upper,lower,upper_min,lower_max")?;
+    for k in 0..b.upper().len() {
+        writeln!(
+            w,
+            "{k},{:.7},{},{},{},{}",
+            k as f64 * r.ts_s,
+            b.upper()[k],
+            b.lower()[k],
+            b.upper_min()[k],
+            b.lower_max()[k]
+        )?;
+    }
+    Ok(())
+}
+
+fn write_responses(w: &mut impl Write, r: &SettleReport) -> std::io::Result<()> {
+    write!(w, "k,time_s")?;
+    for resp in &r.responses {
+        write!(w, ",e_{}_um", resp.name)?;
+    }
+    writeln!(w)?;
+    for k in 0..r.horizon {
+        write!(w, "{k},{:.7}", k as f64 * r.ts_s)?;
+        for resp in &r.responses {
+            write!(w, ",{}", resp.e_um[k])?;
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+fn ms(v: Option<f64>) -> String {
+    v.map_or("not settled".to_string(), |m| format!("{m:.2} ms"))
+}
+
+fn print_text(r: &SettleReport) {
+    let gain: Vec<String> = r.gain.iter().map(|g| format!("{g:.6}")).collect();
+    let poles: Vec<String> = r.poles_abs.iter().map(|p| format!("{p:.5}")).collect();
+    println!("LQR gain K = [{}]", gain.join(", "));
+    println!(
+        "  DARE: {} doubling steps, residual {:.1e}",
+        r.dare_iterations, r.dare_residual
+    );
+    println!("closed-loop |poles| = [{}]", poles.join(", "));
+    println!("dz/dbias = {:.5} (µm·samples per count)", r.dz_dbias);
+    println!(
+        "step {} µm, window ±{} µm, horizon {} samples, hold {}; start values relative to the converged value {:.4}",
+        r.step_um, r.window_um, r.horizon, r.hold, r.z_converged
+    );
+    println!(
+        "zero feedforward: settles in {} (overshoot {:.1} %)",
+        ms(r.zero_ff_settle_ms),
+        r.zero_ff_overshoot_pct
+    );
+    match (r.k_star, r.ff_interval) {
+        (Some(k), Some([lo, hi])) => println!(
+            "optimal: k* = {k}, {} for start values in [{lo:.4}, {hi:.4}] (midpoint {:.4})",
+            ms(r.optimal_settle_ms),
+            0.5 * (lo + hi)
+        ),
+        _ => println!("optimal: no start value settles within the horizon"),
+    }
+    match &r.paper_robust {
+        Some(p) => println!(
+            "paper's robust choice: {:.4} (first local minimum of the upper bound at k = {}): {}",
+            p.ff,
+            p.k_min,
+            ms(p.settle_ms)
+        ),
+        None => println!("paper's robust choice: the upper bound has no local minimum"),
+    }
+    let w = &r.worst_case;
+    match &r.robust {
+        Some(c) => println!(
+            "robust for ±{} counts (shift ±{:.4}): {:.4}, worst case {} (simulated {}); zero feedforward worst case {}",
+            w.delta_b,
+            w.shift,
+            c.ff,
+            ms(Some(c.worst_settle_ms)),
+            ms(c.simulated_worst_settle_ms),
+            ms(w.zero_ff_worst_settle_ms)
+        ),
+        None => println!(
+            "robust for ±{} counts: no start value settles for every bias within the horizon",
+            w.delta_b
+        ),
+    }
+}
