@@ -59,12 +59,14 @@
 mod advice;
 mod features;
 mod ladder;
+mod model;
 mod report;
 mod smoother;
 
 pub use advice::{DAHL_TERM, Shape};
 pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
+pub use model::{ModelDiagnosisError, diagnose_model, ladder_fit, model_terms};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 
 use crate::output::OutputError;

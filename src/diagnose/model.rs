@@ -1,0 +1,131 @@
+//! Diagnosis of a fitted model on a log, and the refitting ladder: the glue between
+//! [`crate::model`]/[`crate::fit`] and the model-independent engine of this module.
+
+use super::{
+    DiagnoseConfig, DiagnoseError, Diagnosis, FeatureTable, Ladder, LadderInput, diagnose, ladder,
+};
+use crate::fit::{FitError, FitOptions, fit};
+use crate::log::Log;
+use crate::model::{FittedModel, ModelError, ModelSpec, SpecError};
+
+/// An error diagnosing a model or building a ladder: which stage failed and why.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelDiagnosisError {
+    /// The model could not be replayed over the log (for example different column names).
+    #[error("replaying the model over {file}")]
+    Replay {
+        /// The log file.
+        file: String,
+        /// The model error.
+        #[source]
+        source: ModelError,
+    },
+    /// A ladder step's term list is not valid.
+    #[error("ladder step {step} (`{terms}`)")]
+    Spec {
+        /// 1-based step number.
+        step: usize,
+        /// The step's term list.
+        terms: String,
+        /// The parse error.
+        #[source]
+        source: SpecError,
+    },
+    /// A ladder step could not be fitted on the training log.
+    #[error("fitting ladder step {step} (`{terms}`) on {file}")]
+    Fit {
+        /// 1-based step number.
+        step: usize,
+        /// The step's term list.
+        terms: String,
+        /// The training log.
+        file: String,
+        /// The fit error.
+        #[source]
+        source: Box<FitError>,
+    },
+    /// The diagnosis engine rejected the residuals or its settings.
+    #[error(transparent)]
+    Diagnose(#[from] DiagnoseError),
+    /// A ladder step left fewer than two measured test rows, so no std exists.
+    #[error("ladder step {step}: fewer than two measured rows in {file}")]
+    TooFewTestRows {
+        /// 1-based step number.
+        step: usize,
+        /// The test log.
+        file: String,
+    },
+}
+
+/// The term names of a fitted model, as the diagnosis engine's `existing_terms` expects them.
+pub fn model_terms(model: &FittedModel) -> Vec<String> {
+    model.terms.iter().map(|t| t.term.name()).collect()
+}
+
+/// Replays `model` causally over `log`, and diagnoses its residuals against every candidate
+/// feature of the log's seek history and every covariate column. The model's own terms are
+/// added to `config.existing_terms`, so nothing the model already has is suggested.
+pub fn diagnose_model(
+    model: &FittedModel,
+    log: &Log,
+    config: &DiagnoseConfig,
+) -> Result<Diagnosis, ModelDiagnosisError> {
+    let prediction = model
+        .predict_log(log)
+        .map_err(|source| ModelDiagnosisError::Replay {
+            file: log.schema.file.clone(),
+            source,
+        })?;
+    let table = FeatureTable::from_log(log);
+    let mut config = config.clone();
+    for t in model_terms(model) {
+        if !config.existing_terms.contains(&t) {
+            config.existing_terms.push(t);
+        }
+    }
+    Ok(diagnose(&table, &prediction.residual, &config)?)
+}
+
+/// The ladder: for k = 1..=terms.len(), fits the first k terms on `train`, replays on `test`
+/// and records the test error std (counts); reductions are relative to the first step.
+pub fn ladder_fit(
+    train: &Log,
+    test: &Log,
+    terms: &[String],
+    opts: &FitOptions,
+) -> Result<Ladder, ModelDiagnosisError> {
+    let mut inputs = Vec::with_capacity(terms.len());
+    for k in 1..=terms.len() {
+        let list = terms[..k].join(",");
+        let step = k;
+        let spec = ModelSpec::parse(&list).map_err(|source| ModelDiagnosisError::Spec {
+            step,
+            terms: list.clone(),
+            source,
+        })?;
+        let model = fit(&spec, train, opts).map_err(|source| ModelDiagnosisError::Fit {
+            step,
+            terms: list.clone(),
+            file: train.schema.file.clone(),
+            source: Box::new(source),
+        })?;
+        let prediction = model
+            .predict_log(test)
+            .map_err(|source| ModelDiagnosisError::Replay {
+                file: test.schema.file.clone(),
+                source,
+            })?;
+        let std = crate::stats::std_dev(&prediction.residual).ok_or_else(|| {
+            ModelDiagnosisError::TooFewTestRows {
+                step,
+                file: test.schema.file.clone(),
+            }
+        })?;
+        inputs.push(LadderInput {
+            terms: terms[..k].to_vec(),
+            std,
+        });
+    }
+    Ok(ladder(&inputs)?)
+}
