@@ -1,0 +1,155 @@
+//! The paper's headline numbers, ours beside the paper's, and what better bias prediction buys
+//! in settle time. Prints two markdown tables (the README's).
+//!
+//! ```sh
+//! cargo run --release --example paper_table                    # built-in drive, 5 seed pairs
+//! cargo run --release --example paper_table -- --seeds 10 --drive my_drive.toml
+//! ```
+//!
+//! Protocol (issues #2/#3): fit each model on a calibration run (`simulate --sequence
+//! calibration --seed 2k−1`), score it on a separate random run of 2000 seeks in a 250-track span
+//! (`simulate --sequence random --seed 2k --n 2000 --span 250`), k = 1..seeds. The first pair is
+//! the issue's (seeds 1 and 2). Numbers are mean ± sample standard deviation over the pairs.
+
+use biasctl::fit::{FitOptions, fit};
+use biasctl::model::ModelSpec;
+use biasctl::score::{Score, score};
+use biasctl::servo::Controller;
+use biasctl::settle::{HandoffTable, SettleSpec, worst_case_settle};
+use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::stats::{mean, std_dev};
+
+/// (label, term list or preset, the paper's error std in counts).
+const MODELS: [(&str, &str, Option<f64>); 4] = [
+    ("position-direction", "position-direction", Some(19.0)),
+    ("calibration", "calibration", Some(7.9)),
+    ("dahl", "dahl", Some(11.5)),
+    ("poly2,dahl:4", "poly2,dahl:4", None),
+];
+
+fn spec(s: &str) -> Result<ModelSpec, biasctl::model::SpecError> {
+    ModelSpec::preset(s).or_else(|_| ModelSpec::parse(s))
+}
+
+fn pm(v: &[f64], digits: usize) -> String {
+    let m = mean(v).unwrap_or(f64::NAN);
+    match std_dev(v) {
+        Some(s) if v.len() > 1 => format!("{m:.digits$} ± {s:.digits$}"),
+        _ => format!("{m:.digits$}"),
+    }
+}
+
+fn main() -> anyhow::Result<()> {
+    let mut drive = Drive::paper1997();
+    let mut seeds = 5u64;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--drive" => {
+                let p = args
+                    .next()
+                    .ok_or_else(|| anyhow::anyhow!("--drive FILE.toml"))?;
+                drive = Drive::from_toml_file(std::path::Path::new(&p))?;
+            }
+            "--seeds" => {
+                seeds = args
+                    .next()
+                    .and_then(|s| s.parse().ok())
+                    .filter(|&n| n >= 1)
+                    .ok_or_else(|| anyhow::anyhow!("--seeds N (N ≥ 1)"))?;
+            }
+            _ => anyhow::bail!(
+                "unknown argument {a}; usage: paper_table [--drive FILE.toml] [--seeds N]"
+            ),
+        }
+    }
+    let test_opts = SequenceOptions {
+        n: Some(2000),
+        span: Some(250.0),
+        ..SequenceOptions::default()
+    };
+    // scores[model][pair]
+    let mut scores: Vec<Vec<Score>> = vec![Vec::new(); MODELS.len()];
+    for k in 1..=seeds {
+        let train_cfg = SimConfig::new(
+            drive.clone(),
+            "calibration",
+            &SequenceOptions::default(),
+            2 * k - 1,
+            &[],
+        )?;
+        let test_cfg = SimConfig::new(drive.clone(), "random", &test_opts, 2 * k, &[])?;
+        let train = simulate_log(&train_cfg)?;
+        let test = simulate_log(&test_cfg)?;
+        for (m, (_, s, _)) in MODELS.iter().enumerate() {
+            let model = fit(&spec(s)?, &train, &FitOptions::default())?;
+            let p = model.predict_log(&test)?;
+            scores[m].push(score(&p.residual, &p.positions)?);
+        }
+    }
+    let col =
+        |m: usize, f: &dyn Fn(&Score) -> f64| -> Vec<f64> { scores[m].iter().map(f).collect() };
+    let pd_std = col(0, &|s| s.std);
+    println!(
+        "Error of each model on random seeks in a 250-track span (n = {} per run; mean ± std over {seeds} training/test seed pairs; first pair: seeds 1/2)\n",
+        scores[0][0].n
+    );
+    println!(
+        "| model | paper std | our std (counts) | seeds 1/2 | reduction vs pd | paper | bimodality coeff. (> 0.556 bimodal) | trend p (median) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for (m, (label, _, paper)) in MODELS.iter().enumerate() {
+        let std = col(m, &|s| s.std);
+        let red: Vec<f64> = std
+            .iter()
+            .zip(&pd_std)
+            .map(|(s, p)| 100.0 * (1.0 - s / p))
+            .collect();
+        let bc = col(m, &|s| s.bimodality.unwrap_or(f64::NAN));
+        let mut tp = col(m, &|s| s.trend.map_or(f64::NAN, |t| t.p_value));
+        tp.sort_by(f64::total_cmp);
+        let paper_red = paper.map_or("–".to_string(), |p| {
+            if m == 0 {
+                "–".into()
+            } else {
+                format!("{:.0} %", 100.0 * (1.0 - p / 19.0))
+            }
+        });
+        println!(
+            "| `{label}` | {} | {} | {:.2} | {} | {paper_red} | {} | {:.2e} |",
+            paper.map_or("–".to_string(), |p| format!("≈ {p}")),
+            pm(&std, 2),
+            std[0],
+            if m == 0 {
+                "–".to_string()
+            } else {
+                format!("{} %", pm(&red, 0))
+            },
+            pm(&bc, 2),
+            tp[tp.len() / 2],
+        );
+    }
+    // Prediction → settling: Δb = the model's test-run error std.
+    let cfg = SettleSpec::preset("paper1997")?.validate()?;
+    let ctl = Controller::design(&cfg.plant, &cfg.weights)?;
+    let table = HandoffTable::new(&ctl, cfg.scenario.horizon)?;
+    let h = cfg.scenario.handoff();
+    println!(
+        "\nWorst-case settle time (paper1997 settle preset: 15 µm step, ±0.5 µm window) when the bias is known to ± Δb, Δb = the model's error std on the test runs (mean over seeds)\n"
+    );
+    println!(
+        "| model | Δb = test error std (counts) | worst-case settle, robust choice (ms) | worst-case settle, zero feedforward (ms) |"
+    );
+    println!("|---|---|---|---|");
+    let ms = |v: Option<f64>| v.map_or("not settled".to_string(), |m| format!("{m:.2}"));
+    for (m, (label, _, _)) in MODELS.iter().enumerate() {
+        let db = mean(&col(m, &|s| s.std)).unwrap_or(f64::NAN);
+        let wc = worst_case_settle(&table, &h, &cfg.scenario.window, db)?;
+        println!(
+            "| `{label}` | {db:.2} | {} | {} |",
+            ms(wc.robust_worst_settle_ms),
+            ms(wc.zero_ff_worst_settle_ms)
+        );
+    }
+    Ok(())
+}
