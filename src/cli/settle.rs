@@ -1,6 +1,9 @@
 //! `biasctl settle`: the settle-optimal integrator start value at handoff (paper Section IV).
 
+use super::common::ColumnArgs;
 use anyhow::Context;
+use biasctl::log::Log;
+use biasctl::model::{FittedModel, NextPrediction, predict_next};
 use biasctl::output::write_atomic;
 use biasctl::settle::{SettleReport, SettleSpec, analyse};
 use std::io::Write;
@@ -42,6 +45,48 @@ pub struct Args {
     /// Write the responses (Fig. 16) as CSV: k, time_s, one e column (µm) per start-value choice.
     #[arg(long, value_name = "FILE.csv")]
     response_out: Option<PathBuf>,
+    /// A fitted bias model: the bias is the model's prediction for the log's last target and
+    /// Δb its error std (the fit's residual std) unless --bias / --bias-uncertainty are given.
+    #[arg(long, value_name = "MODEL.json", requires = "data")]
+    model: Option<PathBuf>,
+    /// The measurement log the model is replayed over (with --model).
+    #[arg(long, value_name = "LOG.csv", requires = "model")]
+    data: Option<PathBuf>,
+    /// Predict for a seek to this track after the log's last row instead of the last row's own
+    /// target (with --model).
+    #[arg(
+        long,
+        value_name = "TRACK",
+        requires = "model",
+        allow_negative_numbers = true
+    )]
+    target: Option<f64>,
+    #[command(flatten)]
+    columns: ColumnArgs,
+}
+
+/// The bias a model predicts at handoff, and the uncertainty used for it.
+struct ModelLink {
+    model: PathBuf,
+    next: NextPrediction,
+    delta_b: f64,
+}
+
+/// Replays the log through the model and predicts the handoff bias; Δb is the model's error std.
+fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
+    let (Some(model_path), Some(data)) = (&args.model, &args.data) else {
+        return Ok(None);
+    };
+    let model = FittedModel::load(model_path)?;
+    let log = Log::read(data, &args.columns.map())?;
+    let next = predict_next(&model, &log, args.target)
+        .with_context(|| format!("predicting the handoff bias from {}", data.display()))?;
+    let delta_b = args.bias_uncertainty.unwrap_or(model.fit.residual_std);
+    Ok(Some(ModelLink {
+        model: model_path.clone(),
+        next,
+        delta_b,
+    }))
 }
 
 fn load_spec(args: &Args) -> anyhow::Result<SettleSpec> {
@@ -77,7 +122,14 @@ fn load_spec(args: &Args) -> anyhow::Result<SettleSpec> {
 
 /// Validates, designs, analyses; writes the CSVs (atomically) and prints the report.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let spec = load_spec(&args)?;
+    let mut spec = load_spec(&args)?;
+    let link = predict_handoff(&args)?;
+    if let Some(l) = &link {
+        if args.bias.is_none() {
+            spec.bias = l.next.bias;
+        }
+        spec.bias_uncertainty = l.delta_b;
+    }
     let cfg = spec.validate()?;
     let report = analyse(&cfg)?;
     if let Some(path) = &args.bounds_out {
@@ -87,8 +139,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_atomic(path, |w| write_responses(w, &report))?;
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        let mut value = serde_json::to_value(&report)?;
+        if let (Some(l), Some(obj)) = (&link, value.as_object_mut()) {
+            obj.insert(
+                "prediction".into(),
+                serde_json::json!({
+                    "model": l.model.display().to_string(),
+                    "target": l.next.target,
+                    "bias": l.next.bias,
+                    "delta_b": l.delta_b,
+                    "rows_replayed": l.next.rows_replayed,
+                    "robust_worst_settle_ms": report.worst_case.robust_worst_settle_ms,
+                    "zero_ff_worst_settle_ms": report.worst_case.zero_ff_worst_settle_ms,
+                }),
+            );
+        }
+        println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
+        if let Some(l) = &link {
+            println!(
+                "model {}: predicted bias {:.3} counts at track {} (after {} rows), Δb = {:.3} counts",
+                l.model.display(),
+                l.next.bias,
+                l.next.target,
+                l.next.rows_replayed,
+                l.delta_b
+            );
+            println!(
+                "  worst-case settle for ±Δb: robust choice {}, zero feedforward {}",
+                ms(report.worst_case.robust_worst_settle_ms),
+                ms(report.worst_case.zero_ff_worst_settle_ms)
+            );
+        }
         print_text(&report);
     }
     Ok(())

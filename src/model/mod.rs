@@ -14,7 +14,7 @@ pub mod preset;
 pub mod term;
 pub mod terms;
 
-pub use predictor::Predictor;
+pub use predictor::{NextPrediction, Predictor, predict_next};
 
 use crate::fit::FitReport;
 use crate::log::Log;
@@ -134,6 +134,12 @@ pub enum ModelError {
         log: String,
         /// The flag that renames it.
         flag: &'static str,
+    },
+    /// The log has no rows to predict from.
+    #[error("{file}: the log has no rows")]
+    EmptyLog {
+        /// The log file.
+        file: String,
     },
     /// Writing the model file failed.
     #[error(transparent)]

@@ -118,3 +118,49 @@ impl Predictor {
         }
     }
 }
+
+/// The bias a model predicts for one seek after a replayed log (what `settle --model` feeds to
+/// the handoff).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NextPrediction {
+    /// The target of the predicted seek, in the log's position unit (tracks).
+    pub target: f64,
+    /// The time of the predicted seek, s.
+    pub time_s: f64,
+    /// The predicted bias, counts.
+    pub bias: f64,
+    /// Rows replayed (with their measurements) before the prediction.
+    pub rows_replayed: usize,
+}
+
+/// Replays `log` through `model` and predicts the bias of one more seek without using its
+/// measurement: with `target = None`, the seek of the log's **last row** (the rows before it are
+/// replayed with their measurements; the last row's own bias is not used); with
+/// `Some(t)`, a seek to `t` right after the last row (at the last row's time).
+pub fn predict_next(
+    model: &FittedModel,
+    log: &crate::log::Log,
+    target: Option<f64>,
+) -> Result<NextPrediction, ModelError> {
+    model.check_log(log)?;
+    let mut p = Predictor::new(model, &log.schema.covariates)?;
+    let replay = match target {
+        None => log.rows.len().saturating_sub(1),
+        Some(_) => log.rows.len(),
+    };
+    for row in &log.rows[..replay] {
+        p.step(row.time_s, row.track, &row.covariates, row.bias);
+    }
+    let Some(last) = log.rows.last() else {
+        return Err(ModelError::EmptyLog {
+            file: log.schema.file.clone(),
+        });
+    };
+    let target = target.unwrap_or(last.track);
+    Ok(NextPrediction {
+        target,
+        time_s: last.time_s,
+        bias: p.peek(last.time_s, target, &last.covariates),
+        rows_replayed: replay,
+    })
+}

@@ -313,3 +313,154 @@ fn settle_bad_plant_descriptions_exit_2_and_write_nothing() {
         2
     );
 }
+
+/// `settle --model --data`: the handoff bias is the model's causal prediction for the log's last
+/// row. Reference: the `predict` command's `predicted` column for that row (the same replay by
+/// another path), and Δb is the fit's residual std from the model file; the worst case must equal
+/// a plain `settle --bias-uncertainty Δb` run.
+#[test]
+fn settle_with_model_uses_the_prediction_for_the_last_target_and_the_error_std() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "400",
+        "--seed",
+        "3",
+        "--out",
+        &p("train.csv"),
+    ]);
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "200",
+        "--seed",
+        "4",
+        "--out",
+        &p("test.csv"),
+    ]);
+    ok(&[
+        "fit",
+        "--data",
+        &p("train.csv"),
+        "--model",
+        "calibration",
+        "--out",
+        &p("m.json"),
+    ]);
+    ok(&[
+        "predict",
+        "--model",
+        &p("m.json"),
+        "--data",
+        &p("test.csv"),
+        "--out",
+        &p("pred.csv"),
+    ]);
+    let pred = std::fs::read_to_string(p("pred.csv")).unwrap();
+    let mut lines = pred.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "predicted").unwrap();
+    let last: Vec<&str> = lines.last().unwrap().split(',').collect();
+    let predicted: f64 = last[col].parse().unwrap();
+
+    let out = ok(&[
+        "settle",
+        "--model",
+        &p("m.json"),
+        "--data",
+        &p("test.csv"),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let bias = v["prediction"]["bias"].as_f64().unwrap();
+    assert!(
+        (bias - predicted).abs() < 1e-3 * predicted.abs().max(1.0),
+        "{bias} vs {predicted}"
+    );
+
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("m.json")).unwrap()).unwrap();
+    let std = model["fit"]["residual_std"].as_f64().unwrap();
+    let delta_b = v["prediction"]["delta_b"].as_f64().unwrap();
+    assert!((delta_b - std).abs() < 1e-12, "{delta_b} vs {std}");
+
+    let plain = ok(&["settle", "--bias-uncertainty", &format!("{std}"), "--json"]);
+    let w: serde_json::Value = serde_json::from_str(&plain).unwrap();
+    assert_eq!(
+        v["robust"]["worst_settle_ms"],
+        w["robust"]["worst_settle_ms"]
+    );
+    assert_eq!(
+        v["prediction"]["zero_ff_worst_settle_ms"],
+        w["worst_case"]["zero_ff_worst_settle_ms"]
+    );
+    // --target predicts a seek after the last row; a different target gives a different bias.
+    let t = ok(&[
+        "settle",
+        "--model",
+        &p("m.json"),
+        "--data",
+        &p("test.csv"),
+        "--target",
+        "1000",
+        "--json",
+    ]);
+    let tv: serde_json::Value = serde_json::from_str(&t).unwrap();
+    assert_eq!(tv["prediction"]["target"].as_f64(), Some(1000.0));
+    assert_eq!(tv["prediction"]["rows_replayed"].as_u64(), Some(200));
+}
+
+#[test]
+fn settle_with_model_bad_inputs_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "200",
+        "--seed",
+        "3",
+        "--out",
+        &p("log.csv"),
+    ]);
+    ok(&[
+        "fit",
+        "--data",
+        &p("log.csv"),
+        "--model",
+        "position-direction",
+        "--out",
+        &p("m.json"),
+    ]);
+    fails_with(&["settle", "--model", &p("m.json")], &["--data"]);
+    fails_with(
+        &[
+            "settle",
+            "--model",
+            &p("nope.json"),
+            "--data",
+            &p("log.csv"),
+        ],
+        &["nope.json"],
+    );
+    fails_with(
+        &[
+            "settle",
+            "--model",
+            &p("m.json"),
+            "--data",
+            &p("log.csv"),
+            "--bias-col",
+            "force",
+        ],
+        &["missing required column `force`", "--bias-col"],
+    );
+}
