@@ -224,10 +224,16 @@ pub(crate) fn candidate_terms(
 /// Whether the model's term list `existing` already holds `term` (any `dahl:N` counts as a Dahl
 /// term).
 fn has_term(existing: &[String], term: &str) -> bool {
-    let dahl = |t: &str| t == "dahl" || t.starts_with("dahl:");
-    existing
-        .iter()
-        .any(|e| e.trim() == term || (dahl(term) && dahl(e.trim())))
+    // `dahl` is one element; `dahl:N` has N. A Dahl term is covered by one with at least as
+    // many elements (one element cannot make the overshoot that `dahl:4` can).
+    let elements = |t: &str| match t {
+        "dahl" => Some(1usize),
+        _ => t.strip_prefix("dahl:").and_then(|n| n.parse().ok()),
+    };
+    existing.iter().any(|e| {
+        e.trim() == term
+            || matches!((elements(term), elements(e.trim())), (Some(want), Some(have)) if have >= want)
+    })
 }
 
 /// The first candidate term the model does not have yet, and a note when a better one was
