@@ -4,7 +4,9 @@
 mod check;
 mod common;
 mod demo;
+mod diagnose;
 mod fit;
+mod ladder;
 mod predict;
 mod score;
 mod settle;
@@ -34,6 +36,10 @@ enum Command {
     Predict(predict::Args),
     /// Score a model on a log: error moments, percentiles, histogram, bimodality, trend.
     Score(score::Args),
+    /// Compare a model with a log: which missing effect the residual follows, and the term to add.
+    Diagnose(diagnose::Args),
+    /// Add terms one at a time, refit on a training log, score on a test log.
+    Ladder(ladder::Args),
     /// Settle-optimal integrator start value at the seek → track-following handoff.
     Settle(settle::Args),
 }
@@ -47,6 +53,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(a) => fit::run(a),
         Command::Predict(a) => predict::run(a),
         Command::Score(a) => score::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::Ladder(a) => ladder::run(a),
         Command::Settle(a) => settle::run(a),
     }
 }

@@ -56,6 +56,21 @@
 //! that holds whatever the residuals' serial correlation, for a slowly varying feature it does
 //! not, so read `p_value` together with the whiteness check and the out-of-sample `explained`.
 
+//!
+//! ## Effects that flip with direction, and outliers
+//! Friction and lubricant effects of a pivot are hysteretic: P3 (time at track), P4/P5
+//! (overshoot) and P6 (rest memory) all enter the bias as `direction × g(feature)`, so the
+//! residual's plain mean against the feature is zero when both directions are equally common.
+//! Every feature but `direction` is therefore also analysed against **residual × direction of
+//! the last move** (its gain counted beyond a constant direction offset, so a missing
+//! `direction` term does not leak into every feature); the stronger of the two is reported,
+//! with `by_direction` set, and the permutation statistic is the smaller p-value of the two, so
+//! the family-wise control still holds. Before the analysis the residuals are clipped at the
+//! median ± 4 robust standard deviations: a handful of gross residuals (the start-up transient of
+//! a state-space model replayed from rest) must not make the feature that isolates those rows
+//! look like an effect. For the same reason a discrete value, or an undefined group, seen in
+//! fewer than [`DiagnoseConfig::min_bin_rows`] rows is pooled with its neighbour.
+
 mod advice;
 mod features;
 mod ladder;
@@ -69,6 +84,7 @@ pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{ModelDiagnosisError, diagnose_model, ladder_fit, model_terms};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 
+use crate::history::Feature;
 use crate::output::OutputError;
 use crate::rng::SimRng;
 use crate::stats;
@@ -267,7 +283,40 @@ struct Analysed {
     binned: Binned,
     shift: u32,
     explained: f64,
+    /// The smallest F-test p-value over the plain and (if signable) the signed analysis.
     observed: f64,
+    /// Whether the direction-signed analysis explains more than the plain one.
+    by_direction: bool,
+    /// Whether the signed analysis was run for this feature.
+    signable: bool,
+}
+
+/// The residuals multiplied by the direction of the last move (0 before the first move).
+struct Signed {
+    y: Vec<f64>,
+    /// Sum of squares of `y` about its mean.
+    sst: f64,
+}
+
+impl Signed {
+    fn new(y: &[f64], direction: &[f64]) -> Signed {
+        let y: Vec<f64> = y.iter().zip(direction).map(|(r, d)| r * d).collect();
+        Signed {
+            sst: sum_sq_about_mean(&y),
+            y,
+        }
+    }
+}
+
+fn sum_sq_about_mean(y: &[f64]) -> f64 {
+    let m = stats::mean(y).unwrap_or(0.0);
+    y.iter().map(|v| (v - m) * (v - m)).sum()
+}
+
+/// Whether the direction-signed analysis applies to `col`: every feature but `direction`
+/// itself (whose signed curve is a constant).
+fn signable(col: &FeatureColumn) -> bool {
+    col.origin != FeatureOrigin::BuiltIn(Feature::Direction)
 }
 
 /// Diagnoses `residuals` (measured − predicted, one per measured row of `table`, in log order).
@@ -322,12 +371,20 @@ pub fn diagnose(
         });
     }
 
-    let mean = stats::mean(residuals).unwrap_or(0.0);
-    let y: Vec<f64> = residuals.iter().map(|v| v - mean).collect();
+    let clipped = winsorize(residuals);
+    let mean = stats::mean(&clipped).unwrap_or(0.0);
+    let y: Vec<f64> = clipped.iter().map(|v| v - mean).collect();
     let sst: f64 = y.iter().map(|v| v * v).sum();
     let variance = sst / n as f64;
     let residual_std = stats::std_dev(residuals).unwrap_or(0.0);
     let fold = assign_folds(n, block_len, config.folds, config.seed);
+
+    // The direction of the last move, for the direction-signed analysis (see the module docs).
+    let direction: Option<Vec<f64>> = table
+        .column(Feature::Direction.name())
+        .filter(|c| c.origin == FeatureOrigin::BuiltIn(Feature::Direction))
+        .map(|c| c.values.iter().map(|v| v.unwrap_or(0.0)).collect());
+    let signed = direction.as_ref().map(|d| Signed::new(&y, d));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
     let mut analysed: Vec<Result<Analysed, Unusable>> = Vec::with_capacity(table.columns().len());
@@ -346,18 +403,40 @@ pub fn diagnose(
                 0.0
             };
             let observed = FTest::new(&binned).min_p(&binned, &y, sst);
-            Analysed {
+            let mut a = Analysed {
                 binned,
                 shift: cv.shift,
                 explained,
                 observed,
+                by_direction: false,
+                signable: false,
+            };
+            if let Some(s) = signed.as_ref().filter(|_| signable(col)) {
+                a.signable = true;
+                let cv = smoother::cross_validate(&a.binned, &s.y, &fold, config.folds);
+                let explained_s = if variance > 0.0 {
+                    ((s.sst / n as f64 - cv.mse) / variance).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let observed_s = FTest::new(&a.binned).min_p(&a.binned, &s.y, s.sst);
+                if explained_s > a.explained {
+                    a.shift = cv.shift;
+                    a.explained = explained_s;
+                    a.by_direction = true;
+                }
+                a.observed = a.observed.min(observed_s);
             }
+            a
         });
         analysed.push(a);
     }
 
-    let (p_raw, p_adj) = permutation_test(&analysed, &y, sst, config);
+    let (p_raw, p_adj) = permutation_test(&analysed, &y, sst, direction.as_deref(), config);
 
+    let signed_residuals: Option<Vec<f64>> = direction
+        .as_ref()
+        .map(|d| residuals.iter().zip(d).map(|(r, d)| r * d).collect());
     let mut reports: Vec<FeatureReport> = table
         .columns()
         .iter()
@@ -371,7 +450,11 @@ pub fn diagnose(
                 a.explained,
                 p_raw[j],
                 p_adj[j],
-                residuals,
+                match (&signed_residuals, a.by_direction) {
+                    (Some(s), true) => s,
+                    _ => residuals,
+                },
+                a.by_direction,
                 residual_std,
                 config,
             ),
@@ -391,6 +474,36 @@ pub fn diagnose(
     };
     d.summary = report::summary(&d, n, config.alpha);
     Ok(d)
+}
+
+/// Residuals farther than this many robust standard deviations (1.4826·MAD) from the median
+/// are clipped to that distance before the analysis.
+pub const WINSOR_SIGMAS: f64 = 4.0;
+
+/// The residuals with outliers clipped at the median ± [`WINSOR_SIGMAS`]·1.4826·MAD (unchanged
+/// when the MAD is 0). A handful of gross residuals — the start-up transient of a state-space
+/// model replayed from rest, a glitch in the log — would otherwise dominate the sums of squares
+/// and make whichever feature isolates those rows (an undefined rest distance on the first
+/// seeks) look like an effect. A genuine effect moves many rows by a few noise widths and
+/// survives the clip; its size is still reported from the raw residuals.
+fn winsorize(residuals: &[f64]) -> Vec<f64> {
+    let mut sorted = residuals.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let Some(median) = stats::percentile_sorted(&sorted, 50.0) else {
+        return residuals.to_vec();
+    };
+    let mut dev: Vec<f64> = residuals.iter().map(|v| (v - median).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    let mad = stats::percentile_sorted(&dev, 50.0).unwrap_or(0.0);
+    let half = WINSOR_SIGMAS * 1.4826 * mad;
+    if half > 0.0 {
+        residuals
+            .iter()
+            .map(|v| v.clamp(median - half, median + half))
+            .collect()
+    } else {
+        residuals.to_vec()
+    }
 }
 
 /// Deals contiguous blocks of `block_len` rows to `folds` folds at random, balanced.
@@ -419,6 +532,7 @@ fn permutation_test(
     analysed: &[Result<Analysed, Unusable>],
     y: &[f64],
     sst: f64,
+    direction: Option<&[f64]>,
     config: &DiagnoseConfig,
 ) -> (Vec<f64>, Vec<f64>) {
     let m = analysed.len();
@@ -432,13 +546,26 @@ fn permutation_test(
     if sst > 0.0 && !usable.is_empty() {
         let mut tests: Vec<FTest> = usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect();
         let mut perm = y.to_vec();
+        let mut perm_signed = vec![0.0; y.len()];
         let mut rng = SimRng::substream(config.seed, 2);
         let mut stat = vec![0.0; usable.len()];
         for _ in 0..config.permutations {
             shuffle(&mut perm, &mut rng);
+            let sst_signed = match direction {
+                Some(d) => {
+                    for ((s, p), d) in perm_signed.iter_mut().zip(&perm).zip(d) {
+                        *s = p * d;
+                    }
+                    sum_sq_about_mean(&perm_signed)
+                }
+                None => 0.0,
+            };
             let mut min_stat = f64::INFINITY;
             for (k, ((_, a), t)) in usable.iter().zip(tests.iter_mut()).enumerate() {
                 stat[k] = t.min_p(&a.binned, &perm, sst);
+                if a.signable && direction.is_some() {
+                    stat[k] = stat[k].min(t.min_p(&a.binned, &perm_signed, sst_signed));
+                }
                 min_stat = min_stat.min(stat[k]);
             }
             for (k, &(j, a)) in usable.iter().enumerate() {

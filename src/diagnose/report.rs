@@ -64,6 +64,10 @@ pub struct FeatureReport {
     pub slope: Option<f64>,
     /// Two-sided p-value of that slope.
     pub slope_p: Option<f64>,
+    /// Whether the residual follows the feature **times the direction of the last move**
+    /// (+1 inbound, −1 outbound): an effect that flips sign with the approach direction, as
+    /// hysteresis does. Then `curve`, `shape`, `slope` describe residual × direction.
+    pub by_direction: bool,
     /// Whether a straight line explains nearly as much as the bins (≥ 85 % of their R²).
     pub linear: bool,
     /// Why the feature was skipped, or which better term the model already has.
@@ -189,6 +193,7 @@ pub(crate) fn feature_report(
     p_raw: f64,
     p_adj: f64,
     residuals: &[f64],
+    by_direction: bool,
     residual_std: f64,
     config: &DiagnoseConfig,
 ) -> FeatureReport {
@@ -228,7 +233,7 @@ pub(crate) fn feature_report(
     } else {
         curve(b, display_shift, col, residuals)
     };
-    let candidates = advice::candidate_terms(&col.name, col.origin, linear);
+    let candidates = advice::candidate_terms(&col.name, col.origin, linear, by_direction);
     let (suggested_term, note) = advice::suggest(&candidates, &config.existing_terms);
     FeatureReport {
         name: col.name.clone(),
@@ -248,6 +253,7 @@ pub(crate) fn feature_report(
         bins: chosen.len(),
         slope: trend.and_then(|t| finite(t.slope)),
         slope_p: trend.and_then(|t| finite(t.p_value)),
+        by_direction,
         linear,
         note,
         curve: display,
@@ -262,6 +268,10 @@ pub(crate) fn skipped_report(
 ) -> FeatureReport {
     let note = match why {
         Unusable::Constant(v) => format!("skipped: constant (every value is {})", short(*v)),
+        Unusable::NearlyConstant { value, others } => format!(
+            "skipped: nearly constant (all rows but {others} are {}, too few to compare)",
+            short(*value)
+        ),
         Unusable::AllMissing => "skipped: undefined on every measured row".to_string(),
     };
     let defined = col.values.iter().flatten().count();
@@ -280,6 +290,7 @@ pub(crate) fn skipped_report(
         bins: 0,
         slope: None,
         slope_p: None,
+        by_direction: false,
         linear: false,
         note: Some(note),
         curve: Vec::new(),
@@ -317,8 +328,13 @@ fn p_text(p: f64) -> String {
 /// The advice sentence for one flagged feature.
 fn advice_line(f: &FeatureReport, residual_std: f64) -> String {
     let mut s = format!(
-        "The residual follows `{}`: it {}; `{}` explains {} of the residual variance out of \
+        "The residual{} follows `{}`: it {}; `{}` explains {} of the residual variance out of \
          sample (p = {}, family-wise).",
+        if f.by_direction {
+            " times the direction of the last move"
+        } else {
+            ""
+        },
         f.name,
         f.shape.describe(&f.name, f.shape_at),
         f.name,
@@ -332,7 +348,7 @@ fn advice_line(f: &FeatureReport, residual_std: f64) -> String {
                 short(f.expected_std),
                 short(residual_std)
             ));
-            if t == "seek" {
+            if t == "seek" && !f.by_direction {
                 s.push_str(&format!(
                     " In a state-space model use `{}` instead.",
                     advice::DAHL_TERM
@@ -443,7 +459,11 @@ impl Diagnosis {
         for f in &self.features {
             out.push_str(&format!(
                 "{:<20} {:>9} {:>9} {:>5}  {:<16} {:<22} {:>12}\n",
-                f.name,
+                if f.by_direction {
+                    format!("{} ×dir", f.name)
+                } else {
+                    f.name.clone()
+                },
                 percent(f.explained),
                 p_text(f.p_value),
                 if f.flagged { "*" } else { "" },

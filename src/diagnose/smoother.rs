@@ -44,6 +44,13 @@ pub(crate) enum Unusable {
     Constant(f64),
     /// No value is defined.
     AllMissing,
+    /// Every value but `others` rows (fewer than the smallest bin) is `value`.
+    NearlyConstant {
+        /// The common value.
+        value: f64,
+        /// Rows with another value or undefined.
+        others: usize,
+    },
 }
 
 /// Shift that maps every fine bin to bin 0.
@@ -78,14 +85,57 @@ impl Binned {
             return Err(Unusable::Constant(distinct_values[0]));
         }
         if distinct_values.len() <= max_discrete {
+            // A value (or the undefined group) seen in fewer than `min_bin_rows` rows has no
+            // reliable mean: one odd row alone in its bin (the first seek, before the head has a
+            // direction) would make the F-test's extreme tail. Such a group is pooled with its
+            // neighbour: a value with the next larger value (the previous one for the largest),
+            // the undefined rows with the largest value (undefined rest distance = no rest
+            // position, i.e. farther than any).
+            let mut counts = vec![0usize; distinct_values.len()];
+            for &v in &sorted {
+                counts[distinct_values.partition_point(|&d| d < v)] += 1;
+            }
+            let missing = values.len() - sorted.len();
+            let mut label = vec![0u32; distinct_values.len()];
+            let mut next = 0u32;
+            let mut pending = 0usize;
+            for (k, &c) in counts.iter().enumerate() {
+                label[k] = next;
+                pending += c;
+                if pending >= min_bin_rows {
+                    next += 1;
+                    pending = 0;
+                }
+            }
+            if pending > 0 && next > 0 {
+                // The small tail joins the previous group.
+                for l in label.iter_mut().filter(|l| **l == next) {
+                    *l = next - 1;
+                }
+            } else if pending > 0 {
+                next = 1;
+            }
+            let n_fine = next.max(1) as usize;
+            let pool_missing = missing > 0 && missing < min_bin_rows;
+            if n_fine == 1 && (missing == 0 || pool_missing) {
+                let (k, &most) = counts
+                    .iter()
+                    .enumerate()
+                    .max_by_key(|(_, c)| **c)
+                    .unwrap_or((0, &0));
+                return Err(Unusable::NearlyConstant {
+                    value: distinct_values[k],
+                    others: values.len() - most,
+                });
+            }
             let fine = values
                 .iter()
                 .map(|v| match v {
-                    Some(x) => distinct_values.partition_point(|&d| d < *x) as u32,
+                    Some(x) => label[distinct_values.partition_point(|&d| d < *x)],
+                    None if pool_missing => n_fine as u32 - 1,
                     None => MISSING,
                 })
                 .collect();
-            let n_fine = distinct_values.len();
             let levels = if n_fine > 1 {
                 vec![ONE_BIN, 0]
             } else {
@@ -111,10 +161,14 @@ impl Binned {
                 sorted[pos.min(n - 1)]
             })
             .collect();
+        // Too few undefined rows for a bin of their own join the top bin (as above).
+        let missing = values.len() - n;
+        let pool_missing = missing > 0 && missing < min_bin_rows;
         let fine = values
             .iter()
             .map(|v| match v {
                 Some(x) => cuts.partition_point(|&c| c <= *x) as u32,
+                None if pool_missing => (k_max - 1) as u32,
                 None => MISSING,
             })
             .collect();

@@ -201,7 +201,7 @@ fn terms_already_in_the_model_are_never_suggested() {
     let top = &d.features[0];
     assert_eq!(top.suggested_term.as_deref(), Some(DAHL_TERM));
     assert!(top.note.as_deref().unwrap().contains("already has `seek`"));
-    config.existing_terms = vec!["seek".into(), "dahl:3".into()];
+    config.existing_terms = vec!["seek".into(), "dahl:6".into()];
     let d = diagnose(&t, &r, &config).unwrap();
     assert_eq!(
         d.features[0].suggested_term.as_deref(),

@@ -3,7 +3,9 @@
 
 mod check;
 mod common;
+mod diagnose;
 mod model;
 mod plot;
+mod real;
 mod settle;
 mod sim;

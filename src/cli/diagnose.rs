@@ -1,0 +1,71 @@
+//! `biasctl diagnose`: compare a fitted model with a log and name the missing effect.
+
+use super::predict::ModelLogArgs;
+use anyhow::Context;
+use biasctl::diagnose::{DiagnoseConfig, diagnose_model};
+use biasctl::log::Log;
+use biasctl::model::FittedModel;
+use biasctl::output::write_atomic;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Flags of `biasctl diagnose`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    input: ModelLogArgs,
+    /// Print the diagnosis as JSON (keys residual_std, features, whiteness, bimodality, summary).
+    #[arg(long)]
+    json: bool,
+    /// Also write `diagnosis.json` and one `residual_vs_<feature>.csv` per top feature here.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Family-wise significance level for flagging a feature, in (0, 0.5].
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// Permutations of the significance test (at least 1/alpha − 1).
+    #[arg(long, default_value_t = 199)]
+    permutations: usize,
+    /// Seed of the fold assignment and the permutations.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Cross-validation folds, 2..=50.
+    #[arg(long, default_value_t = 5)]
+    folds: usize,
+}
+
+/// Validates the settings, replays the model, diagnoses, prints and writes.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let config = DiagnoseConfig {
+        alpha: args.alpha,
+        permutations: args.permutations,
+        seed: args.seed,
+        folds: args.folds,
+        ..DiagnoseConfig::default()
+    };
+    config.validate()?;
+    let model = FittedModel::load(&args.input.model)?;
+    let log = Log::read(&args.input.log.data, &args.input.log.columns.map())?;
+    let d = diagnose_model(&model, &log, &config)?;
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let json = d.to_json();
+        write_atomic(&dir.join("diagnosis.json"), |w| writeln!(w, "{json}"))?;
+        d.write_feature_csvs(dir)?;
+    }
+    if args.json {
+        println!("{}", d.to_json());
+    } else {
+        println!(
+            "{}: model `{}`, {} measured rows",
+            log.schema.file,
+            model.spec,
+            log.measured_count()
+        );
+        print!("{}", d.to_text());
+        if let Some(dir) = &args.out {
+            println!("wrote {}", dir.display());
+        }
+    }
+    Ok(())
+}

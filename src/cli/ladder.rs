@@ -1,0 +1,57 @@
+//! `biasctl ladder`: add terms one at a time, refit on a training log, score on a test log.
+
+use super::common::ColumnArgs;
+use anyhow::Context;
+use biasctl::diagnose::ladder_fit;
+use biasctl::fit::FitOptions;
+use biasctl::log::Log;
+use std::path::PathBuf;
+
+/// Flags of `biasctl ladder`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The training log (every step is fitted on it).
+    #[arg(long, value_name = "TRAIN.csv")]
+    data: PathBuf,
+    /// The test log (every step is scored on it).
+    #[arg(long, value_name = "TEST.csv")]
+    test: PathBuf,
+    /// The terms in the order they are added, e.g. `poly2,direction,seek,memory`.
+    #[arg(long, value_name = "T1,T2,...")]
+    terms: String,
+    #[command(flatten)]
+    columns: ColumnArgs,
+    /// Print JSON: {"steps": [{"terms", "std", "reduction"}, ...]}.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Reads both logs, fits every prefix of the term list and prints the table.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let terms: Vec<String> = args
+        .terms
+        .split(',')
+        .map(|t| t.trim().to_string())
+        .collect();
+    if let Some(i) = terms.iter().position(String::is_empty) {
+        anyhow::bail!(
+            "--terms `{}`: term {} is empty; give a comma-separated list such as poly2,direction,seek",
+            args.terms,
+            i + 1
+        );
+    }
+    let map = args.columns.map();
+    let train = Log::read(&args.data, &map).context("--data")?;
+    let test = Log::read(&args.test, &map).context("--test")?;
+    let l = ladder_fit(&train, &test, &terms, &FitOptions::default())?;
+    if args.json {
+        println!("{}", l.to_json());
+    } else {
+        println!(
+            "fitted on {}, error std on {} (counts):",
+            train.schema.file, test.schema.file
+        );
+        print!("{}", l.to_text());
+    }
+    Ok(())
+}
