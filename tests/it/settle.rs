@@ -366,7 +366,7 @@ fn settle_with_model_uses_the_prediction_for_the_last_target_and_the_error_std()
     let mut lines = pred.lines().filter(|l| !l.starts_with('#'));
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = header.iter().position(|h| *h == "predicted").unwrap();
-    let last: Vec<&str> = lines.last().unwrap().split(',').collect();
+    let last: Vec<&str> = lines.next_back().unwrap().split(',').collect();
     let predicted: f64 = last[col].parse().unwrap();
 
     let out = ok(&[
