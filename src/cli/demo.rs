@@ -38,7 +38,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let logs: Vec<String> = outcome
         .files
         .iter()
-        .filter_map(|p| p.file_name()?.to_str()?.strip_suffix(".csv").map(String::from))
+        .filter_map(|p| {
+            p.file_name()?
+                .to_str()?
+                .strip_suffix(".csv")
+                .map(String::from)
+        })
         .filter(|n| !n.ends_with("_truth") && !n.starts_with("settle_"))
         .collect();
     println!(

@@ -49,10 +49,7 @@ pub const CURVE_POINTS: usize = 41;
 /// Covariate columns the model uses are held at their mean over the log; time advances 0.2 s per
 /// row from the log's first time. Returns `(inbound, outbound)` as `(track, bias)` in track
 /// order; both empty when the log has no measured row.
-pub fn model_curves(
-    model: &FittedModel,
-    log: &Log,
-) -> Result<(Curve, Curve), ViewError> {
+pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), ViewError> {
     let measured: Vec<f64> = log
         .rows
         .iter()

@@ -5,5 +5,6 @@ mod check;
 mod common;
 mod model;
 mod plot;
+mod report;
 mod settle;
 mod sim;
