@@ -269,15 +269,44 @@ pub fn choice_name(name: &str) -> &str {
     }
 }
 
-/// Fig. 15 of a settle analysis: bounds, running bounds, the chosen start values, k*.
+/// Samples of Fig. 15 worth drawing: up to the first sample after k* where the running bounds
+/// leave ten times the scale of the chosen start values (they grow without limit towards the
+/// end of the horizon, where the integrator's start no longer moves e(k)), and at least 2·k*.
+pub fn bounds_extent(r: &SettleReport) -> usize {
+    let b = &r.bounds;
+    let n = b.upper_min().len();
+    let Some(k_star) = r.k_star else { return n };
+    let mut scale = r
+        .responses
+        .iter()
+        .map(|x| x.ff.abs())
+        .fold(0.0f64, f64::max);
+    if let Some([lo, hi]) = r.ff_interval {
+        scale = scale.max(lo.abs()).max(hi.abs());
+    }
+    if !(scale.is_finite() && scale > 0.0) {
+        return n;
+    }
+    let leaves = |k: usize| {
+        let m = b.upper_min()[k].abs().max(b.lower_max()[k].abs());
+        !(m <= 10.0 * scale)
+    };
+    (k_star..n)
+        .find(|&k| leaves(k))
+        .map_or(n, |k| k.max(2 * k_star).min(n))
+}
+
+/// Fig. 15 of a settle analysis: bounds, running bounds, the chosen start values, k*; drawn
+/// over [`bounds_extent`] samples.
 pub fn settle_bounds(r: &SettleReport) -> String {
     let b = &r.bounds;
+    let n = bounds_extent(r);
     figures::fig15_settle_bounds(&SettleBounds {
         sample_period_ms: r.ts_s * 1000.0,
-        upper: b.upper().to_vec(),
-        lower: b.lower().to_vec(),
-        upper_running: b.upper_min().to_vec(),
-        lower_running: b.lower_max().to_vec(),
+        upper: b.upper()[..n].to_vec(),
+        lower: b.lower()[..n].to_vec(),
+        upper_running: b.upper_min()[..n].to_vec(),
+        lower_running: b.lower_max()[..n].to_vec(),
         choices: r
             .responses
             .iter()

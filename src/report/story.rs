@@ -273,7 +273,11 @@ fn table_sweeps(tables: &[Log]) -> Vec<(String, String)> {
         levels: refs(t2, 1),
     };
     let svg5 = calibration_sweep(&loop_sweep)
-        .replace("tracks moved since reversal (tracks)", "position (tracks)");
+        .replace("tracks moved since reversal (tracks)", "position (tracks)")
+        .replace(
+            "bias vs tracks moved since reversal",
+            "the Table II loop, bias vs position",
+        );
     out.push((
         svg5,
         "Fig. 5 (Table II, P4): after a long inbound seek the head steps outbound one track at a \
