@@ -289,7 +289,7 @@ pub fn bounds_extent(r: &SettleReport) -> usize {
     }
     let leaves = |k: usize| {
         let m = b.upper_min()[k].abs().max(b.lower_max()[k].abs());
-        !(m <= 10.0 * scale)
+        m.is_nan() || m > 10.0 * scale
     };
     (k_star..n)
         .find(|&k| leaves(k))
