@@ -608,7 +608,10 @@ pub fn demo_report(
             &format!("{name}_truth.csv"),
             "each effect's true contribution per row",
         );
-        Ok(Log::read(&log_path, &crate::log::ColumnMap::default())?)
+        let mut log = Log::read(&log_path, &crate::log::ColumnMap::default())?;
+        // Figure titles name the file, not the folder it was written to.
+        log.schema.file = format!("{name}.csv");
+        Ok(log)
     };
 
     steps.start("simulating Tables I–VII and the dwell run");
