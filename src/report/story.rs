@@ -192,6 +192,25 @@ impl Steps<'_> {
     }
 }
 
+/// Creates `dir` and the step counter and file list of a run.
+fn start<'a>(
+    dir: &'a Path,
+    total: usize,
+    cb: &'a mut dyn FnMut(Progress<'_>),
+) -> Result<(Steps<'a>, Out<'a>), StoryError> {
+    std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    Ok((
+        Steps { done: 0, total, cb },
+        Out {
+            dir,
+            files: Vec::new(),
+        },
+    ))
+}
+
 fn fit_named(spec: &str, label: &str, log: &Log) -> Result<FittedModel, StoryError> {
     let spec = ModelSpec::parse(spec)?;
     fit(&spec, log, &FitOptions::default()).map_err(|e| StoryError::Fit {
@@ -581,19 +600,7 @@ pub fn demo_report(
     opts: &StoryOptions,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<StoryOutcome, StoryError> {
-    std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    let mut steps = Steps {
-        done: 0,
-        total: 11 + STORY_MODELS.len(),
-        cb: progress,
-    };
-    let mut out = Out {
-        dir,
-        files: Vec::new(),
-    };
+    let (mut steps, mut out) = start(dir, 11 + STORY_MODELS.len(), progress)?;
     let seq_opts = SequenceOptions {
         n: Some(opts.random_seeks),
         ..Default::default()
@@ -1051,19 +1058,7 @@ pub fn data_report(
     opts: &StoryOptions,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<StoryOutcome, StoryError> {
-    std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    let mut steps = Steps {
-        done: 0,
-        total: 4 + DATA_MODELS.len(),
-        cb: progress,
-    };
-    let mut out = Out {
-        dir,
-        files: Vec::new(),
-    };
+    let (mut steps, mut out) = start(dir, 4 + DATA_MODELS.len(), progress)?;
     let file = log.schema.file.clone();
     let measured_idx: Vec<usize> = log
         .rows
