@@ -1,7 +1,9 @@
-//! `biasctl demo`: simulate the paper's tables, a dwell run and a random run into one folder.
+//! `biasctl demo`: the whole story on the built-in drive in one command — the paper's tables,
+//! a dwell run, a calibration and a random run, fitted models, diagnosis, ladder, settle — into
+//! one folder with `report.html`.
 
-use anyhow::Context;
-use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_to_files};
+use super::common::ColumnArgs;
+use super::report::{print_outcome, story};
 use std::path::PathBuf;
 
 /// Flags of `biasctl demo`.
@@ -13,34 +15,42 @@ pub struct Args {
     /// Seed for every run.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Random seeks of the test and calibration runs.
+    #[arg(long, default_value_t = biasctl::sim::DEFAULT_N, value_name = "N")]
+    seeks: u64,
 }
 
-/// Writes `<seq>.csv` and `<seq>_truth.csv` for table1..table7, dwell and random.
+/// Runs the story and prints the report's path and five headline lines.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let names = [
-        "table1", "table2", "table3", "table4", "table5", "table6", "table7", "dwell", "random",
-    ];
     println!("demo: drive paper1997, seed {}", args.seed);
-    for name in names {
-        let cfg = SimConfig::new(
-            Drive::paper1997(),
-            name,
-            &SequenceOptions::default(),
-            args.seed,
-            &[],
-        )?;
-        let log = args.out.join(format!("{name}.csv"));
-        let truth = args.out.join(format!("{name}_truth.csv"));
-        let s = simulate_to_files(&cfg, &log, Some(&truth))?;
-        println!(
-            "  {name:<7} {:>5} rows ({:>5} measured) -> {} (truth: {})",
-            s.rows,
-            s.measured,
-            log.display(),
-            truth.display()
-        );
-    }
+    let outcome = story(&super::report::Args {
+        out: args.out,
+        data: None,
+        columns: ColumnArgs {
+            time_col: "time_s".into(),
+            track_col: "track".into(),
+            bias_col: "bias".into(),
+        },
+        model: None,
+        seed: args.seed,
+        seeks: args.seeks,
+    })?;
+    let logs: Vec<String> = outcome
+        .files
+        .iter()
+        .filter_map(|p| {
+            p.file_name()?
+                .to_str()?
+                .strip_suffix(".csv")
+                .map(String::from)
+        })
+        .filter(|n| !n.ends_with("_truth") && !n.starts_with("settle_"))
+        .collect();
+    println!(
+        "wrote {} files; simulated logs (each with a _truth.csv): {}",
+        outcome.files.len() + 1,
+        logs.join(", ")
+    );
+    print_outcome(&outcome);
     Ok(())
 }

@@ -7,7 +7,10 @@ mod demo;
 mod diagnose;
 mod fit;
 mod ladder;
+mod plot;
 mod predict;
+mod progress;
+mod report;
 mod score;
 mod settle;
 mod simulate;
@@ -28,8 +31,12 @@ enum Command {
     Check(check::Args),
     /// Simulate the drive through a seek sequence and write a measurement log.
     Simulate(simulate::Args),
-    /// Simulate the paper's tables, a dwell run and a random run into a folder.
+    /// The whole story on the built-in drive: simulate, fit, diagnose, settle, and write report.html.
     Demo(demo::Args),
+    /// Draw one figure (SVG) from a log, a model or a settle analysis.
+    Plot(plot::Args),
+    /// Write one self-contained report.html (and every file behind it) for the built-in drive or your log.
+    Report(report::Args),
     /// Fit a bias model (a preset or a term list) to a log and write the model file.
     Fit(fit::Args),
     /// Replay a model over a log causally and write per-row predictions and contributions.
@@ -50,6 +57,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Check(a) => check::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Plot(a) => plot::run(a),
+        Command::Report(a) => report::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Predict(a) => predict::run(a),
         Command::Score(a) => score::run(a),

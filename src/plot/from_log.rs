@@ -31,7 +31,21 @@ fn measured(log: &Log) -> Vec<(SeekFeatures, f64)> {
 /// Bias vs position, split by the direction of the last move (inbound, outbound; rows measured
 /// before the head first moved form a third series "not moved yet" when there are any).
 pub fn bias_vs_position(log: &Log) -> String {
-    let mut d = BiasVsPosition::default();
+    bias_vs_position_with_fit(log, Vec::new(), Vec::new())
+}
+
+/// [`bias_vs_position`] with fitted inbound and outbound curves `(track, bias)` drawn as lines
+/// (an empty curve is left out).
+pub fn bias_vs_position_with_fit(
+    log: &Log,
+    inbound_fit: Vec<(f64, f64)>,
+    outbound_fit: Vec<(f64, f64)>,
+) -> String {
+    let mut d = BiasVsPosition {
+        inbound_fit,
+        outbound_fit,
+        ..Default::default()
+    };
     let mut still = Vec::new();
     for (f, b) in measured(log) {
         match f.direction {

@@ -1,12 +1,14 @@
 //! Plots: hand-written SVG charts ([`svg`]), one builder per paper figure ([`figures`]), and
-//! quick-look plots of a measurement log with no model ([`from_log`]).
+//! quick-look plots of a measurement log with no model ([`from_log`]), and figures of library
+//! results — fitted models, diagnoses, ladders, settle analyses ([`views`]).
 //!
 //! Every builder takes plain data and returns SVG text; nothing here reads files or depends on
-//! the simulator or the models. Write the text with [`crate::output::write_string_atomic`] or put
+//! the simulator, and only [`views`] knows the model, diagnose and settle types. Write the text with [`crate::output::write_string_atomic`] or put
 //! it into a [`crate::report::Report`].
 
 pub mod figures;
 pub mod from_log;
 pub mod svg;
+pub mod views;
 
 pub use svg::{AxisRange, Chart, ErrorPoint, Panel, Reference, Series, SeriesData};

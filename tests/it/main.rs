@@ -7,5 +7,6 @@ mod diagnose;
 mod model;
 mod plot;
 mod real;
+mod report;
 mod settle;
 mod sim;

@@ -5,6 +5,7 @@
 //! captions. The output is HTML5 that is also well-formed XML (every element closed, only the
 //! five XML entities), with a table of contents linking to the sections. All text is escaped;
 //! figures must be SVG text from [`crate::plot`] (anything else is replaced by a notice).
+//! [`story`] tells the whole story (the built-in drive, or a user's log) as one report.
 //!
 //! ```
 //! use biasctl::report::{Report, Table};
@@ -18,6 +19,8 @@
 //! assert!(html.starts_with("<!DOCTYPE html>"));
 //! assert!(!html.contains("<script"));
 //! ```
+
+pub mod story;
 
 use std::fmt::Write;
 use std::path::Path;

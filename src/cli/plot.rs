@@ -1,0 +1,248 @@
+//! `biasctl plot KIND`: one figure as an SVG file, from your own log (and model) or from a
+//! settle analysis.
+
+use super::common::ColumnArgs;
+use anyhow::{Context, bail};
+use biasctl::diagnose::{DiagnoseConfig, FeatureTable, diagnose_model, ladder_fit};
+use biasctl::fit::{FitOptions, fit};
+use biasctl::log::Log;
+use biasctl::model::{FittedModel, ModelSpec};
+use biasctl::output::write_string_atomic;
+use biasctl::plot::{from_log, views};
+use biasctl::settle::{SettleSpec, analyse};
+use clap::ValueEnum;
+use std::path::{Path, PathBuf};
+
+/// Which figure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Kind {
+    /// Fig. 3: bias vs position, inbound and outbound; with --model the model's curves.
+    Position,
+    /// Fig. 4: bias vs time at one track (--track, default the most measured track).
+    Time,
+    /// Figs. 5–9/12 view: bias vs signed seek length, split by direction change at the source.
+    Seek,
+    /// Figs. 10/11: prediction error vs position and its histogram, --model M1,M2,... side by side.
+    Errors,
+    /// Figs. 13/14: measured bias vs position in seek order with the --model prediction as a loop.
+    Loop,
+    /// The --model residual vs each of the top candidate features (diagnose).
+    Diagnose,
+    /// Test error std after each added term: fit on --data, score on --test, terms from --terms.
+    Ladder,
+    /// Fig. 15: bounds on the integrator start value (settle flags, no log).
+    Bounds,
+    /// Fig. 16: position error after handoff for each start value (settle flags, no log).
+    Responses,
+}
+
+/// Flags of `biasctl plot`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The figure to draw.
+    #[arg(value_enum)]
+    kind: Kind,
+    /// The SVG file to write.
+    #[arg(long, value_name = "FILE.svg")]
+    out: PathBuf,
+    /// The measurement log (every kind but bounds and responses).
+    #[arg(long, value_name = "LOG.csv")]
+    data: Option<PathBuf>,
+    #[command(flatten)]
+    columns: ColumnArgs,
+    /// A model: a model file from `biasctl fit`, or a preset / term list fitted on --data.
+    /// `errors` takes several, comma-separated (a term list then needs its own file).
+    #[arg(long, value_name = "MODEL")]
+    model: Option<String>,
+    /// The track of the `time` plot.
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    track: Option<f64>,
+    /// The test log of the `ladder` plot.
+    #[arg(long, value_name = "TEST.csv")]
+    test: Option<PathBuf>,
+    /// The ladder's terms, added one at a time.
+    #[arg(
+        long,
+        value_name = "T1,T2,...",
+        default_value = "poly2,direction,seek,memory,drift"
+    )]
+    terms: String,
+    /// Top features of the `diagnose` plot.
+    #[arg(long, default_value_t = 6, value_name = "N")]
+    top: usize,
+    /// Settle preset for bounds/responses: paper1997 or modern.
+    #[arg(long, value_name = "NAME", conflicts_with = "plant")]
+    preset: Option<String>,
+    /// Settle plant TOML file for bounds/responses.
+    #[arg(long, value_name = "FILE.toml")]
+    plant: Option<PathBuf>,
+    /// Bias uncertainty Δb in counts (bounds/responses).
+    #[arg(long, value_name = "DB", allow_negative_numbers = true)]
+    bias_uncertainty: Option<f64>,
+    /// Step length in µm (bounds/responses).
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    step_um: Option<f64>,
+    /// Settle window half-width in µm (bounds/responses).
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    window_um: Option<f64>,
+}
+
+fn is_settle(kind: Kind) -> bool {
+    matches!(kind, Kind::Bounds | Kind::Responses)
+}
+
+/// Flags that only some kinds accept: a clear error instead of silently ignoring them.
+fn check_flags(a: &Args) -> anyhow::Result<()> {
+    let k = format!("{:?}", a.kind).to_lowercase();
+    let settle_flag = a.preset.is_some()
+        || a.plant.is_some()
+        || a.bias_uncertainty.is_some()
+        || a.step_um.is_some()
+        || a.window_um.is_some();
+    if is_settle(a.kind) {
+        if a.data.is_some() || a.model.is_some() || a.test.is_some() {
+            bail!(
+                "plot {k} takes settle flags (--preset, --plant, --bias-uncertainty, --step-um, --window-um), not --data/--model/--test"
+            );
+        }
+        return Ok(());
+    }
+    if settle_flag {
+        bail!(
+            "plot {k}: --preset, --plant, --bias-uncertainty, --step-um and --window-um are for `plot bounds` and `plot responses`"
+        );
+    }
+    if a.data.is_none() {
+        bail!("plot {k} needs --data LOG.csv");
+    }
+    if a.track.is_some() && a.kind != Kind::Time {
+        bail!("plot {k}: --track is for `plot time`");
+    }
+    if a.test.is_some() != (a.kind == Kind::Ladder) {
+        bail!("plot ladder needs --test TEST.csv, and only plot ladder takes it");
+    }
+    match a.kind {
+        Kind::Errors | Kind::Loop | Kind::Diagnose if a.model.is_none() => {
+            bail!("plot {k} needs --model MODEL (a model file or a preset)")
+        }
+        Kind::Time | Kind::Seek | Kind::Ladder if a.model.is_some() => {
+            bail!("plot {k} does not take --model")
+        }
+        _ => {}
+    }
+    if a.kind != Kind::Errors
+        && a.model
+            .as_deref()
+            .is_some_and(|m| m.contains(',') && Path::new(m).extension().is_some())
+    {
+        bail!("plot {k} takes one --model");
+    }
+    if a.top == 0 {
+        bail!("--top 0: give at least 1");
+    }
+    Ok(())
+}
+
+/// A model file, or a preset / term list fitted on `log`.
+fn model(name: &str, log: &Log) -> anyhow::Result<(String, FittedModel)> {
+    let path = Path::new(name);
+    if path.exists() || name.ends_with(".json") {
+        let m = FittedModel::load(path)?;
+        let label = path
+            .file_stem()
+            .map_or(name.to_string(), |s| s.to_string_lossy().into_owned());
+        return Ok((label, m));
+    }
+    let spec = ModelSpec::preset(name)
+        .or_else(|_| ModelSpec::parse(name))
+        .with_context(|| format!("--model {name}: not a model file, a preset or a term list"))?;
+    let m = fit(&spec, log, &FitOptions::default())
+        .with_context(|| format!("fitting --model {name} on {}", log.schema.file))?;
+    Ok((name.to_string(), m))
+}
+
+fn settle_spec(a: &Args) -> anyhow::Result<SettleSpec> {
+    let mut spec = match &a.plant {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read plant file {}", path.display()))?;
+            toml::from_str::<SettleSpec>(&text)
+                .with_context(|| format!("invalid plant file {}", path.display()))?
+        }
+        None => SettleSpec::preset(a.preset.as_deref().unwrap_or("paper1997"))?,
+    };
+    if let Some(v) = a.bias_uncertainty {
+        spec.bias_uncertainty = v;
+    }
+    if let Some(v) = a.step_um {
+        spec.step_um = v;
+    }
+    if let Some(v) = a.window_um {
+        spec.window_um = v;
+    }
+    Ok(spec)
+}
+
+/// The SVG text of the figure.
+fn draw(a: &Args) -> anyhow::Result<String> {
+    if is_settle(a.kind) {
+        let report = analyse(&settle_spec(a)?.validate()?)?;
+        return Ok(match a.kind {
+            Kind::Bounds => views::settle_bounds(&report),
+            _ => views::settle_responses(&report),
+        });
+    }
+    let data = a.data.as_ref().context("--data")?;
+    let log = Log::read(data, &a.columns.map())?;
+    let single = || -> anyhow::Result<FittedModel> {
+        model(a.model.as_deref().unwrap_or_default(), &log).map(|m| m.1)
+    };
+    Ok(match a.kind {
+        Kind::Position => match &a.model {
+            Some(name) => views::position(&log, Some(&model(name, &log)?.1))?,
+            None => from_log::bias_vs_position(&log),
+        },
+        Kind::Time => from_log::bias_vs_time(&log, a.track),
+        Kind::Seek => from_log::bias_vs_seek_length(&log),
+        Kind::Errors => {
+            let mut preds = Vec::new();
+            for name in a.model.as_deref().unwrap_or_default().split(',') {
+                let (label, m) = model(name.trim(), &log)?;
+                preds.push((label, m.predict_log(&log)?));
+            }
+            let refs: Vec<(&str, _)> = preds.iter().map(|(l, p)| (l.as_str(), p)).collect();
+            views::errors(&refs)
+        }
+        Kind::Loop => views::dahl_loop(&single()?.predict_log(&log)?),
+        Kind::Diagnose => {
+            let m = single()?;
+            let d = diagnose_model(&m, &log, &DiagnoseConfig::default())?;
+            let residual = m.predict_log(&log)?.residual;
+            views::diagnose_panel(&d, &FeatureTable::from_log(&log), &residual, a.top)
+        }
+        Kind::Ladder => {
+            let test_path = a.test.as_ref().context("--test")?;
+            let test = Log::read(test_path, &a.columns.map())?;
+            let terms: Vec<String> = a
+                .terms
+                .split(',')
+                .map(|t| t.trim().to_string())
+                .filter(|t| !t.is_empty())
+                .collect();
+            if terms.is_empty() {
+                bail!("--terms is empty");
+            }
+            views::ladder(&ladder_fit(&log, &test, &terms, &FitOptions::default())?)
+        }
+        Kind::Bounds | Kind::Responses => bail!("plot bounds/responses take no log"),
+    })
+}
+
+/// Validates the flags, draws the figure, writes it atomically.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    check_flags(&args)?;
+    let svg = draw(&args)?;
+    write_string_atomic(&args.out, &svg)?;
+    println!("wrote {}", args.out.display());
+    Ok(())
+}

@@ -1,0 +1,75 @@
+//! `biasctl report`: the whole story as one self-contained `report.html` plus every CSV/JSON
+//! behind it; on the built-in drive, or on a user's log (`--data`) and model (`--model`).
+
+use super::common::ColumnArgs;
+use super::progress::Bar;
+use anyhow::Context;
+use biasctl::log::Log;
+use biasctl::model::FittedModel;
+use biasctl::report::story::{StoryOptions, StoryOutcome, data_report, demo_report};
+use std::path::PathBuf;
+
+/// Flags of `biasctl report`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Output folder (created if missing): report.html and the files behind it.
+    #[arg(long, default_value = "out/report", value_name = "DIR")]
+    pub out: PathBuf,
+    /// Your measurement log; without it the report runs on the built-in drive.
+    #[arg(long, value_name = "LOG.csv")]
+    pub data: Option<PathBuf>,
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Your fitted model (from `biasctl fit`), scored and diagnosed on --data.
+    #[arg(long, value_name = "MODEL.json", requires = "data")]
+    pub model: Option<PathBuf>,
+    /// Seed of the simulations and the diagnosis (printed in the report).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Random seeks of the built-in drive's test and calibration runs.
+    #[arg(long, default_value_t = biasctl::sim::DEFAULT_N, value_name = "N")]
+    pub seeks: u64,
+}
+
+/// Runs the story with a progress bar; returns what was written.
+pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
+    if args.seeks == 0 {
+        anyhow::bail!("--seeks 0: give at least 1 random seek");
+    }
+    let opts = StoryOptions {
+        seed: args.seed,
+        random_seeks: args.seeks,
+        ..StoryOptions::default()
+    };
+    let mut bar = Bar::new();
+    let outcome = match &args.data {
+        None => demo_report(&args.out, &opts, &mut |p| bar.update(p)),
+        Some(path) => {
+            let log = Log::read(path, &args.columns.map())?;
+            let model = match &args.model {
+                Some(m) => Some(FittedModel::load(m)?),
+                None => None,
+            };
+            data_report(&args.out, &log, model.as_ref(), &opts, &mut |p| {
+                bar.update(p)
+            })
+        }
+    };
+    bar.finish();
+    outcome.with_context(|| format!("report into {}", args.out.display()))
+}
+
+/// Writes the report and prints its path and the headline numbers.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let outcome = story(&args)?;
+    print_outcome(&outcome);
+    Ok(())
+}
+
+/// Prints the report's path and the five-line summary.
+pub fn print_outcome(o: &StoryOutcome) {
+    println!("report: {}", o.report.display());
+    for line in &o.summary {
+        println!("  {line}");
+    }
+}

@@ -1,0 +1,340 @@
+//! Figures of library results: a fitted model's curves over a log, prediction errors, the Dahl
+//! loop, a diagnosis, a ladder and a settle analysis, each turned into the data of a
+//! [`super::figures`] builder. This is the one place in [`crate::plot`] that knows the model,
+//! diagnose and settle types; the `plot` command and the report both draw through it.
+//!
+//! ```
+//! use biasctl::diagnose::{Ladder, LadderStep};
+//! use biasctl::plot::views;
+//! let l = Ladder { steps: vec![
+//!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0 },
+//!     LadderStep { terms: vec!["poly2".into(), "direction".into()], std: 10.0, reduction: 0.5 },
+//! ] };
+//! let svg = views::ladder(&l);
+//! assert!(svg.contains("+ direction"));
+//! ```
+
+use std::fmt::Write;
+
+use super::figures::{
+    self, DahlLoop, FeatureResiduals, ModelErrors, ResidualBin, SettleBounds, SettleResponses,
+};
+use super::from_log;
+use crate::diagnose::{Diagnosis, FeatureTable, Ladder};
+use crate::log::{ColumnMap, Log, LogError};
+use crate::model::{FittedModel, ModelError, Prediction};
+use crate::settle::SettleReport;
+
+/// Why a view of a fitted model could not be drawn.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ViewError {
+    /// The synthetic Table I log of the curves could not be built (bad column names).
+    #[error("building the model-curve log")]
+    Log(#[from] LogError),
+    /// The model could not be replayed (for example a covariate it needs is missing).
+    #[error("replaying the model")]
+    Model(#[from] ModelError),
+}
+
+/// A curve of `(track, bias)` points.
+pub type Curve = Vec<(f64, f64)>;
+
+/// Points on each fitted curve of [`model_curves`].
+pub const CURVE_POINTS: usize = 41;
+
+/// The model's inbound and outbound curves over the log's measured track range, the way
+/// Table I measures them: for each of [`CURVE_POINTS`] targets, a seek from one full data span
+/// below the lowest measured track (inbound), then from one span above the highest (outbound).
+/// Covariate columns the model uses are held at their mean over the log; time advances 0.2 s per
+/// row from the log's first time. Returns `(inbound, outbound)` as `(track, bias)` in track
+/// order; both empty when the log has no measured row.
+pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), ViewError> {
+    let measured: Vec<f64> = log
+        .rows
+        .iter()
+        .filter(|r| r.bias.is_some())
+        .map(|r| r.track)
+        .collect();
+    let lo = measured.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = measured.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Ok((Vec::new(), Vec::new()));
+    }
+    let span = (hi - lo).max(1.0);
+    let s = &log.schema;
+    let means: Vec<f64> = (0..s.covariates.len())
+        .map(|k| {
+            let v: Vec<f64> = log
+                .rows
+                .iter()
+                .filter_map(|r| r.covariates.get(k).copied())
+                .filter(|v| v.is_finite())
+                .collect();
+            crate::stats::mean(&v).unwrap_or(0.0)
+        })
+        .collect();
+    let mut text = format!("{},{},{}", s.map.time, s.map.track, s.map.bias);
+    for c in &s.covariates {
+        let _ = write!(text, ",{c}");
+    }
+    text.push('\n');
+    let t0 = log.rows.first().map_or(0.0, |r| r.time_s);
+    let mut row = 0usize;
+    let mut push = |text: &mut String, track: f64, measured: bool| {
+        let _ = write!(
+            text,
+            "{},{},{}",
+            t0 + 0.2 * row as f64,
+            track,
+            if measured { "0" } else { "" }
+        );
+        for m in &means {
+            let _ = write!(text, ",{m}");
+        }
+        text.push('\n');
+        row += 1;
+    };
+    let targets: Vec<f64> = (0..CURVE_POINTS)
+        .map(|i| lo + (hi - lo) * i as f64 / (CURVE_POINTS - 1) as f64)
+        .collect();
+    for &x in &targets {
+        push(&mut text, lo - span, false);
+        push(&mut text, x, true);
+        push(&mut text, hi + span, false);
+        push(&mut text, x, true);
+    }
+    let map = ColumnMap {
+        time: s.map.time.clone(),
+        track: s.map.track.clone(),
+        bias: s.map.bias.clone(),
+    };
+    let synthetic = Log::from_reader("model curves", text.as_bytes(), &map)?;
+    let p = model.predict_log(&synthetic)?;
+    let mut inbound = Vec::with_capacity(targets.len());
+    let mut outbound = Vec::with_capacity(targets.len());
+    for (i, &x) in targets.iter().enumerate() {
+        if let (Some(&a), Some(&b)) = (p.predicted.get(2 * i), p.predicted.get(2 * i + 1)) {
+            inbound.push((x, a));
+            outbound.push((x, b));
+        }
+    }
+    Ok((inbound, outbound))
+}
+
+/// Fig. 3 of a log with the model's curves ([`model_curves`]) when a model is given.
+pub fn position(log: &Log, model: Option<&FittedModel>) -> Result<String, ViewError> {
+    let (inbound, outbound) = match model {
+        Some(m) => model_curves(m, log)?,
+        None => (Vec::new(), Vec::new()),
+    };
+    Ok(from_log::bias_vs_position_with_fit(log, inbound, outbound))
+}
+
+/// Figs. 10/11: each named prediction's error vs position and its histogram, side by side.
+pub fn errors(predictions: &[(&str, &Prediction)]) -> String {
+    let models: Vec<ModelErrors> = predictions
+        .iter()
+        .map(|(name, p)| ModelErrors {
+            name: name.to_string(),
+            position: p.positions.clone(),
+            error: p.residual.clone(),
+        })
+        .collect();
+    figures::prediction_errors(&models)
+}
+
+/// Figs. 13/14: measured `(track, bias)` in seek order and the prediction as a line.
+pub fn dahl_loop(p: &Prediction) -> String {
+    figures::dahl_loop(&DahlLoop {
+        measured: p
+            .positions
+            .iter()
+            .copied()
+            .zip(p.measured.iter().copied())
+            .collect(),
+        predicted: p
+            .positions
+            .iter()
+            .copied()
+            .zip(p.predicted.iter().copied())
+            .collect(),
+    })
+}
+
+/// The unit of a candidate feature, for an axis label.
+pub fn feature_unit(name: &str) -> &'static str {
+    match name {
+        "position" | "seek_length" | "seek_abs" | "since_reversal" | "rest_distance_od"
+        | "rest_distance_id" => "tracks",
+        "direction" => "+1 inbound, −1 outbound",
+        "direction_change" => "1 = reversal",
+        "dwell_s" | "elapsed_s" => "s",
+        "seek_index" => "seeks",
+        _ => "column units",
+    }
+}
+
+/// The diagnose panel: the residual against each of the `top` strongest usable features of `d`
+/// (binned mean ± standard error, marker size by bin count; raw residuals faint behind, taken
+/// from `table` and `residuals`, the ones `d` was computed from). The note gives the
+/// out-of-sample explained variance and the family-wise p-value.
+pub fn diagnose_panel(
+    d: &Diagnosis,
+    table: &FeatureTable,
+    residuals: &[f64],
+    top: usize,
+) -> String {
+    let features: Vec<FeatureResiduals> = d
+        .features
+        .iter()
+        .filter(|f| f.curve.iter().any(|b| b.centre.is_some()))
+        .take(top)
+        .map(|f| {
+            let raw = table
+                .column(&f.name)
+                .map(|c| {
+                    c.values
+                        .iter()
+                        .zip(residuals)
+                        .filter_map(|(v, r)| v.map(|v| (v, *r)))
+                        .collect()
+                })
+                .unwrap_or_default();
+            let bins = f
+                .curve
+                .iter()
+                .filter_map(|b| {
+                    b.centre.map(|c| ResidualBin {
+                        center: c,
+                        mean: b.mean,
+                        spread: b.std / (b.count.max(1) as f64).sqrt(),
+                        count: b.count,
+                    })
+                })
+                .collect();
+            FeatureResiduals {
+                feature: f.name.clone(),
+                unit: feature_unit(&f.name).to_string(),
+                raw,
+                bins,
+                note: format!(
+                    "explains {:.0} %, p = {}",
+                    100.0 * f.explained,
+                    super::svg::fmt_num(f.p_value)
+                ),
+            }
+        })
+        .collect();
+    figures::diagnose_panel(&features)
+}
+
+/// The ladder's bars: the first step's terms, then `+ term` for each added term.
+pub fn ladder(l: &Ladder) -> String {
+    let mut previous: Option<&Vec<String>> = None;
+    let steps: Vec<figures::LadderStep> = l
+        .steps
+        .iter()
+        .map(|s| {
+            let term = match previous {
+                None => s.terms.join(" + "),
+                Some(prev) => {
+                    let added: Vec<&str> = s
+                        .terms
+                        .iter()
+                        .filter(|t| !prev.contains(t))
+                        .map(String::as_str)
+                        .collect();
+                    format!("+ {}", added.join(" + "))
+                }
+            };
+            previous = Some(&s.terms);
+            figures::LadderStep {
+                term,
+                error_std: s.std,
+            }
+        })
+        .collect();
+    figures::ladder(&steps)
+}
+
+/// Plain-words name of a settle response (`zero_ff` → "zero feedforward").
+pub fn choice_name(name: &str) -> &str {
+    match name {
+        "zero_ff" => "zero feedforward",
+        "optimal" => "optimal (midpoint)",
+        "paper_robust" => "paper's robust",
+        "robust" => "worst-case robust",
+        other => other,
+    }
+}
+
+/// Samples of Fig. 15 worth drawing: up to the first sample after k* where the running bounds
+/// leave ten times the scale of the chosen start values (they grow without limit towards the
+/// end of the horizon, where the integrator's start no longer moves e(k)), and at least 2·k*.
+pub fn bounds_extent(r: &SettleReport) -> usize {
+    let b = &r.bounds;
+    let n = b.upper_min().len();
+    let Some(k_star) = r.k_star else { return n };
+    let mut scale = r
+        .responses
+        .iter()
+        .map(|x| x.ff.abs())
+        .fold(0.0f64, f64::max);
+    if let Some([lo, hi]) = r.ff_interval {
+        scale = scale.max(lo.abs()).max(hi.abs());
+    }
+    if !(scale.is_finite() && scale > 0.0) {
+        return n;
+    }
+    let leaves = |k: usize| {
+        let m = b.upper_min()[k].abs().max(b.lower_max()[k].abs());
+        m.is_nan() || m > 10.0 * scale
+    };
+    (k_star..n)
+        .find(|&k| leaves(k))
+        .map_or(n, |k| k.max(2 * k_star).min(n))
+}
+
+/// Fig. 15 of a settle analysis: bounds, running bounds, the chosen start values, k*; drawn
+/// over [`bounds_extent`] samples.
+pub fn settle_bounds(r: &SettleReport) -> String {
+    let b = &r.bounds;
+    let n = bounds_extent(r);
+    figures::fig15_settle_bounds(&SettleBounds {
+        sample_period_ms: r.ts_s * 1000.0,
+        upper: b.upper()[..n].to_vec(),
+        lower: b.lower()[..n].to_vec(),
+        upper_running: b.upper_min()[..n].to_vec(),
+        lower_running: b.lower_max()[..n].to_vec(),
+        choices: r
+            .responses
+            .iter()
+            .filter(|x| x.name != "zero_ff")
+            .map(|x| (choice_name(x.name).to_string(), x.ff))
+            .collect(),
+        settle_ms: r.optimal_settle_ms,
+        unit: "µm·samples".into(),
+    })
+}
+
+/// Fig. 16 of a settle analysis: the position error of every start-value choice.
+pub fn settle_responses(r: &SettleReport) -> String {
+    let window = crate::settle::Window::new(r.window_um, r.hold).ok();
+    figures::fig16_responses(&SettleResponses {
+        sample_period_ms: r.ts_s * 1000.0,
+        delta_um: r.window_um,
+        responses: r
+            .responses
+            .iter()
+            .map(|x| figures::Response {
+                name: choice_name(x.name).to_string(),
+                error_um: x.e_um.clone(),
+                settle_ms: window
+                    .as_ref()
+                    .and_then(|w| crate::settle::settle_index(&x.e_um, w))
+                    .map(|k| crate::settle::settle_ms(k, r.ts_s)),
+            })
+            .collect(),
+    })
+}

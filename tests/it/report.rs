@@ -1,0 +1,446 @@
+//! The report and the `plot`/`report`/`demo` commands: the report is well-formed XHTML-compatible
+//! HTML, self-contained, holds every section and figure; every figure's SVG parses and holds its
+//! series with unit-bearing axis labels; every `plot` KIND works from the command line; bad
+//! flags exit 2; empty or tiny data give a message in the plot.
+
+use crate::common::{biasctl, fails_with, ok, write};
+use biasctl::report::story::{StoryOptions, data_report, demo_report};
+use roxmltree::{Document, Node};
+use std::path::Path;
+
+fn parse(text: &str) -> Document<'_> {
+    Document::parse(text).unwrap_or_else(|e| panic!("does not parse as XML: {e}"))
+}
+
+fn series_names(svg: Node) -> Vec<String> {
+    svg.descendants()
+        .filter(|n| n.has_tag_name("g") && n.attribute("class") == Some("series"))
+        .map(|n| n.attribute("data-name").unwrap_or("").to_string())
+        .collect()
+}
+
+fn points(svg: Node) -> usize {
+    svg.descendants()
+        .filter(|n| n.has_tag_name("circle") && n.attribute("class") == Some("point"))
+        .count()
+}
+
+fn texts(svg: Node) -> Vec<String> {
+    svg.descendants()
+        .filter(|n| n.has_tag_name("text"))
+        .filter_map(|n| n.text().map(str::to_string))
+        .collect()
+}
+
+/// A small simulated log written to `dir/name.csv`.
+fn simulate(dir: &Path, seq: &str, n: &str) -> String {
+    let p = dir.join(format!("{seq}.csv"));
+    ok(&[
+        "simulate",
+        "--sequence",
+        seq,
+        "--n",
+        n,
+        "--seed",
+        "3",
+        "--out",
+        &p.display().to_string(),
+    ]);
+    p.display().to_string()
+}
+
+#[test]
+fn demo_report_tells_the_whole_story_in_valid_self_contained_html() {
+    let dir = tempfile::tempdir().unwrap();
+    let outcome = demo_report(dir.path(), &StoryOptions::quick(7), &mut |_| {}).unwrap();
+    let html = std::fs::read_to_string(&outcome.report).unwrap();
+    assert!(html.starts_with("<!DOCTYPE html>"));
+    assert!(!html.contains("<script"), "no script");
+    assert!(!html.contains("http"), "no URL of any kind");
+    let body = html.trim_start_matches("<!DOCTYPE html>");
+    let doc = parse(body);
+    let headings: Vec<String> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("h2"))
+        .map(|n| n.text().unwrap_or("").to_string())
+        .collect();
+    for want in [
+        "What bias is",
+        "Three predictors",
+        "What diagnose finds",
+        "The ladder",
+        "Settling faster",
+        "From prediction error to settle time",
+        "Files behind this report",
+    ] {
+        assert!(
+            headings.iter().any(|h| h.contains(want)),
+            "section `{want}` missing from {headings:?}"
+        );
+    }
+    assert!(html.contains("seed 7"), "the seed is printed");
+    let svgs: Vec<Node> = doc
+        .descendants()
+        .filter(|n| {
+            n.tag_name().name() == "svg" && n.parent().is_some_and(|p| p.has_tag_name("figure"))
+        })
+        .collect();
+    // Figs. 3, 4, 5, 6, 7, 8, 9, 12, two error panels, model curves, loop, diagnose, ladder, 15, 16.
+    assert_eq!(svgs.len(), 16, "figures");
+    let captions: Vec<String> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("figcaption"))
+        .map(|n| n.text().unwrap_or("").to_string())
+        .collect();
+    for fig in [
+        "Fig. 3",
+        "Fig. 4",
+        "Fig. 5",
+        "Fig. 6",
+        "Fig. 7",
+        "Fig. 8",
+        "Fig. 9",
+        "Fig. 12",
+        "Figs. 10/11",
+        "Figs. 13/14",
+        "Fig. 15",
+        "Fig. 16",
+    ] {
+        assert!(captions.iter().any(|c| c.contains(fig)), "{fig} missing");
+    }
+    // Fig. 3: inbound and outbound from Table I, with axis labels in units.
+    let fig3 = svgs[0];
+    assert_eq!(series_names(fig3), ["inbound", "outbound"]);
+    let t = texts(fig3);
+    assert!(t.iter().any(|s| s == "position (tracks)") && t.iter().any(|s| s == "bias (counts)"));
+    let table1 = std::fs::read_to_string(dir.path().join("table1.csv")).unwrap();
+    let measured = table1
+        .lines()
+        .skip_while(|l| l.starts_with('#'))
+        .skip(1)
+        .filter(|l| !l.split(',').nth(2).unwrap_or("").is_empty())
+        .count();
+    assert_eq!(points(fig3), measured, "one point per measured Table I row");
+    // The errors panel of the random run: one error point per measured test seek per model.
+    let errors = svgs[8];
+    assert_eq!(points(errors), 2 * 300);
+    // The tables, model files and analyses are written next to the report.
+    for f in [
+        "calibration.csv",
+        "random.csv",
+        "random_truth.csv",
+        "model_calibration.json",
+        "model_poly2_dahl_4.json",
+        "score_dahl.json",
+        "diagnosis.json",
+        "ladder.json",
+        "settle.json",
+        "settle_bounds.csv",
+        "settle_responses.csv",
+        "worst_case.json",
+    ] {
+        assert!(dir.path().join(f).exists(), "{f}");
+        assert!(html.contains(f), "{f} listed in the report");
+    }
+    let ladder: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("ladder.json")).unwrap())
+            .unwrap();
+    assert_eq!(ladder["steps"].as_array().unwrap().len(), 5);
+    assert_eq!(outcome.summary.len(), 5);
+    // The calibration model beats position-direction on fresh data.
+    let std = |m: &str| -> f64 {
+        let v: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join(format!("score_{m}.json"))).unwrap(),
+        )
+        .unwrap();
+        v["std"].as_f64().unwrap()
+    };
+    assert!(std("calibration") < std("position-direction"));
+    // Deterministic for a seed.
+    let again = tempfile::tempdir().unwrap();
+    let o2 = demo_report(again.path(), &StoryOptions::quick(7), &mut |_| {}).unwrap();
+    assert_eq!(
+        html,
+        std::fs::read_to_string(o2.report).unwrap().replace(
+            &again.path().display().to_string(),
+            &dir.path().display().to_string()
+        )
+    );
+}
+
+#[test]
+fn data_report_covers_a_users_log_and_model_and_survives_tiny_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate(dir.path(), "random", "200");
+    let model = dir.path().join("m.json").display().to_string();
+    ok(&["fit", "--data", &log, "--model", "dahl", "--out", &model]);
+    let out = dir.path().join("rep");
+    let stdout = ok(&[
+        "report",
+        "--data",
+        &log,
+        "--model",
+        &model,
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert!(stdout.contains("report.html"), "{stdout}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let doc = parse(html.trim_start_matches("<!DOCTYPE html>"));
+    assert!(html.contains("your model (whole log)"));
+    assert!(html.contains("Your data") && html.contains("What diagnose finds"));
+    assert!(
+        doc.descendants()
+            .filter(|n| n.tag_name().name() == "svg")
+            .count()
+            >= 6
+    );
+    assert!(out.join("score_your_model.json").exists() && out.join("diagnosis.json").exists());
+
+    // Three rows: no fit, no diagnosis, no ladder, yet a readable report.
+    let tiny = write(
+        dir.path(),
+        "tiny.csv",
+        "time_s,track,bias\n0,10,1\n1,20,2\n2,15,1.5\n",
+    );
+    let tiny_log = biasctl::log::Log::read(Path::new(&tiny), &Default::default()).unwrap();
+    let o = data_report(
+        &dir.path().join("tiny"),
+        &tiny_log,
+        None,
+        &StoryOptions::quick(1),
+        &mut |_| {},
+    )
+    .unwrap();
+    let html = std::fs::read_to_string(o.report).unwrap();
+    parse(html.trim_start_matches("<!DOCTYPE html>"));
+    assert!(html.contains("Not fitted"), "failures are explained");
+    assert!(html.contains("No diagnosis"));
+}
+
+#[test]
+fn every_plot_kind_works_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = simulate(d, "random", "150");
+    let test = simulate(d, "calibration", "100");
+    let model = d.join("cal.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &test,
+        "--model",
+        "calibration",
+        "--out",
+        &model,
+    ]);
+    let svg = |name: &str| d.join(format!("{name}.svg")).display().to_string();
+    let cases: Vec<(&str, Vec<&str>, Vec<&str>)> = vec![
+        (
+            "position",
+            vec!["--data", &log],
+            vec!["inbound", "outbound", "not moved yet"],
+        ),
+        (
+            "position",
+            vec!["--data", &log, "--model", &model],
+            vec![
+                "inbound",
+                "outbound",
+                "inbound fit",
+                "outbound fit",
+                "not moved yet",
+            ],
+        ),
+        ("time", vec!["--data", &log], vec!["measured"]),
+        (
+            "seek",
+            vec!["--data", &log],
+            vec!["direction change at source", "no direction change"],
+        ),
+        (
+            "errors",
+            vec!["--data", &log, "--model", "position-direction,dahl"],
+            vec!["error", "error", "error histogram", "error histogram"],
+        ),
+        (
+            "loop",
+            vec!["--data", &log, "--model", "dahl"],
+            vec!["measured", "Dahl model"],
+        ),
+        (
+            "diagnose",
+            vec!["--data", &log, "--model", &model, "--top", "2"],
+            vec![
+                "residuals",
+                "binned mean ± spread",
+                "residuals",
+                "binned mean ± spread",
+            ],
+        ),
+        (
+            "ladder",
+            vec![
+                "--data",
+                &test,
+                "--test",
+                &log,
+                "--terms",
+                "poly2,direction",
+            ],
+            vec![""],
+        ),
+        (
+            "bounds",
+            vec!["--bias-uncertainty", "4"],
+            vec![
+                "upper bound U",
+                "lower bound L",
+                "running min U*",
+                "running max L*",
+            ],
+        ),
+        ("responses", vec!["--preset", "paper1997"], vec![]),
+    ];
+    for (i, (kind, flags, want)) in cases.iter().enumerate() {
+        let out = svg(&format!("{kind}{i}"));
+        let mut args = vec!["plot", kind, "--out", &out];
+        args.extend(flags.iter().copied());
+        ok(&args);
+        let text = std::fs::read_to_string(&out).unwrap();
+        let doc = parse(&text);
+        let names = series_names(doc.root_element());
+        if *kind == "responses" {
+            // zero feedforward, optimal, paper's robust, worst-case robust, in each of two charts.
+            assert_eq!(names.len(), 8, "{names:?}");
+            assert!(
+                names[0].starts_with("zero feedforward (settles"),
+                "{names:?}"
+            );
+        } else {
+            assert_eq!(&names, want, "plot {kind}");
+        }
+        assert!(!text.contains("NaN"), "plot {kind}");
+    }
+}
+
+#[test]
+fn plot_of_known_data_puts_points_where_they_belong_and_tiny_data_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Two inbound points, at tracks 100 and 300 with bias 10 and 30.
+    let log = write(d, "k.csv", "time_s,track,bias\n0,0,\n1,100,10\n2,300,30\n");
+    let out = d.join("k.svg").display().to_string();
+    ok(&["plot", "position", "--data", &log, "--out", &out]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let doc = parse(&text);
+    let inbound = doc
+        .descendants()
+        .find(|n| n.attribute("data-name") == Some("inbound"))
+        .unwrap();
+    let pts: Vec<(f64, f64)> = inbound
+        .descendants()
+        .filter(|n| n.has_tag_name("circle"))
+        .map(|n| {
+            (
+                n.attribute("cx").unwrap().parse().unwrap(),
+                n.attribute("cy").unwrap().parse().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(pts.len(), 2);
+    // The second point is right of and above the first (SVG y grows downwards); the ratio of
+    // the distances from the axis origin follows the data (a linear axis).
+    assert!(pts[1].0 > pts[0].0 && pts[1].1 < pts[0].1, "{pts:?}");
+    let one = write(d, "one.csv", "time_s,track,bias\n0,5,1\n");
+    for kind in ["position", "time", "seek"] {
+        let out = d.join(format!("one_{kind}.svg")).display().to_string();
+        ok(&["plot", kind, "--data", &one, "--out", &out]);
+        let text = std::fs::read_to_string(&out).unwrap();
+        assert!(
+            text.contains("only one point") || text.contains("no data"),
+            "{kind}: {text}"
+        );
+    }
+    let none = write(d, "none.csv", "time_s,track,bias\n0,5,\n1,6,\n");
+    let r = biasctl(&[
+        "plot",
+        "position",
+        "--data",
+        &none,
+        "--out",
+        &d.join("n.svg").display().to_string(),
+    ]);
+    assert_eq!(
+        r.code, 2,
+        "a log with no measured row is an error: {}",
+        r.stderr
+    );
+    assert!(r.stderr.contains("none.csv"), "{}", r.stderr);
+}
+
+#[test]
+fn bad_plot_and_report_flags_exit_2_with_a_clear_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = write(d, "k.csv", "time_s,track,bias\n0,0,1\n1,100,10\n2,300,30\n");
+    let out = d.join("x.svg").display().to_string();
+    fails_with(&["plot", "position", "--out", &out], &["needs --data"]);
+    fails_with(
+        &["plot", "wiggle", "--data", &log, "--out", &out],
+        &["wiggle"],
+    );
+    fails_with(
+        &["plot", "errors", "--data", &log, "--out", &out],
+        &["needs --model"],
+    );
+    fails_with(
+        &["plot", "ladder", "--data", &log, "--out", &out],
+        &["--test"],
+    );
+    fails_with(
+        &["plot", "bounds", "--data", &log, "--out", &out],
+        &["settle flags"],
+    );
+    fails_with(
+        &[
+            "plot",
+            "time",
+            "--data",
+            &log,
+            "--out",
+            &out,
+            "--preset",
+            "paper1997",
+        ],
+        &["plot bounds"],
+    );
+    fails_with(
+        &["plot", "bounds", "--out", &out, "--bias-uncertainty", "-1"],
+        &["bias_uncertainty"],
+    );
+    fails_with(
+        &[
+            "plot", "position", "--data", &log, "--model", "nonsense", "--out", &out,
+        ],
+        &["nonsense"],
+    );
+    fails_with(
+        &[
+            "plot", "seek", "--data", &log, "--track", "3", "--out", &out,
+        ],
+        &["--track"],
+    );
+    assert!(!Path::new(&out).exists(), "no file after an error");
+    fails_with(&["report", "--model", "m.json", "--out", &out], &["--data"]);
+    fails_with(
+        &[
+            "report",
+            "--seeks",
+            "0",
+            "--out",
+            &d.join("r").display().to_string(),
+        ],
+        &["--seeks"],
+    );
+}
