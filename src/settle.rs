@@ -774,6 +774,47 @@ pub struct WorstCase {
     pub zero_ff_worst_settle_ms: Option<f64>,
 }
 
+impl SettleReport {
+    /// The bounds of Fig. 15 as CSV: `k,time_s,upper,lower,upper_min,lower_max` (start values in
+    /// µm·samples relative to the converged value; time in s).
+    pub fn bounds_csv(&self) -> String {
+        let b = &self.bounds;
+        let mut s = String::from("k,time_s,upper,lower,upper_min,lower_max\n");
+        for k in 0..b.upper().len() {
+            s.push_str(&format!(
+                "{k},{:.7},{},{},{},{}\n",
+                k as f64 * self.ts_s,
+                b.upper()[k],
+                b.lower()[k],
+                b.upper_min()[k],
+                b.lower_max()[k]
+            ));
+        }
+        s
+    }
+
+    /// The responses of Fig. 16 as CSV: `k,time_s` and one `e_<choice>_um` column (µm) per
+    /// start-value choice.
+    pub fn responses_csv(&self) -> String {
+        let mut s = String::from("k,time_s");
+        for x in &self.responses {
+            s.push_str(&format!(",e_{}_um", x.name));
+        }
+        s.push('\n');
+        for k in 0..self.horizon {
+            s.push_str(&format!("{k},{:.7}", k as f64 * self.ts_s));
+            for x in &self.responses {
+                match x.e_um.get(k) {
+                    Some(e) => s.push_str(&format!(",{e}")),
+                    None => s.push(','),
+                }
+            }
+            s.push('\n');
+        }
+        s
+    }
+}
+
 /// The worst-case settle time when the bias is only known to ±`delta_b` counts (for example a
 /// bias prediction and its error std), with the robust choice and with zero feedforward.
 ///

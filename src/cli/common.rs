@@ -1,6 +1,8 @@
 //! Flags shared by several commands.
 
+use anyhow::Context;
 use biasctl::log::ColumnMap;
+use biasctl::settle::SettleSpec;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -37,4 +39,79 @@ pub struct LogArgs {
     pub data: PathBuf,
     #[command(flatten)]
     pub columns: ColumnArgs,
+}
+
+/// The plant and scenario flags of the settle analysis (`settle`, `plot bounds|responses`).
+#[derive(Debug, Clone, Default, Args)]
+pub struct SettleArgs {
+    /// A built-in plant and scenario: paper1997 or modern (default paper1997).
+    #[arg(long, value_name = "NAME", conflicts_with = "plant")]
+    pub preset: Option<String>,
+    /// A plant TOML file with every preset parameter (see data/plant_*.toml).
+    #[arg(long, value_name = "FILE.toml")]
+    pub plant: Option<PathBuf>,
+    /// Step length in µm (handoff e0 = −step from rest).
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    pub step_um: Option<f64>,
+    /// Half-width δ of the settle window in µm.
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    pub window_um: Option<f64>,
+    /// Bias d in counts (sets the integrator's converged value).
+    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    pub bias: Option<f64>,
+    /// Bias uncertainty Δb in counts for the robust choice.
+    #[arg(long, value_name = "DB", allow_negative_numbers = true)]
+    pub bias_uncertainty: Option<f64>,
+    /// Horizon N in samples.
+    #[arg(long, value_name = "N")]
+    pub horizon: Option<usize>,
+    /// Samples M that must lie in the window at the end of the horizon.
+    #[arg(long, value_name = "M")]
+    pub hold: Option<usize>,
+}
+
+impl SettleArgs {
+    /// Whether any of these flags was given.
+    pub fn any(&self) -> bool {
+        self.preset.is_some()
+            || self.plant.is_some()
+            || self.step_um.is_some()
+            || self.window_um.is_some()
+            || self.bias.is_some()
+            || self.bias_uncertainty.is_some()
+            || self.horizon.is_some()
+            || self.hold.is_some()
+    }
+
+    /// The preset or plant file with the flags' overrides applied (validated later by
+    /// `SettleSpec::validate`).
+    pub fn spec(&self) -> anyhow::Result<SettleSpec> {
+        let mut spec = match &self.plant {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read plant file {}", path.display()))?;
+                toml::from_str::<SettleSpec>(&text)
+                    .with_context(|| format!("invalid plant file {}", path.display()))?
+            }
+            None => SettleSpec::preset(self.preset.as_deref().unwrap_or("paper1997"))?,
+        };
+        let overrides = [
+            (self.step_um, &mut spec.step_um),
+            (self.window_um, &mut spec.window_um),
+            (self.bias, &mut spec.bias),
+            (self.bias_uncertainty, &mut spec.bias_uncertainty),
+        ];
+        for (flag, field) in overrides {
+            if let Some(v) = flag {
+                *field = v;
+            }
+        }
+        if let Some(v) = self.horizon {
+            spec.horizon = v;
+        }
+        if let Some(v) = self.hold {
+            spec.hold = v;
+        }
+        Ok(spec)
+    }
 }

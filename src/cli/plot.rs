@@ -1,7 +1,7 @@
 //! `biasctl plot KIND`: one figure as an SVG file, from your own log (and model) or from a
 //! settle analysis.
 
-use super::common::ColumnArgs;
+use super::common::{ColumnArgs, SettleArgs};
 use anyhow::{Context, bail};
 use biasctl::diagnose::{DiagnoseConfig, FeatureTable, diagnose_model, ladder_fit};
 use biasctl::fit::{FitOptions, fit};
@@ -9,7 +9,7 @@ use biasctl::log::Log;
 use biasctl::model::{FittedModel, ModelSpec};
 use biasctl::output::write_string_atomic;
 use biasctl::plot::{from_log, views};
-use biasctl::settle::{SettleSpec, analyse};
+use biasctl::settle::analyse;
 use clap::ValueEnum;
 use std::path::{Path, PathBuf};
 
@@ -70,21 +70,8 @@ pub struct Args {
     /// Top features of the `diagnose` plot.
     #[arg(long, default_value_t = 6, value_name = "N")]
     top: usize,
-    /// Settle preset for bounds/responses: paper1997 or modern.
-    #[arg(long, value_name = "NAME", conflicts_with = "plant")]
-    preset: Option<String>,
-    /// Settle plant TOML file for bounds/responses.
-    #[arg(long, value_name = "FILE.toml")]
-    plant: Option<PathBuf>,
-    /// Bias uncertainty Δb in counts (bounds/responses).
-    #[arg(long, value_name = "DB", allow_negative_numbers = true)]
-    bias_uncertainty: Option<f64>,
-    /// Step length in µm (bounds/responses).
-    #[arg(long, value_name = "X", allow_negative_numbers = true)]
-    step_um: Option<f64>,
-    /// Settle window half-width in µm (bounds/responses).
-    #[arg(long, value_name = "D", allow_negative_numbers = true)]
-    window_um: Option<f64>,
+    #[command(flatten)]
+    settle: SettleArgs,
 }
 
 fn is_settle(kind: Kind) -> bool {
@@ -94,22 +81,18 @@ fn is_settle(kind: Kind) -> bool {
 /// Flags that only some kinds accept: a clear error instead of silently ignoring them.
 fn check_flags(a: &Args) -> anyhow::Result<()> {
     let k = format!("{:?}", a.kind).to_lowercase();
-    let settle_flag = a.preset.is_some()
-        || a.plant.is_some()
-        || a.bias_uncertainty.is_some()
-        || a.step_um.is_some()
-        || a.window_um.is_some();
+    let settle_flag = a.settle.any();
     if is_settle(a.kind) {
         if a.data.is_some() || a.model.is_some() || a.test.is_some() {
             bail!(
-                "plot {k} takes settle flags (--preset, --plant, --bias-uncertainty, --step-um, --window-um), not --data/--model/--test"
+                "plot {k} takes settle flags (--preset, --plant, --step-um, --window-um, --bias, --bias-uncertainty, --horizon, --hold), not --data/--model/--test"
             );
         }
         return Ok(());
     }
     if settle_flag {
         bail!(
-            "plot {k}: --preset, --plant, --bias-uncertainty, --step-um and --window-um are for `plot bounds` and `plot responses`"
+            "plot {k}: the settle flags (--preset, --plant, --step-um, --window-um, --bias, --bias-uncertainty, --horizon, --hold) are for `plot bounds` and `plot responses`"
         );
     }
     if a.data.is_none() {
@@ -161,32 +144,10 @@ fn model(name: &str, log: &Log) -> anyhow::Result<(String, FittedModel)> {
     Ok((name.to_string(), m))
 }
 
-fn settle_spec(a: &Args) -> anyhow::Result<SettleSpec> {
-    let mut spec = match &a.plant {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read plant file {}", path.display()))?;
-            toml::from_str::<SettleSpec>(&text)
-                .with_context(|| format!("invalid plant file {}", path.display()))?
-        }
-        None => SettleSpec::preset(a.preset.as_deref().unwrap_or("paper1997"))?,
-    };
-    if let Some(v) = a.bias_uncertainty {
-        spec.bias_uncertainty = v;
-    }
-    if let Some(v) = a.step_um {
-        spec.step_um = v;
-    }
-    if let Some(v) = a.window_um {
-        spec.window_um = v;
-    }
-    Ok(spec)
-}
-
 /// The SVG text of the figure.
 fn draw(a: &Args) -> anyhow::Result<String> {
     if is_settle(a.kind) {
-        let report = analyse(&settle_spec(a)?.validate()?)?;
+        let report = analyse(&a.settle.spec()?.validate()?)?;
         return Ok(match a.kind {
             Kind::Bounds => views::settle_bounds(&report),
             _ => views::settle_responses(&report),

@@ -1,41 +1,18 @@
 //! `biasctl settle`: the settle-optimal integrator start value at handoff (paper Section IV).
 
-use super::common::ColumnArgs;
+use super::common::{ColumnArgs, SettleArgs};
 use anyhow::Context;
 use biasctl::log::Log;
 use biasctl::model::{FittedModel, NextPrediction, predict_next};
-use biasctl::output::write_atomic;
-use biasctl::settle::{SettleReport, SettleSpec, analyse};
-use std::io::Write;
+use biasctl::output::write_string_atomic;
+use biasctl::settle::{SettleReport, analyse};
 use std::path::PathBuf;
 
 /// Flags of `biasctl settle`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A built-in plant and scenario: paper1997 or modern (default paper1997).
-    #[arg(long, value_name = "NAME", conflicts_with = "plant")]
-    preset: Option<String>,
-    /// A plant TOML file with every preset parameter (see data/plant_*.toml).
-    #[arg(long, value_name = "FILE.toml")]
-    plant: Option<PathBuf>,
-    /// Step length in µm (handoff e0 = −step from rest).
-    #[arg(long, value_name = "X", allow_negative_numbers = true)]
-    step_um: Option<f64>,
-    /// Half-width δ of the settle window in µm.
-    #[arg(long, value_name = "D", allow_negative_numbers = true)]
-    window_um: Option<f64>,
-    /// Bias d in counts (sets the integrator's converged value).
-    #[arg(long, value_name = "B", allow_negative_numbers = true)]
-    bias: Option<f64>,
-    /// Bias uncertainty Δb in counts for the robust choice.
-    #[arg(long, value_name = "DB", allow_negative_numbers = true)]
-    bias_uncertainty: Option<f64>,
-    /// Horizon N in samples.
-    #[arg(long, value_name = "N")]
-    horizon: Option<usize>,
-    /// Samples M that must lie in the window at the end of the horizon.
-    #[arg(long, value_name = "M")]
-    hold: Option<usize>,
+    #[command(flatten)]
+    settle: SettleArgs,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -81,7 +58,10 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
     let log = Log::read(data, &args.columns.map())?;
     let next = predict_next(&model, &log, args.target)
         .with_context(|| format!("predicting the handoff bias from {}", data.display()))?;
-    let delta_b = args.bias_uncertainty.unwrap_or(model.fit.residual_std);
+    let delta_b = args
+        .settle
+        .bias_uncertainty
+        .unwrap_or(model.fit.residual_std);
     Ok(Some(ModelLink {
         model: model_path.clone(),
         next,
@@ -89,43 +69,12 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
     }))
 }
 
-fn load_spec(args: &Args) -> anyhow::Result<SettleSpec> {
-    let mut spec = match &args.plant {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read plant file {}", path.display()))?;
-            toml::from_str::<SettleSpec>(&text)
-                .with_context(|| format!("invalid plant file {}", path.display()))?
-        }
-        None => SettleSpec::preset(args.preset.as_deref().unwrap_or("paper1997"))?,
-    };
-    if let Some(v) = args.step_um {
-        spec.step_um = v;
-    }
-    if let Some(v) = args.window_um {
-        spec.window_um = v;
-    }
-    if let Some(v) = args.bias {
-        spec.bias = v;
-    }
-    if let Some(v) = args.bias_uncertainty {
-        spec.bias_uncertainty = v;
-    }
-    if let Some(v) = args.horizon {
-        spec.horizon = v;
-    }
-    if let Some(v) = args.hold {
-        spec.hold = v;
-    }
-    Ok(spec)
-}
-
 /// Validates, designs, analyses; writes the CSVs (atomically) and prints the report.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut spec = load_spec(&args)?;
+    let mut spec = args.settle.spec()?;
     let link = predict_handoff(&args)?;
     if let Some(l) = &link {
-        if args.bias.is_none() {
+        if args.settle.bias.is_none() {
             spec.bias = l.next.bias;
         }
         spec.bias_uncertainty = l.delta_b;
@@ -133,10 +82,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cfg = spec.validate()?;
     let report = analyse(&cfg)?;
     if let Some(path) = &args.bounds_out {
-        write_atomic(path, |w| write_bounds(w, &report))?;
+        write_string_atomic(path, &report.bounds_csv())?;
     }
     if let Some(path) = &args.response_out {
-        write_atomic(path, |w| write_responses(w, &report))?;
+        write_string_atomic(path, &report.responses_csv())?;
     }
     if args.json {
         let mut value = serde_json::to_value(&report)?;
@@ -172,39 +121,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         print_text(&report);
-    }
-    Ok(())
-}
-
-fn write_bounds(w: &mut impl Write, r: &SettleReport) -> std::io::Result<()> {
-    let b = &r.bounds;
-    writeln!(w, "k,time_s,upper,lower,upper_min,lower_max")?;
-    for k in 0..b.upper().len() {
-        writeln!(
-            w,
-            "{k},{:.7},{},{},{},{}",
-            k as f64 * r.ts_s,
-            b.upper()[k],
-            b.lower()[k],
-            b.upper_min()[k],
-            b.lower_max()[k]
-        )?;
-    }
-    Ok(())
-}
-
-fn write_responses(w: &mut impl Write, r: &SettleReport) -> std::io::Result<()> {
-    write!(w, "k,time_s")?;
-    for resp in &r.responses {
-        write!(w, ",e_{}_um", resp.name)?;
-    }
-    writeln!(w)?;
-    for k in 0..r.horizon {
-        write!(w, "{k},{:.7}", k as f64 * r.ts_s)?;
-        for resp in &r.responses {
-            write!(w, ",{}", resp.e_um[k])?;
-        }
-        writeln!(w)?;
     }
     Ok(())
 }

@@ -24,7 +24,7 @@ use crate::plot::{from_log, views};
 use crate::score::{Score, ScoreError, score};
 use crate::servo::{Controller, ServoError};
 use crate::settle::{
-    AnalyseError, HandoffTable, SettleError, SettleReport, SettleSpec, analyse, worst_case_settle,
+    AnalyseError, HandoffTable, SettleError, SettleSpec, analyse, worst_case_settle,
 };
 use crate::sim::{Drive, SequenceOptions, SimConfig, SimError, Truth, simulate, simulate_to_files};
 
@@ -542,38 +542,6 @@ fn diagnose_config(opts: &StoryOptions) -> DiagnoseConfig {
     }
 }
 
-fn bounds_csv(r: &SettleReport) -> String {
-    let b = &r.bounds;
-    let mut s = String::from("k,time_s,upper,lower,upper_min,lower_max\n");
-    for k in 0..b.upper().len() {
-        s.push_str(&format!(
-            "{k},{:.7},{},{},{},{}\n",
-            k as f64 * r.ts_s,
-            b.upper()[k],
-            b.lower()[k],
-            b.upper_min()[k],
-            b.lower_max()[k]
-        ));
-    }
-    s
-}
-
-fn responses_csv(r: &SettleReport) -> String {
-    let mut s = String::from("k,time_s");
-    for x in &r.responses {
-        s.push_str(&format!(",e_{}_um", x.name));
-    }
-    s.push('\n');
-    for k in 0..r.horizon {
-        s.push_str(&format!("{k},{:.7}", k as f64 * r.ts_s));
-        for x in &r.responses {
-            s.push_str(&format!(",{}", x.e_um.get(k).copied().unwrap_or(f64::NAN)));
-        }
-        s.push('\n');
-    }
-    s
-}
-
 fn files_section(report: &mut Report, out: &Out<'_>) {
     let mut t = Table::new(&["file", "what it holds"]).caption("Files next to this report");
     for (p, what) in &out.files {
@@ -694,12 +662,12 @@ pub fn demo_report(
     )?;
     out.text(
         "settle_bounds.csv",
-        &bounds_csv(&settle),
+        &settle.bounds_csv(),
         "Fig. 15 bounds per sample",
     )?;
     out.text(
         "settle_responses.csv",
-        &responses_csv(&settle),
+        &settle.responses_csv(),
         "Fig. 16 position error per sample and choice",
     )?;
 
