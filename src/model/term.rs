@@ -10,6 +10,11 @@
 //!   [`TermState`], which turns each seek into `n` basis values; the contribution is the dot
 //!   product of the basis with the fitted coefficients, plus an optional causal offset.
 //!
+//! A term with a nonlinear parameter (a rate, a time constant) implements [`Term::nonlinear`]
+//! (the current value and the search interval) and [`Term::with_nonlinear`] (the same term at
+//! another value); [`crate::fit::fit`] searches it and the default [`Term::report`] reports it.
+//! `examples/new_effect.rs` adds the time-at-track effect (P3) that way.
+//!
 //! Everything is object safe, so a user can add a physical effect outside the crate:
 //!
 //! ```
@@ -142,19 +147,39 @@ pub trait Term: Debug + Send + Sync {
     }
     /// The parameters to report, given the fitted coefficients, their covariance (row-major,
     /// `n × n`) and the standard error of the nonlinear parameter (search coordinate).
-    /// Default: one parameter per coefficient, named by [`Term::param_names`].
-    fn report(&self, coef: &[f64], cov: &[f64], _nonlinear_se: Option<f64>) -> Vec<Param> {
+    /// Default: one parameter per coefficient, named by [`Term::param_names`], then the
+    /// nonlinear parameter (if any) at its searched value, in the search coordinate, named
+    /// `term.NAME` after [`Nonlinear::name`] (which may already carry the `term.` prefix).
+    fn report(&self, coef: &[f64], cov: &[f64], nonlinear_se: Option<f64>) -> Vec<Param> {
         let n = coef.len();
-        self.param_names()
+        let term = self.name();
+        let mut params: Vec<Param> = self
+            .param_names()
             .into_iter()
             .zip(coef)
             .enumerate()
             .map(|(i, (name, &value))| Param {
-                name: format!("{}.{name}", self.name()),
+                name: format!("{term}.{name}"),
                 value,
                 se: se_from_cov(cov, n, i),
             })
-            .collect()
+            .collect();
+        if let Some(nl) = self.nonlinear() {
+            let prefixed = nl
+                .name
+                .strip_prefix(term.as_str())
+                .is_some_and(|r| r.starts_with('.'));
+            params.push(Param {
+                name: if prefixed {
+                    nl.name
+                } else {
+                    format!("{term}.{}", nl.name)
+                },
+                value: nl.value,
+                se: nonlinear_se,
+            });
+        }
+        params
     }
     /// The data-dependent settings to save in the model file (knots, centre, rates).
     fn settings(&self) -> serde_json::Value {

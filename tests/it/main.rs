@@ -4,6 +4,7 @@
 mod check;
 mod common;
 mod diagnose;
+mod extend;
 mod model;
 mod plot;
 mod real;

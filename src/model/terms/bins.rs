@@ -1,11 +1,20 @@
-//! `bins:FEATURE[:KNOTS]`: a generic continuous piecewise-linear (hinge) term in any built-in
-//! history feature ([`Feature::from_name`]: `dwell_s`, `since_reversal`, …) or covariate column.
+//! `bins:FEATURE[:KNOTS]` and `dbins:FEATURE[:KNOTS]`: generic continuous piecewise-linear
+//! (hinge) terms in any built-in history feature ([`Feature::from_name`]: `dwell_s`,
+//! `since_reversal`, …) or covariate column.
 //!
-//! Basis: `u = (v − centre)/scale` plus hinges `(v − k_j)₊/scale` at `KNOTS` (default 4) interior
-//! quantiles of the training values (fewer if the values have fewer distinct levels). Where the
-//! feature is undefined (a rest distance with no rest position) the hinges are 0 and, if the
-//! training data had both defined and undefined rows, an indicator column `missing` takes 1.
+//! `bins` basis: `u = (v − centre)/scale` plus hinges `(v − k_j)₊/scale` at `KNOTS` (default 4)
+//! interior quantiles of the training values (fewer if the values have fewer distinct levels).
+//! Where the feature is undefined (a rest distance with no rest position) the hinges are 0 and, if
+//! the training data had both defined and undefined rows, an indicator column `missing` takes 1.
 //! Coefficients in counts per scaled unit (the curve shape, not meant for reading one by one).
+//!
+//! `dbins` ("direction bins") is the same basis multiplied by the direction of the last move
+//! (`direction`: +1 inbound, −1 outbound, 0 before any move), so it models an effect of the form
+//! `direction × g(v)` with `g` piecewise linear — a hysteretic effect that changes sign with the
+//! approach direction, such as P3 (time at track, `dbins:dwell_s`). Like `bins`, which leaves the
+//! constant to the intercept, `dbins` has no `direction × constant` column: that is the
+//! `direction` term (or the asymptote of `dahl`), so `g` is fitted up to a constant. Same knots,
+//! scale and parameter names as `bins` on the same feature.
 
 use super::covariate_position;
 use super::knots::{interior_knots, label};
@@ -19,21 +28,35 @@ use std::sync::Arc;
 /// Default number of interior knots.
 pub const DEFAULT_KNOTS: usize = 4;
 
-/// Spec of the `bins:FEATURE` term.
+/// Spec of the `bins:FEATURE` and `dbins:FEATURE` terms.
 #[derive(Debug, Clone)]
 pub struct BinsSpec {
     /// A built-in feature name or a covariate column.
     pub source: String,
     /// Number of interior knots asked for.
     pub knots: usize,
+    /// Whether the curve is multiplied by the direction of the last move (`dbins`).
+    pub by_direction: bool,
+}
+
+impl BinsSpec {
+    /// The spec of `bins:SOURCE[:KNOTS]` (`by_direction` false) or `dbins:SOURCE[:KNOTS]`.
+    pub fn new(source: &str, knots: usize, by_direction: bool) -> Self {
+        Self {
+            source: source.to_string(),
+            knots,
+            by_direction,
+        }
+    }
 }
 
 impl TermSpec for BinsSpec {
     fn name(&self) -> String {
+        let head = if self.by_direction { "dbins" } else { "bins" };
         if self.knots == DEFAULT_KNOTS {
-            format!("bins:{}", self.source)
+            format!("{head}:{}", self.source)
         } else {
-            format!("bins:{}:{}", self.source, self.knots)
+            format!("{head}:{}:{}", self.source, self.knots)
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
@@ -59,11 +82,12 @@ impl TermSpec for BinsSpec {
             scale: if sd > 0.0 { sd } else { 1.0 },
             knots: interior_knots(&defined, self.knots),
             indicator: !defined.is_empty() && defined.len() < values.len(),
+            by_direction: self.by_direction,
         }))
     }
 }
 
-/// The fitted `bins:FEATURE` term.
+/// The fitted `bins:FEATURE` / `dbins:FEATURE` term.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct BinsTerm {
     /// Spec string.
@@ -80,6 +104,9 @@ pub struct BinsTerm {
     pub knots: Vec<f64>,
     /// Whether the basis has a `missing` indicator column.
     pub indicator: bool,
+    /// Whether the basis is multiplied by the direction of the last move (`dbins`).
+    #[serde(default)]
+    pub by_direction: bool,
 }
 
 impl Term for BinsTerm {
@@ -154,6 +181,10 @@ impl TermState for BinsState {
             }
             None if t.indicator => out[t.knots.len() + 1] = 1.0,
             None => {}
+        }
+        if t.by_direction {
+            let dir = f64::from(seek.features.direction);
+            out.iter_mut().for_each(|o| *o *= dir);
         }
     }
     fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}

@@ -17,9 +17,10 @@ use super::{ModelError, SpecError};
 use std::sync::Arc;
 
 /// The names of the built-in terms, for messages.
-pub const BUILTIN_NAMES: &str = "poly2, table[:SPACING], direction, seek[:KNOTS], memory[:KNOTS], drift[:ALPHA], dahl, dahl:N, col:NAME, bins:FEATURE[:KNOTS]";
+pub const BUILTIN_NAMES: &str = "poly2, table[:SPACING], direction, seek[:KNOTS], memory[:KNOTS], drift[:ALPHA], dahl, dahl:N, col:NAME, bins:FEATURE[:KNOTS], dbins:FEATURE[:KNOTS]";
 
-/// Parses one built-in term spec (`poly2`, `table:50`, `dahl:4`, `col:temp_c`, `bins:dwell_s`…).
+/// Parses one built-in term spec (`poly2`, `table:50`, `dahl:4`, `col:temp_c`, `bins:dwell_s`,
+/// `dbins:dwell_s:6`…).
 pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
     let text = text.trim();
     let (head, arg) = match text.split_once(':') {
@@ -97,20 +98,26 @@ pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
             })),
             _ => Err(bad("`col` needs a column name: `col:NAME`".into())),
         },
-        "bins" => {
+        "bins" | "dbins" => {
             let Some(a) = arg.filter(|a| !a.is_empty()) else {
-                return Err(bad(
-                    "`bins` needs a feature or column name: `bins:FEATURE`".into()
-                ));
+                return Err(bad(format!(
+                    "`{head}` needs a feature or column name: `{head}:FEATURE`"
+                )));
             };
             let (source, knots) = match a.rsplit_once(':') {
                 Some((s, k)) => (s, count(k, "the number of knots", 32)?),
                 None => (a, bins::DEFAULT_KNOTS),
             };
-            Ok(Arc::new(bins::BinsSpec {
-                source: source.to_string(),
+            if source.is_empty() {
+                return Err(bad(format!(
+                    "`{head}` needs a feature or column name: `{head}:FEATURE`"
+                )));
+            }
+            Ok(Arc::new(bins::BinsSpec::new(
+                source,
                 knots,
-            }))
+                head == "dbins",
+            )))
         }
         _ => Err(SpecError::UnknownTerm {
             term: text.to_string(),
@@ -140,7 +147,10 @@ pub fn restore_term(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn 
         "drift" => Arc::new(de::<drift::DriftTerm>(name, settings)?),
         "dahl" => Arc::new(de::<dahl::DahlTerm>(name, settings)?),
         "col" => Arc::new(de::<covariate::ColTerm>(name, settings)?),
-        "bins" => Arc::new(de::<bins::BinsTerm>(name, settings)?),
+        "bins" | "dbins" => Arc::new(bins::BinsTerm {
+            by_direction: head == "dbins",
+            ..de::<bins::BinsTerm>(name, settings)?
+        }),
         _ => {
             return Err(ModelError::BadTerm {
                 term: name.to_string(),
