@@ -15,7 +15,10 @@ pub struct Args {
     /// A preset: position-direction, calibration or dahl.
     #[arg(long, value_name = "PRESET", conflicts_with = "terms")]
     model: Option<String>,
-    /// A comma-separated term list, e.g. `poly2,dahl:4,col:temp_c`.
+    /// A comma-separated term list, e.g. `poly2,dahl:4,col:temp_c` or
+    /// `poly2,direction,seek,memory,drift,dbins:dwell_s`. Terms: poly2, table[:SPACING],
+    /// direction, seek[:K], memory[:K], drift[:ALPHA], dahl, dahl:N, col:NAME, bins:FEATURE[:K],
+    /// dbins:FEATURE[:K].
     #[arg(long, value_name = "T1,T2,...")]
     terms: Option<String>,
     /// The model file to write (JSON).
