@@ -183,7 +183,8 @@ pub(crate) fn candidate_terms(
     let bins = format!("bins:{name}");
     if by_direction {
         // Hysteresis-like: the effect flips sign with the approach direction. `bins` would fit
-        // an even curve and miss it, so it is never suggested here.
+        // an even curve and miss it, so it is never suggested here; a feature without a
+        // dedicated term gets `dbins:FEATURE` (direction × piecewise-linear in the feature).
         return match origin {
             FeatureOrigin::BuiltIn(f) => match f {
                 Feature::SeekLength
@@ -193,9 +194,10 @@ pub(crate) fn candidate_terms(
                 Feature::RestDistanceOd | Feature::RestDistanceId => vec!["memory".into()],
                 Feature::Direction => vec!["direction".into()],
                 Feature::ElapsedS | Feature::SeekIndex => vec!["drift".into()],
-                Feature::Position | Feature::DwellS => Vec::new(),
+                // No dedicated term: direction × piecewise-linear in the feature.
+                Feature::Position | Feature::DwellS => vec![format!("dbins:{name}")],
             },
-            FeatureOrigin::Covariate => Vec::new(),
+            FeatureOrigin::Covariate => vec![format!("dbins:{name}")],
         };
     }
     match origin {

@@ -41,6 +41,11 @@ pub struct FeatureReport {
     pub explained: f64,
     /// Family-wise (Westfall–Young min-p) permutation p-value over all features.
     pub p_value: f64,
+    /// Fraction of the residual variance the feature explains out of sample **beyond** the
+    /// features ranked before it by the forward pass (for features the pass did not take:
+    /// beyond all it took); `null` for a skipped feature. See the module docs of
+    /// [`crate::diagnose`].
+    pub explained_beyond_previous: Option<f64>,
     /// The model term that addresses this feature and is not in the model yet; `null` if there
     /// is none (or the feature was skipped).
     pub suggested_term: Option<String>,
@@ -239,6 +244,7 @@ pub(crate) fn feature_report(
         name: col.name.clone(),
         explained,
         p_value: p_adj,
+        explained_beyond_previous: None,
         suggested_term,
         p_value_raw: p_raw,
         flagged: p_adj <= config.alpha && explained > 0.0,
@@ -279,6 +285,7 @@ pub(crate) fn skipped_report(
         name: col.name.clone(),
         explained: 0.0,
         p_value: 1.0,
+        explained_beyond_previous: None,
         suggested_term: None,
         p_value_raw: 1.0,
         flagged: false,
@@ -301,16 +308,15 @@ fn is_skipped(f: &FeatureReport) -> bool {
     f.bins == 0
 }
 
-/// Strongest first: explained, then family-wise p, then raw p, then name; skipped last.
-pub(crate) fn sort(reports: &mut [FeatureReport]) {
-    reports.sort_by(|a, b| {
-        is_skipped(a)
-            .cmp(&is_skipped(b))
-            .then(b.explained.total_cmp(&a.explained))
-            .then(a.p_value.total_cmp(&b.p_value))
-            .then(a.p_value_raw.total_cmp(&b.p_value_raw))
-            .then(a.name.cmp(&b.name))
-    });
+/// Marginal strength order: explained, then family-wise p, then raw p, then name; skipped
+/// last.
+pub(crate) fn compare(a: &FeatureReport, b: &FeatureReport) -> std::cmp::Ordering {
+    is_skipped(a)
+        .cmp(&is_skipped(b))
+        .then(b.explained.total_cmp(&a.explained))
+        .then(a.p_value.total_cmp(&b.p_value))
+        .then(a.p_value_raw.total_cmp(&b.p_value_raw))
+        .then(a.name.cmp(&b.name))
 }
 
 fn percent(x: f64) -> String {
@@ -373,10 +379,25 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
             if flagged.len() > 1 {
                 let others: Vec<String> = flagged[1..]
                     .iter()
-                    .map(|f| format!("`{}` ({})", f.name, percent(f.explained)))
+                    .map(|f| {
+                        let term = f
+                            .suggested_term
+                            .as_deref()
+                            .map(|t| format!(", add `{t}`"))
+                            .unwrap_or_default();
+                        match f.explained_beyond_previous {
+                            Some(b) => format!(
+                                "`{}` ({} alone, {} beyond the ones before{term})",
+                                f.name,
+                                percent(f.explained),
+                                percent(b)
+                            ),
+                            None => format!("`{}` ({}{term})", f.name, percent(f.explained)),
+                        }
+                    })
                     .collect();
                 parts.push(format!(
-                    "Also flagged (may overlap with the first): {}.",
+                    "Also flagged, in order of what each adds beyond the ones before: {}.",
                     others.join(", ")
                 ));
             }
@@ -453,18 +474,28 @@ impl Diagnosis {
             short(self.residual_std)
         ));
         out.push_str(&format!(
-            "{:<20} {:>9} {:>9} {:>5}  {:<16} {:<22} {:>12}\n",
-            "feature", "explained", "p (fw)", "flag", "shape", "suggested term", "expected std"
+            "{:<20} {:>9} {:>9} {:>9} {:>5}  {:<16} {:<22} {:>12}\n",
+            "feature",
+            "explained",
+            "beyond",
+            "p (fw)",
+            "flag",
+            "shape",
+            "suggested term",
+            "expected std"
         ));
         for f in &self.features {
             out.push_str(&format!(
-                "{:<20} {:>9} {:>9} {:>5}  {:<16} {:<22} {:>12}\n",
+                "{:<20} {:>9} {:>9} {:>9} {:>5}  {:<16} {:<22} {:>12}\n",
                 if f.by_direction {
                     format!("{} ×dir", f.name)
                 } else {
                     f.name.clone()
                 },
                 percent(f.explained),
+                f.explained_beyond_previous
+                    .map(percent)
+                    .unwrap_or_else(|| "-".into()),
                 p_text(f.p_value),
                 if f.flagged { "*" } else { "" },
                 serde_json::to_value(f.shape)

@@ -441,3 +441,60 @@ pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[Option<f64>], y: &[f64]) -
     }
     acc
 }
+
+/// Out-of-fold predictions of the binned-mean smoother of `b` at level `shift`: for each row,
+/// the mean of `y` over the training rows (other folds) in its bin, or the training mean when
+/// its bin has none there. Removing these from `y` takes out what the feature explains without
+/// letting a row's own noise leak into its prediction.
+pub(crate) fn cv_predict(
+    b: &Binned,
+    shift: u32,
+    y: &[f64],
+    fold: &[u32],
+    folds: usize,
+) -> Vec<f64> {
+    let m = b.slots(shift);
+    let mut cs = vec![0.0; folds * m];
+    let mut cc = vec![0.0; folds * m];
+    for (i, &v) in y.iter().enumerate() {
+        let k = fold[i] as usize * m + b.coarse_of_fine_slot(b.fine_slot(i), shift);
+        cs[k] += v;
+        cc[k] += 1.0;
+    }
+    let mut bin_sum = vec![0.0; m];
+    let mut bin_cnt = vec![0.0; m];
+    let mut fold_sum = vec![0.0; folds];
+    let mut fold_cnt = vec![0.0; folds];
+    for f in 0..folds {
+        for s in 0..m {
+            bin_sum[s] += cs[f * m + s];
+            bin_cnt[s] += cc[f * m + s];
+            fold_sum[f] += cs[f * m + s];
+            fold_cnt[f] += cc[f * m + s];
+        }
+    }
+    let total_sum: f64 = fold_sum.iter().sum();
+    let total_cnt: f64 = fold_cnt.iter().sum();
+    // Prediction per (fold, slot).
+    let mut pred = vec![0.0; folds * m];
+    for f in 0..folds {
+        let train_cnt = total_cnt - fold_cnt[f];
+        let train_mean = if train_cnt > 0.0 {
+            (total_sum - fold_sum[f]) / train_cnt
+        } else {
+            0.0
+        };
+        for s in 0..m {
+            let k = f * m + s;
+            let tc = bin_cnt[s] - cc[k];
+            pred[k] = if tc > 0.0 {
+                (bin_sum[s] - cs[k]) / tc
+            } else {
+                train_mean
+            };
+        }
+    }
+    (0..y.len())
+        .map(|i| pred[fold[i] as usize * m + b.coarse_of_fine_slot(b.fine_slot(i), shift)])
+        .collect()
+}

@@ -28,18 +28,23 @@ fn drive(file: &str) -> Drive {
     Drive::from_toml_str(file, &text).unwrap()
 }
 
-/// Train and test logs with every effect of `OFF` off except `on`.
+/// Train and test logs (3000 random seeks each) with every effect of `OFF` off except `on`.
 fn logs(file: &str, on: &[&str], dwell_max_s: f64, seed: u64) -> (Log, Log) {
+    logs_n(file, on, dwell_max_s, seed, 3000)
+}
+
+/// As [`logs`], with `n_train` seeks in the training log (the test log keeps 3000).
+fn logs_n(file: &str, on: &[&str], dwell_max_s: f64, seed: u64, n_train: u64) -> (Log, Log) {
     let disabled: Vec<&str> = OFF.iter().copied().filter(|e| !on.contains(e)).collect();
-    let opts = SequenceOptions {
-        n: Some(3000),
-        dwell_max_s: Some(dwell_max_s),
-        ..SequenceOptions::default()
-    };
-    let sim = |s: u64| {
+    let sim = |s: u64, n: u64| {
+        let opts = SequenceOptions {
+            n: Some(n),
+            dwell_max_s: Some(dwell_max_s),
+            ..SequenceOptions::default()
+        };
         simulate_log(&SimConfig::new(drive(file), "random", &opts, s, &disabled).unwrap()).unwrap()
     };
-    (sim(seed), sim(seed + 1000))
+    (sim(seed, n_train), sim(seed + 1000, 3000))
 }
 
 fn test_std(train: &Log, test: &Log, terms: &str) -> f64 {
@@ -133,8 +138,9 @@ fn drift_ranks_time_and_drift_fixes_it() {
 }
 
 /// P3: −direction·A·(1 − exp(−t/τ)) with t the time at the track; dwell 0.05–4 s so it matters.
-/// No built-in term models it (that is `examples/new_effect.rs`); the engine must still name
-/// `dwell_s` × direction and not suggest the even `bins:dwell_s`.
+/// No dedicated term models it (that is `examples/new_effect.rs`); the engine must name
+/// `dwell_s` × direction and suggest `dbins:dwell_s` (direction × piecewise-linear in the
+/// feature), never the even `bins:dwell_s`.
 #[test]
 fn time_at_track_ranks_dwell_by_direction() {
     let (train, test) = logs("diag_base.toml", &["time"], 4.0, 4);
@@ -148,12 +154,14 @@ fn time_at_track_ranks_dwell_by_direction() {
     let f = &d.features[0];
     assert_eq!(f.name, "dwell_s", "{}", d.to_text());
     assert!(f.flagged && f.by_direction, "{}", d.to_text());
-    assert_eq!(f.suggested_term, None);
+    assert_eq!(f.suggested_term.as_deref(), Some("dbins:dwell_s"));
 }
 
-/// Covariate: bias = … + 1.5·(temp_c − t0) in `diag_temperature.toml`.
+/// Covariate: bias = … + 1.5·(temp_c − t0) in `diag_temperature.toml` (the simulator's law).
+/// The slow temperature is confounded with `elapsed_s`/`seek_index`, which explain about as
+/// much; the near-tie rule (module docs of `biasctl::diagnose`) must rank the logged `temp_c`
+/// first because it explains the time features away.
 #[test]
-#[ignore = "known failure: the slow temperature is confounded with elapsed_s, which ranks 0.5 % above temp_c; needs the collinear-covariate preference"]
 fn temperature_covariate_ranks_first() {
     let (train, test) = logs("diag_temperature.toml", &["temperature"], 0.5, 5);
     let s = top(&train, &test, "poly2,dahl", &["temp_c"]);
@@ -168,13 +176,21 @@ fn temperature_covariate_ranks_first() {
 }
 
 /// A model holding every effect present (P1, P2, P8 only: poly2 + dahl, which is the
-/// simulator's eq. 8 element exactly) must raise no flag at 1 % in at least 9 of 10 seeds.
+/// simulator's eq. 8 element exactly) must raise no flag at 1 % in at least 9 of 10 seeds
+/// (seeds 100..=109, fixed and arbitrary; diagnosis seeds 0..=9).
+///
+/// The model is fitted on 30 000 seeks and tested on 3000. With a 3000-seek training log the
+/// fitted poly2 is off by 0.1–0.4 counts (its sampling error, collinear with the Dahl state),
+/// a TRUE position/direction-change structure in the test residual that the diagnosis
+/// rightly detects (2 of 10 seeds); the residual against the simulator's truth (measured −
+/// true bias) raises no flag in these seeds, nor does pure scatter. What remains in the
+/// measurement beyond the model is the servo's integrator carry-over, ≈ 0.0017 × the bias
+/// jump from the previous track (about 0.1 % of the residual variance), below detection here.
 #[test]
-#[ignore = "known failure: 2 of these 10 seeds flag at 1 % (direction_change, position); 0 of 10 with seeds 1..=10 in exploration"]
 fn complete_model_raises_no_false_alarm_in_nine_of_ten_seeds() {
     let mut alarms = Vec::new();
     for seed in 0..10u64 {
-        let (train, test) = logs("diag_base.toml", &[], 0.5, 100 + seed);
+        let (train, test) = logs_n("diag_base.toml", &[], 0.5, 100 + seed, 30_000);
         let model = fit(
             &ModelSpec::parse("poly2,dahl").unwrap(),
             &train,

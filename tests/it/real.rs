@@ -131,3 +131,47 @@ fn pneumatic_diagnose_ranks_pressure_first() {
     let v: serde_json::Value = serde_json::from_str(&j).unwrap();
     assert_eq!(v["features"][0]["name"], "pressure_bar", "{}", v["summary"]);
 }
+
+/// EMPS with position-direction only: the IDIM-LS model (Janot, Gautier, Brunot 2019) says the
+/// missing terms are M·a and Fv·v, so the two top features must be `accel_m_s2` and
+/// `velocity_m_s` (either order).
+#[test]
+#[ignore = "known failure: after accel_m_s2, since_reversal × direction explains 8.7 % beyond it, velocity_m_s 6.3 % (not a near-tie), so since_reversal ranks second"]
+fn emps_diagnose_points_at_acceleration_and_velocity() {
+    let data = need("emps/emps_estimation.csv");
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &data,
+        "--track-col",
+        "position_m",
+        "--bias-col",
+        "force_N",
+        "--model",
+        "position-direction",
+        "--out",
+        &model,
+    ]);
+    let j = ok(&[
+        "diagnose",
+        "--model",
+        &model,
+        "--data",
+        &data,
+        "--track-col",
+        "position_m",
+        "--bias-col",
+        "force_N",
+        "--json",
+        "--permutations",
+        "99",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&j).unwrap();
+    let mut top: Vec<&str> = (0..2)
+        .map(|i| v["features"][i]["name"].as_str().unwrap_or(""))
+        .collect();
+    top.sort_unstable();
+    assert_eq!(top, ["accel_m_s2", "velocity_m_s"], "{}", v["summary"]);
+}
