@@ -10,6 +10,8 @@
 //! calibration --seed 2k−1`), score it on a separate random run of 2000 seeks in a 250-track span
 //! (`simulate --sequence random --seed 2k --n 2000 --span 250`), k = 1..seeds. The first pair is
 //! the (seeds 1 and 2). Numbers are mean ± sample standard deviation over the pairs.
+//! One extra row fits position-direction on the Table I run alone (same seed), which is how the
+//! paper calibrates it: b_p and Fc from the two Fig. 3 curves.
 
 use biasctl::fit::{FitOptions, fit};
 use biasctl::model::ModelSpec;
@@ -19,12 +21,23 @@ use biasctl::settle::{HandoffTable, SettleSpec, worst_case_settle};
 use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
 use biasctl::stats::{mean, std_dev};
 
-/// (label, term list or preset, the paper's error std in counts).
-const MODELS: [(&str, &str, Option<f64>); 4] = [
-    ("position-direction", "position-direction", Some(19.0)),
-    ("calibration", "calibration", Some(7.9)),
-    ("dahl", "dahl", Some(11.5)),
-    ("poly2,dahl:4", "poly2,dahl:4", None),
+/// (label, term list or preset, training sequence, the paper's error std in counts).
+const MODELS: [(&str, &str, &str, Option<f64>); 5] = [
+    (
+        "position-direction",
+        "position-direction",
+        "calibration",
+        Some(19.0),
+    ),
+    ("calibration", "calibration", "calibration", Some(7.9)),
+    ("dahl", "dahl", "calibration", Some(11.5)),
+    ("poly2,dahl:4", "poly2,dahl:4", "calibration", None),
+    (
+        "position-direction, from Table I only",
+        "position-direction",
+        "table1",
+        Some(19.0),
+    ),
 ];
 
 fn spec(s: &str) -> Result<ModelSpec, biasctl::model::SpecError> {
@@ -71,18 +84,26 @@ fn main() -> anyhow::Result<()> {
     // scores[model][pair]
     let mut scores: Vec<Vec<Score>> = vec![Vec::new(); MODELS.len()];
     for k in 1..=seeds {
-        let train_cfg = SimConfig::new(
-            drive.clone(),
-            "calibration",
-            &SequenceOptions::default(),
-            2 * k - 1,
-            &[],
-        )?;
+        let train_log = |sequence: &str| {
+            let cfg = SimConfig::new(
+                drive.clone(),
+                sequence,
+                &SequenceOptions::default(),
+                2 * k - 1,
+                &[],
+            )?;
+            anyhow::Ok(simulate_log(&cfg)?)
+        };
+        let (calibration, table1) = (train_log("calibration")?, train_log("table1")?);
         let test_cfg = SimConfig::new(drive.clone(), "random", &test_opts, 2 * k, &[])?;
-        let train = simulate_log(&train_cfg)?;
         let test = simulate_log(&test_cfg)?;
-        for (m, (_, s, _)) in MODELS.iter().enumerate() {
-            let model = fit(&spec(s)?, &train, &FitOptions::default())?;
+        for (m, (_, s, train, _)) in MODELS.iter().enumerate() {
+            let train = if *train == "table1" {
+                &table1
+            } else {
+                &calibration
+            };
+            let model = fit(&spec(s)?, train, &FitOptions::default())?;
             let p = model.predict_log(&test)?;
             scores[m].push(score(&p.residual, &p.positions)?);
         }
@@ -98,7 +119,7 @@ fn main() -> anyhow::Result<()> {
         "| model | paper std | our std (counts) | seeds 1/2 | reduction vs pd | paper | bimodality coeff. (> 0.556 bimodal) | trend p (median) |"
     );
     println!("|---|---|---|---|---|---|---|---|");
-    for (m, (label, _, paper)) in MODELS.iter().enumerate() {
+    for (m, (label, _, _, paper)) in MODELS.iter().enumerate() {
         let std = col(m, &|s| s.std);
         let red: Vec<f64> = std
             .iter()
@@ -109,7 +130,7 @@ fn main() -> anyhow::Result<()> {
         let mut tp = col(m, &|s| s.trend.map_or(f64::NAN, |t| t.p_value));
         tp.sort_by(f64::total_cmp);
         let paper_red = paper.map_or("–".to_string(), |p| {
-            if m == 0 {
+            if *paper == Some(19.0) {
                 "–".into()
             } else {
                 format!("{:.0} %", 100.0 * (1.0 - p / 19.0))
@@ -142,11 +163,25 @@ fn main() -> anyhow::Result<()> {
     );
     println!("|---|---|---|---|");
     let ms = |v: Option<f64>| v.map_or("not settled".to_string(), |m| format!("{m:.2}"));
-    for (m, (label, _, _)) in MODELS.iter().enumerate() {
+    for (m, (label, _, _, _)) in MODELS.iter().enumerate() {
         let db = mean(&col(m, &|s| s.std)).unwrap_or(f64::NAN);
         let wc = worst_case_settle(&table, &h, &cfg.scenario.window, db)?;
         println!(
             "| `{label}` | {db:.2} | {} | {} |",
+            ms(wc.robust_worst_settle_ms),
+            ms(wc.zero_ff_worst_settle_ms)
+        );
+    }
+    // Where prediction error starts to cost settle time on this loop.
+    println!(
+        "\nWorst-case settle time against the bias uncertainty Δb (same preset; the robust start value is chosen for each Δb)\n"
+    );
+    println!("| Δb (counts) | robust choice (ms) | zero feedforward (ms) |");
+    println!("|---|---|---|");
+    for db in [0.0, 4.0, 8.0, 13.0, 19.0, 30.0, 50.0, 80.0] {
+        let wc = worst_case_settle(&table, &h, &cfg.scenario.window, db)?;
+        println!(
+            "| {db} | {} | {} |",
             ms(wc.robust_worst_settle_ms),
             ms(wc.zero_ff_worst_settle_ms)
         );
