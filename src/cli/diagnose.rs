@@ -2,7 +2,8 @@
 
 use super::predict::ModelLogArgs;
 use anyhow::Context;
-use biasctl::diagnose::{DiagnoseConfig, diagnose_model};
+use biasctl::diagnose::{DiagnoseConfig, PathStep, diagnose_model, suggestion_path};
+use biasctl::fit::FitOptions;
 use biasctl::log::Log;
 use biasctl::model::FittedModel;
 use biasctl::output::write_atomic;
@@ -32,6 +33,10 @@ pub struct Args {
     /// Cross-validation folds, 2..=50.
     #[arg(long, default_value_t = 5)]
     folds: usize,
+    /// Follow the advice N times: add the top feature's suggested term, refit on --data,
+    /// diagnose again; prints the path (and adds a `path` key to the JSON).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    path: usize,
 }
 
 /// Validates the settings, replays the model, diagnoses, prints and writes.
@@ -47,6 +52,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let model = FittedModel::load(&args.input.model)?;
     let log = Log::read(&args.input.log.data, &args.input.log.columns.map())?;
     let d = diagnose_model(&model, &log, &config)?;
+    let path = if args.path > 0 {
+        suggestion_path(&model, &log, &config, args.path, &FitOptions::default())?
+    } else {
+        Vec::new()
+    };
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let json = d.to_json();
@@ -54,7 +64,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         d.write_feature_csvs(dir)?;
     }
     if args.json {
-        println!("{}", d.to_json());
+        if args.path > 0 {
+            let mut v = serde_json::to_value(&d)?;
+            if let Some(obj) = v.as_object_mut() {
+                obj.insert("path".into(), serde_json::to_value(&path)?);
+            }
+            println!("{}", serde_json::to_string_pretty(&v)?);
+        } else {
+            println!("{}", d.to_json());
+        }
     } else {
         println!(
             "{}: model `{}`, {} measured rows",
@@ -63,9 +81,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             log.measured_count()
         );
         print!("{}", d.to_text());
+        if args.path > 0 {
+            print_path(&path, args.path);
+        }
         if let Some(dir) = &args.out {
             println!("wrote {}", dir.display());
         }
     }
     Ok(())
+}
+
+fn print_path(path: &[PathStep], asked: usize) {
+    println!("\nFollowing the advice (refit on this log after each step):");
+    for (i, p) in path.iter().enumerate() {
+        println!(
+            "  {}. `{}` ({:.1} % explained) → add `{}`: residual std {:.4} → {:.4} counts",
+            i + 1,
+            p.feature,
+            100.0 * p.explained,
+            p.term,
+            p.std_before,
+            p.std_after
+        );
+    }
+    if path.len() < asked {
+        println!(
+            "  (stopped after {} step(s): nothing flagged with a term left to add)",
+            path.len()
+        );
+    }
 }

@@ -106,7 +106,9 @@ mod smoother;
 pub use advice::{DAHL_TERM, Shape};
 pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
-pub use model::{ModelDiagnosisError, diagnose_model, ladder_fit, model_terms};
+pub use model::{
+    ModelDiagnosisError, PathStep, diagnose_model, ladder_fit, model_terms, suggestion_path,
+};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 
 use crate::history::Feature;

@@ -129,3 +129,80 @@ pub fn ladder_fit(
     }
     Ok(ladder(&inputs)?)
 }
+
+/// One step of a [`suggestion_path`]: the feature the residual followed most, the term added
+/// for it, and the residual std of the causal replay before and after refitting with it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PathStep {
+    /// The top flagged feature before this step.
+    pub feature: String,
+    /// The term suggested for it and added to the model.
+    pub term: String,
+    /// Its out-of-sample explained fraction of the residual variance before the step.
+    pub explained: f64,
+    /// The model's term list after the step.
+    pub spec: String,
+    /// Residual std before the step (counts, causal replay over the log).
+    pub std_before: f64,
+    /// Residual std after refitting with the term on the same log (in-sample for the model's
+    /// parameters; the diagnosis itself is cross-validated).
+    pub std_after: f64,
+}
+
+/// Follows the diagnosis's advice automatically, up to `steps` times: take the strongest flagged
+/// feature's suggested term, refit the model with it on `log`, diagnose again. Stops early when
+/// nothing is flagged or the top feature has no suggested term. This is the loop an engineer runs
+/// by hand ("add the suggested term, watch the error fall"), and it separates confounded
+/// candidates the way a refit does: a feature that only looked strong through the one before it
+/// drops out once that one is in the model.
+pub fn suggestion_path(
+    model: &FittedModel,
+    log: &Log,
+    config: &DiagnoseConfig,
+    steps: usize,
+    opts: &FitOptions,
+) -> Result<Vec<PathStep>, ModelDiagnosisError> {
+    let mut path = Vec::new();
+    let mut current = model.clone();
+    for step in 1..=steps {
+        let d = diagnose_model(&current, log, config)?;
+        let Some(top) = d.features.first().filter(|f| f.flagged) else {
+            break;
+        };
+        let Some(term) = top.suggested_term.clone() else {
+            break;
+        };
+        let spec_text = if current.spec.is_empty() {
+            term.clone()
+        } else {
+            format!("{},{term}", current.spec)
+        };
+        let spec = ModelSpec::parse(&spec_text).map_err(|source| ModelDiagnosisError::Spec {
+            step,
+            terms: spec_text.clone(),
+            source,
+        })?;
+        let next = fit(&spec, log, opts).map_err(|source| ModelDiagnosisError::Fit {
+            step,
+            terms: spec_text.clone(),
+            file: log.schema.file.clone(),
+            source: Box::new(source),
+        })?;
+        let after = next
+            .predict_log(log)
+            .map_err(|source| ModelDiagnosisError::Replay {
+                file: log.schema.file.clone(),
+                source,
+            })?;
+        path.push(PathStep {
+            feature: top.name.clone(),
+            term,
+            explained: top.explained,
+            spec: spec_text,
+            std_before: d.residual_std,
+            std_after: crate::stats::std_dev(&after.residual).unwrap_or(0.0),
+        });
+        current = next;
+    }
+    Ok(path)
+}
