@@ -252,7 +252,7 @@ fn every_plot_kind_works_from_the_command_line() {
                 "not moved yet",
             ],
         ),
-        ("time", vec!["--data", &log], vec!["measured"]),
+        ("time", vec!["--data", &log], vec!["measured", "fit"]),
         (
             "seek",
             vec!["--data", &log],
