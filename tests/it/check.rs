@@ -49,3 +49,28 @@ fn check_reports_line_and_column_of_bad_values_with_exit_2() {
         &["/nonexistent/x.csv", "cannot read"],
     );
 }
+
+/// `biasctl … | head`: when the reader closes the pipe early the command must end quietly
+/// (killed by SIGPIPE like other Unix tools), not panic with "Broken pipe".
+#[cfg(unix)]
+#[test]
+fn closed_stdout_pipe_ends_quietly() {
+    use std::io::Read;
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_biasctl"))
+        .args(["settle", "--preset", "paper1997", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away before anything is read
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    child.wait().unwrap();
+    assert!(!err.contains("panicked"), "{err}");
+}
