@@ -1268,7 +1268,7 @@ pub fn data_report(
         format!("models fitted: {} of {}", scored.len(), DATA_MODELS.len()),
         match best {
             Some(b) => format!(
-                "lowest test error std: {} ({} )",
+                "lowest test error std: {} counts (`{}`, fitted on the first half, scored on the second)",
                 fmt_num(b.score.std),
                 b.label
             ),
@@ -1278,7 +1278,14 @@ pub fn data_report(
             Some(u) => format!("your model: error std {}", fmt_num(u.score.std)),
             None => "no model of yours given (--model)".into(),
         },
-        format!("not fitted: {}", failures.len()),
+        if failures.is_empty() {
+            "every model could be fitted".into()
+        } else {
+            format!(
+                "{} model(s) could not be fitted on this log (see the report)",
+                failures.len()
+            )
+        },
     ];
     Ok(StoryOutcome {
         report,
