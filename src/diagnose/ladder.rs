@@ -64,6 +64,18 @@ pub fn ladder(steps: &[LadderInput]) -> Result<Ladder, DiagnoseError> {
     Ok(Ladder { steps })
 }
 
+impl LadderStep {
+    /// This step's terms that `previous` lacks, in this step's order (the `+ term` of a rung;
+    /// `previous.added_since(self)` gives the terms dropped).
+    pub fn added_since<'a>(&'a self, previous: &LadderStep) -> Vec<&'a str> {
+        self.terms
+            .iter()
+            .filter(|t| !previous.terms.contains(t))
+            .map(String::as_str)
+            .collect()
+    }
+}
+
 impl Ladder {
     /// A text table: step, the terms (as `+ added` after the first step), std and reduction.
     pub fn to_text(&self) -> String {
@@ -71,22 +83,13 @@ impl Ladder {
             "{:<4} {:<40} {:>10} {:>10}\n",
             "step", "terms", "std", "reduction"
         );
-        let mut previous: Option<&Vec<String>> = None;
+        let mut previous: Option<&LadderStep> = None;
         for (i, s) in self.steps.iter().enumerate() {
             let terms = match previous {
                 None => s.terms.join(", "),
                 Some(prev) => {
-                    let added: Vec<&str> = s
-                        .terms
-                        .iter()
-                        .filter(|t| !prev.contains(t))
-                        .map(String::as_str)
-                        .collect();
-                    let removed: Vec<&str> = prev
-                        .iter()
-                        .filter(|t| !s.terms.contains(t))
-                        .map(String::as_str)
-                        .collect();
+                    let added = s.added_since(prev);
+                    let removed = prev.added_since(s);
                     let mut parts: Vec<String> = added.iter().map(|t| format!("+ {t}")).collect();
                     parts.extend(removed.iter().map(|t| format!("- {t}")));
                     if parts.is_empty() {
@@ -103,7 +106,7 @@ impl Ladder {
                 short(s.std),
                 100.0 * s.reduction
             ));
-            previous = Some(&s.terms);
+            previous = Some(s);
         }
         out
     }
@@ -144,6 +147,8 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("60.0%"), "{text}");
+        assert_eq!(l.steps[2].added_since(&l.steps[1]), ["memory"]);
+        assert!(l.steps[1].added_since(&l.steps[2]).is_empty());
         let v: serde_json::Value = serde_json::from_str(&l.to_json()).unwrap();
         let keys: Vec<&String> = v["steps"][0].as_object().unwrap().keys().collect();
         assert_eq!(keys, ["reduction", "std", "terms"]);

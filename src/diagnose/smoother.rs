@@ -241,6 +241,19 @@ pub(crate) struct CvResult {
     pub mse: f64,
 }
 
+/// Mean of the rows outside one fold: (`sum` − `fold_sum`) / (`cnt` − `fold_cnt`), or `empty`
+/// when no rows remain. With the totals it is the training mean of a fold; with one bin's
+/// totals, the out-of-fold prediction for that bin.
+#[inline]
+fn held_out_mean(sum: f64, cnt: f64, fold_sum: f64, fold_cnt: f64, empty: f64) -> f64 {
+    let rest = cnt - fold_cnt;
+    if rest > 0.0 {
+        (sum - fold_sum) / rest
+    } else {
+        empty
+    }
+}
+
 /// Cross-validates the binned-mean smoother of `b` on centred residuals `y` with fold labels
 /// `fold` (0..folds). The prediction for a held-out row is the mean of the training rows in its
 /// bin, or the training mean when its bin has no training rows.
@@ -292,23 +305,13 @@ pub(crate) fn cross_validate(b: &Binned, y: &[f64], fold: &[u32], folds: usize) 
         }
         let mut sse = 0.0;
         for f in 0..folds {
-            let train_cnt = total_cnt - fold_cnt[f];
-            let train_mean = if train_cnt > 0.0 {
-                (total_sum - fold_sum[f]) / train_cnt
-            } else {
-                0.0
-            };
+            let train_mean = held_out_mean(total_sum, total_cnt, fold_sum[f], fold_cnt[f], 0.0);
             for s in 0..m {
                 let k = f * m + s;
                 if cc[k] <= 0.0 {
                     continue;
                 }
-                let tc = bin_cnt[s] - cc[k];
-                let p = if tc > 0.0 {
-                    (bin_sum[s] - cs[k]) / tc
-                } else {
-                    train_mean
-                };
+                let p = held_out_mean(bin_sum[s], bin_cnt[s], cs[k], cc[k], train_mean);
                 sse += (cq[k] - 2.0 * p * cs[k] + cc[k] * p * p).max(0.0);
             }
         }
@@ -478,20 +481,10 @@ pub(crate) fn cv_predict(
     // Prediction per (fold, slot).
     let mut pred = vec![0.0; folds * m];
     for f in 0..folds {
-        let train_cnt = total_cnt - fold_cnt[f];
-        let train_mean = if train_cnt > 0.0 {
-            (total_sum - fold_sum[f]) / train_cnt
-        } else {
-            0.0
-        };
+        let train_mean = held_out_mean(total_sum, total_cnt, fold_sum[f], fold_cnt[f], 0.0);
         for s in 0..m {
             let k = f * m + s;
-            let tc = bin_cnt[s] - cc[k];
-            pred[k] = if tc > 0.0 {
-                (bin_sum[s] - cs[k]) / tc
-            } else {
-                train_mean
-            };
+            pred[k] = held_out_mean(bin_sum[s], bin_cnt[s], cs[k], cc[k], train_mean);
         }
     }
     (0..y.len())

@@ -231,24 +231,16 @@ pub fn diagnose_panel(
 
 /// The ladder's bars: the first step's terms, then `+ term` for each added term.
 pub fn ladder(l: &Ladder) -> String {
-    let mut previous: Option<&Vec<String>> = None;
+    let mut previous = None;
     let steps: Vec<figures::LadderStep> = l
         .steps
         .iter()
         .map(|s| {
             let term = match previous {
                 None => s.terms.join(" + "),
-                Some(prev) => {
-                    let added: Vec<&str> = s
-                        .terms
-                        .iter()
-                        .filter(|t| !prev.contains(t))
-                        .map(String::as_str)
-                        .collect();
-                    format!("+ {}", added.join(" + "))
-                }
+                Some(prev) => format!("+ {}", s.added_since(prev).join(" + ")),
             };
-            previous = Some(&s.terms);
+            previous = Some(s);
             figures::LadderStep {
                 term,
                 error_std: s.std,

@@ -8,7 +8,7 @@
 //! 10 % of the model holding every matching term.
 
 use crate::common::{biasctl, data, fails_with, ok, write};
-use biasctl::diagnose::{DiagnoseConfig, diagnose_model, ladder_fit};
+use biasctl::diagnose::{DiagnoseConfig, Diagnosis, diagnose_model, ladder_fit};
 use biasctl::fit::{FitOptions, fit};
 use biasctl::log::Log;
 use biasctl::model::ModelSpec;
@@ -57,16 +57,21 @@ fn test_std(train: &Log, test: &Log, terms: &str) -> f64 {
         .std
 }
 
-/// Diagnoses `base` fitted on train, on test; asserts the top feature is one of `expected`,
-/// returns its suggested term.
-fn top(train: &Log, test: &Log, base: &str, expected: &[&str]) -> Option<String> {
+/// Fits `base` on train and diagnoses it on test with `config`.
+fn diagnose_fit(train: &Log, test: &Log, base: &str, config: &DiagnoseConfig) -> Diagnosis {
     let model = fit(
         &ModelSpec::parse(base).unwrap(),
         train,
         &FitOptions::default(),
     )
     .unwrap();
-    let d = diagnose_model(&model, test, &DiagnoseConfig::default()).unwrap();
+    diagnose_model(&model, test, config).unwrap()
+}
+
+/// Diagnoses `base` fitted on train, on test; asserts the top feature is one of `expected`,
+/// returns its suggested term.
+fn top(train: &Log, test: &Log, base: &str, expected: &[&str]) -> Option<String> {
+    let d = diagnose_fit(train, test, base, &DiagnoseConfig::default());
     let f = &d.features[0];
     assert!(
         expected.contains(&f.name.as_str()) && f.flagged,
@@ -144,13 +149,7 @@ fn drift_ranks_time_and_drift_fixes_it() {
 #[test]
 fn time_at_track_ranks_dwell_by_direction() {
     let (train, test) = logs("diag_base.toml", &["time"], 4.0, 4);
-    let model = fit(
-        &ModelSpec::parse("poly2,dahl").unwrap(),
-        &train,
-        &FitOptions::default(),
-    )
-    .unwrap();
-    let d = diagnose_model(&model, &test, &DiagnoseConfig::default()).unwrap();
+    let d = diagnose_fit(&train, &test, "poly2,dahl", &DiagnoseConfig::default());
     let f = &d.features[0];
     assert_eq!(f.name, "dwell_s", "{}", d.to_text());
     assert!(f.flagged && f.by_direction, "{}", d.to_text());
@@ -191,17 +190,11 @@ fn complete_model_raises_no_false_alarm_in_nine_of_ten_seeds() {
     let mut alarms = Vec::new();
     for seed in 0..10u64 {
         let (train, test) = logs_n("diag_base.toml", &[], 0.5, 100 + seed, 30_000);
-        let model = fit(
-            &ModelSpec::parse("poly2,dahl").unwrap(),
-            &train,
-            &FitOptions::default(),
-        )
-        .unwrap();
         let config = DiagnoseConfig {
             seed,
             ..DiagnoseConfig::default()
         };
-        let d = diagnose_model(&model, &test, &config).unwrap();
+        let d = diagnose_fit(&train, &test, "poly2,dahl", &config);
         if d.features.iter().any(|f| f.flagged) {
             alarms.push((seed, d.features[0].name.clone()));
         }
@@ -229,21 +222,19 @@ fn sim_file(dir: &std::path::Path, name: &str, seed: &str, n: &str) -> String {
     p
 }
 
+/// `fit --terms terms` of the log `data` into `dir/m.json`; returns that path.
+fn fit_file(dir: &std::path::Path, data: &str, terms: &str) -> String {
+    let model = dir.join("m.json").display().to_string();
+    ok(&["fit", "--data", data, "--terms", terms, "--out", &model]);
+    model
+}
+
 #[test]
 fn cli_diagnose_and_ladder_contracts() {
     let dir = tempfile::tempdir().unwrap();
     let train = sim_file(dir.path(), "train.csv", "1", "2000");
     let test = sim_file(dir.path(), "test.csv", "2", "2000");
-    let model = dir.path().join("m.json").display().to_string();
-    ok(&[
-        "fit",
-        "--data",
-        &train,
-        "--terms",
-        "poly2,dahl",
-        "--out",
-        &model,
-    ]);
+    let model = fit_file(dir.path(), &train, "poly2,dahl");
     let out = dir.path().join("diag").display().to_string();
     let json = ok(&[
         "diagnose",
@@ -330,16 +321,7 @@ fn cli_bad_inputs_exit_2_with_a_clear_message() {
         "--out",
         &train,
     ]);
-    let model = dir.path().join("m.json").display().to_string();
-    ok(&[
-        "fit",
-        "--data",
-        &train,
-        "--terms",
-        "poly2,direction,col:temp_c",
-        "--out",
-        &model,
-    ]);
+    let model = fit_file(dir.path(), &train, "poly2,direction,col:temp_c");
     // Different column names: the model needs temp_c, this log has none.
     let other = write(dir.path(), "other.csv", &{
         let mut s = String::from("time_s,track,bias,humidity\n");

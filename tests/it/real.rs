@@ -7,6 +7,49 @@ fn need(rel: &str) -> String {
     real_data(rel).unwrap_or_else(|| panic!("real data `{rel}` missing under ../shared/data/real"))
 }
 
+/// `fit` of `data` (track column `track`, bias column `force_N`) with the model chosen by
+/// `model` (e.g. `["--model", "position-direction"]`), written to `out`.
+fn fit(data: &str, track: &str, model: &[&str], out: &str) {
+    let mut args = vec![
+        "fit",
+        "--data",
+        data,
+        "--track-col",
+        track,
+        "--bias-col",
+        "force_N",
+        "--out",
+        out,
+    ];
+    args.extend(model);
+    ok(&args);
+}
+
+/// Fits the real log `rel` with the position-direction model, then `diagnose --json
+/// --permutations 99` plus `extra` against it; returns the parsed report.
+fn diagnose_position_direction(rel: &str, track: &str, extra: &[&str]) -> serde_json::Value {
+    let data = need(rel);
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json").display().to_string();
+    fit(&data, track, &["--model", "position-direction"], &model);
+    let mut args = vec![
+        "diagnose",
+        "--model",
+        &model,
+        "--data",
+        &data,
+        "--track-col",
+        track,
+        "--bias-col",
+        "force_N",
+        "--json",
+        "--permutations",
+        "99",
+    ];
+    args.extend(extra);
+    serde_json::from_str(&ok(&args)).unwrap()
+}
+
 /// EMPS: `direction,col:velocity_m_s,col:accel_m_s2` plus the intercept is the benchmark's
 /// IDIM-LS model with sign(velocity) replaced by the direction of the last position change.
 /// Reference: Janot, Gautier, Brunot 2019, M = 95.1 kg, Fv = 203.5 N·s/m, Fc = 20.39 N,
@@ -16,19 +59,12 @@ fn emps_recovers_the_published_idim_ls_parameters() {
     let data = need("emps/emps_estimation.csv");
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.json").display().to_string();
-    ok(&[
-        "fit",
-        "--data",
+    fit(
         &data,
-        "--track-col",
         "position_m",
-        "--bias-col",
-        "force_N",
-        "--terms",
-        "direction,col:velocity_m_s,col:accel_m_s2",
-        "--out",
+        &["--terms", "direction,col:velocity_m_s,col:accel_m_s2"],
         &model,
-    ]);
+    );
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     let text = v.to_string();
@@ -60,37 +96,7 @@ fn emps_recovers_the_published_idim_ls_parameters() {
 /// EMPS with position-direction only: the acceleration column (M·a) must rank first.
 #[test]
 fn emps_diagnose_points_at_acceleration() {
-    let data = need("emps/emps_estimation.csv");
-    let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("m.json").display().to_string();
-    ok(&[
-        "fit",
-        "--data",
-        &data,
-        "--track-col",
-        "position_m",
-        "--bias-col",
-        "force_N",
-        "--model",
-        "position-direction",
-        "--out",
-        &model,
-    ]);
-    let j = ok(&[
-        "diagnose",
-        "--model",
-        &model,
-        "--data",
-        &data,
-        "--track-col",
-        "position_m",
-        "--bias-col",
-        "force_N",
-        "--json",
-        "--permutations",
-        "99",
-    ]);
-    let v: serde_json::Value = serde_json::from_str(&j).unwrap();
+    let v = diagnose_position_direction("emps/emps_estimation.csv", "position_m", &[]);
     assert_eq!(v["features"][0]["name"], "accel_m_s2", "{}", v["summary"]);
 }
 
@@ -98,37 +104,7 @@ fn emps_diagnose_points_at_acceleration() {
 /// `pressure_bar` must rank first.
 #[test]
 fn pneumatic_diagnose_ranks_pressure_first() {
-    let data = need("pneumatic/oring257_1-7bar.csv");
-    let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("m.json").display().to_string();
-    ok(&[
-        "fit",
-        "--data",
-        &data,
-        "--track-col",
-        "position_mm",
-        "--bias-col",
-        "force_N",
-        "--model",
-        "position-direction",
-        "--out",
-        &model,
-    ]);
-    let j = ok(&[
-        "diagnose",
-        "--model",
-        &model,
-        "--data",
-        &data,
-        "--track-col",
-        "position_mm",
-        "--bias-col",
-        "force_N",
-        "--json",
-        "--permutations",
-        "99",
-    ]);
-    let v: serde_json::Value = serde_json::from_str(&j).unwrap();
+    let v = diagnose_position_direction("pneumatic/oring257_1-7bar.csv", "position_mm", &[]);
     assert_eq!(v["features"][0]["name"], "pressure_bar", "{}", v["summary"]);
 }
 
@@ -139,25 +115,7 @@ fn pneumatic_diagnose_ranks_pressure_first() {
 /// advice (`--path 2`: add the suggested term, refit, diagnose again) names velocity next.
 #[test]
 fn emps_diagnose_points_at_acceleration_and_velocity() {
-    let data = need("emps/emps_estimation.csv");
-    let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("m.json").display().to_string();
-    let cols = ["--track-col", "position_m", "--bias-col", "force_N"];
-    let mut fit_args = vec![
-        "fit",
-        "--data",
-        &data,
-        "--model",
-        "position-direction",
-        "--out",
-        &model,
-    ];
-    fit_args.extend(cols);
-    ok(&fit_args);
-    let mut args = vec!["diagnose", "--model", &model, "--data", &data, "--json"];
-    args.extend(cols);
-    args.extend(["--permutations", "99", "--path", "2"]);
-    let v: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
+    let v = diagnose_position_direction("emps/emps_estimation.csv", "position_m", &["--path", "2"]);
     assert_eq!(v["features"][0]["name"], "accel_m_s2", "{}", v["summary"]);
     let path: Vec<&str> = (0..2)
         .map(|i| v["path"][i]["feature"].as_str().unwrap_or(""))

@@ -314,6 +314,26 @@ fn settle_bad_plant_descriptions_exit_2_and_write_nothing() {
     );
 }
 
+/// `simulate --sequence random --n n --seed seed --out out` on the default drive.
+fn simulate_random(n: &str, seed: &str, out: &str) {
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        n,
+        "--seed",
+        seed,
+        "--out",
+        out,
+    ]);
+}
+
+/// `fit --data data --model preset --out out`.
+fn fit_preset(data: &str, preset: &str, out: &str) {
+    ok(&["fit", "--data", data, "--model", preset, "--out", out]);
+}
+
 /// `settle --model --data`: the handoff bias is the model's causal prediction for the log's last
 /// row. Reference: the `predict` command's `predicted` column for that row (the same replay by
 /// another path), and Δb is the fit's residual std from the model file; the worst case must equal
@@ -322,37 +342,9 @@ fn settle_bad_plant_descriptions_exit_2_and_write_nothing() {
 fn settle_with_model_uses_the_prediction_for_the_last_target_and_the_error_std() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).display().to_string();
-    ok(&[
-        "simulate",
-        "--sequence",
-        "random",
-        "--n",
-        "400",
-        "--seed",
-        "3",
-        "--out",
-        &p("train.csv"),
-    ]);
-    ok(&[
-        "simulate",
-        "--sequence",
-        "random",
-        "--n",
-        "200",
-        "--seed",
-        "4",
-        "--out",
-        &p("test.csv"),
-    ]);
-    ok(&[
-        "fit",
-        "--data",
-        &p("train.csv"),
-        "--model",
-        "calibration",
-        "--out",
-        &p("m.json"),
-    ]);
+    simulate_random("400", "3", &p("train.csv"));
+    simulate_random("200", "4", &p("test.csv"));
+    fit_preset(&p("train.csv"), "calibration", &p("m.json"));
     ok(&[
         "predict",
         "--model",
@@ -420,26 +412,8 @@ fn settle_with_model_uses_the_prediction_for_the_last_target_and_the_error_std()
 fn settle_with_model_bad_inputs_exit_2() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).display().to_string();
-    ok(&[
-        "simulate",
-        "--sequence",
-        "random",
-        "--n",
-        "200",
-        "--seed",
-        "3",
-        "--out",
-        &p("log.csv"),
-    ]);
-    ok(&[
-        "fit",
-        "--data",
-        &p("log.csv"),
-        "--model",
-        "position-direction",
-        "--out",
-        &p("m.json"),
-    ]);
+    simulate_random("200", "3", &p("log.csv"));
+    fit_preset(&p("log.csv"), "position-direction", &p("m.json"));
     fails_with(&["settle", "--model", &p("m.json")], &["--data"]);
     fails_with(
         &[

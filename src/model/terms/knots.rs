@@ -57,6 +57,37 @@ pub fn decaying_hinges(knots: &[f64], a: f64, out: &mut [f64]) {
     }
 }
 
+/// Writes the basis of a term with one decaying-hinge curve per slot of `knots.len()` values:
+/// all zero, then, for `Some((curve, a))`, the hinges of distance `a` into that curve's slot.
+#[inline]
+pub fn curve_hinges(knots: &[f64], at: Option<(usize, f64)>, out: &mut [f64]) {
+    out.fill(0.0);
+    if let Some((c, a)) = at {
+        let k = knots.len();
+        decaying_hinges(knots, a, &mut out[c * k..(c + 1) * k]);
+    }
+}
+
+/// Curve of the approach direction in `[out, in]` order: 0 for −1 (outbound), 1 for +1
+/// (inbound), `None` before the first move.
+#[inline]
+pub fn direction_side(direction: i8) -> Option<usize> {
+    match direction {
+        1 => Some(1),
+        -1 => Some(0),
+        _ => None,
+    }
+}
+
+/// Spec string of a knotted term: `head`, or `head:K` when `k` is not the default.
+pub fn spec_name(head: &str, k: usize, default: usize) -> String {
+    if k == default {
+        head.into()
+    } else {
+        format!("{head}:{k}")
+    }
+}
+
 /// Short label of a knot position for parameter names (`40`, `12.5`).
 pub fn label(k: f64) -> String {
     crate::log::fmt_trimmed(k, 3)

@@ -9,7 +9,7 @@
 //! exactly zero beyond the largest knot. **No rest position ahead is represented as an infinite
 //! distance: the contribution is 0** (the same as a rest position too far away to matter).
 
-use super::knots::{curve_param_names, decaying_hinges, quantile_knots};
+use super::knots::{curve_hinges, curve_param_names, direction_side, quantile_knots, spec_name};
 use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -28,11 +28,7 @@ pub struct MemorySpec {
 
 impl TermSpec for MemorySpec {
     fn name(&self) -> String {
-        if self.knots == DEFAULT_KNOTS {
-            "memory".into()
-        } else {
-            format!("memory:{}", self.knots)
-        }
+        spec_name("memory", self.knots, DEFAULT_KNOTS)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let d = data.measured_values(|s| s.features.rest_distance_ahead());
@@ -72,17 +68,9 @@ impl Term for MemoryTerm {
 
 impl TermState for MemoryTerm {
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
-        out.fill(0.0);
-        let k = self.knots.len();
         let f = seek.features;
-        let side = match f.direction {
-            1 => 1,
-            -1 => 0,
-            _ => return,
-        };
-        if let Some(d) = f.rest_distance_ahead() {
-            decaying_hinges(&self.knots, d, &mut out[side * k..(side + 1) * k]);
-        }
+        let at = direction_side(f.direction).zip(f.rest_distance_ahead());
+        curve_hinges(&self.knots, at, out);
     }
     fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
     fn clone_box(&self) -> Box<dyn TermState> {

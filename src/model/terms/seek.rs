@@ -9,7 +9,7 @@
 //! direction at `a = 0`; the first seek (no direction yet) contributes 0. Coefficients in counts
 //! (the curve's value at `a = 0` is the sum of its coefficients weighted by `k_j/k_max`).
 
-use super::knots::{curve_param_names, decaying_hinges, quantile_knots};
+use super::knots::{curve_hinges, curve_param_names, direction_side, quantile_knots, spec_name};
 use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -28,11 +28,7 @@ pub struct SeekSpec {
 
 impl TermSpec for SeekSpec {
     fn name(&self) -> String {
-        if self.knots == DEFAULT_KNOTS {
-            "seek".into()
-        } else {
-            format!("seek:{}", self.knots)
-        }
+        spec_name("seek", self.knots, DEFAULT_KNOTS)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let a = data.measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
@@ -59,11 +55,7 @@ impl SeekTerm {
     /// Which of the four curves a seek uses, or `None` before the first move.
     pub fn curve(seek: &Seek<'_>) -> Option<usize> {
         let f = seek.features;
-        let side = match f.direction {
-            1 => 1,
-            -1 => 0,
-            _ => return None,
-        };
+        let side = direction_side(f.direction)?;
         Some(2 * usize::from(f.direction_change) + side)
     }
 }
@@ -88,15 +80,8 @@ impl Term for SeekTerm {
 
 impl TermState for SeekTerm {
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
-        out.fill(0.0);
-        let k = self.knots.len();
-        if let Some(c) = Self::curve(seek) {
-            decaying_hinges(
-                &self.knots,
-                seek.features.seek_length.abs(),
-                &mut out[c * k..(c + 1) * k],
-            );
-        }
+        let at = Self::curve(seek).map(|c| (c, seek.features.seek_length.abs()));
+        curve_hinges(&self.knots, at, out);
     }
     fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
     fn clone_box(&self) -> Box<dyn TermState> {
