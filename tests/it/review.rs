@@ -1,0 +1,78 @@
+//! Regressions from a first-use review: inputs a user tries that broke the README's contract
+//! (exit 2 with a message, no panic, no NaN/inf in outputs, nothing half-written).
+
+use crate::common::{fails_with, write};
+use std::process::{Command, Stdio};
+
+/// A small log with 60 measured rows spread over the stroke; `bias_scale` multiplies the bias.
+fn log_text(bias_scale: f64) -> String {
+    let mut s = String::from("time_s,track,bias\n");
+    for i in 0..60u32 {
+        let track = (i * 397) % 2999;
+        let bias =
+            (30.0 + 0.01 * f64::from(track) + if i % 2 == 0 { 5.0 } else { -5.0 }) * bias_scale;
+        s.push_str(&format!("{:.1},{track},{bias}\n", f64::from(i) * 0.1));
+    }
+    s
+}
+
+#[test]
+fn printing_into_a_closed_pipe_does_not_panic() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_biasctl"))
+        .args(["settle", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away before biasctl prints
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_ne!(out.status.code(), Some(101), "{stderr}");
+}
+
+#[test]
+fn one_column_cannot_be_two_roles() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = write(dir.path(), "log.csv", &log_text(1.0));
+    let out = dir.path().join("m.json");
+    fails_with(
+        &[
+            "fit",
+            "--data",
+            &f,
+            "--bias-col",
+            "time_s",
+            "--model",
+            "position-direction",
+            "--out",
+            &out.display().to_string(),
+        ],
+        &["--time-col", "--bias-col", "`time_s`"],
+    );
+    assert!(!out.exists());
+    fails_with(
+        &["check", "--data", &f, "--track-col", "bias"],
+        &["--track-col", "--bias-col", "`bias`"],
+    );
+}
+
+#[test]
+fn an_error_cause_is_not_printed_twice() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = write(dir.path(), "log.csv", &log_text(1.0));
+    let out = dir.path().join("missing").join("m.json");
+    let err = fails_with(
+        &[
+            "fit",
+            "--data",
+            &f,
+            "--model",
+            "position-direction",
+            "--out",
+            &out.display().to_string(),
+        ],
+        &["cannot write", "m.json"],
+    );
+    assert_eq!(err.matches("No such file").count(), 1, "{err}");
+}
