@@ -1,7 +1,7 @@
 //! Regressions from a first-use review: inputs a user tries that broke the README's contract
 //! (exit 2 with a message, no panic, no NaN/inf in outputs, nothing half-written).
 
-use crate::common::{fails_with, write};
+use crate::common::{fails_with, ok, write};
 use std::process::{Command, Stdio};
 
 /// A small log with 60 measured rows spread over the stroke; `bias_scale` multiplies the bias.
@@ -14,6 +14,30 @@ fn log_text(bias_scale: f64) -> String {
         s.push_str(&format!("{:.1},{track},{bias}\n", f64::from(i) * 0.1));
     }
     s
+}
+
+fn no_nonfinite(text: &str, what: &str) {
+    for cell in text.split([',', '\n', ' ', '"', ':']) {
+        let c = cell.trim().to_ascii_lowercase();
+        assert!(
+            !matches!(c.as_str(), "nan" | "inf" | "-inf" | "+inf" | "infinity"),
+            "{what} holds a non-finite value `{cell}`"
+        );
+    }
+}
+
+#[test]
+fn settle_bounds_csv_has_no_infinities() {
+    let dir = tempfile::tempdir().unwrap();
+    let bounds = dir.path().join("b.csv").display().to_string();
+    let resp = dir.path().join("r.csv").display().to_string();
+    ok(&["settle", "--bounds-out", &bounds, "--response-out", &resp]);
+    let b = std::fs::read_to_string(&bounds).unwrap();
+    no_nonfinite(&b, "bounds CSV");
+    // k = 0 has no bound: empty cells, and the row keeps its six fields.
+    let row0 = b.lines().nth(1).unwrap();
+    assert_eq!(row0, "0,0.0000000,,,,", "{row0}");
+    no_nonfinite(&std::fs::read_to_string(&resp).unwrap(), "responses CSV");
 }
 
 #[test]
@@ -55,6 +79,16 @@ fn one_column_cannot_be_two_roles() {
         &["check", "--data", &f, "--track-col", "bias"],
         &["--track-col", "--bias-col", "`bias`"],
     );
+}
+
+#[test]
+fn settle_text_says_when_zero_feedforward_does_not_settle() {
+    let out = ok(&["settle", "--horizon", "5"]);
+    assert!(
+        out.contains("zero feedforward: does not settle within the horizon"),
+        "{out}"
+    );
+    assert!(!out.contains("settles in not settled"), "{out}");
 }
 
 #[test]
