@@ -82,6 +82,27 @@ fn one_column_cannot_be_two_roles() {
 }
 
 #[test]
+fn fit_that_overflows_fails_instead_of_writing_nan() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = write(dir.path(), "huge.csv", &log_text(1e300));
+    let out = dir.path().join("m.json");
+    let err = fails_with(
+        &[
+            "fit",
+            "--data",
+            &f,
+            "--model",
+            "position-direction",
+            "--out",
+            &out.display().to_string(),
+        ],
+        &["huge.csv", "overflows", "rescale"],
+    );
+    assert!(!err.contains("NaN"), "{err}");
+    assert!(!out.exists(), "a model file was written");
+}
+
+#[test]
 fn settle_text_says_when_zero_feedforward_does_not_settle() {
     let out = ok(&["settle", "--horizon", "5"]);
     assert!(
