@@ -1268,15 +1268,18 @@ pub fn data_report(
         format!("models fitted: {} of {}", scored.len(), DATA_MODELS.len()),
         match best {
             Some(b) => format!(
-                "lowest test error std: {} ({} )",
+                "lowest test error std: {} ({})",
                 fmt_num(b.score.std),
                 b.label
             ),
             None => "no model scored".into(),
         },
-        match &user {
-            Some(u) => format!("your model: error std {}", fmt_num(u.score.std)),
-            None => "no model of yours given (--model)".into(),
+        match (&user, model) {
+            (Some(u), _) => format!("your model: error std {}", fmt_num(u.score.std)),
+            (None, Some(_)) => {
+                "your model (--model) could not be scored on this log; see the report".into()
+            }
+            (None, None) => "no model of yours given (--model)".into(),
         },
         format!("not fitted: {}", failures.len()),
     ];

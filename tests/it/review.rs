@@ -1,7 +1,8 @@
 //! Regressions from a first-use review: inputs a user tries that broke the README's contract
 //! (exit 2 with a message, no panic, no NaN/inf in outputs, nothing half-written).
 
-use crate::common::{fails_with, ok, write};
+use crate::common::{biasctl, fails_with, ok, write};
+use std::fmt::Write as _;
 use std::process::{Command, Stdio};
 
 /// A small log with 60 measured rows spread over the stroke; `bias_scale` multiplies the bias.
@@ -103,6 +104,25 @@ fn fit_that_overflows_fails_instead_of_writing_nan() {
 }
 
 #[test]
+fn report_rejects_too_few_or_too_many_seeks_before_writing_anything() {
+    let dir = tempfile::tempdir().unwrap();
+    for n in ["1", "49", "1000001"] {
+        let out = dir.path().join(format!("r{n}"));
+        fails_with(
+            &["report", "--seeks", n, "--out", &out.display().to_string()],
+            &["--seeks", "50"],
+        );
+        assert!(!out.exists(), "--seeks {n} left {}", out.display());
+    }
+    let out = dir.path().join("demo");
+    fails_with(
+        &["demo", "--seeks", "10", "--out", &out.display().to_string()],
+        &["--seeks"],
+    );
+    assert!(!out.exists());
+}
+
+#[test]
 fn settle_text_says_when_zero_feedforward_does_not_settle() {
     let out = ok(&["settle", "--horizon", "5"]);
     assert!(
@@ -130,4 +150,39 @@ fn an_error_cause_is_not_printed_twice() {
         &["cannot write", "m.json"],
     );
     assert_eq!(err.matches("No such file").count(), 1, "{err}");
+}
+
+#[test]
+fn report_summary_says_when_the_users_model_could_not_be_scored() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut with_cov = String::from("time_s,track,bias,temp_c\n");
+    for (i, line) in log_text(1.0).lines().skip(1).enumerate() {
+        writeln!(with_cov, "{line},{}", 20.0 + 0.1 * i as f64).unwrap();
+    }
+    let train = write(dir.path(), "train.csv", &with_cov);
+    let plain = write(dir.path(), "plain.csv", &log_text(1.0));
+    let model = dir.path().join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &train,
+        "--terms",
+        "poly2,col:temp_c",
+        "--out",
+        &model,
+    ]);
+    let out = dir.path().join("rep").display().to_string();
+    let r = biasctl(&["report", "--data", &plain, "--model", &model, "--out", &out]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        r.stdout
+            .contains("your model (--model) could not be scored"),
+        "{}",
+        r.stdout
+    );
+    assert!(
+        !r.stdout.contains("no model of yours given"),
+        "{}",
+        r.stdout
+    );
 }
