@@ -186,3 +186,37 @@ fn report_summary_says_when_the_users_model_could_not_be_scored() {
         r.stdout
     );
 }
+
+#[test]
+fn plot_time_rejects_a_track_without_measurements() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = write(dir.path(), "log.csv", &log_text(1.0));
+    for track in ["7", "nan"] {
+        let out = dir.path().join(format!("t{track}.svg"));
+        fails_with(
+            &[
+                "plot",
+                "time",
+                "--data",
+                &f,
+                "--track",
+                track,
+                "--out",
+                &out.display().to_string(),
+            ],
+            &["--track", "no measured row"],
+        );
+        assert!(
+            !out.exists(),
+            "an empty figure was written for --track {track}"
+        );
+    }
+    let out = dir.path().join("t.svg").display().to_string();
+    ok(&[
+        "plot", "time", "--data", &f, "--track", "397", "--out", &out,
+    ]);
+    fails_with(
+        &["plot", "seek", "--data", &f, "--test", &f, "--out", &out],
+        &["--test is for `plot ladder`"],
+    );
+}
