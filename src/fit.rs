@@ -86,6 +86,18 @@ pub enum FitError {
     /// A term could not start on this log.
     #[error(transparent)]
     Model(#[from] ModelError),
+    /// The values are so large that the fit's sums of squares overflow.
+    #[error(
+        "{file}: the fit overflows: its residual sum of squares is not a finite number (largest |bias| {max_abs:.3e}, largest |position| {max_pos:.3e}); rescale the bias or position column"
+    )]
+    Overflow {
+        /// The log file.
+        file: String,
+        /// Largest measured |bias| in the log.
+        max_abs: f64,
+        /// Largest |position| in the log.
+        max_pos: f64,
+    },
 }
 
 /// Fit settings.
@@ -678,6 +690,18 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
     model.fit.residual_std = crate::stats::std_dev(&pred.residual).unwrap_or(0.0);
     model.fit.residual_rms = crate::stats::rms(&pred.residual).unwrap_or(0.0);
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
+    let f = &model.fit;
+    if ![f.residual_std, f.residual_rms, f.r2, sse, sst]
+        .iter()
+        .all(|v| v.is_finite())
+    {
+        let max_of = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0_f64, |m, x| m.max(x.abs()));
+        return Err(FitError::Overflow {
+            file: log.schema.file.clone(),
+            max_abs: max_of(&mut log.rows.iter().filter_map(|r| r.bias)),
+            max_pos: max_of(&mut log.rows.iter().map(|r| r.track)),
+        });
+    }
     Ok(model)
 }
 

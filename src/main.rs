@@ -3,22 +3,34 @@
 
 mod cli;
 
-use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
     restore_sigpipe();
-    let args = cli::Cli::parse();
+    let args = match cli::parse() {
+        Ok(args) => args,
+        Err(e) => e.exit(),
+    };
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err}");
-            for cause in err.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
-            }
+            eprintln!("{}", error_text(&err));
             ExitCode::from(2)
         }
     }
+}
+
+/// The error and its causes, one per line; a cause whose text the lines above already contain
+/// (an error that prints its source inside its own message) is not repeated.
+fn error_text(err: &anyhow::Error) -> String {
+    let mut text = format!("error: {err}");
+    for cause in err.chain().skip(1) {
+        let c = cause.to_string();
+        if !text.contains(&c) {
+            text.push_str(&format!("\n  caused by: {c}"));
+        }
+    }
+    text
 }
 
 /// Restores the default action of SIGPIPE, so that `biasctl … | head` ends quietly when the
@@ -26,7 +38,8 @@ fn main() -> ExitCode {
 /// runtime ignores SIGPIPE by default).
 #[cfg(unix)]
 fn restore_sigpipe() {
-    // SAFETY: called once at start-up, before any thread exists; SIG_DFL is a valid handler.
+    // SAFETY: called first thing in `main`, before any other thread exists; SIG_DFL is a valid
+    // disposition for SIGPIPE.
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }

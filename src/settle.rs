@@ -776,7 +776,8 @@ pub struct WorstCase {
 
 impl SettleReport {
     /// The bounds of Fig. 15 as CSV: `k,time_s,upper,lower,upper_min,lower_max` (start values in
-    /// µm·samples relative to the converged value; time in s).
+    /// µm·samples relative to the converged value; time in s). A bound that does not exist at a
+    /// sample (at k = 0 no start value puts e(0) = −step in the window) is an empty cell.
     pub fn bounds_csv(&self) -> String {
         let b = &self.bounds;
         let mut s = String::from("k,time_s,upper,lower,upper_min,lower_max\n");
@@ -784,10 +785,10 @@ impl SettleReport {
             s.push_str(&format!(
                 "{k},{:.7},{},{},{},{}\n",
                 k as f64 * self.ts_s,
-                b.upper()[k],
-                b.lower()[k],
-                b.upper_min()[k],
-                b.lower_max()[k]
+                csv_cell(b.upper()[k]),
+                csv_cell(b.lower()[k]),
+                csv_cell(b.upper_min()[k]),
+                csv_cell(b.lower_max()[k])
             ));
         }
         s
@@ -805,13 +806,23 @@ impl SettleReport {
             s.push_str(&format!("{k},{:.7}", k as f64 * self.ts_s));
             for x in &self.responses {
                 match x.e_um.get(k) {
-                    Some(e) => s.push_str(&format!(",{e}")),
+                    Some(e) => s.push_str(&format!(",{}", csv_cell(*e))),
                     None => s.push(','),
                 }
             }
             s.push('\n');
         }
         s
+    }
+}
+
+/// A CSV cell: the number, or an empty cell where it is not finite (no bound exists at that
+/// sample, or the response overflowed), so the file never holds `inf` or `NaN`.
+fn csv_cell(x: f64) -> String {
+    if x.is_finite() {
+        x.to_string()
+    } else {
+        String::new()
     }
 }
 

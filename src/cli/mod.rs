@@ -15,7 +15,7 @@ mod score;
 mod settle;
 mod simulate;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 /// biasctl: predict, diagnose and compensate disk-drive actuator bias.
 #[derive(Debug, Parser)]
@@ -49,6 +49,41 @@ enum Command {
     Ladder(ladder::Args),
     /// Settle-optimal integrator start value at the seek → track-following handoff.
     Settle(settle::Args),
+}
+
+/// Parses the command line (exiting on `--help`, `--version` and flag errors, as clap does)
+/// and checks what clap cannot: that `--time-col`, `--track-col` and `--bias-col` name three
+/// different columns.
+pub fn parse() -> Result<Cli, clap::Error> {
+    let mut cmd = Cli::command();
+    let matches = cmd.get_matches_mut();
+    if let Some((_, sub)) = matches.subcommand()
+        && let Some(msg) = column_clash(sub)
+    {
+        return Err(cmd.error(clap::error::ErrorKind::ArgumentConflict, msg));
+    }
+    Cli::from_arg_matches(&matches).map_err(|e| e.format(&mut cmd))
+}
+
+/// A message when two of the column flags (or their defaults) name the same column.
+fn column_clash(m: &clap::ArgMatches) -> Option<String> {
+    let get = |id: &str| m.try_get_one::<String>(id).ok().flatten();
+    let cols = [
+        ("--time-col", get("time_col")?),
+        ("--track-col", get("track_col")?),
+        ("--bias-col", get("bias_col")?),
+    ];
+    for i in 0..cols.len() {
+        for j in i + 1..cols.len() {
+            if cols[i].1 == cols[j].1 {
+                return Some(format!(
+                    "{} and {} both name the column `{}`; time, position and bias each need their own column",
+                    cols[i].0, cols[j].0, cols[i].1
+                ));
+            }
+        }
+    }
+    None
 }
 
 /// Runs the parsed command.

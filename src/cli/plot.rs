@@ -101,8 +101,10 @@ fn check_flags(a: &Args) -> anyhow::Result<()> {
     if a.track.is_some() && a.kind != Kind::Time {
         bail!("plot {k}: --track is for `plot time`");
     }
-    if a.test.is_some() != (a.kind == Kind::Ladder) {
-        bail!("plot ladder needs --test TEST.csv, and only plot ladder takes it");
+    match (a.kind == Kind::Ladder, a.test.is_some()) {
+        (true, false) => bail!("plot ladder needs --test TEST.csv"),
+        (false, true) => bail!("plot {k}: --test is for `plot ladder`"),
+        _ => {}
     }
     match a.kind {
         Kind::Errors | Kind::Loop | Kind::Diagnose if a.model.is_none() => {
@@ -163,7 +165,24 @@ fn draw(a: &Args) -> anyhow::Result<String> {
             Some(name) => views::position(&log, Some(&model(name, &log)?.1))?,
             None => from_log::bias_vs_position(&log),
         },
-        Kind::Time => from_log::bias_vs_time(&log, a.track),
+        Kind::Time => {
+            if let Some(t) = a.track {
+                let measured = log
+                    .rows
+                    .iter()
+                    .filter(|r| r.bias.is_some() && r.track.total_cmp(&t).is_eq())
+                    .count();
+                if measured == 0 {
+                    bail!(
+                        "--track {t}: {} has no measured row at {} {t}; leave --track out to \
+                         plot the most-measured track",
+                        data.display(),
+                        log.schema.map.track
+                    );
+                }
+            }
+            from_log::bias_vs_time(&log, a.track)
+        }
         Kind::Seek => from_log::bias_vs_seek_length(&log),
         Kind::Errors => {
             let mut preds = Vec::new();

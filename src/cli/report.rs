@@ -9,6 +9,9 @@ use biasctl::model::FittedModel;
 use biasctl::report::story::{StoryOptions, StoryOutcome, data_report, demo_report};
 use std::path::PathBuf;
 
+/// Largest `--seeks` of `report` and `demo`.
+pub const MAX_SEEKS: u64 = 1_000_000;
+
 /// Flags of `biasctl report`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -33,8 +36,15 @@ pub struct Args {
 
 /// Runs the story with a progress bar; returns what was written.
 pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
-    if args.seeks == 0 {
-        anyhow::bail!("--seeks 0: give at least 1 random seek");
+    // The diagnosis of the test run needs its cross-validation's minimum of measured rows; the
+    // upper limit keeps the in-memory logs (and the files beside the report) to a few hundred MB.
+    let min = biasctl::diagnose::DiagnoseConfig::default().min_rows() as u64;
+    if !(min..=MAX_SEEKS).contains(&args.seeks) {
+        anyhow::bail!(
+            "--seeks {}: give {min} to {MAX_SEEKS} random seeks (the diagnosis of the test run \
+             needs at least {min} measured rows)",
+            args.seeks
+        );
     }
     let opts = StoryOptions {
         seed: args.seed,

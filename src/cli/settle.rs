@@ -144,8 +144,11 @@ fn print_text(r: &SettleReport) {
         r.step_um, r.window_um, r.horizon, r.hold, r.z_converged
     );
     println!(
-        "zero feedforward: settles in {} (overshoot {:.1} %)",
-        ms(r.zero_ff_settle_ms),
+        "zero feedforward: {} (overshoot {:.1} %)",
+        r.zero_ff_settle_ms
+            .map_or("does not settle within the horizon".to_string(), |m| {
+                format!("settles in {m:.2} ms")
+            }),
         r.zero_ff_overshoot_pct
     );
     match (r.k_star, r.ff_interval) {

@@ -1274,9 +1274,12 @@ pub fn data_report(
             ),
             None => "no model scored".into(),
         },
-        match &user {
-            Some(u) => format!("your model: error std {}", fmt_num(u.score.std)),
-            None => "no model of yours given (--model)".into(),
+        match (&user, model) {
+            (Some(u), _) => format!("your model: error std {}", fmt_num(u.score.std)),
+            (None, Some(_)) => {
+                "your model (--model) could not be scored on this log; see the report".into()
+            }
+            (None, None) => "no model of yours given (--model)".into(),
         },
         if failures.is_empty() {
             "every model could be fitted".into()

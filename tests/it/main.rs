@@ -9,5 +9,6 @@ mod model;
 mod plot;
 mod real;
 mod report;
+mod review;
 mod settle;
 mod sim;
