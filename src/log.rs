@@ -236,6 +236,14 @@ impl<R: Read> LogReader<R> {
             file: file.to_string(),
             source,
         };
+        // A UTF-8 byte-order mark (as spreadsheet exports write) is not part of the first line.
+        if buf
+            .fill_buf()
+            .map_err(io_err)?
+            .starts_with(&[0xEF, 0xBB, 0xBF])
+        {
+            buf.consume(3);
+        }
         let mut metadata = Vec::new();
         let mut line_no = 0u64;
         // Metadata: lines starting with '#' (blank lines are allowed) before the header.
@@ -643,6 +651,24 @@ mod tests {
             );
             assert!(err.starts_with("t.csv"), "{err}");
         }
+    }
+
+    #[test]
+    fn byte_order_mark_before_metadata_or_header_is_skipped() {
+        for text in [
+            "\u{feff}# seed = 1\ntime_s,track,bias\n0,1,2\n",
+            "\u{feff}time_s,track,bias\n0,1,2\n",
+        ] {
+            let log = read(text).expect(text);
+            assert_eq!(log.rows[0].bias, Some(2.0), "{text:?}");
+        }
+        assert_eq!(
+            read("\u{feff}# seed = 1\ntime_s,track,bias\n0,1,2\n")
+                .unwrap()
+                .schema
+                .metadata_value("seed"),
+            Some("1")
+        );
     }
 
     #[test]

@@ -58,6 +58,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Vec::new()
     };
     if let Some(dir) = &args.out {
+        if dir.exists() && !dir.is_dir() {
+            anyhow::bail!(
+                "--out {}: is a file; --out takes a directory",
+                dir.display()
+            );
+        }
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let json = d.to_json();
         write_atomic(&dir.join("diagnosis.json"), |w| writeln!(w, "{json}"))?;

@@ -123,7 +123,7 @@ pub enum ModelError {
     },
     /// The log's required columns are named differently from the ones the model was fitted on.
     #[error(
-        "the model was fitted with {what} column `{model}`, but this log is read with `{log}`; pass {flag} {model} or refit"
+        "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({flag}); the names must match: read a log that has `{model}` with {flag} {model}, or refit the model on this log"
     )]
     ColumnMismatch {
         /// Which column (time, track, bias).

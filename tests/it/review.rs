@@ -220,3 +220,42 @@ fn plot_time_rejects_a_track_without_measurements() {
         &["--test is for `plot ladder`"],
     );
 }
+
+/// `diagnose --out` must name a directory: an existing file is refused with that explanation.
+#[test]
+fn diagnose_out_that_is_a_file_is_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "200",
+        "--seed",
+        "5",
+        "--out",
+        &p("log.csv"),
+    ]);
+    ok(&[
+        "fit",
+        "--data",
+        &p("log.csv"),
+        "--model",
+        "position-direction",
+        "--out",
+        &p("m.json"),
+    ]);
+    fails_with(
+        &[
+            "diagnose",
+            "--model",
+            &p("m.json"),
+            "--data",
+            &p("log.csv"),
+            "--out",
+            &p("log.csv"),
+        ],
+        &["--out", "is a file", "takes a directory"],
+    );
+}
