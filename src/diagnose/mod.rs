@@ -107,7 +107,8 @@ pub use advice::{DAHL_TERM, Shape};
 pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
-    ModelDiagnosisError, PathStep, diagnose_model, ladder_fit, model_terms, suggestion_path,
+    ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, ladder_fit, model_terms,
+    replay_model, suggestion_path,
 };
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 

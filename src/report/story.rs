@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 
 use super::{Cell, Report, Table};
 use crate::diagnose::{
-    DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError, diagnose_model,
-    ladder_fit,
+    DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError, diagnose_residual,
+    ladder_fit, replay_model,
 };
 use crate::fit::{FitError, FitOptions, fit};
 use crate::history::History;
@@ -634,13 +634,18 @@ pub fn demo_report(
 
     steps.start("diagnosing the position-direction residual");
     let dcfg = diagnose_config(opts);
-    let diagnosis = diagnose_model(&scored[0].model, &random, &dcfg)?;
+    let table = FeatureTable::from_log(&random);
+    let diagnosis = diagnose_residual(
+        &scored[0].model,
+        &table,
+        &scored[0].prediction.residual,
+        &dcfg,
+    )?;
     out.text(
         "diagnosis.json",
         &diagnosis.to_json(),
         "diagnosis of the position-direction model on random.csv",
     )?;
-    let table = FeatureTable::from_log(&random);
 
     steps.start("building the ladder");
     let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
@@ -1209,23 +1214,28 @@ pub fn data_report(
     };
     {
         let s = r.section("What diagnose finds");
-        match dmodel.map(|m| (m, diagnose_model(m, dlog, &dcfg))) {
-            Some((m, Ok(d))) => {
+        let diagnosed = dmodel.map(|m| {
+            let residual = replay_model(m, dlog)?.residual;
+            let table = FeatureTable::from_log(dlog);
+            let d = diagnose_residual(m, &table, &residual, &dcfg)?;
+            Ok::<_, ModelDiagnosisError>((d, table, residual))
+        });
+        match diagnosed {
+            Some(Ok((d, table, residual))) => {
                 out.text(
                     "diagnosis.json",
                     &d.to_json(),
                     &format!("diagnosis of {dname}"),
                 )?;
-                let residual = m.predict_log(dlog).map(|p| p.residual).unwrap_or_default();
                 s.paragraph(format!("The residual of {dname}."))
                     .paragraph(d.summary.clone())
                     .table(diagnosis_table(&d, 6))
                     .figure(
-                        views::diagnose_panel(&d, &FeatureTable::from_log(dlog), &residual, 6),
+                        views::diagnose_panel(&d, &table, &residual, 6),
                         "The residual against each top feature: binned mean ± standard error.",
                     );
             }
-            Some((_, Err(e))) => {
+            Some(Err(e)) => {
                 s.paragraph(format!("No diagnosis: {}.", error_chain(&e)));
             }
             None => {
