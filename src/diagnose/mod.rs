@@ -108,7 +108,7 @@ pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
     ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, ladder_fit, model_terms,
-    replay_model, suggestion_path,
+    replay_model, suggestion_path, suggestion_path_from,
 };
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 

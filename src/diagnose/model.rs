@@ -175,15 +175,28 @@ pub fn suggestion_path(
     steps: usize,
     opts: &FitOptions,
 ) -> Result<Vec<PathStep>, ModelDiagnosisError> {
-    let mut path = Vec::new();
     if steps == 0 {
-        return Ok(path);
+        return Ok(Vec::new());
     }
-    let table = FeatureTable::from_log(log);
+    let first = diagnose_model(model, log, config)?;
+    suggestion_path_from(model, log, first, config, steps, opts)
+}
+
+/// [`suggestion_path`] for a caller that already has `first`, the result of
+/// [`diagnose_model`]`(model, log, config)`, so the model is not diagnosed twice.
+pub fn suggestion_path_from(
+    model: &FittedModel,
+    log: &Log,
+    first: Diagnosis,
+    config: &DiagnoseConfig,
+    steps: usize,
+    opts: &FitOptions,
+) -> Result<Vec<PathStep>, ModelDiagnosisError> {
+    let mut path = Vec::new();
+    let mut table = None;
     let mut current = model.clone();
-    let mut residual = replay_model(&current, log)?.residual;
+    let mut d = first;
     for step in 1..=steps {
-        let d = diagnose_residual(&current, &table, &residual, config)?;
         let Some(top) = d.features.first().filter(|f| f.flagged) else {
             break;
         };
@@ -215,8 +228,11 @@ pub fn suggestion_path(
             std_before: d.residual_std,
             std_after: crate::stats::std_dev(&after.residual).unwrap_or(0.0),
         });
+        if step < steps {
+            let table = table.get_or_insert_with(|| FeatureTable::from_log(log));
+            d = diagnose_residual(&next, table, &after.residual, config)?;
+        }
         current = next;
-        residual = after.residual;
     }
     Ok(path)
 }
