@@ -220,6 +220,11 @@ fn fit_named(spec: &str, label: &str, log: &Log) -> Result<FittedModel, StoryErr
     })
 }
 
+/// A model label as part of a file name: the term-list separators `,` and `:` become `_`.
+fn file_stem(label: &str) -> String {
+    label.replace([',', ':'], "_")
+}
+
 fn pretty<T: serde::Serialize>(v: &T) -> String {
     serde_json::to_string_pretty(v).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
 }
@@ -611,16 +616,17 @@ pub fn demo_report(
     let mut scored = Vec::new();
     for (label, terms) in STORY_MODELS {
         steps.start(&format!("fitting {label}"));
+        let stem = file_stem(label);
         let model = fit_named(terms, label, &calibration)?;
         out.text(
-            &format!("model_{}.json", label.replace([',', ':'], "_")),
+            &format!("model_{stem}.json"),
             &model.to_json(),
             &format!("{label} model fitted on calibration.csv"),
         )?;
         let prediction = model.predict_log(&random)?;
         let sc = score(&prediction.residual, &prediction.positions)?;
         out.text(
-            &format!("score_{}.json", label.replace([',', ':'], "_")),
+            &format!("score_{stem}.json"),
             &pretty(&sc),
             &format!("{label} scored on random.csv"),
         )?;
@@ -1120,7 +1126,7 @@ pub fn data_report(
         };
         match attempt() {
             Ok(s) => {
-                let stem = label.replace([',', ':'], "_");
+                let stem = file_stem(label);
                 out.text(
                     &format!("model_{stem}.json"),
                     &s.model.to_json(),
