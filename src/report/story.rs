@@ -461,7 +461,7 @@ struct Scored {
     score: Score,
 }
 
-fn score_table(scored: &[Scored], caption: &str) -> Table {
+fn score_table<'a>(scored: impl IntoIterator<Item = &'a Scored>, caption: &str) -> Table {
     let mut t = Table::new(&[
         "model",
         "terms",
@@ -1174,16 +1174,10 @@ pub fn data_report(
         if all.is_empty() {
             s.paragraph("No model could be fitted and scored on this log.");
         } else {
-            let owned: Vec<Scored> = all
-                .iter()
-                .map(|x| Scored {
-                    label: x.label.clone(),
-                    model: x.model.clone(),
-                    prediction: x.prediction.clone(),
-                    score: x.score.clone(),
-                })
-                .collect();
-            s.table(score_table(&owned, "Prediction error on the test rows"));
+            s.table(score_table(
+                all.iter().copied(),
+                "Prediction error on the test rows",
+            ));
             let preds: Vec<(&str, &Prediction)> = all
                 .iter()
                 .take(4)
