@@ -1203,19 +1203,30 @@ pub fn data_report(
 
     steps.start("diagnosing");
     let dcfg = diagnose_config(opts);
-    let (dmodel, dlog, dname): (Option<&FittedModel>, &Log, &str) = match (model, scored.first()) {
-        (Some(m), _) => (Some(m), log, "your model on the whole log"),
-        (None, Some(s)) => (
-            Some(&s.model),
-            &test,
-            "position-direction on the second half",
-        ),
-        (None, None) => (None, log, ""),
-    };
+    // The replay scored above, when there is one, is the one the diagnosis needs.
+    let (dmodel, dpred, dlog, dname): (Option<&FittedModel>, Option<&Prediction>, &Log, &str) =
+        match (model, scored.first()) {
+            (Some(m), _) => (
+                Some(m),
+                user.as_ref().map(|u| &u.prediction),
+                log,
+                "your model on the whole log",
+            ),
+            (None, Some(s)) => (
+                Some(&s.model),
+                Some(&s.prediction),
+                &test,
+                "position-direction on the second half",
+            ),
+            (None, None) => (None, None, log, ""),
+        };
     {
         let s = r.section("What diagnose finds");
         let diagnosed = dmodel.map(|m| {
-            let residual = replay_model(m, dlog)?.residual;
+            let residual = match dpred {
+                Some(p) => p.residual.clone(),
+                None => replay_model(m, dlog)?.residual,
+            };
             let table = FeatureTable::from_log(dlog);
             let d = diagnose_residual(m, &table, &residual, &dcfg)?;
             Ok::<_, ModelDiagnosisError>((d, table, residual))
