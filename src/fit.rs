@@ -682,10 +682,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
         warnings,
     };
     let pred = model.predict_log(log)?;
-    let sst: f64 = {
-        let m = crate::stats::mean(&pred.measured).unwrap_or(0.0);
-        pred.measured.iter().map(|y| (y - m) * (y - m)).sum()
-    };
+    let sst = crate::stats::sum_sq_about_mean(&pred.measured);
     let sse: f64 = pred.residual.iter().map(|e| e * e).sum();
     model.fit.residual_std = crate::stats::std_dev(&pred.residual).unwrap_or(0.0);
     model.fit.residual_rms = crate::stats::rms(&pred.residual).unwrap_or(0.0);

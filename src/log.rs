@@ -43,12 +43,19 @@ pub struct ColumnMap {
     pub bias: String,
 }
 
+/// Default name of the time column (s).
+pub const DEFAULT_TIME_COL: &str = "time_s";
+/// Default name of the position column (tracks).
+pub const DEFAULT_TRACK_COL: &str = "track";
+/// Default name of the measured-bias column (counts).
+pub const DEFAULT_BIAS_COL: &str = "bias";
+
 impl Default for ColumnMap {
     fn default() -> Self {
         Self {
-            time: "time_s".into(),
-            track: "track".into(),
-            bias: "bias".into(),
+            time: DEFAULT_TIME_COL.into(),
+            track: DEFAULT_TRACK_COL.into(),
+            bias: DEFAULT_BIAS_COL.into(),
         }
     }
 }

@@ -417,8 +417,9 @@ impl Interval {
 pub struct HandoffSolution {
     /// The minimum settle index k* and the optimal interval; `None` if nothing settles.
     pub optimal: Option<Interval>,
-    /// The first interval at least 2s wide (s = |∂z/∂d|·Δb); its midpoint is the robust choice
-    /// and `k` its worst-case settle index.
+    /// The first interval at least 2s wide (s = |∂z/∂d|·Δb); its [`Interval::choice`] with
+    /// margin s (the midpoint when both ends are finite) is the robust choice and `k` its
+    /// worst-case settle index.
     pub robust: Option<Interval>,
     /// Worst-case settle index of zero feedforward for the true start in [−s, s].
     pub zero_ff_worst: Option<usize>,
@@ -933,7 +934,9 @@ pub struct SettleReport {
     pub optimal_settle_ms: Option<f64>,
     /// [L*(k*), U*(k*)]: the optimal start values relative to the converged value.
     pub ff_interval: Option<[f64; 2]>,
-    /// Midpoint of the optimal interval.
+    /// The start value chosen in the optimal interval ([`Interval::choice`] with no margin): its
+    /// midpoint when both ends are finite, otherwise the value closest to zero feedforward (0)
+    /// inside it. Relative to the converged value, µm·samples.
     pub ff_midpoint: Option<f64>,
     /// Settle time of zero feedforward in ms.
     pub zero_ff_settle_ms: Option<f64>,

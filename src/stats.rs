@@ -12,6 +12,12 @@ pub fn mean(x: &[f64]) -> Option<f64> {
     (!x.is_empty()).then(|| x.iter().sum::<f64>() / x.len() as f64)
 }
 
+/// Sum of squared deviations from the mean, Σ(x − x̄)²; 0 for an empty slice.
+pub fn sum_sq_about_mean(x: &[f64]) -> f64 {
+    let m = mean(x).unwrap_or(0.0);
+    x.iter().map(|v| (v - m) * (v - m)).sum()
+}
+
 /// Sample standard deviation (divisor n − 1); `None` for fewer than two values.
 pub fn std_dev(x: &[f64]) -> Option<f64> {
     if x.len() < 2 {

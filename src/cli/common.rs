@@ -1,7 +1,7 @@
 //! Flags shared by several commands.
 
 use anyhow::Context;
-use biasctl::log::ColumnMap;
+use biasctl::log::{ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL};
 use biasctl::settle::SettleSpec;
 use clap::Args;
 use std::path::PathBuf;
@@ -10,14 +10,26 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, Args)]
 pub struct ColumnArgs {
     /// Name of the time column (seconds).
-    #[arg(long, default_value = "time_s", value_name = "NAME")]
+    #[arg(long, default_value = DEFAULT_TIME_COL, value_name = "NAME")]
     pub time_col: String,
     /// Name of the position column (the seek target; tracks or any position unit).
-    #[arg(long, default_value = "track", value_name = "NAME")]
+    #[arg(long, default_value = DEFAULT_TRACK_COL, value_name = "NAME")]
     pub track_col: String,
     /// Name of the measured-bias column (counts or any force unit).
-    #[arg(long, default_value = "bias", value_name = "NAME")]
+    #[arg(long, default_value = DEFAULT_BIAS_COL, value_name = "NAME")]
     pub bias_col: String,
+}
+
+impl Default for ColumnArgs {
+    /// The default column names, as when no flag is given.
+    fn default() -> Self {
+        let m = ColumnMap::default();
+        Self {
+            time_col: m.time,
+            track_col: m.track,
+            bias_col: m.bias,
+        }
+    }
 }
 
 impl ColumnArgs {

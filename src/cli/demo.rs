@@ -26,11 +26,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let outcome = story(&super::report::Args {
         out: args.out,
         data: None,
-        columns: ColumnArgs {
-            time_col: "time_s".into(),
-            track_col: "track".into(),
-            bias_col: "bias".into(),
-        },
+        columns: ColumnArgs::default(),
         model: None,
         seed: args.seed,
         seeks: args.seeks,

@@ -2,7 +2,7 @@
 
 use super::predict::ModelLogArgs;
 use anyhow::Context;
-use biasctl::diagnose::{DiagnoseConfig, PathStep, diagnose_model, suggestion_path};
+use biasctl::diagnose::{DiagnoseConfig, PathStep, diagnose_model, suggestion_path_from};
 use biasctl::fit::FitOptions;
 use biasctl::log::Log;
 use biasctl::model::FittedModel;
@@ -53,7 +53,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let log = Log::read(&args.input.log.data, &args.input.log.columns.map())?;
     let d = diagnose_model(&model, &log, &config)?;
     let path = if args.path > 0 {
-        suggestion_path(&model, &log, &config, args.path, &FitOptions::default())?
+        let first = d.clone();
+        suggestion_path_from(
+            &model,
+            &log,
+            first,
+            &config,
+            args.path,
+            &FitOptions::default(),
+        )?
     } else {
         Vec::new()
     };

@@ -3,7 +3,9 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::{Context, bail};
-use biasctl::diagnose::{DiagnoseConfig, FeatureTable, diagnose_model, ladder_fit};
+use biasctl::diagnose::{
+    DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, replay_model,
+};
 use biasctl::fit::{FitOptions, fit};
 use biasctl::log::Log;
 use biasctl::model::{FittedModel, ModelSpec};
@@ -196,9 +198,10 @@ fn draw(a: &Args) -> anyhow::Result<String> {
         Kind::Loop => views::dahl_loop(&single()?.predict_log(&log)?),
         Kind::Diagnose => {
             let m = single()?;
-            let d = diagnose_model(&m, &log, &DiagnoseConfig::default())?;
-            let residual = m.predict_log(&log)?.residual;
-            views::diagnose_panel(&d, &FeatureTable::from_log(&log), &residual, a.top)
+            let residual = replay_model(&m, &log)?.residual;
+            let table = FeatureTable::from_log(&log);
+            let d = diagnose_residual(&m, &table, &residual, &DiagnoseConfig::default())?;
+            views::diagnose_panel(&d, &table, &residual, a.top)
         }
         Kind::Ladder => {
             let test_path = a.test.as_ref().context("--test")?;

@@ -107,7 +107,8 @@ pub use advice::{DAHL_TERM, Shape};
 pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
-    ModelDiagnosisError, PathStep, diagnose_model, ladder_fit, model_terms, suggestion_path,
+    ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, ladder_fit, model_terms,
+    replay_model, suggestion_path, suggestion_path_from,
 };
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 
@@ -331,15 +332,10 @@ impl Signed {
     fn new(y: &[f64], direction: &[f64]) -> Signed {
         let y: Vec<f64> = y.iter().zip(direction).map(|(r, d)| r * d).collect();
         Signed {
-            sst: sum_sq_about_mean(&y),
+            sst: stats::sum_sq_about_mean(&y),
             y,
         }
     }
-}
-
-fn sum_sq_about_mean(y: &[f64]) -> f64 {
-    let m = stats::mean(y).unwrap_or(0.0);
-    y.iter().map(|v| (v - m) * (v - m)).sum()
 }
 
 /// Whether the direction-signed analysis applies to `col`: every feature but `direction`
@@ -588,7 +584,7 @@ fn gain(
     };
     let cv = smoother::cross_validate(b, r, fold, folds);
     let mut g = Gain {
-        explained: frac(sum_sq_about_mean(r) / n, cv.mse),
+        explained: frac(stats::sum_sq_about_mean(r) / n, cv.mse),
         shift: cv.shift,
         by_direction: false,
     };
@@ -828,7 +824,7 @@ fn permutation_test(
                     for ((s, p), d) in perm_signed.iter_mut().zip(&perm).zip(d) {
                         *s = p * d;
                     }
-                    sum_sq_about_mean(&perm_signed)
+                    stats::sum_sq_about_mean(&perm_signed)
                 }
                 None => 0.0,
             };

@@ -6,7 +6,7 @@ use super::{
 };
 use crate::fit::{FitError, FitOptions, fit};
 use crate::log::Log;
-use crate::model::{FittedModel, ModelError, ModelSpec, SpecError};
+use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
 
 /// An error diagnosing a model or building a ladder: which stage failed and why.
 #[derive(Debug, thiserror::Error)]
@@ -71,20 +71,38 @@ pub fn diagnose_model(
     log: &Log,
     config: &DiagnoseConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
-    let prediction = model
-        .predict_log(log)
-        .map_err(|source| ModelDiagnosisError::Replay {
-            file: log.schema.file.clone(),
-            source,
-        })?;
+    let prediction = replay_model(model, log)?;
     let table = FeatureTable::from_log(log);
+    diagnose_residual(model, &table, &prediction.residual, config)
+}
+
+/// [`diagnose_model`] for a caller that has already replayed `model` over the log: `table` is
+/// [`FeatureTable::from_log`] of that log and `residual` the replay's residual (counts, one per
+/// measured row), so neither is computed again.
+pub fn diagnose_residual(
+    model: &FittedModel,
+    table: &FeatureTable,
+    residual: &[f64],
+    config: &DiagnoseConfig,
+) -> Result<Diagnosis, ModelDiagnosisError> {
     let mut config = config.clone();
     for t in model_terms(model) {
         if !config.existing_terms.contains(&t) {
             config.existing_terms.push(t);
         }
     }
-    Ok(diagnose(&table, &prediction.residual, &config)?)
+    Ok(diagnose(table, residual, &config)?)
+}
+
+/// Replays `model` causally over `log`; a failure is [`ModelDiagnosisError::Replay`] naming
+/// the log.
+pub fn replay_model(model: &FittedModel, log: &Log) -> Result<Prediction, ModelDiagnosisError> {
+    model
+        .predict_log(log)
+        .map_err(|source| ModelDiagnosisError::Replay {
+            file: log.schema.file.clone(),
+            source,
+        })
 }
 
 /// The ladder: for k = 1..=terms.len(), fits the first k terms on `train`, replays on `test`
@@ -110,12 +128,7 @@ pub fn ladder_fit(
             file: train.schema.file.clone(),
             source: Box::new(source),
         })?;
-        let prediction = model
-            .predict_log(test)
-            .map_err(|source| ModelDiagnosisError::Replay {
-                file: test.schema.file.clone(),
-                source,
-            })?;
+        let prediction = replay_model(&model, test)?;
         let std = crate::stats::std_dev(&prediction.residual).ok_or_else(|| {
             ModelDiagnosisError::TooFewTestRows {
                 step,
@@ -162,10 +175,28 @@ pub fn suggestion_path(
     steps: usize,
     opts: &FitOptions,
 ) -> Result<Vec<PathStep>, ModelDiagnosisError> {
+    if steps == 0 {
+        return Ok(Vec::new());
+    }
+    let first = diagnose_model(model, log, config)?;
+    suggestion_path_from(model, log, first, config, steps, opts)
+}
+
+/// [`suggestion_path`] for a caller that already has `first`, the result of
+/// [`diagnose_model`]`(model, log, config)`, so the model is not diagnosed twice.
+pub fn suggestion_path_from(
+    model: &FittedModel,
+    log: &Log,
+    first: Diagnosis,
+    config: &DiagnoseConfig,
+    steps: usize,
+    opts: &FitOptions,
+) -> Result<Vec<PathStep>, ModelDiagnosisError> {
     let mut path = Vec::new();
+    let mut table = None;
     let mut current = model.clone();
+    let mut d = first;
     for step in 1..=steps {
-        let d = diagnose_model(&current, log, config)?;
         let Some(top) = d.features.first().filter(|f| f.flagged) else {
             break;
         };
@@ -188,12 +219,7 @@ pub fn suggestion_path(
             file: log.schema.file.clone(),
             source: Box::new(source),
         })?;
-        let after = next
-            .predict_log(log)
-            .map_err(|source| ModelDiagnosisError::Replay {
-                file: log.schema.file.clone(),
-                source,
-            })?;
+        let after = replay_model(&next, log)?;
         path.push(PathStep {
             feature: top.name.clone(),
             term,
@@ -202,6 +228,10 @@ pub fn suggestion_path(
             std_before: d.residual_std,
             std_after: crate::stats::std_dev(&after.residual).unwrap_or(0.0),
         });
+        if step < steps {
+            let table = table.get_or_insert_with(|| FeatureTable::from_log(log));
+            d = diagnose_residual(&next, table, &after.residual, config)?;
+        }
         current = next;
     }
     Ok(path)

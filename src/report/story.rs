@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 
 use super::{Cell, Report, Table};
 use crate::diagnose::{
-    DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError, diagnose_model,
-    ladder_fit,
+    DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError, diagnose_residual,
+    ladder_fit, replay_model,
 };
 use crate::fit::{FitError, FitOptions, fit};
 use crate::history::History;
@@ -218,6 +218,11 @@ fn fit_named(spec: &str, label: &str, log: &Log) -> Result<FittedModel, StoryErr
         file: log.schema.file.clone(),
         source: Box::new(e),
     })
+}
+
+/// A model label as part of a file name: the term-list separators `,` and `:` become `_`.
+fn file_stem(label: &str) -> String {
+    label.replace([',', ':'], "_")
 }
 
 fn pretty<T: serde::Serialize>(v: &T) -> String {
@@ -456,7 +461,7 @@ struct Scored {
     score: Score,
 }
 
-fn score_table(scored: &[Scored], caption: &str) -> Table {
+fn score_table<'a>(scored: impl IntoIterator<Item = &'a Scored>, caption: &str) -> Table {
     let mut t = Table::new(&[
         "model",
         "terms",
@@ -611,16 +616,17 @@ pub fn demo_report(
     let mut scored = Vec::new();
     for (label, terms) in STORY_MODELS {
         steps.start(&format!("fitting {label}"));
+        let stem = file_stem(label);
         let model = fit_named(terms, label, &calibration)?;
         out.text(
-            &format!("model_{}.json", label.replace([',', ':'], "_")),
+            &format!("model_{stem}.json"),
             &model.to_json(),
             &format!("{label} model fitted on calibration.csv"),
         )?;
         let prediction = model.predict_log(&random)?;
         let sc = score(&prediction.residual, &prediction.positions)?;
         out.text(
-            &format!("score_{}.json", label.replace([',', ':'], "_")),
+            &format!("score_{stem}.json"),
             &pretty(&sc),
             &format!("{label} scored on random.csv"),
         )?;
@@ -634,13 +640,18 @@ pub fn demo_report(
 
     steps.start("diagnosing the position-direction residual");
     let dcfg = diagnose_config(opts);
-    let diagnosis = diagnose_model(&scored[0].model, &random, &dcfg)?;
+    let table = FeatureTable::from_log(&random);
+    let diagnosis = diagnose_residual(
+        &scored[0].model,
+        &table,
+        &scored[0].prediction.residual,
+        &dcfg,
+    )?;
     out.text(
         "diagnosis.json",
         &diagnosis.to_json(),
         "diagnosis of the position-direction model on random.csv",
     )?;
-    let table = FeatureTable::from_log(&random);
 
     steps.start("building the ladder");
     let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
@@ -1115,7 +1126,7 @@ pub fn data_report(
         };
         match attempt() {
             Ok(s) => {
-                let stem = label.replace([',', ':'], "_");
+                let stem = file_stem(label);
                 out.text(
                     &format!("model_{stem}.json"),
                     &s.model.to_json(),
@@ -1163,16 +1174,10 @@ pub fn data_report(
         if all.is_empty() {
             s.paragraph("No model could be fitted and scored on this log.");
         } else {
-            let owned: Vec<Scored> = all
-                .iter()
-                .map(|x| Scored {
-                    label: x.label.clone(),
-                    model: x.model.clone(),
-                    prediction: x.prediction.clone(),
-                    score: x.score.clone(),
-                })
-                .collect();
-            s.table(score_table(&owned, "Prediction error on the test rows"));
+            s.table(score_table(
+                all.iter().copied(),
+                "Prediction error on the test rows",
+            ));
             let preds: Vec<(&str, &Prediction)> = all
                 .iter()
                 .take(4)
@@ -1198,34 +1203,50 @@ pub fn data_report(
 
     steps.start("diagnosing");
     let dcfg = diagnose_config(opts);
-    let (dmodel, dlog, dname): (Option<&FittedModel>, &Log, &str) = match (model, scored.first()) {
-        (Some(m), _) => (Some(m), log, "your model on the whole log"),
-        (None, Some(s)) => (
-            Some(&s.model),
-            &test,
-            "position-direction on the second half",
-        ),
-        (None, None) => (None, log, ""),
-    };
+    // The replay scored above, when there is one, is the one the diagnosis needs.
+    let (dmodel, dpred, dlog, dname): (Option<&FittedModel>, Option<&Prediction>, &Log, &str) =
+        match (model, scored.first()) {
+            (Some(m), _) => (
+                Some(m),
+                user.as_ref().map(|u| &u.prediction),
+                log,
+                "your model on the whole log",
+            ),
+            (None, Some(s)) => (
+                Some(&s.model),
+                Some(&s.prediction),
+                &test,
+                "position-direction on the second half",
+            ),
+            (None, None) => (None, None, log, ""),
+        };
     {
         let s = r.section("What diagnose finds");
-        match dmodel.map(|m| (m, diagnose_model(m, dlog, &dcfg))) {
-            Some((m, Ok(d))) => {
+        let diagnosed = dmodel.map(|m| {
+            let residual = match dpred {
+                Some(p) => p.residual.clone(),
+                None => replay_model(m, dlog)?.residual,
+            };
+            let table = FeatureTable::from_log(dlog);
+            let d = diagnose_residual(m, &table, &residual, &dcfg)?;
+            Ok::<_, ModelDiagnosisError>((d, table, residual))
+        });
+        match diagnosed {
+            Some(Ok((d, table, residual))) => {
                 out.text(
                     "diagnosis.json",
                     &d.to_json(),
                     &format!("diagnosis of {dname}"),
                 )?;
-                let residual = m.predict_log(dlog).map(|p| p.residual).unwrap_or_default();
                 s.paragraph(format!("The residual of {dname}."))
                     .paragraph(d.summary.clone())
                     .table(diagnosis_table(&d, 6))
                     .figure(
-                        views::diagnose_panel(&d, &FeatureTable::from_log(dlog), &residual, 6),
+                        views::diagnose_panel(&d, &table, &residual, 6),
                         "The residual against each top feature: binned mean ± standard error.",
                     );
             }
-            Some((_, Err(e))) => {
+            Some(Err(e)) => {
                 s.paragraph(format!("No diagnosis: {}.", error_chain(&e)));
             }
             None => {
