@@ -153,9 +153,10 @@ fn print_text(r: &SettleReport) {
     );
     match (r.k_star, r.ff_interval) {
         (Some(k), Some([lo, hi])) => println!(
-            "optimal: k* = {k}, {} for start values in [{lo:.4}, {hi:.4}] (midpoint {:.4})",
+            "optimal: k* = {k}, {} for start values in [{lo:.4}, {hi:.4}] (choice {})",
             ms(r.optimal_settle_ms),
-            0.5 * (lo + hi)
+            r.ff_midpoint
+                .map_or("none".to_string(), |m| format!("{m:.4}"))
         ),
         _ => println!("optimal: no start value settles within the horizon"),
     }

@@ -1204,6 +1204,10 @@ pub fn data_report(
     steps.start("diagnosing");
     let dcfg = diagnose_config(opts);
     // The replay scored above, when there is one, is the one the diagnosis needs.
+    let first_scored_name = scored
+        .first()
+        .map(|s| format!("`{}` on the second half", s.label))
+        .unwrap_or_default();
     let (dmodel, dpred, dlog, dname): (Option<&FittedModel>, Option<&Prediction>, &Log, &str) =
         match (model, scored.first()) {
             (Some(m), _) => (
@@ -1212,11 +1216,12 @@ pub fn data_report(
                 log,
                 "your model on the whole log",
             ),
+            // The first scored model: position-direction unless its fit failed on this log.
             (None, Some(s)) => (
                 Some(&s.model),
                 Some(&s.prediction),
                 &test,
-                "position-direction on the second half",
+                first_scored_name.as_str(),
             ),
             (None, None) => (None, None, log, ""),
         };
