@@ -30,6 +30,16 @@
 //! depend on the seek length: the short seek's smaller back-drive and the recovery of the source's
 //! back-drive give a weaker overshoot than after a reversal, but not none.
 //!
+//! ## Why a position+direction model is bimodal on this drive (the paper's Fig. 10)
+//! The built-in `paper1997` drive's ridge memory (P6) reaches far (`length` 87 tracks): random
+//! seeks in a 250-track range nearly always stop short of some uncrossed earlier rest within
+//! ~100 tracks, which pulls their bias ~12 counts inside the far curves, towards the other
+//! direction's curve. Table I's far approaches (400 tracks, across every earlier rest) land on the
+//! far curves. A position+direction model calibrated the 1997 way, from the two Table I curves,
+//! therefore misses random seeks by about ±12–15 counts with the sign of the seek direction: two
+//! humps, error std ≈ 19 (the paper's Fig. 10). The calibration model's `b_m` term (and the
+//! preset's `memory` term) carries exactly this effect.
+//!
 //! ## The other effects
 //! - P1 `position`: `c0 + c1·x + c2·x²` (flex cable, windage, gravity).
 //! - P3 `time`: the lubricant flows back while the head sits at a track and relaxes the pivot's
