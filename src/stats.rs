@@ -372,6 +372,17 @@ pub fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
 
 /// Hartigans' dip test of unimodality of `x` in any order: the dip ([`dip_statistic`]) and the
 /// p-value of "unimodal" ([`dip_p_value`]). `None` where the dip is.
+///
+/// ```
+/// use biasctl::stats::dip_test;
+/// // Two clusters of 100 values each: two humps.
+/// let two: Vec<f64> = (0..200).map(|i| (i % 2) as f64 * 10.0 + (i % 13) as f64 * 0.3).collect();
+/// let t = dip_test(&two).unwrap();
+/// assert!(t.p_value < 0.01 && t.rejects_unimodality(0.05));
+/// // An evenly spread sample: as unimodal as can be.
+/// let one: Vec<f64> = (0..200).map(f64::from).collect();
+/// assert!(dip_test(&one).unwrap().p_value > 0.5);
+/// ```
 pub fn dip_test(x: &[f64]) -> Option<DipTest> {
     dip_statistic(x).map(DipTest::from)
 }
