@@ -55,8 +55,8 @@ pub struct Score {
     /// overlapping humps and flags skewed single ones; `bimodal` uses the dip test instead.
     pub bimodality: Option<f64>,
     /// Hartigans' dip test of unimodality of the error: `{"statistic", "p_value",
-    /// "modal_interval": [lo, hi], "n"}` (`null` for fewer than 4 values or no spread). See
-    /// [`stats::dip_test`].
+    /// "modal_interval": [lo, hi], "n"}` (`null` for fewer than 4 values, no spread or a
+    /// non-finite residual). See [`stats::dip_test`].
     pub dip: Option<DipTest>,
     /// Whether the error has two or more modes: the dip test rejects unimodality at the 5 %
     /// level ([`stats::DIP_SIGNIFICANCE`], p-value below 0.05). `false` where `dip` is `null`.

@@ -365,7 +365,8 @@ pub fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
     }
     Some(Dip {
         statistic: two_n_dip / (2 * n) as f64,
-        modal_interval: [x[low], x[high]],
+        // `+ 0.0` turns a −0.0 end into 0.0.
+        modal_interval: [x[low] + 0.0, x[high] + 0.0],
         n,
     })
 }

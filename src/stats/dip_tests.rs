@@ -254,6 +254,12 @@ fn undefined_cases_give_none_and_never_nan() {
     assert_eq!(dip_statistic(&[1.0, f64::INFINITY, 2.0, 3.0, 4.0]), None);
     assert_eq!(dip_statistic_sorted(&[1.0, 3.0, 2.0, 4.0]), None);
     assert_eq!(dip_test(&[]), None);
+    // A −0.0 end of the modal interval is reported as 0.0.
+    let d = dip_statistic(&[-0.0, -0.0, 0.0, 0.0, 1.0, 1.0, 1.0]).unwrap();
+    assert!(
+        d.modal_interval.iter().all(|v| !v.is_sign_negative()),
+        "{d:?}"
+    );
     assert!((dip_p_value(f64::NAN, 100) - 1.0).abs() < 1e-15);
     assert!((dip_p_value(0.3, 3) - 1.0).abs() < 1e-15);
     // Extremes of the scale: tiny and huge spreads, a lone outlier.
