@@ -26,7 +26,7 @@
 //! - [`fit`]: one least-squares solve (streaming QR) for all linear parameters, variable
 //!   projection for the Dahl rate.
 //! - [`score`]: error statistics of a model on a log: moments, percentiles, histogram,
-//!   bimodality, trend.
+//!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
 //! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per
 //!   feature, permutation test, advice, ladder.
 //! - [`servo`]: plant → controller: continuous plant with modes, ZOH with fractional delay,
@@ -37,7 +37,7 @@
 //! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
 //!
 //! Shared utilities: [`rng`] (the seeded, portable random generator every simulation uses),
-//! [`stats`] (moments, histogram, bimodality, trend and whiteness tests), [`output`] (atomic
+//! [`stats`] (moments, histogram, bimodality and dip tests, trend and whiteness tests), [`output`] (atomic
 //! file output).
 //!
 //! ## The whole pipeline in one example

@@ -1,5 +1,6 @@
 //! Error statistics of a model on a log (`biasctl score`): n, mean, std, RMS, median absolute
-//! error, percentiles, a histogram, Sarle's bimodality coefficient and a trend test of the error
+//! error, percentiles, a histogram, Sarle's bimodality coefficient, Hartigans' dip test of
+//! unimodality (does the error histogram really have two humps?) and a trend test of the error
 //! against position. All in counts (the trend slope in counts per track).
 //!
 //! ```
@@ -10,7 +11,7 @@
 //! assert!((s.mean - 0.041666).abs() < 1e-5);
 //! ```
 
-use crate::stats::{self, Histogram, Trend};
+use crate::stats::{self, DipTest, Histogram, Trend};
 use serde::{Deserialize, Serialize};
 
 /// An error computing a score.
@@ -31,7 +32,8 @@ pub enum ScoreError {
 }
 
 /// The score of a model's residuals (measured − predicted, counts). JSON keys are a contract:
-/// `n`, `mean`, `std`, `rms`, `histogram`, `bimodality`, `trend` (plus the others below).
+/// `n`, `mean`, `std`, `rms`, `histogram`, `bimodality`, `trend` (plus the others below, among
+/// them `dip` and `bimodal`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Score {
     /// Number of residuals.
@@ -48,9 +50,18 @@ pub struct Score {
     pub percentiles: Vec<(f64, f64)>,
     /// Histogram of the error (Freedman–Diaconis bins).
     pub histogram: Histogram,
-    /// Sarle's bimodality coefficient (`null` for fewer than 4 values or no spread).
+    /// Sarle's bimodality coefficient (`null` for fewer than 4 values or no spread); above
+    /// [`stats::BIMODALITY_THRESHOLD`] (5/9) it suggests two modes. A heuristic: it misses
+    /// overlapping humps and flags skewed single ones; `bimodal` uses the dip test instead.
     pub bimodality: Option<f64>,
-    /// Whether `bimodality` exceeds [`stats::BIMODALITY_THRESHOLD`] (5/9).
+    /// Hartigans' dip test of unimodality of the error: `{"statistic", "p_value",
+    /// "modal_interval": [lo, hi], "n"}` (`null` for fewer than 4 values, no spread or a
+    /// non-finite residual). See [`stats::dip_test`].
+    pub dip: Option<DipTest>,
+    /// Whether the error has two or more modes: the dip test rejects unimodality at the 5 %
+    /// level ([`stats::DIP_SIGNIFICANCE`], p-value below 0.05). `false` where `dip` is `null`.
+    /// Residuals that take few distinct values (quantised measurements and a model with few
+    /// distinct predictions) are point masses to the test, which then rejects.
     pub bimodal: bool,
     /// Least-squares trend of the error against position (`null` if undefined).
     pub trend: Option<Trend>,
@@ -70,6 +81,7 @@ pub fn score(residuals: &[f64], positions: &[f64]) -> Result<Score, ScoreError> 
     let sorted = stats::sorted(residuals);
     let abs: Vec<f64> = stats::sorted(&residuals.iter().map(|e| e.abs()).collect::<Vec<_>>());
     let bimodality = stats::bimodality_coefficient(residuals);
+    let dip = stats::dip_test_sorted(&sorted);
     Ok(Score {
         n: residuals.len(),
         mean: stats::mean(residuals).unwrap_or(0.0),
@@ -82,7 +94,8 @@ pub fn score(residuals: &[f64], positions: &[f64]) -> Result<Score, ScoreError> 
             .collect(),
         histogram: stats::histogram(residuals, stats::fd_bins(residuals)),
         bimodality,
-        bimodal: bimodality.is_some_and(|b| b > stats::BIMODALITY_THRESHOLD),
+        dip,
+        bimodal: dip.is_some_and(|t| t.rejects_unimodality(stats::DIP_SIGNIFICANCE)),
         trend: stats::linear_trend(positions, residuals),
     })
 }
@@ -103,11 +116,36 @@ impl Score {
             Some(b) => {
                 s += &format!(
                     "bimodality coefficient {b:.3} ({} threshold {:.3})\n",
-                    if self.bimodal { "above" } else { "below" },
+                    if b > stats::BIMODALITY_THRESHOLD {
+                        "above"
+                    } else {
+                        "below"
+                    },
                     stats::BIMODALITY_THRESHOLD
                 )
             }
             None => s += "bimodality coefficient undefined\n",
+        }
+        match &self.dip {
+            Some(t) => {
+                let p = if t.p_value < 1e-4 {
+                    "< 0.0001".to_string()
+                } else {
+                    format!("{:.4}", t.p_value)
+                };
+                s += &format!(
+                    "dip test D {:.4}, p {p}, modal interval [{:.4}, {:.4}]: {}\n",
+                    t.statistic,
+                    t.modal_interval[0],
+                    t.modal_interval[1],
+                    if self.bimodal {
+                        "bimodal (unimodality rejected at 5 %)"
+                    } else {
+                        "unimodal at 5 %"
+                    }
+                )
+            }
+            None => s += "dip test undefined\n",
         }
         match &self.trend {
             Some(t) => {
@@ -127,5 +165,75 @@ impl Score {
             );
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SimRng;
+
+    fn positions(n: usize) -> Vec<f64> {
+        (0..n).map(|i| i as f64).collect()
+    }
+
+    #[test]
+    fn bimodal_follows_the_dip_test() {
+        // Two overlapping humps N(±1.5, 1) (n = 2000): Sarle's coefficient stays below 5/9 but
+        // the dip test rejects one hump (see stats::dip_tests for its references).
+        let mut r = SimRng::new(7);
+        let two: Vec<f64> = (0..2000)
+            .map(|_| if r.uniform() < 0.5 { -1.5 } else { 1.5 } + r.normal())
+            .collect();
+        let s = score(&two, &positions(two.len())).unwrap();
+        let dip = s.dip.unwrap();
+        assert!(s.bimodal && dip.p_value < 0.01 && dip.n == 2000, "{dip:?}");
+        assert!(s.bimodality.unwrap() < stats::BIMODALITY_THRESHOLD);
+        assert_eq!(Some(dip), stats::dip_test(&two));
+        let text = s.to_text();
+        assert!(text.contains("dip test D ") && text.contains("bimodal (unimodality rejected"));
+        assert!(text.contains("bimodality coefficient") && text.contains("below threshold"));
+        // One normal hump: not bimodal.
+        let one: Vec<f64> = (0..2000).map(|_| r.normal()).collect();
+        let s = score(&one, &positions(one.len())).unwrap();
+        assert!(!s.bimodal && s.dip.unwrap().p_value > 0.05);
+        assert!(s.to_text().contains("unimodal at 5 %"));
+    }
+
+    #[test]
+    fn dip_is_null_where_undefined() {
+        let s = score(&[1.0, 2.0, 3.0], &positions(3)).unwrap();
+        assert!(s.dip.is_none() && !s.bimodal);
+        assert!(s.to_text().contains("dip test undefined"));
+        let s = score(&[2.0; 10], &positions(10)).unwrap();
+        assert!(s.dip.is_none() && !s.bimodal);
+    }
+
+    #[test]
+    fn json_keys_of_the_dip() {
+        let e: Vec<f64> = (0..100).map(|i| ((i * 37) % 100) as f64 / 10.0).collect();
+        let s = score(&e, &positions(e.len())).unwrap();
+        let v = serde_json::to_value(&s).unwrap();
+        for key in [
+            "n",
+            "mean",
+            "std",
+            "rms",
+            "histogram",
+            "bimodality",
+            "trend",
+            "dip",
+            "bimodal",
+        ] {
+            assert!(v.get(key).is_some(), "missing {key}");
+        }
+        let dip = &v["dip"];
+        assert!(dip["statistic"].is_f64() && dip["p_value"].is_f64());
+        assert_eq!(dip["n"], 100);
+        let mi = dip["modal_interval"].as_array().unwrap();
+        assert!(mi.len() == 2 && mi[0].as_f64().unwrap() <= mi[1].as_f64().unwrap());
+        // And back.
+        let back: Score = serde_json::from_value(v).unwrap();
+        assert_eq!(back, s);
     }
 }

@@ -41,7 +41,7 @@ enum Command {
     Fit(fit::Args),
     /// Replay a model over a log causally and write per-row predictions and contributions.
     Predict(predict::Args),
-    /// Score a model on a log: error moments, percentiles, histogram, bimodality, trend.
+    /// Score a model on a log: error moments, percentiles, histogram, bimodality, dip test, trend.
     Score(score::Args),
     /// Compare a model with a log: which missing effect the residual follows, and the term to add.
     Diagnose(diagnose::Args),

@@ -8,7 +8,8 @@ use biasctl::score::score;
 pub struct Args {
     #[command(flatten)]
     input: ModelLogArgs,
-    /// Print JSON (keys n, mean, std, rms, median_abs, percentiles, histogram, bimodality, bimodal, trend).
+    /// Print JSON (keys n, mean, std, rms, median_abs, percentiles, histogram, bimodality, dip
+    /// {statistic, p_value, modal_interval, n}, bimodal (the dip test's p < 0.05), trend).
     #[arg(long)]
     json: bool,
 }

@@ -581,8 +581,19 @@ fn cli_fit_predict_score_round_trip() {
         s["histogram"]["edges"].as_array().unwrap().len()
             == s["histogram"]["counts"].as_array().unwrap().len() + 1
     );
+    // The dip test: an object, and `bimodal` is its verdict at 5 %.
+    let dip = &s["dip"];
+    let p = dip["p_value"].as_f64().unwrap();
+    assert!(dip["statistic"].as_f64().unwrap() > 0.0 && (0.0..=1.0).contains(&p));
+    assert_eq!(dip["n"], 800);
+    assert_eq!(dip["modal_interval"].as_array().unwrap().len(), 2);
+    assert_eq!(s["bimodal"].as_bool().unwrap(), p < 0.05);
     let txt = ok(&["score", "--model", &model, "--data", &data]);
     assert!(txt.contains("rms"), "{txt}");
+    assert!(
+        txt.contains("bimodality coefficient") && txt.contains("dip test D "),
+        "{txt}"
+    );
 }
 
 #[test]
