@@ -327,17 +327,15 @@ fn fast_simulation_equals_slow_reference_without_sensor_noise() {
     }
 }
 
-#[test]
-fn headline_numbers_of_the_built_in_drive() {
-    // Reference: paper §III — on random seeks in a 250-track range a position+direction model
-    // calibrated the 1997 way (on the Table I far curves) leaves ≈ 19 counts, bimodal; a
-    // poly2 + one Dahl element (eq. 8–9, best length) ≈ 11.5. Measured on this drive (seed 1,
-    // 5000 seeks): pd(Table I) ≈ 17.1, pd refit in-sample ≈ 12.8, Dahl ≈ 11.0.
+/// Error of a position+direction model calibrated the 1997 way (poly2 ± Fc least squares on the
+/// Table I far curves, seed 1) on 5000 random seeks in a 250-track range (seed 1), with the
+/// effects in `off` switched off in both runs; and the random run's points.
+fn pd_from_table1(off: &[&str]) -> (Vec<f64>, Vec<(f64, f64, f64)>) {
     let opts = SequenceOptions {
         n: Some(5000),
         ..SequenceOptions::default()
     };
-    let r = rows("random", &opts, 1, &[]);
+    let r = rows("random", &opts, 1, off);
     let mut dir = 1.0;
     let pts: Vec<(f64, f64, f64)> = (0..r.len())
         .map(|i| {
@@ -347,16 +345,36 @@ fn headline_numbers_of_the_built_in_drive() {
             (r[i].track, r[i].bias.unwrap(), dir)
         })
         .collect();
-    let (b1, _) = fit_pd(&measured("table1", &[]));
-    let err: Vec<f64> = pts
+    let (b1, _) = fit_pd(&measured("table1", off));
+    let err = pts
         .iter()
         .map(|p| {
             let t = (p.0 - 1500.0) / 1000.0;
             p.1 - (b1[0] + b1[1] * t + b1[2] * t * t + b1[3] * p.2)
         })
         .collect();
+    (err, pts)
+}
+
+#[test]
+fn headline_numbers_of_the_built_in_drive() {
+    // Reference: paper §III — on random seeks in a 250-track range a position+direction model
+    // calibrated the 1997 way (on the Table I far curves) leaves ≈ 19 counts with a bimodal
+    // histogram (Fig. 10); poly2 + one Dahl element (eq. 8–9, best length) ≈ 11.5. Bimodal is
+    // judged by Hartigans' dip test (p < 0.01; the test itself is checked against R's diptest
+    // in stats). Measured on this drive (seed 1, 5000 seeks): pd(Table I) ≈ 18.5, dip p < 1e-6
+    // (without memory 12.4, p ≈ 1); pd refit in-sample ≈ 12.9; Dahl ≈ 10.7.
+    let (err, pts) = pd_from_table1(&[]);
     let sd_pd = std_dev(&err).unwrap();
-    assert!((14.0..22.0).contains(&sd_pd), "pd(Table I) std {sd_pd}");
+    assert!((17.0..21.0).contains(&sd_pd), "pd(Table I) std {sd_pd}");
+    let dip = crate::stats::dip_test(&err).unwrap();
+    assert!(dip.p_value < 0.01, "pd(Table I) error not bimodal: {dip:?}");
+    // The two humps come from the ridge memory (P6) that random seeks meet and Table I's far
+    // approaches do not: without it the error is one hump (and smaller).
+    let (err_off, _) = pd_from_table1(&["memory"]);
+    let dip_off = crate::stats::dip_test(&err_off).unwrap();
+    assert!(dip_off.p_value > 0.05, "without memory: {dip_off:?}");
+    assert!(std_dev(&err_off).unwrap() < 0.8 * sd_pd);
     let (_, res) = fit_pd(&pts);
     let sd_in = std_dev(&res).unwrap();
     let n = pts.len();
@@ -381,13 +399,16 @@ fn headline_numbers_of_the_built_in_drive() {
         .into_iter()
         .fold(f64::INFINITY, f64::min);
     assert!(
-        sd_dahl < 0.9 * sd_in && (9.0..13.5).contains(&sd_dahl),
+        sd_dahl < 0.9 * sd_in && (9.5..13.0).contains(&sd_dahl),
         "Dahl {sd_dahl} pd {sd_in}"
     );
     // Without the direction-dependent effects the pd model has nothing to gain from the direction.
     let r_off = rows(
         "random",
-        &opts,
+        &SequenceOptions {
+            n: Some(5000),
+            ..SequenceOptions::default()
+        },
         1,
         &["direction", "overshoot", "time", "memory"],
     );
