@@ -156,6 +156,19 @@ fn demo_report_tells_the_whole_story_in_valid_self_contained_html() {
         v["std"].as_f64().unwrap()
     };
     assert!(std("calibration") < std("position-direction"));
+    // position-direction is calibrated the paper's way, on Table I's far curves alone; its
+    // scores carry the dip test (the two humps themselves are asserted on 5000 seeks in
+    // sim::tests::headline_numbers_of_the_built_in_drive: 300 seeks are too few to be sure).
+    let json = |f: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join(f)).unwrap()).unwrap()
+    };
+    let pd = json("model_position-direction.json");
+    assert_eq!(pd["fit"]["rows_used"].as_u64(), Some(measured as u64));
+    let dip = &json("score_position-direction.json")["dip"];
+    assert!(
+        dip["p_value"].is_f64() && dip["statistic"].is_f64(),
+        "{dip}"
+    );
     // Deterministic for a seed.
     let again = tempfile::tempdir().unwrap();
     let o2 = demo_report(again.path(), &StoryOptions::quick(7), &mut |_| {}).unwrap();
