@@ -15,7 +15,7 @@ use std::path::PathBuf;
 pub struct Args {
     #[command(flatten)]
     input: ModelLogArgs,
-    /// Print the diagnosis as JSON (keys residual_std, features, whiteness, bimodality, summary).
+    /// Print the diagnosis as JSON (keys residual_std, features, whiteness, bimodality, dip, summary).
     #[arg(long)]
     json: bool,
     /// Also write `diagnosis.json` and one `residual_vs_<feature>.csv` per top feature here.

@@ -519,11 +519,13 @@ pub fn diagnose(
 
     let whiteness = Whiteness::of(residuals, config.ljung_box_lags, config.alpha);
     let bimodality = stats::bimodality_coefficient(residuals).filter(|b| b.is_finite());
+    let dip = stats::dip_test(residuals);
     let mut d = Diagnosis {
         residual_std,
         features: reports,
         whiteness,
         bimodality,
+        dip,
         summary: String::new(),
     };
     d.summary = report::summary(&d, n, config.alpha);

@@ -15,7 +15,7 @@ use super::smoother::{BinKind, Binned, Unusable, accumulate};
 use super::{DiagnoseConfig, DiagnoseError};
 
 /// The result of [`super::diagnose`]. Serialises to the JSON contract
-/// `{"residual_std", "features": [...], "whiteness", "bimodality", "summary"}`.
+/// `{"residual_std", "features": [...], "whiteness", "bimodality", "dip", "summary"}`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Diagnosis {
     /// Sample standard deviation of the residuals, counts.
@@ -27,6 +27,10 @@ pub struct Diagnosis {
     /// Sarle's bimodality coefficient of the residuals (> 5/9 suggests two modes); `null` when
     /// undefined (zero spread).
     pub bimodality: Option<f64>,
+    /// Hartigans' dip test of unimodality of the residuals ([`stats::dip_test`]); the summary
+    /// calls the histogram two-humped when it rejects unimodality at 5 %. `null` for fewer than
+    /// 4 residuals or zero spread.
+    pub dip: Option<stats::DipTest>,
     /// The diagnosis in a few plain sentences.
     pub summary: String,
 }
@@ -422,10 +426,11 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
             w.lag1
         )),
     }
-    if let Some(b) = d.bimodality.filter(|&b| b > stats::BIMODALITY_THRESHOLD) {
+    if let Some(t) = d.dip.as_ref().filter(|t| t.rejects_unimodality(0.05)) {
         parts.push(format!(
-            "Their histogram looks bimodal (coefficient {b:.2} > 5/9): two populations, as \
-             from a missing direction or hysteresis term."
+            "Their histogram has more than one hump (Hartigans' dip test p = {}): separate \
+             populations, as from a missing direction or hysteresis term.",
+            p_text(t.p_value)
         ));
     }
     if let Some(pos) = d.features.iter().find(|f| f.name == "position")
@@ -540,6 +545,18 @@ impl Diagnosis {
                 .unwrap_or_else(|| "-".into()),
             stats::BIMODALITY_THRESHOLD
         ));
+        if let Some(t) = &self.dip {
+            out.push_str(&format!(
+                "  dip test of unimodality: D {:.4}, p = {} ({})\n",
+                t.statistic,
+                p_text(t.p_value),
+                if t.rejects_unimodality(0.05) {
+                    "more than one hump"
+                } else {
+                    "one hump"
+                }
+            ));
+        }
         if let Some(pos) = self.feature("position")
             && let (Some(s), Some(p)) = (pos.slope, pos.slope_p)
         {

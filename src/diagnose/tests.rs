@@ -326,7 +326,12 @@ fn direction_offset_is_bimodal_and_suggests_direction() {
     let d = run(&t, &r);
     assert_first(&d, &["direction", "seek_length"], "direction");
     assert!(d.bimodality.unwrap() > crate::stats::BIMODALITY_THRESHOLD);
-    assert!(d.summary.contains("bimodal"));
+    assert!(
+        d.dip.as_ref().unwrap().rejects_unimodality(0.01),
+        "{:?}",
+        d.dip
+    );
+    assert!(d.summary.contains("more than one hump"), "{}", d.summary);
 }
 
 #[test]
@@ -470,6 +475,7 @@ fn json_has_the_contract_keys_and_round_trips() {
         keys,
         [
             "bimodality",
+            "dip",
             "features",
             "residual_std",
             "summary",
