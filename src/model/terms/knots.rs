@@ -1,30 +1,7 @@
 //! Knot placement from data quantiles and the hinge bases the piecewise-linear terms share.
 
-/// Up to `k` knots at the quantiles `j/k` (j = 1..=k) of `values` (nearest rank), strictly
-/// above the smallest value, without repeats, increasing. The largest knot is the largest value.
-/// O(n·k) by selection, no full sort.
-pub fn quantile_knots(values: &[f64], k: usize) -> Vec<f64> {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() || k == 0 {
-        return Vec::new();
-    }
-    let n = v.len();
-    let min = v.iter().copied().fold(f64::INFINITY, f64::min);
-    let mut knots = Vec::with_capacity(k);
-    for j in 1..=k {
-        let idx = ((j as f64 / k as f64) * (n - 1) as f64).round() as usize;
-        let (_, q, _) = v.select_nth_unstable_by(idx.min(n - 1), f64::total_cmp);
-        let q = *q;
-        if q > min && knots.last().is_none_or(|&l: &f64| q > l) {
-            knots.push(q);
-        }
-    }
-    knots.sort_by(f64::total_cmp);
-    knots.dedup_by(|a, b| (*a - *b).abs() <= 0.0);
-    knots
-}
-
-/// Knots strictly inside (min, max) of `values`: the quantiles `j/(k+1)`, j = 1..=k.
+/// Knots strictly inside (min, max) of `values`: the quantiles `j/(k+1)`, j = 1..=k (nearest
+/// rank), without repeats, increasing. About `1/(k+1)` of the values lie beyond the last knot.
 pub fn interior_knots(values: &[f64], k: usize) -> Vec<f64> {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
     if v.is_empty() {

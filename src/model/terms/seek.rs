@@ -2,14 +2,19 @@
 //!
 //! A continuous piecewise-linear function of |seek length| `a`, fitted separately for four
 //! cases: {no direction change at the source, direction change} × {outbound, inbound}. Each
-//! curve is a sum of decaying hinges `(k_j − a)₊` with knots `k_j` at the quantiles `j/K` of the
-//! measured |seek lengths| (K = `KNOTS`, default 4), so it is **zero for seeks longer than the
-//! largest knot**: long seeks land on the position/direction curves (the paper normalises the
-//! bias at the target to zero). A zero-length seek uses the "no change" curve of the current
+//! curve is a sum of decaying hinges `(k_j − a)₊` with knots `k_j` at the interior quantiles
+//! `j/(K+1)` of the measured |seek lengths| (K = `KNOTS`, default 4), so it is **zero for seeks
+//! longer than the largest knot**: long seeks land on the position/direction curves (the paper
+//! normalises the bias at the target to zero). About 1/(K+1) of the training seeks lie beyond the
+//! largest knot; they pin the curves' zero. With the largest knot at the longest seek, a curve is
+//! non-zero on every training row and nearly duplicates the direction and intercept terms, and a
+//! training log dominated by a few far table seeks then gives wild, offsetting coefficients
+//! (regression test: `calibration_preset_survives_a_table_dominated_training_run`). A
+//! zero-length seek uses the "no change" curve of the current
 //! direction at `a = 0`; the first seek (no direction yet) contributes 0. Coefficients in counts
 //! (the curve's value at `a = 0` is the sum of its coefficients weighted by `k_j/k_max`).
 
-use super::knots::{curve_hinges, curve_param_names, direction_side, quantile_knots, spec_name};
+use super::knots::{curve_hinges, curve_param_names, direction_side, interior_knots, spec_name};
 use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -34,7 +39,7 @@ impl TermSpec for SeekSpec {
         let a = data.measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
         Ok(Arc::new(SeekTerm {
             name: self.name(),
-            knots: quantile_knots(&a, self.knots),
+            knots: interior_knots(&a, self.knots),
         }))
     }
 }
