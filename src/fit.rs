@@ -142,6 +142,11 @@ pub struct FitReport {
     pub evaluations: usize,
     /// Whether every nonlinear search ended inside its interval.
     pub converged: bool,
+    /// Smallest and largest target position of the measured training rows, tracks: where the
+    /// position terms were fitted ([`crate::model::FittedModel::outside_range`] warns when a
+    /// log goes beyond it). `null` in model files written before it was recorded.
+    #[serde(default)]
+    pub position_range: Option<[f64; 2]>,
 }
 
 /// The training data as terms see it while they prepare: the log and every row's seek features.
@@ -656,6 +661,21 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
     if !converged {
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
+    // A `dbins` curve times the direction has no direction×constant column by design (it would
+    // duplicate `direction`); without a term that carries the inbound/outbound offset, that
+    // offset is not modelled at all.
+    let has = |head: &str| {
+        terms
+            .iter()
+            .any(|t| t.name().split(':').next() == Some(head))
+    };
+    if has("dbins") && !has("direction") && !has("dahl") {
+        warnings.push(
+            "`dbins` curves have no direction×constant column: add `direction` or `dahl` to model \
+             the constant inbound/outbound offset (the two curves of Fig. 3)"
+                .into(),
+        );
+    }
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
     let map = &log.schema.map;
@@ -678,10 +698,12 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
             dropped,
             evaluations,
             converged,
+            position_range: None,
         },
         warnings,
     };
     let pred = model.predict_log(log)?;
+    model.fit.position_range = range_of(&pred.positions);
     let sst = crate::stats::sum_sq_about_mean(&pred.measured);
     let sse: f64 = pred.residual.iter().map(|e| e * e).sum();
     model.fit.residual_std = crate::stats::std_dev(&pred.residual).unwrap_or(0.0);
@@ -700,6 +722,16 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
         });
     }
     Ok(model)
+}
+
+/// `[min, max]` of finite values; `None` if there are none.
+fn range_of(x: &[f64]) -> Option<[f64; 2]> {
+    x.iter()
+        .filter(|v| v.is_finite())
+        .fold(None, |r: Option<[f64; 2]>, &v| match r {
+            None => Some([v, v]),
+            Some([lo, hi]) => Some([lo.min(v), hi.max(v)]),
+        })
 }
 
 #[cfg(test)]

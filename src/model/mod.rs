@@ -261,6 +261,38 @@ struct TermFile {
 /// name it does not know.
 pub type RestoreFn = dyn Fn(&str, &serde_json::Value) -> Option<Arc<dyn Term>>;
 
+/// Rows of a log that lie outside the position range a model was fitted on
+/// ([`FittedModel::outside_range`]); its `Display` is the warning a command prints.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeWarning {
+    /// Rows outside the fitted range.
+    pub outside: usize,
+    /// Rows checked.
+    pub total: usize,
+    /// The fitted range `[min, max]`, tracks.
+    pub fitted: [f64; 2],
+    /// The smallest and largest of the rows outside it, tracks.
+    pub seen: [f64; 2],
+}
+
+impl fmt::Display for RangeWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let fmt = |x: f64| crate::log::fmt_trimmed(x, 6);
+        write!(
+            f,
+            "{} of {} measured rows ({:.1} %) lie outside the position range the model was \
+             fitted on, [{}, {}] (they reach [{}, {}]): its position terms are extrapolated there",
+            self.outside,
+            self.total,
+            100.0 * self.outside as f64 / self.total.max(1) as f64,
+            fmt(self.fitted[0]),
+            fmt(self.fitted[1]),
+            fmt(self.seen[0]),
+            fmt(self.seen[1]),
+        )
+    }
+}
+
 /// Per-row output of replaying a model over a log (measured rows only, in log order).
 #[derive(Debug, Clone, Default)]
 pub struct Prediction {
@@ -408,6 +440,40 @@ impl FittedModel {
             }
         }
         Ok(())
+    }
+
+    /// Which of `positions` (tracks) lie outside the position range the model was fitted on
+    /// ([`FitReport::position_range`]); `None` if all lie inside or the model file predates the
+    /// record. The position terms (`poly2`, `table`) are extrapolated there, so a prediction may
+    /// be far off without any other sign.
+    ///
+    /// ```
+    /// # use biasctl::{fit::{fit, FitOptions}, log::{ColumnMap, Log}, model::ModelSpec};
+    /// let csv = "time_s,track,bias\n0,100,1\n1,200,2\n2,150,1.5\n3,120,1.2\n4,180,1.8\n";
+    /// let log = Log::from_reader("a.csv", csv.as_bytes(), &ColumnMap::default()).unwrap();
+    /// let model = fit(&ModelSpec::parse("poly2").unwrap(), &log, &FitOptions::default()).unwrap();
+    /// assert_eq!(model.fit.position_range, Some([100.0, 200.0]));
+    /// assert!(model.outside_range(&[120.0, 199.0]).is_none());
+    /// let w = model.outside_range(&[50.0, 150.0, 260.0, 300.0]).unwrap();
+    /// assert_eq!((w.outside, w.total, w.seen), (3, 4, [50.0, 300.0]));
+    /// ```
+    pub fn outside_range(&self, positions: &[f64]) -> Option<RangeWarning> {
+        let [lo, hi] = self.fit.position_range?;
+        let outside: Vec<f64> = positions
+            .iter()
+            .copied()
+            .filter(|&x| x < lo || x > hi)
+            .collect();
+        let first = *outside.first()?;
+        let seen = outside
+            .iter()
+            .fold([first, first], |[a, b], &x| [a.min(x), b.max(x)]);
+        Some(RangeWarning {
+            outside: outside.len(),
+            total: positions.len(),
+            fitted: [lo, hi],
+            seen,
+        })
     }
 
     /// Replays the model over `log` from its first row (causal: each row's prediction uses only

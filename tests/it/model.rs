@@ -739,3 +739,63 @@ fn calibration_preset_survives_a_table_dominated_training_run() {
         );
     }
 }
+
+#[test]
+fn model_files_record_the_fitted_position_range_and_older_files_still_load() {
+    // Reference: the training log's measured targets span [1400, 1650] by construction.
+    let rows: Vec<(f64, f64, f64)> = (0..200)
+        .map(|i| (i as f64, 1400.0 + ((i * 37) % 251) as f64, 0.0))
+        .collect();
+    let bias: Vec<f64> = rows.iter().map(|r| 0.01 * r.1).collect();
+    let log = parse(&csv(&rows, &bias));
+    let model = fit(
+        &ModelSpec::parse("poly2,direction").unwrap(),
+        &log,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(model.fit.position_range, Some([1400.0, 1650.0]));
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.json");
+    model.save(&path).unwrap();
+    let again = FittedModel::load(&path).unwrap();
+    assert_eq!(again.fit.position_range, Some([1400.0, 1650.0]));
+    let w = again.outside_range(&[1390.0, 1500.0, 1700.0]).unwrap();
+    assert_eq!((w.outside, w.total, w.seen), (2, 3, [1390.0, 1700.0]));
+    assert!(w.to_string().contains("2 of 3 measured rows"), "{w}");
+    // A model file written before the range was recorded: loads, and cannot warn.
+    let mut v: serde_json::Value = serde_json::from_str(&model.to_json()).unwrap();
+    v["fit"].as_object_mut().unwrap().remove("position_range");
+    std::fs::write(&path, v.to_string()).unwrap();
+    let old = FittedModel::load(&path).unwrap();
+    assert_eq!(old.fit.position_range, None);
+    assert!(old.outside_range(&[0.0, 1e9]).is_none());
+}
+
+#[test]
+fn dbins_without_a_direction_term_warns_and_with_one_does_not() {
+    // Reference: `dbins` has no direction×constant column by design; the warning says so.
+    let rows = tracks(9, 400, 200.0);
+    let mut h = History::new();
+    let bias: Vec<f64> = rows
+        .iter()
+        .map(|&(t, x, _)| {
+            let f = h.step(t, x);
+            0.01 * x + 5.0 * f64::from(f.direction) * (1.0 - (-f.dwell_s).exp())
+        })
+        .collect();
+    let log = parse(&csv(&rows, &bias));
+    let warns = |spec: &str| {
+        fit(
+            &ModelSpec::parse(spec).unwrap(),
+            &log,
+            &FitOptions::default(),
+        )
+        .unwrap()
+        .warnings
+        .join("\n")
+    };
+    assert!(warns("poly2,dbins:dwell_s").contains("no direction×constant column"));
+    assert!(!warns("poly2,direction,dbins:dwell_s").contains("direction×constant"));
+    assert!(!warns("poly2,dahl,dbins:dwell_s").contains("direction×constant"));
+}
