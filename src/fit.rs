@@ -75,6 +75,22 @@ pub enum FitError {
         /// The covariates present.
         available: String,
     },
+    /// A term names one of the log's required columns (time, position, bias) as a covariate.
+    #[error(
+        "{file}: term `{term}` reads column `{column}`, which is the log's {role} column, not a covariate: {hint}"
+    )]
+    NotACovariate {
+        /// The log file.
+        file: String,
+        /// The term.
+        term: String,
+        /// The column.
+        column: String,
+        /// Its role: `time`, `position` or `bias`.
+        role: &'static str,
+        /// What to use instead.
+        hint: &'static str,
+    },
     /// A term's setting does not suit the data.
     #[error("term `{term}`: {why}")]
     BadSetting {
@@ -198,6 +214,34 @@ impl<'a> FitData<'a> {
     /// Index of covariate `column`, or the error naming `term`.
     pub fn covariate(&self, column: &str, term: &str) -> Result<usize, FitError> {
         let s = &self.log.schema;
+        let role = [
+            (
+                &s.map.time,
+                "time",
+                "for slow change over time use `drift` or `bins:elapsed_s`",
+            ),
+            (
+                &s.map.track,
+                "position",
+                "position enters through `poly2` or `table` (or `bins:position`)",
+            ),
+            (
+                &s.map.bias,
+                "bias",
+                "the bias is what the model predicts and cannot be one of its inputs",
+            ),
+        ]
+        .into_iter()
+        .find(|(name, _, _)| name.as_str() == column);
+        if let Some((_, role, hint)) = role {
+            return Err(FitError::NotACovariate {
+                file: s.file.clone(),
+                term: term.into(),
+                column: column.into(),
+                role,
+                hint,
+            });
+        }
         s.covariate_index(column)
             .ok_or_else(|| FitError::MissingCovariate {
                 file: s.file.clone(),

@@ -799,3 +799,34 @@ fn dbins_without_a_direction_term_warns_and_with_one_does_not() {
     assert!(!warns("poly2,direction,dbins:dwell_s").contains("direction×constant"));
     assert!(!warns("poly2,dahl,dbins:dwell_s").contains("direction×constant"));
 }
+
+#[test]
+fn a_required_column_named_as_a_covariate_is_explained_not_called_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = sample_log(dir.path());
+    let out = dir.path().join("m.json").display().to_string();
+    for (terms, needles) in [
+        ("poly2,col:track", ["`track`", "position column", "poly2"]),
+        (
+            "poly2,bins:bias",
+            ["`bias`", "bias column", "cannot be one of its inputs"],
+        ),
+        ("poly2,dbins:time_s", ["`time_s`", "time column", "drift"]),
+    ] {
+        fails_with(
+            &["fit", "--data", &log, "--terms", terms, "--out", &out],
+            &needles,
+        );
+        assert!(!std::path::Path::new(&out).exists(), "nothing written");
+    }
+    // A real covariate still works.
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--terms",
+        "poly2,col:temp_c",
+        "--out",
+        &out,
+    ]);
+}
