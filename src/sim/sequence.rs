@@ -246,6 +246,17 @@ pub enum ScriptError {
         /// The script file.
         file: String,
     },
+    /// Every row has `measure` off: the log would hold no measurement, which every command
+    /// that reads a log rejects.
+    #[error(
+        "{file}: no row of the script is measured (column `measure` is 0 on all {rows} rows): the log would have no bias to read"
+    )]
+    NothingMeasured {
+        /// The script file.
+        file: String,
+        /// Rows in the script.
+        rows: usize,
+    },
 }
 
 /// Reads a script: CSV with header `track,dwell_s` and an optional `measure` column
@@ -327,6 +338,12 @@ pub fn parse_script(file: &str, text: &str, max_track: f64) -> Result<Vec<Step>,
     }
     if steps.is_empty() {
         return Err(ScriptError::Empty { file: file.into() });
+    }
+    if !steps.iter().any(|s| s.measure) {
+        return Err(ScriptError::NothingMeasured {
+            file: file.into(),
+            rows: steps.len(),
+        });
     }
     Ok(steps)
 }
@@ -411,6 +428,10 @@ mod tests {
             ),
             ("track,dwell_s\n", "no rows"),
             ("track,dwell_s\n1,2,3\n", "line 2"),
+            (
+                "track,dwell_s,measure\n10,0.1,0\n20,0.2,no\n",
+                "no row of the script is measured",
+            ),
         ];
         for (text, want) in cases {
             let e = parse_script("s.csv", text, 99.0).unwrap_err().to_string();
