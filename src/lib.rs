@@ -13,6 +13,9 @@
 //! - **Time** in seconds. Position error in the servo is `e = y − r` in µm.
 //! - The integrator start value at handoff is reported **relative to its converged value**, so
 //!   "zero feedforward" is 0.
+//! - Tracks and counts are the simulator's units. A measured log carries its own labels
+//!   ([`log::Units`]: metadata `bias_unit` / `position_unit`, or the column names), and every
+//!   score, diagnosis, plot and report made from it is labelled with them.
 //!
 //! ## The pipeline, one module per step
 //! log → seek history → simulated drive → model terms → fit → score/diagnose → plant/controller →

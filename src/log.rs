@@ -15,6 +15,12 @@
 //! `--track-col` and `--bias-col`), so a rig that logs position in metres and force in newtons is
 //! read as it is.
 //!
+//! The units of bias and position travel with the log as [`LogSchema::units`] ([`Units`]): the
+//! metadata lines `# bias_unit = N` and `# position_unit = m` name them; without them a log
+//! with the default columns `bias` and `track` is in counts and tracks, and a renamed column's
+//! own name is its label (`force_N`). [`Units::resolve`] puts explicit labels (the CLI's
+//! `--bias-unit` and `--track-unit`) first.
+//!
 //! Reading is streaming ([`LogReader`]) and strict: every bad value is an error that names the
 //! file, line and column; nothing is skipped silently.
 //!
@@ -26,11 +32,14 @@
 //! let rows: Vec<_> = reader.by_ref().collect::<Result<_, _>>().unwrap();
 //! assert_eq!(rows.len(), 3);
 //! assert_eq!(rows[1].bias, None);
+//! assert_eq!(reader.schema().units.bias, "counts");
 //! ```
 
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::path::Path;
+
+use serde::{Deserialize, Serialize};
 
 /// Names of the three required columns (defaults `time_s`, `track`, `bias`).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -57,6 +66,136 @@ impl Default for ColumnMap {
             track: DEFAULT_TRACK_COL.into(),
             bias: DEFAULT_BIAS_COL.into(),
         }
+    }
+}
+
+/// Bias unit of a log whose bias column is the default `bias` and whose metadata names none.
+pub const DEFAULT_BIAS_UNIT: &str = "counts";
+/// Position unit of a log whose track column is the default `track` and whose metadata names
+/// none.
+pub const DEFAULT_POSITION_UNIT: &str = "tracks";
+/// Metadata key naming the bias unit (`# bias_unit = N`).
+pub const BIAS_UNIT_KEY: &str = "bias_unit";
+/// Metadata key naming the position unit (`# position_unit = m`).
+pub const POSITION_UNIT_KEY: &str = "position_unit";
+/// The CLI flag that sets the bias unit (named in errors).
+pub const BIAS_UNIT_FLAG: &str = "--bias-unit";
+/// The CLI flag that sets the position unit (named in errors).
+pub const POSITION_UNIT_FLAG: &str = "--track-unit";
+
+/// The unit labels of a log's bias and position, for every text, table and axis that shows
+/// log data. JSON: `{"bias": "N", "position": "m"}`.
+///
+/// ```
+/// use biasctl::log::{ColumnMap, Log, Units};
+/// let map = ColumnMap { track: "position_m".into(), bias: "force_N".into(), ..ColumnMap::default() };
+/// let log = Log::from_reader("r.csv", "time_s,position_m,force_N\n0,0.1,2\n".as_bytes(), &map).unwrap();
+/// assert_eq!(log.schema.units, Units { bias: "force_N".into(), position: "position_m".into() });
+/// let flags = Units::resolve(Some("N"), Some("m"), &log.schema).unwrap();
+/// assert_eq!((flags.bias.as_str(), flags.per_position().as_str()), ("N", "N/m"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Units {
+    /// Unit of the measured bias, e.g. `counts`, `N`, `mA`.
+    pub bias: String,
+    /// Unit of the position (seek target), e.g. `tracks`, `m`.
+    pub position: String,
+}
+
+impl Default for Units {
+    /// Counts and tracks: the simulator's units.
+    fn default() -> Self {
+        Self {
+            bias: DEFAULT_BIAS_UNIT.into(),
+            position: DEFAULT_POSITION_UNIT.into(),
+        }
+    }
+}
+
+/// A unit label that cannot be used (from a flag or from a log's metadata).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{origin} `{label}`: {problem}; give a plain label such as `N`, `mA` or `counts`")]
+pub struct UnitError {
+    /// Where the label came from: the flag (`--bias-unit`) or the log's metadata line.
+    pub origin: String,
+    /// The label as given.
+    pub label: String,
+    /// What is wrong with it.
+    pub problem: &'static str,
+}
+
+/// Checks a unit label: non-empty (after trimming), no control character (newline, tab, …) and
+/// no comma, so it fits an axis label, a text line and a CSV metadata line. Returns the trimmed
+/// label, or what is wrong with it.
+pub fn check_unit_label(label: &str) -> Result<&str, &'static str> {
+    let trimmed = label.trim();
+    if trimmed.is_empty() {
+        Err("a unit label must not be empty")
+    } else if trimmed.chars().any(char::is_control) {
+        Err("a unit label must not hold a control character (newline, tab, …)")
+    } else if trimmed.contains(',') {
+        Err("a unit label must not hold a comma")
+    } else {
+        Ok(trimmed)
+    }
+}
+
+impl Units {
+    /// Resolves the units of a log: an explicit label (`bias`, `position`: the CLI's
+    /// `--bias-unit` and `--track-unit`) first, then the log's metadata (`bias_unit`,
+    /// `position_unit`), then a default from the column: `counts` for the default bias column
+    /// `bias`, else the bias column's name (`force_N`); `tracks` for the default track column
+    /// `track`, else its name (`position_m`). A bad label (empty, a control character or a
+    /// comma) is an error naming its flag or the log file and metadata key.
+    pub fn resolve(
+        bias: Option<&str>,
+        position: Option<&str>,
+        schema: &LogSchema,
+    ) -> Result<Units, UnitError> {
+        let one = |flag_value: Option<&str>,
+                   flag: &str,
+                   key: &str,
+                   column: &str,
+                   default_column: &str,
+                   default_unit: &str|
+         -> Result<String, UnitError> {
+            let (label, origin) = match (flag_value, schema.metadata_value(key)) {
+                (Some(l), _) => (l, flag.to_string()),
+                (None, Some(m)) => (m, format!("{}: metadata `{key}`", schema.file)),
+                (None, None) if column == default_column => return Ok(default_unit.into()),
+                (None, None) => return Ok(column.into()),
+            };
+            check_unit_label(label)
+                .map(str::to_string)
+                .map_err(|problem| UnitError {
+                    origin,
+                    label: label.to_string(),
+                    problem,
+                })
+        };
+        Ok(Units {
+            bias: one(
+                bias,
+                BIAS_UNIT_FLAG,
+                BIAS_UNIT_KEY,
+                &schema.map.bias,
+                DEFAULT_BIAS_COL,
+                DEFAULT_BIAS_UNIT,
+            )?,
+            position: one(
+                position,
+                POSITION_UNIT_FLAG,
+                POSITION_UNIT_KEY,
+                &schema.map.track,
+                DEFAULT_TRACK_COL,
+                DEFAULT_POSITION_UNIT,
+            )?,
+        })
+    }
+
+    /// The unit of a slope of bias against position, `<bias>/<position>` (`N/m`).
+    pub fn per_position(&self) -> String {
+        format!("{}/{}", self.bias, self.position)
     }
 }
 
@@ -158,6 +297,9 @@ pub enum LogError {
         /// The bias column's name.
         column: String,
     },
+    /// A unit label in the metadata (`bias_unit`, `position_unit`) cannot be used.
+    #[error(transparent)]
+    Unit(#[from] UnitError),
 }
 
 /// What a log's header says: metadata, column names and which column is which.
@@ -173,6 +315,10 @@ pub struct LogSchema {
     pub map: ColumnMap,
     /// Names of the covariate columns (all but the three required), in file order.
     pub covariates: Vec<String>,
+    /// The units of bias and position: from the metadata or the columns when read
+    /// ([`Units::resolve`] without explicit labels); [`LogSchema::set_units`] applies explicit
+    /// ones.
+    pub units: Units,
     time_idx: usize,
     track_idx: usize,
     bias_idx: usize,
@@ -183,6 +329,17 @@ impl LogSchema {
     /// Index of covariate `name` in [`Row::covariates`], if the log has it.
     pub fn covariate_index(&self, name: &str) -> Option<usize> {
         self.covariates.iter().position(|c| c == name)
+    }
+
+    /// Resolves the units again with explicit labels (the CLI's `--bias-unit` and
+    /// `--track-unit`; `None` keeps the metadata or column default), see [`Units::resolve`].
+    pub fn set_units(
+        &mut self,
+        bias: Option<&str>,
+        position: Option<&str>,
+    ) -> Result<(), UnitError> {
+        self.units = Units::resolve(bias, position, self)?;
+        Ok(())
     }
 
     /// The value of metadata key `key` from a line `key = value` or `key: value`.
@@ -312,18 +469,21 @@ impl<R: Read> LogReader<R> {
             .filter(|i| ![time_idx, track_idx, bias_idx].contains(i))
             .collect();
         let covariates = covariate_idx.iter().map(|&i| columns[i].clone()).collect();
+        let mut schema = LogSchema {
+            file: file.into(),
+            metadata,
+            columns,
+            map: map.clone(),
+            covariates,
+            units: Units::default(),
+            time_idx,
+            track_idx,
+            bias_idx,
+            covariate_idx,
+        };
+        schema.set_units(None, None)?;
         Ok(Self {
-            schema: LogSchema {
-                file: file.into(),
-                metadata,
-                columns,
-                map: map.clone(),
-                covariates,
-                time_idx,
-                track_idx,
-                bias_idx,
-                covariate_idx,
-            },
+            schema,
             csv,
             record: csv::StringRecord::new(),
             line_offset: line_no,
@@ -675,6 +835,65 @@ mod tests {
                 .schema
                 .metadata_value("seed"),
             Some("1")
+        );
+    }
+
+    #[test]
+    fn units_come_from_flags_then_metadata_then_columns() {
+        let plain = read("time_s,track,bias\n0,1,2\n").unwrap();
+        assert_eq!(plain.schema.units, Units::default());
+        assert_eq!(plain.schema.units.per_position(), "counts/tracks");
+        let meta =
+            read("# bias_unit = mA\n# position_unit: um\ntime_s,track,bias\n0,1,2\n").unwrap();
+        assert_eq!(
+            meta.schema.units,
+            Units {
+                bias: "mA".into(),
+                position: "um".into()
+            }
+        );
+        let map = ColumnMap {
+            time: "t".into(),
+            track: "position_m".into(),
+            bias: "force_N".into(),
+        };
+        let mut renamed =
+            Log::from_reader("r.csv", "t,position_m,force_N\n0,0.1,2\n".as_bytes(), &map).unwrap();
+        assert_eq!(renamed.schema.units.bias, "force_N");
+        assert_eq!(renamed.schema.units.position, "position_m");
+        // Flags win over the column default; `None` keeps it; labels are trimmed.
+        renamed.schema.set_units(Some(" N "), None).unwrap();
+        assert_eq!(renamed.schema.units.bias, "N");
+        assert_eq!(renamed.schema.units.position, "position_m");
+        // Flags win over metadata too.
+        let u = Units::resolve(Some("kN"), Some("mm"), &meta.schema).unwrap();
+        assert_eq!(u.per_position(), "kN/mm");
+    }
+
+    #[test]
+    fn bad_unit_labels_name_their_flag_or_metadata_key() {
+        for (label, want) in [
+            ("", "must not be empty"),
+            ("  ", "must not be empty"),
+            ("N,m", "comma"),
+            ("N\nm", "control character"),
+            ("a\tb", "control character"),
+        ] {
+            let problem = check_unit_label(label).unwrap_err();
+            assert!(problem.contains(want), "{label:?}: {problem}");
+        }
+        assert_eq!(check_unit_label(" N·m "), Ok("N·m"));
+        let log = read("time_s,track,bias\n0,1,2\n").unwrap();
+        let e = Units::resolve(Some(""), None, &log.schema).unwrap_err();
+        assert!(e.to_string().starts_with("--bias-unit ``: "), "{e}");
+        let e = Units::resolve(None, Some("a,b"), &log.schema).unwrap_err();
+        assert!(e.to_string().starts_with("--track-unit `a,b`: "), "{e}");
+        let err = read("# bias_unit =\ntime_s,track,bias\n0,1,2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("t.csv: metadata `bias_unit` ``: a unit label must not be empty"),
+            "{err}"
         );
     }
 

@@ -1,7 +1,9 @@
 //! Error statistics of a model on a log (`biasctl score`): n, mean, std, RMS, median absolute
 //! error, percentiles, a histogram, Sarle's bimodality coefficient, Hartigans' dip test of
 //! unimodality (does the error histogram really have two humps?) and a trend test of the error
-//! against position. All in counts (the trend slope in counts per track).
+//! against position. All in the log's bias unit (the trend slope in bias unit per position
+//! unit), carried in [`Score::units`]: counts and tracks for the simulator, whatever the log
+//! says for yours ([`score_with_units`]).
 //!
 //! ```
 //! let e = [1.0, -1.0, 0.5, -0.5, 0.0, 0.25];
@@ -11,6 +13,7 @@
 //! assert!((s.mean - 0.041666).abs() < 1e-5);
 //! ```
 
+use crate::log::Units;
 use crate::stats::{self, DipTest, Histogram, Trend};
 use serde::{Deserialize, Serialize};
 
@@ -31,20 +34,20 @@ pub enum ScoreError {
     },
 }
 
-/// The score of a model's residuals (measured − predicted, counts). JSON keys are a contract:
-/// `n`, `mean`, `std`, `rms`, `histogram`, `bimodality`, `trend` (plus the others below, among
-/// them `dip` and `bimodal`).
+/// The score of a model's residuals (measured − predicted, in the bias unit of [`Score::units`]).
+/// JSON keys are a contract: `n`, `mean`, `std`, `rms`, `histogram`, `bimodality`, `trend` (plus
+/// the others below, among them `dip`, `bimodal` and `units`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Score {
     /// Number of residuals.
     pub n: usize,
-    /// Mean error, counts.
+    /// Mean error, bias unit.
     pub mean: f64,
-    /// Sample standard deviation, counts (0 for one value).
+    /// Sample standard deviation, bias unit (0 for one value).
     pub std: f64,
-    /// Root mean square, counts.
+    /// Root mean square, bias unit.
     pub rms: f64,
-    /// Median of |error|, counts.
+    /// Median of |error|, bias unit.
     pub median_abs: f64,
     /// Percentiles of the error: (p, value) for p = 1, 5, 25, 50, 75, 95, 99.
     pub percentiles: Vec<(f64, f64)>,
@@ -63,12 +66,28 @@ pub struct Score {
     /// Residuals that take few distinct values (quantised measurements and a model with few
     /// distinct predictions) are point masses to the test, which then rejects.
     pub bimodal: bool,
-    /// Least-squares trend of the error against position (`null` if undefined).
+    /// Least-squares trend of the error against position (`null` if undefined); its slope is in
+    /// bias unit per position unit.
     pub trend: Option<Trend>,
+    /// The units of the error and the positions: `{"bias": "N", "position": "m"}` (counts and
+    /// tracks when absent).
+    #[serde(default)]
+    pub units: Units,
 }
 
-/// Scores `residuals` (counts) at `positions` (tracks, same length).
+/// Scores `residuals` (counts) at `positions` (tracks, same length): the simulator's units. For
+/// a log in other units use [`score_with_units`] with the log's [`crate::log::LogSchema::units`].
 pub fn score(residuals: &[f64], positions: &[f64]) -> Result<Score, ScoreError> {
+    score_with_units(residuals, positions, &Units::default())
+}
+
+/// Scores `residuals` (in `units.bias`) at `positions` (in `units.position`, same length); the
+/// units label the text and the JSON.
+pub fn score_with_units(
+    residuals: &[f64],
+    positions: &[f64],
+    units: &Units,
+) -> Result<Score, ScoreError> {
     if residuals.is_empty() {
         return Err(ScoreError::Empty);
     }
@@ -97,17 +116,19 @@ pub fn score(residuals: &[f64], positions: &[f64]) -> Result<Score, ScoreError> 
         dip,
         bimodal: dip.is_some_and(|t| t.rejects_unimodality(stats::DIP_SIGNIFICANCE)),
         trend: stats::linear_trend(positions, residuals),
+        units: units.clone(),
     })
 }
 
 impl Score {
-    /// A human-readable summary.
+    /// A human-readable summary, every value labelled with [`Score::units`].
     pub fn to_text(&self) -> String {
+        let u = &self.units.bias;
         let mut s = format!(
-            "n {}\nmean {:.4}\nstd {:.4}\nrms {:.4}\nmedian |error| {:.4}\n",
+            "n {}\nmean {:.4} {u}\nstd {:.4} {u}\nrms {:.4} {u}\nmedian |error| {:.4} {u}\n",
             self.n, self.mean, self.std, self.rms, self.median_abs
         );
-        s += "percentiles";
+        s += &format!("percentiles ({u})");
         for (p, v) in &self.percentiles {
             s += &format!(" p{p}={v:.4}");
         }
@@ -134,7 +155,7 @@ impl Score {
                     format!("{:.4}", t.p_value)
                 };
                 s += &format!(
-                    "dip test D {:.4}, p {p}, modal interval [{:.4}, {:.4}]: {}\n",
+                    "dip test D {:.4}, p {p}, modal interval [{:.4}, {:.4}] {u}: {}\n",
                     t.statistic,
                     t.modal_interval[0],
                     t.modal_interval[1],
@@ -150,13 +171,16 @@ impl Score {
         match &self.trend {
             Some(t) => {
                 s += &format!(
-                    "trend vs position: slope {:.4e} counts/track, t {:.2}, p {:.3e}\n",
-                    t.slope, t.t, t.p_value
+                    "trend vs position: slope {:.4e} {}, t {:.2}, p {:.3e}\n",
+                    t.slope,
+                    self.units.per_position(),
+                    t.t,
+                    t.p_value
                 )
             }
             None => s += "trend vs position: undefined\n",
         }
-        s += "histogram\n";
+        s += &format!("histogram of the error ({u})\n");
         for (i, c) in self.histogram.counts.iter().enumerate() {
             s += &format!(
                 "  [{:>9.3}, {:>9.3}) {c}\n",
@@ -207,6 +231,35 @@ mod tests {
         assert!(s.to_text().contains("dip test undefined"));
         let s = score(&[2.0; 10], &positions(10)).unwrap();
         assert!(s.dip.is_none() && !s.bimodal);
+    }
+
+    #[test]
+    fn text_and_json_carry_the_units() {
+        let e: Vec<f64> = (0..100).map(|i| ((i * 37) % 100) as f64 / 10.0).collect();
+        let s = score(&e, &positions(e.len())).unwrap();
+        let text = s.to_text();
+        assert!(text.contains(" counts\nrms ") && text.contains(" counts/tracks, t "));
+        let units = Units {
+            bias: "N".into(),
+            position: "m".into(),
+        };
+        let s = score_with_units(&e, &positions(e.len()), &units).unwrap();
+        let text = s.to_text();
+        assert!(text.contains(&format!("std {:.4} N\n", s.std)), "{text}");
+        assert!(
+            text.contains(" N/m, t ") && !text.contains("count"),
+            "{text}"
+        );
+        let v = serde_json::to_value(&s).unwrap();
+        assert_eq!(
+            v["units"],
+            serde_json::json!({"bias": "N", "position": "m"})
+        );
+        // A score written before units existed reads back in counts and tracks.
+        let mut old = v.clone();
+        old.as_object_mut().unwrap().remove("units");
+        let back: Score = serde_json::from_value(old).unwrap();
+        assert_eq!(back.units, Units::default());
     }
 
     #[test]

@@ -10,9 +10,10 @@ pub struct Args {
     log: LogArgs,
 }
 
-/// Streams the log once and prints rows, measured rows, span and covariates.
+/// Streams the log once and prints rows, measured rows, span, units and covariates.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut reader = LogReader::open(&args.log.data, &args.log.columns.map())?;
+    let units = args.log.columns.units(reader.schema())?;
     let mut row = Row {
         line: 0,
         time_s: 0.0,
@@ -35,8 +36,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let s = reader.schema();
     println!("{}: {n} rows, {measured} measured", s.file);
-    println!("  positions {lo} .. {hi} ({})", s.map.track);
-    println!("  time {t0} .. {t1} s ({})", s.map.time);
+    println!(
+        "  positions {lo} .. {hi} {} (column {})",
+        units.position, s.map.track
+    );
+    println!("  bias in {} (column {})", units.bias, s.map.bias);
+    println!("  time {t0} .. {t1} s (column {})", s.map.time);
     if !s.covariates.is_empty() {
         println!("  covariates: {}", s.covariates.join(", "));
     }

@@ -1,12 +1,15 @@
 //! Flags shared by several commands.
 
 use anyhow::Context;
-use biasctl::log::{ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL};
+use biasctl::log::{
+    ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL, Log, LogSchema, Units,
+    check_unit_label,
+};
 use biasctl::settle::SettleSpec;
 use clap::Args;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-/// Column-name flags accepted by every command that reads a log.
+/// Column-name and unit flags accepted by every command that reads a log.
 #[derive(Debug, Clone, Args)]
 pub struct ColumnArgs {
     /// Name of the time column (seconds).
@@ -18,6 +21,21 @@ pub struct ColumnArgs {
     /// Name of the measured-bias column (counts or any force unit).
     #[arg(long, default_value = DEFAULT_BIAS_COL, value_name = "NAME")]
     pub bias_col: String,
+    /// Unit label of the bias (e.g. N, mA); default: the log's `# bias_unit` metadata, else
+    /// counts for the column `bias`, else the bias column's name.
+    #[arg(long, value_name = "LABEL", value_parser = unit_label)]
+    pub bias_unit: Option<String>,
+    /// Unit label of the position (e.g. m, mm); default: the log's `# position_unit` metadata,
+    /// else tracks for the column `track`, else the track column's name.
+    #[arg(long, value_name = "LABEL", value_parser = unit_label)]
+    pub track_unit: Option<String>,
+}
+
+/// Validates a `--bias-unit` / `--track-unit` label (clap names the flag in the error).
+fn unit_label(label: &str) -> Result<String, String> {
+    check_unit_label(label)
+        .map(str::to_string)
+        .map_err(str::to_string)
 }
 
 impl Default for ColumnArgs {
@@ -28,6 +46,8 @@ impl Default for ColumnArgs {
             time_col: m.time,
             track_col: m.track,
             bias_col: m.bias,
+            bias_unit: None,
+            track_unit: None,
         }
     }
 }
@@ -40,6 +60,23 @@ impl ColumnArgs {
             track: self.track_col.clone(),
             bias: self.bias_col.clone(),
         }
+    }
+
+    /// The units of a log read with these flags: the unit flags first, then the log's metadata,
+    /// then the column defaults ([`Units::resolve`]).
+    pub fn units(&self, schema: &LogSchema) -> anyhow::Result<Units> {
+        Ok(Units::resolve(
+            self.bias_unit.as_deref(),
+            self.track_unit.as_deref(),
+            schema,
+        )?)
+    }
+
+    /// Reads the whole log at `path` with these column names and unit labels.
+    pub fn read_log(&self, path: &Path) -> anyhow::Result<Log> {
+        let mut log = Log::read(path, &self.map())?;
+        log.schema.units = self.units(&log.schema)?;
+        Ok(log)
     }
 }
 

@@ -4,7 +4,6 @@ use super::predict::ModelLogArgs;
 use anyhow::Context;
 use biasctl::diagnose::{DiagnoseConfig, PathStep, diagnose_model, suggestion_path_from};
 use biasctl::fit::FitOptions;
-use biasctl::log::Log;
 use biasctl::model::FittedModel;
 use biasctl::output::write_atomic;
 use std::io::Write;
@@ -15,7 +14,8 @@ use std::path::PathBuf;
 pub struct Args {
     #[command(flatten)]
     input: ModelLogArgs,
-    /// Print the diagnosis as JSON (keys residual_std, features, whiteness, bimodality, dip, summary).
+    /// Print the diagnosis as JSON (keys residual_std, features, whiteness, bimodality, dip,
+    /// summary, units).
     #[arg(long)]
     json: bool,
     /// Also write `diagnosis.json` and one `residual_vs_<feature>.csv` per top feature here.
@@ -50,7 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     config.validate()?;
     let model = FittedModel::load(&args.input.model)?;
-    let log = Log::read(&args.input.log.data, &args.input.log.columns.map())?;
+    let log = args.input.log.columns.read_log(&args.input.log.data)?;
     let d = diagnose_model(&model, &log, &config)?;
     let path = if args.path > 0 {
         let first = d.clone();
@@ -96,7 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         print!("{}", d.to_text());
         if args.path > 0 {
-            print_path(&path, args.path);
+            print_path(&path, args.path, &log.schema.units.bias);
         }
         if let Some(dir) = &args.out {
             println!("wrote {}", dir.display());
@@ -105,11 +105,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn print_path(path: &[PathStep], asked: usize) {
+fn print_path(path: &[PathStep], asked: usize, unit: &str) {
     println!("\nFollowing the advice (refit on this log after each step):");
     for (i, p) in path.iter().enumerate() {
         println!(
-            "  {}. `{}` ({:.1} % explained) → add `{}`: residual std {:.4} → {:.4} counts",
+            "  {}. `{}` ({:.1} % explained) → add `{}`: residual std {:.4} → {:.4} {unit}",
             i + 1,
             p.feature,
             100.0 * p.explained,

@@ -3,7 +3,6 @@
 use super::common::LogArgs;
 use anyhow::Context;
 use biasctl::fit::{FitOptions, fit};
-use biasctl::log::Log;
 use biasctl::model::ModelSpec;
 use std::path::PathBuf;
 
@@ -33,13 +32,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, Some(t)) => ModelSpec::parse(t).context("--terms")?,
         _ => anyhow::bail!("give a model: --model PRESET or --terms T1,T2,..."),
     };
-    let log = Log::read(&args.log.data, &args.log.columns.map())?;
+    let log = args.log.columns.read_log(&args.log.data)?;
     let model = fit(&spec, &log, &FitOptions::default())?;
     model.save(&args.out)?;
     let f = &model.fit;
     println!(
-        "{}: model `{}`, {} measured rows, {} parameters, residual std {:.4}, R² {:.4}",
-        log.schema.file, model.spec, f.rows_used, f.parameters, f.residual_std, f.r2
+        "{}: model `{}`, {} measured rows, {} parameters, residual std {:.4} {}, R² {:.4}",
+        log.schema.file,
+        model.spec,
+        f.rows_used,
+        f.parameters,
+        f.residual_std,
+        log.schema.units.bias,
+        f.r2
     );
     for p in model.params() {
         match p.se {

@@ -4,7 +4,6 @@ use super::common::ColumnArgs;
 use anyhow::Context;
 use biasctl::diagnose::ladder_fit;
 use biasctl::fit::FitOptions;
-use biasctl::log::Log;
 use std::path::PathBuf;
 
 /// Flags of `biasctl ladder`.
@@ -40,18 +39,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             i + 1
         );
     }
-    let map = args.columns.map();
-    let train = Log::read(&args.data, &map).context("--data")?;
-    let test = Log::read(&args.test, &map).context("--test")?;
+    let train = args.columns.read_log(&args.data).context("--data")?;
+    let test = args.columns.read_log(&args.test).context("--test")?;
     let l = ladder_fit(&train, &test, &terms, &FitOptions::default())?;
     if args.json {
         println!("{}", l.to_json());
     } else {
+        let units = &test.schema.units;
         println!(
-            "fitted on {}, error std on {} (counts):",
-            train.schema.file, test.schema.file
+            "fitted on {}, error std on {} ({}):",
+            train.schema.file, test.schema.file, units.bias
         );
-        print!("{}", l.to_text());
+        print!("{}", l.to_text(units));
     }
     Ok(())
 }

@@ -158,7 +158,8 @@ fn draw(a: &Args) -> anyhow::Result<String> {
         });
     }
     let data = a.data.as_ref().context("--data")?;
-    let log = Log::read(data, &a.columns.map())?;
+    let log = a.columns.read_log(data)?;
+    let units = &log.schema.units;
     let single = || -> anyhow::Result<FittedModel> {
         model(a.model.as_deref().unwrap_or_default(), &log).map(|m| m.1)
     };
@@ -176,10 +177,11 @@ fn draw(a: &Args) -> anyhow::Result<String> {
                     .count();
                 if measured == 0 {
                     bail!(
-                        "--track {t}: {} has no measured row at {} {t}; leave --track out to \
-                         plot the most-measured track",
+                        "--track {t}: {} has no measured row at {} {t} {}; leave --track out \
+                         to plot the most-measured track",
                         data.display(),
-                        log.schema.map.track
+                        log.schema.map.track,
+                        units.position
                     );
                 }
             }
@@ -193,9 +195,9 @@ fn draw(a: &Args) -> anyhow::Result<String> {
                 preds.push((label, m.predict_log(&log)?));
             }
             let refs: Vec<(&str, _)> = preds.iter().map(|(l, p)| (l.as_str(), p)).collect();
-            views::errors(&refs)
+            views::errors(&refs, units)
         }
-        Kind::Loop => views::dahl_loop(&single()?.predict_log(&log)?),
+        Kind::Loop => views::dahl_loop(&single()?.predict_log(&log)?, units),
         Kind::Diagnose => {
             let m = single()?;
             let residual = replay_model(&m, &log)?.residual;
@@ -205,7 +207,7 @@ fn draw(a: &Args) -> anyhow::Result<String> {
         }
         Kind::Ladder => {
             let test_path = a.test.as_ref().context("--test")?;
-            let test = Log::read(test_path, &a.columns.map())?;
+            let test = a.columns.read_log(test_path)?;
             let terms: Vec<String> = a
                 .terms
                 .split(',')
@@ -215,7 +217,8 @@ fn draw(a: &Args) -> anyhow::Result<String> {
             if terms.is_empty() {
                 bail!("--terms is empty");
             }
-            views::ladder(&ladder_fit(&log, &test, &terms, &FitOptions::default())?)
+            let l = ladder_fit(&log, &test, &terms, &FitOptions::default())?;
+            views::ladder(&l, &test.schema.units)
         }
         Kind::Bounds | Kind::Responses => bail!("plot bounds/responses take no log"),
     })

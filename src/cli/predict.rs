@@ -21,7 +21,7 @@ impl ModelLogArgs {
     /// Loads the model and the log and replays the model causally over the log.
     pub fn replay(&self) -> anyhow::Result<(FittedModel, Log, Prediction)> {
         let model = FittedModel::load(&self.model)?;
-        let log = Log::read(&self.log.data, &self.log.columns.map())?;
+        let log = self.log.columns.read_log(&self.log.data)?;
         let pred = model.predict_log(&log)?;
         Ok((model, log, pred))
     }
@@ -77,10 +77,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Ok(())
     })?;
     println!(
-        "{}: {} measured rows predicted with `{}`, wrote {}",
+        "{}: {} measured rows predicted with `{}` (bias in {}, position in {}), wrote {}",
         s.file,
         pred.rows.len(),
         model.spec,
+        s.units.bias,
+        s.units.position,
         args.out.display()
     );
     Ok(())

@@ -4,7 +4,6 @@
 use super::common::ColumnArgs;
 use super::progress::Bar;
 use anyhow::Context;
-use biasctl::log::Log;
 use biasctl::model::FittedModel;
 use biasctl::report::story::{StoryOptions, StoryOutcome, data_report, demo_report};
 use std::path::PathBuf;
@@ -55,7 +54,7 @@ pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
     let outcome = match &args.data {
         None => demo_report(&args.out, &opts, &mut |p| bar.update(p)),
         Some(path) => {
-            let log = Log::read(path, &args.columns.map())?;
+            let log = args.columns.read_log(path)?;
             let model = match &args.model {
                 Some(m) => Some(FittedModel::load(m)?),
                 None => None,

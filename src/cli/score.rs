@@ -1,7 +1,7 @@
 //! `biasctl score`: error statistics of a model on a log.
 
 use super::predict::ModelLogArgs;
-use biasctl::score::score;
+use biasctl::score::score_with_units;
 
 /// Flags of `biasctl score`.
 #[derive(Debug, clap::Args)]
@@ -9,7 +9,8 @@ pub struct Args {
     #[command(flatten)]
     input: ModelLogArgs,
     /// Print JSON (keys n, mean, std, rms, median_abs, percentiles, histogram, bimodality, dip
-    /// {statistic, p_value, modal_interval, n}, bimodal (the dip test's p < 0.05), trend).
+    /// {statistic, p_value, modal_interval, n}, bimodal (the dip test's p < 0.05), trend, units
+    /// {bias, position}).
     #[arg(long)]
     json: bool,
 }
@@ -17,7 +18,7 @@ pub struct Args {
 /// Replays the model and prints the score.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, log, pred) = args.input.replay()?;
-    let s = score(&pred.residual, &pred.positions)?;
+    let s = score_with_units(&pred.residual, &pred.positions, &log.schema.units)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&s)?);
     } else {

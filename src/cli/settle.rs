@@ -2,7 +2,6 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::Context;
-use biasctl::log::Log;
 use biasctl::model::{FittedModel, NextPrediction, predict_next};
 use biasctl::output::write_string_atomic;
 use biasctl::settle::{SettleReport, analyse};
@@ -55,7 +54,7 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
         return Ok(None);
     };
     let model = FittedModel::load(model_path)?;
-    let log = Log::read(data, &args.columns.map())?;
+    let log = args.columns.read_log(data)?;
     let next = predict_next(&model, &log, args.target)
         .with_context(|| format!("predicting the handoff bias from {}", data.display()))?;
     let delta_b = args

@@ -2,7 +2,7 @@
 //! plus every covariate column, aligned with the rows that carry a measured bias.
 
 use crate::history::{Feature, History};
-use crate::log::Log;
+use crate::log::{Log, Units};
 
 use super::DiagnoseError;
 
@@ -35,12 +35,14 @@ pub struct FeatureColumn {
 pub struct FeatureTable {
     lines: Vec<u64>,
     columns: Vec<FeatureColumn>,
+    units: Units,
 }
 
 impl FeatureTable {
     /// Replays the seek history over every row of `log` and collects, for every measured row,
     /// every built-in feature ([`Feature::ALL`]) and every covariate column under its header
-    /// name. Non-finite covariate values are kept as missing.
+    /// name. Non-finite covariate values are kept as missing. The log's units
+    /// ([`crate::log::LogSchema::units`]) come along and label the diagnosis.
     pub fn from_log(log: &Log) -> FeatureTable {
         let measured = log.measured_count();
         let mut builtin: Vec<Vec<Option<f64>>> = Feature::ALL
@@ -88,16 +90,33 @@ impl FeatureTable {
                     values,
                 }),
         );
-        FeatureTable { lines, columns }
+        FeatureTable {
+            lines,
+            columns,
+            units: log.schema.units.clone(),
+        }
     }
 
     /// A table without features for measured rows whose log lines are `lines` (one per row,
-    /// used in messages); add features with [`FeatureTable::push_column`].
+    /// used in messages); add features with [`FeatureTable::push_column`]. Its units are counts
+    /// and tracks until [`FeatureTable::with_units`] says otherwise.
     pub fn with_lines(lines: Vec<u64>) -> FeatureTable {
         FeatureTable {
             lines,
             columns: Vec::new(),
+            units: Units::default(),
         }
+    }
+
+    /// The table with the residual's and position's units set to `units`.
+    pub fn with_units(mut self, units: Units) -> FeatureTable {
+        self.units = units;
+        self
+    }
+
+    /// The units of the residual (bias) and of the position-like features.
+    pub fn units(&self) -> &Units {
+        &self.units
     }
 
     /// Adds a covariate-like feature column. Errors if its length differs from the number of

@@ -5,13 +5,14 @@ use serde::{Deserialize, Serialize};
 
 use super::DiagnoseError;
 use super::advice::short;
+use crate::log::Units;
 
 /// One rung as measured by the caller: the model's terms and its test-set error std.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LadderInput {
     /// The model's terms at this step.
     pub terms: Vec<String>,
-    /// Test-set error std, counts.
+    /// Test-set error std, in the test log's bias unit.
     pub std: f64,
 }
 
@@ -20,7 +21,7 @@ pub struct LadderInput {
 pub struct LadderStep {
     /// The model's terms at this step.
     pub terms: Vec<String>,
-    /// Test-set error std, counts.
+    /// Test-set error std, in the test log's bias unit.
     pub std: f64,
     /// Reduction of the std relative to the first step, as a fraction (0.36 = 36 % lower;
     /// negative if worse; 0 when the first std is 0).
@@ -77,11 +78,14 @@ impl LadderStep {
 }
 
 impl Ladder {
-    /// A text table: step, the terms (as `+ added` after the first step), std and reduction.
-    pub fn to_text(&self) -> String {
+    /// A text table: step, the terms (as `+ added` after the first step), std (in
+    /// `units.bias`, the test log's) and reduction.
+    pub fn to_text(&self, units: &Units) -> String {
+        let std_header = format!("std ({})", units.bias);
+        let w = std_header.chars().count().max(10);
         let mut out = format!(
-            "{:<4} {:<40} {:>10} {:>10}\n",
-            "step", "terms", "std", "reduction"
+            "{:<4} {:<40} {:>w$} {:>10}\n",
+            "step", "terms", std_header, "reduction"
         );
         let mut previous: Option<&LadderStep> = None;
         for (i, s) in self.steps.iter().enumerate() {
@@ -100,7 +104,7 @@ impl Ladder {
                 }
             };
             out.push_str(&format!(
-                "{:<4} {:<40} {:>10} {:>9.1}%\n",
+                "{:<4} {:<40} {:>w$} {:>9.1}%\n",
                 i,
                 terms,
                 short(s.std),
@@ -141,9 +145,22 @@ mod tests {
         assert!(l.steps[0].reduction.abs() < 1e-15);
         assert!((l.steps[1].reduction - 0.4).abs() < 1e-12);
         assert!((l.steps[2].reduction - 0.6).abs() < 1e-12);
-        let text = l.to_text();
+        let text = l.to_text(&Units::default());
         assert!(
             text.contains("+ seek") && text.contains("+ memory"),
+            "{text}"
+        );
+        assert!(
+            text.starts_with("step") && text.contains(" std (counts) "),
+            "{text}"
+        );
+        let newtons = Units {
+            bias: "N".into(),
+            position: "m".into(),
+        };
+        let text = l.to_text(&newtons);
+        assert!(
+            text.contains(" std (N) ") && !text.contains("counts"),
             "{text}"
         );
         assert!(text.contains("60.0%"), "{text}");

@@ -350,7 +350,8 @@ fn signable(col: &FeatureColumn) -> bool {
 /// smoother (bins chosen by cross-validation), a family-wise permutation p-value, the curve's
 /// shape, the suggested term and the error std expected once it is added; plus whiteness and
 /// bimodality of the residuals. Features are sorted strongest first (explained, then p-value);
-/// constant or never-defined features are listed last with a note.
+/// constant or never-defined features are listed last with a note. The residuals are in the
+/// table's bias unit ([`FeatureTable::units`]), which labels the summary and the text.
 pub fn diagnose(
     table: &FeatureTable,
     residuals: &[f64],
@@ -527,6 +528,7 @@ pub fn diagnose(
         bimodality,
         dip,
         summary: String::new(),
+        units: table.units().clone(),
     };
     d.summary = report::summary(&d, n, config.alpha);
     Ok(d)

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::log::fmt_trimmed;
+use crate::log::{Units, fmt_trimmed};
 use crate::output::write_atomic;
 use crate::stats;
 
@@ -15,10 +15,10 @@ use super::smoother::{BinKind, Binned, Unusable, accumulate};
 use super::{DiagnoseConfig, DiagnoseError};
 
 /// The result of [`super::diagnose`]. Serialises to the JSON contract
-/// `{"residual_std", "features": [...], "whiteness", "bimodality", "dip", "summary"}`.
+/// `{"residual_std", "features": [...], "whiteness", "bimodality", "dip", "summary", "units"}`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Diagnosis {
-    /// Sample standard deviation of the residuals, counts.
+    /// Sample standard deviation of the residuals, in the bias unit of [`Diagnosis::units`].
     pub residual_std: f64,
     /// Every candidate feature, strongest first; skipped features last.
     pub features: Vec<FeatureReport>,
@@ -33,6 +33,10 @@ pub struct Diagnosis {
     pub dip: Option<stats::DipTest>,
     /// The diagnosis in a few plain sentences.
     pub summary: String,
+    /// The units of the residual and of the position-like features, from the log:
+    /// `{"bias": "N", "position": "m"}` (counts and tracks when absent).
+    #[serde(default)]
+    pub units: Units,
 }
 
 /// What one candidate feature says about the residual.
@@ -95,7 +99,7 @@ pub struct CurveBin {
     pub upper: Option<f64>,
     /// Mean feature value in the bin; `null` for the bin of undefined values.
     pub centre: Option<f64>,
-    /// Mean residual, counts.
+    /// Mean residual, bias unit.
     pub mean: f64,
     /// Sample std of the residuals in the bin (0 for a single row).
     pub std: f64,
@@ -335,8 +339,8 @@ fn p_text(p: f64) -> String {
     }
 }
 
-/// The advice sentence for one flagged feature.
-fn advice_line(f: &FeatureReport, residual_std: f64) -> String {
+/// The advice sentence for one flagged feature (`unit`: the residual's).
+fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> String {
     let mut s = format!(
         "The residual{} follows `{}`: it {}; `{}` explains {} of the residual variance out of \
          sample (p = {}, family-wise).",
@@ -354,7 +358,7 @@ fn advice_line(f: &FeatureReport, residual_std: f64) -> String {
     match &f.suggested_term {
         Some(t) => {
             s.push_str(&format!(
-                " Add `{t}`: expected error std ≈ {} counts (from {}).",
+                " Add `{t}`: expected error std ≈ {} {unit} (from {}).",
                 short(f.expected_std),
                 short(residual_std)
             ));
@@ -379,7 +383,7 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
     let flagged: Vec<&FeatureReport> = d.features.iter().filter(|f| f.flagged).collect();
     match flagged.first() {
         Some(f) => {
-            parts.push(advice_line(f, d.residual_std));
+            parts.push(advice_line(f, d.residual_std, &d.units.bias));
             if flagged.len() > 1 {
                 let others: Vec<String> = flagged[1..]
                     .iter()
@@ -407,9 +411,10 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
             }
         }
         None => parts.push(format!(
-            "No candidate feature explains the residual (std {} counts, {n} rows) beyond noise \
+            "No candidate feature explains the residual (std {} {}, {n} rows) beyond noise \
              at the {} level.",
             short(d.residual_std),
+            d.units.bias,
             percent(alpha)
         )),
     }
@@ -438,8 +443,9 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
         && p <= alpha
     {
         parts.push(format!(
-            "A linear trend against position remains ({} counts/track, p = {}).",
+            "A linear trend against position remains ({} {}, p = {}).",
             short(slope),
+            d.units.per_position(),
             p_text(p)
         ));
     }
@@ -475,8 +481,9 @@ impl Diagnosis {
     pub fn to_text(&self) -> String {
         let mut out = String::new();
         out.push_str(&format!(
-            "Residual std: {} counts\n\n",
-            short(self.residual_std)
+            "Residual std: {} {}\n\n",
+            short(self.residual_std),
+            self.units.bias
         ));
         out.push_str(&format!(
             "{:<20} {:>9} {:>9} {:>9} {:>5}  {:<16} {:<22} {:>12}\n",
@@ -520,7 +527,7 @@ impl Diagnosis {
             out.push_str(&format!(
                 "  {}. {}\n",
                 i + 1,
-                advice_line(f, self.residual_std)
+                advice_line(f, self.residual_std, &self.units.bias)
             ));
         }
         for f in self.features.iter().filter(|f| is_skipped(f)) {
@@ -561,8 +568,9 @@ impl Diagnosis {
             && let (Some(s), Some(p)) = (pos.slope, pos.slope_p)
         {
             out.push_str(&format!(
-                "  trend against position: {} counts/track, p = {}\n",
+                "  trend against position: {} {}, p = {}\n",
                 short(s),
+                self.units.per_position(),
                 p_text(p)
             ));
         }

@@ -479,8 +479,13 @@ fn json_has_the_contract_keys_and_round_trips() {
             "features",
             "residual_std",
             "summary",
+            "units",
             "whiteness"
         ]
+    );
+    assert_eq!(
+        v["units"],
+        serde_json::json!({"bias": "counts", "position": "tracks"})
     );
     let f0 = v["features"][0].as_object().unwrap();
     for k in ["name", "explained", "p_value", "suggested_term"] {
@@ -563,4 +568,40 @@ fn model_wiring_finds_a_missing_covariate_and_the_ladder_drops_to_noise() {
     assert!(l.steps[0].std > 7.0, "{:?}", l.steps);
     assert!((l.steps[1].std - 2.0).abs() < 0.3, "{:?}", l.steps);
     assert!(l.steps[1].reduction > 0.7, "{:?}", l.steps);
+}
+
+/// The diagnosis speaks the table's units (from the log): a residual in newtons with a trend
+/// against a position in metres is "N" and "N/m" in the text, the summary and the JSON, never
+/// counts or tracks.
+#[test]
+fn text_summary_and_json_use_the_tables_units() {
+    let units = crate::log::Units {
+        bias: "N".into(),
+        position: "m".into(),
+    };
+    let t = table(21, 800).with_units(units.clone());
+    assert_eq!(t.units(), &units);
+    let pos = values(&t, "position").to_vec();
+    let r = residuals(&t, 21, 1.0, |i| 0.05 * pos[i].unwrap_or(0.0));
+    let d = run(&t, &r);
+    assert_eq!(d.units, units);
+    let text = d.to_text();
+    assert!(
+        text.starts_with("Residual std: ") && text.contains(" N\n\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains(" N/m, p = ") && text.contains(" N (from "),
+        "{text}"
+    );
+    assert!(!text.contains("count") && !text.contains("track"), "{text}");
+    assert!(d.summary.contains(" N/m, p = "), "{}", d.summary);
+    let v: serde_json::Value = serde_json::from_str(&d.to_json()).unwrap();
+    assert_eq!(
+        v["units"],
+        serde_json::json!({"bias": "N", "position": "m"})
+    );
+    // The log's own units come through FeatureTable::from_log: the synthetic log is in counts
+    // and tracks.
+    assert_eq!(table(21, 50).units(), &crate::log::Units::default());
 }

@@ -1,9 +1,12 @@
 //! One builder per paper figure. Each takes plain data (the structs below) and returns SVG text.
 //!
-//! Units are fixed by the builders: positions and seek lengths in tracks, bias and prediction
-//! errors in counts, time in s (Fig. 4) or ms (settle figures), position error in µm. Points are
-//! `(x, y)` pairs in those units. Any data is accepted: empty inputs give a "no data" chart,
-//! non-finite values are skipped and counted on the chart.
+//! Bias (and prediction errors) and positions (and seek lengths) are in the units of a
+//! [`Units`]: the figure's data struct holds them (`units`, counts and tracks by default), or a
+//! builder that takes a list of items takes them beside it; a log's units are
+//! [`crate::log::LogSchema::units`]. The paper's calibration sweeps (Figs. 5–9, 12) are the
+//! simulator's and stay in counts and tracks. Time is in s (Fig. 4) or ms (settle figures),
+//! position error in µm. Points are `(x, y)` pairs in those units. Any data is accepted: empty
+//! inputs give a "no data" chart, non-finite values are skipped and counted on the chart.
 //!
 //! ```
 //! use biasctl::plot::figures::{fig3_bias_vs_position, BiasVsPosition};
@@ -16,14 +19,30 @@
 //! ```
 
 use super::svg::{AxisRange, Chart, ErrorPoint, Panel, Series, SeriesData, fmt_num};
+use crate::log::Units;
 use crate::stats;
 
-/// Axis label for bias.
+/// Axis label for bias in counts (the simulator's unit; see [`bias_label`]).
 pub const BIAS: &str = "bias (counts)";
-/// Axis label for position.
+/// Axis label for position in tracks (the simulator's unit; see [`position_label`]).
 pub const POSITION: &str = "position (tracks)";
-/// Axis label for prediction errors and residuals.
+/// Axis label for prediction errors and residuals in counts (see [`error_label`]).
 pub const ERROR: &str = "prediction error, measured − predicted (counts)";
+
+/// Axis label for bias in `units` (`bias (N)`).
+pub fn bias_label(units: &Units) -> String {
+    format!("bias ({})", units.bias)
+}
+
+/// Axis label for position in `units` (`position (m)`).
+pub fn position_label(units: &Units) -> String {
+    format!("position ({})", units.position)
+}
+
+/// Axis label for prediction errors in `units` (`prediction error, measured − predicted (N)`).
+pub fn error_label(units: &Units) -> String {
+    format!("prediction error, measured − predicted ({})", units.bias)
+}
 
 /// Palette index of inbound data (blue) and outbound data (vermillion), used by every figure
 /// that splits by direction.
@@ -42,13 +61,15 @@ pub struct BiasVsPosition {
     pub inbound_fit: Vec<(f64, f64)>,
     /// Fitted outbound curve; empty for none.
     pub outbound_fit: Vec<(f64, f64)>,
+    /// Units of bias and position (axis labels).
+    pub units: Units,
 }
 
 /// The Fig. 3 chart, for callers that add series (for example [`super::from_log`]).
 pub(crate) fn position_chart(d: &BiasVsPosition, title: &str) -> Chart {
     let mut c = Chart::new(title)
-        .x_label(POSITION)
-        .y_label(BIAS)
+        .x_label(position_label(&d.units))
+        .y_label(bias_label(&d.units))
         .series(Series::new("inbound", SeriesData::Scatter(d.inbound.clone())).color(INBOUND_COLOR))
         .series(
             Series::new("outbound", SeriesData::Scatter(d.outbound.clone())).color(OUTBOUND_COLOR),
@@ -73,22 +94,25 @@ pub fn fig3_bias_vs_position(d: &BiasVsPosition) -> String {
 /// Data of Fig. 4: bias vs time while the head stays at one track.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BiasVsTime {
-    /// The track, tracks (shown in the title).
+    /// The position, in `units.position` (shown in the title).
     pub track: f64,
-    /// Measured `(time s, bias counts)`.
+    /// Measured `(time s, bias)`.
     pub points: Vec<(f64, f64)>,
-    /// A fitted curve `(time s, bias counts)`; empty for none.
+    /// A fitted curve `(time s, bias)`; empty for none.
     pub fit: Vec<(f64, f64)>,
+    /// Units of bias and position (axis label and title).
+    pub units: Units,
 }
 
 /// Fig. 4: bias vs time at one track (lubricant flow: a slow approach to a constant).
 pub fn fig4_bias_vs_time(d: &BiasVsTime) -> String {
     let mut c = Chart::new(format!(
-        "Fig. 4 — bias vs time at track {}",
-        fmt_num(d.track)
+        "Fig. 4 — bias vs time at position {} ({})",
+        fmt_num(d.track),
+        d.units.position
     ))
     .x_label("time (s)")
-    .y_label(BIAS)
+    .y_label(bias_label(&d.units))
     .series(Series::new(
         "measured",
         SeriesData::Scatter(d.points.clone()),
@@ -196,17 +220,18 @@ pub fn calibration_sweep(s: &Sweep) -> String {
 pub struct ModelErrors {
     /// Model name (for example "position + direction", "calibration").
     pub name: String,
-    /// Position of each measured seek, tracks.
+    /// Position of each measured seek, position unit.
     pub position: Vec<f64>,
-    /// Prediction error of each seek, measured − predicted, counts (same length as `position`;
-    /// extra entries of the longer one are ignored).
+    /// Prediction error of each seek, measured − predicted, bias unit (same length as
+    /// `position`; extra entries of the longer one are ignored).
     pub error: Vec<f64>,
 }
 
 /// Figs. 10/11: for each model one column with the error vs position (top) and the error
 /// histogram (bottom); the error standard deviation is in each title. All columns share the
-/// position range, the error range and the histogram bins, so they compare directly.
-pub fn prediction_errors(models: &[ModelErrors]) -> String {
+/// position range, the error range and the histogram bins, so they compare directly. `units`
+/// are those of every model's errors and positions.
+pub fn prediction_errors(models: &[ModelErrors], units: &Units) -> String {
     let all_err: Vec<f64> = models
         .iter()
         .flat_map(|m| m.error.iter().copied())
@@ -237,11 +262,16 @@ pub fn prediction_errors(models: &[ModelErrors]) -> String {
             .filter(|v| v.is_finite())
             .collect();
         let std = stats::std_dev(&errs).map_or("n/a".to_string(), fmt_num);
-        let title = format!("{}: error std {std} counts (n = {})", m.name, errs.len());
+        let title = format!(
+            "{}: error std {std} {} (n = {})",
+            m.name,
+            units.bias,
+            errs.len()
+        );
         let scatter = Chart::new(title.clone())
             .size(width, 320.0)
-            .x_label(POSITION)
-            .y_label("error (counts)")
+            .x_label(position_label(units))
+            .y_label(format!("error ({})", units.bias))
             .x_range(pos_range)
             .y_range(err_range)
             .series(Series::new("error", SeriesData::Scatter(pairs)).color(0))
@@ -255,7 +285,7 @@ pub fn prediction_errors(models: &[ModelErrors]) -> String {
         };
         let histogram = Chart::new(title)
             .size(width, 300.0)
-            .x_label(ERROR)
+            .x_label(error_label(units))
             .y_label("seeks (count)")
             .x_range(err_range)
             .series(
@@ -315,17 +345,19 @@ fn bin_counts(x: &[f64], edges: &[f64]) -> Vec<f64> {
 /// Data of Figs. 13/14: a hysteresis loop, measured and as the Dahl model predicts it.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DahlLoop {
-    /// Measured `(track, bias counts)` in seek order.
+    /// Measured `(position, bias)` in seek order.
     pub measured: Vec<(f64, f64)>,
-    /// The model's predicted `(track, bias counts)` in seek order (drawn as a line).
+    /// The model's predicted `(position, bias)` in seek order (drawn as a line).
     pub predicted: Vec<(f64, f64)>,
+    /// Units of bias and position (axis labels).
+    pub units: Units,
 }
 
 /// Figs. 13/14: the Dahl loop, measured points and the predicted loop.
 pub fn dahl_loop(d: &DahlLoop) -> String {
     Chart::new("Figs. 13/14 — hysteresis loop: measured and Dahl model")
-        .x_label(POSITION)
-        .y_label(BIAS)
+        .x_label(position_label(&d.units))
+        .y_label(bias_label(&d.units))
         .series(Series::new("measured", SeriesData::Scatter(d.measured.clone())).color(0))
         .series(Series::new("Dahl model", SeriesData::Line(d.predicted.clone())).color(1))
         .to_svg()
@@ -336,9 +368,10 @@ pub fn dahl_loop(d: &DahlLoop) -> String {
 pub struct ResidualBin {
     /// Bin centre, in the feature's unit.
     pub center: f64,
-    /// Mean residual in the bin, counts.
+    /// Mean residual in the bin, bias unit.
     pub mean: f64,
-    /// Spread shown as the bar half-length (for example the standard error or the std), counts.
+    /// Spread shown as the bar half-length (for example the standard error or the std), bias
+    /// unit.
     pub spread: f64,
     /// Number of residuals in the bin (sets the marker size).
     pub count: usize,
@@ -351,7 +384,7 @@ pub struct FeatureResiduals {
     pub feature: String,
     /// The feature's unit, e.g. `tracks` or `s`.
     pub unit: String,
-    /// Raw `(feature value, residual counts)` drawn faintly behind the bins; may be empty.
+    /// Raw `(feature value, residual)` drawn faintly behind the bins; may be empty.
     pub raw: Vec<(f64, f64)>,
     /// Binned means.
     pub bins: Vec<ResidualBin>,
@@ -360,8 +393,9 @@ pub struct FeatureResiduals {
 }
 
 /// The diagnose panel: residual vs each top feature, binned mean ± spread with markers sized by
-/// the bin count, raw residuals faint behind them; up to three charts per row.
-pub fn diagnose_panel(features: &[FeatureResiduals]) -> String {
+/// the bin count, raw residuals faint behind them; up to three charts per row. The residuals
+/// are in `units.bias`.
+pub fn diagnose_panel(features: &[FeatureResiduals], units: &Units) -> String {
     let mut panel =
         Panel::new("Residual vs the top candidate features").columns(features.len().clamp(1, 3));
     for f in features {
@@ -383,7 +417,7 @@ pub fn diagnose_panel(features: &[FeatureResiduals]) -> String {
         let mut c = Chart::new(title)
             .size(420.0, 320.0)
             .x_label(format!("{} ({})", f.feature, f.unit))
-            .y_label("residual (counts)");
+            .y_label(format!("residual ({})", units.bias));
         if !f.raw.is_empty() {
             c = c.series(Series::new("residuals", SeriesData::Scatter(f.raw.clone())).faint());
         }
@@ -400,13 +434,13 @@ pub fn diagnose_panel(features: &[FeatureResiduals]) -> String {
 pub struct LadderStep {
     /// The model at this rung, e.g. "position + direction" then "+ seek", "+ memory".
     pub term: String,
-    /// Prediction-error standard deviation with this rung's terms, counts.
+    /// Prediction-error standard deviation with this rung's terms, bias unit.
     pub error_std: f64,
 }
 
-/// The ladder: error std after each added term as bars, each labelled with its value and the
-/// reduction from the previous rung.
-pub fn ladder(steps: &[LadderStep]) -> String {
+/// The ladder: error std (in `units.bias`) after each added term as bars, each labelled with its
+/// value and the reduction from the previous rung.
+pub fn ladder(steps: &[LadderStep], units: &Units) -> String {
     let n = steps.len();
     let edges: Vec<f64> = (0..=n).map(|i| i as f64 - 0.5).collect();
     let heights: Vec<f64> = steps.iter().map(|s| s.error_std).collect();
@@ -417,7 +451,7 @@ pub fn ladder(steps: &[LadderStep]) -> String {
         .fold(0.0, f64::max);
     let mut c = Chart::new("Error std after each added term")
         .x_label("model terms, cumulative")
-        .y_label("error std (counts)")
+        .y_label(format!("error std ({})", units.bias))
         .x_tick_labels(
             steps
                 .iter()

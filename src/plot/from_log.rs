@@ -1,6 +1,7 @@
 //! Quick-look plots of a measurement log with no model: the paper's Figs. 3–9/12 views of your
 //! own data. The seek history is replayed over every row (unmeasured rows move the head too);
-//! only rows with a measured bias are plotted.
+//! only rows with a measured bias are plotted. Axes are labelled in the log's units
+//! ([`crate::log::LogSchema::units`]).
 //!
 //! ```
 //! use biasctl::log::{ColumnMap, Log};
@@ -9,9 +10,10 @@
 //! let log = Log::from_reader("t.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
 //! let svg = from_log::bias_vs_position(&log);
 //! assert!(svg.contains(r#"data-name="inbound""#));
+//! assert!(svg.contains("bias (counts)") && svg.contains("position (tracks)"));
 //! ```
 
-use super::figures::{BIAS, BiasVsPosition, BiasVsTime, fig4_bias_vs_time, position_chart};
+use super::figures::{BiasVsPosition, BiasVsTime, bias_label, fig4_bias_vs_time, position_chart};
 use super::svg::{Chart, Series, SeriesData};
 use crate::history::{History, SeekFeatures};
 use crate::log::Log;
@@ -44,6 +46,7 @@ pub fn bias_vs_position_with_fit(
     let mut d = BiasVsPosition {
         inbound_fit,
         outbound_fit,
+        units: log.schema.units.clone(),
         ..Default::default()
     };
     let mut still = Vec::new();
@@ -97,6 +100,7 @@ pub fn bias_vs_time(log: &Log, track: Option<f64>) -> String {
         track: track.unwrap_or(f64::NAN),
         points,
         fit,
+        units: log.schema.units.clone(),
     })
 }
 
@@ -104,15 +108,15 @@ pub fn bias_vs_time(log: &Log, track: Option<f64>) -> String {
 /// effect (P3), fitted to the measurements at one track.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ApproachFit {
-    /// The constant approached, counts.
+    /// The constant approached, bias unit.
     pub c: f64,
-    /// The initial distance from it, counts.
+    /// The initial distance from it, bias unit.
     pub a: f64,
     /// The time constant, s.
     pub tau_s: f64,
     /// The time of the first measurement, s.
     pub t0: f64,
-    /// Residual sum of squares, counts².
+    /// Residual sum of squares, bias unit squared.
     pub rss: f64,
 }
 
@@ -128,7 +132,7 @@ impl ApproachFit {
     }
 }
 
-/// Least-squares fit of [`ApproachFit`] to `(time s, bias counts)` points: for each τ on a
+/// Least-squares fit of [`ApproachFit`] to `(time s, bias)` points: for each τ on a
 /// logarithmic grid from a tenth of a sample interval to ten times the span, c and a are the
 /// closed-form least-squares solution; the τ with the smallest residual wins. `None` for fewer
 /// than four points or no time span.
@@ -187,9 +191,13 @@ pub fn bias_vs_seek_length(log: &Log) -> String {
             same.push((f.seek_length, b));
         }
     }
+    let units = &log.schema.units;
     Chart::new(format!("{}: bias vs signed seek length", log.schema.file))
-        .x_label("signed seek length, + inbound (tracks)")
-        .y_label(BIAS)
+        .x_label(format!(
+            "signed seek length, + inbound ({})",
+            units.position
+        ))
+        .y_label(bias_label(units))
         .series(Series::new("direction change at source", SeriesData::Scatter(change)).color(0))
         .series(Series::new("no direction change", SeriesData::Scatter(same)).color(1))
         .to_svg()

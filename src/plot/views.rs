@@ -10,8 +10,8 @@
 //!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0 },
 //!     LadderStep { terms: vec!["poly2".into(), "direction".into()], std: 10.0, reduction: 0.5 },
 //! ] };
-//! let svg = views::ladder(&l);
-//! assert!(svg.contains("+ direction"));
+//! let svg = views::ladder(&l, &biasctl::log::Units::default());
+//! assert!(svg.contains("+ direction") && svg.contains("error std (counts)"));
 //! ```
 
 use std::fmt::Write;
@@ -21,7 +21,7 @@ use super::figures::{
 };
 use super::from_log;
 use crate::diagnose::{Diagnosis, FeatureTable, Ladder};
-use crate::log::{ColumnMap, Log, LogError};
+use crate::log::{ColumnMap, Log, LogError, Units};
 use crate::model::{FittedModel, ModelError, Prediction};
 use crate::settle::SettleReport;
 
@@ -37,7 +37,7 @@ pub enum ViewError {
     Model(#[from] ModelError),
 }
 
-/// A curve of `(track, bias)` points.
+/// A curve of `(position, bias)` points.
 pub type Curve = Vec<(f64, f64)>;
 
 /// Points on each fitted curve of [`model_curves`].
@@ -131,8 +131,9 @@ pub fn position(log: &Log, model: Option<&FittedModel>) -> Result<String, ViewEr
     Ok(from_log::bias_vs_position_with_fit(log, inbound, outbound))
 }
 
-/// Figs. 10/11: each named prediction's error vs position and its histogram, side by side.
-pub fn errors(predictions: &[(&str, &Prediction)]) -> String {
+/// Figs. 10/11: each named prediction's error vs position and its histogram, side by side;
+/// `units` are the log's the predictions replayed ([`crate::log::LogSchema::units`]).
+pub fn errors(predictions: &[(&str, &Prediction)], units: &Units) -> String {
     let models: Vec<ModelErrors> = predictions
         .iter()
         .map(|(name, p)| ModelErrors {
@@ -141,11 +142,12 @@ pub fn errors(predictions: &[(&str, &Prediction)]) -> String {
             error: p.residual.clone(),
         })
         .collect();
-    figures::prediction_errors(&models)
+    figures::prediction_errors(&models, units)
 }
 
-/// Figs. 13/14: measured `(track, bias)` in seek order and the prediction as a line.
-pub fn dahl_loop(p: &Prediction) -> String {
+/// Figs. 13/14: measured `(position, bias)` in seek order and the prediction as a line, in the
+/// replayed log's `units`.
+pub fn dahl_loop(p: &Prediction, units: &Units) -> String {
     figures::dahl_loop(&DahlLoop {
         measured: p
             .positions
@@ -159,26 +161,29 @@ pub fn dahl_loop(p: &Prediction) -> String {
             .copied()
             .zip(p.predicted.iter().copied())
             .collect(),
+        units: units.clone(),
     })
 }
 
-/// The unit of a candidate feature, for an axis label.
-pub fn feature_unit(name: &str) -> &'static str {
+/// The unit of a candidate feature, for an axis label: position-like features are in
+/// `units.position`.
+pub fn feature_unit(name: &str, units: &Units) -> String {
     match name {
         "position" | "seek_length" | "seek_abs" | "since_reversal" | "rest_distance_od"
-        | "rest_distance_id" => "tracks",
-        "direction" => "+1 inbound, −1 outbound",
-        "direction_change" => "1 = reversal",
-        "dwell_s" | "elapsed_s" => "s",
-        "seek_index" => "seeks",
-        _ => "column units",
+        | "rest_distance_id" => units.position.clone(),
+        "direction" => "+1 inbound, −1 outbound".into(),
+        "direction_change" => "1 = reversal".into(),
+        "dwell_s" | "elapsed_s" => "s".into(),
+        "seek_index" => "seeks".into(),
+        _ => "column units".into(),
     }
 }
 
 /// The diagnose panel: the residual against each of the `top` strongest usable features of `d`
 /// (binned mean ± standard error, marker size by bin count; raw residuals faint behind, taken
 /// from `table` and `residuals`, the ones `d` was computed from). The note gives the
-/// out-of-sample explained variance and the family-wise p-value.
+/// out-of-sample explained variance and the family-wise p-value. Axes are in the diagnosis'
+/// units ([`Diagnosis::units`]).
 pub fn diagnose_panel(
     d: &Diagnosis,
     table: &FeatureTable,
@@ -215,7 +220,7 @@ pub fn diagnose_panel(
                 .collect();
             FeatureResiduals {
                 feature: f.name.clone(),
-                unit: feature_unit(&f.name).to_string(),
+                unit: feature_unit(&f.name, &d.units),
                 raw,
                 bins,
                 note: format!(
@@ -226,11 +231,12 @@ pub fn diagnose_panel(
             }
         })
         .collect();
-    figures::diagnose_panel(&features)
+    figures::diagnose_panel(&features, &d.units)
 }
 
-/// The ladder's bars: the first step's terms, then `+ term` for each added term.
-pub fn ladder(l: &Ladder) -> String {
+/// The ladder's bars: the first step's terms, then `+ term` for each added term; the error std
+/// is in `units.bias` (the test log's).
+pub fn ladder(l: &Ladder, units: &Units) -> String {
     let mut previous = None;
     let steps: Vec<figures::LadderStep> = l
         .steps
@@ -247,7 +253,7 @@ pub fn ladder(l: &Ladder) -> String {
             }
         })
         .collect();
-    figures::ladder(&steps)
+    figures::ladder(&steps, units)
 }
 
 /// Plain-words name of a settle response (`zero_ff` → "zero feedforward").

@@ -15,13 +15,13 @@ use crate::diagnose::{
 };
 use crate::fit::{FitError, FitOptions, fit};
 use crate::history::History;
-use crate::log::{Log, LogError};
+use crate::log::{Log, LogError, Units};
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
 use crate::output::{OutputError, write_string_atomic};
 use crate::plot::figures::{Sweep, SweepFigure, SweepSeries, calibration_sweep};
 use crate::plot::svg::fmt_num;
 use crate::plot::{from_log, views};
-use crate::score::{Score, ScoreError, score};
+use crate::score::{Score, ScoreError, score_with_units};
 use crate::servo::{Controller, ServoError};
 use crate::settle::{
     AnalyseError, HandoffTable, SettleError, SettleSpec, analyse, worst_case_settle,
@@ -467,14 +467,21 @@ struct Scored {
     score: Score,
 }
 
-fn score_table<'a>(scored: impl IntoIterator<Item = &'a Scored>, caption: &str) -> Table {
+fn score_table<'a>(
+    scored: impl IntoIterator<Item = &'a Scored>,
+    caption: &str,
+    units: &Units,
+) -> Table {
+    let fit_std = format!("fit residual std ({})", units.bias);
+    let test_std = format!("test error std ({})", units.bias);
+    let test_mean = format!("test mean ({})", units.bias);
     let mut t = Table::new(&[
         "model",
         "terms",
         "parameters",
-        "fit residual std",
-        "test error std",
-        "test mean",
+        &fit_std,
+        &test_std,
+        &test_mean,
         "bimodality",
         "two humps (dip test, p < 0.05)",
         "trend vs position (p < 0.01)",
@@ -517,13 +524,14 @@ fn score_table<'a>(scored: impl IntoIterator<Item = &'a Scored>, caption: &str) 
 }
 
 fn diagnosis_table(d: &Diagnosis, top: usize) -> Table {
+    let std_once = format!("std once added ({})", d.units.bias);
     let mut t = Table::new(&[
         "feature",
         "explains (out of sample)",
         "p (family-wise)",
         "shape",
         "suggested term",
-        "std once added",
+        &std_once,
     ])
     .caption("Candidate features of the residual, strongest first");
     for f in d.features.iter().take(top) {
@@ -542,8 +550,9 @@ fn diagnosis_table(d: &Diagnosis, top: usize) -> Table {
     t
 }
 
-fn ladder_table(l: &Ladder) -> Table {
-    let mut t = Table::new(&["step", "terms", "test error std", "reduction vs step 0"])
+fn ladder_table(l: &Ladder, units: &Units) -> Table {
+    let test_std = format!("test error std ({})", units.bias);
+    let mut t = Table::new(&["step", "terms", &test_std, "reduction vs step 0"])
         .caption("The ladder: fitted on the training run, scored on the test run");
     for (i, s) in l.steps.iter().enumerate() {
         t = t.row(vec![
@@ -646,7 +655,11 @@ pub fn demo_report(
             &format!("{label} model fitted on {train}.csv"),
         )?;
         let prediction = model.predict_log(&random)?;
-        let sc = score(&prediction.residual, &prediction.positions)?;
+        let sc = score_with_units(
+            &prediction.residual,
+            &prediction.positions,
+            &random.schema.units,
+        )?;
         out.text(
             &format!("score_{stem}.json"),
             &pretty(&sc),
@@ -828,15 +841,19 @@ pub fn demo_report(
         .table(score_table(
             &scored,
             "position-direction fitted on table1.csv, the others on calibration.csv; scored \
-             on random.csv (counts); a bimodality \
+             on random.csv; a bimodality \
              coefficient above 0.555 suggests two modes, the dip test (Hartigans' test of \
              unimodality) finds two humps when p < 0.05",
+            &random.schema.units,
         ))
         .figure(
-            views::errors(&[
-                (pd.label.as_str(), &pd.prediction),
-                (cal.label.as_str(), &cal.prediction),
-            ]),
+            views::errors(
+                &[
+                    (pd.label.as_str(), &pd.prediction),
+                    (cal.label.as_str(), &cal.prediction),
+                ],
+                &random.schema.units,
+            ),
             "Figs. 10/11: prediction error on the random run vs position (top) and its \
              histogram (bottom). The position-direction model calibrated on the far curves \
              misses random seeks by roughly ±Fc's shortfall with the sign of the seek \
@@ -846,10 +863,13 @@ pub fn demo_report(
              centred.",
         )
         .figure(
-            views::errors(&[
-                (dahl.label.as_str(), &dahl.prediction),
-                (dahl4.label.as_str(), &dahl4.prediction),
-            ]),
+            views::errors(
+                &[
+                    (dahl.label.as_str(), &dahl.prediction),
+                    (dahl4.label.as_str(), &dahl4.prediction),
+                ],
+                &random.schema.units,
+            ),
             "The two friction-state models on the same random run, on the same axes as above.",
         )
         .figure(
@@ -860,7 +880,7 @@ pub fn demo_report(
         match dahl.model.predict_log(&tables[1]) {
             Ok(p) => {
                 s.figure(
-                    views::dahl_loop(&p),
+                    views::dahl_loop(&p, &tables[1].schema.units),
                     "Figs. 13/14: the Table II hysteresis loop, measured and as the fitted Dahl \
                      model replays it. The model captures the loop's shape from two parameters \
                      (its friction level and initial slope).",
@@ -898,9 +918,9 @@ pub fn demo_report(
              the calibration run and scores on the random run. The drop at each rung is what \
              that physical effect is worth for prediction.",
         )
-        .table(ladder_table(&ladder))
+        .table(ladder_table(&ladder, &random.schema.units))
         .figure(
-            views::ladder(&ladder),
+            views::ladder(&ladder, &random.schema.units),
             "Test error std after each added term, with the reduction from the previous rung.",
         );
 
@@ -1058,6 +1078,8 @@ fn sub_log(log: &Log, range: std::ops::Range<usize>, part: &str) -> Log {
 /// whole log, or else of position-direction on the second half; the ladder. Steps that the
 /// data cannot support (too few rows, a model that does not fit) are reported in the page, not
 /// as errors. Writes `report.html`, the model, score, diagnosis and ladder files into `dir`.
+/// Every number, table and axis is labelled with the log's units
+/// ([`crate::log::LogSchema::units`]).
 pub fn data_report(
     dir: &Path,
     log: &Log,
@@ -1067,6 +1089,7 @@ pub fn data_report(
 ) -> Result<StoryOutcome, StoryError> {
     let (mut steps, mut out) = start(dir, 4 + DATA_MODELS.len(), progress)?;
     let file = log.schema.file.clone();
+    let units = &log.schema.units;
     let measured_idx: Vec<usize> = log
         .rows
         .iter()
@@ -1108,12 +1131,16 @@ pub fn data_report(
                     .into(),
                 ])
                 .row(vec![
+                    "units (bias, position)".into(),
+                    format!("{}, {}", units.bias, units.position).into(),
+                ])
+                .row(vec![
                     "covariates".into(),
                     log.schema.covariates.join(", ").into(),
                 ])
                 .row(vec![
                     "position range".into(),
-                    format!("{} … {}", fmt_num(lo), fmt_num(hi)).into(),
+                    format!("{} … {} {}", fmt_num(lo), fmt_num(hi), units.position).into(),
                 ])
                 .row(vec![
                     "time span (s)".into(),
@@ -1129,7 +1156,7 @@ pub fn data_report(
         )
         .figure(
             from_log::bias_vs_time(log, None),
-            "Bias vs time at the track measured most often (Fig. 4 view).",
+            "Bias vs time at the position measured most often (Fig. 4 view).",
         )
         .figure(
             from_log::bias_vs_seek_length(log),
@@ -1144,7 +1171,7 @@ pub fn data_report(
         let attempt = || -> Result<Scored, StoryError> {
             let m = fit_named(terms, label, &train)?;
             let p = m.predict_log(&test)?;
-            let sc = score(&p.residual, &p.positions)?;
+            let sc = score_with_units(&p.residual, &p.positions, units)?;
             Ok(Scored {
                 label: label.to_string(),
                 model: m,
@@ -1173,7 +1200,7 @@ pub fn data_report(
     let mut user = None;
     if let Some(m) = model {
         match m.predict_log(log).map_err(StoryError::from).and_then(|p| {
-            let sc = score(&p.residual, &p.positions)?;
+            let sc = score_with_units(&p.residual, &p.positions, units)?;
             Ok((p, sc))
         }) {
             Ok((p, sc)) => {
@@ -1205,6 +1232,7 @@ pub fn data_report(
             s.table(score_table(
                 all.iter().copied(),
                 "Prediction error on the test rows",
+                units,
             ));
             let preds: Vec<(&str, &Prediction)> = all
                 .iter()
@@ -1212,7 +1240,7 @@ pub fn data_report(
                 .map(|x| (x.label.as_str(), &x.prediction))
                 .collect();
             s.figure(
-                views::errors(&preds),
+                views::errors(&preds, units),
                 "Prediction error vs position and its histogram (Figs. 10/11 view).",
             );
             if let Some(first) = all.first() {
@@ -1299,8 +1327,8 @@ pub fn data_report(
                     &l.to_json(),
                     "test error std after each added term",
                 )?;
-                s.table(ladder_table(&l)).figure(
-                    views::ladder(&l),
+                s.table(ladder_table(&l, units)).figure(
+                    views::ladder(&l, units),
                     "Test error std after each added term (first half fit, second half test).",
                 );
             }
@@ -1322,14 +1350,19 @@ pub fn data_report(
         format!("models fitted: {} of {}", scored.len(), DATA_MODELS.len()),
         match best {
             Some(b) => format!(
-                "lowest test error std: {} counts (`{}`, fitted on the first half, scored on the second)",
+                "lowest test error std: {} {} (`{}`, fitted on the first half, scored on the second)",
                 fmt_num(b.score.std),
+                units.bias,
                 b.label
             ),
             None => "no model scored".into(),
         },
         match (&user, model) {
-            (Some(u), _) => format!("your model: error std {}", fmt_num(u.score.std)),
+            (Some(u), _) => format!(
+                "your model: error std {} {}",
+                fmt_num(u.score.std),
+                units.bias
+            ),
             (None, Some(_)) => {
                 "your model (--model) could not be scored on this log; see the report".into()
             }

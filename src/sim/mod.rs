@@ -413,7 +413,8 @@ impl SimConfig {
         }
     }
 
-    /// The log's metadata lines (`key = value`).
+    /// The log's metadata lines (`key = value`), among them `bias_unit = counts` and
+    /// `position_unit = tracks`.
     pub fn metadata(&self) -> Vec<String> {
         let disabled = self.disabled();
         let mut m = vec![
@@ -440,6 +441,8 @@ impl SimConfig {
                     MeasureMode::Slow => "slow",
                 }
             ),
+            "bias_unit = counts".to_string(),
+            "position_unit = tracks".to_string(),
         ];
         match &self.sequence {
             Sequence::Random(r) | Sequence::Calibration(r) => {

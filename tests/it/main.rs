@@ -12,3 +12,4 @@ mod report;
 mod review;
 mod settle;
 mod sim;
+mod units;

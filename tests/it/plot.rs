@@ -4,7 +4,7 @@
 //!
 //! Set `BIASCTL_PLOT_DIR` to a directory to also write every figure there for a visual check.
 
-use biasctl::log::{ColumnMap, Log};
+use biasctl::log::{ColumnMap, Log, Units};
 use biasctl::plot::figures::*;
 use biasctl::plot::from_log;
 use biasctl::plot::svg::{AxisRange, Chart, ErrorPoint, Panel, Series, SeriesData};
@@ -322,7 +322,10 @@ fn output_is_deterministic() {
     let a = fig15_settle_bounds(&bounds());
     let b = fig15_settle_bounds(&bounds());
     assert_eq!(a, b);
-    assert_eq!(prediction_errors(&models()), prediction_errors(&models()));
+    assert_eq!(
+        prediction_errors(&models(), &Units::default()),
+        prediction_errors(&models(), &Units::default())
+    );
 }
 
 // --- realistic inputs for every figure -------------------------------------------------------
@@ -424,6 +427,7 @@ fn all_figures() -> Vec<(&'static str, String, usize)> {
             .collect(),
         inbound_fit: xs.iter().map(|&x| (x, poly(x) + 6.0)).collect(),
         outbound_fit: xs.iter().map(|&x| (x, poly(x) - 6.0)).collect(),
+        units: Units::default(),
     };
     let fig4 = BiasVsTime {
         track: 500.0,
@@ -438,6 +442,7 @@ fn all_figures() -> Vec<(&'static str, String, usize)> {
         fit: (0..30)
             .map(|i| (i as f64 * 0.5, 10.0 - 4.0 * (-(i as f64) / 6.0).exp()))
             .collect(),
+        units: Units::default(),
     };
     let loop_up: Vec<(f64, f64)> = (0..=40)
         .map(|n| (n as f64, -6.0 + 12.0 * (1.0 - (-(n as f64) / 10.0).exp())))
@@ -508,6 +513,7 @@ fn all_figures() -> Vec<(&'static str, String, usize)> {
             .map(|(i, &(x, b))| (x, b + 0.5 * noise(i)))
             .collect(),
         predicted: loop_up.clone(),
+        units: Units::default(),
     };
     let diag = vec![
         FeatureResiduals {
@@ -582,10 +588,14 @@ fn all_figures() -> Vec<(&'static str, String, usize)> {
         ("fig5", calibration_sweep(&fig5), 2),
         ("fig6", calibration_sweep(&fig6), 1),
         ("fig9", calibration_sweep(&fig9), 1),
-        ("fig10_11", prediction_errors(&models()), 6),
+        (
+            "fig10_11",
+            prediction_errors(&models(), &Units::default()),
+            6,
+        ),
         ("dahl", dahl_loop(&dahl), 2),
-        ("diagnose", diagnose_panel(&diag), 3),
-        ("ladder", ladder(&steps), 1),
+        ("diagnose", diagnose_panel(&diag, &Units::default()), 3),
+        ("ladder", ladder(&steps, &Units::default()), 1),
         ("fig15", fig15_settle_bounds(&bounds()), 4),
         ("fig16", fig16_responses(&responses), 4),
     ]
@@ -640,7 +650,7 @@ fn figures_use_the_right_units() {
 #[test]
 fn prediction_errors_has_a_column_per_model_with_std_in_titles() {
     let m = models();
-    let svg = prediction_errors(&m);
+    let svg = prediction_errors(&m, &Units::default());
     let doc = parse(&svg);
     let charts: Vec<Node> = doc
         .descendants()
@@ -673,16 +683,19 @@ fn prediction_errors_has_a_column_per_model_with_std_in_titles() {
 
 #[test]
 fn ladder_labels_the_reduction() {
-    let svg = ladder(&[
-        LadderStep {
-            term: "pos+dir".into(),
-            error_std: 20.0,
-        },
-        LadderStep {
-            term: "+ seek".into(),
-            error_std: 10.0,
-        },
-    ]);
+    let svg = ladder(
+        &[
+            LadderStep {
+                term: "pos+dir".into(),
+                error_std: 20.0,
+            },
+            LadderStep {
+                term: "+ seek".into(),
+                error_std: 10.0,
+            },
+        ],
+        &Units::default(),
+    );
     let doc = parse(&svg);
     let notes = texts_of_class(&doc, "annotation");
     assert_eq!(notes, ["20", "10 (−50 %)"]);
@@ -704,13 +717,16 @@ fn figures_with_empty_data_give_readable_messages() {
             series: Vec::new(),
             levels: Vec::new(),
         }),
-        prediction_errors(&[ModelErrors {
-            name: "m".into(),
-            ..Default::default()
-        }]),
+        prediction_errors(
+            &[ModelErrors {
+                name: "m".into(),
+                ..Default::default()
+            }],
+            &Units::default(),
+        ),
         dahl_loop(&DahlLoop::default()),
-        diagnose_panel(&[FeatureResiduals::default()]),
-        ladder(&[]),
+        diagnose_panel(&[FeatureResiduals::default()], &Units::default()),
+        ladder(&[], &Units::default()),
         fig15_settle_bounds(&SettleBounds::default()),
         fig16_responses(&SettleResponses::default()),
     ];
@@ -724,12 +740,12 @@ fn figures_with_empty_data_give_readable_messages() {
         );
     }
     assert!(
-        parse(&prediction_errors(&[]))
+        parse(&prediction_errors(&[], &Units::default()))
             .root_element()
             .has_tag_name("svg")
     );
     assert!(
-        parse(&diagnose_panel(&[]))
+        parse(&diagnose_panel(&[], &Units::default()))
             .root_element()
             .has_tag_name("svg")
     );
@@ -738,6 +754,7 @@ fn figures_with_empty_data_give_readable_messages() {
         track: 3.0,
         points: vec![(1.0, 2.0)],
         fit: Vec::new(),
+        units: Units::default(),
     });
     assert_eq!(texts_of_class(&parse(&one), "message"), ["only one point"]);
 }
@@ -780,7 +797,7 @@ fn log_plots_split_by_direction_and_reversal() {
     assert_eq!(from_log::busiest_track(&l), Some(350.0));
     let svg = from_log::bias_vs_time(&l, None);
     let doc = parse(&svg);
-    assert!(texts_of_class(&doc, "title")[0].ends_with("track 350"));
+    assert!(texts_of_class(&doc, "title")[0].ends_with("position 350 (tracks)"));
     assert_eq!(count(&series(&doc)[0].1, "circle", "point"), 2);
     let svg = from_log::bias_vs_time(&l, Some(400.0));
     assert_eq!(texts_of_class(&parse(&svg), "message"), ["only one point"]);

@@ -40,6 +40,8 @@ fn same_seed_byte_identical_other_seed_different() {
         "# drive = paper1997",
         "# sequence = calibration",
         "# disabled = none",
+        "# bias_unit = counts",
+        "# position_unit = tracks",
     ] {
         assert!(a.contains(key), "missing {key}");
     }
