@@ -193,9 +193,16 @@ impl Units {
         })
     }
 
-    /// The unit of a slope of bias against position, `<bias>/<position>` (`N/m`).
+    /// The unit of a slope of bias against position, `<bias>/<position>` (`N/m`); a plural
+    /// count noun below the slash is made singular (`counts/track`, not `counts/tracks`).
     pub fn per_position(&self) -> String {
-        format!("{}/{}", self.bias, self.position)
+        let per = match self.position.as_str() {
+            "tracks" => "track",
+            "steps" => "step",
+            "counts" => "count",
+            p => p,
+        };
+        format!("{}/{per}", self.bias)
     }
 }
 
@@ -842,7 +849,7 @@ mod tests {
     fn units_come_from_flags_then_metadata_then_columns() {
         let plain = read("time_s,track,bias\n0,1,2\n").unwrap();
         assert_eq!(plain.schema.units, Units::default());
-        assert_eq!(plain.schema.units.per_position(), "counts/tracks");
+        assert_eq!(plain.schema.units.per_position(), "counts/track");
         let meta =
             read("# bias_unit = mA\n# position_unit: um\ntime_s,track,bias\n0,1,2\n").unwrap();
         assert_eq!(

@@ -238,7 +238,7 @@ mod tests {
         let e: Vec<f64> = (0..100).map(|i| ((i * 37) % 100) as f64 / 10.0).collect();
         let s = score(&e, &positions(e.len())).unwrap();
         let text = s.to_text();
-        assert!(text.contains(" counts\nrms ") && text.contains(" counts/tracks, t "));
+        assert!(text.contains(" counts\nrms ") && text.contains(" counts/track, t "));
         let units = Units {
             bias: "N".into(),
             position: "m".into(),

@@ -243,7 +243,7 @@ fn simulator_logs_say_counts_and_tracks() {
     ]);
     let score = ok(&["score", "--model", &model, "--data", &log]);
     assert!(
-        score.contains(" counts\nrms ") && score.contains(" counts/tracks, t "),
+        score.contains(" counts\nrms ") && score.contains(" counts/track, t "),
         "{score}"
     );
     let diag = ok(&[
