@@ -164,3 +164,11 @@ impl SettleArgs {
         Ok(spec)
     }
 }
+
+/// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was
+/// fitted on: its position terms are extrapolated there and nothing else would show it.
+pub fn warn_outside_range(model: &biasctl::model::FittedModel, file: &str, positions: &[f64]) {
+    if let Some(w) = model.outside_range(positions) {
+        eprintln!("warning: {file}: {w}");
+    }
+}

@@ -57,6 +57,7 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
     let log = args.columns.read_log(data)?;
     let next = predict_next(&model, &log, args.target)
         .with_context(|| format!("predicting the handoff bias from {}", data.display()))?;
+    super::common::warn_outside_range(&model, &log.schema.file, &[next.target]);
     let delta_b = args
         .settle
         .bias_uncertainty

@@ -280,8 +280,8 @@ impl fmt::Display for RangeWarning {
         let fmt = |x: f64| crate::log::fmt_trimmed(x, 6);
         write!(
             f,
-            "{} of {} measured rows ({:.1} %) lie outside the position range the model was \
-             fitted on, [{}, {}] (they reach [{}, {}]): its position terms are extrapolated there",
+            "{} of {} targets ({:.1} %) lie outside the position range the model was fitted \
+             on, [{}, {}] (they reach [{}, {}]): its position terms are extrapolated there",
             self.outside,
             self.total,
             100.0 * self.outside as f64 / self.total.max(1) as f64,

@@ -762,7 +762,7 @@ fn model_files_record_the_fitted_position_range_and_older_files_still_load() {
     assert_eq!(again.fit.position_range, Some([1400.0, 1650.0]));
     let w = again.outside_range(&[1390.0, 1500.0, 1700.0]).unwrap();
     assert_eq!((w.outside, w.total, w.seen), (2, 3, [1390.0, 1700.0]));
-    assert!(w.to_string().contains("2 of 3 measured rows"), "{w}");
+    assert!(w.to_string().contains("2 of 3 targets"), "{w}");
     // A model file written before the range was recorded: loads, and cannot warn.
     let mut v: serde_json::Value = serde_json::from_str(&model.to_json()).unwrap();
     v["fit"].as_object_mut().unwrap().remove("position_range");
@@ -829,4 +829,45 @@ fn a_required_column_named_as_a_covariate_is_explained_not_called_missing() {
         "--out",
         &out,
     ]);
+}
+
+#[test]
+fn commands_warn_when_a_log_goes_beyond_the_fitted_position_range() {
+    // Reference: the model is fitted on targets in [0, 300] (tracks()), the second log is the
+    // same seeks shifted by +1000 tracks: every target lies outside.
+    let dir = tempfile::tempdir().unwrap();
+    let log = sample_log(dir.path());
+    let rows = tracks(10, 800, 300.0);
+    let shifted: Vec<(f64, f64, f64)> = rows.iter().map(|r| (r.0, r.1 + 1000.0, r.2)).collect();
+    let bias: Vec<f64> = shifted.iter().map(|r| 0.01 * r.1).collect();
+    let far = write(dir.path(), "far.csv", &csv(&shifted, &bias));
+    let model = dir.path().join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &model,
+    ]);
+    let inside = crate::common::biasctl(&["score", "--model", &model, "--data", &log]);
+    assert_eq!(inside.code, 0);
+    assert!(!inside.stderr.contains("warning"), "{}", inside.stderr);
+    let pred = dir.path().join("p.csv").display().to_string();
+    for args in [
+        vec!["score", "--model", &model, "--data", &far],
+        vec!["predict", "--model", &model, "--data", &far, "--out", &pred],
+        vec!["diagnose", "--model", &model, "--data", &far],
+    ] {
+        let r = crate::common::biasctl(&args);
+        assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
+        assert!(
+            r.stderr.contains("warning: ")
+                && r.stderr.contains("800 of 800 targets")
+                && r.stderr.contains("outside the position range"),
+            "{args:?}: {}",
+            r.stderr
+        );
+    }
 }
