@@ -238,6 +238,24 @@ fn has_term(existing: &[String], term: &str) -> bool {
     })
 }
 
+/// The note for a residual that still steps with the direction although the model has the
+/// `direction` term. That term fits a constant inbound/outbound offset exactly on the log it was
+/// fitted on (least squares leaves no mean difference), so a step left on another log means the
+/// offset there is not the training log's: the classic case is the 1997 practice of calibrating
+/// on far seeks (Table I) and predicting short ones, which stop inside the far curves.
+pub(crate) fn offset_note(origin: FeatureOrigin, existing: &[String]) -> Option<String> {
+    (origin == FeatureOrigin::BuiltIn(Feature::Direction) && has_term(existing, "direction")).then(
+        || {
+            "the model already has `direction`, which leaves no inbound/outbound step on the \
+             log it was fitted on: a step here means this log's offset differs from that log's \
+             (e.g. calibrated on far seeks, applied to short ones). Refit on data like this, or \
+             add the effect that moves the offset with the seek history (the seek-length, \
+             reversal and rest-distance features ranked here); `dahl:4` is the state-space way"
+                .to_string()
+        },
+    )
+}
+
 /// The first candidate term the model does not have yet, and a note when a better one was
 /// skipped because it is already there.
 pub(crate) fn suggest(

@@ -248,6 +248,7 @@ pub(crate) fn feature_report(
     };
     let candidates = advice::candidate_terms(&col.name, col.origin, linear, by_direction);
     let (suggested_term, note) = advice::suggest(&candidates, &config.existing_terms);
+    let note = advice::offset_note(col.origin, &config.existing_terms).or(note);
     FeatureReport {
         name: col.name.clone(),
         explained,

@@ -335,6 +335,30 @@ fn direction_offset_is_bimodal_and_suggests_direction() {
 }
 
 #[test]
+fn a_direction_step_left_by_a_model_with_direction_says_the_offset_does_not_transfer() {
+    // A model with `direction` leaves no step on its own training log (least squares), so a
+    // step means the log differs from the training log; the note says so instead of only
+    // "already has `direction`".
+    let t = table(11, 1500);
+    let dir = values(&t, "direction").to_vec();
+    let r = residuals(&t, 11, 1.0, |i| 5.0 * dir[i].unwrap_or(0.0));
+    let config = DiagnoseConfig {
+        existing_terms: vec!["poly2".into(), "direction".into()],
+        ..DiagnoseConfig::default()
+    };
+    let d = diagnose(&t, &r, &config).unwrap();
+    let f = d.feature("direction").unwrap();
+    assert_eq!(f.suggested_term.as_deref(), Some(DAHL_TERM));
+    let note = f.note.as_deref().unwrap();
+    assert!(note.contains("offset differs"), "{note}");
+    // Without `direction` in the model, the plain suggestion stands.
+    let d = diagnose(&t, &r, &DiagnoseConfig::default()).unwrap();
+    let f = d.feature("direction").unwrap();
+    assert_eq!(f.suggested_term.as_deref(), Some("direction"));
+    assert!(f.note.is_none());
+}
+
+#[test]
 fn constant_and_undefined_features_are_skipped_with_a_note() {
     let mut t = table(12, 600);
     t.push_column("heater", vec![Some(5.0); t.len()]).unwrap();
