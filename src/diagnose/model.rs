@@ -24,7 +24,7 @@ pub enum ModelDiagnosisError {
     /// A ladder step's term list is not valid.
     #[error("ladder step {step} (`{terms}`)")]
     Spec {
-        /// 1-based step number.
+        /// Step number as in the ladder table (0: the first term alone).
         step: usize,
         /// The step's term list.
         terms: String,
@@ -35,7 +35,7 @@ pub enum ModelDiagnosisError {
     /// A ladder step could not be fitted on the training log.
     #[error("fitting ladder step {step} (`{terms}`) on {file}")]
     Fit {
-        /// 1-based step number.
+        /// Step number as in the ladder table (0: the first term alone).
         step: usize,
         /// The step's term list.
         terms: String,
@@ -51,7 +51,7 @@ pub enum ModelDiagnosisError {
     /// A ladder step left fewer than two measured test rows, so no std exists.
     #[error("ladder step {step}: fewer than two measured rows in {file}")]
     TooFewTestRows {
-        /// 1-based step number.
+        /// Step number as in the ladder table (0: the first term alone).
         step: usize,
         /// The test log.
         file: String,
@@ -116,7 +116,7 @@ pub fn ladder_fit(
     let mut inputs = Vec::with_capacity(terms.len());
     for k in 1..=terms.len() {
         let list = terms[..k].join(",");
-        let step = k;
+        let step = k - 1; // numbered as in the ladder table: step 0 is the first term alone
         let spec = ModelSpec::parse(&list).map_err(|source| ModelDiagnosisError::Spec {
             step,
             terms: list.clone(),

@@ -378,6 +378,19 @@ fn cli_bad_inputs_exit_2_with_a_clear_message() {
         ],
         &["empty"],
     );
+    // A failing step is numbered as in the ladder's table (step 0 = the first term alone).
+    fails_with(
+        &[
+            "ladder",
+            "--data",
+            &train,
+            "--test",
+            &train,
+            "--terms",
+            "poly2,direction,col:nothere",
+        ],
+        &["ladder step 2 (`poly2,direction,col:nothere`)", "nothere"],
+    );
     // A constant feature: no NaN, a note, exit 0.
     let constant = write(dir.path(), "const.csv", &{
         let mut s = String::from("time_s,track,bias,temp_c\n");
