@@ -37,15 +37,24 @@ pub struct Args {
     /// Script for `--sequence script`: CSV `track,dwell_s[,measure]`.
     #[arg(long, value_name = "FILE.csv")]
     script: Option<PathBuf>,
-    /// Measurement: `fast` (superposition) or `slow` (sample-by-sample reference loop).
-    #[arg(long, default_value = "fast", value_parser = ["fast", "slow"])]
-    measure: String,
+    /// How each bias is measured through the servo.
+    #[arg(long, value_enum, default_value_t = Measure::Fast)]
+    measure: Measure,
     /// Output log.
     #[arg(long, value_name = "LOG.csv")]
     out: PathBuf,
     /// Also write each effect's true contribution per row here.
     #[arg(long, value_name = "TRUTH.csv")]
     truth: Option<PathBuf>,
+}
+
+/// `--measure`: the command-line face of [`MeasureMode`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Measure {
+    /// Exact superposition of precomputed servo responses (the default).
+    Fast,
+    /// The sample-by-sample closed-loop reference simulation.
+    Slow,
 }
 
 /// Turns the flags into a validated [`SimConfig`].
@@ -61,10 +70,9 @@ fn config(a: &Args) -> anyhow::Result<SimConfig> {
         script: a.script.clone(),
         dwell_min_s: a.dwell_min,
         dwell_max_s: a.dwell_max,
-        measure: if a.measure == "slow" {
-            MeasureMode::Slow
-        } else {
-            MeasureMode::Fast
+        measure: match a.measure {
+            Measure::Fast => MeasureMode::Fast,
+            Measure::Slow => MeasureMode::Slow,
         },
     };
     let disabled: Vec<&str> = a.disable.iter().map(String::as_str).collect();

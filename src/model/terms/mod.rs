@@ -54,7 +54,7 @@ pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
                     Ok(h) if h.is_finite() && h > 0.0 => Some(h),
                     _ => {
                         return Err(bad(format!(
-                            "knot spacing must be a positive number of tracks, got `{a}`"
+                            "knot spacing must be a positive number (in the log's position unit), got `{a}`"
                         )));
                     }
                 },

@@ -35,7 +35,10 @@ impl TermSpec for TableSpec {
         if knots > 100_000 {
             return Err(FitError::BadSetting {
                 term: self.name(),
-                why: format!("{knots} knots over {range} tracks; use a larger spacing"),
+                why: format!(
+                    "{knots} knots over a position range of {range} (the log's position unit); \
+                     use a larger spacing"
+                ),
             });
         }
         Ok(Arc::new(TableTerm {
