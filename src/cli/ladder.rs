@@ -2,7 +2,7 @@
 
 use super::common::ColumnArgs;
 use anyhow::Context;
-use biasctl::diagnose::ladder_fit;
+use biasctl::diagnose::{ladder_fit, ladder_terms};
 use biasctl::fit::FitOptions;
 use std::path::PathBuf;
 
@@ -27,18 +27,7 @@ pub struct Args {
 
 /// Reads both logs, fits every prefix of the term list and prints the table.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let terms: Vec<String> = args
-        .terms
-        .split(',')
-        .map(|t| t.trim().to_string())
-        .collect();
-    if let Some(i) = terms.iter().position(String::is_empty) {
-        anyhow::bail!(
-            "--terms `{}`: term {} is empty; give a comma-separated list such as poly2,direction,seek",
-            args.terms,
-            i + 1
-        );
-    }
+    let terms = ladder_terms(&args.terms).context("--terms")?;
     let train = args.columns.read_log(&args.data).context("--data")?;
     let test = args.columns.read_log(&args.test).context("--test")?;
     let l = ladder_fit(&train, &test, &terms, &FitOptions::default())?;

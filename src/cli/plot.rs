@@ -4,7 +4,7 @@
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::{Context, bail};
 use biasctl::diagnose::{
-    DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, replay_model,
+    DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, ladder_terms, replay_model,
 };
 use biasctl::fit::{FitOptions, fit};
 use biasctl::log::Log;
@@ -170,20 +170,7 @@ fn draw(a: &Args) -> anyhow::Result<String> {
         },
         Kind::Time => {
             if let Some(t) = a.track {
-                let measured = log
-                    .rows
-                    .iter()
-                    .filter(|r| r.bias.is_some() && r.track.total_cmp(&t).is_eq())
-                    .count();
-                if measured == 0 {
-                    bail!(
-                        "--track {t}: {} has no measured row at {} {t} {}; leave --track out \
-                         to plot the most-measured track",
-                        data.display(),
-                        log.schema.map.track,
-                        units.position
-                    );
-                }
+                from_log::check_track(&log, t).context("--track")?;
             }
             from_log::bias_vs_time(&log, a.track)
         }
@@ -208,15 +195,7 @@ fn draw(a: &Args) -> anyhow::Result<String> {
         Kind::Ladder => {
             let test_path = a.test.as_ref().context("--test")?;
             let test = a.columns.read_log(test_path)?;
-            let terms: Vec<String> = a
-                .terms
-                .split(',')
-                .map(|t| t.trim().to_string())
-                .filter(|t| !t.is_empty())
-                .collect();
-            if terms.is_empty() {
-                bail!("--terms is empty");
-            }
+            let terms = ladder_terms(&a.terms).context("--terms")?;
             let l = ladder_fit(&log, &test, &terms, &FitOptions::default())?;
             views::ladder(&l, &test.schema.units)
         }

@@ -107,8 +107,8 @@ pub use advice::{DAHL_TERM, Shape};
 pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
-    ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, ladder_fit, model_terms,
-    replay_model, suggestion_path, suggestion_path_from,
+    ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, ladder_fit, ladder_terms,
+    model_terms, replay_model, suggestion_path, suggestion_path_from,
 };
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 

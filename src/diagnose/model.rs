@@ -48,6 +48,16 @@ pub enum ModelDiagnosisError {
     /// The diagnosis engine rejected the residuals or its settings.
     #[error(transparent)]
     Diagnose(#[from] DiagnoseError),
+    /// A ladder's term list has an empty entry (`poly2,,seek`) or no entry at all.
+    #[error(
+        "term list `{list}`: term {index} is empty; give a comma-separated list such as poly2,direction,seek"
+    )]
+    EmptyTerm {
+        /// The list as given.
+        list: String,
+        /// 1-based position of the empty entry.
+        index: usize,
+    },
     /// A ladder step left fewer than two measured test rows, so no std exists.
     #[error("ladder step {step}: fewer than two measured rows in {file}")]
     TooFewTestRows {
@@ -103,6 +113,19 @@ pub fn replay_model(model: &FittedModel, log: &Log) -> Result<Prediction, ModelD
             file: log.schema.file.clone(),
             source,
         })
+}
+
+/// Splits a ladder's comma-separated term list (`poly2,direction,seek`): trimmed, in order. An
+/// empty entry, or an empty list, is an error naming its position.
+pub fn ladder_terms(list: &str) -> Result<Vec<String>, ModelDiagnosisError> {
+    let terms: Vec<String> = list.split(',').map(|t| t.trim().to_string()).collect();
+    match terms.iter().position(String::is_empty) {
+        Some(i) => Err(ModelDiagnosisError::EmptyTerm {
+            list: list.to_string(),
+            index: i + 1,
+        }),
+        None => Ok(terms),
+    }
 }
 
 /// The ladder: for k = 1..=terms.len(), fits the first k terms on `train`, replays on `test`

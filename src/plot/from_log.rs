@@ -83,6 +83,41 @@ pub fn busiest_track(log: &Log) -> Option<f64> {
     best.map(|(t, _)| t)
 }
 
+/// `plot time --track T` asked for a track where the log has no measured row.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "{file} has no measured row at {column} {track} {unit}; leave the track out to plot the most-measured one"
+)]
+pub struct NoDataAtTrack {
+    /// The log file.
+    pub file: String,
+    /// The log's position column.
+    pub column: String,
+    /// The track asked for.
+    pub track: f64,
+    /// The log's position unit.
+    pub unit: String,
+}
+
+/// Checks that `log` has a measured row at `track` (exactly), as [`bias_vs_time`] needs to draw
+/// more than a "no data" panel.
+pub fn check_track(log: &Log, track: f64) -> Result<(), NoDataAtTrack> {
+    let measured = log
+        .rows
+        .iter()
+        .any(|r| r.bias.is_some() && r.track.total_cmp(&track).is_eq());
+    if measured {
+        Ok(())
+    } else {
+        Err(NoDataAtTrack {
+            file: log.schema.file.clone(),
+            column: log.schema.map.track.clone(),
+            track,
+            unit: log.schema.units.position.clone(),
+        })
+    }
+}
+
 /// Bias vs time at one track: the given one, or else the track with the most measured rows.
 pub fn bias_vs_time(log: &Log, track: Option<f64>) -> String {
     let track = track.or_else(|| busiest_track(log));

@@ -378,6 +378,24 @@ fn cli_bad_inputs_exit_2_with_a_clear_message() {
         ],
         &["empty"],
     );
+    // `plot ladder` reads the term list the same way as `ladder` (it used to skip empty ones).
+    let svg = dir.path().join("l.svg").display().to_string();
+    fails_with(
+        &[
+            "plot",
+            "ladder",
+            "--data",
+            &train,
+            "--test",
+            &train,
+            "--terms",
+            "poly2,,seek",
+            "--out",
+            &svg,
+        ],
+        &["--terms", "term 2 is empty"],
+    );
+    assert!(!std::path::Path::new(&svg).exists());
     // A failing step is numbered as in the ladder's table (step 0 = the first term alone).
     fails_with(
         &[
