@@ -710,6 +710,15 @@ impl Log {
     pub fn measured_count(&self) -> usize {
         self.rows.iter().filter(|r| r.bias.is_some()).count()
     }
+
+    /// Target positions of the rows with a measured bias, in log order.
+    pub fn measured_positions(&self) -> Vec<f64> {
+        self.rows
+            .iter()
+            .filter(|r| r.bias.is_some())
+            .map(|r| r.track)
+            .collect()
+    }
 }
 
 /// Writes a log: metadata lines, the header, then rows. Numbers are written with fixed decimals

@@ -51,13 +51,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     config.validate()?;
     let model = FittedModel::load(&args.input.model)?;
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
-    let measured: Vec<f64> = log
-        .rows
-        .iter()
-        .filter(|r| r.bias.is_some())
-        .map(|r| r.track)
-        .collect();
-    super::common::warn_outside_range(&model, &log.schema.file, &measured);
+    super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());
     let d = diagnose_model(&model, &log, &config)?;
     let path = if args.path > 0 {
         let first = d.clone();

@@ -50,12 +50,7 @@ pub const CURVE_POINTS: usize = 41;
 /// row from the log's first time. Returns `(inbound, outbound)` as `(track, bias)` in track
 /// order; both empty when the log has no measured row.
 pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), ViewError> {
-    let measured: Vec<f64> = log
-        .rows
-        .iter()
-        .filter(|r| r.bias.is_some())
-        .map(|r| r.track)
-        .collect();
+    let measured = log.measured_positions();
     let lo = measured.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = measured.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     if !(lo.is_finite() && hi.is_finite()) {
