@@ -156,21 +156,74 @@ pub const STORY_MODELS: [(&str, &str, &str); 4] = [
 /// The ladder's terms, added one at a time.
 pub const LADDER_TERMS: [&str; 5] = ["poly2", "direction", "seek", "memory", "drift"];
 
-/// Files written into the output folder, with a one-line description each.
+/// Files written for a run, with a one-line description each. They are written into a staging
+/// folder beside `dir` and moved into `dir` only when the whole run has succeeded
+/// ([`Out::commit`]); a run that fails leaves `dir` as it was (the staging folder is removed
+/// when `Out` is dropped uncommitted).
 struct Out<'a> {
     dir: &'a Path,
+    stage: PathBuf,
+    committed: bool,
+    /// Final paths (in `dir`) and what each holds, in the order written.
     files: Vec<(PathBuf, String)>,
 }
 
 impl Out<'_> {
+    /// Where a file of the run is written now (inside the staging folder).
+    fn path(&self, name: &str) -> PathBuf {
+        self.stage.join(name)
+    }
     fn text(&mut self, name: &str, text: &str, what: &str) -> Result<(), StoryError> {
-        let p = self.dir.join(name);
-        write_string_atomic(&p, text)?;
-        self.files.push((p, what.to_string()));
+        write_string_atomic(&self.path(name), text)?;
+        self.note(name, what);
         Ok(())
     }
+    /// Records a file written at [`Out::path`] by someone else.
     fn note(&mut self, name: &str, what: &str) {
         self.files.push((self.dir.join(name), what.to_string()));
+    }
+    /// Moves every staged file into `dir` (created if missing; files of the same name are
+    /// replaced, others left alone) and removes the staging folder.
+    fn commit(&mut self) -> Result<(), StoryError> {
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| OutputError::Io { path, source }
+        };
+        std::fs::create_dir_all(self.dir).map_err(io(self.dir))?;
+        let mut moves = Vec::new();
+        for entry in std::fs::read_dir(&self.stage).map_err(io(&self.stage))? {
+            let from = entry.map_err(io(&self.stage))?.path();
+            if let Some(name) = from.file_name() {
+                moves.push((from.clone(), self.dir.join(name)));
+            }
+        }
+        // Check every destination before moving anything, so that a blocked one cannot leave
+        // half of the run in `dir`.
+        if let Some((_, to)) = moves.iter().find(|(_, to)| to.is_dir()) {
+            return Err(OutputError::Io {
+                path: to.clone(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    "a folder of that name is in the way; nothing was written",
+                ),
+            }
+            .into());
+        }
+        for (from, to) in &moves {
+            std::fs::rename(from, to).map_err(io(to))?;
+        }
+        std::fs::remove_dir(&self.stage).map_err(io(&self.stage))?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for Out<'_> {
+    fn drop(&mut self) {
+        if !self.committed {
+            // Best effort: a failed run must not leave its partial files anywhere.
+            let _ = std::fs::remove_dir_all(&self.stage);
+        }
     }
 }
 
@@ -198,20 +251,40 @@ impl Steps<'_> {
     }
 }
 
-/// Creates `dir` and the step counter and file list of a run.
+/// Creates the staging folder beside `dir` and the step counter and file list of a run.
 fn start<'a>(
     dir: &'a Path,
     total: usize,
     cb: &'a mut dyn FnMut(Progress<'_>),
 ) -> Result<(Steps<'a>, Out<'a>), StoryError> {
-    std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
-        path: dir.to_path_buf(),
+    if dir.exists() && !dir.is_dir() {
+        return Err(OutputError::Io {
+            path: dir.to_path_buf(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                "is a file; the report needs a folder",
+            ),
+        }
+        .into());
+    }
+    let parent = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = dir
+        .file_name()
+        .map_or("report".into(), |n| n.to_string_lossy().into_owned());
+    let stage = parent.join(format!(".{name}.biasctl-partial-{}", std::process::id()));
+    std::fs::create_dir_all(&stage).map_err(|source| OutputError::Io {
+        path: stage.clone(),
         source,
     })?;
     Ok((
         Steps { done: 0, total, cb },
         Out {
             dir,
+            stage,
+            committed: false,
             files: Vec::new(),
         },
     ))
@@ -606,8 +679,8 @@ pub fn demo_report(
     };
     let simulate_named = |name: &str, out: &mut Out<'_>| -> Result<Log, StoryError> {
         let cfg = SimConfig::new(Drive::paper1997(), name, &seq_opts, opts.seed, &[])?;
-        let log_path = dir.join(format!("{name}.csv"));
-        let truth_path = dir.join(format!("{name}_truth.csv"));
+        let log_path = out.path(&format!("{name}.csv"));
+        let truth_path = out.path(&format!("{name}_truth.csv"));
         simulate_to_files(&cfg, &log_path, Some(&truth_path))?;
         out.note(&format!("{name}.csv"), "simulated measurement log");
         out.note(
@@ -997,8 +1070,9 @@ pub fn demo_report(
     }
 
     files_section(&mut r, &out);
+    r.write(&out.path("report.html"))?;
+    out.commit()?;
     let report = dir.join("report.html");
-    r.write(&report)?;
     steps.finish();
 
     let lead = diagnosis.features.first();
@@ -1050,7 +1124,10 @@ pub fn demo_report(
     ];
     Ok(StoryOutcome {
         report,
-        files: out.files.into_iter().map(|f| f.0).collect(),
+        files: std::mem::take(&mut out.files)
+            .into_iter()
+            .map(|f| f.0)
+            .collect(),
         summary,
     })
 }
@@ -1339,8 +1416,9 @@ pub fn data_report(
     }
     steps.start("assembling the report");
     files_section(&mut r, &out);
+    r.write(&out.path("report.html"))?;
+    out.commit()?;
     let report = dir.join("report.html");
-    r.write(&report)?;
     steps.finish();
     let best = scored
         .iter()
@@ -1379,7 +1457,10 @@ pub fn data_report(
     ];
     Ok(StoryOutcome {
         report,
-        files: out.files.into_iter().map(|f| f.0).collect(),
+        files: std::mem::take(&mut out.files)
+            .into_iter()
+            .map(|f| f.0)
+            .collect(),
         summary,
     })
 }

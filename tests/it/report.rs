@@ -457,3 +457,48 @@ fn bad_plot_and_report_flags_exit_2_with_a_clear_message() {
         &["--seeks"],
     );
 }
+
+#[test]
+fn a_report_lands_whole_or_not_at_all_and_leaves_other_files_alone() {
+    let root = tempfile::tempdir().unwrap();
+    let out = root.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("mine.txt"), "keep").unwrap();
+    let listing = |d: &Path| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    // A folder named like one of the report's files blocks the run: it fails before moving
+    // anything, and neither `out` nor its parent keeps a trace of it.
+    std::fs::create_dir(out.join("report.html")).unwrap();
+    let e = demo_report(&out, &StoryOptions::quick(3), &mut |_| {}).unwrap_err();
+    assert!(format!("{e:?}").contains("in the way"), "{e:?}");
+    assert_eq!(listing(&out), ["mine.txt", "report.html"]);
+    assert_eq!(listing(root.path()), ["out"], "no staging folder left");
+    // Unblocked, the run lands whole beside the user's file.
+    std::fs::remove_dir(out.join("report.html")).unwrap();
+    let o = demo_report(&out, &StoryOptions::quick(3), &mut |_| {}).unwrap();
+    assert!(o.report.exists() && o.files.iter().all(|f| f.exists()));
+    let files = listing(&out);
+    assert!(
+        files.contains(&"mine.txt".to_string()) && files.len() > 30,
+        "{files:?}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("mine.txt")).unwrap(),
+        "keep"
+    );
+    assert_eq!(listing(root.path()), ["out"]);
+    // `--out` naming a file: refused up front, exit 2.
+    let file = root.path().join("afile").display().to_string();
+    std::fs::write(&file, "x").unwrap();
+    fails_with(
+        &["report", "--out", &file, "--seeks", "300"],
+        &["afile", "is a file"],
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
+}
