@@ -174,11 +174,14 @@ fn extreme(v: &[f64], better: impl Fn(f64, f64) -> bool) -> (usize, f64) {
 
 /// The terms that address a feature, best first.
 /// `by_direction`: the residual follows the feature times the direction of the last move.
+/// `odd_linear`: the feature's sign is the direction's and residual ≈ a·direction + b·feature,
+/// a line in the signed feature (a velocity) that `col:` fits with one parameter.
 pub(crate) fn candidate_terms(
     name: &str,
     origin: FeatureOrigin,
     linear: bool,
     by_direction: bool,
+    odd_linear: bool,
 ) -> Vec<String> {
     let bins = format!("bins:{name}");
     if by_direction {
@@ -197,6 +200,9 @@ pub(crate) fn candidate_terms(
                 // No dedicated term: direction × piecewise-linear in the feature.
                 Feature::Position | Feature::DwellS => vec![format!("dbins:{name}")],
             },
+            FeatureOrigin::Covariate if odd_linear => {
+                vec![format!("col:{name}"), format!("dbins:{name}")]
+            }
             FeatureOrigin::Covariate => vec![format!("dbins:{name}")],
         };
     }
@@ -214,7 +220,7 @@ pub(crate) fn candidate_terms(
         },
         FeatureOrigin::Covariate => {
             let col = format!("col:{name}");
-            if linear {
+            if linear || odd_linear {
                 vec![col, bins]
             } else {
                 vec![bins, col]

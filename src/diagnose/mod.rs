@@ -488,6 +488,7 @@ pub fn diagnose(
                         _ => residuals,
                     },
                     a.by_direction,
+                    direction.as_deref(),
                     residual_std,
                     config,
                 ),

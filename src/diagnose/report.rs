@@ -10,7 +10,7 @@ use crate::output::write_atomic;
 use crate::stats;
 
 use super::advice::{self, Point, Shape, short};
-use super::features::FeatureColumn;
+use super::features::{FeatureColumn, FeatureOrigin};
 use super::smoother::{BinKind, Binned, Unusable, accumulate};
 use super::{DiagnoseConfig, DiagnoseError};
 
@@ -172,6 +172,52 @@ fn curve(b: &Binned, shift: u32, col: &FeatureColumn, y: &[f64]) -> Vec<CurveBin
         .collect()
 }
 
+/// Whether a covariate acts like a velocity: its sign is the direction's on at least 90 % of
+/// the rows where both are non-zero, and the residual is close to a line in the signed value
+/// plus a direction step, r ≈ c + a·sign(x) + b·x. Checked on the analysed residual `y` against
+/// the analysis's own binned curve (`r2_bins`, in-sample): for the plain analysis `y = r` and the
+/// line is in (sign x, x); for the direction-signed one `y = r·d` and, with sign x = d, the same
+/// law is a line in |x|. A line with at least 0.85 of the curve's R² means `col:x` (with the
+/// model's `direction` carrying a·sign) fits it with one parameter.
+fn velocity_like(
+    x: &[Option<f64>],
+    direction: &[f64],
+    y: &[f64],
+    by_direction: bool,
+    r2_bins: f64,
+) -> bool {
+    let (mut agree, mut both) = (0usize, 0usize);
+    let mut rows: Vec<[f64; 3]> = Vec::new();
+    let mut ys = Vec::new();
+    for ((x, &d), &y) in x.iter().zip(direction).zip(y) {
+        let Some(x) = *x else { continue };
+        if x != 0.0 && d != 0.0 {
+            both += 1;
+            agree += usize::from(x.signum() == d.signum());
+        }
+        let sign = if x == 0.0 { 0.0 } else { x.signum() };
+        rows.push(if by_direction {
+            [1.0, x.abs(), 0.0]
+        } else {
+            [1.0, sign, x]
+        });
+        ys.push(y);
+    }
+    if both == 0 || (agree as f64) < 0.9 * both as f64 || r2_bins <= 0.0 || ys.len() < 4 {
+        return false;
+    }
+    let k = if by_direction { 2 } else { 3 };
+    let n = ys.len();
+    let xm = nalgebra::DMatrix::from_fn(n, k, |i, j| rows[i][j]);
+    let yv = nalgebra::DVector::from_vec(ys);
+    let Ok(coef) = xm.clone().svd(true, true).solve(&yv, 1e-12) else {
+        return false;
+    };
+    let sse = (&yv - &xm * coef).norm_squared();
+    let sst = stats::sum_sq_about_mean(yv.as_slice());
+    sst > 0.0 && 1.0 - sse / sst >= 0.85 * r2_bins
+}
+
 /// In-sample R² of the binned means over the defined rows of a curve.
 fn binned_r2(curve: &[CurveBin]) -> f64 {
     let defined: Vec<&CurveBin> = curve.iter().filter(|c| c.centre.is_some()).collect();
@@ -207,6 +253,7 @@ pub(crate) fn feature_report(
     p_adj: f64,
     residuals: &[f64],
     by_direction: bool,
+    direction: Option<&[f64]>,
     residual_std: f64,
     config: &DiagnoseConfig,
 ) -> FeatureReport {
@@ -246,7 +293,11 @@ pub(crate) fn feature_report(
     } else {
         curve(b, display_shift, col, residuals)
     };
-    let candidates = advice::candidate_terms(&col.name, col.origin, linear, by_direction);
+    let odd_linear = col.origin == FeatureOrigin::Covariate
+        && direction
+            .is_some_and(|d| velocity_like(&col.values, d, residuals, by_direction, r2_bins));
+    let candidates =
+        advice::candidate_terms(&col.name, col.origin, linear, by_direction, odd_linear);
     let (suggested_term, note) = advice::suggest(&candidates, &config.existing_terms);
     let note = advice::offset_note(col.origin, &config.existing_terms).or(note);
     FeatureReport {

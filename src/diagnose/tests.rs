@@ -359,6 +359,51 @@ fn a_direction_step_left_by_a_model_with_direction_says_the_offset_does_not_tran
 }
 
 #[test]
+fn a_velocity_like_covariate_gets_col_and_a_hysteretic_one_gets_dbins() {
+    // Reference: viscous friction leaves residual = 0.8·v − 3·direction with sign(v) = direction
+    // (a model with a miscalibrated Coulomb term): a line in the signed velocity, which `col:`
+    // fits. The plain analysis saw a curve with a step (`bins`), the direction-signed one
+    // direction × (0.8·|v| − 3) (`dbins`, the EMPS case); both now say `col:`.
+    // A positive covariate acting through the direction (temperature softening the pivot,
+    // direction × 0.5·T) has no such line: `dbins` stays.
+    let mut t = table(21, 1500);
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|d| d.unwrap_or(0.0))
+        .collect();
+    let mut rng = SimRng::new(77);
+    let speed: Vec<f64> = (0..t.len()).map(|_| 2.0 + 8.0 * rng.uniform()).collect();
+    let v: Vec<Option<f64>> = dir.iter().zip(&speed).map(|(d, s)| Some(d * s)).collect();
+    let temp: Vec<Option<f64>> = (0..t.len()).map(|_| Some(10.0 * rng.uniform())).collect();
+    t.push_column("velocity", v.clone()).unwrap();
+    t.push_column("temp", temp.clone()).unwrap();
+    let config = DiagnoseConfig {
+        existing_terms: vec!["poly2".into(), "direction".into()],
+        ..DiagnoseConfig::default()
+    };
+    let r = residuals(&t, 21, 0.5, |i| 0.8 * v[i].unwrap() - 3.0 * dir[i]);
+    let d = diagnose(&t, &r, &config).unwrap();
+    let f = d.feature("velocity").unwrap();
+    assert!(f.flagged, "{}", d.to_text());
+    assert_eq!(
+        f.suggested_term.as_deref(),
+        Some("col:velocity"),
+        "{}",
+        d.to_text()
+    );
+    let r = residuals(&t, 22, 0.5, |i| 0.5 * dir[i] * temp[i].unwrap());
+    let d = diagnose(&t, &r, &config).unwrap();
+    let f = d.feature("temp").unwrap();
+    assert!(f.flagged && f.by_direction, "{}", d.to_text());
+    assert_eq!(
+        f.suggested_term.as_deref(),
+        Some("dbins:temp"),
+        "{}",
+        d.to_text()
+    );
+}
+
+#[test]
 fn constant_and_undefined_features_are_skipped_with_a_note() {
     let mut t = table(12, 600);
     t.push_column("heater", vec![Some(5.0); t.len()]).unwrap();
