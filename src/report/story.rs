@@ -1302,6 +1302,12 @@ pub fn data_report(
             "Each preset is fitted on the first half of the measured rows and replayed causally \
              over the second half. Your own model, if given, is scored on the whole log.",
         );
+        if let Some(w) = user
+            .as_ref()
+            .and_then(|u| u.model.outside_range(&u.prediction.positions))
+        {
+            s.paragraph(format!("Warning about your model: {w}."));
+        }
         let all: Vec<&Scored> = scored.iter().chain(user.iter()).collect();
         if all.is_empty() {
             s.paragraph("No model could be fitted and scored on this log.");

@@ -870,4 +870,13 @@ fn commands_warn_when_a_log_goes_beyond_the_fitted_position_range() {
             r.stderr
         );
     }
+    // The report on such a log says it in the page.
+    let rep = dir.path().join("rep");
+    let rep_s = rep.display().to_string();
+    ok(&["report", "--data", &far, "--model", &model, "--out", &rep_s]);
+    let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
+    assert!(
+        html.contains("Warning about your model: 800 of 800 targets"),
+        "no warning in the report"
+    );
 }

@@ -126,7 +126,12 @@ fn emps_diagnose_points_at_acceleration_and_velocity() {
     let terms: Vec<&str> = (0..2)
         .map(|i| v["path"][i]["term"].as_str().unwrap_or(""))
         .collect();
-    assert_eq!(terms, ["col:accel_m_s2", "col:velocity_m_s"], "{}", v["path"]);
+    assert_eq!(
+        terms,
+        ["col:accel_m_s2", "col:velocity_m_s"],
+        "{}",
+        v["path"]
+    );
     // Each step lowers the residual std (force std 54 N; IDIM-LS leaves about 7.7 N).
     let stds: Vec<f64> = (0..2)
         .map(|i| v["path"][i]["std_after"].as_f64().unwrap())
