@@ -502,3 +502,104 @@ fn a_report_lands_whole_or_not_at_all_and_leaves_other_files_alone() {
     );
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
 }
+
+#[test]
+fn readme_figures_are_current() {
+    // Reference: docs/figures/*.svg as committed. Redraws them (the demo's report at seed 1,
+    // then `biasctl plot` for each) and compares bytes: a change that moves the README's figures
+    // must regenerate them. With BIASCTL_UPDATE_FIGURES=1 it writes them instead
+    // (scripts/figures.sh).
+    let update = std::env::var_os("BIASCTL_UPDATE_FIGURES").is_some_and(|v| v == "1");
+    let work = tempfile::tempdir().unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_biasctl"))
+            .args(args)
+            .current_dir(work.path())
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "biasctl {args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    run(&["report", "--out", ".", "--seed", "1"]);
+    let to = |name: &str| out.path().join(name).display().to_string();
+    let figures: [(&str, Vec<&str>); 8] = [
+        (
+            "fig03_table1.svg",
+            vec![
+                "position",
+                "--data",
+                "table1.csv",
+                "--model",
+                "model_position-direction.json",
+            ],
+        ),
+        (
+            "fig04_time_at_track.svg",
+            vec!["time", "--data", "dwell.csv"],
+        ),
+        ("fig06_table3.svg", vec!["seek", "--data", "table3.csv"]),
+        (
+            "fig10_11_errors.svg",
+            vec![
+                "errors",
+                "--data",
+                "random.csv",
+                "--model",
+                "model_position-direction.json,model_calibration.json",
+            ],
+        ),
+        (
+            "fig13_14_dahl_loop.svg",
+            vec!["loop", "--data", "table2.csv", "--model", "model_dahl.json"],
+        ),
+        (
+            "ladder.svg",
+            vec![
+                "ladder",
+                "--data",
+                "calibration.csv",
+                "--test",
+                "random.csv",
+                "--terms",
+                "poly2,direction,seek,memory,drift",
+            ],
+        ),
+        (
+            "fig15_bounds.svg",
+            vec!["bounds", "--preset", "paper1997", "--bias-uncertainty", "8"],
+        ),
+        (
+            "fig16_responses.svg",
+            vec![
+                "responses",
+                "--preset",
+                "paper1997",
+                "--bias-uncertainty",
+                "8",
+            ],
+        ),
+    ];
+    let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/figures");
+    for (name, args) in &figures {
+        let dest = to(name);
+        let mut full = vec!["plot"];
+        full.extend(args.iter().copied());
+        full.extend(["--out", dest.as_str()]);
+        run(&full);
+        let fresh = std::fs::read(&dest).unwrap();
+        if update {
+            std::fs::create_dir_all(&docs).unwrap();
+            std::fs::write(docs.join(name), &fresh).unwrap();
+            continue;
+        }
+        let committed = std::fs::read(docs.join(name)).unwrap();
+        assert!(
+            fresh == committed,
+            "docs/figures/{name} is stale: run scripts/figures.sh and commit the result"
+        );
+    }
+}
