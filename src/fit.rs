@@ -747,7 +747,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
         warnings,
     };
     let pred = model.predict_log(log)?;
-    model.fit.position_range = range_of(&pred.positions);
+    model.fit.position_range = crate::stats::range(&pred.positions);
     let sst = crate::stats::sum_sq_about_mean(&pred.measured);
     let sse: f64 = pred.residual.iter().map(|e| e * e).sum();
     model.fit.residual_std = crate::stats::std_dev(&pred.residual).unwrap_or(0.0);
@@ -766,16 +766,6 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
         });
     }
     Ok(model)
-}
-
-/// `[min, max]` of finite values; `None` if there are none.
-fn range_of(x: &[f64]) -> Option<[f64; 2]> {
-    x.iter()
-        .filter(|v| v.is_finite())
-        .fold(None, |r: Option<[f64; 2]>, &v| match r {
-            None => Some([v, v]),
-            Some([lo, hi]) => Some([lo.min(v), hi.max(v)]),
-        })
 }
 
 #[cfg(test)]

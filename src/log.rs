@@ -373,6 +373,19 @@ pub struct Row {
     pub covariates: Vec<f64>,
 }
 
+impl Row {
+    /// A row to read into ([`LogReader::read_into`]), with room for `covariates` values.
+    pub fn empty(covariates: usize) -> Self {
+        Row {
+            line: 0,
+            time_s: 0.0,
+            track: 0.0,
+            bias: None,
+            covariates: Vec::with_capacity(covariates),
+        }
+    }
+}
+
 /// A streaming reader of a measurement log: constant memory in the number of rows.
 ///
 /// It yields `Result<Row, LogError>`; after the last row it yields one
@@ -521,13 +534,7 @@ impl<R: Read> LogReader<R> {
     /// Streams the rest of the log (constant memory) and summarises it: row counts, position
     /// and time ranges. Every row is validated as [`LogReader::read_into`] does.
     pub fn summarise(&mut self) -> Result<LogSummary, LogError> {
-        let mut row = Row {
-            line: 0,
-            time_s: 0.0,
-            track: 0.0,
-            bias: None,
-            covariates: Vec::new(),
-        };
+        let mut row = Row::empty(self.schema.covariates.len());
         let mut s = LogSummary {
             rows: 0,
             measured: 0,
@@ -641,13 +648,7 @@ impl<R: Read> Iterator for LogReader<R> {
         if self.done {
             return None;
         }
-        let mut row = Row {
-            line: 0,
-            time_s: 0.0,
-            track: 0.0,
-            bias: None,
-            covariates: Vec::with_capacity(self.schema.covariates.len()),
-        };
+        let mut row = Row::empty(self.schema.covariates.len());
         match self.read_into(&mut row) {
             Ok(true) => Some(Ok(row)),
             Ok(false) => {

@@ -67,6 +67,16 @@ pub struct Histogram {
     pub counts: Vec<u64>,
 }
 
+/// `[min, max]` of the finite values of `x`; `None` if there are none.
+pub fn range(x: &[f64]) -> Option<[f64; 2]> {
+    x.iter()
+        .filter(|v| v.is_finite())
+        .fold(None, |r, &v| match r {
+            None => Some([v, v]),
+            Some([lo, hi]) => Some([lo.min(v), hi.max(v)]),
+        })
+}
+
 /// A histogram of `x` with `bins` equal bins over [min, max]. With zero spread all values go in
 /// one bin of width 1 centred on the value. `bins` of 0 is treated as 1.
 pub fn histogram(x: &[f64], bins: usize) -> Histogram {
@@ -739,6 +749,17 @@ mod tests {
         assert!(close(percentile_sorted(&x, 90.0).unwrap(), 3.7, 1e-12));
         assert_eq!(std_dev(&[1.0]), None);
         assert_eq!(mean(&[]), None);
+    }
+
+    #[test]
+    fn range_ignores_non_finite_values() {
+        assert_eq!(
+            range(&[3.0, f64::NAN, -1.0, f64::INFINITY, 2.0]),
+            Some([-1.0, 3.0])
+        );
+        assert_eq!(range(&[5.0]), Some([5.0, 5.0]));
+        assert_eq!(range(&[]), None);
+        assert_eq!(range(&[f64::NAN]), None);
     }
 
     #[test]

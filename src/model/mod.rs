@@ -464,10 +464,7 @@ impl FittedModel {
             .copied()
             .filter(|&x| x < lo || x > hi)
             .collect();
-        let first = *outside.first()?;
-        let seen = outside
-            .iter()
-            .fold([first, first], |[a, b], &x| [a.min(x), b.max(x)]);
+        let seen = crate::stats::range(&outside)?;
         Some(RangeWarning {
             outside: outside.len(),
             total: positions.len(),

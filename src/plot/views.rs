@@ -50,12 +50,9 @@ pub const CURVE_POINTS: usize = 41;
 /// row from the log's first time. Returns `(inbound, outbound)` as `(track, bias)` in track
 /// order; both empty when the log has no measured row.
 pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), ViewError> {
-    let measured = log.measured_positions();
-    let lo = measured.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = measured.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    if !(lo.is_finite() && hi.is_finite()) {
+    let Some([lo, hi]) = crate::stats::range(&log.measured_positions()) else {
         return Ok((Vec::new(), Vec::new()));
-    }
+    };
     let span = (hi - lo).max(1.0);
     let s = &log.schema;
     let means: Vec<f64> = (0..s.covariates.len())

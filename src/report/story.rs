@@ -520,13 +520,12 @@ fn truth_table(truth: &[Truth]) -> Table {
     );
     for (name, source, get) in effects {
         let v: Vec<f64> = truth.iter().map(get).collect();
-        let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let spread = crate::stats::range(&v).map_or(f64::NAN, |[lo, hi]| hi - lo);
         table = table.row(vec![
             name.into(),
             source.into(),
             Cell::Fixed(crate::stats::std_dev(&v).unwrap_or(f64::NAN), 2),
-            Cell::Fixed(hi - lo, 2),
+            Cell::Fixed(spread, 2),
         ]);
     }
     table
@@ -1192,8 +1191,7 @@ pub fn data_report(
     ));
     steps.start("bias plots");
     let tracks: Vec<f64> = log.rows.iter().map(|x| x.track).collect();
-    let lo = tracks.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = tracks.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let [lo, hi] = crate::stats::range(&tracks).unwrap_or([f64::NAN; 2]);
     r.section("Your data")
         .table(
             Table::new(&["quantity", "value"])

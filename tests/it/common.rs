@@ -13,10 +13,20 @@ pub struct Run {
 
 /// Runs `biasctl` with `args` and captures its output.
 pub fn biasctl(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_biasctl"))
-        .args(args)
-        .output()
-        .expect("run biasctl");
+    capture(Command::new(env!("CARGO_BIN_EXE_biasctl")).args(args))
+}
+
+/// Runs `biasctl` with `args` in the working directory `dir` and captures its output.
+pub fn biasctl_in(dir: &Path, args: &[&str]) -> Run {
+    capture(
+        Command::new(env!("CARGO_BIN_EXE_biasctl"))
+            .args(args)
+            .current_dir(dir),
+    )
+}
+
+fn capture(cmd: &mut Command) -> Run {
+    let out = cmd.output().expect("run biasctl");
     Run {
         code: out.status.code().unwrap_or(-1),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),

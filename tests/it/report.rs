@@ -513,16 +513,8 @@ fn readme_figures_are_current() {
     let work = tempfile::tempdir().unwrap();
     let out = tempfile::tempdir().unwrap();
     let run = |args: &[&str]| {
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_biasctl"))
-            .args(args)
-            .current_dir(work.path())
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "biasctl {args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        let r = crate::common::biasctl_in(work.path(), args);
+        assert_eq!(r.code, 0, "biasctl {args:?}: {}", r.stderr);
     };
     run(&["report", "--out", ".", "--seed", "1"]);
     let to = |name: &str| out.path().join(name).display().to_string();

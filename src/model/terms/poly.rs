@@ -22,9 +22,7 @@ impl TermSpec for Poly2Spec {
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let x = data.measured_values(|s| Some(s.features.target));
         let centre = crate::stats::mean(&x).unwrap_or(0.0);
-        let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let half = 0.5 * (hi - lo);
+        let half = crate::stats::range(&x).map_or(0.0, |[lo, hi]| 0.5 * (hi - lo));
         let scale = if half > 0.0 { half } else { 1.0 };
         Ok(Arc::new(Poly2Term { centre, scale }))
     }
