@@ -60,6 +60,14 @@ pub enum SpecError {
         /// The name given.
         name: String,
     },
+    /// An edit names a term the model does not have.
+    #[error("term `{term}` is not in the model `{model}`")]
+    NotInModel {
+        /// The term named by the edit.
+        term: String,
+        /// The model's terms.
+        model: String,
+    },
     /// An empty item in a list (`poly2,,seek`).
     #[error("empty term in the list `{list}`")]
     EmptyItem {
@@ -189,6 +197,80 @@ impl ModelSpec {
             return Err(SpecError::Duplicate { term: name });
         }
         Ok(self.with_term(term))
+    }
+}
+
+/// A typed change to a model: what diagnose suggests and `discover` applies. Terms are held as
+/// [`TermSpec`] objects, never as strings, so a user's own term survives every edit.
+///
+/// ```
+/// use biasctl::model::{ModelEdit, ModelSpec, terms::parse_term};
+/// let spec = ModelSpec::parse("poly2,direction").unwrap();
+/// let add = ModelEdit::Add(parse_term("col:temp_c").unwrap());
+/// assert_eq!(spec.apply(&add).unwrap().to_string(), "poly2,direction,col:temp_c");
+/// let swap = ModelEdit::Replace { old: "poly2".into(), new: parse_term("table:50").unwrap() };
+/// assert_eq!(spec.apply(&swap).unwrap().to_string(), "table:50,direction");
+/// assert_eq!(swap.to_string(), "replace poly2 by table:50");
+/// assert!(spec.apply(&ModelEdit::Remove("seek".into())).is_err());
+/// ```
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub enum ModelEdit {
+    /// Add a term at the end of the model.
+    Add(Arc<dyn TermSpec>),
+    /// Replace the term named `old` by `new`, in place.
+    Replace {
+        /// Name of the term to replace (its spec string, e.g. `poly2`).
+        old: String,
+        /// The term that takes its place.
+        new: Arc<dyn TermSpec>,
+    },
+    /// Remove the term with this name.
+    Remove(String),
+}
+
+impl fmt::Display for ModelEdit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ModelEdit::Add(t) => write!(f, "add {}", t.name()),
+            ModelEdit::Replace { old, new } => write!(f, "replace {old} by {}", new.name()),
+            ModelEdit::Remove(name) => write!(f, "remove {name}"),
+        }
+    }
+}
+
+impl ModelSpec {
+    /// The spec after `edit`; fails if an added or replacing term duplicates one already there,
+    /// or if a term to replace or remove is not in the model.
+    pub fn apply(&self, edit: &ModelEdit) -> Result<ModelSpec, SpecError> {
+        let position = |name: &str| {
+            self.terms
+                .iter()
+                .position(|t| t.name() == name)
+                .ok_or_else(|| SpecError::NotInModel {
+                    term: name.to_string(),
+                    model: self.to_string(),
+                })
+        };
+        match edit {
+            ModelEdit::Add(t) => self.clone().try_with_term(t.clone()),
+            ModelEdit::Replace { old, new } => {
+                let i = position(old)?;
+                let new_name = new.name();
+                if new_name != *old && self.terms.iter().any(|t| t.name() == new_name) {
+                    return Err(SpecError::Duplicate { term: new_name });
+                }
+                let mut spec = self.clone();
+                spec.terms[i] = new.clone();
+                Ok(spec)
+            }
+            ModelEdit::Remove(name) => {
+                let i = position(name)?;
+                let mut spec = self.clone();
+                spec.terms.remove(i);
+                Ok(spec)
+            }
+        }
     }
 }
 
