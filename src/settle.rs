@@ -559,6 +559,17 @@ impl HandoffTable {
         self.dz_dbias
     }
 
+    /// The table as the C export writes it: per sample k the bounds' coefficients
+    /// `[−ce/a, −cv/a, −cu/a, 1/|a|]` (`[0, 0, 0, ∞]` where a_k = 0), and the samples with
+    /// a_k = 0 as `(k, [ce, cv, cu])` in ascending k.
+    pub fn export_rows(&self) -> (Vec<[f64; 4]>, Vec<(usize, [f64; 3])>) {
+        let rows = self.coef.iter().map(|c| [c.pe, c.pv, c.pu, c.w]).collect();
+        let mut zeros: Vec<(usize, [f64; 3])> =
+            self.zero.iter().map(|z| (z.k, [z.ce, z.cv, z.cu])).collect();
+        zeros.sort_by_key(|z| z.0);
+        (rows, zeros)
+    }
+
     /// One plus the largest k with a_k = 0 and |c_k| > δ (0 if none): no settle index below it.
     #[inline]
     fn floor(&self, h: &Handoff, delta: f64) -> usize {

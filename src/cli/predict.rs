@@ -53,7 +53,7 @@ pub struct Args {
 
 /// The settle description named by `--handoff`: a file when it ends in `.toml` or exists,
 /// else a preset name.
-fn handoff_plan(
+pub fn handoff_plan(
     model: &FittedModel,
     handoff: &str,
     delta_b: Option<f64>,
