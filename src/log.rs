@@ -756,7 +756,17 @@ impl Log {
 
     /// Reads a whole log from a reader; `file` names it in messages.
     pub fn from_reader<R: Read>(file: &str, reader: R, map: &ColumnMap) -> Result<Self, LogError> {
-        let mut reader = LogReader::from_reader(file, reader, map)?;
+        Self::from_reader_with(file, reader, map, BiasColumn::Required)
+    }
+
+    /// As [`Log::from_reader`], with the bias column required or optional.
+    pub fn from_reader_with<R: Read>(
+        file: &str,
+        reader: R,
+        map: &ColumnMap,
+        bias: BiasColumn,
+    ) -> Result<Self, LogError> {
+        let mut reader = LogReader::from_reader_with(file, reader, map, bias)?;
         let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             schema: reader.schema,
@@ -948,6 +958,34 @@ mod tests {
             );
             assert!(err.starts_with("t.csv"), "{err}");
         }
+    }
+
+    #[test]
+    fn a_plan_may_lack_the_bias_column_or_every_measurement() {
+        // Reference: the rows as written; with BiasColumn::Optional nothing is measured and
+        // no error is raised, and a covariate keeps its place.
+        let read_plan = |text: &str| {
+            Log::from_reader_with(
+                "p.csv",
+                text.as_bytes(),
+                &ColumnMap::default(),
+                BiasColumn::Optional,
+            )
+        };
+        let plan = read_plan("time_s,track,temp_c\n0,100,25\n0.5,120,26\n").unwrap();
+        assert!(!plan.schema.has_bias());
+        assert_eq!(plan.schema.covariates, vec!["temp_c".to_string()]);
+        assert_eq!(plan.rows[1].covariates, vec![26.0]);
+        assert_eq!(plan.measured_count(), 0);
+        let empty = read_plan("time_s,track,bias\n0,100,\n0.5,120,\n").unwrap();
+        assert!(empty.schema.has_bias() && empty.measured_count() == 0);
+        // Other bad input is still an error naming line and column.
+        let e = read_plan("time_s,track\n0,100\n0.5,x\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("p.csv: line 3, column 2 (`track`)"), "{e}");
+        // Required (the default) keeps both errors.
+        assert!(read("time_s,track\n0,1\n").is_err());
     }
 
     #[test]

@@ -18,7 +18,13 @@ fn zero(n: usize) -> String {
 
 /// Hinge curves of `seek` and `memory` (`knots::curve_hinges`): all zero, then for the curve
 /// `curve_expr` (C int, < 0 for none) `max(k_j − a, 0)/k_last` with `a = a_expr`.
-fn curve_hinges(ctx: &CContext, knots: &[f64], curves: usize, curve_expr: &str, a_expr: &str) -> CTerm {
+fn curve_hinges(
+    ctx: &CContext,
+    knots: &[f64],
+    curves: usize,
+    curve_expr: &str,
+    a_expr: &str,
+) -> CTerm {
     let k = knots.len();
     let scale = knots.last().copied().unwrap_or(1.0);
     let mut t = CTerm::default();
@@ -76,14 +82,26 @@ pub fn builtin_term(name: &str, settings: &serde_json::Value, ctx: &CContext) ->
         "seek" => {
             let p: seek::SeekTerm = de(settings)?;
             let curve = format!("({SIDE} < 0 ? -1 : 2 * f->direction_change + {SIDE})");
-            t = curve_hinges(ctx, &p.knots, seek::CURVES.len(), &curve, "fabs(f->seek_length)");
+            t = curve_hinges(
+                ctx,
+                &p.knots,
+                seek::CURVES.len(),
+                &curve,
+                "fabs(f->seek_length)",
+            );
         }
         "memory" => {
             let p: memory::MemoryTerm = de(settings)?;
             let curve = format!(
                 "((f->direction == 1 && f->has_rest_id) || (f->direction == -1 && f->has_rest_od) ? {SIDE} : -1)"
             );
-            t = curve_hinges(ctx, &p.knots, 2, &curve, "(f->direction == 1 ? f->rest_id : f->rest_od)");
+            t = curve_hinges(
+                ctx,
+                &p.knots,
+                2,
+                &curve,
+                "(f->direction == 1 ? f->rest_id : f->rest_od)",
+            );
         }
         "drift" => {
             let p: drift::DriftTerm = de(settings)?;
@@ -96,10 +114,14 @@ pub fn builtin_term(name: &str, settings: &serde_json::Value, ctx: &CContext) ->
             let n = p.rates.len();
             let ln_r: Vec<f64> = p.rates.iter().map(|r| r.ln()).collect();
             t.state = format!("bias_real g[{n}];");
-            t.constants = format!("static const bias_real $K_LNR[{n}] = {};\n", ctx.array(&ln_r));
+            t.constants = format!(
+                "static const bias_real $K_LNR[{n}] = {};\n",
+                ctx.array(&ln_r)
+            );
             // G = s + (G − s)·r^|dx| (eq. 8 / Fc), unchanged for dx = 0.
             let peek = "bias_real dx_ = f->seek_length, d_ = exp($K_LNR[j_] * fabs(dx_)), g_ = $S.g[j_];\n      g_ = dx_ > 0 ? 1 + (g_ - 1) * d_ : (dx_ < 0 ? -1 + (g_ + 1) * d_ : g_);";
-            t.basis = format!("{{ int j_; for (j_ = 0; j_ < {n}; j_++) {{ {peek} b[j_] = g_; }} }}\n");
+            t.basis =
+                format!("{{ int j_; for (j_ = 0; j_ < {n}; j_++) {{ {peek} b[j_] = g_; }} }}\n");
             t.update = format!("int j_; for (j_ = 0; j_ < {n}; j_++) {{ {peek} $S.g[j_] = g_; }}");
         }
         "col" => {
@@ -121,7 +143,10 @@ pub fn builtin_term(name: &str, settings: &serde_json::Value, ctx: &CContext) ->
             let k = p.knots.len();
             let n = 1 + k + usize::from(p.indicator);
             if k > 0 {
-                t.constants = format!("static const bias_real $K_KNOTS[{k}] = {};\n", ctx.array(&p.knots));
+                t.constants = format!(
+                    "static const bias_real $K_KNOTS[{k}] = {};\n",
+                    ctx.array(&p.knots)
+                );
             }
             t.basis = zero(n);
             t.basis += &format!(

@@ -197,8 +197,9 @@ impl CSource {
         if dir.exists() && !dir.is_dir() {
             return Err(ExportError::Folder {
                 path: dir.display().to_string(),
-                why: "exists and is not a folder (--out names the folder to write the C files into)"
-                    .into(),
+                why:
+                    "exists and is not a folder (--out names the folder to write the C files into)"
+                        .into(),
             });
         }
         std::fs::create_dir_all(dir).map_err(|e| ExportError::Folder {
@@ -234,13 +235,19 @@ fn fill(text: &str, state: &str, prefix: &str, covariates: &[usize]) -> Result<S
             let k: usize = r[..digits]
                 .parse()
                 .map_err(|_| "`$X` without a covariate number".to_string())?;
-            let idx = covariates
-                .get(k)
-                .ok_or_else(|| format!("`$X{k}`: the term reads only {} covariates", covariates.len()))?;
+            let idx = covariates.get(k).ok_or_else(|| {
+                format!(
+                    "`$X{k}`: the term reads only {} covariates",
+                    covariates.len()
+                )
+            })?;
             let _ = write!(out, "x[{idx}]");
             rest = &r[digits..];
         } else {
-            return Err(format!("unknown placeholder `${}`", after.chars().next().unwrap_or(' ')));
+            return Err(format!(
+                "unknown placeholder `${}`",
+                after.chars().next().unwrap_or(' ')
+            ));
         }
     }
     out.push_str(rest);
@@ -330,9 +337,19 @@ pub fn c_source(model: &FittedModel, opts: &COptions<'_>) -> Result<CSource, Exp
         comment(&model.spec)
     );
     h.push_str("#ifndef BIAS_MODEL_H\n#define BIAS_MODEL_H\n\n");
-    let _ = writeln!(h, "/** The floating-point type of every value. */\ntypedef {real_type} bias_real;\n");
-    let _ = writeln!(h, "/** Number of covariate values `cov` holds (see bias_model_covariate_name). */\n#define BIAS_MODEL_N_COVARIATES {}", covariates.len());
-    let _ = writeln!(h, "/** Uncrossed rest positions kept per side of the head (the farthest is dropped beyond). */\n#define BIAS_MODEL_REST_CAP {REST_CAPACITY}");
+    let _ = writeln!(
+        h,
+        "/** The floating-point type of every value. */\ntypedef {real_type} bias_real;\n"
+    );
+    let _ = writeln!(
+        h,
+        "/** Number of covariate values `cov` holds (see bias_model_covariate_name). */\n#define BIAS_MODEL_N_COVARIATES {}",
+        covariates.len()
+    );
+    let _ = writeln!(
+        h,
+        "/** Uncrossed rest positions kept per side of the head (the farthest is dropped beyond). */\n#define BIAS_MODEL_REST_CAP {REST_CAPACITY}"
+    );
     let _ = writeln!(
         h,
         "/** 1 when bias_model_integrator_start is available. */\n#define BIAS_MODEL_HAS_HANDOFF {}\n",
@@ -410,7 +427,11 @@ int bias_model_integrator_start(bias_real bias, bias_real *start);
     let _ = writeln!(
         c,
         "const char *bias_model_covariate_name(int i)\n{{\n    static const char *const names[] = {{{}}};\n    return (i >= 0 && i < BIAS_MODEL_N_COVARIATES) ? names[i] : 0;\n}}\n",
-        if names.is_empty() { "0".to_string() } else { names.join(", ") }
+        if names.is_empty() {
+            "0".to_string()
+        } else {
+            names.join(", ")
+        }
     );
     let _ = writeln!(
         c,
@@ -524,11 +545,18 @@ fn handoff_c(ctx: &CContext, start: &crate::model::StartValues) -> String {
     let col = |i: usize| -> Vec<f64> { rows.iter().map(|r| r[i]).collect() };
     let mut c = String::new();
     let n = rows.len();
-    let _ = writeln!(c, "\n/* The handoff table (eq. 14-16): per sample k the bounds' coefficients. */");
+    let _ = writeln!(
+        c,
+        "\n/* The handoff table (eq. 14-16): per sample k the bounds' coefficients. */"
+    );
     let _ = writeln!(c, "#define BM_H_N {n}");
     let _ = writeln!(c, "#define BM_H_HOLD {}", start.window().hold());
     for (i, name) in ["PE", "PV", "PU", "W"].iter().enumerate() {
-        let _ = writeln!(c, "static const bias_real BM_H_{name}[{n}] = {};", ctx.array(&col(i)));
+        let _ = writeln!(
+            c,
+            "static const bias_real BM_H_{name}[{n}] = {};",
+            ctx.array(&col(i))
+        );
     }
     let nz = zeros.len();
     let _ = writeln!(c, "#define BM_H_NZ {nz}");
@@ -537,11 +565,20 @@ fn handoff_c(ctx: &CContext, start: &crate::model::StartValues) -> String {
         c,
         "static const int BM_H_ZK[{}] = {{{}}};",
         nz.max(1),
-        if zk.is_empty() { "0".into() } else { zk.join(", ") }
+        if zk.is_empty() {
+            "0".into()
+        } else {
+            zk.join(", ")
+        }
     );
     for (i, name) in ["ZCE", "ZCV", "ZCU"].iter().enumerate() {
         let v: Vec<f64> = zeros.iter().map(|z| z.1[i]).collect();
-        let _ = writeln!(c, "static const bias_real BM_H_{name}[{}] = {};", nz.max(1), ctx.array(&v));
+        let _ = writeln!(
+            c,
+            "static const bias_real BM_H_{name}[{}] = {};",
+            nz.max(1),
+            ctx.array(&v)
+        );
     }
     let _ = writeln!(
         c,

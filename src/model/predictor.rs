@@ -142,6 +142,19 @@ impl Predictor {
 /// the integrator, i.e. the converged value for the predicted bias b̂ (counts) plus the robust
 /// start value relative to it, which `biasctl settle --bias B --bias-uncertainty DB` reports as
 /// `z_converged` and `robust.ff`. Allocation-free per call.
+///
+/// ```
+/// use biasctl::model::StartValues;
+/// use biasctl::settle::{SettleSpec, analyse};
+/// let mut spec = SettleSpec::preset("paper1997").unwrap();
+/// let starts = StartValues::new(&spec.validate().unwrap(), 8.0).unwrap();
+/// let z = starts.integrator_start(30.0).unwrap();
+/// // What `biasctl settle --bias 30 --bias-uncertainty 8` reports:
+/// spec.bias = 30.0;
+/// spec.bias_uncertainty = 8.0;
+/// let r = analyse(&spec.validate().unwrap()).unwrap();
+/// assert!((z - (r.z_converged + r.robust.unwrap().ff)).abs() < 1e-9);
+/// ```
 #[derive(Debug, Clone)]
 pub struct StartValues {
     table: HandoffTable,
@@ -276,8 +289,13 @@ pub fn replay_stream<R: Read>(
     let fitted = model.fit.position_range;
     let mut outside: Option<RangeWarning> = None;
     while reader.read_into(&mut row)? {
-        let predicted =
-            p.step_detailed(row.time_s, row.track, &row.covariates, row.bias, &mut contrib);
+        let predicted = p.step_detailed(
+            row.time_s,
+            row.track,
+            &row.covariates,
+            row.bias,
+            &mut contrib,
+        );
         let out = RowPrediction {
             predicted,
             residual: row.bias.map(|y| y - predicted),

@@ -40,7 +40,14 @@ fn compile(cc: &str, dir: &Path) -> std::process::Child {
     files.sort();
     assert_eq!(files.len(), 2, "{files:?}");
     Command::new(cc)
-        .args(["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror"])
+        .args([
+            "-std=c99",
+            "-O2",
+            "-Wall",
+            "-Wextra",
+            "-pedantic",
+            "-Werror",
+        ])
         .args(&files)
         .args(["-lm", "-o"])
         .arg(dir.join("replay"))
@@ -88,7 +95,11 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
     let (train, test) = logs(dir.path());
     // The held-out log: measured history, then a plan (drift must hold over it in C too).
     let text = std::fs::read_to_string(&test).unwrap();
-    let held_out = write(dir.path(), "held_out.csv", &edit_log(&text, false, 300..400));
+    let held_out = write(
+        dir.path(),
+        "held_out.csv",
+        &edit_log(&text, false, 300..400),
+    );
     let models: [(&str, &str); 5] = [
         ("pd", "--model=position-direction"),
         ("cal", "--model=calibration"),
@@ -97,15 +108,28 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
             "all",
             "--terms=table:250,direction,seek,memory,drift,dahl:4,col:temp_c,bins:dwell_s,dbins:rest_distance_id",
         ),
-        ("icpt", "--terms=direction,dahl:3,bins:since_reversal,bins:temp_c:3"),
+        (
+            "icpt",
+            "--terms=direction,dahl:3,bins:since_reversal,bins:temp_c:3",
+        ),
     ];
     let mut jobs = Vec::new();
     for (name, spec) in models {
-        let model = dir.path().join(format!("{name}.json")).display().to_string();
+        let model = dir
+            .path()
+            .join(format!("{name}.json"))
+            .display()
+            .to_string();
         ok(&["fit", "--data", &train, spec, "--out", &model]);
-        let pred = dir.path().join(format!("{name}.pred.csv")).display().to_string();
+        let pred = dir
+            .path()
+            .join(format!("{name}.pred.csv"))
+            .display()
+            .to_string();
         let handoff = name == "cal";
-        let mut args = vec!["predict", "--model", &model, "--data", &held_out, "--out", &pred];
+        let mut args = vec![
+            "predict", "--model", &model, "--data", &held_out, "--out", &pred,
+        ];
         if handoff {
             args.extend(["--handoff", "paper1997"]);
         }
@@ -124,7 +148,14 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
             ok(&args);
             let source = std::fs::read_to_string(out.join("bias_model.c")).unwrap();
             assert!(!source.contains("alloc("), "allocation in {name}");
-            jobs.push((name, float32, handoff, out.clone(), reference.clone(), compile(&cc, &out)));
+            jobs.push((
+                name,
+                float32,
+                handoff,
+                out.clone(),
+                reference.clone(),
+                compile(&cc, &out),
+            ));
         }
     }
     let mut figures = Vec::new();
@@ -146,13 +177,21 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
         let err = max_rel(&got, &want);
         let tol = if float32 { 1e-4 } else { 1e-9 };
         figures.push(format!("{name} float32={float32}: max rel error {err:.2e}"));
-        assert!(err <= tol, "{name} (float32 {float32}): max relative error {err:e} > {tol:e}");
+        assert!(
+            err <= tol,
+            "{name} (float32 {float32}): max relative error {err:e} > {tol:e}"
+        );
         if handoff {
             let z_want = numbers(&column(&reference, "integrator_start"));
             let z_got: Vec<f64> = cells.iter().map(|c| c[1].parse().unwrap()).collect();
             let err = max_rel(&z_got, &z_want);
-            figures.push(format!("{name} float32={float32}: integrator_start max rel error {err:.2e}"));
-            assert!(err <= tol, "{name} integrator_start (float32 {float32}): {err:e} > {tol:e}");
+            figures.push(format!(
+                "{name} float32={float32}: integrator_start max rel error {err:.2e}"
+            ));
+            assert!(
+                err <= tol,
+                "{name} integrator_start (float32 {float32}): {err:e} > {tol:e}"
+            );
         }
     }
     eprintln!("{}", figures.join("\n"));
@@ -227,10 +266,11 @@ fn user_terms_export_themselves_or_are_refused_by_name() {
         }
     }
     let csv = "time_s,track,bias\n0,100,3\n1,130,12\n2,90,19\n3,150,39\n4,120,12\n5,80,19\n";
-    let log =
-        biasctl::log::Log::from_reader("x.csv", csv.as_bytes(), &Default::default()).unwrap();
+    let log = biasctl::log::Log::from_reader("x.csv", csv.as_bytes(), &Default::default()).unwrap();
     for exports in [false, true] {
-        let spec = ModelSpec::parse("poly2").unwrap().with_term(Arc::new(Sq { exports }));
+        let spec = ModelSpec::parse("poly2")
+            .unwrap()
+            .with_term(Arc::new(Sq { exports }));
         let model = fit(&spec, &log, &FitOptions::default()).unwrap();
         match c_source(&model, &COptions::default()) {
             Err(ExportError::NotExportable { term }) => {

@@ -48,12 +48,28 @@ pub(crate) fn logs(dir: &Path) -> (String, String) {
     let train = dir.join("train.csv").display().to_string();
     let test = dir.join("test.csv").display().to_string();
     ok(&[
-        "simulate", "--sequence", "calibration", "--seed", "1", "--drive", &drive, "--out",
+        "simulate",
+        "--sequence",
+        "calibration",
+        "--seed",
+        "1",
+        "--drive",
+        &drive,
+        "--out",
         &train,
     ]);
     ok(&[
-        "simulate", "--sequence", "random", "--n", "400", "--seed", "2", "--drive", &drive,
-        "--out", &test,
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "400",
+        "--seed",
+        "2",
+        "--drive",
+        &drive,
+        "--out",
+        &test,
     ]);
     (train, test)
 }
@@ -81,12 +97,19 @@ fn table(text: &str) -> (Vec<String>, Vec<Vec<String>>) {
 
 pub(crate) fn column(text: &str, name: &str) -> Vec<String> {
     let (h, rows) = table(text);
-    let i = h.iter().position(|c| c == name).unwrap_or_else(|| panic!("no {name} in {h:?}"));
+    let i = h
+        .iter()
+        .position(|c| c == name)
+        .unwrap_or_else(|| panic!("no {name} in {h:?}"));
     rows.into_iter().map(|r| r[i].clone()).collect()
 }
 
 /// The log with the bias column removed (a plan), or with the bias cells of `rows` emptied.
-pub(crate) fn edit_log(text: &str, drop_column: bool, empty_rows: std::ops::Range<usize>) -> String {
+pub(crate) fn edit_log(
+    text: &str,
+    drop_column: bool,
+    empty_rows: std::ops::Range<usize>,
+) -> String {
     let mut out = String::new();
     let mut data_row = None::<usize>;
     for line in text.lines() {
@@ -135,18 +158,30 @@ fn a_plan_without_bias_is_predicted_exactly_as_the_measured_log() {
     );
     let text = std::fs::read_to_string(&test).unwrap();
     let plan = write(dir.path(), "plan.csv", &edit_log(&text, true, 0..0));
-    let empty = write(dir.path(), "empty.csv", &edit_log(&text, false, 0..usize::MAX));
+    let empty = write(
+        dir.path(),
+        "empty.csv",
+        &edit_log(&text, false, 0..usize::MAX),
+    );
     let out = dir.path().join("p.csv").display().to_string();
     let (measured, _) = predict(&model, &test, &out, &[]);
     let (planned, summary) = predict(&model, &plan, &out, &[]);
     let (emptied, _) = predict(&model, &empty, &out, &[]);
     assert_eq!(column(&measured, "predicted").len(), 400);
-    assert_eq!(column(&planned, "predicted"), column(&measured, "predicted"));
-    assert_eq!(column(&emptied, "predicted"), column(&measured, "predicted"));
+    assert_eq!(
+        column(&planned, "predicted"),
+        column(&measured, "predicted")
+    );
+    assert_eq!(
+        column(&emptied, "predicted"),
+        column(&measured, "predicted")
+    );
     assert!(column(&planned, "residual").iter().all(String::is_empty));
     assert!(column(&measured, "residual").iter().all(|r| !r.is_empty()));
     assert!(
-        summary.contains("400 rows predicted") && summary.contains("0 scored") && summary.contains("400 only predicted"),
+        summary.contains("400 rows predicted")
+            && summary.contains("0 scored")
+            && summary.contains("400 only predicted"),
         "{summary}"
     );
     // The library's replay takes the plan too (bias column optional there as well).
@@ -168,14 +203,21 @@ fn a_plan_without_bias_is_predicted_exactly_as_the_measured_log() {
 fn measured_history_then_plan_drift_holds_and_predictions_are_causal() {
     let dir = tempfile::tempdir().unwrap();
     let (train, test) = logs(dir.path());
-    let model = fit_cli(dir.path(), &train, "poly2,direction,seek,memory,drift", "cal.json");
+    let model = fit_cli(
+        dir.path(),
+        &train,
+        "poly2,direction,seek,memory,drift",
+        "cal.json",
+    );
     let text = std::fs::read_to_string(&test).unwrap();
     // Rows 0..250 measured, 250..400 a plan (bias empty).
     let mixed = write(dir.path(), "mixed.csv", &edit_log(&text, false, 250..400));
     let out = dir.path().join("p.csv").display().to_string();
     let (pred, summary) = predict(&model, &mixed, &out, &[]);
     assert!(
-        summary.contains("400 rows predicted") && summary.contains("250 scored") && summary.contains("150 only predicted"),
+        summary.contains("400 rows predicted")
+            && summary.contains("250 scored")
+            && summary.contains("150 only predicted"),
         "{summary}"
     );
     let drift = column(&pred, "drift");
@@ -183,7 +225,10 @@ fn measured_history_then_plan_drift_holds_and_predictions_are_causal() {
     // drift learns on measured rows (it moves), holds over the plan (row 250 is the first
     // prediction after the last measurement; every later row has the same value).
     assert!(drift[1..250].windows(2).any(|w| w[0] != w[1]));
-    assert!(drift[250..].iter().all(|d| *d == drift[250]), "drift moved in the plan");
+    assert!(
+        drift[250..].iter().all(|d| *d == drift[250]),
+        "drift moved in the plan"
+    );
     assert!(residual[..250].iter().all(|r| !r.is_empty()));
     assert!(residual[250..].iter().all(String::is_empty));
     // Causality: changing row 100's bias changes no prediction up to and including row 100.
@@ -209,7 +254,10 @@ fn measured_history_then_plan_drift_holds_and_predictions_are_causal() {
     let (b, _) = predict(&model, &changed, &out, &[]);
     let (pa, pb) = (column(&a, "predicted"), column(&b, "predicted"));
     assert_eq!(pa[..=100], pb[..=100]);
-    assert_ne!(pa[101], pb[101], "drift should react to the changed measurement");
+    assert_ne!(
+        pa[101], pb[101],
+        "drift should react to the changed measurement"
+    );
 }
 
 #[test]
@@ -225,7 +273,11 @@ fn a_plan_without_a_covariate_the_model_needs_fails_naming_it() {
     );
     assert!(!Path::new(&out).exists(), "half-written output");
     // A bad cell in a plan names file, line and column.
-    let bad = write(dir.path(), "bad.csv", "time_s,track,temp_c\n0,100,25\n0.1,x,25\n");
+    let bad = write(
+        dir.path(),
+        "bad.csv",
+        "time_s,track,temp_c\n0,100,25\n0.1,x,25\n",
+    );
     fails_with(
         &["predict", "--model", &model, "--data", &bad, "--out", &out],
         &["bad.csv", "line 3, column 2 (`track`)"],
@@ -234,7 +286,17 @@ fn a_plan_without_a_covariate_the_model_needs_fails_naming_it() {
     // --handoff with an unknown preset names it.
     let ok_plan = write(dir.path(), "ok.csv", "time_s,track,temp_c\n0,100,25\n");
     fails_with(
-        &["predict", "--model", &model, "--data", &ok_plan, "--out", &out, "--handoff", "nope"],
+        &[
+            "predict",
+            "--model",
+            &model,
+            "--data",
+            &ok_plan,
+            "--out",
+            &out,
+            "--handoff",
+            "nope",
+        ],
         &["nope"],
     );
 }
@@ -256,12 +318,23 @@ fn integrator_start_equals_settle_for_the_predicted_bias() {
         let (pred, _) = predict(&model, &plan, &out, &["--handoff", &handoff]);
         let predicted = column(&pred, "predicted");
         let start = column(&pred, "integrator_start");
-        let plant_flag = if handoff.ends_with(".toml") { "--plant" } else { "--preset" };
+        let plant_flag = if handoff.ends_with(".toml") {
+            "--plant"
+        } else {
+            "--preset"
+        };
         for i in [0usize, 57, 399] {
             let b = predicted[i].clone();
             let db = db.to_string();
             let js = ok(&[
-                "settle", plant_flag, &handoff, "--bias", &b, "--bias-uncertainty", &db, "--json",
+                "settle",
+                plant_flag,
+                &handoff,
+                "--bias",
+                &b,
+                "--bias-uncertainty",
+                &db,
+                "--json",
             ]);
             let r: serde_json::Value = serde_json::from_str(&js).unwrap();
             let want = r["z_converged"].as_f64().unwrap() + r["robust"]["ff"].as_f64().unwrap();
@@ -280,7 +353,12 @@ fn stdin_to_stdout_answers_each_seek_as_it_arrives() {
     use std::process::{Command, Stdio};
     let dir = tempfile::tempdir().unwrap();
     let (train, test) = logs(dir.path());
-    let model = fit_cli(dir.path(), &train, "poly2,direction,seek,memory,drift", "cal.json");
+    let model = fit_cli(
+        dir.path(),
+        &train,
+        "poly2,direction,seek,memory,drift",
+        "cal.json",
+    );
     let text = std::fs::read_to_string(&test).unwrap();
     // Reference: the same log read from a file.
     let out = dir.path().join("p.csv").display().to_string();
@@ -318,7 +396,10 @@ fn stdin_to_stdout_answers_each_seek_as_it_arrives() {
     for l in lines.take(20) {
         writeln!(stdin, "{l}").unwrap();
         stdin.flush().unwrap();
-        got.push(rx.recv_timeout(wait).expect("row not answered before the next was sent"));
+        got.push(
+            rx.recv_timeout(wait)
+                .expect("row not answered before the next was sent"),
+        );
     }
     drop(stdin);
     let status = child.wait().unwrap();
