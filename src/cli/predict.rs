@@ -2,7 +2,7 @@
 //! (and, with `--handoff`, the integrator start value of every seek).
 
 use super::common::{LogArgs, SettleArgs};
-use biasctl::log::{BiasColumn, Log, LogReader, STDIN_PATH, fmt_fixed, fmt_trimmed};
+use biasctl::log::{BiasColumn, Log, LogReader, STDIN_PATH};
 use biasctl::model::{
     FittedModel, Prediction, ReplaySummary, RowPrediction, StartValues, replay_stream,
 };
@@ -69,8 +69,8 @@ pub fn handoff_plan(
     Ok(StartValues::new(&cfg, delta_b)?)
 }
 
-/// A finite number with every digit it needs to round-trip (the predictions, so that a check
-/// against another implementation is not limited by the file), or an empty cell.
+/// A finite number with every digit it needs to round-trip (so that neither a position in
+/// metres nor a check against another implementation is limited by the file), or an empty cell.
 fn cell(x: Option<f64>) -> String {
     x.filter(|v| v.is_finite())
         .map(|v| v.to_string())
@@ -158,10 +158,10 @@ fn write_predictions<R: std::io::Read>(
     let mut record: Vec<String> = Vec::with_capacity(header.len());
     let summary = replay_stream(model, reader, start, |row, p: &RowPrediction, contrib| {
         record.clear();
-        record.push(fmt_fixed(row.time_s, 6));
-        record.push(fmt_trimmed(row.track, 6));
-        record.push(row.bias.map(|b| fmt_fixed(b, 4)).unwrap_or_default());
-        record.extend(row.covariates.iter().map(|c| fmt_trimmed(*c, 6)));
+        record.push(cell(Some(row.time_s)));
+        record.push(cell(Some(row.track)));
+        record.push(cell(row.bias));
+        record.extend(row.covariates.iter().map(|c| cell(Some(*c))));
         record.push(cell(Some(p.predicted)));
         record.push(cell(p.residual));
         if start.is_some() {
