@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(
         long,
         value_name = "T1,T2,...",
-        default_value = "poly2,direction,seek,memory,drift"
+        default_value = biasctl::model::preset::CALIBRATION
     )]
     terms: String,
     /// Top features of the `diagnose` plot.

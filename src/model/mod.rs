@@ -9,14 +9,16 @@
 //! assert!(ModelSpec::parse("poly2,frobnicate").is_err());
 //! ```
 
+pub mod data;
 pub mod predictor;
 pub mod preset;
+pub mod registry;
 pub mod term;
 pub mod terms;
 
 pub use predictor::{NextPrediction, Predictor, predict_next};
 
-use crate::fit::FitReport;
+use data::FitReport;
 use crate::log::Log;
 use crate::output::{OutputError, write_string_atomic};
 use serde::{Deserialize, Serialize};
@@ -35,7 +37,7 @@ pub const FORMAT_VERSION: u32 = 1;
 #[non_exhaustive]
 pub enum SpecError {
     /// A term name that is not built in.
-    #[error("unknown term `{term}` (built-in terms: {})", terms::BUILTIN_NAMES)]
+    #[error("unknown term `{term}` (built-in terms: {})", registry::builtin_names())]
     UnknownTerm {
         /// The offending item.
         term: String,

@@ -60,7 +60,7 @@
 //! assert!((k.value - 0.01).abs() < 1e-9);
 //! ```
 
-use crate::fit::{FitData, FitError};
+use crate::model::data::{FitData, FitError};
 use crate::history::SeekFeatures;
 use crate::model::ModelError;
 use serde::{Deserialize, Serialize};
@@ -123,6 +123,23 @@ pub trait Term: Debug + Send + Sync {
     /// (hinge knots) instead of failing the fit.
     fn droppable(&self) -> bool {
         false
+    }
+    /// Number of linear parameters (basis values); the solver sizes the design by it.
+    /// Default: the length of [`Term::param_names`].
+    fn param_count(&self) -> usize {
+        self.param_names().len()
+    }
+    /// Whether the basis carries a constant inbound/outbound offset (a direction × constant
+    /// column, as `direction` and `dahl` do); terms that need such a companion ask the other
+    /// terms of the model through this in [`Term::fit_warnings`].
+    fn spans_direction_offset(&self) -> bool {
+        false
+    }
+    /// Warnings about this term once fitted, given every term of the model (itself included):
+    /// for example a hinge term left with no knots, or a missing companion term. The fit adds
+    /// them to [`crate::model::FittedModel::warnings`] (each distinct text once). Default: none.
+    fn fit_warnings(&self, _model: &[Arc<dyn Term>]) -> Vec<String> {
+        Vec::new()
     }
     /// Covariate columns this term reads.
     fn covariates(&self) -> Vec<String> {

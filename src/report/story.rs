@@ -14,7 +14,7 @@ use crate::diagnose::{
     ladder_fit, replay_model,
 };
 use crate::fit::{FitError, FitOptions, fit};
-use crate::history::History;
+use crate::model::preset;
 use crate::log::{Log, LogError, Units};
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
 use crate::output::{OutputError, write_string_atomic};
@@ -143,18 +143,14 @@ pub struct StoryOutcome {
 /// calibrated as the paper (and 1997 practice) calibrates it, on the two far curves of Table I;
 /// the others on the whole calibration run.
 pub const STORY_MODELS: [(&str, &str, &str); 4] = [
-    ("position-direction", "poly2,direction", "table1"),
-    (
-        "calibration",
-        "poly2,direction,seek,memory,drift",
-        "calibration",
-    ),
-    ("dahl", "poly2,dahl", "calibration"),
-    ("poly2,dahl:4", "poly2,dahl:4", "calibration"),
+    ("position-direction", preset::POSITION_DIRECTION, "table1"),
+    ("calibration", preset::CALIBRATION, "calibration"),
+    ("dahl", preset::DAHL, "calibration"),
+    (preset::RICH_DAHL, preset::RICH_DAHL, "calibration"),
 ];
 
 /// The ladder's terms, added one at a time.
-pub const LADDER_TERMS: [&str; 5] = ["poly2", "direction", "seek", "memory", "drift"];
+pub const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;
 
 /// Files written for a run, with a one-line description each. They are written into a staging
 /// folder beside `dir` and moved into `dir` only when the whole run has succeeded
@@ -323,10 +319,8 @@ fn pct(from: f64, to: f64) -> String {
 /// `(x, bias)` of the measured rows of a table log with their history features, and the
 /// previous rows' tracks (for the rest offset of Table VI).
 fn measured_rows(log: &Log) -> Vec<(crate::history::SeekFeatures, f64, Option<f64>)> {
-    let mut h = History::new();
     let mut out = Vec::new();
-    for (i, r) in log.rows.iter().enumerate() {
-        let f = h.step(r.time_s, r.track);
+    for (i, r, f) in crate::history::replay(log) {
         let two_back = i.checked_sub(2).map(|j| log.rows[j].track);
         if let Some(b) = r.bias {
             out.push((f, b, two_back));
@@ -1133,10 +1127,10 @@ pub fn demo_report(
 
 /// The presets fitted on a user's log: (label, term list).
 pub const DATA_MODELS: [(&str, &str); 4] = [
-    ("position-direction", "poly2,direction"),
-    ("dahl", "poly2,dahl"),
-    ("calibration", "poly2,direction,seek,memory,drift"),
-    ("poly2,dahl:4", "poly2,dahl:4"),
+    ("position-direction", preset::POSITION_DIRECTION),
+    ("dahl", preset::DAHL),
+    ("calibration", preset::CALIBRATION),
+    (preset::RICH_DAHL, preset::RICH_DAHL),
 ];
 
 /// A log holding rows `range` of `log` (its seek history starts afresh at the first row).
