@@ -26,15 +26,63 @@ use std::sync::Arc;
 
 pub use crate::model::data::{FitData, FitError, FitReport};
 
-/// Fit settings.
+/// Fit settings as given (unchecked). [`FitOptions::check`] validates them once into the
+/// [`CheckedFitOptions`] that [`fit`] accepts (linfa's `ParamGuard` pattern).
+///
+/// ```
+/// use biasctl::fit::FitOptions;
+/// let opts = FitOptions { grid: 48, ..FitOptions::default() }.check().unwrap();
+/// assert_eq!(opts.grid, 48);
+/// assert!(FitOptions { rank_tolerance: f64::NAN, ..FitOptions::default() }.check().is_err());
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitOptions {
-    /// Relative size of an `R` diagonal below which a column is called undetermined.
+    /// Relative size of an `R` diagonal below which a column is called undetermined; in (0, 1)
+    /// (default 1e-9).
     pub rank_tolerance: f64,
-    /// Grid points of the nonlinear search before golden-section refinement.
+    /// Grid points of the nonlinear search before golden-section refinement, 3..=10000
+    /// (default 24).
     pub grid: usize,
-    /// Golden-section iterations.
+    /// Golden-section iterations, 0..=1000 (default 40).
     pub refine: usize,
+}
+
+impl FitOptions {
+    /// Checks every setting's range; the error names the setting and what is allowed.
+    pub fn check(self) -> Result<CheckedFitOptions, FitError> {
+        let bad = |field, message: String| Err(FitError::InvalidOptions { field, message });
+        if !(self.rank_tolerance > 0.0 && self.rank_tolerance < 1.0) {
+            return bad(
+                "rank_tolerance",
+                format!("{} is not in (0, 1)", self.rank_tolerance),
+            );
+        }
+        if !(3..=10_000).contains(&self.grid) {
+            return bad("grid", format!("{} is not in 3..=10000", self.grid));
+        }
+        if self.refine > 1000 {
+            return bad("refine", format!("{} is not in 0..=1000", self.refine));
+        }
+        Ok(CheckedFitOptions(self))
+    }
+}
+
+/// Fit settings that passed [`FitOptions::check`]; the only settings [`fit`] accepts. Read
+/// them through `Deref` ([`FitOptions`]'s fields). `Default` is the checked default.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckedFitOptions(FitOptions);
+
+impl Default for CheckedFitOptions {
+    fn default() -> Self {
+        Self(FitOptions::default())
+    }
+}
+
+impl std::ops::Deref for CheckedFitOptions {
+    type Target = FitOptions;
+    fn deref(&self) -> &FitOptions {
+        &self.0
+    }
 }
 
 impl Default for FitOptions {
@@ -287,7 +335,7 @@ fn param_label(terms: &[Arc<dyn Term>], col: usize) -> (String, bool) {
 fn solve(
     terms: &[Arc<dyn Term>],
     data: &FitData<'_>,
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Solution, FitError> {
     let (_, p) = offsets(terms);
     // Essential columns first, so that a dependency is blamed on a droppable hinge if possible.
@@ -364,7 +412,7 @@ fn solve(
 }
 
 /// Fits `spec` to the measured rows of `log`.
-pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel, FitError> {
+pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
     let data = FitData::new(log);
     let mut terms = spec
         .terms
@@ -499,7 +547,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
     covariates.dedup();
     let map = &log.schema.map;
     let mut model = FittedModel {
-        spec: spec.to_string(),
+        spec: spec.clone(),
         columns: ColumnsUsed {
             time: map.time.clone(),
             track: map.track.clone(),
@@ -574,6 +622,50 @@ mod tests {
         }
         let rss = (&y - &x * &svd).norm_squared();
         assert!((r[(p, p)].powi(2) - rss).abs() < 1e-9 * rss);
+    }
+
+    #[test]
+    fn fit_options_check_names_the_bad_setting() {
+        // Reference: the documented ranges; the default passes and equals the checked default.
+        assert_eq!(
+            FitOptions::default().check().unwrap(),
+            CheckedFitOptions::default()
+        );
+        for (opts, field) in [
+            (
+                FitOptions {
+                    rank_tolerance: 0.0,
+                    ..FitOptions::default()
+                },
+                "rank_tolerance",
+            ),
+            (
+                FitOptions {
+                    rank_tolerance: f64::INFINITY,
+                    ..FitOptions::default()
+                },
+                "rank_tolerance",
+            ),
+            (
+                FitOptions {
+                    grid: 2,
+                    ..FitOptions::default()
+                },
+                "grid",
+            ),
+            (
+                FitOptions {
+                    refine: 1001,
+                    ..FitOptions::default()
+                },
+                "refine",
+            ),
+        ] {
+            match opts.check() {
+                Err(FitError::InvalidOptions { field: f, .. }) => assert_eq!(f, field),
+                other => panic!("{field}: {other:?}"),
+            }
+        }
     }
 
     #[test]

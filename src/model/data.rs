@@ -74,6 +74,14 @@ pub enum FitError {
         /// What to use instead.
         hint: &'static str,
     },
+    /// A fit setting ([`crate::fit::FitOptions`]) is out of range.
+    #[error("fit setting `{field}`: {message}")]
+    InvalidOptions {
+        /// The setting (`rank_tolerance`, `grid`, `refine`).
+        field: &'static str,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
     /// A term's setting does not suit the data.
     #[error("term `{term}`: {why}")]
     BadSetting {
@@ -216,4 +224,3 @@ impl<'a> FitData<'a> {
             })
     }
 }
-

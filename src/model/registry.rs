@@ -43,16 +43,66 @@ pub struct BuiltinTerm {
 
 /// Every built-in term, in the order [`builtin_names`] lists them.
 pub static BUILTINS: &[BuiltinTerm] = &[
-    row("poly2", Some("poly2"), poly::parse, restore_as::<poly::Poly2Term>),
-    row("table", Some("table[:SPACING]"), table::parse, restore_as::<table::TableTerm>),
-    row("direction", Some("direction"), direction::parse, direction::restore),
-    row("seek", Some("seek[:KNOTS]"), seek::parse, restore_as::<seek::SeekTerm>),
-    row("memory", Some("memory[:KNOTS]"), memory::parse, restore_as::<memory::MemoryTerm>),
-    row("drift", Some("drift[:ALPHA]"), drift::parse, restore_as::<drift::DriftTerm>),
-    row("dahl", Some("dahl, dahl:N"), dahl::parse, restore_as::<dahl::DahlTerm>),
-    row("col", Some("col:NAME"), covariate::parse, restore_as::<covariate::ColTerm>),
-    row("bins", Some("bins:FEATURE[:KNOTS]"), bins::parse, bins::restore),
-    row("dbins", Some("dbins:FEATURE[:KNOTS]"), bins::parse, bins::restore),
+    row(
+        "poly2",
+        Some("poly2"),
+        poly::parse,
+        restore_as::<poly::Poly2Term>,
+    ),
+    row(
+        "table",
+        Some("table[:SPACING]"),
+        table::parse,
+        restore_as::<table::TableTerm>,
+    ),
+    row(
+        "direction",
+        Some("direction"),
+        direction::parse,
+        direction::restore,
+    ),
+    row(
+        "seek",
+        Some("seek[:KNOTS]"),
+        seek::parse,
+        restore_as::<seek::SeekTerm>,
+    ),
+    row(
+        "memory",
+        Some("memory[:KNOTS]"),
+        memory::parse,
+        restore_as::<memory::MemoryTerm>,
+    ),
+    row(
+        "drift",
+        Some("drift[:ALPHA]"),
+        drift::parse,
+        restore_as::<drift::DriftTerm>,
+    ),
+    row(
+        "dahl",
+        Some("dahl, dahl:N"),
+        dahl::parse,
+        restore_as::<dahl::DahlTerm>,
+    ),
+    row(
+        "col",
+        Some("col:NAME"),
+        covariate::parse,
+        restore_as::<covariate::ColTerm>,
+    ),
+    row(
+        "bins",
+        Some("bins:FEATURE[:KNOTS]"),
+        bins::parse,
+        bins::restore,
+    ),
+    row(
+        "dbins",
+        Some("dbins:FEATURE[:KNOTS]"),
+        bins::parse,
+        bins::restore,
+    ),
     row("intercept", None, intercept::parse, intercept::restore),
 ];
 

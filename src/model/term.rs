@@ -55,14 +55,14 @@
 //! }
 //! let log = biasctl::log::Log::from_reader("x.csv", text.as_bytes(), &Default::default()).unwrap();
 //! let spec = ModelSpec::parse("").unwrap().with_term(Arc::new(SeekSquared));
-//! let model = fit(&spec, &log, &FitOptions::default()).unwrap();
+//! let model = fit(&spec, &log, &FitOptions::default().check().unwrap()).unwrap();
 //! let k = model.param("seek_squared.k").unwrap();
 //! assert!((k.value - 0.01).abs() < 1e-9);
 //! ```
 
-use crate::model::data::{FitData, FitError};
 use crate::history::SeekFeatures;
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use serde::{Deserialize, Serialize};
 use std::fmt::Debug;
 use std::sync::Arc;

@@ -10,12 +10,12 @@ use std::path::{Path, PathBuf};
 
 use super::{Cell, Report, Table};
 use crate::diagnose::{
-    DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError, diagnose_residual,
-    ladder_fit, replay_model,
+    CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError,
+    diagnose_residual, ladder_fit, replay_model,
 };
-use crate::fit::{FitError, FitOptions, fit};
-use crate::model::preset;
+use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::{Log, LogError, Units};
+use crate::model::preset;
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
 use crate::output::{OutputError, write_string_atomic};
 use crate::plot::figures::{Sweep, SweepFigure, SweepSeries, calibration_sweep};
@@ -288,7 +288,7 @@ fn start<'a>(
 
 fn fit_named(spec: &str, label: &str, log: &Log) -> Result<FittedModel, StoryError> {
     let spec = ModelSpec::parse(spec)?;
-    fit(&spec, log, &FitOptions::default()).map_err(|e| StoryError::Fit {
+    fit(&spec, log, &CheckedFitOptions::default()).map_err(|e| StoryError::Fit {
         model: label.to_string(),
         file: log.schema.file.clone(),
         source: Box::new(e),
@@ -574,7 +574,7 @@ fn score_table<'a>(
             .unwrap_or_else(|| "n/a".into());
         t = t.row(vec![
             s.label.clone().into(),
-            s.model.spec.clone().into(),
+            s.model.spec.to_string().into(),
             s.model.fit.parameters.into(),
             Cell::Fixed(s.model.fit.residual_std, 2),
             Cell::Fixed(s.score.std, 2),
@@ -631,12 +631,13 @@ fn ladder_table(l: &Ladder, units: &Units) -> Table {
     t
 }
 
-fn diagnose_config(opts: &StoryOptions) -> DiagnoseConfig {
-    DiagnoseConfig {
+fn diagnose_config(opts: &StoryOptions) -> Result<CheckedDiagnoseConfig, StoryError> {
+    let config = DiagnoseConfig {
         permutations: opts.permutations,
         seed: opts.seed,
         ..DiagnoseConfig::default()
-    }
+    };
+    Ok(config.check().map_err(ModelDiagnosisError::from)?)
 }
 
 fn files_section(report: &mut Report, out: &Out<'_>) {
@@ -740,7 +741,7 @@ pub fn demo_report(
     }
 
     steps.start("diagnosing the position-direction residual");
-    let dcfg = diagnose_config(opts);
+    let dcfg = diagnose_config(opts)?;
     let table = FeatureTable::from_log(&random);
     let diagnosis = diagnose_residual(
         &scored[0].model,
@@ -756,7 +757,7 @@ pub fn demo_report(
 
     steps.start("building the ladder");
     let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
-    let ladder = ladder_fit(&calibration, &random, &terms, &FitOptions::default())?;
+    let ladder = ladder_fit(&calibration, &random, &terms, &CheckedFitOptions::default())?;
     out.text(
         "ladder.json",
         &ladder.to_json(),
@@ -1333,7 +1334,7 @@ pub fn data_report(
     }
 
     steps.start("diagnosing");
-    let dcfg = diagnose_config(opts);
+    let dcfg = diagnose_config(opts)?;
     // The replay scored above, when there is one, is the one the diagnosis needs.
     let first_scored_name = scored
         .first()
@@ -1395,7 +1396,7 @@ pub fn data_report(
     let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
     {
         let s = r.section("The ladder: adding one effect at a time");
-        match ladder_fit(&train, &test, &terms, &FitOptions::default()) {
+        match ladder_fit(&train, &test, &terms, &CheckedFitOptions::default()) {
             Ok(l) => {
                 out.text(
                     "ladder.json",

@@ -18,9 +18,9 @@
 
 use super::covariate_position;
 use super::knots::{interior_knots, label};
-use crate::model::data::{FitData, FitError};
 use crate::history::Feature;
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -208,9 +208,15 @@ impl TermState for BinsState {
 }
 
 /// Parses `bins:FEATURE[:KNOTS]` and `dbins:FEATURE[:KNOTS]`; the registry's parser.
-pub fn parse(t: &crate::model::registry::TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let head = t.head;
-    let missing = || t.bad(format!("`{head}` needs a feature or column name: `{head}:FEATURE`"));
+    let missing = || {
+        t.bad(format!(
+            "`{head}` needs a feature or column name: `{head}:FEATURE`"
+        ))
+    };
     let Some(a) = t.arg.filter(|a| !a.is_empty()) else {
         return Err(missing());
     };

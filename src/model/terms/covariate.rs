@@ -3,8 +3,8 @@
 //! reported `slope` is in counts per unit of the column.
 
 use super::covariate_position;
-use crate::model::data::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -91,7 +91,9 @@ impl TermState for ColState {
 }
 
 /// Parses `col:NAME`; the registry's parser.
-pub fn parse(t: &crate::model::registry::TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     match t.arg {
         Some(name) if !name.is_empty() => Ok(Arc::new(ColSpec {
             column: name.to_string(),

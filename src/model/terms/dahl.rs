@@ -12,8 +12,8 @@
 //! (at least 1 track apart), with signed weights (counts) fitted by least squares: fast and slow
 //! elements of opposite sign reproduce the overshoot/undershoot eq. 8 cannot. O(N) state.
 
-use crate::model::data::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -290,7 +290,9 @@ impl TermState for DahlTermState {
 }
 
 /// Parses `dahl` or `dahl:N` (N Dahl elements, 1 to 16); the registry's parser.
-pub fn parse(t: &crate::model::registry::TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(DahlSpec {
         elements: t
             .arg

@@ -2,8 +2,8 @@
 //! −Fc after an outbound one, 0 before the head has moved). Fc in counts: half the gap between
 //! the inbound and outbound curves of the paper's Fig. 3.
 
-use crate::model::data::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use std::sync::Arc;
 
@@ -53,7 +53,9 @@ impl TermState for DirectionState {
 }
 
 /// Parses `direction` (no argument); the registry's parser.
-pub fn parse(t: &crate::model::registry::TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(DirectionSpec))
 }
 

@@ -1,7 +1,7 @@
 //! `intercept`: a constant, counts. Added automatically when no other term spans a constant.
 
-use crate::model::data::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use std::sync::Arc;
 
@@ -52,7 +52,9 @@ impl TermState for Constant {
 }
 
 /// Parses `intercept` (no argument); the registry's parser.
-pub fn parse(t: &crate::model::registry::TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(InterceptSpec))
 }
 

@@ -14,8 +14,8 @@
 //! distance: the contribution is 0** (the same as a rest position too far away to matter).
 
 use super::knots::{curve_hinges, curve_param_names, direction_side, interior_knots, spec_name};
-use crate::model::data::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -86,7 +86,9 @@ impl TermState for MemoryTerm {
 }
 
 /// Parses `memory[:KNOTS]`; the registry's parser.
-pub fn parse(t: &crate::model::registry::TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(MemorySpec {
         knots: t.knots_or(DEFAULT_KNOTS)?,
     }))

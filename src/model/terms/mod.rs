@@ -37,7 +37,9 @@ pub fn restore_term(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn 
         Some(b) => (b.restore)(name, settings),
         None => Err(ModelError::BadTerm {
             term: name.to_string(),
-            why: "not a built-in term (load a model with user terms through FittedModel::load_with)".into(),
+            why:
+                "not a built-in term (load a model with user terms through FittedModel::load_with)"
+                    .into(),
         }),
     }
 }

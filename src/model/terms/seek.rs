@@ -15,8 +15,8 @@
 //! (the curve's value at `a = 0` is the sum of its coefficients weighted by `k_j/k_max`).
 
 use super::knots::{curve_hinges, curve_param_names, direction_side, interior_knots, spec_name};
-use crate::model::data::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -98,7 +98,9 @@ impl TermState for SeekTerm {
 }
 
 /// Parses `seek[:KNOTS]`; the registry's parser.
-pub fn parse(t: &crate::model::registry::TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(SeekSpec {
         knots: t.knots_or(DEFAULT_KNOTS)?,
     }))

@@ -3,8 +3,8 @@
 //! knots. Its values (counts) are the parameters; the hat basis sums to 1, so it spans the
 //! intercept.
 
-use crate::model::data::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -109,7 +109,9 @@ impl TermState for TableTerm {
 }
 
 /// Parses `table[:SPACING]` (knot spacing in the log's position unit); the registry's parser.
-pub fn parse(t: &crate::model::registry::TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let spacing = match t.arg {
         None => None,
         Some(a) => match a.parse::<f64>() {
