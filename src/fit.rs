@@ -69,14 +69,8 @@ impl FitOptions {
 
 /// Fit settings that passed [`FitOptions::check`]; the only settings [`fit`] accepts. Read
 /// them through `Deref` ([`FitOptions`]'s fields). `Default` is the checked default.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct CheckedFitOptions(FitOptions);
-
-impl Default for CheckedFitOptions {
-    fn default() -> Self {
-        Self(FitOptions::default())
-    }
-}
 
 impl std::ops::Deref for CheckedFitOptions {
     type Target = FitOptions;

@@ -313,14 +313,8 @@ impl DiagnoseConfig {
 
 /// Diagnosis settings that passed [`DiagnoseConfig::check`]; read them through `Deref`.
 /// `Default` is the checked default.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct CheckedDiagnoseConfig(DiagnoseConfig);
-
-impl Default for CheckedDiagnoseConfig {
-    fn default() -> Self {
-        Self(DiagnoseConfig::default())
-    }
-}
 
 impl std::ops::Deref for CheckedDiagnoseConfig {
     type Target = DiagnoseConfig;
