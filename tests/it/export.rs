@@ -220,7 +220,7 @@ fn export_refuses_what_it_cannot_write() {
 #[test]
 fn user_terms_export_themselves_or_are_refused_by_name() {
     use biasctl::export::{CContext, COptions, CTerm, ExportError, c_source};
-    use biasctl::fit::{FitData, FitError, FitOptions, fit};
+    use biasctl::fit::{CheckedFitOptions, FitData, FitError, fit};
     use biasctl::model::term::{Seek, Term, TermSpec, TermState};
     use biasctl::model::{ModelError, ModelSpec};
     use std::sync::Arc;
@@ -271,7 +271,7 @@ fn user_terms_export_themselves_or_are_refused_by_name() {
         let spec = ModelSpec::parse("poly2")
             .unwrap()
             .with_term(Arc::new(Sq { exports }));
-        let model = fit(&spec, &log, &FitOptions::default()).unwrap();
+        let model = fit(&spec, &log, &CheckedFitOptions::default()).unwrap();
         match c_source(&model, &COptions::default()) {
             Err(ExportError::NotExportable { term }) => {
                 assert!(!exports);

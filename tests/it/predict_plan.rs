@@ -2,7 +2,7 @@
 //! streaming through stdin/stdout, and the allocation-free `Predictor`.
 
 use crate::common::{biasctl, data, fails_with, ok, write};
-use biasctl::fit::{FitOptions, fit};
+use biasctl::fit::{CheckedFitOptions, fit};
 use biasctl::log::{ColumnMap, Log};
 use biasctl::model::{ModelSpec, Predictor};
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -452,7 +452,7 @@ fn predictor_step_and_peek_allocate_nothing() {
         "table:250,direction,seek,memory,drift,dahl:4,col:temp_c,bins:dwell_s,dbins:rest_distance_id",
     )
     .unwrap();
-    let model = fit(&spec, &train, &FitOptions::default()).unwrap();
+    let model = fit(&spec, &train, &CheckedFitOptions::default()).unwrap();
     let mut p = Predictor::new(&model, &test.schema.covariates).unwrap();
     let mut sum = 0.0;
     let before = allocations();
