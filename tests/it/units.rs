@@ -1,7 +1,7 @@
 //! Units of bias and position: they travel with the log (`# bias_unit`, `# position_unit`
 //! metadata, or the renamed column's own name), `--bias-unit` / `--track-unit` override them, and
 //! every text, JSON and axis that shows log data carries them. The real-data tests need
-//! `../shared/data/real/` (a missing file fails the test, as in `real`).
+//! `data/real/` (a missing file fails the test, as in `real`).
 
 use crate::common::{fails_with, ok, real_data};
 use std::path::Path;
@@ -9,7 +9,7 @@ use std::path::Path;
 const EMPS: &str = "emps/emps_estimation.csv";
 
 fn need(rel: &str) -> String {
-    real_data(rel).unwrap_or_else(|| panic!("real data `{rel}` missing under ../shared/data/real"))
+    real_data(rel).unwrap_or_else(|| panic!("real data `{rel}` missing under data/real"))
 }
 
 /// `args` followed by the EMPS column flags and `units`.
