@@ -100,6 +100,7 @@ pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), Vi
         time: s.map.time.clone(),
         track: s.map.track.clone(),
         bias: s.map.bias.clone(),
+        delimiter: Some(b','),
     };
     let synthetic = Log::from_reader("model curves", text.as_bytes(), &map)?;
     let p = model.predict_log(&synthetic)?;
