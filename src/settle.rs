@@ -776,6 +776,13 @@ pub struct WorstCase {
 }
 
 impl SettleReport {
+    /// The absolute integrator start value (µm·samples) of a start value `relative` to the
+    /// converged value: `z_converged + relative` (zero feedforward, relative 0, starts the
+    /// integrator at its converged value for this bias).
+    pub fn absolute(&self, relative: f64) -> f64 {
+        self.z_converged + relative
+    }
+
     /// The bounds of Fig. 15 as CSV: `k,time_s,upper,lower,upper_min,lower_max` (start values in
     /// µm·samples relative to the converged value; time in s). A bound that does not exist at a
     /// sample (at k = 0 no start value puts e(0) = −step in the window) is an empty cell.
