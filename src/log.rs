@@ -922,11 +922,22 @@ impl Log {
     }
 }
 
-/// Writes a log: metadata lines, the header, then rows. Numbers are written with fixed decimals
-/// (time 6, track as given with up to 6, bias 4, covariates 6) so output is byte-identical for
-/// identical values.
+/// A CSV writer in the dialect every file biasctl writes uses: comma-separated, a field quoted
+/// only when it holds a comma, a quote or a line break (a covariate named `temp,C` is written
+/// `"temp,C"`), `\n` line ends. Metadata lines (`# …`) go to the underlying writer before it is
+/// wrapped. Call `flush` (or `into_inner`) before the writer is dropped: a drop cannot report an
+/// error.
+pub fn csv_writer<W: Write>(out: W) -> csv::Writer<W> {
+    csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(out)
+}
+
+/// Writes a log: metadata lines, the header, then rows, through [`csv_writer`]. Numbers are
+/// written with fixed decimals (time 6, track as given with up to 6, bias 4, covariates 6) so
+/// output is byte-identical for identical values.
 pub struct LogWriter<W: Write> {
-    out: W,
+    out: csv::Writer<W>,
     n_covariates: usize,
 }
 
@@ -936,11 +947,12 @@ impl<W: Write> LogWriter<W> {
         for m in metadata {
             writeln!(out, "# {m}")?;
         }
-        write!(out, "time_s,track,bias")?;
-        for c in covariates {
-            write!(out, ",{c}")?;
-        }
-        writeln!(out)?;
+        let mut out = csv_writer(out);
+        out.write_record(
+            [DEFAULT_TIME_COL, DEFAULT_TRACK_COL, DEFAULT_BIAS_COL]
+                .into_iter()
+                .chain(covariates.iter().map(String::as_str)),
+        )?;
         Ok(Self {
             out,
             n_covariates: covariates.len(),
@@ -956,25 +968,20 @@ impl<W: Write> LogWriter<W> {
         covariates: &[f64],
     ) -> io::Result<()> {
         debug_assert_eq!(covariates.len(), self.n_covariates);
-        write!(
-            self.out,
-            "{},{}",
-            fmt_fixed(time_s, 6),
-            fmt_trimmed(track, 6)
-        )?;
-        match bias {
-            Some(b) => write!(self.out, ",{}", fmt_fixed(b, 4))?,
-            None => write!(self.out, ",")?,
-        }
+        self.out.write_field(fmt_fixed(time_s, 6))?;
+        self.out.write_field(fmt_trimmed(track, 6))?;
+        self.out
+            .write_field(bias.map(|b| fmt_fixed(b, 4)).unwrap_or_default())?;
         for &c in covariates {
-            write!(self.out, ",{}", fmt_trimmed(c, 6))?;
+            self.out.write_field(fmt_trimmed(c, 6))?;
         }
-        writeln!(self.out)
+        self.out.write_record(None::<&[u8]>)?;
+        Ok(())
     }
 
-    /// Returns the underlying writer.
-    pub fn into_inner(self) -> W {
-        self.out
+    /// Flushes the rows written so far and returns the underlying writer.
+    pub fn into_inner(self) -> io::Result<W> {
+        self.out.into_inner().map_err(|e| e.into_error())
     }
 }
 
@@ -1248,11 +1255,24 @@ mod tests {
         let mut w = LogWriter::new(&mut buf, &["seed = 3".into()], &["temp_c".into()]).unwrap();
         w.write_row(0.0, 100.0, Some(-0.0), &[25.5]).unwrap();
         w.write_row(0.5, 101.25, None, &[25.0]).unwrap();
+        w.into_inner().unwrap();
         let text = String::from_utf8(buf).unwrap();
         assert_eq!(
             text,
             "# seed = 3\ntime_s,track,bias,temp_c\n0.000000,100,0.0000,25.5\n0.500000,101.25,,25\n"
         );
+        // A covariate name with a comma or a quote is quoted, and reads back as it was.
+        let mut buf = Vec::new();
+        let names = ["temp,C".to_string(), "say \"hi\"".to_string()];
+        let mut w = LogWriter::new(&mut buf, &[], &names).unwrap();
+        w.write_row(1.0, 2.0, Some(3.0), &[4.0, 5.0]).unwrap();
+        w.into_inner().unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        assert!(
+            text.starts_with("time_s,track,bias,\"temp,C\",\"say \"\"hi\"\"\"\n"),
+            "{text}"
+        );
+        assert_eq!(read(&text).unwrap().schema.covariates, names);
         let log = read(&text).unwrap();
         assert_eq!(log.rows[1].track, 101.25);
     }

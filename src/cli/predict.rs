@@ -4,7 +4,6 @@ use super::common::LogArgs;
 use biasctl::log::{Log, fmt_fixed, fmt_trimmed};
 use biasctl::model::{FittedModel, Prediction};
 use biasctl::output::write_atomic;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// A model file and a log to apply it to (shared by `predict` and `score`).
@@ -43,39 +42,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, log, pred) = args.input.replay()?;
     let s = &log.schema;
     write_atomic(&args.out, |w| -> std::io::Result<()> {
-        write!(w, "{},{},{}", s.map.time, s.map.track, s.map.bias)?;
-        for c in &s.covariates {
-            write!(w, ",{c}")?;
-        }
-        write!(w, ",predicted,residual")?;
-        for t in &pred.term_names {
-            write!(w, ",{t}")?;
-        }
-        writeln!(w)?;
+        let mut w = biasctl::log::csv_writer(w);
+        let names = [&s.map.time, &s.map.track, &s.map.bias]
+            .into_iter()
+            .chain(&s.covariates)
+            .map(String::as_str)
+            .chain(["predicted", "residual"])
+            .chain(pred.term_names.iter().map(String::as_str));
+        w.write_record(names)?;
         for (i, &r) in pred.rows.iter().enumerate() {
             let row = &log.rows[r];
-            write!(
-                w,
-                "{},{},{}",
-                fmt_fixed(row.time_s, 6),
-                fmt_trimmed(row.track, 6),
-                fmt_fixed(pred.measured[i], 4)
-            )?;
+            w.write_field(fmt_fixed(row.time_s, 6))?;
+            w.write_field(fmt_trimmed(row.track, 6))?;
+            w.write_field(fmt_fixed(pred.measured[i], 4))?;
             for c in &row.covariates {
-                write!(w, ",{}", fmt_trimmed(*c, 6))?;
+                w.write_field(fmt_trimmed(*c, 6))?;
             }
-            write!(
-                w,
-                ",{},{}",
-                fmt_fixed(pred.predicted[i], 4),
-                fmt_fixed(pred.residual[i], 4)
-            )?;
+            w.write_field(fmt_fixed(pred.predicted[i], 4))?;
+            w.write_field(fmt_fixed(pred.residual[i], 4))?;
             for c in &pred.contributions {
-                write!(w, ",{}", fmt_fixed(c[i], 4))?;
+                w.write_field(fmt_fixed(c[i], 4))?;
             }
-            writeln!(w)?;
+            w.write_record(None::<&[u8]>)?;
         }
-        Ok(())
+        w.flush()
     })?;
     println!(
         "{}: {} measured rows predicted with `{}` (bias in {}, position in {}), wrote {}",

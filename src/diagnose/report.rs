@@ -1,6 +1,5 @@
 //! The diagnosis as data (serde, JSON contract), as text, and as per-feature CSV curves.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -643,7 +642,8 @@ impl Diagnosis {
             }
             let path = dir.join(format!("residual_vs_{}.csv", file_safe(&f.name)));
             write_atomic(&path, |w| -> std::io::Result<()> {
-                writeln!(w, "bin,lower,upper,centre,mean,std,count")?;
+                let mut w = crate::log::csv_writer(w);
+                w.write_record(["bin", "lower", "upper", "centre", "mean", "std", "count"])?;
                 for (i, c) in f.curve.iter().enumerate() {
                     let num = |x: Option<f64>| x.map(|v| fmt_trimmed(v, 6)).unwrap_or_default();
                     let label = if c.centre.is_some() {
@@ -651,18 +651,17 @@ impl Diagnosis {
                     } else {
                         "missing".to_string()
                     };
-                    writeln!(
-                        w,
-                        "{label},{},{},{},{},{},{}",
+                    w.write_record([
+                        label,
                         num(c.lower),
                         num(c.upper),
                         num(c.centre),
                         fmt_trimmed(c.mean, 6),
                         fmt_trimmed(c.std, 6),
-                        c.count
-                    )?;
+                        c.count.to_string(),
+                    ])?;
                 }
-                Ok(())
+                w.flush()
             })?;
             written.push(path);
         }

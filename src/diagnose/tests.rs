@@ -25,7 +25,7 @@ fn synthetic_log(seed: u64, rows: usize) -> Log {
         w.write_row(t, track, measured.then_some(0.0), &[temp])
             .expect("write to memory");
     }
-    let text = w.into_inner();
+    let text = w.into_inner().expect("write to memory");
     Log::from_reader("synthetic.csv", text.as_slice(), &ColumnMap::default()).expect("valid log")
 }
 
