@@ -120,9 +120,9 @@ pub fn errors(predictions: &[(&str, &Prediction)], units: &Units) -> String {
     figures::prediction_errors(&models, units)
 }
 
-/// Figs. 13/14: measured `(position, bias)` in seek order and the prediction as a line, in the
-/// replayed log's `units`.
-pub fn dahl_loop(p: &Prediction, units: &Units) -> String {
+/// Figs. 13/14: measured `(position, bias)` in seek order and the prediction of the model named
+/// `model` as a line, in the replayed log's `units`.
+pub fn dahl_loop(p: &Prediction, units: &Units, model: &str) -> String {
     figures::dahl_loop(&DahlLoop {
         measured: p
             .positions
@@ -137,6 +137,7 @@ pub fn dahl_loop(p: &Prediction, units: &Units) -> String {
             .zip(p.predicted.iter().copied())
             .collect(),
         units: units.clone(),
+        model: model.to_string(),
     })
 }
 
