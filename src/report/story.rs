@@ -539,6 +539,15 @@ struct Scored {
     score: Score,
 }
 
+/// A p-value in a table cell: `p < 0.0001` below 1e-4 (never `p = 0`), else `p = …`.
+fn p_cell(p: f64) -> String {
+    if p < 1e-4 {
+        "p < 0.0001".into()
+    } else {
+        format!("p = {}", fmt_num(p))
+    }
+}
+
 fn score_table<'a>(
     scored: impl IntoIterator<Item = &'a Scored>,
     caption: &str,
@@ -566,7 +575,7 @@ fn score_table<'a>(
             .as_ref()
             .map(|t| {
                 let verdict = if t.p_value < 0.01 { "yes" } else { "no" };
-                format!("{verdict} (p = {})", fmt_num(t.p_value))
+                format!("{verdict} ({})", p_cell(t.p_value))
             })
             .unwrap_or_else(|| "n/a".into());
         let humps = s
@@ -575,7 +584,7 @@ fn score_table<'a>(
             .as_ref()
             .map(|d| {
                 let verdict = if s.score.bimodal { "yes" } else { "no" };
-                format!("{verdict} (p = {})", fmt_num(d.p_value))
+                format!("{verdict} ({})", p_cell(d.p_value))
             })
             .unwrap_or_else(|| "n/a".into());
         t = t.row(vec![
