@@ -1267,12 +1267,12 @@ mod tests {
         let mut w = LogWriter::new(&mut buf, &[], &names).unwrap();
         w.write_row(1.0, 2.0, Some(3.0), &[4.0, 5.0]).unwrap();
         w.into_inner().unwrap();
-        let text = String::from_utf8(buf).unwrap();
+        let quoted = String::from_utf8(buf).unwrap();
         assert!(
-            text.starts_with("time_s,track,bias,\"temp,C\",\"say \"\"hi\"\"\"\n"),
-            "{text}"
+            quoted.starts_with("time_s,track,bias,\"temp,C\",\"say \"\"hi\"\"\"\n"),
+            "{quoted}"
         );
-        assert_eq!(read(&text).unwrap().schema.covariates, names);
+        assert_eq!(read(&quoted).unwrap().schema.covariates, names);
         let log = read(&text).unwrap();
         assert_eq!(log.rows[1].track, 101.25);
     }

@@ -660,11 +660,11 @@ fn text_summary_and_json_use_the_tables_units() {
         "{text}"
     );
     assert!(
-        text.contains(" N/m, p = ") && text.contains(" N (from "),
+        text.contains(" N/m, p ") && text.contains(" N (from "),
         "{text}"
     );
     assert!(!text.contains("count") && !text.contains("track"), "{text}");
-    assert!(d.summary.contains(" N/m, p = "), "{}", d.summary);
+    assert!(d.summary.contains(" N/m, p "), "{}", d.summary);
     let v: serde_json::Value = serde_json::from_str(&d.to_json()).unwrap();
     assert_eq!(
         v["units"],

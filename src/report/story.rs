@@ -1185,16 +1185,28 @@ pub fn relative_to_cwd(file: &str) -> String {
     rel.display().to_string()
 }
 
-/// Whether a log's positions are repeated visits to a set of tracks (at most one distinct
-/// measured position per four measured rows), as a disk drive's seeks are; a continuous
-/// trajectory (a positioning axis sampled at 1 kHz) is not, and the views of one track over
-/// time and of discrete seek lengths (Figs. 4–9) mean nothing for it.
+/// Whether a log's positions are seeks to tracks, as a disk drive's are: repeated visits to a
+/// set of positions (at most one distinct measured position per four measured rows), or moves
+/// whose median length is at least 1 % of the position range. A continuous trajectory (a
+/// positioning axis sampled at 1 kHz moves a tiny step per row, each position new) is neither,
+/// and the views of one track over time and of bias against seek length (Figs. 4–9) mean
+/// nothing for it.
 pub fn positions_are_tracks(log: &Log) -> bool {
-    let mut p = log.measured_positions();
+    let p = log.measured_positions();
     let n = p.len();
-    p.sort_by(f64::total_cmp);
-    p.dedup_by(|a, b| a.total_cmp(b).is_eq());
-    n > 0 && 4 * p.len() <= n
+    if n < 2 {
+        return n > 0;
+    }
+    let mut moves: Vec<f64> = p.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    let Some([lo, hi]) = crate::stats::range(&p) else {
+        return false;
+    };
+    let mut distinct = p.clone();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup_by(|a, b| a.total_cmp(b).is_eq());
+    moves.sort_by(f64::total_cmp);
+    let median = moves[moves.len() / 2];
+    4 * distinct.len() <= n || median >= 0.01 * (hi - lo)
 }
 
 fn sub_log(log: &Log, range: std::ops::Range<usize>, part: &str) -> Log {
