@@ -316,7 +316,7 @@ pub fn settle_responses(r: &SettleReport) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::{FitOptions, fit};
+    use crate::fit::{CheckedFitOptions, fit};
     use crate::log::ColumnMap;
     use crate::model::ModelSpec;
     use std::fmt::Write;
@@ -350,7 +350,7 @@ mod tests {
         let text = offset_log();
         let log = Log::from_reader("o.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
         let spec = ModelSpec::parse("poly2,direction,drift").unwrap();
-        let model = fit(&spec, &log, &FitOptions::default()).unwrap();
+        let model = fit(&spec, &log, &CheckedFitOptions::default()).unwrap();
         let (inbound, outbound) = model_curves(&model, &log).unwrap();
         assert_eq!(
             (inbound.len(), outbound.len()),
