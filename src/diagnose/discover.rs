@@ -189,19 +189,7 @@ pub fn discover(
     let mut first = true;
     for step in 0..=config.max_steps {
         let d = diagnose_model(&model, train, &config.diagnose)?;
-        let mut cands = candidates(&d, config.verify.candidates);
-        for a in &d.absorbed {
-            let mut terms: Vec<String> = a.suggested_term.iter().cloned().collect();
-            terms.extend(a.alternatives.iter().cloned());
-            if !terms.is_empty() {
-                cands.push(super::Candidate {
-                    feature: format!("{} → {}", a.term, a.feature),
-                    try_all: true,
-                    terms,
-                    table_spacing: None,
-                });
-            }
-        }
+        let cands = candidates(&d, config.verify.candidates);
         if cands.is_empty() {
             if first {
                 out.start_std = current_test.unwrap_or(d.residual_std);
@@ -233,7 +221,10 @@ pub fn discover(
                     100.0 * e.gain,
                     e.z
                 ),
-                None => "no suggested edit could be fitted".to_string(),
+                None => v
+                    .not_run
+                    .clone()
+                    .unwrap_or_else(|| "no suggested edit could be fitted".to_string()),
             };
             break;
         };

@@ -102,6 +102,7 @@ mod discover;
 mod features;
 mod ladder;
 mod model;
+mod pairs;
 mod report;
 mod smoother;
 mod verify;
@@ -116,6 +117,7 @@ pub use model::{
     ladder_fit, ladder_terms, model_spec, model_terms, replay_model, suggestion_path,
     suggestion_path_from,
 };
+pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 pub use verify::{
     Candidate, RejectedEdit, Verification, VerifiedEdit, VerifyConfig, candidates, cv_residuals,
@@ -570,6 +572,7 @@ pub fn diagnose(
     reports.sort_by(|(ra, a), (rb, b)| ra.cmp(rb).then(report::compare(a, b)));
     let reports: Vec<FeatureReport> = reports.into_iter().map(|(_, r)| r).collect();
 
+    let (interactions, global) = pairs::screen(table, &forward.left, &ctx, config);
     let whiteness = Whiteness::of(residuals, config.ljung_box_lags, config.alpha);
     let bimodality = stats::bimodality_coefficient(residuals).filter(|b| b.is_finite());
     let dip = stats::dip_test(residuals);
@@ -587,6 +590,8 @@ pub fn diagnose(
         verification: None,
         rows: n,
         alpha: config.alpha,
+        interactions,
+        global,
     };
     d.summary = report::summary(&d, n, config.alpha);
     Ok(d)
@@ -699,6 +704,8 @@ struct Forward {
     explained_away_by: Vec<Option<usize>>,
     /// Per column with a twin: what it adds beyond that twin.
     twin_gain: Vec<f64>,
+    /// The residual left after removing the taken features' out-of-fold smooths.
+    left: Vec<f64>,
 }
 
 /// Ranks the flagged features by what each explains beyond the ones before it (see the module
@@ -717,6 +724,7 @@ fn forward_pass(
         beyond: vec![None; m],
         explained_away_by: vec![None; m],
         twin_gain: vec![0.0; m],
+        left: Vec::new(),
     };
     let eval = |j: usize, r: &[f64]| -> Option<Gain> {
         analysed[j].as_ref().ok().map(|a| {
@@ -803,6 +811,7 @@ fn forward_pass(
             out.beyond[j] = eval(j, &r).map(|g| g.explained);
         }
     }
+    out.left = r;
     out
 }
 

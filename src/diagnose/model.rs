@@ -117,19 +117,7 @@ pub fn diagnose_verified(
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let mut d = diagnose_model(model, log, config)?;
     let spec = model_spec(model)?;
-    let mut cands = super::candidates(&d, verify_config.candidates);
-    for a in &d.absorbed {
-        let mut terms: Vec<String> = a.suggested_term.iter().cloned().collect();
-        terms.extend(a.alternatives.iter().cloned());
-        if !terms.is_empty() {
-            cands.push(super::Candidate {
-                feature: format!("{} → {}", a.term, a.feature),
-                try_all: true,
-                terms,
-                table_spacing: None,
-            });
-        }
-    }
+    let cands = super::candidates(&d, verify_config.candidates);
     let v = super::verify(
         &spec,
         log,

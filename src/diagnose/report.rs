@@ -59,6 +59,14 @@ pub struct Diagnosis {
     /// The family-wise significance level used.
     #[serde(default)]
     pub alpha: f64,
+    /// Pairs of candidates whose joint cells explain clearly more of what the single features
+    /// left than either does alone (an interaction without a one-dimensional marginal), best
+    /// first, with the interaction term to verify.
+    #[serde(default)]
+    pub interactions: Vec<super::Interaction>,
+    /// The global check: the leading candidates' joint cells against the best single one.
+    #[serde(default)]
+    pub global: Option<super::GlobalCheck>,
 }
 
 /// What one candidate feature says about the residual.
@@ -479,6 +487,9 @@ fn model_sentences(d: &Diagnosis) -> Vec<String> {
     let mut parts = Vec::new();
     let unit = &d.units.bias;
     if let Some(v) = &d.verification {
+        if let Some(why) = &v.not_run {
+            parts.push(format!("Not verified: {why}."));
+        }
         match v.best() {
             Some(e) => parts.push(format!(
                 "Verified by refitting ({} folds of consecutive seeks, out of sample): `{}` \
@@ -522,6 +533,31 @@ fn model_sentences(d: &Diagnosis) -> Vec<String> {
     }
     for w in &d.warnings {
         parts.push(format!("Warning: {w}."));
+    }
+    for i in &d.interactions {
+        parts.push(format!(
+            "`{}` × `{}` together explain {} of what the single features left, against {} for \
+             the better alone: an interaction no single feature shows; try `{}`.",
+            i.a,
+            i.b,
+            percent(i.explained_pair),
+            percent(i.best_single),
+            i.suggested_term
+        ));
+    }
+    if let Some(g) = d.global.as_ref().filter(|g| g.remains) {
+        parts.push(format!(
+            "Global check: the joint cells of {} explain {} of what the single features left, \
+             against {} for the best single one: something remains that no single feature \
+             explains.",
+            g.features
+                .iter()
+                .map(|f| format!("`{f}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            percent(g.explained_joint),
+            percent(g.best_single)
+        ));
     }
     parts
 }
@@ -719,6 +755,9 @@ impl Diagnosis {
                         "  (not verified: below what noise allows)"
                     }
                 ));
+            }
+            if let Some(why) = &v.not_run {
+                out.push_str(&format!("  {why}\n"));
             }
             for r in &v.rejected {
                 out.push_str(&format!(

@@ -551,6 +551,8 @@ fn json_has_the_contract_keys_and_round_trips() {
             "bimodality",
             "dip",
             "features",
+            "global",
+            "interactions",
             "null_block_len",
             "residual_std",
             "rows",

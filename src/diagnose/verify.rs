@@ -134,6 +134,10 @@ pub struct Verification {
     pub edits: Vec<VerifiedEdit>,
     /// Suggestions that could not be applied or fitted.
     pub rejected: Vec<RejectedEdit>,
+    /// Why nothing was verified, when the model as it is cannot be refitted on this log (its
+    /// terms need something the log lacks, such as a covariate that varies).
+    #[serde(default)]
+    pub not_run: Option<String>,
 }
 
 impl Verification {
@@ -172,8 +176,30 @@ pub fn table_spacing(f: &FeatureReport) -> Option<f64> {
 }
 
 /// The candidates of a diagnosis: its leading flagged features with their suggested term and
-/// the alternatives not in the model yet.
+/// the alternatives not in the model yet, the screened interactions (`by:A:B`) and what
+/// adaptive terms absorbed.
 pub fn candidates(d: &Diagnosis, max: usize) -> Vec<Candidate> {
+    let mut c = feature_candidates(d, max);
+    c.extend(d.interactions.iter().map(|i| Candidate {
+        feature: format!("{} × {}", i.a, i.b),
+        terms: vec![i.suggested_term.clone()],
+        try_all: false,
+        table_spacing: None,
+    }));
+    c.extend(d.absorbed.iter().filter_map(|a| {
+        let mut terms: Vec<String> = a.suggested_term.iter().cloned().collect();
+        terms.extend(a.alternatives.iter().cloned());
+        (!terms.is_empty()).then(|| Candidate {
+            feature: format!("{} → {}", a.term, a.feature),
+            try_all: true,
+            terms,
+            table_spacing: None,
+        })
+    }));
+    c
+}
+
+fn feature_candidates(d: &Diagnosis, max: usize) -> Vec<Candidate> {
     d.features
         .iter()
         .filter(|f| f.flagged)
@@ -304,14 +330,23 @@ pub fn verify(
     config: &VerifyConfig,
 ) -> Result<Verification, ModelDiagnosisError> {
     config.validate()?;
-    let before = cv_residuals(spec, log, config.folds, &config.fit)?;
     let mut v = Verification {
         folds: config.folds,
-        std_before: std_of(&before),
         block_len,
-        edits: Vec::new(),
-        rejected: Vec::new(),
+        ..Verification::default()
     };
+    let before = match cv_residuals(spec, log, config.folds, &config.fit) {
+        Ok(r) => r,
+        Err(e) => {
+            v.not_run = Some(format!(
+                "the model `{spec}` cannot be refitted on this log, so no suggestion was \
+                 verified: {}",
+                error_chain(&e)
+            ));
+            return Ok(v);
+        }
+    };
+    v.std_before = std_of(&before);
     let mut seen: Vec<String> = Vec::new();
     for c in cands {
         let mut best: Option<VerifiedEdit> = None;

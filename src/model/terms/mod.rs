@@ -1,6 +1,7 @@
 //! The built-in terms, one file per term, and the parser of term spec strings.
 
 pub mod bins;
+pub mod by;
 pub mod covariate;
 pub mod dahl;
 pub mod direction;
@@ -17,7 +18,7 @@ use super::{ModelError, SpecError};
 use std::sync::Arc;
 
 /// The names of the built-in terms, for messages.
-pub const BUILTIN_NAMES: &str = "poly2, table[:SPACING], direction, seek[:KNOTS], memory[:KNOTS], drift[:ALPHA], dahl, dahl:N, col:NAME, bins:FEATURE[:KNOTS], dbins:FEATURE[:KNOTS]";
+pub const BUILTIN_NAMES: &str = "poly2, table[:SPACING], direction, seek[:KNOTS], memory[:KNOTS], drift[:ALPHA], dahl, dahl:N, col:NAME, bins:FEATURE[:KNOTS], dbins:FEATURE[:KNOTS], by:A:B";
 
 /// Parses one built-in term spec (`poly2`, `table:50`, `dahl:4`, `col:temp_c`, `bins:dwell_s`,
 /// `dbins:dwell_s:6`…).
@@ -119,6 +120,16 @@ pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
                 head == "dbins",
             )))
         }
+        "by" => match arg.and_then(|a| a.split_once(':')) {
+            Some((a, b)) if !a.is_empty() && !b.is_empty() && !b.contains(':') => {
+                Ok(Arc::new(by::BySpec {
+                    sources: [a.to_string(), b.to_string()],
+                }))
+            }
+            _ => Err(bad(
+                "`by` needs two features or columns: `by:A:B` (e.g. `by:temp_c:position`)".into(),
+            )),
+        },
         _ => Err(SpecError::UnknownTerm {
             term: text.to_string(),
         }),
@@ -151,6 +162,7 @@ pub fn restore_term(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn 
             by_direction: head == "dbins",
             ..de::<bins::BinsTerm>(name, settings)?
         }),
+        "by" => Arc::new(de::<by::ByTerm>(name, settings)?),
         _ => {
             return Err(ModelError::BadTerm {
                 term: name.to_string(),
