@@ -129,12 +129,17 @@ pub(crate) fn screen(
         .map(|(_, l)| cells_gain(&[l], left, ctx, config))
         .collect();
     let mut found = Vec::new();
+    // Each feature's strongest showing, alone or in a pair: the global check smooths the
+    // joint cells of the strongest, so a feature that matters only jointly is among them.
+    let mut score = single.clone();
     for i in 0..cols.len() {
         for j in i + 1..cols.len() {
             if !pairable(cols[i].0) || !pairable(cols[j].0) {
                 continue;
             }
             let pair = cells_gain(&[&cols[i].1, &cols[j].1], left, ctx, config);
+            score[i] = score[i].max(pair);
+            score[j] = score[j].max(pair);
             let best = single[i].max(single[j]);
             if pair - best >= config.min_effect.max(1e-9) {
                 found.push(Interaction {
@@ -152,11 +157,11 @@ pub(crate) fn screen(
     });
     found.truncate(MAX_INTERACTIONS);
     let mut order: Vec<usize> = (0..cols.len()).collect();
-    order.sort_by(|&a, &b| single[b].total_cmp(&single[a]));
+    order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
     let top: Vec<usize> = order.into_iter().take(GLOBAL_FEATURES).collect();
     let parts: Vec<&Vec<usize>> = top.iter().map(|&k| &cols[k].1).collect();
     let joint = cells_gain(&parts, left, ctx, config);
-    let best_single = top.first().map_or(0.0, |&k| single[k]);
+    let best_single = single.iter().copied().fold(0.0, f64::max);
     let global = GlobalCheck {
         features: top.iter().map(|&k| cols[k].0.name.clone()).collect(),
         explained_joint: joint,
