@@ -341,7 +341,7 @@ struct Analysed {
     binned: Binned,
     shift: u32,
     explained: f64,
-    /// The smallest F-test p-value over the plain and (if signable) the signed analysis.
+    /// ln of the smallest F-test p-value over the plain and (if signable) the signed analysis.
     observed: f64,
     /// Whether the direction-signed analysis explains more than the plain one.
     by_direction: bool,
