@@ -12,7 +12,7 @@ use biasctl::diagnose::{
     DiagnoseConfig, DiscoverConfig, FeatureTable, VerifyConfig, diagnose, diagnose_verified,
     discover,
 };
-use biasctl::fit::{FitOptions, fit};
+use biasctl::fit::{CheckedFitOptions, fit};
 use biasctl::log::{ColumnMap, Log, LogWriter};
 use biasctl::model::ModelSpec;
 use biasctl::rng::SimRng;
@@ -68,7 +68,7 @@ fn bench(c: &mut Criterion) {
         .iter()
         .map(|v| 3.0 * v.unwrap_or(0.0) + rng.normal())
         .collect();
-    let config = DiagnoseConfig::default();
+    let config = DiagnoseConfig::default().check().expect("config");
     // The benchmark measures a real diagnosis: check that it finds the planted effect.
     let d = diagnose(&table, &residuals, &config).expect("diagnosis");
     assert_eq!(d.features[0].name, "direction_change");
@@ -87,7 +87,7 @@ fn bench(c: &mut Criterion) {
     let model = fit(
         &ModelSpec::parse("poly2,direction").expect("spec"),
         &big,
-        &FitOptions::default(),
+        &CheckedFitOptions::default(),
     )
     .expect("fit");
     let verify = VerifyConfig::default();

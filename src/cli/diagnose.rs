@@ -56,8 +56,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
         folds: args.folds,
         ..DiagnoseConfig::default()
-    };
-    config.validate()?;
+    }
+    .check()?;
     let verify = VerifyConfig {
         folds: args.verify_folds,
         ..VerifyConfig::default()
@@ -79,7 +79,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             first,
             &config,
             args.path,
-            &FitOptions::default(),
+            &FitOptions::default().check()?,
         )?
     } else {
         Vec::new()

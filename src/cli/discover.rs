@@ -51,7 +51,7 @@ fn start_spec(start: &str) -> anyhow::Result<ModelSpec> {
     }
     if start.ends_with(".json") || Path::new(start).is_file() {
         let m = FittedModel::load(Path::new(start)).context("--start")?;
-        return Ok(model_spec(&m).context("--start")?);
+        return model_spec(&m).context("--start");
     }
     ModelSpec::parse(start).context("--start")
 }
@@ -63,14 +63,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             alpha: args.alpha,
             seed: args.seed,
             ..DiagnoseConfig::default()
-        },
+        }
+        .check()
+        .context("--alpha")?,
         verify: VerifyConfig {
             folds: args.verify_folds,
             ..VerifyConfig::default()
         },
         max_steps: args.max_steps,
     };
-    config.diagnose.validate().context("--alpha")?;
     config.verify.validate().context("--verify-folds")?;
     if let Some(dir) = &args.out
         && dir.exists()

@@ -8,7 +8,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{DiagnoseConfig, DiagnoseError, FeatureTable, diagnose};
+use super::{CheckedDiagnoseConfig, DiagnoseError, FeatureTable, diagnose};
 use crate::model::{FittedModel, Prediction};
 
 /// A drift forgetting factor above this (memory shorter than about 10 measurements) is much
@@ -67,7 +67,7 @@ pub fn absorbed(
     model: &FittedModel,
     table: &FeatureTable,
     prediction: &Prediction,
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
 ) -> Result<Vec<Absorption>, DiagnoseError> {
     let mut out = Vec::new();
     let reduced = table.without(|c| super::is_time(c.origin));

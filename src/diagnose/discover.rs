@@ -13,7 +13,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 
 use super::model::{ModelDiagnosisError, diagnose_model, replay_model};
-use super::{DiagnoseConfig, VerifyConfig, candidates, verify};
+use super::{CheckedDiagnoseConfig, VerifyConfig, candidates, verify};
 use crate::fit::{FitError, fit};
 use crate::log::Log;
 use crate::model::{FittedModel, ModelSpec};
@@ -21,8 +21,8 @@ use crate::model::{FittedModel, ModelSpec};
 /// Settings of [`discover`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiscoverConfig {
-    /// The diagnosis at each step.
-    pub diagnose: DiagnoseConfig,
+    /// The diagnosis at each step (checked by [`super::DiagnoseConfig::check`]).
+    pub diagnose: CheckedDiagnoseConfig,
     /// The verification refits at each step (their fit options fit every model).
     pub verify: VerifyConfig,
     /// Most edits applied, 1..=30 (default 8).
@@ -32,7 +32,7 @@ pub struct DiscoverConfig {
 impl Default for DiscoverConfig {
     fn default() -> Self {
         Self {
-            diagnose: DiagnoseConfig::default(),
+            diagnose: CheckedDiagnoseConfig::default(),
             verify: VerifyConfig::default(),
             max_steps: 8,
         }
@@ -149,10 +149,6 @@ pub fn discover(
             message: format!("{} is not in 1..=30", config.max_steps),
         });
     }
-    config
-        .diagnose
-        .validate()
-        .map_err(ModelDiagnosisError::from)?;
     config
         .verify
         .validate()

@@ -2,9 +2,10 @@
 //! [`crate::model`]/[`crate::fit`] and the model-independent engine of this module.
 
 use super::{
-    DiagnoseConfig, DiagnoseError, Diagnosis, FeatureTable, Ladder, LadderInput, diagnose, ladder,
+    CheckedDiagnoseConfig, DiagnoseError, Diagnosis, FeatureTable, Ladder, LadderInput, diagnose,
+    ladder,
 };
-use crate::fit::{FitError, FitOptions, fit};
+use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::Log;
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
 
@@ -83,26 +84,25 @@ pub fn model_terms(model: &FittedModel) -> Vec<String> {
 pub fn diagnose_model(
     model: &FittedModel,
     log: &Log,
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let prediction = replay_model(model, log)?;
     let table = FeatureTable::from_log(log);
     let mut d = diagnose_residual(model, &table, &prediction.residual, config)?;
     let mut config = config.clone();
-    config.existing_terms.extend(model_terms(model));
+    for t in model_terms(model) {
+        config.add_existing_term(t);
+    }
     d.absorbed = super::absorbed(model, &table, &prediction, &config)?;
     d.warnings = super::rate_warnings(model);
     d.summary = super::report::extend_summary(&d);
     Ok(d)
 }
 
-/// The model's spec as typed terms (parsed from the model file's term list).
+/// The model's spec as typed terms (a user's own `TermSpec` included), the base every
+/// suggested [`crate::model::ModelEdit`] is applied to.
 pub fn model_spec(model: &FittedModel) -> Result<ModelSpec, ModelDiagnosisError> {
-    ModelSpec::parse(&model.spec).map_err(|source| ModelDiagnosisError::Spec {
-        step: 0,
-        terms: model.spec.clone(),
-        source,
-    })
+    Ok(model.spec.clone())
 }
 
 /// [`diagnose_model`], then the leading suggestions — the top flagged features' terms and
@@ -112,7 +112,7 @@ pub fn model_spec(model: &FittedModel) -> Result<ModelSpec, ModelDiagnosisError>
 pub fn diagnose_verified(
     model: &FittedModel,
     log: &Log,
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
     verify_config: &super::VerifyConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let mut d = diagnose_model(model, log, config)?;
@@ -138,13 +138,11 @@ pub fn diagnose_residual(
     model: &FittedModel,
     table: &FeatureTable,
     residual: &[f64],
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let mut config = config.clone();
     for t in model_terms(model) {
-        if !config.existing_terms.contains(&t) {
-            config.existing_terms.push(t);
-        }
+        config.add_existing_term(t);
     }
     Ok(diagnose(table, residual, &config)?)
 }
@@ -179,7 +177,7 @@ pub fn ladder_fit(
     train: &Log,
     test: &Log,
     terms: &[String],
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Ladder, ModelDiagnosisError> {
     let mut inputs = Vec::with_capacity(terms.len());
     for k in 1..=terms.len() {
@@ -239,9 +237,9 @@ pub struct PathStep {
 pub fn suggestion_path(
     model: &FittedModel,
     log: &Log,
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
     steps: usize,
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Vec<PathStep>, ModelDiagnosisError> {
     if steps == 0 {
         return Ok(Vec::new());
@@ -256,9 +254,9 @@ pub fn suggestion_path_from(
     model: &FittedModel,
     log: &Log,
     first: Diagnosis,
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
     steps: usize,
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Vec<PathStep>, ModelDiagnosisError> {
     let mut path = Vec::new();
     let mut table = None;

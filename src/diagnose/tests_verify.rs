@@ -2,7 +2,7 @@
 //! gate, what adaptive terms absorb, and verified, always-applicable advice.
 
 use super::*;
-use crate::fit::{FitOptions, fit};
+use crate::fit::{CheckedFitOptions, fit};
 use crate::log::{ColumnMap, Log};
 use crate::model::ModelSpec;
 
@@ -68,10 +68,10 @@ fn block_null_keeps_slow_columns_at_the_nominal_false_alarm_rate() {
                 .iter()
                 .any(|n| d.feature(n).is_some_and(|f| f.significant))
         };
-        if slow_flag(&diagnose(&t, &r, &config).unwrap()) {
+        if slow_flag(&diagnose(&t, &r, &config.clone().check().unwrap()).unwrap()) {
             block_alarms += 1;
         }
-        if slow_flag(&diagnose(&t, &r, &plain).unwrap()) {
+        if slow_flag(&diagnose(&t, &r, &plain.clone().check().unwrap()).unwrap()) {
             plain_alarms += 1;
         }
     }
@@ -124,7 +124,7 @@ fn significant_but_too_small_is_said_and_not_flagged() {
         .collect();
     let mut rng = SimRng::new(3);
     let r: Vec<f64> = change.iter().map(|c| 0.1 * c + rng.normal()).collect();
-    let d = diagnose(&t, &r, &DiagnoseConfig::default()).unwrap();
+    let d = diagnose(&t, &r, &CheckedDiagnoseConfig::default()).unwrap();
     let f = d.feature("direction_change").unwrap();
     assert!(f.significant && !f.flagged, "{}", d.to_text());
     assert!(d.features.iter().all(|f| !f.flagged), "{}", d.to_text());
@@ -162,7 +162,7 @@ fn drift_following_a_slow_covariate_is_named() {
     let model = fit(
         &ModelSpec::parse("poly2,drift").unwrap(),
         &log,
-        &FitOptions::default(),
+        &CheckedFitOptions::default(),
     )
     .unwrap();
     let alpha = model.param("drift.alpha").unwrap().value;
@@ -170,7 +170,7 @@ fn drift_following_a_slow_covariate_is_named() {
     let d = diagnose_verified(
         &model,
         &log,
-        &DiagnoseConfig::default(),
+        &CheckedDiagnoseConfig::default(),
         &VerifyConfig::default(),
     )
     .unwrap();
@@ -204,10 +204,10 @@ fn nothing_is_absorbed_without_an_adaptive_term() {
     let model = fit(
         &ModelSpec::parse("poly2").unwrap(),
         &log,
-        &FitOptions::default(),
+        &CheckedFitOptions::default(),
     )
     .unwrap();
-    let d = diagnose_model(&model, &log, &DiagnoseConfig::default()).unwrap();
+    let d = diagnose_model(&model, &log, &CheckedDiagnoseConfig::default()).unwrap();
     assert!(
         d.absorbed.is_empty() && d.warnings.is_empty(),
         "{}",
@@ -244,13 +244,13 @@ fn position_first_on_calibration_gets_a_table_that_fits() {
     let model = fit(
         &ModelSpec::preset("calibration").unwrap(),
         &log,
-        &FitOptions::default(),
+        &CheckedFitOptions::default(),
     )
     .unwrap();
     let d = diagnose_verified(
         &model,
         &log,
-        &DiagnoseConfig::default(),
+        &CheckedDiagnoseConfig::default(),
         &VerifyConfig::default(),
     )
     .unwrap();
@@ -267,9 +267,9 @@ fn position_first_on_calibration_gets_a_table_that_fits() {
     let path = suggestion_path(
         &model,
         &log,
-        &DiagnoseConfig::default(),
+        &CheckedDiagnoseConfig::default(),
         1,
-        &FitOptions::default(),
+        &CheckedFitOptions::default(),
     )
     .unwrap();
     assert!(path[0].spec.starts_with("table:"), "{path:?}");
@@ -290,10 +290,10 @@ fn every_suggestion_fits_when_applied() {
             )
             .unwrap(),
             &log,
-            &FitOptions::default(),
+            &CheckedFitOptions::default(),
         )
         .unwrap();
-        let d = diagnose_model(&model, &log, &DiagnoseConfig::default()).unwrap();
+        let d = diagnose_model(&model, &log, &CheckedDiagnoseConfig::default()).unwrap();
         let spec = model_spec(&model).unwrap();
         for f in d.features.iter().filter(|f| f.flagged) {
             let spacing = (f.name == "position").then(|| table_spacing(f)).flatten();
@@ -302,7 +302,7 @@ fn every_suggestion_fits_when_applied() {
                 let next = spec
                     .apply(&edit)
                     .unwrap_or_else(|e| panic!("{start}: {edit}: {e}"));
-                fit(&next, &log, &FitOptions::default())
+                fit(&next, &log, &CheckedFitOptions::default())
                     .unwrap_or_else(|e| panic!("{start}: {edit} does not fit: {e}"));
             }
         }
@@ -330,7 +330,7 @@ fn seek_length_with_seek_in_the_model_gets_bins() {
         existing_terms: vec!["poly2".into(), "direction".into(), "seek".into()],
         ..DiagnoseConfig::default()
     };
-    let d = diagnose(&t, &r, &config).unwrap();
+    let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let f = &d.features[0];
     assert!(f.name.starts_with("seek"), "{}", d.to_text());
     assert!(
@@ -395,7 +395,7 @@ fn discover_finds_both_hidden_effects_and_stops() {
     }
     assert!(d.steps.last().unwrap().std_after < 1.3, "{text}");
     assert!(!d.stopped_because.is_empty(), "{text}");
-    assert_eq!(model.spec, d.final_terms.join(","));
+    assert_eq!(model.spec.to_string(), d.final_terms.join(","));
     let v: serde_json::Value = serde_json::from_str(&d.to_json()).unwrap();
     for key in ["steps", "final_terms", "stopped_because"] {
         assert!(v.get(key).is_some(), "{key}");
@@ -428,7 +428,7 @@ fn pair_screening_and_global_check_find_an_interaction_without_marginals() {
     let r: Vec<f64> = (0..t.len())
         .map(|i| 2.0 * temp[i] * (pos[i] - 125.0) / 72.0 + rng.normal())
         .collect();
-    let d = diagnose(&t, &r, &DiagnoseConfig::default()).unwrap();
+    let d = diagnose(&t, &r, &CheckedDiagnoseConfig::default()).unwrap();
     let i = d
         .interactions
         .first()
@@ -445,7 +445,7 @@ fn pair_screening_and_global_check_find_an_interaction_without_marginals() {
     );
     assert!(d.summary.contains("no single feature"), "{}", d.summary);
     let noise: Vec<f64> = (0..t.len()).map(|_| rng.normal()).collect();
-    let d = diagnose(&t, &noise, &DiagnoseConfig::default()).unwrap();
+    let d = diagnose(&t, &noise, &CheckedDiagnoseConfig::default()).unwrap();
     assert!(d.interactions.is_empty(), "{:?}", d.interactions);
     assert!(
         d.global.as_ref().is_some_and(|g| !g.remains),
@@ -470,13 +470,13 @@ fn by_term_fits_a_covariate_times_position() {
     let base = fit(
         &ModelSpec::parse("poly2,col:temp_c").unwrap(),
         &log,
-        &FitOptions::default(),
+        &CheckedFitOptions::default(),
     )
     .unwrap();
     let with = fit(
         &ModelSpec::parse("poly2,col:temp_c,by:temp_c:position").unwrap(),
         &log,
-        &FitOptions::default(),
+        &CheckedFitOptions::default(),
     )
     .unwrap();
     assert!(base.fit.residual_std > 2.0, "{}", base.fit.residual_std);
@@ -489,7 +489,7 @@ fn by_term_fits_a_covariate_times_position() {
     let d = diagnose_verified(
         &base,
         &log,
-        &DiagnoseConfig::default(),
+        &CheckedDiagnoseConfig::default(),
         &VerifyConfig::default(),
     )
     .unwrap();
@@ -504,5 +504,5 @@ fn by_term_fits_a_covariate_times_position() {
     let back =
         crate::model::FittedModel::from_json(&json, std::path::Path::new("m.json"), &|_, _| None)
             .unwrap();
-    assert_eq!(back.spec, with.spec);
+    assert_eq!(back.spec.to_string(), with.spec.to_string());
 }

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::model::ModelDiagnosisError;
 use super::{Diagnosis, FeatureReport};
-use crate::fit::{FitOptions, fit};
+use crate::fit::{CheckedFitOptions, fit};
 use crate::log::Log;
 use crate::model::terms::parse_term;
 use crate::model::{ModelEdit, ModelSpec, SpecError};
@@ -33,8 +33,8 @@ pub struct VerifyConfig {
     /// Smallest block z-score of the gain for an edit to count as verified (default 2.0,
     /// about a one-sided 2 % level).
     pub min_z: f64,
-    /// Options of every refit.
-    pub fit: FitOptions,
+    /// Options of every refit (checked once by [`crate::fit::FitOptions::check`]).
+    pub fit: CheckedFitOptions,
 }
 
 impl Default for VerifyConfig {
@@ -43,7 +43,7 @@ impl Default for VerifyConfig {
             folds: 3,
             candidates: 3,
             min_z: 2.0,
-            fit: FitOptions::default(),
+            fit: CheckedFitOptions::default(),
         }
     }
 }
@@ -260,7 +260,7 @@ pub fn cv_residuals(
     spec: &ModelSpec,
     log: &Log,
     folds: usize,
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Vec<f64>, ModelDiagnosisError> {
     let measured: Vec<usize> = log
         .rows

@@ -13,6 +13,22 @@ use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// Parses `by:A:B` (registry entry).
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    match t.arg.and_then(|a| a.split_once(':')) {
+        Some((a, b)) if !a.is_empty() && !b.is_empty() && !b.contains(':') => {
+            Ok(Arc::new(BySpec {
+                sources: [a.to_string(), b.to_string()],
+            }))
+        }
+        _ => Err(t.bad(
+            "`by` needs two features or columns: `by:A:B` (e.g. `by:temp_c:position`)".into(),
+        )),
+    }
+}
+
 /// Spec of the `by:A:B` term.
 #[derive(Debug, Clone)]
 pub struct BySpec {
