@@ -2,7 +2,9 @@
 
 use super::predict::ModelLogArgs;
 use anyhow::Context;
-use biasctl::diagnose::{DiagnoseConfig, PathStep, diagnose_model, suggestion_path_from};
+use biasctl::diagnose::{
+    DiagnoseConfig, PathStep, VerifyConfig, diagnose_model, diagnose_verified, suggestion_path_from,
+};
 use biasctl::fit::FitOptions;
 use biasctl::model::FittedModel;
 use biasctl::output::write_atomic;
@@ -37,6 +39,13 @@ pub struct Args {
     /// diagnose again; prints the path (and adds a `path` key to the JSON).
     #[arg(long, value_name = "N", default_value_t = 0)]
     path: usize,
+    /// Skip the verification refits (the leading suggestions applied, refitted on --data and
+    /// scored on held-out folds of consecutive seeks).
+    #[arg(long)]
+    no_verify: bool,
+    /// Folds of consecutive seeks of the verification refits, 2..=20.
+    #[arg(long, default_value_t = 3)]
+    verify_folds: usize,
 }
 
 /// Validates the settings, replays the model, diagnoses, prints and writes.
@@ -49,10 +58,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..DiagnoseConfig::default()
     }
     .check()?;
+    let verify = VerifyConfig {
+        folds: args.verify_folds,
+        ..VerifyConfig::default()
+    };
+    verify.validate().context("--verify-folds")?;
     let model = FittedModel::load(&args.input.model)?;
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());
-    let d = diagnose_model(&model, &log, &config)?;
+    let d = if args.no_verify {
+        diagnose_model(&model, &log, &config)?
+    } else {
+        diagnose_verified(&model, &log, &config, &verify)?
+    };
     let path = if args.path > 0 {
         let first = d.clone();
         suggestion_path_from(

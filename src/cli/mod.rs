@@ -5,6 +5,7 @@ mod check;
 mod common;
 mod demo;
 mod diagnose;
+mod discover;
 mod export;
 mod fit;
 mod ladder;
@@ -48,6 +49,8 @@ enum Command {
     Diagnose(diagnose::Args),
     /// Add terms one at a time, refit on a training log, score on a test log.
     Ladder(ladder::Args),
+    /// Run the loop: fit, diagnose, apply the best verified edit, repeat until nothing is left.
+    Discover(discover::Args),
     /// Settle-optimal integrator start value at the seek → track-following handoff.
     Settle(settle::Args),
     /// Export a fitted model for firmware (`export c`: C99 state struct, init, step, peek).
@@ -102,6 +105,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Score(a) => score::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Ladder(a) => ladder::run(a),
+        Command::Discover(a) => discover::run(a),
         Command::Settle(a) => settle::run(a),
         Command::Export(a) => export::run(a),
     }

@@ -172,4 +172,13 @@ impl FeatureTable {
     pub fn column(&self, name: &str) -> Option<&FeatureColumn> {
         self.columns.iter().find(|c| c.name == name)
     }
+
+    /// This table without the columns for which `drop` is true (rows, units and origins kept).
+    pub fn without(&self, drop: impl Fn(&FeatureColumn) -> bool) -> FeatureTable {
+        FeatureTable {
+            lines: self.lines.clone(),
+            columns: self.columns.iter().filter(|c| !drop(c)).cloned().collect(),
+            units: self.units.clone(),
+        }
+    }
 }

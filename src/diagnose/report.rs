@@ -36,6 +36,36 @@ pub struct Diagnosis {
     /// `{"bias": "N", "position": "m"}` (counts and tracks when absent).
     #[serde(default)]
     pub units: Units,
+    /// Block length (seeks) of the block-permutation null behind every `p_value`: blocks of
+    /// consecutive residuals are permuted, so serial correlation shorter than this is kept by
+    /// the null (1: plain row permutation).
+    #[serde(default)]
+    pub null_block_len: usize,
+    /// Effects adaptive terms (`drift`) absorbed: candidates that explain residual + the
+    /// term's contribution (filled by [`super::diagnose_model`]).
+    #[serde(default)]
+    pub absorbed: Vec<super::Absorption>,
+    /// Warnings about the model (a forgetting factor much faster than a slow offset needs).
+    #[serde(default)]
+    pub warnings: Vec<String>,
+    /// The leading suggestions refitted and scored out of sample, best verified gain first
+    /// (filled by [`super::diagnose_verified`]; `null` when not run).
+    #[serde(default)]
+    pub verification: Option<super::Verification>,
+    /// Measured rows diagnosed.
+    #[serde(default)]
+    pub rows: usize,
+    /// The family-wise significance level used.
+    #[serde(default)]
+    pub alpha: f64,
+    /// Pairs of candidates whose joint cells explain clearly more of what the single features
+    /// left than either does alone (an interaction without a one-dimensional marginal), best
+    /// first, with the interaction term to verify.
+    #[serde(default)]
+    pub interactions: Vec<super::Interaction>,
+    /// The global check: the leading candidates' joint cells against the best single one.
+    #[serde(default)]
+    pub global: Option<super::GlobalCheck>,
 }
 
 /// What one candidate feature says about the residual.
@@ -56,9 +86,18 @@ pub struct FeatureReport {
     /// The model term that addresses this feature and is not in the model yet; `null` if there
     /// is none (or the feature was skipped).
     pub suggested_term: Option<String>,
+    /// Other terms that address the feature and are not in the model, tried in this order
+    /// when the suggested one does not fit (verification).
+    #[serde(default)]
+    pub alternatives: Vec<String>,
     /// Per-feature permutation p-value, not corrected for the number of features.
     pub p_value_raw: f64,
-    /// Whether the feature is flagged: `p_value` ≤ alpha and `explained` > 0.
+    /// Whether the feature is significant: `p_value` ≤ alpha (family-wise, block null).
+    #[serde(default)]
+    pub significant: bool,
+    /// Whether the feature is flagged: significant, and both `explained` and
+    /// `explained_beyond_previous` reach the practical minimum
+    /// ([`super::DiagnoseConfig::min_effect`]).
     pub flagged: bool,
     /// Shape of the residual against the feature at the chosen binning.
     pub shape: Shape,
@@ -298,6 +337,11 @@ pub(crate) fn feature_report(
     let candidates =
         advice::candidate_terms(&col.name, col.origin, linear, by_direction, odd_linear);
     let (suggested_term, note) = advice::suggest(&candidates, &config.existing_terms);
+    let alternatives = advice::alternatives(
+        &candidates,
+        &config.existing_terms,
+        suggested_term.as_deref(),
+    );
     let note = advice::offset_note(col.origin, &config.existing_terms).or(note);
     FeatureReport {
         name: col.name.clone(),
@@ -305,7 +349,9 @@ pub(crate) fn feature_report(
         p_value: p_adj,
         explained_beyond_previous: None,
         suggested_term,
+        alternatives,
         p_value_raw: p_raw,
+        significant: p_adj <= config.alpha && explained > 0.0,
         flagged: p_adj <= config.alpha && explained > 0.0,
         shape,
         // A discrete feature's step is between its values; a location adds nothing.
@@ -346,7 +392,9 @@ pub(crate) fn skipped_report(
         p_value: 1.0,
         explained_beyond_previous: None,
         suggested_term: None,
+        alternatives: Vec::new(),
         p_value_raw: 1.0,
+        significant: false,
         flagged: false,
         shape: Shape::Flat,
         shape_at: None,
@@ -442,9 +490,94 @@ fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> String {
     s
 }
 
+/// The summary of `d` again, after absorption, warnings or verification were added.
+pub(crate) fn extend_summary(d: &Diagnosis) -> String {
+    summary(d, d.rows, d.alpha)
+}
+
+/// Sentences on the verified edits, absorbed effects and warnings, in that order.
+fn model_sentences(d: &Diagnosis) -> Vec<String> {
+    let mut parts = Vec::new();
+    let unit = &d.units.bias;
+    if let Some(v) = &d.verification {
+        if let Some(why) = &v.not_run {
+            parts.push(format!("Not verified: {why}."));
+        }
+        match v.best() {
+            Some(e) => parts.push(format!(
+                "Verified by refitting ({} folds of consecutive seeks, out of sample): `{}` \
+                 ({}) takes the error std from {} to {} {unit} ({} of the error variance, \
+                 z = {:.1}).",
+                v.folds,
+                e.edit,
+                e.feature,
+                short(e.std_before),
+                short(e.std_after),
+                percent(e.gain),
+                e.z
+            )),
+            None if !v.edits.is_empty() => parts.push(format!(
+                "No suggested edit is verified by refitting: the best, `{}`, changes the \
+                 out-of-sample error std from {} to {} {unit} ({} of the variance, z = {:.1}), \
+                 below what noise allows.",
+                v.edits[0].edit,
+                short(v.edits[0].std_before),
+                short(v.edits[0].std_after),
+                percent(v.edits[0].gain),
+                v.edits[0].z
+            )),
+            None => {}
+        }
+    }
+    for a in &d.absorbed {
+        parts.push(format!(
+            "`{}` is following `{}`: it explains {} of the residual plus {}'s contribution but \
+             {} of the residual alone{}.",
+            a.term,
+            a.feature,
+            percent(a.explained_with_term),
+            a.term,
+            percent(a.explained_residual),
+            a.suggested_term
+                .as_deref()
+                .map(|t| format!(": add `{t}`"))
+                .unwrap_or_default()
+        ));
+    }
+    for w in &d.warnings {
+        parts.push(format!("Warning: {w}."));
+    }
+    for i in &d.interactions {
+        parts.push(format!(
+            "`{}` × `{}` together explain {} of what the single features left, against {} for \
+             the better alone: an interaction no single feature shows; try `{}`.",
+            i.a,
+            i.b,
+            percent(i.explained_pair),
+            percent(i.best_single),
+            i.suggested_term
+        ));
+    }
+    if let Some(g) = d.global.as_ref().filter(|g| g.remains) {
+        parts.push(format!(
+            "Global check: the joint cells of {} explain {} of what the single features left, \
+             against {} for the best single one: something remains that no single feature \
+             explains.",
+            g.features
+                .iter()
+                .map(|f| format!("`{f}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            percent(g.explained_joint),
+            percent(g.best_single)
+        ));
+    }
+    parts
+}
+
 /// The plain-words summary of a diagnosis.
 pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
-    let mut parts = Vec::new();
+    let mut parts = model_sentences(d);
     let flagged: Vec<&FeatureReport> = d.features.iter().filter(|f| f.flagged).collect();
     match flagged.first() {
         Some(f) => {
@@ -595,9 +728,76 @@ impl Diagnosis {
                 advice_line(f, self.residual_std, &self.units.bias)
             ));
         }
+        for f in self.features.iter().filter(|f| f.significant && !f.flagged) {
+            if let Some(note) = &f.note {
+                out.push_str(&format!("  `{}`: {note}.\n", f.name));
+            }
+        }
         for f in self.features.iter().filter(|f| is_skipped(f)) {
             if let Some(note) = &f.note {
                 out.push_str(&format!("  `{}` {note}\n", f.name));
+            }
+        }
+        out.push_str(&format!(
+            "  (p: family-wise over all features, against a null that permutes blocks of {} \
+             consecutive residuals, so serial correlation that short is not taken for an \
+             effect; flagged: significant and adds at least the practical minimum beyond the \
+             features ranked before it.)\n",
+            self.null_block_len
+        ));
+        if let Some(v) = &self.verification {
+            out.push_str(&format!(
+                "\nVerified by refitting ({} folds of consecutive seeks; error std out of \
+                 sample, {} before any edit):\n",
+                v.folds,
+                short(v.std_before)
+            ));
+            for e in &v.edits {
+                out.push_str(&format!(
+                    "  {:<32} {:<24} std {} → {} {}, gain {}, z {:.1}{}\n",
+                    e.edit,
+                    format!("({})", e.feature),
+                    short(e.std_before),
+                    short(e.std_after),
+                    self.units.bias,
+                    percent(e.gain),
+                    e.z,
+                    if e.verified {
+                        ""
+                    } else {
+                        "  (not verified: below what noise allows)"
+                    }
+                ));
+            }
+            if let Some(why) = &v.not_run {
+                out.push_str(&format!("  {why}\n"));
+            }
+            for r in &v.rejected {
+                out.push_str(&format!(
+                    "  `{}` for `{}` cannot be applied: {}\n",
+                    r.term, r.feature, r.why
+                ));
+            }
+        }
+        if !self.absorbed.is_empty() || !self.warnings.is_empty() {
+            out.push_str("\nWhat adaptive terms absorbed:\n");
+            for a in &self.absorbed {
+                out.push_str(&format!(
+                    "  `{}` is following `{}`: {} of residual + {} explained, {} of the residual \
+                     alone{}\n",
+                    a.term,
+                    a.feature,
+                    percent(a.explained_with_term),
+                    a.term,
+                    percent(a.explained_residual),
+                    a.suggested_term
+                        .as_deref()
+                        .map(|t| format!(": add `{t}`"))
+                        .unwrap_or_default()
+                ));
+            }
+            for w in &self.warnings {
+                out.push_str(&format!("  warning: {w}\n"));
             }
         }
         let w = &self.whiteness;

@@ -199,8 +199,11 @@ fn terms_already_in_the_model_are_never_suggested() {
     };
     let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let top = &d.features[0];
-    assert_eq!(top.suggested_term.as_deref(), Some(DAHL_TERM));
+    // A model with the eq. 1 `seek` curves gets what fits beside them, not the state-space
+    // `dahl:4` (issue #10, item 5).
+    assert_eq!(top.suggested_term.as_deref(), Some("bins:direction_change"));
     assert!(top.note.as_deref().unwrap().contains("already has `seek`"));
+    assert!(!top.alternatives.iter().any(|t| t == DAHL_TERM));
     config.existing_terms = vec!["seek".into(), "dahl:6".into()];
     let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     assert_eq!(
@@ -543,12 +546,20 @@ fn json_has_the_contract_keys_and_round_trips() {
     assert_eq!(
         keys,
         [
+            "absorbed",
+            "alpha",
             "bimodality",
             "dip",
             "features",
+            "global",
+            "interactions",
+            "null_block_len",
             "residual_std",
+            "rows",
             "summary",
             "units",
+            "verification",
+            "warnings",
             "whiteness"
         ]
     );

@@ -18,7 +18,9 @@
 //! ```
 
 use super::term::{Term, TermSpec};
-use super::terms::{bins, covariate, dahl, direction, drift, intercept, memory, poly, seek, table};
+use super::terms::{
+    bins, by, covariate, dahl, direction, drift, intercept, memory, poly, seek, table,
+};
 use super::{ModelError, SpecError};
 use std::sync::Arc;
 
@@ -103,6 +105,7 @@ pub static BUILTINS: &[BuiltinTerm] = &[
         bins::parse,
         bins::restore,
     ),
+    row("by", Some("by:A:B"), by::parse, restore_as::<by::ByTerm>),
     row("intercept", None, intercept::parse, intercept::restore),
 ];
 

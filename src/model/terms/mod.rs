@@ -2,6 +2,7 @@
 //! and restorer of term spec strings derived from that registry.
 
 pub mod bins;
+pub mod by;
 pub mod covariate;
 pub mod dahl;
 pub mod direction;
