@@ -97,5 +97,6 @@ pub mod settle;
 pub mod sim;
 
 pub mod output;
+pub mod render;
 pub mod rng;
 pub mod stats;

@@ -165,6 +165,23 @@ impl SettleArgs {
     }
 }
 
+/// Refuses, before anything runs, an output flag naming the same file as an input flag or as
+/// another output flag ([`biasctl::render::check_paths`]); each path comes with its flag.
+pub fn refuse_clashes(
+    inputs: &[(&str, Option<&Path>)],
+    outputs: &[(&str, Option<&Path>)],
+) -> anyhow::Result<()> {
+    let ins: Vec<(&str, &Path)> = inputs
+        .iter()
+        .filter_map(|&(f, p)| p.map(|p| (f, p)))
+        .collect();
+    let outs: Vec<(&str, &Path)> = outputs
+        .iter()
+        .filter_map(|&(f, p)| p.map(|p| (f, p)))
+        .collect();
+    Ok(biasctl::render::check_paths(&ins, &outs)?)
+}
+
 /// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was
 /// fitted on: its position terms are extrapolated there and nothing else would show it.
 pub fn warn_outside_range(model: &biasctl::model::FittedModel, file: &str, positions: &[f64]) {

@@ -40,6 +40,13 @@ pub struct Args {
 
 /// Loads the model and log, replays, writes the CSV atomically.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::refuse_clashes(
+        &[
+            ("--model", Some(args.input.model.as_path())),
+            ("--data", Some(args.input.log.data.as_path())),
+        ],
+        &[("--out", Some(args.out.as_path()))],
+    )?;
     let (model, log, pred) = args.input.replay()?;
     let s = &log.schema;
     write_atomic(&args.out, |w| -> std::io::Result<()> {
@@ -77,7 +84,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         Ok(())
     })?;
-    println!(
+    outln!(
         "{}: {} measured rows predicted with `{}` (bias in {}, position in {}), wrote {}",
         s.file,
         pred.rows.len(),
@@ -85,6 +92,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.units.bias,
         s.units.position,
         args.out.display()
-    );
+    )?;
     Ok(())
 }
