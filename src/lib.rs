@@ -96,6 +96,7 @@ pub mod servo;
 pub mod settle;
 pub mod sim;
 
+pub mod limits;
 pub mod output;
 pub mod render;
 pub mod rng;

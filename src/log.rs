@@ -35,6 +35,7 @@
 //! assert_eq!(reader.schema().units.bias, "counts");
 //! ```
 
+use crate::limits::{LineLimit, MAX_COLUMNS};
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::path::Path;
@@ -392,7 +393,7 @@ impl Row {
 /// [`LogError::NoMeasuredRows`] if no row held a bias, then ends.
 pub struct LogReader<R: Read> {
     schema: LogSchema,
-    csv: csv::Reader<BufReader<R>>,
+    csv: csv::Reader<BufReader<LineLimit<R>>>,
     record: csv::StringRecord,
     line_offset: u64,
     prev_time: Option<f64>,
@@ -428,7 +429,7 @@ pub struct LogSummary {
 impl<R: Read> LogReader<R> {
     /// Reads metadata and header from any reader; `file` names the source in messages.
     pub fn from_reader(file: &str, reader: R, map: &ColumnMap) -> Result<Self, LogError> {
-        let mut buf = BufReader::new(reader);
+        let mut buf = BufReader::new(LineLimit::new(reader));
         let io_err = |source| LogError::Io {
             file: file.to_string(),
             source,
@@ -472,6 +473,15 @@ impl<R: Read> LogReader<R> {
             .clone();
         if headers.is_empty() || headers.iter().all(str::is_empty) {
             return Err(LogError::Empty { file: file.into() });
+        }
+        if headers.len() > MAX_COLUMNS {
+            return Err(io_err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "line {header_line}: the header has {} columns; biasctl reads at most {MAX_COLUMNS}",
+                    headers.len()
+                ),
+            )));
         }
         let columns: Vec<String> = headers.iter().map(str::to_string).collect();
         for (i, c) in columns.iter().enumerate() {
@@ -594,10 +604,14 @@ impl<R: Read> LogReader<R> {
                 problem,
             };
             let v: f64 = text.parse().map_err(|_| bad("not a number"))?;
-            if v.is_finite() {
-                Ok(Some(v))
-            } else {
+            if !v.is_finite() {
                 Err(bad("not a finite number"))
+            } else if v.abs() > MAX_ABS_VALUE {
+                Err(bad(
+                    "outside ±1e15, the range whose squares and sums stay exact enough",
+                ))
+            } else {
+                Ok(Some(v))
             }
         };
         let required = |idx: usize| -> Result<f64, LogError> {
@@ -787,6 +801,12 @@ pub fn fmt_fixed(x: f64, decimals: usize) -> String {
         s
     }
 }
+
+/// Largest |value| a log cell may hold (every column: time, position, bias, covariates). Models
+/// square positions and sum squares over up to millions of rows; below 1e15 those stay finite
+/// and keep more than one unit of resolution (f64 carries 15–16 significant digits). No rig
+/// logs a larger number; a larger one is a unit mistake or a corrupted cell.
+pub const MAX_ABS_VALUE: f64 = 1e15;
 
 /// `x` with at most `decimals` decimals and trailing zeros removed (`120`, `0.25`).
 pub fn fmt_trimmed(x: f64, decimals: usize) -> String {

@@ -24,6 +24,14 @@ pub enum ScoreError {
     /// No residuals.
     #[error("no measured rows to score")]
     Empty,
+    /// A residual or position is not a finite number (`index` is 0-based).
+    #[error("residual or position {index} is {value}, not a finite number")]
+    NonFinite {
+        /// Index of the value.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
     /// Residuals and positions differ in length.
     #[error("{residuals} residuals but {positions} positions")]
     Length {
@@ -95,6 +103,17 @@ pub fn score_with_units(
         return Err(ScoreError::Length {
             residuals: residuals.len(),
             positions: positions.len(),
+        });
+    }
+    if let Some((index, &value)) = residuals
+        .iter()
+        .chain(positions)
+        .enumerate()
+        .find(|(_, v)| !v.is_finite())
+    {
+        return Err(ScoreError::NonFinite {
+            index: index % residuals.len(),
+            value,
         });
     }
     let sorted = stats::sorted(residuals);

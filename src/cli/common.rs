@@ -137,8 +137,11 @@ impl SettleArgs {
     pub fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
             Some(path) => {
-                let text = std::fs::read_to_string(path)
+                let text = biasctl::limits::read_text(path)
                     .with_context(|| format!("cannot read plant file {}", path.display()))?;
+                biasctl::limits::check_toml_numbers(&text)
+                    .map_err(anyhow::Error::msg)
+                    .with_context(|| format!("invalid plant file {}", path.display()))?;
                 toml::from_str::<SettleSpec>(&text)
                     .with_context(|| format!("invalid plant file {}", path.display()))?
             }

@@ -1,7 +1,6 @@
 //! `biasctl diagnose`: compare a fitted model with a log and name the missing effect.
 
 use super::predict::ModelLogArgs;
-use anyhow::Context;
 use biasctl::diagnose::{DiagnoseConfig, PathStep, diagnose_model, suggestion_path_from};
 use biasctl::fit::FitOptions;
 use biasctl::model::FittedModel;
@@ -73,10 +72,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 dir.display()
             );
         }
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        // Built in a staging folder beside `dir` and moved in whole: no partial output.
+        let staged = biasctl::render::StagedDir::create(dir)?;
         let json = d.to_json();
-        write_atomic(&dir.join("diagnosis.json"), |w| writeln!(w, "{json}"))?;
-        d.write_feature_csvs(dir)?;
+        write_atomic(&staged.path("diagnosis.json"), |w| writeln!(w, "{json}"))?;
+        d.write_feature_csvs(&staged.path(""))?;
+        staged.commit()?;
     }
     if args.json {
         if args.path > 0 {

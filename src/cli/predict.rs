@@ -23,6 +23,7 @@ impl ModelLogArgs {
         let model = FittedModel::load(&self.model)?;
         let log = self.log.columns.read_log(&self.log.data)?;
         let pred = model.predict_log(&log)?;
+        biasctl::render::check_prediction(&pred, &log)?;
         super::common::warn_outside_range(&model, &log.schema.file, &pred.positions);
         Ok((model, log, pred))
     }

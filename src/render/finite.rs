@@ -45,6 +45,41 @@ pub fn check_text(text: &str, what: &str) -> Result<(), NonFinite> {
     }
 }
 
+/// Checks every number a model's replay over a log produced — `predicted`, `residual` and each
+/// term's contribution — naming the first non-finite one by measured row (1-based), the log's
+/// line and the column (term) it would be written under. What `predict`, `score` and
+/// `diagnose` run before they write anything: a model file with a zero scale or an absurd rate
+/// fails here instead of printing `NaN`.
+pub fn check_prediction(
+    pred: &crate::model::Prediction,
+    log: &crate::log::Log,
+) -> Result<(), NonFinite> {
+    let columns = [("predicted", &pred.predicted), ("residual", &pred.residual)];
+    let terms = pred
+        .term_names
+        .iter()
+        .map(String::as_str)
+        .zip(&pred.contributions);
+    for (name, values) in columns.into_iter().chain(terms) {
+        for (i, &v) in values.iter().enumerate() {
+            check_finite(v, || {
+                let line = pred
+                    .rows
+                    .get(i)
+                    .and_then(|&r| log.rows.get(r))
+                    .map(|r| r.line);
+                format!(
+                    "{}: row {} (line {}), column `{name}`",
+                    log.schema.file,
+                    i + 1,
+                    line.unwrap_or(0)
+                )
+            })?;
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -21,7 +21,7 @@ pub mod stdout;
 pub use file::{
     Sink, StagedDir, check_paths, sweep_stale, with_write_fault, write_atomic, write_string_atomic,
 };
-pub use finite::{NonFinite, check_finite, check_text};
+pub use finite::{NonFinite, check_finite, check_prediction, check_text};
 pub use stdout::{flush_stdout, is_broken_pipe, write_stdout};
 
 use std::io;
@@ -98,12 +98,13 @@ pub fn quote(value: &str) -> String {
 
 /// The text of an error and its causes, one per line (a cause whose text the lines above
 /// already contain is not repeated), every whitespace-separated word longer than
-/// [`QUOTE_CHARS`] shortened by [`quote`]: what the CLI prints after `error: `.
+/// [`QUOTE_CHARS`] shortened by [`quote`] and every line cut to [`MESSAGE_LINE_CHARS`]: what
+/// the CLI prints after `error: `.
 pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
-    let mut text = shorten_words(&err.to_string());
+    let mut text = shorten_line(&err.to_string());
     let mut cause = err.source();
     while let Some(c) = cause {
-        let line = shorten_words(&c.to_string());
+        let line = shorten_line(&c.to_string());
         if !text.contains(&line) {
             text.push_str("\n  caused by: ");
             text.push_str(&line);
@@ -111,6 +112,21 @@ pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
         cause = c.source();
     }
     text
+}
+
+/// Most characters of one line of an error message ([`message`]).
+pub const MESSAGE_LINE_CHARS: usize = 240;
+
+/// `text` through [`shorten_words`], then cut in the middle to [`MESSAGE_LINE_CHARS`].
+fn shorten_line(text: &str) -> String {
+    let t = shorten_words(text);
+    let n = t.chars().count();
+    if n <= MESSAGE_LINE_CHARS {
+        return t;
+    }
+    let head: String = t.chars().take(MESSAGE_LINE_CHARS - 60).collect();
+    let tail: String = t.chars().skip(n - 50).collect();
+    format!("{head} … {tail}")
 }
 
 /// `text` with every word (run of non-whitespace) longer than [`QUOTE_CHARS`] passed through
