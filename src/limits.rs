@@ -30,6 +30,9 @@ pub fn check_toml_numbers(text: &str) -> Result<(), String> {
     fn walk(v: &toml::Value, path: &mut String) -> Result<(), String> {
         let bad = |x: f64| !(x.abs() <= MAX_TOML_NUMBER);
         match v {
+            toml::Value::Float(x) if !x.is_finite() => {
+                Err(format!("`{path}` = {x} is not a finite number"))
+            }
             toml::Value::Float(x) if bad(*x) => Err(format!(
                 "`{path}` = {x:e} is outside ±{MAX_TOML_NUMBER:e}, the range biasctl's arithmetic carries"
             )),
