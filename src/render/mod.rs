@@ -111,8 +111,18 @@ pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
         }
         cause = c.source();
     }
+    // The whole message, causes included, stays under MESSAGE_CHARS.
+    let n = text.chars().count();
+    if n > MESSAGE_CHARS {
+        let head: String = text.chars().take(MESSAGE_CHARS - 70).collect();
+        let tail: String = text.chars().skip(n - 60).collect();
+        text = format!("{head} … {tail}");
+    }
     text
 }
+
+/// Most characters of a whole error message ([`message`]), its causes included.
+pub const MESSAGE_CHARS: usize = 280;
 
 /// Most characters of one line of an error message ([`message`]).
 pub const MESSAGE_LINE_CHARS: usize = 240;

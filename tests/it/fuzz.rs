@@ -302,7 +302,7 @@ fn predict_and_score(model: &FittedModel, log: &Log) -> Res {
 
 /// Fits `spec` on `log`, saves the model through the output layer and reads it back.
 fn fit_save_load(spec: &ModelSpec, log: &Log, dir: &Path) -> Res {
-    let model = fit(spec, log, &FitOptions::default())?;
+    let model = fit(spec, log, &FitOptions::default().check()?)?;
     finite("fitted parameters", model.params().map(|p| p.value))?;
     let path = dir.join("m.json");
     model.save(&path)?;
