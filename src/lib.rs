@@ -97,6 +97,8 @@ pub mod servo;
 pub mod settle;
 pub mod sim;
 
+pub mod limits;
 pub mod output;
+pub mod render;
 pub mod rng;
 pub mod stats;

@@ -41,6 +41,7 @@
 //! assert_eq!(reader.schema().units.bias, "counts");
 //! ```
 
+use crate::limits::{LineLimit, MAX_COLUMNS};
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::path::Path;
@@ -517,7 +518,7 @@ pub const STDIN_NAME: &str = "<stdin>";
 /// [`BiasColumn::Optional`]), then ends.
 pub struct LogReader<R: Read> {
     schema: LogSchema,
-    csv: csv::Reader<io::Chain<io::Cursor<Vec<u8>>, BufReader<R>>>,
+    csv: csv::Reader<io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>>,
     record: csv::StringRecord,
     /// Records read ahead to classify the columns, yielded before the rest of the file.
     lookahead: std::collections::VecDeque<csv::StringRecord>,
@@ -597,7 +598,7 @@ impl<R: Read> LogReader<R> {
         bias_column: BiasColumn,
         lookahead_rows: usize,
     ) -> Result<Self, LogError> {
-        let mut buf = BufReader::new(reader);
+        let mut buf = BufReader::new(LineLimit::new(reader));
         let io_err = |source| LogError::Io {
             file: file.to_string(),
             source,
@@ -662,6 +663,15 @@ impl<R: Read> LogReader<R> {
             .clone();
         if headers.is_empty() || headers.iter().all(str::is_empty) {
             return Err(LogError::Empty { file: file.into() });
+        }
+        if headers.len() > MAX_COLUMNS {
+            return Err(io_err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "line {header_line}: the header has {} columns; biasctl reads at most {MAX_COLUMNS}",
+                    headers.len()
+                ),
+            )));
         }
         let columns: Vec<String> = headers.iter().map(str::to_string).collect();
         for (i, c) in columns.iter().enumerate() {
@@ -863,10 +873,14 @@ impl<R: Read> LogReader<R> {
                 problem,
             };
             let v = parse_cell(text, decimal_comma).ok_or_else(|| bad("not a number"))?;
-            if v.is_finite() {
-                Ok(Some(v))
-            } else {
+            if !v.is_finite() {
                 Err(bad("not a finite number"))
+            } else if v.abs() > MAX_ABS_VALUE {
+                Err(bad(
+                    "outside ±1e15, the range whose squares and sums stay exact enough",
+                ))
+            } else {
+                Ok(Some(v))
             }
         };
         let required = |idx: usize| -> Result<f64, LogError> {
@@ -1081,6 +1095,12 @@ pub fn fmt_fixed(x: f64, decimals: usize) -> String {
         s
     }
 }
+
+/// Largest |value| a log cell may hold (every column: time, position, bias, covariates). Models
+/// square positions and sum squares over up to millions of rows; below 1e15 those stay finite
+/// and keep more than one unit of resolution (f64 carries 15–16 significant digits). No rig
+/// logs a larger number; a larger one is a unit mistake or a corrupted cell.
+pub const MAX_ABS_VALUE: f64 = 1e15;
 
 /// `x` with at most `decimals` decimals and trailing zeros removed (`120`, `0.25`).
 pub fn fmt_trimmed(x: f64, decimals: usize) -> String {

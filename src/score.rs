@@ -24,6 +24,25 @@ pub enum ScoreError {
     /// No residuals.
     #[error("no measured rows to score")]
     Empty,
+    /// A residual or position is not a finite number (`index` is 0-based).
+    #[error("residual or position {index} is {value}, not a finite number")]
+    NonFinite {
+        /// Index of the value.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
+    /// A statistic overflowed: residuals so large (a model far off the log's scale) that their
+    /// sums leave the range of f64.
+    #[error(
+        "the error statistics overflow (`{statistic}` is {value}); the model's predictions are far off this log's scale"
+    )]
+    Overflow {
+        /// The statistic (`mean`, `std`, ...).
+        statistic: &'static str,
+        /// Its value.
+        value: f64,
+    },
     /// Residuals and positions differ in length.
     #[error("{residuals} residuals but {positions} positions")]
     Length {
@@ -97,11 +116,22 @@ pub fn score_with_units(
             positions: positions.len(),
         });
     }
+    if let Some((index, &value)) = residuals
+        .iter()
+        .chain(positions)
+        .enumerate()
+        .find(|(_, v)| !v.is_finite())
+    {
+        return Err(ScoreError::NonFinite {
+            index: index % residuals.len(),
+            value,
+        });
+    }
     let sorted = stats::sorted(residuals);
     let abs: Vec<f64> = stats::sorted(&residuals.iter().map(|e| e.abs()).collect::<Vec<_>>());
     let bimodality = stats::bimodality_coefficient(residuals);
     let dip = stats::dip_test_sorted(&sorted);
-    Ok(Score {
+    let score = Score {
         n: residuals.len(),
         mean: stats::mean(residuals).unwrap_or(0.0),
         std: stats::std_dev(residuals).unwrap_or(0.0),
@@ -117,10 +147,40 @@ pub fn score_with_units(
         bimodal: dip.is_some_and(|t| t.rejects_unimodality(stats::DIP_SIGNIFICANCE)),
         trend: stats::linear_trend(positions, residuals),
         units: units.clone(),
-    })
+    };
+    score.check_finite()?;
+    Ok(score)
 }
 
 impl Score {
+    /// Every number of the score is finite, or [`ScoreError::Overflow`] naming the first that
+    /// is not: the JSON then never carries a `null` for a number.
+    fn check_finite(&self) -> Result<(), ScoreError> {
+        let mut named = vec![
+            ("mean", self.mean),
+            ("std", self.std),
+            ("rms", self.rms),
+            ("median_abs", self.median_abs),
+        ];
+        named.extend(self.percentiles.iter().map(|p| ("percentiles", p.1)));
+        named.extend(self.bimodality.map(|b| ("bimodality", b)));
+        named.extend(self.histogram.edges.iter().map(|&e| ("histogram.edges", e)));
+        if let Some(t) = &self.trend {
+            named.extend([
+                ("trend.slope", t.slope),
+                ("trend.intercept", t.intercept),
+                ("trend.slope_se", t.slope_se),
+                ("trend.t", t.t),
+                ("trend.p_value", t.p_value),
+                ("trend.r2", t.r2),
+            ]);
+        }
+        match named.into_iter().find(|(_, v)| !v.is_finite()) {
+            None => Ok(()),
+            Some((statistic, value)) => Err(ScoreError::Overflow { statistic, value }),
+        }
+    }
+
     /// A human-readable summary, every value labelled with [`Score::units`].
     pub fn to_text(&self) -> String {
         let u = &self.units.bias;

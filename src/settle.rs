@@ -217,22 +217,29 @@ impl SettleSpec {
         })?;
         let weights =
             LqrWeights::new(&self.q, self.r, plant.order()).map_err(ConfigError::Weights)?;
-        let finite = |field: &'static str, v: f64| {
-            if v.is_finite() {
+        let bounded = |field: &'static str, v: f64, limit: f64, what: &'static str| {
+            if v.is_finite() && v.abs() <= limit {
                 Ok(v)
             } else {
                 Err(SettleError::Invalid {
                     field,
-                    what: "a finite number",
+                    what,
                     value: v,
                 })
             }
         };
-        let step_um = finite("step_um (--step-um)", self.step_um)?;
-        let bias = finite("bias (--bias)", self.bias)?;
-        let db = finite(
+        let step_um = bounded(
+            "step_um (--step-um)",
+            self.step_um,
+            MAX_STEP_UM,
+            "within ±1e6 µm",
+        )?;
+        let bias = bounded("bias (--bias)", self.bias, MAX_BIAS, "within ±1e9 counts")?;
+        let db = bounded(
             "bias_uncertainty (--bias-uncertainty)",
             self.bias_uncertainty,
+            MAX_BIAS,
+            "within 0 … 1e9 counts",
         )?;
         if db < 0.0 {
             return Err(SettleError::Invalid {
@@ -265,6 +272,12 @@ impl SettleSpec {
         })
     }
 }
+
+/// Largest |step| of a settle scenario, µm (a metre: beyond any actuator's stroke; longer steps
+/// make the start-value bounds overflow).
+pub const MAX_STEP_UM: f64 = 1e6;
+/// Largest |bias| and bias uncertainty of a settle scenario, counts.
+pub const MAX_BIAS: f64 = 1e9;
 
 /// LQR state weights of the `modern` preset over [z, e, v, u_prev] (modal states weight 0):
 /// picked from a grid q_z ∈ {1e-4 … 1e-1}, q_e ∈ {0.1 … 100}, q_v ∈ {1e-9 … 1e-6} with R = 1e-6 as
@@ -321,13 +334,13 @@ pub struct Window {
 }
 
 impl Window {
-    /// A window |e| ≤ `half_width_um` (finite, > 0) that must hold for the last `hold` ≥ 1
-    /// samples of the horizon.
+    /// A window |e| ≤ `half_width_um` (0 < half width ≤ [`MAX_STEP_UM`]) that must hold for
+    /// the last `hold` ≥ 1 samples of the horizon.
     pub fn new(half_width_um: f64, hold: usize) -> Result<Self, SettleError> {
-        if !half_width_um.is_finite() || half_width_um <= 0.0 {
+        if !(half_width_um > 0.0 && half_width_um <= MAX_STEP_UM) {
             return Err(SettleError::Invalid {
                 field: "window_um (--window-um)",
-                what: "finite and > 0",
+                what: "> 0 and at most 1e6 µm",
                 value: half_width_um,
             });
         }
@@ -800,6 +813,88 @@ impl SettleReport {
         self.z_converged + relative
     }
 
+    /// The report as text, one fact a line (what `biasctl settle` prints): the LQR gain and
+    /// DARE convergence, closed-loop poles, dz/dbias, the scenario, zero feedforward, the optimal
+    /// start values (relative to the converged value, µm·samples), the paper's robust choice and
+    /// the robust choice for ±Δb counts; settle times in ms.
+    pub fn to_text(&self) -> String {
+        let r = self;
+        let mut out = String::new();
+        let ms = settle_ms_text;
+        let abs = |v: f64| format!("{v:.4} [{:.4}]", r.absolute(v));
+        let gain: Vec<String> = r.gain.iter().map(|g| format!("{g:.6}")).collect();
+        let poles: Vec<String> = r.poles_abs.iter().map(|p| format!("{p:.5}")).collect();
+        push_line!(out, "LQR gain K = [{}]", gain.join(", "));
+        push_line!(
+            out,
+            "  DARE: {} doubling steps, residual {:.1e}",
+            r.dare_iterations,
+            r.dare_residual
+        );
+        push_line!(out, "closed-loop |poles| = [{}]", poles.join(", "));
+        push_line!(out, "dz/dbias = {:.5} (µm·samples per count)", r.dz_dbias);
+        push_line!(
+            out,
+            "step {} µm, window ±{} µm, horizon {} samples, hold {}; start values (µm·samples) relative to the converged value {:.4}, absolute in brackets",
+            r.step_um,
+            r.window_um,
+            r.horizon,
+            r.hold,
+            r.z_converged
+        );
+        push_line!(
+            out,
+            "zero feedforward: {} (overshoot {:.1} %), start value {}",
+            r.zero_ff_settle_ms
+                .map_or("does not settle within the horizon".to_string(), |m| {
+                    format!("settles in {m:.2} ms")
+                }),
+            r.zero_ff_overshoot_pct,
+            abs(0.0)
+        );
+        match (r.k_star, r.ff_interval) {
+            (Some(k), Some([lo, hi])) => push_line!(
+                out,
+                "optimal: k* = {k}, {} for start values in [{lo:.4}, {hi:.4}] (choice {})",
+                ms(r.optimal_settle_ms),
+                r.ff_midpoint.map_or("none".to_string(), abs)
+            ),
+            _ => push_line!(out, "optimal: no start value settles within the horizon"),
+        }
+        match &r.paper_robust {
+            Some(p) => push_line!(
+                out,
+                "paper's robust choice: {} (first local minimum of the upper bound at k = {}): {}",
+                abs(p.ff),
+                p.k_min,
+                ms(p.settle_ms)
+            ),
+            None => push_line!(
+                out,
+                "paper's robust choice: the upper bound has no local minimum"
+            ),
+        }
+        let w = &r.worst_case;
+        match &r.robust {
+            Some(c) => push_line!(
+                out,
+                "robust for ±{:.3} counts (shift ±{:.4}): {}, worst case {} (simulated {}); zero feedforward worst case {}",
+                w.delta_b,
+                w.shift,
+                abs(c.ff),
+                ms(Some(c.worst_settle_ms)),
+                ms(c.simulated_worst_settle_ms),
+                ms(w.zero_ff_worst_settle_ms)
+            ),
+            None => push_line!(
+                out,
+                "robust for ±{:.3} counts: no start value settles for every bias within the horizon",
+                w.delta_b
+            ),
+        }
+        out
+    }
+
     /// The bounds of Fig. 15 as CSV: `k,time_s,upper,lower,upper_min,lower_max` (start values in
     /// µm·samples relative to the converged value; time in s). A bound that does not exist at a
     /// sample (at k = 0 no start value puts e(0) = −step in the window) is an empty cell.
@@ -1123,3 +1218,17 @@ pub fn analyse_with(ctl: &Controller, sc: &Scenario) -> Result<SettleReport, Set
         responses,
     })
 }
+
+/// `12.34 ms`, or `not settled` for `None`.
+fn settle_ms_text(v: Option<f64>) -> String {
+    v.map_or("not settled".to_string(), |m| format!("{m:.2} ms"))
+}
+
+/// Appends one formatted line to a `String`.
+macro_rules! push_line {
+    ($out:expr, $($t:tt)*) => {{
+        $out.push_str(&format!($($t)*));
+        $out.push('\n');
+    }};
+}
+use push_line;

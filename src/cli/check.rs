@@ -16,24 +16,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let units = args.log.columns.units(reader.schema())?;
     let sum = reader.summarise()?;
     let s = reader.schema();
-    println!("{}: {} rows, {} measured", s.file, sum.rows, sum.measured);
-    println!(
+    outln!("{}: {} rows, {} measured", s.file, sum.rows, sum.measured)?;
+    outln!(
         "  positions {} .. {} {} (column {})",
-        sum.positions[0], sum.positions[1], units.position, s.map.track
-    );
-    println!("  bias in {} (column {})", units.bias, s.map.bias);
-    println!(
+        sum.positions[0],
+        sum.positions[1],
+        units.position,
+        s.map.track
+    )?;
+    outln!("  bias in {} (column {})", units.bias, s.map.bias)?;
+    outln!(
         "  time {} .. {} s (column {})",
-        sum.times_s[0], sum.times_s[1], s.map.time
-    );
+        sum.times_s[0],
+        sum.times_s[1],
+        s.map.time
+    )?;
     if !s.covariates.is_empty() {
-        println!("  covariates: {}", s.covariates.join(", "));
+        outln!("  covariates: {}", s.covariates.join(", "))?;
     }
     for note in &s.notes {
-        println!("  note: {note}");
+        outln!("  note: {note}")?;
     }
     for m in &s.metadata {
-        println!("  # {m}");
+        outln!("  # {m}")?;
     }
     Ok(())
 }

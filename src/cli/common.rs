@@ -158,8 +158,11 @@ impl SettleArgs {
     pub fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
             Some(path) => {
-                let text = std::fs::read_to_string(path)
+                let text = biasctl::limits::read_text(path)
                     .with_context(|| format!("cannot read plant file {}", path.display()))?;
+                biasctl::limits::check_toml_numbers(&text)
+                    .map_err(anyhow::Error::msg)
+                    .with_context(|| format!("invalid plant file {}", path.display()))?;
                 toml::from_str::<SettleSpec>(&text)
                     .with_context(|| format!("invalid plant file {}", path.display()))?
             }
@@ -184,6 +187,23 @@ impl SettleArgs {
         }
         Ok(spec)
     }
+}
+
+/// Refuses, before anything runs, an output flag naming the same file as an input flag or as
+/// another output flag ([`biasctl::render::check_paths`]); each path comes with its flag.
+pub fn refuse_clashes(
+    inputs: &[(&str, Option<&Path>)],
+    outputs: &[(&str, Option<&Path>)],
+) -> anyhow::Result<()> {
+    let ins: Vec<(&str, &Path)> = inputs
+        .iter()
+        .filter_map(|&(f, p)| p.map(|p| (f, p)))
+        .collect();
+    let outs: Vec<(&str, &Path)> = outputs
+        .iter()
+        .filter_map(|&(f, p)| p.map(|p| (f, p)))
+        .collect();
+    Ok(biasctl::render::check_paths(&ins, &outs)?)
 }
 
 /// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was

@@ -91,10 +91,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 dir.display()
             );
         }
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        // Built in a staging folder beside `dir` and moved in whole: no partial output.
+        let staged = biasctl::render::StagedDir::create(dir)?;
         let json = d.to_json();
-        write_atomic(&dir.join("diagnosis.json"), |w| writeln!(w, "{json}"))?;
-        d.write_feature_csvs(dir)?;
+        write_atomic(&staged.path("diagnosis.json"), |w| writeln!(w, "{json}"))?;
+        d.write_feature_csvs(&staged.path(""))?;
+        staged.commit()?;
     }
     if args.json {
         if args.path > 0 {
@@ -102,32 +104,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if let Some(obj) = v.as_object_mut() {
                 obj.insert("path".into(), serde_json::to_value(&path)?);
             }
-            println!("{}", serde_json::to_string_pretty(&v)?);
+            outln!("{}", serde_json::to_string_pretty(&v)?)?;
         } else {
-            println!("{}", d.to_json());
+            outln!("{}", d.to_json())?;
         }
     } else {
-        println!(
+        outln!(
             "{}: model `{}`, {} measured rows",
             log.schema.file,
             model.spec,
             log.measured_count()
-        );
-        print!("{}", d.to_text());
+        )?;
+        out!("{}", d.to_text())?;
         if args.path > 0 {
-            print_path(&path, args.path, &log.schema.units.bias);
+            print_path(&path, args.path, &log.schema.units.bias)?;
         }
         if let Some(dir) = &args.out {
-            println!("wrote {}", dir.display());
+            outln!("wrote {}", dir.display())?;
         }
     }
     Ok(())
 }
 
-fn print_path(path: &[PathStep], asked: usize, unit: &str) {
-    println!("\nFollowing the advice (refit on this log after each step):");
+fn print_path(path: &[PathStep], asked: usize, unit: &str) -> anyhow::Result<()> {
+    outln!("\nFollowing the advice (refit on this log after each step):")?;
     for (i, p) in path.iter().enumerate() {
-        println!(
+        outln!(
             "  {}. `{}` ({:.1} % explained) → add `{}`: residual std {:.4} → {:.4} {unit}",
             i + 1,
             p.feature,
@@ -135,12 +137,13 @@ fn print_path(path: &[PathStep], asked: usize, unit: &str) {
             p.term,
             p.std_before,
             p.std_after
-        );
+        )?;
     }
     if path.len() < asked {
-        println!(
+        outln!(
             "  (stopped after {} step(s): nothing flagged with a term left to add)",
             path.len()
-        );
+        )?;
     }
+    Ok(())
 }

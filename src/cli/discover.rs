@@ -98,11 +98,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         model.save(&dir.join("model.json"))?;
     }
     if args.json {
-        println!("{}", d.to_json());
+        outln!("{}", d.to_json())?;
     } else {
-        print!("{d}");
+        out!("{d}")?;
         if let Some(dir) = &args.out {
-            println!("wrote {}", dir.display());
+            outln!("wrote {}", dir.display())?;
         }
     }
     Ok(())

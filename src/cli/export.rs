@@ -58,12 +58,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let src = c_source(&model, &opts)?;
     src.write(&a.out)?;
-    println!(
+    outln!(
         "exported `{}` ({}) to {}: bias_model.h, bias_model.c, replay.c; build with cc -std=c99 -O2 {}/*.c -lm",
         model.spec,
         if a.float32 { "float" } else { "double" },
         a.out.display(),
         a.out.display()
-    );
+    )?;
     Ok(())
 }

@@ -27,6 +27,10 @@ pub struct Args {
 
 /// Validates the spec, reads the log, fits, prints the parameters and writes the model.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::refuse_clashes(
+        &[("--data", Some(args.log.data.as_path()))],
+        &[("--out", Some(args.out.as_path()))],
+    )?;
     let spec = match (&args.model, &args.terms) {
         (Some(p), None) => ModelSpec::preset(p).context("--model")?,
         (None, Some(t)) => ModelSpec::parse(t).context("--terms")?,
@@ -36,7 +40,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let model = fit(&spec, &log, &FitOptions::default().check()?)?;
     model.save(&args.out)?;
     let f = &model.fit;
-    println!(
+    outln!(
         "{}: model `{}`, {} measured rows, {} parameters, residual std {:.4} {}, R² {:.4}",
         log.schema.file,
         model.spec,
@@ -45,16 +49,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         f.residual_std,
         log.schema.units.bias,
         f.r2
-    );
+    )?;
     for p in model.params() {
         match p.se {
-            Some(se) => println!("  {:<32} {:>14.6e} ± {:.3e}", p.name, p.value, se),
-            None => println!("  {:<32} {:>14.6e}", p.name, p.value),
+            Some(se) => outln!("  {:<32} {:>14.6e} ± {:.3e}", p.name, p.value, se)?,
+            None => outln!("  {:<32} {:>14.6e}", p.name, p.value)?,
         }
     }
     for w in &model.warnings {
-        println!("warning: {w}");
+        outln!("warning: {w}")?;
     }
-    println!("wrote {}", args.out.display());
+    outln!("wrote {}", args.out.display())?;
     Ok(())
 }

@@ -32,14 +32,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let test = args.columns.read_log(&args.test).context("--test")?;
     let l = ladder_fit(&train, &test, &terms, &FitOptions::default().check()?)?;
     if args.json {
-        println!("{}", l.to_json());
+        outln!("{}", l.to_json())?;
     } else {
         let units = &test.schema.units;
-        println!(
+        outln!(
             "fitted on {}, error std on {} ({}):",
-            train.schema.file, test.schema.file, units.bias
-        );
-        print!("{}", l.to_text(units));
+            train.schema.file,
+            test.schema.file,
+            units.bias
+        )?;
+        out!("{}", l.to_text(units))?;
     }
     Ok(())
 }

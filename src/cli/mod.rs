@@ -1,6 +1,24 @@
 //! Command-line flag structs, one file per command. Each command's `run` turns its flags into the
 //! library's validated configuration and calls the library; no numerics live here.
 
+/// Prints a line to stdout through the one output path ([`biasctl::render::write_stdout`]):
+/// evaluates to `Result<(), OutputError>` (a closed pipe is `OutputError::BrokenPipe`).
+macro_rules! outln {
+    () => {
+        biasctl::render::write_stdout("\n")
+    };
+    ($($t:tt)*) => {
+        biasctl::render::write_stdout(&format!("{}\n", format_args!($($t)*)))
+    };
+}
+
+/// Prints to stdout without a newline, as [`outln!`].
+macro_rules! out {
+    ($($t:tt)*) => {
+        biasctl::render::write_stdout(&format!($($t)*))
+    };
+}
+
 mod check;
 mod common;
 mod demo;

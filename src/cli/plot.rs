@@ -208,9 +208,19 @@ fn draw(a: &Args) -> anyhow::Result<String> {
 
 /// Validates the flags, draws the figure, writes it atomically.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let model_file = args.model.as_deref().map(Path::new).filter(|p| p.is_file());
+    super::common::refuse_clashes(
+        &[
+            ("--data", args.data.as_deref()),
+            ("--test", args.test.as_deref()),
+            ("--model", model_file),
+            ("--plant", args.settle.plant.as_deref()),
+        ],
+        &[("--out", Some(args.out.as_path()))],
+    )?;
     check_flags(&args)?;
     let svg = draw(&args)?;
     write_string_atomic(&args.out, &svg)?;
-    println!("wrote {}", args.out.display());
+    outln!("wrote {}", args.out.display())?;
     Ok(())
 }

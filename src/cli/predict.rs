@@ -26,6 +26,7 @@ impl ModelLogArgs {
         let model = FittedModel::load(&self.model)?;
         let log = self.log.columns.read_log(&self.log.data)?;
         let pred = model.predict_log(&log)?;
+        biasctl::render::check_prediction(&pred, &log)?;
         super::common::warn_outside_range(&model, &log.schema.file, &pred.positions);
         Ok((model, log, pred))
     }
@@ -80,6 +81,13 @@ fn cell(x: Option<f64>) -> String {
 /// Loads the model, streams the log through it and writes the CSV (atomically to a file, or
 /// to stdout flushed per row when the input is stdin).
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::refuse_clashes(
+        &[
+            ("--model", Some(args.input.model.as_path())),
+            ("--data", Some(args.input.log.data.as_path())),
+        ],
+        &[("--out", Some(args.out.as_path()))],
+    )?;
     let model = FittedModel::load(&args.input.model)?;
     let start = match &args.handoff {
         Some(h) => Some(handoff_plan(&model, h, args.bias_uncertainty)?),
@@ -129,7 +137,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.out.as_os_str() == STDIN_PATH {
         eprintln!("{text}");
     } else {
-        println!("{text}");
+        outln!("{text}")?;
     }
     Ok(())
 }

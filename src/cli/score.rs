@@ -20,10 +20,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, log, pred) = args.input.replay()?;
     let s = score_with_units(&pred.residual, &pred.positions, &log.schema.units)?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&s)?);
+        outln!("{}", serde_json::to_string_pretty(&s)?)?;
     } else {
-        println!("{}: model `{}`", log.schema.file, model.spec);
-        print!("{}", s.to_text());
+        outln!("{}: model `{}`", log.schema.file, model.spec)?;
+        out!("{}", s.to_text())?;
     }
     Ok(())
 }

@@ -5,7 +5,7 @@ use anyhow::Context;
 use biasctl::log::{DEFAULT_BIAS_UNIT, Units};
 use biasctl::model::{FittedModel, NextPrediction, predict_next};
 use biasctl::output::write_string_atomic;
-use biasctl::settle::{SettleReport, analyse};
+use biasctl::settle::analyse;
 use std::path::PathBuf;
 
 /// Flags of `biasctl settle`.
@@ -62,10 +62,9 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
     // (N, mA) cannot be fed to it without a conversion the tool does not know.
     if units.bias != DEFAULT_BIAS_UNIT {
         anyhow::bail!(
-            "settle --model: {} measures bias in `{}`, but the settle plant ({}) is a disk drive \
-             driven in `{DEFAULT_BIAS_UNIT}`; the predicted bias cannot be used as a start value. \
-             Give --bias-unit {DEFAULT_BIAS_UNIT} if the log's bias is in DAC counts, or leave \
-             out --model and give --bias and --bias-uncertainty in counts",
+            "{} measures bias in `{}`; the plant ({}) is a disk drive driven in \
+             `{DEFAULT_BIAS_UNIT}`: use --bias-unit {DEFAULT_BIAS_UNIT} if the bias is in DAC \
+             counts, else --bias and --bias-uncertainty",
             log.schema.file,
             units.bias,
             args.settle.plant.as_ref().map_or_else(
@@ -91,6 +90,17 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
 
 /// Validates, designs, analyses; writes the CSVs (atomically) and prints the report.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::refuse_clashes(
+        &[
+            ("--plant", args.settle.plant.as_deref()),
+            ("--model", args.model.as_deref()),
+            ("--data", args.data.as_deref()),
+        ],
+        &[
+            ("--bounds-out", args.bounds_out.as_deref()),
+            ("--response-out", args.response_out.as_deref()),
+        ],
+    )?;
     let mut spec = args.settle.spec()?;
     let link = predict_handoff(&args)?;
     if let Some(l) = &link {
@@ -136,10 +146,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }),
             );
         }
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        outln!("{}", serde_json::to_string_pretty(&value)?)?;
     } else {
         if let Some(l) = &link {
-            println!(
+            outln!(
                 "model {}: predicted bias {:.3} {b} at {} {} (after {} rows), Δb = {:.3} {b}",
                 l.model.display(),
                 l.next.bias,
@@ -148,77 +158,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 l.next.rows_replayed,
                 l.delta_b,
                 b = l.units.bias,
-            );
-            println!(
+            )?;
+            outln!(
                 "  worst-case settle for ±Δb: robust choice {}, zero feedforward {}",
                 ms(report.worst_case.robust_worst_settle_ms),
                 ms(report.worst_case.zero_ff_worst_settle_ms)
-            );
+            )?;
         }
-        print_text(&report);
+        out!("{}", report.to_text())?;
     }
     Ok(())
 }
 
 fn ms(v: Option<f64>) -> String {
     v.map_or("not settled".to_string(), |m| format!("{m:.2} ms"))
-}
-
-fn print_text(r: &SettleReport) {
-    let gain: Vec<String> = r.gain.iter().map(|g| format!("{g:.6}")).collect();
-    let poles: Vec<String> = r.poles_abs.iter().map(|p| format!("{p:.5}")).collect();
-    println!("LQR gain K = [{}]", gain.join(", "));
-    println!(
-        "  DARE: {} doubling steps, residual {:.1e}",
-        r.dare_iterations, r.dare_residual
-    );
-    println!("closed-loop |poles| = [{}]", poles.join(", "));
-    println!("dz/dbias = {:.5} (µm·samples per count)", r.dz_dbias);
-    println!(
-        "step {} µm, window ±{} µm, horizon {} samples, hold {}; start values (µm·samples) relative to the converged value {:.4}, absolute in brackets",
-        r.step_um, r.window_um, r.horizon, r.hold, r.z_converged
-    );
-    let abs = |v: f64| format!("{v:.4} [{:.4}]", r.absolute(v));
-    println!(
-        "zero feedforward: {} (overshoot {:.1} %), start value {}",
-        r.zero_ff_settle_ms
-            .map_or("does not settle within the horizon".to_string(), |m| {
-                format!("settles in {m:.2} ms")
-            }),
-        r.zero_ff_overshoot_pct,
-        abs(0.0)
-    );
-    match (r.k_star, r.ff_interval) {
-        (Some(k), Some([lo, hi])) => println!(
-            "optimal: k* = {k}, {} for start values in [{lo:.4}, {hi:.4}] (choice {})",
-            ms(r.optimal_settle_ms),
-            r.ff_midpoint.map_or("none".to_string(), abs)
-        ),
-        _ => println!("optimal: no start value settles within the horizon"),
-    }
-    match &r.paper_robust {
-        Some(p) => println!(
-            "paper's robust choice: {} (first local minimum of the upper bound at k = {}): {}",
-            abs(p.ff),
-            p.k_min,
-            ms(p.settle_ms)
-        ),
-        None => println!("paper's robust choice: the upper bound has no local minimum"),
-    }
-    let w = &r.worst_case;
-    match &r.robust {
-        Some(c) => println!(
-            "robust for ±{:.3} counts (shift ±{:.4}): {}, worst case {} (simulated {}); zero feedforward worst case {}",
-            w.delta_b,
-            w.shift,
-            abs(c.ff),
-            ms(Some(c.worst_settle_ms)),
-            ms(c.simulated_worst_settle_ms),
-            ms(w.zero_ff_worst_settle_ms)
-        ),
-        None => println!(
-            "robust for ±{:.3} counts: no start value settles for every bias within the horizon",
-            w.delta_b
-        ),
-    }
 }

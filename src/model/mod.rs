@@ -465,7 +465,7 @@ impl FittedModel {
     /// Reads a model file; `restore` rebuilds user terms from their name and saved settings
     /// (return `None` for names it does not know; built-ins are tried after it).
     pub fn load_with(path: &Path, restore: &RestoreFn) -> Result<Self, ModelError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+        let text = crate::limits::read_text(path).map_err(|source| ModelError::Io {
             path: path.into(),
             source,
         })?;

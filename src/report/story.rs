@@ -17,10 +17,10 @@ use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::{Log, LogError, Units};
 use crate::model::preset;
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
-use crate::output::{OutputError, write_string_atomic};
 use crate::plot::figures::{Sweep, SweepFigure, SweepSeries, calibration_sweep};
 use crate::plot::svg::fmt_num;
 use crate::plot::{from_log, views};
+use crate::render::{OutputError, StagedDir, write_string_atomic};
 use crate::score::{Score, ScoreError, score_with_units};
 use crate::servo::{Controller, ServoError};
 use crate::settle::{
@@ -158,8 +158,8 @@ pub const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;
 /// when `Out` is dropped uncommitted).
 struct Out<'a> {
     dir: &'a Path,
-    stage: PathBuf,
-    committed: bool,
+    /// The staging folder; `None` once committed.
+    staged: Option<StagedDir>,
     /// Final paths (in `dir`) and what each holds, in the order written.
     files: Vec<(PathBuf, String)>,
 }
@@ -167,7 +167,10 @@ struct Out<'a> {
 impl Out<'_> {
     /// Where a file of the run is written now (inside the staging folder).
     fn path(&self, name: &str) -> PathBuf {
-        self.stage.join(name)
+        match &self.staged {
+            Some(s) => s.path(name),
+            None => self.dir.join(name),
+        }
     }
     fn text(&mut self, name: &str, text: &str, what: &str) -> Result<(), StoryError> {
         write_string_atomic(&self.path(name), text)?;
@@ -178,48 +181,12 @@ impl Out<'_> {
     fn note(&mut self, name: &str, what: &str) {
         self.files.push((self.dir.join(name), what.to_string()));
     }
-    /// Moves every staged file into `dir` (created if missing; files of the same name are
-    /// replaced, others left alone) and removes the staging folder.
+    /// Moves every staged file into `dir` ([`StagedDir::commit`]).
     fn commit(&mut self) -> Result<(), StoryError> {
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| OutputError::Io { path, source }
-        };
-        std::fs::create_dir_all(self.dir).map_err(io(self.dir))?;
-        let mut moves = Vec::new();
-        for entry in std::fs::read_dir(&self.stage).map_err(io(&self.stage))? {
-            let from = entry.map_err(io(&self.stage))?.path();
-            if let Some(name) = from.file_name() {
-                moves.push((from.clone(), self.dir.join(name)));
-            }
+        if let Some(s) = self.staged.take() {
+            s.commit()?;
         }
-        // Check every destination before moving anything, so that a blocked one cannot leave
-        // half of the run in `dir`.
-        if let Some((_, to)) = moves.iter().find(|(_, to)| to.is_dir()) {
-            return Err(OutputError::Io {
-                path: to.clone(),
-                source: std::io::Error::new(
-                    std::io::ErrorKind::AlreadyExists,
-                    "a folder of that name is in the way; nothing was written",
-                ),
-            }
-            .into());
-        }
-        for (from, to) in &moves {
-            std::fs::rename(from, to).map_err(io(to))?;
-        }
-        std::fs::remove_dir(&self.stage).map_err(io(&self.stage))?;
-        self.committed = true;
         Ok(())
-    }
-}
-
-impl Drop for Out<'_> {
-    fn drop(&mut self) {
-        if !self.committed {
-            // Best effort: a failed run must not leave its partial files anywhere.
-            let _ = std::fs::remove_dir_all(&self.stage);
-        }
     }
 }
 
@@ -253,34 +220,12 @@ fn start<'a>(
     total: usize,
     cb: &'a mut dyn FnMut(Progress<'_>),
 ) -> Result<(Steps<'a>, Out<'a>), StoryError> {
-    if dir.exists() && !dir.is_dir() {
-        return Err(OutputError::Io {
-            path: dir.to_path_buf(),
-            source: std::io::Error::new(
-                std::io::ErrorKind::AlreadyExists,
-                "is a file; the report needs a folder",
-            ),
-        }
-        .into());
-    }
-    let parent = match dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = dir
-        .file_name()
-        .map_or("report".into(), |n| n.to_string_lossy().into_owned());
-    let stage = parent.join(format!(".{name}.biasctl-partial-{}", std::process::id()));
-    std::fs::create_dir_all(&stage).map_err(|source| OutputError::Io {
-        path: stage.clone(),
-        source,
-    })?;
+    let staged = StagedDir::create(dir)?;
     Ok((
         Steps { done: 0, total, cb },
         Out {
             dir,
-            stage,
-            committed: false,
+            staged: Some(staged),
             files: Vec::new(),
         },
     ))

@@ -6,6 +6,7 @@ mod common;
 mod diagnose;
 mod export;
 mod extend;
+mod fuzz;
 mod model;
 mod plot;
 mod predict_plan;

@@ -169,7 +169,8 @@ impl TermSpec for DahlSpec {
 pub struct DahlTerm {
     /// Spec string.
     pub name: String,
-    /// Rates r of the elements, each in (0, 1).
+    /// Rates r of the elements, each in (0, 1) (a model file with another is refused).
+    #[serde(deserialize_with = "super::unit_rates")]
     pub rates: Vec<f64>,
     /// Whether the (single) rate is searched.
     pub search: bool,

@@ -31,6 +31,30 @@ pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
     }
 }
 
+/// Reads a setting that must be finite and > 0 (a scale): a model file with 0, a negative or an
+/// overflowing value is refused at load instead of predicting `NaN`.
+pub(crate) fn positive_finite<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    let v = <f64 as serde::Deserialize>::deserialize(d)?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(serde::de::Error::custom(format!(
+            "{v} must be finite and > 0"
+        )))
+    }
+}
+
+/// Reads rates that must each lie in (0, 1) (Dahl / Maxwell-slip elements).
+pub(crate) fn unit_rates<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+    let v = <Vec<f64> as serde::Deserialize>::deserialize(d)?;
+    match v.iter().find(|r| !(**r > 0.0 && **r < 1.0)) {
+        None => Ok(v),
+        Some(r) => Err(serde::de::Error::custom(format!(
+            "rate {r} must lie in (0, 1)"
+        ))),
+    }
+}
+
 /// Rebuilds a built-in fitted term from its name and saved settings (the model file), through
 /// the registry ([`super::registry::BUILTINS`]).
 pub fn restore_term(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {

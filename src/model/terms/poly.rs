@@ -33,7 +33,8 @@ impl TermSpec for Poly2Spec {
 pub struct Poly2Term {
     /// Centre of the scaled position, tracks.
     pub centre: f64,
-    /// Scale of the scaled position, tracks.
+    /// Scale of the scaled position, tracks (> 0; a model file with another is refused).
+    #[serde(deserialize_with = "super::positive_finite")]
     pub scale: f64,
 }
 
