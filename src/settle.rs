@@ -492,6 +492,29 @@ fn suffix_into(u: &[f64], l: &[f64], su: &mut [f64], sl: &mut [f64], umin: f64, 
     }
 }
 
+/// min and max of one full block as a tree (depth 3, vectorised). Exact for NaN-free input
+/// (the running bounds ignore a NaN bound; the tree would not).
+#[inline(always)]
+fn block_min_max(u: &[f64; BLOCK], l: &[f64; BLOCK]) -> (f64, f64) {
+    let u4 = [
+        fmin(u[0], u[4]),
+        fmin(u[1], u[5]),
+        fmin(u[2], u[6]),
+        fmin(u[3], u[7]),
+    ];
+    let l4 = [
+        fmax(l[0], l[4]),
+        fmax(l[1], l[5]),
+        fmax(l[2], l[6]),
+        fmax(l[3], l[7]),
+    ];
+    let (u2, l2) = (
+        [fmin(u4[0], u4[2]), fmin(u4[1], u4[3])],
+        [fmax(l4[0], l4[2]), fmax(l4[1], l4[3])],
+    );
+    (fmin(u2[0], u2[1]), fmax(l2[0], l2[1]))
+}
+
 /// Per-controller, per-horizon coefficients of the handoff bounds (see the module docs), laid
 /// out as four plain arrays (one per coefficient) so the bound loops vectorise.
 #[derive(Debug, Clone, PartialEq)]
@@ -508,6 +531,24 @@ pub struct HandoffTable {
     zero: Vec<ZeroGain>,
     ts_s: f64,
     dz_dbias: f64,
+    /// Largest |pe|, |pv|, |pu| and largest finite w: with them a handoff's bounds are known
+    /// to be NaN-free before they are computed.
+    coef_max: f64,
+    w_max: f64,
+    /// The CPU has AVX2: the same arithmetic runs four samples per instruction.
+    avx2: bool,
+}
+
+/// Whether this CPU runs the AVX2 copies of the handoff loops.
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 /// |a_k| below this fraction of max |a_k| counts as a_k = 0.
@@ -549,6 +590,12 @@ impl HandoffTable {
             }
         }
         zero.reverse();
+        let abs_max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let coef_max = abs_max(&pe).max(abs_max(&pv)).max(abs_max(&pu));
+        let w_max = w
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold(0.0f64, |m, &x| m.max(x));
         Ok(Self {
             pe: pe.into(),
             pv: pv.into(),
@@ -557,6 +604,9 @@ impl HandoffTable {
             zero,
             ts_s: controller.ts_s(),
             dz_dbias: controller.dz_dbias(),
+            coef_max,
+            w_max,
+            avx2: has_avx2(),
         })
     }
 
@@ -612,8 +662,30 @@ impl HandoffTable {
     /// nested and each holds on a suffix of settle indices (U* grows and L* falls with k). The
     /// pass runs over blocks of 8 samples: each block's bounds and running bounds are computed
     /// at once (vectorised, independent of the blocks above except for one final min/max), and
-    /// only the block where a condition stops holding is searched.
+    /// only the block where a condition stops holding is searched. On a CPU with AVX2 the same
+    /// code runs compiled for it (the same operations in the same order: identical results).
     pub fn solve(&self, h: &Handoff, window: &Window, delta_b: f64) -> HandoffSolution {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is true only when `new` found AVX2 on this CPU.
+            return unsafe { self.solve_avx2(h, window, delta_b) };
+        }
+        self.solve_portable(h, window, delta_b)
+    }
+
+    /// [`HandoffTable::solve`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn solve_avx2(&self, h: &Handoff, window: &Window, delta_b: f64) -> HandoffSolution {
+        self.solve_portable(h, window, delta_b)
+    }
+
+    /// [`HandoffTable::solve`] for any CPU.
+    #[inline(always)]
+    fn solve_portable(&self, h: &Handoff, window: &Window, delta_b: f64) -> HandoffSolution {
         let n = self.w.len();
         let delta = window.half_width_um;
         let shift = (self.dz_dbias * delta_b).abs();
@@ -650,6 +722,10 @@ impl HandoffTable {
         };
         // Per phase: the first candidate k and its running bounds (L*, U*).
         let mut found = [(0usize, 0.0f64, 0.0f64); 3];
+        // |U_k|, |L_k| ≤ bound: far from overflow, so no bound is NaN and whole blocks can be
+        // reduced as trees; otherwise every block takes the per-sample path (NaN ignored).
+        let bound = self.coef_max * (e0.abs() + v0.abs() + du.abs()) + self.w_max * delta;
+        let nan_free = bound < f64::MAX / 16.0;
         let mut phase = 0;
         let mut k = top + 1;
         let (mut u, mut l) = ([0.0; BLOCK], [0.0; BLOCK]);
@@ -659,6 +735,13 @@ impl HandoffTable {
             let lo = k - m;
             if m == BLOCK {
                 self.fill(lo, p, &mut u, &mut l);
+                let (bu, bl) = block_min_max(&u, &l);
+                let (nu, nl) = (fmin(umin, bu), fmax(lmax, bl));
+                if nan_free && keep(phase, nu, nl) {
+                    // The whole block keeps the condition: no per-sample running bounds.
+                    (umin, lmax, k) = (nu, nl, lo);
+                    continue;
+                }
                 suffix_into(&u, &l, &mut su, &mut sl, umin, lmax);
             } else {
                 self.fill(lo, p, &mut u[..m], &mut l[..m]);
@@ -697,6 +780,37 @@ impl HandoffTable {
     /// Fills `buf` with the per-sample bounds (eq. 14) and the backward running min/max
     /// (eq. 15) of `h`, without allocating. `buf` must have been made for this horizon.
     pub fn bounds_into(
+        &self,
+        h: &Handoff,
+        window: &Window,
+        buf: &mut Bounds,
+    ) -> Result<(), SettleError> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is true only when `new` found AVX2 on this CPU.
+            return unsafe { self.bounds_into_avx2(h, window, buf) };
+        }
+        self.bounds_into_portable(h, window, buf)
+    }
+
+    /// [`HandoffTable::bounds_into`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn bounds_into_avx2(
+        &self,
+        h: &Handoff,
+        window: &Window,
+        buf: &mut Bounds,
+    ) -> Result<(), SettleError> {
+        self.bounds_into_portable(h, window, buf)
+    }
+
+    /// [`HandoffTable::bounds_into`] for any CPU.
+    #[inline(always)]
+    fn bounds_into_portable(
         &self,
         h: &Handoff,
         window: &Window,
@@ -803,8 +917,11 @@ impl Bounds {
 
     /// k* and the optimal interval (eq. 16), from the stored curves.
     pub fn optimal(&self) -> Option<Interval> {
-        (0..=self.top()?)
-            .find(|&k| self.lower_max[k] <= self.upper_min[k])
+        let top = self.top()?;
+        self.lower_max[..=top]
+            .iter()
+            .zip(&self.upper_min[..=top])
+            .position(|(lo, hi)| lo <= hi)
             .map(|k| Interval {
                 k,
                 lo: self.lower_max[k],
@@ -1257,6 +1374,9 @@ mod tests {
             zero: Vec::new(),
             ts_s: 1e-4,
             dz_dbias: rng.range(-2.0, 2.0),
+            coef_max: 0.0,
+            w_max: 0.0,
+            avx2: has_avx2(),
         };
         for k in 0..n {
             if rng.uniform() < 0.05 {
@@ -1276,6 +1396,14 @@ mod tests {
             }
         }
         t.zero.reverse();
+        t.coef_max = [&t.pe, &t.pv, &t.pu]
+            .iter()
+            .flat_map(|v| v.iter())
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        t.w_max =
+            t.w.iter()
+                .filter(|x| x.is_finite())
+                .fold(0.0f64, |m, &x| m.max(x));
         t
     }
 
@@ -1289,6 +1417,8 @@ mod tests {
         match rng.below(10) {
             0 => h.u_prev_counts = h.bias_counts, // a step from rest
             1 => h.e0_um = 0.0,
+            // Bounds that overflow (±∞, NaN): the exact per-sample path.
+            2 if rng.uniform() < 0.2 => h.e0_um = 1e306 * h.e0_um.signum(),
             _ => {}
         }
         h
@@ -1321,7 +1451,24 @@ mod tests {
                 );
             }
         }
+        // Both compiled copies (AVX2 where the CPU has it, and the portable one) agree.
+        let portable = HandoffTable {
+            avx2: false,
+            ..t.clone()
+        };
+        let mut buf2 = Bounds::new(t.horizon());
+        portable.bounds_into(h, window, &mut buf2).unwrap();
+        assert_eq!(
+            format!("{buf:?}"),
+            format!("{buf2:?}"),
+            "{what}: portable bounds"
+        );
         let got = t.solve(h, window, db);
+        assert_eq!(
+            format!("{got:?}"),
+            format!("{:?}", portable.solve(h, window, db)),
+            "{what}: portable solve"
+        );
         assert!(
             same_interval(got.optimal, want.optimal),
             "{what}: optimal {got:?} vs {want:?}"
