@@ -14,7 +14,7 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::io::Write;
 
-const N: usize = 1_000_000;
+const N: u64 = 1_000_000;
 
 /// The predict CSV of `src/cli/predict.rs`, into `w`.
 fn write_predict_csv(w: &mut impl Write, log: &Log, pred: &Prediction) -> std::io::Result<()> {
@@ -54,7 +54,7 @@ fn write_predict_csv(w: &mut impl Write, log: &Log, pred: &Prediction) -> std::i
     Ok(())
 }
 
-fn random_log(n: usize, seed: u64) -> Log {
+fn random_log(n: u64, seed: u64) -> Log {
     let opts = SequenceOptions {
         n: Some(n),
         ..SequenceOptions::default()

@@ -10,7 +10,7 @@ use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_to_files};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 
-const N: usize = 1_000_000;
+const N: u64 = 1_000_000;
 
 fn bench(c: &mut Criterion) {
     let dir = tempfile::tempdir().expect("temporary directory");
@@ -25,7 +25,7 @@ fn bench(c: &mut Criterion) {
     let map = ColumnMap::default();
     // The work is real: every row is read and validated.
     let rows = Log::read(&path, &map).expect("valid log").rows.len();
-    assert!(rows >= N, "{rows} rows");
+    assert!(rows as u64 >= N, "{rows} rows");
     let mut g = c.benchmark_group("read");
     g.sample_size(10);
     g.throughput(Throughput::Bytes(bytes));
