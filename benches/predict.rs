@@ -87,7 +87,10 @@ fn check_against_cli(model: &FittedModel) {
         .arg(&out)
         .output()
         .expect("biasctl runs");
-    assert!(status.status.success(), "biasctl predict failed: {status:?}");
+    assert!(
+        status.status.success(),
+        "biasctl predict failed: {status:?}"
+    );
     let log = Log::read(&log_path, &ColumnMap::default()).expect("valid log");
     let pred = model.predict_log(&log).expect("replay");
     let mut mine = Vec::new();

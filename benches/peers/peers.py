@@ -18,10 +18,12 @@ import subprocess
 import sys
 import time
 
-import numba
-import numpy as np
-import pandas as pd
-import polars as pl
+os.environ.setdefault("POLARS_MAX_THREADS", "1")  # polars on 1 thread, as biasctl reads
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+import polars as pl  # noqa: E402
 
 N = 1_000_000
 
@@ -247,7 +249,7 @@ def read(exe, work, root, log, cli):
     out = sh(exe, "check", "--data", log).stdout
     first = out.splitlines()[0]  # "<file>: R rows, M measured"
     rows, measured = int(first.split(": ")[1].split()[0]), int(first.split(", ")[1].split()[0])
-    pol = lambda: pl.read_csv(log, comment_prefix="#", n_threads=1)
+    pol = lambda: pl.read_csv(log, comment_prefix="#")
     pan = lambda: pd.read_csv(log, comment="#")
     t_pl, df = median_of(pol, 3)
     t_pd, dp = median_of(pan, 3)
@@ -321,6 +323,7 @@ def main():
     ap.add_argument("--root", required=True)
     ap.add_argument("--exe", required=True)
     ap.add_argument("--work", required=True)
+    ap.add_argument("--cli-repeats", type=int, default=3)
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     log = os.path.join(a.work, "random_1M.csv")
@@ -329,9 +332,9 @@ def main():
     sh(a.exe, "simulate", "--sequence", "calibration", "--seed", "1", "--out", cal)
     sh(a.exe, "fit", "--data", cal, "--model", "calibration", "--out", model)
     cli = {
-        "check": median_of(lambda: sh(a.exe, "check", "--data", log), 3)[0],
-        "fit": median_of(lambda: sh(a.exe, "fit", "--data", log, "--model", "calibration", "--out", os.path.join(a.work, "fit_1M.json")), 3)[0],
-        "predict": median_of(lambda: sh(a.exe, "predict", "--model", model, "--data", log, "--out", pred), 3)[0],
+        "check": median_of(lambda: sh(a.exe, "check", "--data", log), a.cli_repeats)[0],
+        "fit": median_of(lambda: sh(a.exe, "fit", "--data", log, "--model", "calibration", "--out", os.path.join(a.work, "fit_1M.json")), a.cli_repeats)[0],
+        "predict": median_of(lambda: sh(a.exe, "predict", "--model", model, "--data", log, "--out", pred), a.cli_repeats)[0],
     }
     rows = []
     rows += dahl(a.exe, a.work, a.root)
