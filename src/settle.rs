@@ -471,6 +471,9 @@ impl Point {
     }
 }
 
+/// A sample k with a_k = 0 and its coefficients `[ce, cv, cu]` ([`HandoffTable::export_rows`]).
+pub type ZeroGainRow = (usize, [f64; 3]);
+
 /// The running bounds of one block: `su[j] = min(umin, min_{i ≥ j} u[i])` and `sl[j] =
 /// max(lmax, max_{i ≥ j} l[i])`, where `(umin, lmax)` are the bounds over the samples above the
 /// block. The block's own suffix scan starts from ±∞, so it does not wait for the blocks above
@@ -621,6 +624,22 @@ impl HandoffTable {
     /// ∂z/∂d of the controller (µm·samples per count).
     pub fn dz_dbias(&self) -> f64 {
         self.dz_dbias
+    }
+
+    /// The table as the C export writes it: per sample k the bounds' coefficients
+    /// `[−ce/a, −cv/a, −cu/a, 1/|a|]` (`[0, 0, 0, ∞]` where a_k = 0), and the samples with
+    /// a_k = 0 as `(k, [ce, cv, cu])` in ascending k.
+    pub fn export_rows(&self) -> (Vec<[f64; 4]>, Vec<ZeroGainRow>) {
+        let rows = (0..self.w.len())
+            .map(|k| [self.pe[k], self.pv[k], self.pu[k], self.w[k]])
+            .collect();
+        let mut zeros: Vec<ZeroGainRow> = self
+            .zero
+            .iter()
+            .map(|z| (z.k, [z.ce, z.cv, z.cu]))
+            .collect();
+        zeros.sort_by_key(|z| z.0);
+        (rows, zeros)
     }
 
     /// c_k of a sample with a_k = 0 rules out every settle index ≤ k when |c_k| > δ.

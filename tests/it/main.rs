@@ -4,9 +4,11 @@
 mod check;
 mod common;
 mod diagnose;
+mod export;
 mod extend;
 mod model;
 mod plot;
+mod predict_plan;
 mod real;
 mod report;
 mod review;
