@@ -101,9 +101,11 @@ fn check_against_cli(model: &FittedModel) {
         status.status.success(),
         "biasctl predict failed: {status:?}"
     );
+    // The CLI replays the model as read back from its file.
+    let loaded = FittedModel::load(&model_path).expect("model loads");
     let mut mine = Vec::new();
     predict_csv(
-        model,
+        &loaded,
         &std::fs::read(&log_path).expect("log"),
         Some(&mut mine),
     );
