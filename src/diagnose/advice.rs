@@ -204,6 +204,8 @@ pub(crate) fn candidate_terms(
                 vec![format!("col:{name}"), format!("dbins:{name}")]
             }
             FeatureOrigin::Covariate => vec![format!("dbins:{name}")],
+            FeatureOrigin::SummedMemory => vec!["memsum".into(), "memory".into()],
+            FeatureOrigin::Lagged => lag_terms(name),
         };
     }
     match origin {
@@ -226,7 +228,15 @@ pub(crate) fn candidate_terms(
                 vec![bins, col]
             }
         }
+        FeatureOrigin::SummedMemory => vec!["memsum".into(), "memory".into(), bins],
+        FeatureOrigin::Lagged => lag_terms(name),
     }
+}
+
+/// `lag:COL` (then `col:COL`) for a lagged covariate feature `<COL>@lag<τ>s`.
+fn lag_terms(name: &str) -> Vec<String> {
+    let col = super::features::lagged_column(name).unwrap_or(name);
+    vec![format!("lag:{col}"), format!("col:{col}")]
 }
 
 /// Whether the model's term list `existing` already holds `term` (any `dahl:N` counts as a Dahl

@@ -104,7 +104,9 @@ mod report;
 mod smoother;
 
 pub use advice::{DAHL_TERM, Shape};
-pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
+pub use features::{
+    FeatureColumn, FeatureOrigin, FeatureTable, LAG_POINTS, MEMSUM_FRACTIONS, lagged_column,
+};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
     ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, ladder_fit, ladder_terms,

@@ -7,7 +7,9 @@ pub mod direction;
 pub mod drift;
 pub mod intercept;
 pub mod knots;
+pub mod lag;
 pub mod memory;
+pub mod memsum;
 pub mod poly;
 pub mod seek;
 pub mod table;
@@ -17,7 +19,7 @@ use super::{ModelError, SpecError};
 use std::sync::Arc;
 
 /// The names of the built-in terms, for messages.
-pub const BUILTIN_NAMES: &str = "poly2, table[:SPACING], direction, seek[:KNOTS], memory[:KNOTS], drift[:ALPHA], dahl, dahl:N, col:NAME, bins:FEATURE[:KNOTS], dbins:FEATURE[:KNOTS]";
+pub const BUILTIN_NAMES: &str = "poly2, table[:SPACING], direction, seek[:KNOTS], memory[:KNOTS], drift[:ALPHA], dahl, dahl:N, col:NAME, lag:NAME, memsum, bins:FEATURE[:KNOTS], dbins:FEATURE[:KNOTS]";
 
 /// Parses one built-in term spec (`poly2`, `table:50`, `dahl:4`, `col:temp_c`, `bins:dwell_s`,
 /// `dbins:dwell_s:6`…).
@@ -98,6 +100,13 @@ pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
             })),
             _ => Err(bad("`col` needs a column name: `col:NAME`".into())),
         },
+        "lag" => match arg {
+            Some(name) if !name.is_empty() => Ok(Arc::new(lag::LagSpec {
+                column: name.to_string(),
+            })),
+            _ => Err(bad("`lag` needs a column name: `lag:NAME`".into())),
+        },
+        "memsum" => no_arg(Arc::new(memsum::MemsumSpec)),
         "bins" | "dbins" => {
             let Some(a) = arg.filter(|a| !a.is_empty()) else {
                 return Err(bad(format!(
@@ -147,6 +156,8 @@ pub fn restore_term(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn 
         "drift" => Arc::new(de::<drift::DriftTerm>(name, settings)?),
         "dahl" => Arc::new(de::<dahl::DahlTerm>(name, settings)?),
         "col" => Arc::new(de::<covariate::ColTerm>(name, settings)?),
+        "lag" => Arc::new(de::<lag::LagTerm>(name, settings)?),
+        "memsum" => Arc::new(de::<memsum::MemsumTerm>(name, settings)?),
         "bins" | "dbins" => Arc::new(bins::BinsTerm {
             by_direction: head == "dbins",
             ..de::<bins::BinsTerm>(name, settings)?
