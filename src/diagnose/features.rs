@@ -28,9 +28,18 @@ pub enum FeatureOrigin {
 /// positions it visits): short, medium and long memory.
 pub const MEMSUM_FRACTIONS: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 1.0 / 4.0];
 
-/// Time constants of the lagged covariates, as points of the `lag:` term's search range
-/// `[median Δt/2, time span]` on a log scale (1/3 and 2/3 of the way).
-pub const LAG_POINTS: [f64; 2] = [1.0 / 3.0, 2.0 / 3.0];
+/// Time constants of the lagged covariates, as points on a log scale of `[median Δt, span/16]`
+/// (the log's sampling interval and a sixteenth of its duration): half-way and at the top. A
+/// longer lag would be a proxy for time itself (on a random-walk drift a lag of 2/3 of the
+/// span explained 38 % of it and smeared the drift onto the covariate).
+pub const LAG_POINTS: [f64; 2] = [0.5, 1.0];
+
+/// Share of a column's variance a lagged copy must keep to become a feature (see [`LAG_POINTS`]):
+/// a lag of a fast or noisy column keeps little of it and is only a slow random series.
+pub const LAG_MIN_VARIANCE: f64 = 0.5;
+
+/// Fraction of the log's duration that is the longest lag of a lagged-covariate feature.
+pub const LAG_MAX_FRACTION: f64 = 1.0 / 16.0;
 
 /// The covariate a lagged feature (`<COL>@lag<τ>s`) was made from.
 pub fn lagged_column(name: &str) -> Option<&str> {
@@ -93,8 +102,8 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
         .collect()
 }
 
-/// Every covariate through first-order lags at [`LAG_POINTS`] of the `lag:` term's search
-/// range (none if the log's time never advances). `measured` holds each covariate's values at
+/// Every covariate through first-order lags at [`LAG_POINTS`] of `[median Δt, span/16]`
+/// (none if that range is empty: a log too short or too coarse for a lag to show). `measured` holds each covariate's values at
 /// the measured rows (for the skip of non-finite ones); the lag runs over every row.
 fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
     let rows = &log.rows;
@@ -105,10 +114,8 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
         .collect();
     let median = crate::stats::percentile_sorted(&crate::stats::sorted(&steps), 50.0);
     let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
-    let Some(lo) = median
-        .map(|m| 0.5 * m)
-        .filter(|&m| m > 0.0 && span > 2.0 * m)
-    else {
+    let hi = LAG_MAX_FRACTION * span;
+    let Some(lo) = median.filter(|&m| m > 0.0 && hi > m) else {
         return Vec::new();
     };
     let mut out = Vec::new();
@@ -119,16 +126,26 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
         {
             continue; // a gap in the column would stall the lag
         }
+        let raw: Vec<f64> = measured[k].iter().flatten().copied().collect();
+        let raw_var = crate::stats::std_dev(&raw).map_or(0.0, |s| s * s);
         for p in LAG_POINTS {
-            let tau = lo * (span / lo).powf(p);
+            let tau = lo * (hi / lo).powf(p);
             let mut lag = FirstOrderLag::new(tau);
-            let values = rows
+            let lagged: Vec<f64> = rows
                 .iter()
                 .filter_map(|r| {
                     let z = lag.step(r.time_s, r.covariates.get(k).copied().unwrap_or(0.0));
-                    r.bias.is_some().then_some(Some(z))
+                    r.bias.is_some().then_some(z)
                 })
                 .collect();
+            // A lag that keeps less than LAG_MIN_VARIANCE of the column's variance mostly
+            // averages the column's own noise into a slow random series, which would match any
+            // slow residual by chance: no feature then.
+            let var = crate::stats::std_dev(&lagged).map_or(0.0, |s| s * s);
+            if !(var >= LAG_MIN_VARIANCE * raw_var && var > 0.0) {
+                continue;
+            }
+            let values = lagged.into_iter().map(Some).collect();
             out.push(FeatureColumn {
                 name: format!("{name}@lag{}s", super::advice::short(tau)),
                 origin: FeatureOrigin::Lagged,

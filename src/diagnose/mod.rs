@@ -105,7 +105,8 @@ mod smoother;
 
 pub use advice::{DAHL_TERM, Shape};
 pub use features::{
-    FeatureColumn, FeatureOrigin, FeatureTable, LAG_POINTS, MEMSUM_FRACTIONS, lagged_column,
+    FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION, LAG_MIN_VARIANCE, LAG_POINTS,
+    MEMSUM_FRACTIONS, lagged_column,
 };
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{

@@ -310,8 +310,8 @@ pub enum HiddenEffect {
     SlowCovariate,
     /// `threshold`: a step of A = 2 when `load` exceeds 0.6 (load is an OU process, mean 0.5).
     Threshold,
-    /// `lag`: linear in `temp_lag` passed through a first-order lag of 25 s (A = 1.2 per 3 °C);
-    /// `temp_lag` steps between set points, so the lag matters.
+    /// `lag`: linear in `temp_lag` passed through a first-order lag of 10 s (A = 1.2 per 3 °C);
+    /// `temp_lag` steps between set points held 10–40 s, so the lag matters.
     Lag,
     /// `covariate_direction`: `dir × ` linear in `humid` (A = 1.2 per 5 %).
     CovariateDirection,
@@ -388,7 +388,7 @@ impl HiddenEffect {
 
     /// The term that captures the effect (the "achievable" refit adds it): `col:temp_fast`,
     /// `col:temp_slow`, `bins:load:16` (knots dense enough to follow the step), `lag:temp_lag`, `dbins:humid`, `dbins:position`,
-    /// `table:1` (a knot every track, so a bump of σ = 1.5 tracks is resolved), `memsum`;
+    /// `table:2` (a knot every other track, so a bump of σ = 1.5 tracks is resolved), `memsum`;
     /// `None` for the interaction (no built-in term multiplies a column by position).
     pub fn true_term(self) -> Option<&'static str> {
         match self {
@@ -398,7 +398,7 @@ impl HiddenEffect {
             HiddenEffect::Lag => Some("lag:temp_lag"),
             HiddenEffect::CovariateDirection => Some("dbins:humid"),
             HiddenEffect::PositionDirection => Some("dbins:position"),
-            HiddenEffect::Defect => Some("table:1"),
+            HiddenEffect::Defect => Some("table:2"),
             HiddenEffect::SummedMemory => Some("memsum"),
             HiddenEffect::Interaction => None,
         }
@@ -480,6 +480,9 @@ pub enum FamilyError {
     #[error(transparent)]
     Log(#[from] LogError),
 }
+
+/// Time constant of the hidden lag effect, s.
+const LAG_S: f64 = 10.0;
 
 /// Substreams of the seed, one per random process.
 mod stream {
@@ -678,9 +681,9 @@ pub fn generate(config: &FamilyConfig) -> Result<FamilyRun, FamilyError> {
         let phase = r.range(0.0, std::f64::consts::TAU);
         let mut x: f64 = 0.0;
         let mut prev_t = 0.0;
-        // temp_lag: set points held for exponential times (mean 60 s), the effect's lagged state.
+        // temp_lag: set points held 10–40 s, and the effect's lagged state.
         let mut set = 45.0 + 3.0 * r.normal();
-        let mut next_change = r.range(20.0, 100.0);
+        let mut next_change = r.range(10.0, 40.0);
         let mut lag_state = set;
         for k in 0..n {
             let dt = times[k] - prev_t;
@@ -712,15 +715,15 @@ pub fn generate(config: &FamilyConfig) -> Result<FamilyRun, FamilyError> {
                     x
                 }
                 "temp_lag" => {
-                    // Integrate the 25 s lag exactly over the piecewise-constant set point.
+                    // Integrate the lag exactly over the piecewise-constant set point.
                     let mut at = times[k] - dt;
                     while next_change <= times[k] {
-                        lag_state = set + (lag_state - set) * (-(next_change - at) / 25.0).exp();
+                        lag_state = set + (lag_state - set) * (-(next_change - at) / LAG_S).exp();
                         at = next_change;
                         set = 45.0 + 3.0 * r.normal();
-                        next_change += r.range(20.0, 100.0);
+                        next_change += r.range(10.0, 40.0);
                     }
-                    lag_state = set + (lag_state - set) * (-(times[k] - at) / 25.0).exp();
+                    lag_state = set + (lag_state - set) * (-(times[k] - at) / LAG_S).exp();
                     lagged[k] = lag_state;
                     set + 0.05 * noise
                 }
