@@ -204,7 +204,9 @@ pub(crate) fn candidate_terms(
                 vec![format!("col:{name}"), format!("dbins:{name}")]
             }
             FeatureOrigin::Covariate => vec![format!("dbins:{name}")],
-            FeatureOrigin::SummedMemory => vec!["memsum".into(), "memory".into()],
+            // Summed memory × direction: the nearest rest *ahead* of the approach matters, and
+            // that is `memory` (one curve per approach direction); `memsum` has no direction.
+            FeatureOrigin::SummedMemory => vec!["memory".into(), "memsum".into()],
             FeatureOrigin::Lagged => lag_terms(name),
         };
     }
