@@ -19,8 +19,10 @@
 //! `tests/it/family.rs` includes this file, so the test and the README numbers come from the
 //! same code.
 
-use biasctl::diagnose::{DiagnoseConfig, Diagnosis, diagnose_model, suggestion_path_from};
-use biasctl::fit::{FitOptions, fit};
+use biasctl::diagnose::{
+    CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, diagnose_model, suggestion_path_from,
+};
+use biasctl::fit::{CheckedFitOptions, FitOptions, fit};
 use biasctl::log::Log;
 use biasctl::model::{FittedModel, ModelSpec};
 use biasctl::sim::family::{FamilyConfig, FamilyDrive, HiddenEffect, NO_EFFECT_COLUMNS, generate};
@@ -57,10 +59,15 @@ pub fn with_term(terms: &[String], term: &str) -> Vec<String> {
     out
 }
 
+/// The fit settings (the defaults, checked).
+pub fn fit_options() -> CheckedFitOptions {
+    FitOptions::default().check().expect("default fit options")
+}
+
 /// Fits `terms` on `log`.
 pub fn fit_terms(terms: &[String], log: &Log) -> FittedModel {
     let spec = ModelSpec::parse(&terms.join(",")).expect("family terms parse");
-    fit(&spec, log, &FitOptions::default()).expect("family fit")
+    fit(&spec, log, &fit_options()).expect("family fit")
 }
 
 /// Residual std of `model`'s causal replay over `log`, counts.
@@ -105,11 +112,13 @@ impl Outcome {
 }
 
 /// The diagnosis settings of the scoreboard (the defaults, seeded).
-pub fn config(seed: u64) -> DiagnoseConfig {
+pub fn config(seed: u64) -> CheckedDiagnoseConfig {
     DiagnoseConfig {
         seed,
         ..DiagnoseConfig::default()
     }
+    .check()
+    .expect("default diagnosis settings")
 }
 
 /// The first flagged feature of a diagnosis.
@@ -139,7 +148,7 @@ pub fn run(drive: &FamilyDrive, effects: &[HiddenEffect], seed: u64, n: usize) -
     // An edit that cannot be fitted (a term the model already holds under another setting)
     // recovers nothing.
     let (edit, std_edit) =
-        match suggestion_path_from(&model, log, d, &config(seed), 1, &FitOptions::default()) {
+        match suggestion_path_from(&model, log, d, &config(seed), 1, &fit_options()) {
             Ok(path) => path
                 .first()
                 .map_or((None, std_base), |s| (Some(s.term.clone()), s.std_after)),

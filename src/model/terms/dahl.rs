@@ -12,8 +12,8 @@
 //! (at least 1 track apart), with signed weights (counts) fitted by least squares: fast and slow
 //! elements of opposite sign reproduce the overshoot/undershoot eq. 8 cannot. O(N) state.
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -183,6 +183,9 @@ impl Term for DahlTerm {
     fn name(&self) -> String {
         self.name.clone()
     }
+    fn spans_direction_offset(&self) -> bool {
+        true
+    }
     fn param_names(&self) -> Vec<String> {
         if self.search {
             vec!["Fc".into()]
@@ -284,4 +287,16 @@ impl TermState for DahlTermState {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Parses `dahl` or `dahl:N` (N Dahl elements, 1 to 16); the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    Ok(Arc::new(DahlSpec {
+        elements: t
+            .arg
+            .map(|a| t.count(a, "the number of Dahl elements", 16))
+            .transpose()?,
+    }))
 }

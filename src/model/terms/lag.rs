@@ -15,8 +15,8 @@
 //! absolute unit). As τ → 0 the term becomes `col:NAME`.
 
 use super::covariate_position;
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -201,6 +201,18 @@ impl TermState for LagState {
     }
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
+    }
+}
+
+/// Parses `lag:NAME`; the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    match t.arg {
+        Some(name) if !name.is_empty() => Ok(Arc::new(LagSpec {
+            column: name.to_string(),
+        })),
+        _ => Err(t.bad("`lag` needs a column name: `lag:NAME`".into())),
     }
 }
 

@@ -22,8 +22,8 @@
 //! seek costs amortised O(1); [`TermState::basis`] looks past the entries the move will pop,
 //! which [`TermState::update`] then pops. Relative sums never overflow, whatever the positions.
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -209,6 +209,13 @@ impl TermState for MemsumState {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Parses `memsum` (no argument); the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    t.no_arg(Arc::new(MemsumSpec))
 }
 
 #[cfg(test)]
