@@ -249,7 +249,7 @@ fn main() {
                     None => firsts.push((key, 1)),
                 }
             }
-            firsts.sort_by(|a, b| b.1.cmp(&a.1));
+            firsts.sort_by_key(|f| std::cmp::Reverse(f.1));
             let fmt = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{:.0} %", 100.0 * v));
             println!(
                 "{:<14} {:<34} {:>3}/{:<2} {:>9} {:>10} {:>6}/{:<2}  {} ({})",
