@@ -208,6 +208,13 @@ impl RestMemory {
         }
     }
 
+    /// Reserves room for `per_side` positions on each side, so that remembering up to that many
+    /// allocates nothing.
+    pub fn reserve(&mut self, per_side: usize) {
+        self.below.reserve(per_side);
+        self.above.reserve(per_side);
+    }
+
     /// Number of remembered positions (both sides).
     pub fn len(&self) -> usize {
         self.below.len() + self.above.len()
@@ -241,6 +248,11 @@ impl History {
     /// A history before the first row.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Reserves room for `per_side` uncrossed rest positions on each side ([`RestMemory::reserve`]).
+    pub fn reserve(&mut self, per_side: usize) {
+        self.memory.reserve(per_side);
     }
 
     /// Current head position (the last target), if any row was seen.

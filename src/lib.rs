@@ -85,6 +85,7 @@
 #![warn(missing_docs)]
 
 pub mod diagnose;
+pub mod export;
 pub mod fit;
 pub mod history;
 pub mod log;

@@ -328,11 +328,16 @@ pub struct LogSchema {
     pub units: Units,
     time_idx: usize,
     track_idx: usize,
-    bias_idx: usize,
+    bias_idx: Option<usize>,
     covariate_idx: Vec<usize>,
 }
 
 impl LogSchema {
+    /// Whether the log has a bias column (a plan read with [`BiasColumn::Optional`] may not).
+    pub fn has_bias(&self) -> bool {
+        self.bias_idx.is_some()
+    }
+
     /// Index of covariate `name` in [`Row::covariates`], if the log has it.
     pub fn covariate_index(&self, name: &str) -> Option<usize> {
         self.covariates.iter().position(|c| c == name)
@@ -386,10 +391,29 @@ impl Row {
     }
 }
 
+/// Whether a log must hold measurements.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum BiasColumn {
+    /// The bias column must exist and at least one row must be measured (fitting, scoring,
+    /// diagnosing): a missing column or a log without a measured row is an error.
+    #[default]
+    Required,
+    /// A plan (`predict`): the bias column may be missing or empty; every row is then read as
+    /// "moved, not measured".
+    Optional,
+}
+
+/// The path that means standard input (`--data -`).
+pub const STDIN_PATH: &str = "-";
+/// The name standard input has in messages.
+pub const STDIN_NAME: &str = "<stdin>";
+
 /// A streaming reader of a measurement log: constant memory in the number of rows.
 ///
 /// It yields `Result<Row, LogError>`; after the last row it yields one
-/// [`LogError::NoMeasuredRows`] if no row held a bias, then ends.
+/// [`LogError::NoMeasuredRows`] if no row held a bias (unless read with
+/// [`BiasColumn::Optional`]), then ends.
 pub struct LogReader<R: Read> {
     schema: LogSchema,
     csv: csv::Reader<BufReader<R>>,
@@ -397,18 +421,28 @@ pub struct LogReader<R: Read> {
     line_offset: u64,
     prev_time: Option<f64>,
     measured: u64,
+    bias_column: BiasColumn,
     done: bool,
 }
 
-impl LogReader<File> {
-    /// Opens `path` and reads its metadata and header.
+impl LogReader<Box<dyn Read>> {
+    /// Opens `path` (or standard input when `path` is `-`, named `<stdin>` in messages) and
+    /// reads its metadata and header.
     pub fn open(path: &Path, map: &ColumnMap) -> Result<Self, LogError> {
+        Self::open_with(path, map, BiasColumn::Required)
+    }
+
+    /// As [`LogReader::open`], with the bias column required or optional.
+    pub fn open_with(path: &Path, map: &ColumnMap, bias: BiasColumn) -> Result<Self, LogError> {
+        if path.as_os_str() == STDIN_PATH {
+            return Self::from_reader_with(STDIN_NAME, Box::new(io::stdin().lock()), map, bias);
+        }
         let file_name = path.display().to_string();
         let file = File::open(path).map_err(|source| LogError::Io {
             file: file_name.clone(),
             source,
         })?;
-        Self::from_reader(&file_name, file, map)
+        Self::from_reader_with(&file_name, Box::new(file), map, bias)
     }
 }
 
@@ -428,6 +462,16 @@ pub struct LogSummary {
 impl<R: Read> LogReader<R> {
     /// Reads metadata and header from any reader; `file` names the source in messages.
     pub fn from_reader(file: &str, reader: R, map: &ColumnMap) -> Result<Self, LogError> {
+        Self::from_reader_with(file, reader, map, BiasColumn::Required)
+    }
+
+    /// As [`LogReader::from_reader`], with the bias column required or optional.
+    pub fn from_reader_with(
+        file: &str,
+        reader: R,
+        map: &ColumnMap,
+        bias_column: BiasColumn,
+    ) -> Result<Self, LogError> {
         let mut buf = BufReader::new(reader);
         let io_err = |source| LogError::Io {
             file: file.to_string(),
@@ -497,9 +541,12 @@ impl<R: Read> LogReader<R> {
         };
         let time_idx = find(&map.time, "--time-col")?;
         let track_idx = find(&map.track, "--track-col")?;
-        let bias_idx = find(&map.bias, "--bias-col")?;
+        let bias_idx = match bias_column {
+            BiasColumn::Optional => columns.iter().position(|c| *c == map.bias),
+            _ => Some(find(&map.bias, "--bias-col")?),
+        };
         let covariate_idx: Vec<usize> = (0..columns.len())
-            .filter(|i| ![time_idx, track_idx, bias_idx].contains(i))
+            .filter(|&i| i != time_idx && i != track_idx && Some(i) != bias_idx)
             .collect();
         let covariates = covariate_idx.iter().map(|&i| columns[i].clone()).collect();
         let mut schema = LogSchema {
@@ -522,6 +569,7 @@ impl<R: Read> LogReader<R> {
             line_offset: line_no,
             prev_time: None,
             measured: 0,
+            bias_column,
             done: false,
         })
     }
@@ -554,7 +602,8 @@ impl<R: Read> LogReader<R> {
     }
 
     /// Reads the next row into `row` (reusing its allocation). Returns `Ok(false)` at the end of
-    /// the file; errors with [`LogError::NoMeasuredRows`] at the end if no row was measured.
+    /// the file; errors with [`LogError::NoMeasuredRows`] at the end if no row was measured
+    /// (unless the bias column is [`BiasColumn::Optional`]).
     pub fn read_into(&mut self, row: &mut Row) -> Result<bool, LogError> {
         let file = &self.schema.file;
         let more = self.csv.read_record(&mut self.record).map_err(|e| {
@@ -565,7 +614,7 @@ impl<R: Read> LogReader<R> {
             malformed(file, line, &e)
         })?;
         if !more {
-            if self.measured == 0 {
+            if self.measured == 0 && self.bias_column == BiasColumn::Required {
                 return Err(LogError::NoMeasuredRows {
                     file: file.clone(),
                     column: self.schema.map.bias.clone(),
@@ -624,7 +673,10 @@ impl<R: Read> LogReader<R> {
             });
         }
         let track = required(s.track_idx)?;
-        let bias = number(s.bias_idx)?;
+        let bias = match s.bias_idx {
+            Some(idx) => number(idx)?,
+            None => None,
+        };
         row.covariates.clear();
         for &idx in &s.covariate_idx {
             row.covariates.push(required(idx)?);
@@ -687,9 +739,14 @@ pub struct Log {
 }
 
 impl Log {
-    /// Reads a whole log file.
+    /// Reads a whole log file (`-`: standard input).
     pub fn read(path: &Path, map: &ColumnMap) -> Result<Self, LogError> {
-        let mut reader = LogReader::open(path, map)?;
+        Self::read_with(path, map, BiasColumn::Required)
+    }
+
+    /// Reads a whole log file (`-`: standard input) with the bias column required or optional.
+    pub fn read_with(path: &Path, map: &ColumnMap, bias: BiasColumn) -> Result<Self, LogError> {
+        let mut reader = LogReader::open_with(path, map, bias)?;
         let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             schema: reader.schema,
@@ -699,7 +756,17 @@ impl Log {
 
     /// Reads a whole log from a reader; `file` names it in messages.
     pub fn from_reader<R: Read>(file: &str, reader: R, map: &ColumnMap) -> Result<Self, LogError> {
-        let mut reader = LogReader::from_reader(file, reader, map)?;
+        Self::from_reader_with(file, reader, map, BiasColumn::Required)
+    }
+
+    /// As [`Log::from_reader`], with the bias column required or optional.
+    pub fn from_reader_with<R: Read>(
+        file: &str,
+        reader: R,
+        map: &ColumnMap,
+        bias: BiasColumn,
+    ) -> Result<Self, LogError> {
+        let mut reader = LogReader::from_reader_with(file, reader, map, bias)?;
         let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             schema: reader.schema,
@@ -891,6 +958,34 @@ mod tests {
             );
             assert!(err.starts_with("t.csv"), "{err}");
         }
+    }
+
+    #[test]
+    fn a_plan_may_lack_the_bias_column_or_every_measurement() {
+        // Reference: the rows as written; with BiasColumn::Optional nothing is measured and
+        // no error is raised, and a covariate keeps its place.
+        let read_plan = |text: &str| {
+            Log::from_reader_with(
+                "p.csv",
+                text.as_bytes(),
+                &ColumnMap::default(),
+                BiasColumn::Optional,
+            )
+        };
+        let plan = read_plan("time_s,track,temp_c\n0,100,25\n0.5,120,26\n").unwrap();
+        assert!(!plan.schema.has_bias());
+        assert_eq!(plan.schema.covariates, vec!["temp_c".to_string()]);
+        assert_eq!(plan.rows[1].covariates, vec![26.0]);
+        assert_eq!(plan.measured_count(), 0);
+        let empty = read_plan("time_s,track,bias\n0,100,\n0.5,120,\n").unwrap();
+        assert!(empty.schema.has_bias() && empty.measured_count() == 0);
+        // Other bad input is still an error naming line and column.
+        let e = read_plan("time_s,track\n0,100\n0.5,x\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("p.csv: line 3, column 2 (`track`)"), "{e}");
+        // Required (the default) keeps both errors.
+        assert!(read("time_s,track\n0,1\n").is_err());
     }
 
     #[test]

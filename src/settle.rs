@@ -491,6 +491,9 @@ impl Scan<'_> {
     }
 }
 
+/// A sample k with a_k = 0 and its coefficients `[ce, cv, cu]` ([`HandoffTable::export_rows`]).
+pub type ZeroGainRow = (usize, [f64; 3]);
+
 /// Per-controller, per-horizon coefficients of the handoff bounds (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct HandoffTable {
@@ -557,6 +560,20 @@ impl HandoffTable {
     /// ∂z/∂d of the controller (µm·samples per count).
     pub fn dz_dbias(&self) -> f64 {
         self.dz_dbias
+    }
+
+    /// The table as the C export writes it: per sample k the bounds' coefficients
+    /// `[−ce/a, −cv/a, −cu/a, 1/|a|]` (`[0, 0, 0, ∞]` where a_k = 0), and the samples with
+    /// a_k = 0 as `(k, [ce, cv, cu])` in ascending k.
+    pub fn export_rows(&self) -> (Vec<[f64; 4]>, Vec<ZeroGainRow>) {
+        let rows = self.coef.iter().map(|c| [c.pe, c.pv, c.pu, c.w]).collect();
+        let mut zeros: Vec<ZeroGainRow> = self
+            .zero
+            .iter()
+            .map(|z| (z.k, [z.ce, z.cv, z.cu]))
+            .collect();
+        zeros.sort_by_key(|z| z.0);
+        (rows, zeros)
     }
 
     /// One plus the largest k with a_k = 0 and |c_k| > δ (0 if none): no settle index below it.

@@ -5,6 +5,7 @@ mod check;
 mod common;
 mod demo;
 mod diagnose;
+mod export;
 mod fit;
 mod ladder;
 mod plot;
@@ -49,6 +50,8 @@ enum Command {
     Ladder(ladder::Args),
     /// Settle-optimal integrator start value at the seek → track-following handoff.
     Settle(settle::Args),
+    /// Export a fitted model for firmware (`export c`: C99 state struct, init, step, peek).
+    Export(export::Args),
 }
 
 /// Parses the command line (exiting on `--help`, `--version` and flag errors, as clap does)
@@ -100,5 +103,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(a) => diagnose::run(a),
         Command::Ladder(a) => ladder::run(a),
         Command::Settle(a) => settle::run(a),
+        Command::Export(a) => export::run(a),
     }
 }

@@ -16,7 +16,10 @@ pub mod registry;
 pub mod term;
 pub mod terms;
 
-pub use predictor::{NextPrediction, Predictor, predict_next};
+pub use predictor::{
+    NextPrediction, Predictor, REST_CAPACITY, ReplayError, ReplaySummary, RowPrediction,
+    StartValues, predict_next, replay_stream,
+};
 
 use crate::log::Log;
 use crate::output::{OutputError, write_string_atomic};
@@ -548,13 +551,19 @@ impl FittedModel {
     /// Checks that `log` has the columns this model was fitted on (names of the three required
     /// columns as read, and every covariate the terms use).
     pub fn check_log(&self, log: &Log) -> Result<(), ModelError> {
-        let map = &log.schema.map;
+        self.check_schema(&log.schema)
+    }
+
+    /// As [`FittedModel::check_log`] for a log's header alone (a streamed log); the bias
+    /// column's name is not compared when the log has none (a plan).
+    pub fn check_schema(&self, schema: &crate::log::LogSchema) -> Result<(), ModelError> {
+        let map = &schema.map;
         for (what, model, now, flag) in [
             ("time", &self.columns.time, &map.time, "--time-col"),
             ("track", &self.columns.track, &map.track, "--track-col"),
             ("bias", &self.columns.bias, &map.bias, "--bias-col"),
         ] {
-            if model != now {
+            if model != now && (what != "bias" || schema.has_bias()) {
                 return Err(ModelError::ColumnMismatch {
                     what,
                     model: model.clone(),

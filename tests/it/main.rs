@@ -4,10 +4,12 @@
 mod check;
 mod common;
 mod diagnose;
+mod export;
 mod extend;
 mod family;
 mod model;
 mod plot;
+mod predict_plan;
 mod real;
 mod report;
 mod review;
