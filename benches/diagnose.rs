@@ -21,7 +21,7 @@ fn log() -> Log {
         w.write_row(t, rng.below(250) as f64, Some(0.0), &[])
             .expect("write to memory");
     }
-    let text = w.into_inner();
+    let text = w.into_inner().expect("write to memory");
     Log::from_reader("bench.csv", text.as_slice(), &ColumnMap::default()).expect("valid log")
 }
 

@@ -793,45 +793,62 @@ pub struct WorstCase {
 }
 
 impl SettleReport {
+    /// The absolute integrator start value (µm·samples) of a start value `relative` to the
+    /// converged value: `z_converged + relative` (zero feedforward, relative 0, starts the
+    /// integrator at its converged value for this bias).
+    pub fn absolute(&self, relative: f64) -> f64 {
+        self.z_converged + relative
+    }
+
     /// The bounds of Fig. 15 as CSV: `k,time_s,upper,lower,upper_min,lower_max` (start values in
     /// µm·samples relative to the converged value; time in s). A bound that does not exist at a
     /// sample (at k = 0 no start value puts e(0) = −step in the window) is an empty cell.
     pub fn bounds_csv(&self) -> String {
         let b = &self.bounds;
-        let mut s = String::from("k,time_s,upper,lower,upper_min,lower_max\n");
-        for k in 0..b.upper().len() {
-            s.push_str(&format!(
-                "{k},{:.7},{},{},{},{}\n",
-                k as f64 * self.ts_s,
+        let header = ["k", "time_s", "upper", "lower", "upper_min", "lower_max"].map(String::from);
+        let rows = (0..b.upper().len()).map(|k| {
+            vec![
+                k.to_string(),
+                format!("{:.7}", k as f64 * self.ts_s),
                 csv_cell(b.upper()[k]),
                 csv_cell(b.lower()[k]),
                 csv_cell(b.upper_min()[k]),
-                csv_cell(b.lower_max()[k])
-            ));
-        }
-        s
+                csv_cell(b.lower_max()[k]),
+            ]
+        });
+        csv_text(header.to_vec(), rows)
     }
 
     /// The responses of Fig. 16 as CSV: `k,time_s` and one `e_<choice>_um` column (µm) per
     /// start-value choice.
     pub fn responses_csv(&self) -> String {
-        let mut s = String::from("k,time_s");
-        for x in &self.responses {
-            s.push_str(&format!(",e_{}_um", x.name));
-        }
-        s.push('\n');
-        for k in 0..self.horizon {
-            s.push_str(&format!("{k},{:.7}", k as f64 * self.ts_s));
-            for x in &self.responses {
-                match x.e_um.get(k) {
-                    Some(e) => s.push_str(&format!(",{}", csv_cell(*e))),
-                    None => s.push(','),
-                }
-            }
-            s.push('\n');
-        }
-        s
+        let mut header = vec!["k".to_string(), "time_s".to_string()];
+        header.extend(self.responses.iter().map(|x| format!("e_{}_um", x.name)));
+        let rows = (0..self.horizon).map(|k| {
+            let mut row = vec![k.to_string(), format!("{:.7}", k as f64 * self.ts_s)];
+            row.extend(
+                self.responses
+                    .iter()
+                    .map(|x| x.e_um.get(k).map_or(String::new(), |e| csv_cell(*e))),
+            );
+            row
+        });
+        csv_text(header, rows)
     }
+}
+
+/// A header and rows as CSV text through [`crate::log::csv_writer`] (quoting where needed).
+fn csv_text(header: Vec<String>, rows: impl Iterator<Item = Vec<String>>) -> String {
+    let mut w = crate::log::csv_writer(Vec::new());
+    // Writing to memory cannot fail.
+    let _ = w.write_record(&header);
+    for r in rows {
+        let _ = w.write_record(&r);
+    }
+    w.into_inner()
+        .ok()
+        .and_then(|b| String::from_utf8(b).ok())
+        .unwrap_or_default()
 }
 
 /// A CSV cell: the number, or an empty cell where it is not finite (no bound exists at that

@@ -29,6 +29,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !s.covariates.is_empty() {
         println!("  covariates: {}", s.covariates.join(", "));
     }
+    for note in &s.notes {
+        println!("  note: {note}");
+    }
     for m in &s.metadata {
         println!("  # {m}");
     }

@@ -29,6 +29,22 @@ pub struct ColumnArgs {
     /// else tracks for the column `track`, else the track column's name.
     #[arg(long, value_name = "LABEL", value_parser = unit_label)]
     pub track_unit: Option<String>,
+    /// Field delimiter: `,` `;` or `tab` (also `comma`, `semicolon`, `\t`); default: sniffed
+    /// from the header. With `;` or tab a number may use a decimal comma (`0,25`).
+    #[arg(long, value_name = "CHAR", value_parser = delimiter)]
+    pub delimiter: Option<u8>,
+}
+
+/// Parses `--delimiter` into its byte (clap names the flag in the error).
+fn delimiter(text: &str) -> Result<u8, String> {
+    match text {
+        "," | "comma" => Ok(b','),
+        ";" | "semicolon" => Ok(b';'),
+        "tab" | "\\t" | "\t" => Ok(b'\t'),
+        _ => Err(format!(
+            "`{text}` is not a delimiter biasctl reads; use `,`, `;` or `tab`"
+        )),
+    }
 }
 
 /// Validates a `--bias-unit` / `--track-unit` label (clap names the flag in the error).
@@ -48,6 +64,7 @@ impl Default for ColumnArgs {
             bias_col: m.bias,
             bias_unit: None,
             track_unit: None,
+            delimiter: None,
         }
     }
 }
@@ -59,6 +76,7 @@ impl ColumnArgs {
             time: self.time_col.clone(),
             track: self.track_col.clone(),
             bias: self.bias_col.clone(),
+            delimiter: self.delimiter,
         }
     }
 
@@ -75,6 +93,9 @@ impl ColumnArgs {
     /// Reads the whole log at `path` with these column names and unit labels.
     pub fn read_log(&self, path: &Path) -> anyhow::Result<Log> {
         let mut log = Log::read(path, &self.map())?;
+        for note in &log.schema.notes {
+            eprintln!("note: {note}");
+        }
         log.schema.units = self.units(&log.schema)?;
         Ok(log)
     }

@@ -184,7 +184,10 @@ fn draw(a: &Args) -> anyhow::Result<String> {
             let refs: Vec<(&str, _)> = preds.iter().map(|(l, p)| (l.as_str(), p)).collect();
             views::errors(&refs, units)
         }
-        Kind::Loop => views::dahl_loop(&single()?.predict_log(&log)?, units),
+        Kind::Loop => {
+            let (label, m) = model(a.model.as_deref().unwrap_or_default(), &log)?;
+            views::dahl_loop(&m.predict_log(&log)?, units, &label)
+        }
         Kind::Diagnose => {
             let m = single()?;
             let residual = replay_model(&m, &log)?.residual;

@@ -143,7 +143,7 @@ fn write_predictions<R: std::io::Read>(
     flush_each: bool,
 ) -> anyhow::Result<ReplaySummary> {
     let s = reader.schema().clone();
-    let mut w = csv::WriterBuilder::new().from_writer(out);
+    let mut w = biasctl::log::csv_writer(out);
     let mut header: Vec<String> = vec![s.map.time.clone(), s.map.track.clone(), s.map.bias.clone()];
     header.extend(s.covariates.iter().cloned());
     header.extend(["predicted".to_string(), "residual".to_string()]);

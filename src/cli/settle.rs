@@ -2,6 +2,7 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::Context;
+use biasctl::log::{DEFAULT_BIAS_UNIT, Units};
 use biasctl::model::{FittedModel, NextPrediction, predict_next};
 use biasctl::output::write_string_atomic;
 use biasctl::settle::{SettleReport, analyse};
@@ -46,6 +47,7 @@ struct ModelLink {
     model: PathBuf,
     next: NextPrediction,
     delta_b: f64,
+    units: Units,
 }
 
 /// Replays the log through the model and predicts the handoff bias; Δb is the model's error std.
@@ -55,6 +57,23 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
     };
     let model = FittedModel::load(model_path)?;
     let log = args.columns.read_log(data)?;
+    let units = log.schema.units.clone();
+    // The settle plant is a disk drive's: its input is in DAC counts. A bias in another unit
+    // (N, mA) cannot be fed to it without a conversion the tool does not know.
+    if units.bias != DEFAULT_BIAS_UNIT {
+        anyhow::bail!(
+            "settle --model: {} measures bias in `{}`, but the settle plant ({}) is a disk drive \
+             driven in `{DEFAULT_BIAS_UNIT}`; the predicted bias cannot be used as a start value. \
+             Give --bias-unit {DEFAULT_BIAS_UNIT} if the log's bias is in DAC counts, or leave \
+             out --model and give --bias and --bias-uncertainty in counts",
+            log.schema.file,
+            units.bias,
+            args.settle.plant.as_ref().map_or_else(
+                || args.settle.preset.clone().unwrap_or("paper1997".into()),
+                |p| p.display().to_string()
+            )
+        );
+    }
     let next = predict_next(&model, &log, args.target)
         .with_context(|| format!("predicting the handoff bias from {}", data.display()))?;
     super::common::warn_outside_range(&model, &log.schema.file, &[next.target]);
@@ -66,6 +85,7 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
         model: model_path.clone(),
         next,
         delta_b,
+        units,
     }))
 }
 
@@ -89,6 +109,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if args.json {
         let mut value = serde_json::to_value(&report)?;
+        if let Some(obj) = value.as_object_mut() {
+            let abs = |v: Option<f64>| v.map(|v| report.absolute(v));
+            obj.insert(
+                "absolute".into(),
+                serde_json::json!({
+                    "zero_ff": report.absolute(0.0),
+                    "ff_midpoint": abs(report.ff_midpoint),
+                    "paper_robust": abs(report.paper_robust.as_ref().map(|p| p.ff)),
+                    "robust": abs(report.robust.as_ref().map(|c| c.ff)),
+                }),
+            );
+        }
         if let (Some(l), Some(obj)) = (&link, value.as_object_mut()) {
             obj.insert(
                 "prediction".into(),
@@ -98,6 +130,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "bias": l.next.bias,
                     "delta_b": l.delta_b,
                     "rows_replayed": l.next.rows_replayed,
+                    "units": l.units,
                     "robust_worst_settle_ms": report.worst_case.robust_worst_settle_ms,
                     "zero_ff_worst_settle_ms": report.worst_case.zero_ff_worst_settle_ms,
                 }),
@@ -107,12 +140,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         if let Some(l) = &link {
             println!(
-                "model {}: predicted bias {:.3} counts at track {} (after {} rows), Δb = {:.3} counts",
+                "model {}: predicted bias {:.3} {b} at {} {} (after {} rows), Δb = {:.3} {b}",
                 l.model.display(),
                 l.next.bias,
                 l.next.target,
+                l.units.position,
                 l.next.rows_replayed,
-                l.delta_b
+                l.delta_b,
+                b = l.units.bias,
             );
             println!(
                 "  worst-case settle for ±Δb: robust choice {}, zero feedforward {}",
@@ -140,30 +175,31 @@ fn print_text(r: &SettleReport) {
     println!("closed-loop |poles| = [{}]", poles.join(", "));
     println!("dz/dbias = {:.5} (µm·samples per count)", r.dz_dbias);
     println!(
-        "step {} µm, window ±{} µm, horizon {} samples, hold {}; start values relative to the converged value {:.4}",
+        "step {} µm, window ±{} µm, horizon {} samples, hold {}; start values (µm·samples) relative to the converged value {:.4}, absolute in brackets",
         r.step_um, r.window_um, r.horizon, r.hold, r.z_converged
     );
+    let abs = |v: f64| format!("{v:.4} [{:.4}]", r.absolute(v));
     println!(
-        "zero feedforward: {} (overshoot {:.1} %)",
+        "zero feedforward: {} (overshoot {:.1} %), start value {}",
         r.zero_ff_settle_ms
             .map_or("does not settle within the horizon".to_string(), |m| {
                 format!("settles in {m:.2} ms")
             }),
-        r.zero_ff_overshoot_pct
+        r.zero_ff_overshoot_pct,
+        abs(0.0)
     );
     match (r.k_star, r.ff_interval) {
         (Some(k), Some([lo, hi])) => println!(
             "optimal: k* = {k}, {} for start values in [{lo:.4}, {hi:.4}] (choice {})",
             ms(r.optimal_settle_ms),
-            r.ff_midpoint
-                .map_or("none".to_string(), |m| format!("{m:.4}"))
+            r.ff_midpoint.map_or("none".to_string(), abs)
         ),
         _ => println!("optimal: no start value settles within the horizon"),
     }
     match &r.paper_robust {
         Some(p) => println!(
-            "paper's robust choice: {:.4} (first local minimum of the upper bound at k = {}): {}",
-            p.ff,
+            "paper's robust choice: {} (first local minimum of the upper bound at k = {}): {}",
+            abs(p.ff),
             p.k_min,
             ms(p.settle_ms)
         ),
@@ -172,16 +208,16 @@ fn print_text(r: &SettleReport) {
     let w = &r.worst_case;
     match &r.robust {
         Some(c) => println!(
-            "robust for ±{} counts (shift ±{:.4}): {:.4}, worst case {} (simulated {}); zero feedforward worst case {}",
+            "robust for ±{:.3} counts (shift ±{:.4}): {}, worst case {} (simulated {}); zero feedforward worst case {}",
             w.delta_b,
             w.shift,
-            c.ff,
+            abs(c.ff),
             ms(Some(c.worst_settle_ms)),
             ms(c.simulated_worst_settle_ms),
             ms(w.zero_ff_worst_settle_ms)
         ),
         None => println!(
-            "robust for ±{} counts: no start value settles for every bias within the horizon",
+            "robust for ±{:.3} counts: no start value settles for every bias within the horizon",
             w.delta_b
         ),
     }

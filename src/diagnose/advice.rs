@@ -45,7 +45,7 @@ impl Shape {
             .map(|x| format!(" near {feature} ≈ {}", short(x)))
             .unwrap_or_default();
         match self {
-            Shape::Flat => "flat".to_string(),
+            Shape::Flat => "is flat".to_string(),
             Shape::Increasing => format!("increases with {feature}"),
             Shape::Decreasing => format!("decreases with {feature}"),
             Shape::Peaked => format!("peaks{at}"),
@@ -56,7 +56,7 @@ impl Shape {
             Shape::StepDown => format!("steps down{at}"),
             Shape::SaturatingRise => format!("rises at small {feature}, then levels off"),
             Shape::SaturatingFall => format!("falls at small {feature}, then levels off"),
-            Shape::Irregular => "irregular".to_string(),
+            Shape::Irregular => "varies irregularly".to_string(),
         }
     }
 }

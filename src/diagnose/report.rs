@@ -1,6 +1,5 @@
 //! The diagnosis as data (serde, JSON contract), as text, and as per-feature CSV curves.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -383,11 +382,25 @@ fn percent(x: f64) -> String {
     format!("{:.1} %", 100.0 * x)
 }
 
+/// A p-value for a table cell: `< 0.0001` below 1e-4 (the permutation and dip tests resolve
+/// nothing finer), else four significant decimals.
 fn p_text(p: f64) -> String {
-    if p < 1e-3 {
-        format!("{p:.1e}")
+    if p < 1e-4 {
+        "< 0.0001".to_string()
+    } else if p < 1e-3 {
+        format!("{p:.4}")
     } else {
         format!("{p:.3}")
+    }
+}
+
+/// A p-value in a sentence: `p < 0.0001` or `p = 0.012`.
+fn p_sentence(p: f64) -> String {
+    let t = p_text(p);
+    if t.starts_with('<') {
+        format!("p {t}")
+    } else {
+        format!("p = {t}")
     }
 }
 
@@ -395,7 +408,7 @@ fn p_text(p: f64) -> String {
 fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> String {
     let mut s = format!(
         "The residual{} follows `{}`: it {}; `{}` explains {} of the residual variance out of \
-         sample (p = {}, family-wise).",
+         sample ({}, family-wise).",
         if f.by_direction {
             " times the direction of the last move"
         } else {
@@ -405,7 +418,7 @@ fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> String {
         f.shape.describe(&f.name, f.shape_at),
         f.name,
         percent(f.explained),
-        p_text(f.p_value)
+        p_sentence(f.p_value)
     );
     match &f.suggested_term {
         Some(t) => {
@@ -474,9 +487,9 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
     match (w.white, w.ljung_box_p) {
         (false, Some(p)) => parts.push(format!(
             "The residuals are not white in seek order (lag-1 autocorrelation {:.2}, Ljung–Box \
-             p = {}): something slow is left.",
+             {}): something slow is left.",
             w.lag1,
-            p_text(p)
+            p_sentence(p)
         )),
         _ => parts.push(format!(
             "The residuals look white in seek order (lag-1 autocorrelation {:.2}).",
@@ -485,9 +498,9 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
     }
     if let Some(t) = d.dip.as_ref().filter(|t| t.rejects_unimodality(0.05)) {
         parts.push(format!(
-            "Their histogram has more than one hump (Hartigans' dip test p = {}): separate \
+            "Their histogram has more than one hump (Hartigans' dip test {}): separate \
              populations, as from a missing direction or hysteresis term.",
-            p_text(t.p_value)
+            p_sentence(t.p_value)
         ));
     }
     if let Some(pos) = d.features.iter().find(|f| f.name == "position")
@@ -495,10 +508,10 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
         && p <= alpha
     {
         parts.push(format!(
-            "A linear trend against position remains ({} {}, p = {}).",
+            "A linear trend against position remains ({} {}, {}).",
             short(slope),
             d.units.per_position(),
-            p_text(p)
+            p_sentence(p)
         ));
     }
     let skipped: Vec<String> = d
@@ -590,11 +603,13 @@ impl Diagnosis {
         let w = &self.whiteness;
         out.push_str("\nResidual checks:\n");
         out.push_str(&format!(
-            "  whiteness: lag-1 autocorrelation {:.3}; Ljung–Box Q = {} over {} lags, p = {} → {}\n",
+            "  whiteness: lag-1 autocorrelation {:.3}; Ljung–Box Q = {} over {} lags, {} → {}\n",
             w.lag1,
             w.ljung_box_q.map(short).unwrap_or_else(|| "-".into()),
             w.lags,
-            w.ljung_box_p.map(p_text).unwrap_or_else(|| "-".into()),
+            w.ljung_box_p
+                .map(p_sentence)
+                .unwrap_or_else(|| "p -".into()),
             if w.white { "white" } else { "NOT white" }
         ));
         out.push_str(&format!(
@@ -606,9 +621,9 @@ impl Diagnosis {
         ));
         if let Some(t) = &self.dip {
             out.push_str(&format!(
-                "  dip test of unimodality: D {:.4}, p = {} ({})\n",
+                "  dip test of unimodality: D {:.4}, {} ({})\n",
                 t.statistic,
-                p_text(t.p_value),
+                p_sentence(t.p_value),
                 if t.rejects_unimodality(0.05) {
                     "more than one hump"
                 } else {
@@ -620,10 +635,10 @@ impl Diagnosis {
             && let (Some(s), Some(p)) = (pos.slope, pos.slope_p)
         {
             out.push_str(&format!(
-                "  trend against position: {} {}, p = {}\n",
+                "  trend against position: {} {}, {}\n",
                 short(s),
                 self.units.per_position(),
-                p_text(p)
+                p_sentence(p)
             ));
         }
         out.push_str(&format!("\nSummary: {}\n", self.summary));
@@ -643,7 +658,8 @@ impl Diagnosis {
             }
             let path = dir.join(format!("residual_vs_{}.csv", file_safe(&f.name)));
             write_atomic(&path, |w| -> std::io::Result<()> {
-                writeln!(w, "bin,lower,upper,centre,mean,std,count")?;
+                let mut w = crate::log::csv_writer(w);
+                w.write_record(["bin", "lower", "upper", "centre", "mean", "std", "count"])?;
                 for (i, c) in f.curve.iter().enumerate() {
                     let num = |x: Option<f64>| x.map(|v| fmt_trimmed(v, 6)).unwrap_or_default();
                     let label = if c.centre.is_some() {
@@ -651,18 +667,17 @@ impl Diagnosis {
                     } else {
                         "missing".to_string()
                     };
-                    writeln!(
-                        w,
-                        "{label},{},{},{},{},{},{}",
+                    w.write_record([
+                        label,
                         num(c.lower),
                         num(c.upper),
                         num(c.centre),
                         fmt_trimmed(c.mean, 6),
                         fmt_trimmed(c.std, 6),
-                        c.count
-                    )?;
+                        c.count.to_string(),
+                    ])?;
                 }
-                Ok(())
+                w.flush()
             })?;
             written.push(path);
         }
