@@ -204,6 +204,10 @@ pub(crate) fn candidate_terms(
                 vec![format!("col:{name}"), format!("dbins:{name}")]
             }
             FeatureOrigin::Covariate => vec![format!("dbins:{name}")],
+            // Summed memory × direction: the nearest rest *ahead* of the approach matters, and
+            // that is `memory` (one curve per approach direction); `memsum` has no direction.
+            FeatureOrigin::SummedMemory => vec!["memory".into(), "memsum".into()],
+            FeatureOrigin::Lagged => lag_terms(name),
         };
     }
     match origin {
@@ -232,7 +236,16 @@ pub(crate) fn candidate_terms(
             v.extend(lag);
             v
         }
+        // `bins` cannot compute a summed-memory feature, so it is no fallback here.
+        FeatureOrigin::SummedMemory => vec!["memsum".into(), "memory".into()],
+        FeatureOrigin::Lagged => lag_terms(name),
     }
+}
+
+/// `lag:COL` (then `col:COL`) for a lagged covariate feature `<COL>@lag<τ>s`.
+fn lag_terms(name: &str) -> Vec<String> {
+    let col = super::features::lagged_column(name).unwrap_or(name);
+    vec![format!("lag:{col}"), format!("col:{col}")]
 }
 
 /// Whether the model's term list `existing` already holds `term` (any `dahl:N` counts as a Dahl

@@ -110,7 +110,10 @@ mod verify;
 pub use absorbed::{Absorption, FAST_FORGETTING, absorbed, rate_warnings};
 pub use advice::{DAHL_TERM, Shape};
 pub use discover::{DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover};
-pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
+pub use features::{
+    FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION, LAG_MIN_VARIANCE, LAG_POINTS,
+    MEMSUM_FRACTIONS, lagged_column,
+};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
     ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, diagnose_verified,

@@ -19,7 +19,7 @@
 
 use super::term::{Term, TermSpec};
 use super::terms::{
-    bins, by, covariate, dahl, direction, drift, intercept, memory, poly, seek, table,
+    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, poly, seek, table,
 };
 use super::{ModelError, SpecError};
 use std::sync::Arc;
@@ -92,6 +92,18 @@ pub static BUILTINS: &[BuiltinTerm] = &[
         Some("col:NAME"),
         covariate::parse,
         restore_as::<covariate::ColTerm>,
+    ),
+    row(
+        "lag",
+        Some("lag:NAME"),
+        lag::parse,
+        restore_as::<lag::LagTerm>,
+    ),
+    row(
+        "memsum",
+        Some("memsum"),
+        memsum::parse,
+        restore_as::<memsum::MemsumTerm>,
     ),
     row(
         "bins",

@@ -31,6 +31,7 @@
 //! ```
 
 pub mod drive;
+pub mod family;
 pub mod measure;
 pub mod sequence;
 

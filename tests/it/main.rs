@@ -6,6 +6,7 @@ mod common;
 mod diagnose;
 mod export;
 mod extend;
+mod family;
 mod fuzz;
 mod model;
 mod plot;
