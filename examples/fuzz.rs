@@ -10,7 +10,7 @@
 //! bug, and `cargo test` replays it from then on). Exit code 1 if anything was found.
 
 #[path = "../tests/it/fuzz.rs"]
-#[allow(dead_code, unused_imports)]
+#[allow(unused_imports)]
 mod fuzz;
 
 use std::time::Duration;

@@ -28,7 +28,7 @@ pub const MAX_DWELL_S: f64 = 1e6;
 /// A text that does not parse passes: the typed parse reports that with its line and column.
 pub fn check_toml_numbers(text: &str) -> Result<(), String> {
     fn walk(v: &toml::Value, path: &mut String) -> Result<(), String> {
-        let bad = |x: f64| !(x.abs() <= MAX_TOML_NUMBER);
+        let bad = |x: f64| !x.is_finite() || x.abs() > MAX_TOML_NUMBER;
         match v {
             toml::Value::Float(x) if !x.is_finite() => {
                 Err(format!("`{path}` = {x} is not a finite number"))

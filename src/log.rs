@@ -515,10 +515,13 @@ pub const STDIN_NAME: &str = "<stdin>";
 ///
 /// It yields `Result<Row, LogError>`; after the last row it yields one
 /// [`LogError::NoMeasuredRows`] if no row held a bias (unless read with
+/// What the CSV parser of a [`LogReader`] reads: the header line already read, then the rest.
+type CsvSource<R> = io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>;
+
 /// [`BiasColumn::Optional`]), then ends.
 pub struct LogReader<R: Read> {
     schema: LogSchema,
-    csv: csv::Reader<io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>>,
+    csv: csv::Reader<CsvSource<R>>,
     record: csv::StringRecord,
     /// Records read ahead to classify the columns, yielded before the rest of the file.
     lookahead: std::collections::VecDeque<csv::StringRecord>,

@@ -58,7 +58,11 @@ impl Rng {
     pub fn wide_number(&mut self) -> f64 {
         let exp = (self.next() % 601) as i32 - 300;
         let mant = 1.0 + (self.next() % 9000) as f64 / 1000.0;
-        let sign = if self.next() % 2 == 0 { 1.0 } else { -1.0 };
+        let sign = if self.next().is_multiple_of(2) {
+            1.0
+        } else {
+            -1.0
+        };
         sign * mant * 10f64.powi(exp)
     }
 }
@@ -137,7 +141,7 @@ pub fn mutate(rng: &mut Rng, bytes: &[u8]) -> Vec<u8> {
     for _ in 0..1 + rng.below(4) {
         let n = b.len().max(1);
         match rng.below(9) {
-            0 | 1 | 2 => {
+            0..=2 => {
                 // Replace a number (a run of digits, '.', 'e', '-', '+') with an extreme.
                 let starts: Vec<usize> = (0..b.len())
                     .filter(|&i| b[i].is_ascii_digit() && (i == 0 || !b[i - 1].is_ascii_digit()))
