@@ -1,6 +1,6 @@
 //! The one output layer: every byte biasctl writes goes through here.
 //!
-//! - [`write_atomic`] / [`write_string_atomic`] write one file safely (see [`file`]): a regular
+//! - [`write_atomic`] / [`write_string_atomic`] write one file safely (see [`file`](mod@file)): a regular
 //!   file is replaced atomically (temporary file in the target's directory, renamed into place,
 //!   the target's permissions kept, a symlink's target written); a device, FIFO or `/dev/stdout`
 //!   is written directly; `-` is stdout.
