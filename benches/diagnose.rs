@@ -15,7 +15,7 @@ use biasctl::diagnose::{
 use biasctl::fit::{CheckedFitOptions, fit};
 use biasctl::log::{ColumnMap, Log, LogWriter};
 use biasctl::model::ModelSpec;
-use biasctl::rng::SimRng;
+use biasctl::numeric::rng::SimRng;
 use criterion::{Criterion, criterion_group, criterion_main};
 
 const ROWS: usize = 100_000;

@@ -73,7 +73,7 @@ pub fn fit_terms(terms: &[String], log: &Log) -> FittedModel {
 /// Residual std of `model`'s causal replay over `log`, counts.
 pub fn residual_std(model: &FittedModel, log: &Log) -> f64 {
     let p = model.predict_log(log).expect("replay");
-    biasctl::stats::std_dev(&p.residual).unwrap_or(0.0)
+    biasctl::numeric::stats::std_dev(&p.residual).unwrap_or(0.0)
 }
 
 /// What one scenario on one seed gave.

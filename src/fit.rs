@@ -564,11 +564,11 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         warnings,
     };
     let pred = model.predict_log(log)?;
-    model.fit.position_range = crate::stats::range(&pred.positions);
-    let sst = crate::stats::sum_sq_about_mean(&pred.measured);
+    model.fit.position_range = crate::numeric::stats::range(&pred.positions);
+    let sst = crate::numeric::stats::sum_sq_about_mean(&pred.measured);
     let sse: f64 = pred.residual.iter().map(|e| e * e).sum();
-    model.fit.residual_std = crate::stats::std_dev(&pred.residual).unwrap_or(0.0);
-    model.fit.residual_rms = crate::stats::rms(&pred.residual).unwrap_or(0.0);
+    model.fit.residual_std = crate::numeric::stats::std_dev(&pred.residual).unwrap_or(0.0);
+    model.fit.residual_rms = crate::numeric::stats::rms(&pred.residual).unwrap_or(0.0);
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
     let f = &model.fit;
     if ![f.residual_std, f.residual_rms, f.r2, sse, sst]
@@ -588,7 +588,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::SimRng;
+    use crate::numeric::rng::SimRng;
 
     #[test]
     fn streaming_qr_matches_svd_least_squares() {

@@ -384,7 +384,7 @@ pub fn sign(x: f64) -> i8 {
 #[allow(clippy::float_cmp)] // positions are exact integers here; equality is meant
 mod tests {
     use super::*;
-    use crate::rng::SimRng;
+    use crate::numeric::rng::SimRng;
 
     /// Slow, obvious reference for the rest memory: keep every rest position with the time it was
     /// made, and call it crossed if any later move's closed interval [min, max] covered it.

@@ -14,7 +14,7 @@
 //! ```
 
 use crate::log::Units;
-use crate::stats::{self, DipTest, Histogram, Trend};
+use crate::numeric::stats::{self, DipTest, Histogram, Trend};
 use serde::{Deserialize, Serialize};
 
 /// An error computing a score.
@@ -255,7 +255,7 @@ impl Score {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::SimRng;
+    use crate::numeric::rng::SimRng;
 
     fn positions(n: usize) -> Vec<f64> {
         (0..n).map(|i| i as f64).collect()

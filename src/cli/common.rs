@@ -1,11 +1,11 @@
 //! Flags shared by several commands.
 
 use anyhow::Context;
+use biasctl::control::settle::SettleSpec;
 use biasctl::log::{
     ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL, Log, LogSchema, Units,
     check_unit_label,
 };
-use biasctl::settle::SettleSpec;
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -158,9 +158,9 @@ impl SettleArgs {
     pub fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
             Some(path) => {
-                let text = biasctl::limits::read_text(path)
+                let text = biasctl::log::limits::read_text(path)
                     .with_context(|| format!("cannot read plant file {}", path.display()))?;
-                biasctl::limits::check_toml_numbers(&text)
+                biasctl::log::limits::check_toml_numbers(&text)
                     .map_err(anyhow::Error::msg)
                     .with_context(|| format!("invalid plant file {}", path.display()))?;
                 toml::from_str::<SettleSpec>(&text)

@@ -7,7 +7,7 @@ use biasctl::diagnose::{
 };
 use biasctl::fit::FitOptions;
 use biasctl::model::FittedModel;
-use biasctl::output::write_atomic;
+use biasctl::render::write_atomic;
 use std::io::Write;
 use std::path::PathBuf;
 

@@ -4,7 +4,7 @@ use super::common::ColumnArgs;
 use anyhow::Context;
 use biasctl::diagnose::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
 use biasctl::model::{FittedModel, ModelSpec};
-use biasctl::output::write_atomic;
+use biasctl::render::write_atomic;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

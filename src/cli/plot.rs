@@ -3,15 +3,15 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::{Context, bail};
+use biasctl::control::settle::analyse;
 use biasctl::diagnose::{
     DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, ladder_terms, replay_model,
 };
 use biasctl::fit::{FitOptions, fit};
 use biasctl::log::Log;
 use biasctl::model::{FittedModel, ModelSpec};
-use biasctl::output::write_string_atomic;
 use biasctl::plot::{from_log, views};
-use biasctl::settle::analyse;
+use biasctl::render::write_string_atomic;
 use clap::ValueEnum;
 use std::path::{Path, PathBuf};
 

@@ -6,7 +6,7 @@ use biasctl::log::{BiasColumn, Log, LogReader, STDIN_PATH};
 use biasctl::model::{
     FittedModel, Prediction, ReplaySummary, RowPrediction, StartValues, replay_stream,
 };
-use biasctl::output::write_atomic;
+use biasctl::render::write_atomic;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

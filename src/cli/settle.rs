@@ -2,10 +2,10 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::Context;
+use biasctl::control::settle::analyse;
 use biasctl::log::{DEFAULT_BIAS_UNIT, Units};
 use biasctl::model::{FittedModel, NextPrediction, predict_next};
-use biasctl::output::write_string_atomic;
-use biasctl::settle::analyse;
+use biasctl::render::write_string_atomic;
 use std::path::PathBuf;
 
 /// Flags of `biasctl settle`.

@@ -162,7 +162,9 @@ pub fn discover(
     })?;
     let test_std = |m: &FittedModel| -> Result<Option<f64>, ModelDiagnosisError> {
         match test {
-            Some(t) => Ok(crate::stats::std_dev(&replay_model(m, t)?.residual)),
+            Some(t) => Ok(crate::numeric::stats::std_dev(
+                &replay_model(m, t)?.residual,
+            )),
             None => Ok(None),
         }
     };

@@ -72,7 +72,7 @@ pub struct FeatureTable {
 /// The `memsum_L` features at [`MEMSUM_FRACTIONS`] of the log's travel (none if it never moves).
 fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
     let tracks: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
-    let Some(travel) = crate::stats::range(&tracks)
+    let Some(travel) = crate::numeric::stats::range(&tracks)
         .map(|[a, b]| b - a)
         .filter(|t| *t > 0.0)
     else {
@@ -112,7 +112,8 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
         .map(|w| w[1].time_s - w[0].time_s)
         .filter(|d| *d > 0.0)
         .collect();
-    let median = crate::stats::percentile_sorted(&crate::stats::sorted(&steps), 50.0);
+    let median =
+        crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(&steps), 50.0);
     let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
     let hi = LAG_MAX_FRACTION * span;
     let Some(lo) = median.filter(|&m| m > 0.0 && hi > m) else {
@@ -127,7 +128,7 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
             continue; // a gap in the column would stall the lag
         }
         let raw: Vec<f64> = measured[k].iter().flatten().copied().collect();
-        let raw_var = crate::stats::std_dev(&raw).map_or(0.0, |s| s * s);
+        let raw_var = crate::numeric::stats::std_dev(&raw).map_or(0.0, |s| s * s);
         for p in LAG_POINTS {
             let tau = lo * (hi / lo).powf(p);
             let mut lag = FirstOrderLag::new(tau);
@@ -141,7 +142,7 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
             // A lag that keeps less than LAG_MIN_VARIANCE of the column's variance mostly
             // averages the column's own noise into a slow random series, which would match any
             // slow residual by chance: no feature then.
-            let var = crate::stats::std_dev(&lagged).map_or(0.0, |s| s * s);
+            let var = crate::numeric::stats::std_dev(&lagged).map_or(0.0, |s| s * s);
             if !(var >= LAG_MIN_VARIANCE * raw_var && var > 0.0) {
                 continue;
             }

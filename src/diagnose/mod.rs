@@ -128,9 +128,9 @@ pub use verify::{
 };
 
 use crate::history::Feature;
-use crate::output::OutputError;
-use crate::rng::SimRng;
-use crate::stats;
+use crate::numeric::rng::SimRng;
+use crate::numeric::stats;
+use crate::render::OutputError;
 use smoother::{Binned, FTest, Unusable};
 
 /// Smallest number of measured rows per cross-validation fold.

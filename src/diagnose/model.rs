@@ -195,7 +195,7 @@ pub fn ladder_fit(
             source: Box::new(source),
         })?;
         let prediction = replay_model(&model, test)?;
-        let std = crate::stats::std_dev(&prediction.residual).ok_or_else(|| {
+        let std = crate::numeric::stats::std_dev(&prediction.residual).ok_or_else(|| {
             ModelDiagnosisError::TooFewTestRows {
                 step,
                 file: test.schema.file.clone(),
@@ -293,7 +293,7 @@ pub fn suggestion_path_from(
             explained: top.explained,
             spec: spec_text,
             std_before: d.residual_std,
-            std_after: crate::stats::std_dev(&after.residual).unwrap_or(0.0),
+            std_after: crate::numeric::stats::std_dev(&after.residual).unwrap_or(0.0),
         });
         if step < steps {
             let table = table.get_or_insert_with(|| FeatureTable::from_log(log));

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::log::{Units, fmt_trimmed};
-use crate::output::write_atomic;
-use crate::stats;
+use crate::numeric::stats;
+use crate::render::write_atomic;
 
 use super::advice::{self, Point, Shape, short};
 use super::features::{FeatureColumn, FeatureOrigin};

@@ -10,7 +10,7 @@
 //! bin per value and two candidates: all values, or one bin. Missing values always form a bin of
 //! their own, also in the one-bin candidate, so "undefined" can itself be an effect.
 
-use crate::stats::reg_inc_beta;
+use crate::numeric::stats::reg_inc_beta;
 
 /// Fine-bin index of a missing value.
 pub(crate) const MISSING: u32 = u32::MAX;
@@ -427,7 +427,7 @@ pub(crate) fn f_test_ln_p(ssb: f64, sst: f64, groups: usize, n: usize) -> f64 {
     let f = (ssb / df1) / (ssw / df2);
     let x = df1 * f;
     let k = df1;
-    let ln = (k / 2.0 - 1.0) * (x / 2.0).ln() - x / 2.0 - crate::stats::ln_gamma(k / 2.0);
+    let ln = (k / 2.0 - 1.0) * (x / 2.0).ln() - x / 2.0 - crate::numeric::stats::ln_gamma(k / 2.0);
     ln.min(1e-250f64.ln())
 }
 

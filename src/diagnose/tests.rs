@@ -329,7 +329,7 @@ fn direction_offset_is_bimodal_and_suggests_direction() {
     let r = residuals(&t, 11, 1.0, |i| 5.0 * dir[i].unwrap_or(0.0));
     let d = run(&t, &r);
     assert_first(&d, &["direction", "seek_length"], "direction");
-    assert!(d.bimodality.unwrap() > crate::stats::BIMODALITY_THRESHOLD);
+    assert!(d.bimodality.unwrap() > crate::numeric::stats::BIMODALITY_THRESHOLD);
     assert!(
         d.dip.as_ref().unwrap().rejects_unimodality(0.01),
         "{:?}",
@@ -622,7 +622,7 @@ fn model_wiring_finds_a_missing_covariate_and_the_ladder_drops_to_noise() {
     use crate::log::{ColumnMap, Log};
     use crate::model::ModelSpec;
     let make = |seed: u64| {
-        let mut rng = crate::rng::SimRng::new(seed);
+        let mut rng = crate::numeric::rng::SimRng::new(seed);
         let mut text = String::from("time_s,track,bias,temp_c\n");
         for k in 0..600 {
             let pos = 400.0 + rng.below(200) as f64;

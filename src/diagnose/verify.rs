@@ -306,7 +306,7 @@ fn paired_gain(before: &[f64], after: &[f64], block: usize) -> (f64, f64) {
         .map(|(b, a)| b.iter().zip(a).map(|(b, a)| b * b - a * a).sum())
         .collect();
     let m = sums.len() as f64;
-    let z = match crate::stats::std_dev(&sums) {
+    let z = match crate::numeric::stats::std_dev(&sums) {
         Some(sd) if sd > 0.0 => sums.iter().sum::<f64>() / m / (sd / m.sqrt()),
         _ => 0.0,
     };
@@ -314,7 +314,7 @@ fn paired_gain(before: &[f64], after: &[f64], block: usize) -> (f64, f64) {
 }
 
 fn std_of(r: &[f64]) -> f64 {
-    crate::stats::std_dev(r).unwrap_or(0.0)
+    crate::numeric::stats::std_dev(r).unwrap_or(0.0)
 }
 
 /// Verifies `cands` on `log` for the model `spec` (see the module docs): each candidate's

@@ -33,7 +33,7 @@ pub mod builtin;
 
 use crate::model::FittedModel;
 use crate::model::predictor::REST_CAPACITY;
-use crate::output::{OutputError, write_string_atomic};
+use crate::render::{OutputError, write_string_atomic};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -538,7 +538,7 @@ bias_real bias_model_step(bias_model_state *s, bias_real time_s, bias_real targe
 }
 
 /// The handoff table and `bias_model_integrator_start` (a port of
-/// [`crate::settle::HandoffTable::solve`]'s robust choice for a step from rest).
+/// [`crate::control::settle::HandoffTable::solve`]'s robust choice for a step from rest).
 fn handoff_c(ctx: &CContext, start: &crate::model::StartValues) -> String {
     let table = start.table();
     let (rows, zeros) = table.export_rows();

@@ -22,7 +22,7 @@ pub use predictor::{
 };
 
 use crate::log::Log;
-use crate::output::{OutputError, write_string_atomic};
+use crate::render::{OutputError, write_string_atomic};
 use data::FitReport;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -465,7 +465,7 @@ impl FittedModel {
     /// Reads a model file; `restore` rebuilds user terms from their name and saved settings
     /// (return `None` for names it does not know; built-ins are tried after it).
     pub fn load_with(path: &Path, restore: &RestoreFn) -> Result<Self, ModelError> {
-        let text = crate::limits::read_text(path).map_err(|source| ModelError::Io {
+        let text = crate::log::limits::read_text(path).map_err(|source| ModelError::Io {
             path: path.into(),
             source,
         })?;
@@ -597,7 +597,7 @@ impl FittedModel {
             .copied()
             .filter(|&x| x < lo || x > hi)
             .collect();
-        let seen = crate::stats::range(&outside)?;
+        let seen = crate::numeric::stats::range(&outside)?;
         Some(RangeWarning {
             outside: outside.len(),
             total: positions.len(),

@@ -13,9 +13,9 @@
 
 use super::term::{Seek, TermState};
 use super::{FittedModel, ModelError, RangeWarning};
+use crate::control::settle::{AnalyseError, HandoffTable, SettleConfig, Window};
 use crate::history::{History, SeekFeatures};
 use crate::log::{LogError, LogReader, Row};
-use crate::settle::{AnalyseError, HandoffTable, SettleConfig, Window};
 use std::cell::RefCell;
 use std::io::Read;
 
@@ -145,7 +145,7 @@ impl Predictor {
 ///
 /// ```
 /// use biasctl::model::StartValues;
-/// use biasctl::settle::{SettleSpec, analyse};
+/// use biasctl::control::settle::{SettleSpec, analyse};
 /// let mut spec = SettleSpec::preset("paper1997").unwrap();
 /// let starts = StartValues::new(&spec.validate().unwrap(), 8.0).unwrap();
 /// let z = starts.integrator_start(30.0).unwrap();
@@ -168,14 +168,14 @@ impl StartValues {
     /// is ignored) for a bias uncertainty `delta_b` (counts, finite, ≥ 0: the model's error std).
     pub fn new(cfg: &SettleConfig, delta_b: f64) -> Result<Self, AnalyseError> {
         if !delta_b.is_finite() || delta_b < 0.0 {
-            return Err(crate::settle::SettleError::Invalid {
+            return Err(crate::control::settle::SettleError::Invalid {
                 field: "bias_uncertainty (the model's residual_std or --bias-uncertainty)",
                 what: "finite and ≥ 0",
                 value: delta_b,
             }
             .into());
         }
-        let ctl = crate::servo::Controller::design(&cfg.plant, &cfg.weights)?;
+        let ctl = crate::control::Controller::design(&cfg.plant, &cfg.weights)?;
         Ok(Self {
             table: HandoffTable::new(&ctl, cfg.scenario.horizon)?,
             window: cfg.scenario.window,
@@ -211,7 +211,7 @@ impl StartValues {
         if !bias.is_finite() {
             return None;
         }
-        let h = crate::settle::Handoff {
+        let h = crate::control::settle::Handoff {
             e0_um: -self.step_um,
             v0_um_s: 0.0,
             u_prev_counts: bias,

@@ -20,7 +20,7 @@
 
 use super::svg::{AxisRange, Chart, ErrorPoint, Panel, Series, SeriesData, fmt_num};
 use crate::log::Units;
-use crate::stats;
+use crate::numeric::stats;
 
 /// Axis label for bias in counts (the simulator's unit; see [`bias_label`]).
 pub const BIAS: &str = "bias (counts)";

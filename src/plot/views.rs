@@ -18,10 +18,10 @@ use super::figures::{
     self, DahlLoop, FeatureResiduals, ModelErrors, ResidualBin, SettleBounds, SettleResponses,
 };
 use super::from_log;
+use crate::control::settle::SettleReport;
 use crate::diagnose::{Diagnosis, FeatureTable, Ladder};
 use crate::log::{Log, LogError, Units};
 use crate::model::{FittedModel, ModelError, Prediction, Predictor};
-use crate::settle::SettleReport;
 
 /// Why a view of a fitted model could not be drawn.
 #[derive(Debug, thiserror::Error)]
@@ -52,7 +52,7 @@ pub const CURVE_POINTS: usize = 41;
 /// last time. Returns `(inbound, outbound)` as `(position, bias)` in position order, in the log's
 /// units; both empty when the log has no measured row.
 pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), ViewError> {
-    let Some([lo, hi]) = crate::stats::range(&log.measured_positions()) else {
+    let Some([lo, hi]) = crate::numeric::stats::range(&log.measured_positions()) else {
         return Ok((Vec::new(), Vec::new()));
     };
     model.check_log(log)?;
@@ -66,7 +66,7 @@ pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), Vi
                 .filter_map(|r| r.covariates.get(k).copied())
                 .filter(|v| v.is_finite())
                 .collect();
-            crate::stats::mean(&v).unwrap_or(0.0)
+            crate::numeric::stats::mean(&v).unwrap_or(0.0)
         })
         .collect();
     let mut replayed = Predictor::new(model, &s.covariates)?;
@@ -294,7 +294,7 @@ pub fn settle_bounds(r: &SettleReport) -> String {
 
 /// Fig. 16 of a settle analysis: the position error of every start-value choice.
 pub fn settle_responses(r: &SettleReport) -> String {
-    let window = crate::settle::Window::new(r.window_um, r.hold).ok();
+    let window = crate::control::settle::Window::new(r.window_um, r.hold).ok();
     figures::fig16_responses(&SettleResponses {
         sample_period_ms: r.ts_s * 1000.0,
         delta_um: r.window_um,
@@ -306,8 +306,8 @@ pub fn settle_responses(r: &SettleReport) -> String {
                 error_um: x.e_um.clone(),
                 settle_ms: window
                     .as_ref()
-                    .and_then(|w| crate::settle::settle_index(&x.e_um, w))
-                    .map(|k| crate::settle::settle_ms(k, r.ts_s)),
+                    .and_then(|w| crate::control::settle::settle_index(&x.e_um, w))
+                    .map(|k| crate::control::settle::settle_ms(k, r.ts_s)),
             })
             .collect(),
     })

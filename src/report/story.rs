@@ -9,6 +9,10 @@
 use std::path::{Path, PathBuf};
 
 use super::{Cell, Report, Table};
+use crate::control::settle::{
+    AnalyseError, HandoffTable, SettleError, SettleSpec, analyse, worst_case_settle,
+};
+use crate::control::{Controller, ServoError};
 use crate::diagnose::{
     CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError,
     diagnose_residual, ladder_fit, replay_model,
@@ -22,10 +26,6 @@ use crate::plot::svg::fmt_num;
 use crate::plot::{from_log, views};
 use crate::render::{OutputError, StagedDir, write_string_atomic};
 use crate::score::{Score, ScoreError, score_with_units};
-use crate::servo::{Controller, ServoError};
-use crate::settle::{
-    AnalyseError, HandoffTable, SettleError, SettleSpec, analyse, worst_case_settle,
-};
 use crate::sim::{Drive, SequenceOptions, SimConfig, SimError, Truth, simulate, simulate_to_files};
 
 /// Settings of a story run.
@@ -113,7 +113,7 @@ pub enum StoryError {
     Diagnose(#[from] ModelDiagnosisError),
     /// The settle preset is not valid.
     #[error("settle preset")]
-    SettleConfig(#[from] crate::settle::ConfigError),
+    SettleConfig(#[from] crate::control::settle::ConfigError),
     /// The settle analysis failed.
     #[error("settle analysis")]
     Analyse(#[from] AnalyseError),
@@ -459,11 +459,11 @@ fn truth_table(truth: &[Truth]) -> Table {
     );
     for (name, source, get) in effects {
         let v: Vec<f64> = truth.iter().map(get).collect();
-        let spread = crate::stats::range(&v).map_or(f64::NAN, |[lo, hi]| hi - lo);
+        let spread = crate::numeric::stats::range(&v).map_or(f64::NAN, |[lo, hi]| hi - lo);
         table = table.row(vec![
             name.into(),
             source.into(),
-            Cell::Fixed(crate::stats::std_dev(&v).unwrap_or(f64::NAN), 2),
+            Cell::Fixed(crate::numeric::stats::std_dev(&v).unwrap_or(f64::NAN), 2),
             Cell::Fixed(spread, 2),
         ]);
     }
@@ -1138,7 +1138,7 @@ pub fn positions_are_tracks(log: &Log) -> bool {
         return n > 0;
     }
     let mut moves: Vec<f64> = p.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
-    let Some([lo, hi]) = crate::stats::range(&p) else {
+    let Some([lo, hi]) = crate::numeric::stats::range(&p) else {
         return false;
     };
     let mut distinct = p.clone();
@@ -1204,7 +1204,7 @@ pub fn data_report(
     ));
     steps.start("bias plots");
     let tracks: Vec<f64> = log.rows.iter().map(|x| x.track).collect();
-    let [lo, hi] = crate::stats::range(&tracks).unwrap_or([f64::NAN; 2]);
+    let [lo, hi] = crate::numeric::stats::range(&tracks).unwrap_or([f64::NAN; 2]);
     let sec = r.section("Your data");
     sec.table(
         Table::new(&["quantity", "value"])

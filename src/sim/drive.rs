@@ -358,7 +358,7 @@ impl Drive {
     /// Reads and validates a drive file.
     pub fn from_toml_file(path: &Path) -> Result<Drive, DriveError> {
         let file = path.display().to_string();
-        let text = crate::limits::read_text(path).map_err(|source| DriveError::Io {
+        let text = crate::log::limits::read_text(path).map_err(|source| DriveError::Io {
             file: file.clone(),
             source,
         })?;
@@ -367,7 +367,7 @@ impl Drive {
 
     /// Parses and validates a drive description; `file` names it in messages.
     pub fn from_toml_str(file: &str, text: &str) -> Result<Drive, DriveError> {
-        crate::limits::check_toml_numbers(text).map_err(|message| DriveError::Parse {
+        crate::log::limits::check_toml_numbers(text).map_err(|message| DriveError::Parse {
             file: file.into(),
             message,
         })?;

@@ -33,7 +33,7 @@
 //! ```
 
 use crate::log::{ColumnMap, Log, LogError, LogWriter, fmt_trimmed};
-use crate::rng::SimRng;
+use crate::numeric::rng::SimRng;
 
 /// The logged covariate columns, in log order. Every log of the family carries all of them.
 pub const COVARIATES: [&str; 9] = [

@@ -41,8 +41,8 @@ pub use sequence::{ScriptError, Step};
 
 use crate::history::{History, sign};
 use crate::log::{Log, LogError, LogWriter, fmt_fixed};
-use crate::output::{OutputError, write_atomic};
-use crate::rng::SimRng;
+use crate::numeric::rng::SimRng;
+use crate::render::{OutputError, write_atomic};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -15,11 +15,11 @@
 
 #![allow(dead_code)] // the example uses the campaign, the test binary the tests
 
+use biasctl::control::settle::{SettleSpec, analyse};
 use biasctl::fit::{FitOptions, fit};
 use biasctl::log::{ColumnMap, Log};
 use biasctl::model::{FittedModel, ModelSpec};
 use biasctl::render::{self, check_text};
-use biasctl::settle::{SettleSpec, analyse};
 use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};
 use std::error::Error;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -371,7 +371,7 @@ fn exercise(kind: Kind, name: &str, bytes: &[u8], ctx: &Ctx) -> Res {
         }
         Kind::Plant => {
             let text = std::str::from_utf8(bytes)?;
-            biasctl::limits::check_toml_numbers(text).map_err(Box::<dyn Error>::from)?;
+            biasctl::log::limits::check_toml_numbers(text).map_err(Box::<dyn Error>::from)?;
             let spec: SettleSpec = toml::from_str(text)?;
             let report = analyse(&spec.validate()?)?;
             finite("LQR gain", report.gain.iter().copied())?;

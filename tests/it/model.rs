@@ -8,7 +8,7 @@ use biasctl::log::{ColumnMap, Log};
 use biasctl::model::terms::dahl::{DahlPredictor, DahlState};
 use biasctl::model::terms::intercept::InterceptTerm;
 use biasctl::model::{ColumnsUsed, FittedModel, FittedTerm, ModelSpec, Predictor};
-use biasctl::rng::SimRng;
+use biasctl::numeric::rng::SimRng;
 use std::sync::Arc;
 
 /// A random seek sequence: mixed short and long seeks over `range` tracks, times 0.1 s apart,
@@ -726,7 +726,7 @@ fn calibration_preset_survives_a_table_dominated_training_run() {
         )
         .unwrap();
         let p = model.predict_log(&test).unwrap();
-        let sd = biasctl::stats::std_dev(&p.residual).unwrap();
+        let sd = biasctl::numeric::stats::std_dev(&p.residual).unwrap();
         let k = p.term_names.iter().position(|n| n == "memory").unwrap();
         let largest = p.contributions[k]
             .iter()

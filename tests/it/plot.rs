@@ -664,7 +664,7 @@ fn prediction_errors_has_a_column_per_model_with_std_in_titles() {
         .collect();
     assert_eq!(charts.len(), 6);
     let titles = texts_of_class(&doc, "title");
-    let want_std = biasctl::stats::std_dev(&m[1].error).unwrap();
+    let want_std = biasctl::numeric::stats::std_dev(&m[1].error).unwrap();
     let want = format!(
         "calibration: error std {} counts",
         biasctl::plot::svg::fmt_num(want_std)

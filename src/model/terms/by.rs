@@ -58,8 +58,8 @@ impl TermSpec for BySpec {
                     data.measured_values(|s| Some(s.covariates[idx]))
                 }
             };
-            centre[k] = crate::stats::mean(&values).unwrap_or(0.0);
-            let sd = crate::stats::std_dev(&values).unwrap_or(0.0);
+            centre[k] = crate::numeric::stats::mean(&values).unwrap_or(0.0);
+            let sd = crate::numeric::stats::std_dev(&values).unwrap_or(0.0);
             scale[k] = if sd > 0.0 { sd } else { 1.0 };
         }
         Ok(Arc::new(ByTerm {

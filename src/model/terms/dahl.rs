@@ -133,14 +133,14 @@ impl TermSpec for DahlSpec {
             Some(n) => {
                 let a = data
                     .measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
-                let mut sorted = crate::stats::sorted(&a);
+                let mut sorted = crate::numeric::stats::sorted(&a);
                 if sorted.is_empty() {
                     sorted.push(1.0);
                 }
-                let lo = crate::stats::percentile_sorted(&sorted, 5.0)
+                let lo = crate::numeric::stats::percentile_sorted(&sorted, 5.0)
                     .unwrap_or(1.0)
                     .max(1.0);
-                let hi = crate::stats::percentile_sorted(&sorted, 95.0)
+                let hi = crate::numeric::stats::percentile_sorted(&sorted, 95.0)
                     .unwrap_or(1.0)
                     .max(lo + 1.0);
                 (0..n)

@@ -35,8 +35,8 @@ impl TermSpec for LagSpec {
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let idx = data.covariate(&self.column, &self.name())?;
         let v = data.measured_values(|s| Some(s.covariates[idx]));
-        let centre = crate::stats::mean(&v).unwrap_or(0.0);
-        let sd = crate::stats::std_dev(&v).unwrap_or(0.0);
+        let centre = crate::numeric::stats::mean(&v).unwrap_or(0.0);
+        let sd = crate::numeric::stats::std_dev(&v).unwrap_or(0.0);
         let rows = &data.log().rows;
         let steps: Vec<f64> = rows
             .windows(2)
@@ -44,8 +44,8 @@ impl TermSpec for LagSpec {
             .filter(|d| *d > 0.0)
             .collect();
         let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
-        let sorted = crate::stats::sorted(&steps);
-        let median = crate::stats::percentile_sorted(&sorted, 50.0).unwrap_or(0.0);
+        let sorted = crate::numeric::stats::sorted(&steps);
+        let median = crate::numeric::stats::percentile_sorted(&sorted, 50.0).unwrap_or(0.0);
         if !(median > 0.0 && span > median) {
             return Err(FitError::BadSetting {
                 term: self.name(),

@@ -38,7 +38,7 @@ impl TermSpec for MemsumSpec {
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let positions: Vec<f64> = data.log().rows.iter().map(|r| r.track).collect();
-        let travel = crate::stats::range(&positions)
+        let travel = crate::numeric::stats::range(&positions)
             .map(|[lo, hi]| hi - lo)
             .filter(|t| *t > 0.0)
             .ok_or_else(|| FitError::BadSetting {
@@ -221,7 +221,7 @@ pub fn parse(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::SimRng;
+    use crate::numeric::rng::SimRng;
 
     /// The slow, obvious reference: every rest position ever made, with the index of the move
     /// that made it; a rest counts if no later move's closed interval covered it (the

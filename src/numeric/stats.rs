@@ -385,7 +385,7 @@ pub fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
 /// p-value of "unimodal" ([`dip_p_value`]). `None` where the dip is.
 ///
 /// ```
-/// use biasctl::stats::dip_test;
+/// use biasctl::numeric::stats::dip_test;
 /// // Two clusters of 100 values each: two humps.
 /// let two: Vec<f64> = (0..200).map(|i| (i % 2) as f64 * 10.0 + (i % 13) as f64 * 0.3).collect();
 /// let t = dip_test(&two).unwrap();
@@ -815,7 +815,7 @@ mod tests {
 
     #[test]
     fn ljung_box_flags_a_random_walk_not_white_noise() {
-        let mut r = crate::rng::SimRng::new(9);
+        let mut r = crate::numeric::rng::SimRng::new(9);
         let white: Vec<f64> = (0..2000).map(|_| r.normal()).collect();
         let walk: Vec<f64> = white
             .iter()

@@ -40,8 +40,8 @@
 //! (Fig. 15). Both are tested against a slow obvious implementation (every bound, the running
 //! min/max sample by sample, linear searches): identical results.
 
-use crate::servo::plant::{ModeSpec, Plant, PlantError, PlantSpec};
-use crate::servo::{Controller, LqrWeights, ServoError};
+use crate::control::plant::{ModeSpec, Plant, PlantError, PlantSpec};
+use crate::control::{Controller, LqrWeights, ServoError};
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
@@ -1152,8 +1152,8 @@ fn csv_cell(x: f64) -> String {
 /// bias prediction and its error std), with the robust choice and with zero feedforward.
 ///
 /// ```
-/// use biasctl::servo::Controller;
-/// use biasctl::settle::{SettleSpec, HandoffTable, worst_case_settle};
+/// use biasctl::control::Controller;
+/// use biasctl::control::settle::{SettleSpec, HandoffTable, worst_case_settle};
 /// let cfg = SettleSpec::preset("paper1997").unwrap().validate().unwrap();
 /// let ctl = Controller::design(&cfg.plant, &cfg.weights).unwrap();
 /// let table = HandoffTable::new(&ctl, cfg.scenario.horizon).unwrap();
@@ -1430,7 +1430,7 @@ mod tests {
     //! The handoff fast paths ([`HandoffTable::solve`], [`HandoffTable::bounds_into`]) against
     //! the slow obvious implementation of the same definitions, over many random handoffs.
     use super::*;
-    use crate::rng::SimRng;
+    use crate::numeric::rng::SimRng;
 
     /// The reference: every sample's bounds U_k, L_k (eq. 14) into vectors, a zero-gain sample
     /// with |c_k| > δ ruling every k ≤ it out (U = −∞, L = +∞), the running bounds U*, L*

@@ -41,7 +41,9 @@
 //! assert_eq!(reader.schema().units.bias, "counts");
 //! ```
 
-use crate::limits::{LineLimit, MAX_COLUMNS};
+pub mod limits;
+
+use crate::log::limits::{LineLimit, MAX_COLUMNS};
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::path::Path;
