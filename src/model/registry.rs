@@ -19,7 +19,8 @@
 
 use super::term::{Term, TermSpec};
 use super::terms::{
-    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, poly, seek, table,
+    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, poly, seek,
+    stribeck, table, viscous,
 };
 use super::{ModelError, SpecError};
 use std::sync::Arc;
@@ -104,6 +105,18 @@ pub static BUILTINS: &[BuiltinTerm] = &[
         Some("memsum"),
         memsum::parse,
         restore_as::<memsum::MemsumTerm>,
+    ),
+    row(
+        "viscous",
+        Some("viscous[:COL]"),
+        viscous::parse,
+        restore_as::<viscous::ViscousTerm>,
+    ),
+    row(
+        "stribeck",
+        Some("stribeck[:COL][:DELTA]"),
+        stribeck::parse,
+        stribeck::restore,
     ),
     row(
         "bins",

@@ -14,7 +14,9 @@ pub mod memory;
 pub mod memsum;
 pub mod poly;
 pub mod seek;
+pub mod stribeck;
 pub mod table;
+pub mod viscous;
 
 use super::registry::{self, TermText};
 use super::term::{Term, TermSpec};
