@@ -175,13 +175,17 @@ fn extreme(v: &[f64], better: impl Fn(f64, f64) -> bool) -> (usize, f64) {
 /// The terms that address a feature, best first.
 /// `by_direction`: the residual follows the feature times the direction of the last move.
 /// `odd_linear`: the feature's sign is the direction's and residual ≈ a·direction + b·feature,
-/// a line in the signed feature (a velocity) that `col:` fits with one parameter.
+/// a line in the signed feature (a velocity) that `col:` (or `viscous:`, the same line named as
+/// viscous friction) fits with one parameter. `velocity_sign`: the feature's sign is the
+/// direction's but the law is not that line: a velocity whose friction falls off from a
+/// breakaway level at low speed (`stribeck:`).
 pub(crate) fn candidate_terms(
     name: &str,
     origin: FeatureOrigin,
     linear: bool,
     by_direction: bool,
     odd_linear: bool,
+    velocity_sign: bool,
 ) -> Vec<String> {
     let bins = format!("bins:{name}");
     if by_direction {
@@ -201,7 +205,14 @@ pub(crate) fn candidate_terms(
                 Feature::Position | Feature::DwellS => vec![format!("dbins:{name}")],
             },
             FeatureOrigin::Covariate if odd_linear => {
-                vec![format!("col:{name}"), format!("dbins:{name}")]
+                vec![
+                    format!("col:{name}"),
+                    format!("viscous:{name}"),
+                    format!("dbins:{name}"),
+                ]
+            }
+            FeatureOrigin::Covariate if velocity_sign => {
+                vec![format!("stribeck:{name}"), format!("dbins:{name}")]
             }
             FeatureOrigin::Covariate => vec![format!("dbins:{name}")],
             // Summed memory × direction: the nearest rest *ahead* of the approach matters, and
@@ -228,7 +239,11 @@ pub(crate) fn candidate_terms(
             // (when this build has the `lag` term) is verified beside `col:`.
             let lag = format!("lag:{name}");
             let lag = crate::model::terms::parse_term(&lag).is_ok().then_some(lag);
-            let mut v = if linear || odd_linear {
+            let mut v = if odd_linear {
+                vec![col, format!("viscous:{name}"), bins]
+            } else if velocity_sign && !linear {
+                vec![format!("stribeck:{name}"), bins, col]
+            } else if linear {
                 vec![col, bins]
             } else {
                 vec![bins, col]

@@ -210,29 +210,34 @@ fn curve(b: &Binned, shift: u32, col: &FeatureColumn, y: &[f64]) -> Vec<CurveBin
         .collect()
 }
 
-/// Whether a covariate acts like a velocity: its sign is the direction's on at least 90 % of
-/// the rows where both are non-zero, and the residual is close to a line in the signed value
+/// Whether a covariate's sign is the direction's on at least 90 % of the rows where both are
+/// non-zero (a velocity).
+fn sign_follows_direction(x: &[Option<f64>], direction: &[f64]) -> bool {
+    let (mut agree, mut both) = (0usize, 0usize);
+    for (x, &d) in x.iter().zip(direction) {
+        if let Some(x) = *x
+            && x != 0.0
+            && d != 0.0
+        {
+            both += 1;
+            agree += usize::from(x.signum() == d.signum());
+        }
+    }
+    both > 0 && (agree as f64) >= 0.9 * both as f64
+}
+
+/// Whether a covariate whose sign follows the direction ([`sign_follows_direction`]) acts like
+/// a velocity: the residual is close to a line in the signed value
 /// plus a direction step, r ≈ c + a·sign(x) + b·x. Checked on the analysed residual `y` against
 /// the analysis's own binned curve (`r2_bins`, in-sample): for the plain analysis `y = r` and the
 /// line is in (sign x, x); for the direction-signed one `y = r·d` and, with sign x = d, the same
 /// law is a line in |x|. A line with at least 0.85 of the curve's R² means `col:x` (with the
 /// model's `direction` carrying a·sign) fits it with one parameter.
-fn velocity_like(
-    x: &[Option<f64>],
-    direction: &[f64],
-    y: &[f64],
-    by_direction: bool,
-    r2_bins: f64,
-) -> bool {
-    let (mut agree, mut both) = (0usize, 0usize);
+fn velocity_like(x: &[Option<f64>], y: &[f64], by_direction: bool, r2_bins: f64) -> bool {
     let mut rows: Vec<[f64; 3]> = Vec::new();
     let mut ys = Vec::new();
-    for ((x, &d), &y) in x.iter().zip(direction).zip(y) {
+    for (x, &y) in x.iter().zip(y) {
         let Some(x) = *x else { continue };
-        if x != 0.0 && d != 0.0 {
-            both += 1;
-            agree += usize::from(x.signum() == d.signum());
-        }
         let sign = if x == 0.0 { 0.0 } else { x.signum() };
         rows.push(if by_direction {
             [1.0, x.abs(), 0.0]
@@ -241,7 +246,7 @@ fn velocity_like(
         });
         ys.push(y);
     }
-    if both == 0 || (agree as f64) < 0.9 * both as f64 || r2_bins <= 0.0 || ys.len() < 4 {
+    if r2_bins <= 0.0 || ys.len() < 4 {
         return false;
     }
     let k = if by_direction { 2 } else { 3 };
@@ -331,11 +336,17 @@ pub(crate) fn feature_report(
     } else {
         curve(b, display_shift, col, residuals)
     };
-    let odd_linear = col.origin == FeatureOrigin::Covariate
-        && direction
-            .is_some_and(|d| velocity_like(&col.values, d, residuals, by_direction, r2_bins));
-    let candidates =
-        advice::candidate_terms(&col.name, col.origin, linear, by_direction, odd_linear);
+    let velocity_sign = col.origin == FeatureOrigin::Covariate
+        && direction.is_some_and(|d| sign_follows_direction(&col.values, d));
+    let odd_linear = velocity_sign && velocity_like(&col.values, residuals, by_direction, r2_bins);
+    let candidates = advice::candidate_terms(
+        &col.name,
+        col.origin,
+        linear,
+        by_direction,
+        odd_linear,
+        velocity_sign,
+    );
     let (suggested_term, note) = advice::suggest(&candidates, &config.existing_terms);
     let alternatives = advice::alternatives(
         &candidates,

@@ -408,6 +408,51 @@ fn a_velocity_like_covariate_gets_col_and_a_hysteretic_one_gets_dbins() {
 }
 
 #[test]
+fn a_velocity_with_a_stribeck_dip_gets_stribeck_and_a_line_offers_viscous() {
+    // Reference: the residual of a model whose Coulomb level is right at speed but misses the
+    // breakaway at low speed, sign(v)·1.5·exp(−(|v|/0.5)²), speeds log-uniform over 0.05–10:
+    // direction × a curve that falls off at small |v|, not a line: `stribeck:velocity`.
+    // The viscous line of the test above offers `viscous:velocity` beside `col:velocity`.
+    let mut t = table(23, 1500);
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|d| d.unwrap_or(0.0))
+        .collect();
+    let mut rng = SimRng::new(78);
+    let v: Vec<Option<f64>> = dir
+        .iter()
+        .map(|d| Some(d * 10f64.powf(rng.range(-1.3, 1.0))))
+        .collect();
+    t.push_column("velocity", v.clone()).unwrap();
+    let config = DiagnoseConfig {
+        existing_terms: vec!["poly2".into(), "direction".into()],
+        ..DiagnoseConfig::default()
+    };
+    let r = residuals(&t, 23, 0.3, |i| {
+        let v = v[i].unwrap();
+        v.signum() * 1.5 * (-(v.abs() / 0.5).powi(2)).exp()
+    });
+    let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
+    let f = d.feature("velocity").unwrap();
+    assert!(f.flagged, "{}", d.to_text());
+    assert_eq!(
+        f.suggested_term.as_deref(),
+        Some("stribeck:velocity"),
+        "{}",
+        d.to_text()
+    );
+    let r = residuals(&t, 24, 0.5, |i| 0.8 * v[i].unwrap() - 3.0 * dir[i]);
+    let d = diagnose(&t, &r, &config.check().unwrap()).unwrap();
+    let f = d.feature("velocity").unwrap();
+    assert_eq!(f.suggested_term.as_deref(), Some("col:velocity"));
+    assert!(
+        f.alternatives.iter().any(|a| a == "viscous:velocity"),
+        "{:?}",
+        f.alternatives
+    );
+}
+
+#[test]
 fn constant_and_undefined_features_are_skipped_with_a_note() {
     let mut t = table(12, 600);
     t.push_column("heater", vec![Some(5.0); t.len()]).unwrap();

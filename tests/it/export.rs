@@ -100,7 +100,7 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
         "held_out.csv",
         &edit_log(&text, false, 300..400),
     );
-    let models: [(&str, &str); 5] = [
+    let models: [(&str, &str); 6] = [
         ("pd", "--model=position-direction"),
         ("cal", "--model=calibration"),
         ("dahl", "--model=dahl"),
@@ -112,6 +112,8 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
             "icpt",
             "--terms=direction,dahl:3,bins:since_reversal,bins:temp_c:3",
         ),
+        // Velocity friction: derived velocity (seek over dwell) and a column.
+        ("fric", "--terms=poly2,viscous,stribeck,viscous:temp_c"),
     ];
     let mut jobs = Vec::new();
     for (name, spec) in models {
