@@ -158,6 +158,19 @@ fn test_error(model: &str, data: &str, track: &str) -> (f64, f64) {
     (v["mean"].as_f64().unwrap(), v["std"].as_f64().unwrap())
 }
 
+/// The real logs `PREFIX_estimation.csv` and `PREFIX_validation.csv`, a temporary folder and a
+/// model path in it.
+fn split(prefix: &str) -> (String, String, tempfile::TempDir, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json").display().to_string();
+    (
+        need(&format!("{prefix}_estimation.csv")),
+        need(&format!("{prefix}_validation.csv")),
+        dir,
+        model,
+    )
+}
+
 /// A parameter's value in a model file.
 fn param_value(model: &str, name: &str) -> f64 {
     let v: serde_json::Value =
@@ -178,12 +191,7 @@ fn param_value(model: &str, name: &str) -> f64 {
 /// std, with `stribeck` on the logged velocity as well.
 #[test]
 fn emps_viscous_term_recovers_the_published_fv() {
-    let (est, val) = (
-        need("emps/emps_estimation.csv"),
-        need("emps/emps_validation.csv"),
-    );
-    let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("m.json").display().to_string();
+    let (est, val, _dir, model) = split("emps/emps");
     for terms in [
         "direction,viscous:velocity_m_s,col:accel_m_s2",
         "viscous:velocity_m_s,stribeck:velocity_m_s,col:accel_m_s2",
@@ -208,12 +216,7 @@ fn emps_viscous_term_recovers_the_published_fv() {
 /// integrated from the logged position, leaves 0.74 N).
 #[test]
 fn boucwen_presets_and_friction_terms_fit_without_bias() {
-    let (est, val) = (
-        need("boucwen/boucwen_estimation.csv"),
-        need("boucwen/boucwen_validation.csv"),
-    );
-    let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("m.json").display().to_string();
+    let (est, val, _dir, model) = split("boucwen/boucwen");
     for spec in [
         ["--model", "position-direction"],
         ["--model", "dahl"],

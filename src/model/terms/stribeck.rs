@@ -21,8 +21,8 @@
 //!   Armstrong-Hélouvry); `stribeck:1` is the exponential (Tustin) form. A numeric argument is
 //!   δ (from 0.5 to 4), any other is the velocity column: `stribeck:velocity_m_s:1`.
 
-use super::viscous::{c_velocity, training_velocities, velocity};
-use super::{covariate_position, positive_finite};
+use super::positive_finite;
+use super::viscous::{c_velocity, column_index, training_velocities, velocity};
 use crate::export::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
@@ -155,11 +155,7 @@ impl Term for StribeckTerm {
             .collect()
     }
     fn start(&self, covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
-        let column = self
-            .column
-            .as_ref()
-            .map(|c| covariate_position(covariates, c, &self.name()))
-            .transpose()?;
+        let column = column_index(self.column.as_deref(), covariates, &self.name())?;
         Ok(Box::new(StribeckState {
             column,
             vs: self.vs(),
@@ -285,11 +281,8 @@ pub fn restore(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>
 /// parser. A numeric item is δ, any other the velocity column.
 pub fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let (mut column, mut delta) = (None, None);
-    for item in t
-        .arg
-        .map(|a| a.split(':').collect())
-        .unwrap_or_else(Vec::new)
-    {
+    let items: Vec<&str> = t.arg.map(|a| a.split(':').collect()).unwrap_or_default();
+    for item in items {
         if item.is_empty() {
             return Err(t.bad("an empty item: use `stribeck[:COL][:DELTA]`".into()));
         }
@@ -325,13 +318,7 @@ mod tests {
 
     /// The Stribeck law with sign(0) = 0.
     fn law(v: f64, fc: f64, fs: f64, vs: f64, delta: f64) -> f64 {
-        let s = if v > 0.0 {
-            1.0
-        } else if v < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
+        let s = if v == 0.0 { 0.0 } else { v.signum() };
         s * (fc + (fs - fc) * (-(v.abs() / vs).powf(delta)).exp())
     }
 

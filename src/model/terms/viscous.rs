@@ -62,6 +62,18 @@ pub(crate) fn training_velocities(
     Ok(data.measured_values(|s| Some(velocity(s, idx))))
 }
 
+/// Position of the velocity column (if any) among the log's covariates `names`, or the error
+/// naming the term.
+pub(crate) fn column_index(
+    column: Option<&str>,
+    names: &[String],
+    term: &str,
+) -> Result<Option<usize>, ModelError> {
+    column
+        .map(|c| covariate_position(names, c, term))
+        .transpose()
+}
+
 /// The velocity source in a term name: `""` or `":COL"`.
 fn suffix(column: &Option<String>) -> String {
     column.as_ref().map(|c| format!(":{c}")).unwrap_or_default()
@@ -118,11 +130,7 @@ impl Term for ViscousTerm {
         self.column.iter().cloned().collect()
     }
     fn start(&self, covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
-        let column = self
-            .column
-            .as_ref()
-            .map(|c| covariate_position(covariates, c, &self.name()))
-            .transpose()?;
+        let column = column_index(self.column.as_deref(), covariates, &self.name())?;
         Ok(Box::new(ViscousState {
             column,
             scale: self.scale,
