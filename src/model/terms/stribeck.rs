@@ -140,13 +140,18 @@ impl Term for StribeckTerm {
     fn covariates(&self) -> Vec<String> {
         self.column.iter().cloned().collect()
     }
+    /// With the derived velocity, sign(v) is the direction of every non-zero seek: a term
+    /// that carries the ±offset of the direction (`direction`, `dahl`) shares `Fc` with it.
     fn fit_warnings(&self, model: &[Arc<dyn Term>]) -> Vec<String> {
+        if self.column.is_some() {
+            return Vec::new();
+        }
         model
             .iter()
             .filter(|t| t.spans_direction_offset())
             .map(|t| {
                 format!(
-                    "{}: sign(velocity) is nearly the direction of motion, so its Fc shares the \
+                    "{}: sign(velocity) is the direction of every move, so its Fc shares the \
                      ±offset with `{}` (their Coulomb levels add up; each alone is poorly determined)",
                     self.name(),
                     t.name()
@@ -462,6 +467,37 @@ mod tests {
             s[key] = serde_json::json!(value);
             assert!(restore("stribeck", &s).is_err(), "{key} {value}");
         }
+    }
+
+    /// With the derived velocity, sign(v) is the direction of every move: on a log where every
+    /// row moves, `direction,stribeck` is exactly collinear and the fit refuses it naming
+    /// `stribeck.Fc`; where some rows stand still (quantised positions) it fits and warns that
+    /// the two share the Coulomb offset. With a velocity column nothing is presumed.
+    #[test]
+    fn a_direction_companion_is_refused_or_warned_about() {
+        let moving = stage(800, 31, 1.0, 0.05, |v, _| law(v, 1.0, 1.5, 2.0, 2.0));
+        let err = crate::fit::fit(
+            &crate::model::ModelSpec::parse("direction,stribeck").unwrap(),
+            &moving,
+            &crate::fit::FitOptions::default().check().unwrap(),
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("stribeck.Fc"), "{err}");
+        let shares = |m: crate::model::FittedModel| {
+            m.warnings
+                .iter()
+                .any(|w| w.contains("shares the ±offset with `direction`"))
+        };
+        assert!(!shares(fitted("direction,stribeck:vel", &moving)));
+        let mut text = String::from("time_s,track,bias\n");
+        let mut rng = SimRng::new(32);
+        for i in 0..600 {
+            let t = 0.01 * i as f64;
+            let x = (40.0 * (1.7 * t).sin() + 9.0 * (5.3 * t).sin()).round();
+            text += &format!("{t},{x},{}\n", 0.3 * rng.normal() + (i % 7) as f64 * 0.01);
+        }
+        let still = Log::from_reader("q.csv", text.as_bytes(), &Default::default()).unwrap();
+        assert!(shares(fitted("direction,stribeck", &still)));
     }
 
     /// A log whose velocity is zero on all but a few rows cannot place vs: an error, no panic.
