@@ -247,11 +247,12 @@ pub(crate) mod test_logs {
     /// The model written to JSON and read back predicts what it predicted (relative 1e-12:
     /// other terms, such as `poly2`, keep a derived constant that may differ in the last bit).
     pub(crate) fn assert_round_trip(model: &FittedModel, log: &Log) {
-        let back =
-            FittedModel::from_json(&model.to_json(), std::path::Path::new("m.json"), &|_, _| {
-                None
-            })
-            .unwrap();
+        let back = FittedModel::from_json(
+            &model.to_json().unwrap(),
+            std::path::Path::new("m.json"),
+            &|_, _| None,
+        )
+        .unwrap();
         let (a, b) = (
             model.predict_log(log).unwrap(),
             back.predict_log(log).unwrap(),
