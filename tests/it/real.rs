@@ -214,7 +214,13 @@ fn emps_viscous_term_recovers_the_published_fv() {
 /// 15 % of k_L + α = 1e5 N/m (the linear spring plus the initial slope of the hysteretic force),
 /// and the test error std under 14 N (force std 49.6 N; measured 12.3 N; the published model,
 /// integrated from the logged position, leaves 0.74 N).
+///
+/// The benchmark's files are not in the repository (this workplace commits no data file taken
+/// from a fetched repository, and the record's licence is not verified): make them by the rule in
+/// `data/real/boucwen/README.md`, put them there, and run
+/// `cargo test --test it -- --ignored boucwen`.
 #[test]
+#[ignore = "needs data/real/boucwen/*.csv, not vendored: see data/real/boucwen/README.md"]
 fn boucwen_presets_and_friction_terms_fit_without_bias() {
     let (est, val, _dir, model) = split("boucwen/boucwen");
     for spec in [
