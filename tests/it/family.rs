@@ -28,7 +28,8 @@ fn rotation() -> Vec<Outcome> {
 fn describe(o: &Outcome) -> String {
     let names: Vec<&str> = o.effects.iter().map(|e| e.name()).collect();
     format!(
-        "{} {} seed {}: first {:?}, edit {:?}, std {:.3} -> {:.3} (true term {:?}), recovered {:?}",
+        "{} {} seed {}: first {:?}, edit {:?}, std {:.3} -> {:.3} (true term {:?}), recovered \
+         {:?} (unverified suggestion {:?}: {:?}); scored: {}",
         o.drive,
         names.join("+"),
         o.seed,
@@ -37,7 +38,10 @@ fn describe(o: &Outcome) -> String {
         o.std_base,
         o.std_edit,
         o.std_true,
-        o.recovered()
+        o.recovered(),
+        o.suggested,
+        o.recovered_by_suggestion(),
+        o.verification
     )
 }
 
