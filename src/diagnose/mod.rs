@@ -51,10 +51,15 @@
 //! permutations in which *any* feature looked at least as strong. So "no feature flagged at 1 %"
 //! fails on pure noise at most 1 % of the time, whatever the number of features and however
 //! correlated they are (`seek_length`, `seek_abs` and `direction` are). The uncorrected
-//! per-feature value is reported as `p_value_raw`. Permutation treats the residuals as
+//! per-feature value is reported as `p_value_raw`. Plain permutation treats the residuals as
 //! exchangeable under the null; for a feature that is independent of time (random targets)
 //! that holds whatever the residuals' serial correlation, for a slowly varying feature it does
-//! not, so read `p_value` together with the whiteness check and the out-of-sample `explained`.
+//! not. So the residuals are permuted in blocks of consecutive seeks ([`null_block_len`]), and
+//! each feature's block is as long as the pair (feature, residual) needs
+//! ([`feature_null_block`]): the residual's block for a feature as slow as the residual,
+//! shorter for one that decorrelates sooner (the cross-products decorrelate with the faster of
+//! the two), single rows for the time features. Every permutation has its own seeded random
+//! streams, so the p-values do not depend on the number of threads they run on.
 
 //!
 //! ## Confounded candidates: ranking by what each adds beyond the others
@@ -124,13 +129,14 @@ pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 pub use verify::{
     Candidate, RejectedEdit, Verification, VerifiedEdit, VerifyConfig, candidates, cv_residuals,
-    edit_for, table_spacing, verify,
+    edit_for, measured_rows, table_spacing, verify,
 };
 
 use crate::history::Feature;
 use crate::numeric::rng::SimRng;
 use crate::numeric::stats;
 use crate::render::OutputError;
+use rayon::prelude::*;
 use smoother::{Binned, FTest, Unusable};
 
 /// Smallest number of measured rows per cross-validation fold.
@@ -475,48 +481,64 @@ pub fn diagnose(
     let signed = direction.as_ref().map(|d| Signed::new(&y, d));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
-    let mut analysed: Vec<Result<Analysed, Unusable>> = Vec::with_capacity(table.columns().len());
-    for col in table.columns() {
-        let a = Binned::new(
-            &col.values,
-            config.max_bins,
-            config.min_bin_rows,
-            config.max_discrete,
-        )
-        .map(|binned| {
-            let can_sign = signed.is_some() && signable(col);
-            let g = gain(
-                &binned,
-                can_sign,
-                &y,
-                direction.as_deref(),
-                &fold,
-                config.folds,
-                variance,
-            );
-            let mut observed = FTest::new(&binned).min_p(&binned, &y, sst);
-            if let Some(s) = signed.as_ref().filter(|_| can_sign) {
-                observed = observed.min(FTest::new(&binned).min_p(&binned, &s.y, s.sst));
-            }
-            Analysed {
-                binned,
-                shift: g.shift,
-                explained: g.explained,
-                observed,
-                by_direction: g.by_direction,
-                signable: can_sign,
-                origin: col.origin,
-            }
-        });
-        analysed.push(a);
-    }
+    // Columns are independent (no random draws): in parallel, collected in table order.
+    let analysed: Vec<Result<Analysed, Unusable>> = table
+        .columns()
+        .par_iter()
+        .map(|col| {
+            Binned::new(
+                &col.values,
+                config.max_bins,
+                config.min_bin_rows,
+                config.max_discrete,
+            )
+            .map(|binned| {
+                let can_sign = signed.is_some() && signable(col);
+                let g = gain(
+                    &binned,
+                    can_sign,
+                    &y,
+                    direction.as_deref(),
+                    &fold,
+                    config.folds,
+                    variance,
+                );
+                let mut observed = FTest::new(&binned).min_p(&binned, &y, sst);
+                if let Some(s) = signed.as_ref().filter(|_| can_sign) {
+                    observed = observed.min(FTest::new(&binned).min_p(&binned, &s.y, s.sst));
+                }
+                Analysed {
+                    binned,
+                    shift: g.shift,
+                    explained: g.explained,
+                    observed,
+                    by_direction: g.by_direction,
+                    signable: can_sign,
+                    origin: col.origin,
+                }
+            })
+        })
+        .collect();
 
     let null_block = config
         .null_block
         .unwrap_or_else(|| null_block_len(&y))
         .clamp(1, n.max(1));
+    // Each feature's null keeps as much serial structure as the pair (feature, residual)
+    // has: the residual's block where the feature is as slow as the residual, shorter blocks
+    // for a feature that decorrelates sooner (the cross-products decorrelate with the faster
+    // of the two), single rows for the time features.
+    let blocks: Vec<usize> = analysed
+        .par_iter()
+        .zip(table.columns())
+        .map(|(a, col)| match a {
+            Ok(a) if is_time(a.origin) => 1,
+            Ok(_) if config.null_block.is_none() => feature_null_block(&col.values, null_block),
+            _ => null_block,
+        })
+        .collect();
     let (p_raw, p_adj) =
-        permutation_test(&analysed, &y, sst, direction.as_deref(), null_block, config);
+        permutation_test(&analysed, &y, sst, direction.as_deref(), &blocks, config);
 
     let ctx = Ctx {
         direction: direction.as_deref(),
@@ -931,6 +953,20 @@ pub fn null_block_len(y: &[f64]) -> usize {
     (NULL_BLOCK_FACTOR * k0).clamp(1, cap)
 }
 
+/// The null block of one feature beside a residual whose own null block is `residual_block`:
+/// [`null_block_len`] of the feature's values in seek order (undefined rows at the mean),
+/// rounded up to a power of two, at most `residual_block`. A feature that is exchangeable in
+/// seek order (random targets) gets short blocks, a slow column the residual's.
+pub fn feature_null_block(values: &[Option<f64>], residual_block: usize) -> usize {
+    let defined: Vec<f64> = values.iter().flatten().copied().collect();
+    let mean = stats::mean(&defined).unwrap_or(0.0);
+    let filled: Vec<f64> = values.iter().map(|v| v.unwrap_or(mean) - mean).collect();
+    null_block_len(&filled)
+        .next_power_of_two()
+        .min(residual_block)
+        .max(1)
+}
+
 /// Writes into `out` a block permutation of `y`: `y` rotated by a random offset (so block
 /// boundaries are not fixed), cut into consecutive blocks of `block` rows, the blocks
 /// concatenated in random order. `block == 1` is a plain row permutation.
@@ -954,14 +990,101 @@ fn block_permute(y: &[f64], block: usize, out: &mut [f64], rng: &mut SimRng) {
     }
 }
 
+/// First random stream of the permutations: permutation `i` draws its permutation for the
+/// `b`-th distinct block length from stream `PERM_STREAM + PERM_STRIDE·i + b` of the diagnosis
+/// seed (streams 1–3 are the folds' and older uses).
+const PERM_STREAM: u64 = 1 << 32;
+/// Streams reserved per permutation (more than the distinct block lengths: powers of two up to
+/// [`MAX_NULL_BLOCK`], 1 and the residual's own).
+const PERM_STRIDE: u64 = 16;
+
+/// One thread's buffers and hit counts of the permutation test (one slot per usable feature).
+struct PermWorker {
+    tests: Vec<FTest>,
+    /// One permuted residual per distinct block length, and its direction-signed copy.
+    perms: Vec<Vec<f64>>,
+    signed: Vec<Vec<f64>>,
+    sst_signed: Vec<f64>,
+    stat: Vec<f64>,
+    raw: Vec<usize>,
+    adj: Vec<usize>,
+}
+
+impl PermWorker {
+    fn new(usable: &[(usize, &Analysed)], n: usize, lengths: usize, signed: bool) -> PermWorker {
+        let m = usable.len();
+        let s = if signed { n } else { 0 };
+        PermWorker {
+            tests: usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect(),
+            perms: vec![vec![0.0; n]; lengths],
+            signed: vec![vec![0.0; s]; lengths],
+            sst_signed: vec![0.0; lengths],
+            stat: vec![0.0; m],
+            raw: vec![0; m],
+            adj: vec![0; m],
+        }
+    }
+
+    /// Permutation `i`: the residual permuted once per distinct block length (`lengths`), each
+    /// feature tested against the permutation of its own block (`which[k]`, an index into
+    /// `lengths`); the family-wise statistic is the smallest over features.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &mut self,
+        i: usize,
+        usable: &[(usize, &Analysed)],
+        y: &[f64],
+        sst: f64,
+        direction: Option<&[f64]>,
+        lengths: &[usize],
+        which: &[usize],
+        seed: u64,
+    ) {
+        for (b, &len) in lengths.iter().enumerate() {
+            let stream = PERM_STREAM + PERM_STRIDE * i as u64 + b as u64;
+            block_permute(
+                y,
+                len,
+                &mut self.perms[b],
+                &mut SimRng::substream(seed, stream),
+            );
+            if let Some(d) = direction {
+                for ((s, p), d) in self.signed[b].iter_mut().zip(&self.perms[b]).zip(d) {
+                    *s = p * d;
+                }
+                self.sst_signed[b] = stats::sum_sq_about_mean(&self.signed[b]);
+            }
+        }
+        let mut min_stat = f64::INFINITY;
+        for (k, ((_, a), t)) in usable.iter().zip(self.tests.iter_mut()).enumerate() {
+            let b = which[k];
+            self.stat[k] = t.min_p(&a.binned, &self.perms[b], sst);
+            if a.signable && direction.is_some() {
+                self.stat[k] =
+                    self.stat[k].min(t.min_p(&a.binned, &self.signed[b], self.sst_signed[b]));
+            }
+            min_stat = min_stat.min(self.stat[k]);
+        }
+        for (k, &(_, a)) in usable.iter().enumerate() {
+            if self.stat[k] <= a.observed {
+                self.raw[k] += 1;
+            }
+            if min_stat <= a.observed {
+                self.adj[k] += 1;
+            }
+        }
+    }
+}
+
 /// Raw and Westfall–Young family-wise permutation p-values for every feature (1 for unusable
-/// ones).
+/// ones); feature `j` is tested against block permutations of `blocks[j]` consecutive
+/// residuals (1: rows permuted one by one).
 fn permutation_test(
     analysed: &[Result<Analysed, Unusable>],
     y: &[f64],
     sst: f64,
     direction: Option<&[f64]>,
-    block: usize,
+    blocks: &[usize],
     config: &DiagnoseConfig,
 ) -> (Vec<f64>, Vec<f64>) {
     let m = analysed.len();
@@ -973,46 +1096,37 @@ fn permutation_test(
         .filter_map(|(j, a)| a.as_ref().ok().map(|a| (j, a)))
         .collect();
     if sst > 0.0 && !usable.is_empty() {
-        let mut tests: Vec<FTest> = usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect();
-        // Two nulls: the time features see rows permuted one by one (serial structure in the
-        // residual *is* what they stand for: a slow offset that `drift` follows); every other
-        // feature sees blocks of `block` consecutive residuals permuted, so it must be
-        // associated with the residual beyond the residual's own serial correlation.
-        let n = y.len();
-        let mut perms = [y.to_vec(), y.to_vec()];
-        let mut signed = [vec![0.0; n], vec![0.0; n]];
-        let mut sst_signed = [0.0; 2];
-        let mut rng = SimRng::substream(config.seed, 2);
-        let mut rng_rows = SimRng::substream(config.seed, 3);
-        let mut stat = vec![0.0; usable.len()];
-        for _ in 0..config.permutations {
-            block_permute(y, block, &mut perms[0], &mut rng);
-            block_permute(y, 1, &mut perms[1], &mut rng_rows);
-            if let Some(d) = direction {
-                for k in 0..2 {
-                    for ((s, p), d) in signed[k].iter_mut().zip(&perms[k]).zip(d) {
-                        *s = p * d;
-                    }
-                    sst_signed[k] = stats::sum_sq_about_mean(&signed[k]);
-                }
-            }
-            let mut min_stat = f64::INFINITY;
-            for (k, ((_, a), t)) in usable.iter().zip(tests.iter_mut()).enumerate() {
-                let which = usize::from(is_time(a.origin));
-                stat[k] = t.min_p(&a.binned, &perms[which], sst);
-                if a.signable && direction.is_some() {
-                    stat[k] = stat[k].min(t.min_p(&a.binned, &signed[which], sst_signed[which]));
-                }
-                min_stat = min_stat.min(stat[k]);
-            }
-            for (k, &(j, a)) in usable.iter().enumerate() {
-                if stat[k] <= a.observed {
-                    raw_count[j] += 1;
-                }
-                if min_stat <= a.observed {
-                    adj_count[j] += 1;
-                }
-            }
+        let mut lengths: Vec<usize> = usable.iter().map(|&(j, _)| blocks[j]).collect();
+        lengths.sort_unstable();
+        lengths.dedup();
+        let which: Vec<usize> = usable
+            .iter()
+            .map(|&(j, _)| lengths.binary_search(&blocks[j]).unwrap_or(0))
+            .collect();
+        // Every permutation draws from its own seeded streams and the counts are integers, so
+        // the p-values are the same for any number of threads.
+        let k = usable.len();
+        let (raw, adj) = (0..config.permutations)
+            .into_par_iter()
+            .fold(
+                || PermWorker::new(&usable, y.len(), lengths.len(), direction.is_some()),
+                |mut w, i| {
+                    w.run(i, &usable, y, sst, direction, &lengths, &which, config.seed);
+                    w
+                },
+            )
+            .map(|w| (w.raw, w.adj))
+            .reduce(
+                || (vec![0; k], vec![0; k]),
+                |(mut r, mut a), (r2, a2)| {
+                    r.iter_mut().zip(r2).for_each(|(x, y)| *x += y);
+                    a.iter_mut().zip(a2).for_each(|(x, y)| *x += y);
+                    (r, a)
+                },
+            );
+        for (k, &(j, _)) in usable.iter().enumerate() {
+            raw_count[j] = raw[k];
+            adj_count[j] = adj[k];
         }
     }
     let b = config.permutations as f64 + 1.0;

@@ -443,6 +443,24 @@ fn percent(x: f64) -> String {
 
 /// A p-value for a table cell: `< 0.0001` below 1e-4 (the permutation and dip tests resolve
 /// nothing finer), else four significant decimals.
+/// "`drift` is following `temp_c`: {lead}50 %{mid}drift{tail}10 % of the residual alone: add
+/// `col:temp_c`" — one absorption in words (the summary's sentence and the text's line differ
+/// only in the joining words).
+fn absorbed_text(a: &super::Absorption, lead: &str, mid: &str, tail: &str) -> String {
+    format!(
+        "`{}` is following `{}`: {lead}{}{mid}{}{tail}{} of the residual alone{}",
+        a.term,
+        a.feature,
+        percent(a.explained_with_term),
+        a.term,
+        percent(a.explained_residual),
+        a.suggested_term
+            .as_deref()
+            .map(|t| format!(": add `{t}`"))
+            .unwrap_or_default()
+    )
+}
+
 fn p_text(p: f64) -> String {
     if p < 1e-4 {
         "< 0.0001".to_string()
@@ -542,17 +560,13 @@ fn model_sentences(d: &Diagnosis) -> Vec<String> {
     }
     for a in &d.absorbed {
         parts.push(format!(
-            "`{}` is following `{}`: it explains {} of the residual plus {}'s contribution but \
-             {} of the residual alone{}.",
-            a.term,
-            a.feature,
-            percent(a.explained_with_term),
-            a.term,
-            percent(a.explained_residual),
-            a.suggested_term
-                .as_deref()
-                .map(|t| format!(": add `{t}`"))
-                .unwrap_or_default()
+            "{}.",
+            absorbed_text(
+                a,
+                "it explains ",
+                " of the residual plus ",
+                "'s contribution but "
+            )
         ));
     }
     for w in &d.warnings {
@@ -794,17 +808,8 @@ impl Diagnosis {
             out.push_str("\nWhat adaptive terms absorbed:\n");
             for a in &self.absorbed {
                 out.push_str(&format!(
-                    "  `{}` is following `{}`: {} of residual + {} explained, {} of the residual \
-                     alone{}\n",
-                    a.term,
-                    a.feature,
-                    percent(a.explained_with_term),
-                    a.term,
-                    percent(a.explained_residual),
-                    a.suggested_term
-                        .as_deref()
-                        .map(|t| format!(": add `{t}`"))
-                        .unwrap_or_default()
+                    "  {}\n",
+                    absorbed_text(a, "", " of residual + ", " explained, ")
                 ));
             }
             for w in &self.warnings {

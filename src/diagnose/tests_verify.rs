@@ -19,6 +19,37 @@ fn seek_table(seed: u64, rows: usize) -> FeatureTable {
     FeatureTable::from_log(&log)
 }
 
+/// The values of feature `name` of `t`, 0 where undefined.
+fn values_of(t: &FeatureTable, name: &str) -> Vec<f64> {
+    t.column(name)
+        .unwrap()
+        .values
+        .iter()
+        .map(|v| v.unwrap_or(0.0))
+        .collect()
+}
+
+/// `terms` fitted to `log` with the default checked options.
+fn fit_terms(terms: &str, log: &Log) -> crate::model::FittedModel {
+    fit(
+        &ModelSpec::parse(terms).unwrap(),
+        log,
+        &CheckedFitOptions::default(),
+    )
+    .unwrap()
+}
+
+/// The verified diagnosis of `model` on `log` with the default settings.
+fn verified(model: &crate::model::FittedModel, log: &Log) -> Diagnosis {
+    diagnose_verified(
+        model,
+        log,
+        &CheckedDiagnoseConfig::default(),
+        &VerifyConfig::default(),
+    )
+    .unwrap()
+}
+
 /// The false-alarm rate of the null on slow no-effect columns (a random walk and a warm-up
 /// curve) when the residual is AR(1) with φ = 0.8, which is what a drive's residual in seek
 /// order looks like. Reference: under the null the family-wise p-value is uniform, so a
@@ -115,13 +146,7 @@ fn null_block_follows_the_residual_autocorrelation() {
 #[test]
 fn significant_but_too_small_is_said_and_not_flagged() {
     let t = seek_table(9, 20_000);
-    let change: Vec<f64> = t
-        .column("direction_change")
-        .unwrap()
-        .values
-        .iter()
-        .map(|v| v.unwrap_or(0.0))
-        .collect();
+    let change: Vec<f64> = values_of(&t, "direction_change");
     let mut rng = SimRng::new(3);
     let r: Vec<f64> = change.iter().map(|c| 0.1 * c + rng.normal()).collect();
     let d = diagnose(&t, &r, &CheckedDiagnoseConfig::default()).unwrap();
@@ -159,21 +184,10 @@ fn covariate_log(seed: u64, rows: usize, k: f64, period: f64) -> Log {
 #[test]
 fn drift_following_a_slow_covariate_is_named() {
     let log = covariate_log(4, 1500, 1.0, 60.0);
-    let model = fit(
-        &ModelSpec::parse("poly2,drift").unwrap(),
-        &log,
-        &CheckedFitOptions::default(),
-    )
-    .unwrap();
+    let model = fit_terms("poly2,drift", &log);
     let alpha = model.param("drift.alpha").unwrap().value;
     assert!(alpha > FAST_FORGETTING, "alpha {alpha}");
-    let d = diagnose_verified(
-        &model,
-        &log,
-        &CheckedDiagnoseConfig::default(),
-        &VerifyConfig::default(),
-    )
-    .unwrap();
+    let d = verified(&model, &log);
     let a = d
         .absorbed
         .iter()
@@ -201,12 +215,7 @@ fn drift_following_a_slow_covariate_is_named() {
 #[test]
 fn nothing_is_absorbed_without_an_adaptive_term() {
     let log = covariate_log(5, 800, 1.0, 60.0);
-    let model = fit(
-        &ModelSpec::parse("poly2").unwrap(),
-        &log,
-        &CheckedFitOptions::default(),
-    )
-    .unwrap();
+    let model = fit_terms("poly2", &log);
     let d = diagnose_model(&model, &log, &CheckedDiagnoseConfig::default()).unwrap();
     assert!(
         d.absorbed.is_empty() && d.warnings.is_empty(),
@@ -247,13 +256,7 @@ fn position_first_on_calibration_gets_a_table_that_fits() {
         &CheckedFitOptions::default(),
     )
     .unwrap();
-    let d = diagnose_verified(
-        &model,
-        &log,
-        &CheckedDiagnoseConfig::default(),
-        &VerifyConfig::default(),
-    )
-    .unwrap();
+    let d = verified(&model, &log);
     assert_eq!(d.features[0].name, "position", "{}", d.to_text());
     let v = d.verification.as_ref().unwrap();
     let best = v.best().unwrap_or_else(|| panic!("{}", d.to_text()));
@@ -314,13 +317,7 @@ fn every_suggestion_fits_when_applied() {
 #[test]
 fn seek_length_with_seek_in_the_model_gets_bins() {
     let t = seek_table(11, 3000);
-    let s: Vec<f64> = t
-        .column("seek_length")
-        .unwrap()
-        .values
-        .iter()
-        .map(|v| v.unwrap_or(0.0))
-        .collect();
+    let s: Vec<f64> = values_of(&t, "seek_length");
     let mut rng = SimRng::new(2);
     let r: Vec<f64> = s
         .iter()
@@ -418,13 +415,7 @@ fn pair_screening_and_global_check_find_an_interaction_without_marginals() {
     let temp: Vec<f64> = (0..t.len()).map(|_| rng.normal()).collect();
     t.push_column("temp_c", temp.iter().map(|&v| Some(v)).collect())
         .unwrap();
-    let pos: Vec<f64> = t
-        .column("position")
-        .unwrap()
-        .values
-        .iter()
-        .map(|v| v.unwrap_or(0.0))
-        .collect();
+    let pos: Vec<f64> = values_of(&t, "position");
     let r: Vec<f64> = (0..t.len())
         .map(|i| 2.0 * temp[i] * (pos[i] - 125.0) / 72.0 + rng.normal())
         .collect();
@@ -467,18 +458,8 @@ fn by_term_fits_a_covariate_times_position() {
         text.push_str(&format!("{},{pos},{bias:.4},{temp:.4}\n", 0.2 * i as f64));
     }
     let log = Log::from_reader("by.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
-    let base = fit(
-        &ModelSpec::parse("poly2,col:temp_c").unwrap(),
-        &log,
-        &CheckedFitOptions::default(),
-    )
-    .unwrap();
-    let with = fit(
-        &ModelSpec::parse("poly2,col:temp_c,by:temp_c:position").unwrap(),
-        &log,
-        &CheckedFitOptions::default(),
-    )
-    .unwrap();
+    let base = fit_terms("poly2,col:temp_c", &log);
+    let with = fit_terms("poly2,col:temp_c,by:temp_c:position", &log);
     assert!(base.fit.residual_std > 2.0, "{}", base.fit.residual_std);
     assert!(
         (with.fit.residual_std - 1.0).abs() < 0.1,
@@ -486,13 +467,7 @@ fn by_term_fits_a_covariate_times_position() {
         with.fit.residual_std
     );
     // The diagnosis of the base model verifies the interaction edit.
-    let d = diagnose_verified(
-        &base,
-        &log,
-        &CheckedDiagnoseConfig::default(),
-        &VerifyConfig::default(),
-    )
-    .unwrap();
+    let d = verified(&base, &log);
     let best = d
         .verification
         .as_ref()
@@ -505,4 +480,59 @@ fn by_term_fits_a_covariate_times_position() {
         crate::model::FittedModel::from_json(&json, std::path::Path::new("m.json"), &|_, _| None)
             .unwrap();
     assert_eq!(back.spec.to_string(), with.spec.to_string());
+}
+
+/// Issue #16: the permutations, the per-feature cross-validation, the verification refits and
+/// discover's steps run on rayon, and every random draw has its own seeded stream, so the
+/// result must not depend on the number of threads. Reference: the same call in a local pool
+/// of 1 thread (the sequential order). Diagnose on a residual with a real effect and a slow
+/// no-effect column (p-values, flags and the verified edits compared bit for bit) and one
+/// discover step.
+#[test]
+fn results_are_identical_for_1_2_and_4_threads() {
+    let log = covariate_log(31, 900, 0.6, 80.0);
+    let model = fit_terms("poly2", &log);
+    let config = DiagnoseConfig {
+        permutations: 99,
+        ..DiagnoseConfig::default()
+    }
+    .check()
+    .unwrap();
+    let dc = DiscoverConfig {
+        diagnose: config.clone(),
+        max_steps: 1,
+        ..DiscoverConfig::default()
+    };
+    let start = ModelSpec::parse("poly2").unwrap();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let d = diagnose_verified(&model, &log, &config, &VerifyConfig::default()).unwrap();
+            let (found, _) = discover(&start, &log, None, &dc).unwrap();
+            (d, found)
+        })
+    };
+    let (d1, f1) = run(1);
+    assert!(
+        d1.features.iter().any(|f| f.flagged)
+            && d1
+                .verification
+                .as_ref()
+                .is_some_and(|v| !v.edits.is_empty()),
+        "the comparison must cover flags and verified edits: {}",
+        d1.to_text()
+    );
+    for threads in [2, 4] {
+        let (d, f) = run(threads);
+        assert!(
+            d == d1,
+            "{threads} threads:\n{}\nvs 1:\n{}",
+            d.to_text(),
+            d1.to_text()
+        );
+        assert_eq!(f, f1, "{threads} threads");
+    }
 }

@@ -9,11 +9,15 @@
 //! causally over the whole log, and its residuals on the blanked stretch are kept. The model
 //! before and after the edit are scored on the same folds, so the per-row squared errors pair
 //! up: the verified gain is `1 − MSE_after / MSE_before`, and its noise is judged from the
-//! paired differences summed over blocks of consecutive rows (the diagnosis's null block), so
+//! paired differences summed over blocks of consecutive rows (as long as the differences' own
+//! serial correlation needs: the automatic null block of that series), so
 //! serially correlated errors do not make a small gain look sure. An edit is *verified* when
 //! its gain is at least [`super::DiagnoseConfig::min_effect`] and its block z-score at least
 //! [`VerifyConfig::min_z`].
 
+use std::collections::HashMap;
+
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::model::ModelDiagnosisError;
@@ -128,7 +132,8 @@ pub struct Verification {
     pub folds: usize,
     /// Out-of-sample error std of the model as it is (bias unit).
     pub std_before: f64,
-    /// Block length (rows) of the z-score.
+    /// The diagnosis's null block (rows); each edit's z-score uses the block of its own paired
+    /// differences (see `paired_gain` in the module source).
     pub block_len: usize,
     /// Every edit that fitted, largest verified gain first.
     pub edits: Vec<VerifiedEdit>,
@@ -253,6 +258,17 @@ pub fn edit_for(
     Ok(ModelEdit::Add(parse_term(term)?))
 }
 
+/// Indices into `log.rows` of the rows with a measured bias, in log order (the rows every
+/// residual, fold and score of a diagnosis is counted over).
+pub fn measured_rows(log: &Log) -> Vec<usize> {
+    log.rows
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.bias.is_some())
+        .map(|(i, _)| i)
+        .collect()
+}
+
 /// Out-of-sample residuals of `spec` on `log`, one per measured row in log order: fitted with
 /// each of `folds` contiguous stretches of measured rows blanked, replayed over the whole log,
 /// scored on the blanked stretch (see the module docs).
@@ -262,49 +278,73 @@ pub fn cv_residuals(
     folds: usize,
     opts: &CheckedFitOptions,
 ) -> Result<Vec<f64>, ModelDiagnosisError> {
-    let measured: Vec<usize> = log
-        .rows
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| r.bias.is_some())
-        .map(|(i, _)| i)
-        .collect();
+    let measured = measured_rows(log);
     let n = measured.len();
-    let mut out = vec![0.0; n];
     let terms = spec.to_string();
-    for k in 0..folds {
-        let (a, b) = (k * n / folds, (k + 1) * n / folds);
-        if a == b {
-            continue;
-        }
-        let mut masked = log.clone();
-        for &i in &measured[a..b] {
-            masked.rows[i].bias = None;
-        }
-        let model = fit(spec, &masked, opts).map_err(|source| ModelDiagnosisError::Fit {
-            step: k,
-            terms: terms.clone(),
-            file: log.schema.file.clone(),
-            source: Box::new(source),
-        })?;
-        let p = super::replay_model(&model, log)?;
-        out[a..b].copy_from_slice(&p.residual[a..b]);
+    // The folds are independent fits (no random draws): in parallel, in fold order.
+    let parts: Vec<Result<Vec<f64>, ModelDiagnosisError>> = (0..folds)
+        .into_par_iter()
+        .map(|k| {
+            let (a, b) = (k * n / folds, (k + 1) * n / folds);
+            if a == b {
+                return Ok(Vec::new());
+            }
+            let mut masked = log.clone();
+            for &i in &measured[a..b] {
+                masked.rows[i].bias = None;
+            }
+            let model = fit(spec, &masked, opts).map_err(|source| ModelDiagnosisError::Fit {
+                step: k,
+                terms: terms.clone(),
+                file: log.schema.file.clone(),
+                source: Box::new(source),
+            })?;
+            let p = super::replay_model(&model, log)?;
+            Ok(p.residual[a..b].to_vec())
+        })
+        .collect();
+    let mut out = Vec::with_capacity(n);
+    for p in parts {
+        out.extend(p?);
     }
     Ok(out)
 }
 
-/// Verified gain and its block z-score of `after` over `before` (paired residuals).
-fn paired_gain(before: &[f64], after: &[f64], block: usize) -> (f64, f64) {
+/// Knot counts the verification tries for a `bins:`/`dbins:` suggestion given without one
+/// (the term's default of 4 first): a threshold or a sharp bend needs more hinges than a
+/// smooth curve, and the out-of-sample refit, not the 1-D smoother, decides how many pay.
+pub const KNOT_CHOICES: [usize; 2] = [8, 16];
+
+/// The terms the verification scores for suggestion `term`: the term itself, then for a
+/// `bins:F` or `dbins:F` without a knot count the same term with each of [`KNOT_CHOICES`]
+/// (the best verified gain among them is kept).
+pub fn knot_variants(term: &str) -> Vec<String> {
+    let mut out = vec![term.to_string()];
+    let parts: Vec<&str> = term.split(':').collect();
+    if let ["bins" | "dbins", _] = parts.as_slice() {
+        out.extend(KNOT_CHOICES.iter().map(|k| format!("{term}:{k}")));
+    }
+    out
+}
+
+/// Verified gain and its block z-score of `after` over `before` (paired residuals). The
+/// block is the automatic null block ([`super::null_block_len`]) of the paired squared-error
+/// differences themselves: the z-score is a mean of that series, and its standard error
+/// needs blocks as long as *its* serial correlation (squares of an AR(1) residual with ρ
+/// decorrelate like ρ², faster than the residual, so the residual's block would be too
+/// conservative; a slow difference gets longer blocks).
+fn paired_gain(before: &[f64], after: &[f64]) -> (f64, f64) {
     let n = before.len();
     let mse = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>() / n.max(1) as f64;
     let (mb, ma) = (mse(before), mse(after));
     let gain = if mb > 0.0 { 1.0 - ma / mb } else { 0.0 };
-    let block = block.max(1);
-    let sums: Vec<f64> = before
-        .chunks(block)
-        .zip(after.chunks(block))
-        .map(|(b, a)| b.iter().zip(a).map(|(b, a)| b * b - a * a).sum())
+    let diff: Vec<f64> = before
+        .iter()
+        .zip(after)
+        .map(|(b, a)| b * b - a * a)
         .collect();
+    let block = super::null_block_len(&diff).max(1);
+    let sums: Vec<f64> = diff.chunks(block).map(|c| c.iter().sum()).collect();
     let m = sums.len() as f64;
     let z = match crate::numeric::stats::std_dev(&sums) {
         Some(sd) if sd > 0.0 => sums.iter().sum::<f64>() / m / (sd / m.sqrt()),
@@ -335,13 +375,50 @@ pub fn verify(
         block_len,
         ..Verification::default()
     };
-    let before = match cv_residuals(spec, log, config.folds, &config.fit) {
+    // The refits the loop below will score (the model as it is; each candidate's first term
+    // that applies, every term of a `try_all` candidate) run in parallel first; the loop then
+    // reads them, so the result is the same for any number of threads.
+    let score = |s: &ModelSpec| {
+        cv_residuals(s, log, config.folds, &config.fit).map_err(|e| error_chain(&e))
+    };
+    let mut wanted: Vec<ModelSpec> = vec![spec.clone()];
+    for c in cands {
+        let mut groups = c.terms.iter().map(|t| {
+            knot_variants(t)
+                .iter()
+                .filter_map(|v| {
+                    edit_for(v, spec, c.table_spacing)
+                        .and_then(|e| spec.apply(&e))
+                        .ok()
+                })
+                .collect::<Vec<_>>()
+        });
+        if c.try_all {
+            wanted.extend(groups.flatten());
+        } else if let Some(first) = groups.find(|g| !g.is_empty()) {
+            wanted.extend(first);
+        }
+    }
+    let mut keys: Vec<String> = Vec::new();
+    wanted.retain(|s| {
+        let k = s.to_string();
+        let new = !keys.contains(&k);
+        if new {
+            keys.push(k);
+        }
+        new
+    });
+    let mut cache: HashMap<String, Result<Vec<f64>, String>> = keys
+        .into_iter()
+        .zip(wanted.par_iter().map(score).collect::<Vec<_>>())
+        .collect();
+    let mut scored = |s: &ModelSpec| cache.remove(&s.to_string()).unwrap_or_else(|| score(s));
+    let before = match scored(spec) {
         Ok(r) => r,
         Err(e) => {
             v.not_run = Some(format!(
                 "the model `{spec}` cannot be refitted on this log, so no suggestion was \
-                 verified: {}",
-                error_chain(&e)
+                 verified: {e}"
             ));
             return Ok(v);
         }
@@ -351,52 +428,60 @@ pub fn verify(
     for c in cands {
         let mut best: Option<VerifiedEdit> = None;
         for term in &c.terms {
-            let attempt = edit_for(term, spec, c.table_spacing).and_then(|e| {
-                let s = spec.apply(&e)?;
-                Ok((e, s))
-            });
-            let (edit, next) = match attempt {
-                Ok(x) => x,
-                Err(e) => {
-                    v.rejected.push(RejectedEdit {
-                        feature: c.feature.clone(),
-                        term: term.clone(),
-                        why: e.to_string(),
-                    });
+            let mut fitted = false;
+            for (variant, alt) in knot_variants(term).iter().zip([false, true, true]) {
+                let attempt = edit_for(variant, spec, c.table_spacing).and_then(|e| {
+                    let s = spec.apply(&e)?;
+                    Ok((e, s))
+                });
+                let (edit, next) = match attempt {
+                    Ok(x) => x,
+                    Err(e) => {
+                        if !alt {
+                            v.rejected.push(RejectedEdit {
+                                feature: c.feature.clone(),
+                                term: term.clone(),
+                                why: e.to_string(),
+                            });
+                        }
+                        continue;
+                    }
+                };
+                if seen.contains(&next.to_string()) {
                     continue;
                 }
-            };
-            if seen.contains(&next.to_string()) {
-                continue;
-            }
-            let after = match cv_residuals(&next, log, config.folds, &config.fit) {
-                Ok(r) => r,
-                Err(e) => {
-                    v.rejected.push(RejectedEdit {
-                        feature: c.feature.clone(),
-                        term: term.clone(),
-                        why: error_chain(&e),
-                    });
-                    continue;
+                let after = match scored(&next) {
+                    Ok(r) => r,
+                    Err(why) => {
+                        if !alt {
+                            v.rejected.push(RejectedEdit {
+                                feature: c.feature.clone(),
+                                term: term.clone(),
+                                why,
+                            });
+                        }
+                        continue;
+                    }
+                };
+                fitted = true;
+                seen.push(next.to_string());
+                let (gain, z) = paired_gain(&before, &after);
+                let e = VerifiedEdit {
+                    feature: c.feature.clone(),
+                    edit: edit.to_string(),
+                    terms: next.to_string(),
+                    std_before: v.std_before,
+                    std_after: std_of(&after),
+                    gain,
+                    z,
+                    verified: gain >= min_effect && z >= config.min_z,
+                    model_edit: Some(edit),
+                };
+                if best.as_ref().is_none_or(|b| e.gain > b.gain) {
+                    best = Some(e);
                 }
-            };
-            seen.push(next.to_string());
-            let (gain, z) = paired_gain(&before, &after, block_len);
-            let e = VerifiedEdit {
-                feature: c.feature.clone(),
-                edit: edit.to_string(),
-                terms: next.to_string(),
-                std_before: v.std_before,
-                std_after: std_of(&after),
-                gain,
-                z,
-                verified: gain >= min_effect && z >= config.min_z,
-                model_edit: Some(edit),
-            };
-            if best.as_ref().is_none_or(|b| e.gain > b.gain) {
-                best = Some(e);
             }
-            if !c.try_all {
+            if fitted && !c.try_all {
                 break;
             }
         }

@@ -94,12 +94,7 @@ pub static BUILTINS: &[BuiltinTerm] = &[
         covariate::parse,
         restore_as::<covariate::ColTerm>,
     ),
-    row(
-        "lag",
-        Some("lag:NAME"),
-        lag::parse,
-        restore_as::<lag::LagTerm>,
-    ),
+    row("lag", Some("lag:NAME"), lag::parse, lag::restore),
     row(
         "memsum",
         Some("memsum"),

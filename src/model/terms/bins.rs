@@ -146,16 +146,7 @@ impl Term for BinsTerm {
         }
     }
     fn start(&self, covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
-        let source = if self.covariate {
-            Source::Covariate(covariate_position(covariates, &self.source, &self.name)?)
-        } else {
-            Source::Feature(Feature::from_name(&self.source).ok_or_else(|| {
-                ModelError::BadTerm {
-                    term: self.name.clone(),
-                    why: format!("unknown feature `{}`", self.source),
-                }
-            })?)
-        };
+        let source = Source::resolve(self.covariate, &self.source, covariates, &self.name)?;
         Ok(Box::new(BinsState {
             term: self.clone(),
             source,
@@ -166,10 +157,46 @@ impl Term for BinsTerm {
     }
 }
 
+/// Where a term's input value comes from: a built-in history feature or a covariate column
+/// (its position among the model's covariates). Shared by `bins`, `dbins` and `by`.
 #[derive(Debug, Clone, Copy)]
-enum Source {
+pub(crate) enum Source {
+    /// A built-in history feature.
     Feature(Feature),
+    /// A logged covariate, by position in the model's covariate list.
     Covariate(usize),
+}
+
+impl Source {
+    /// Resolves `name` (a covariate column if `covariate`, else a built-in feature name) for
+    /// term `term` against the model's `covariates`; an unknown name is a `BadTerm` error.
+    pub(crate) fn resolve(
+        covariate: bool,
+        name: &str,
+        covariates: &[String],
+        term: &str,
+    ) -> Result<Source, ModelError> {
+        if covariate {
+            Ok(Source::Covariate(covariate_position(
+                covariates, name, term,
+            )?))
+        } else {
+            Feature::from_name(name)
+                .map(Source::Feature)
+                .ok_or_else(|| ModelError::BadTerm {
+                    term: term.to_string(),
+                    why: format!("unknown feature `{name}`"),
+                })
+        }
+    }
+
+    /// The value at `seek` (`None` where a feature is undefined).
+    pub(crate) fn value(self, seek: &Seek<'_>) -> Option<f64> {
+        match self {
+            Source::Feature(f) => seek.features.value(f),
+            Source::Covariate(i) => Some(seek.covariates[i]),
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -182,11 +209,7 @@ impl TermState for BinsState {
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         out.fill(0.0);
         let t = &self.term;
-        let v = match self.source {
-            Source::Feature(f) => seek.features.value(f),
-            Source::Covariate(i) => Some(seek.covariates[i]),
-        };
-        match v {
+        match self.source.value(seek) {
             Some(v) => {
                 out[0] = (v - t.centre) / t.scale;
                 for (o, &k) in out[1..].iter_mut().zip(&t.knots) {

@@ -5,7 +5,7 @@
 //! temperature that tilts the position curve (`by:temp_c:position`). The main effects are left
 //! to other terms (`col:A`, `poly2`); where either feature is undefined the basis is 0.
 
-use super::covariate_position;
+use super::bins::Source;
 use crate::fit::{FitData, FitError};
 use crate::history::Feature;
 use crate::model::ModelError;
@@ -103,20 +103,7 @@ impl Term for ByTerm {
     fn start(&self, covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         let mut src = [Source::Covariate(0); 2];
         for (k, s) in src.iter_mut().enumerate() {
-            *s = if self.covariate[k] {
-                Source::Covariate(covariate_position(
-                    covariates,
-                    &self.sources[k],
-                    &self.name,
-                )?)
-            } else {
-                Source::Feature(Feature::from_name(&self.sources[k]).ok_or_else(|| {
-                    ModelError::BadTerm {
-                        term: self.name.clone(),
-                        why: format!("unknown feature `{}`", self.sources[k]),
-                    }
-                })?)
-            };
+            *s = Source::resolve(self.covariate[k], &self.sources[k], covariates, &self.name)?;
         }
         Ok(Box::new(ByState {
             term: self.clone(),
@@ -128,12 +115,6 @@ impl Term for ByTerm {
     }
 }
 
-#[derive(Debug, Clone, Copy)]
-enum Source {
-    Feature(Feature),
-    Covariate(usize),
-}
-
 #[derive(Debug, Clone)]
 struct ByState {
     term: ByTerm,
@@ -142,10 +123,7 @@ struct ByState {
 
 impl TermState for ByState {
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
-        let value = |k: usize| match self.src[k] {
-            Source::Feature(f) => seek.features.value(f),
-            Source::Covariate(i) => Some(seek.covariates[i]),
-        };
+        let value = |k: usize| self.src[k].value(seek);
         let t = &self.term;
         out[0] = match (value(0), value(1)) {
             (Some(a), Some(b)) => (a - t.centre[0]) / t.scale[0] * (b - t.centre[1]) / t.scale[1],

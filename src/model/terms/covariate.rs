@@ -1,11 +1,13 @@
 //! `col:NAME`: bias linear in a covariate column of the log (for example `col:temp_c`).
 //! Internally the column is centred and scaled by its training mean and standard deviation; the
-//! reported `slope` is in counts per unit of the column.
+//! reported `slope` is in counts per unit of the column. The same fitted term with a lag stage
+//! is `lag:NAME` ([`super::lag`]): the column passed through a first-order lag first.
 
 use super::covariate_position;
+use super::lag::{FirstOrderLag, LagStage};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -21,19 +23,15 @@ impl TermSpec for ColSpec {
         format!("col:{}", self.column)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let idx = data.covariate(&self.column, &self.name())?;
-        let v = data.measured_values(|s| Some(s.covariates[idx]));
-        let centre = crate::numeric::stats::mean(&v).unwrap_or(0.0);
-        let sd = crate::numeric::stats::std_dev(&v).unwrap_or(0.0);
-        Ok(Arc::new(ColTerm {
-            column: self.column.clone(),
-            centre,
-            scale: if sd > 0.0 { sd } else { 1.0 },
-        }))
+        Ok(Arc::new(ColTerm::prepare(
+            data,
+            &self.column,
+            &self.name(),
+        )?))
     }
 }
 
-/// The fitted `col:NAME` term.
+/// The fitted `col:NAME` term, or `lag:NAME` when it has a lag stage.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ColTerm {
     /// The covariate column.
@@ -42,11 +40,33 @@ pub struct ColTerm {
     pub centre: f64,
     /// Training standard deviation of the column (1 if it was constant).
     pub scale: f64,
+    /// The first-order lag the column passes through first (`lag:NAME`); `None` for `col:NAME`.
+    /// Its fields sit beside the others in a model file (`tau`, `ln_lo`, `ln_hi`).
+    #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
+    pub lag: Option<LagStage>,
+}
+
+impl ColTerm {
+    /// The centred and scaled term in `column` (training mean and std of its measured rows; a
+    /// constant column gets scale 1), without a lag stage; `name` labels errors.
+    pub fn prepare(data: &FitData<'_>, column: &str, name: &str) -> Result<ColTerm, FitError> {
+        let idx = data.covariate(column, name)?;
+        let v = data.measured_values(|s| Some(s.covariates[idx]));
+        let centre = crate::numeric::stats::mean(&v).unwrap_or(0.0);
+        let sd = crate::numeric::stats::std_dev(&v).unwrap_or(0.0);
+        Ok(ColTerm {
+            column: column.to_string(),
+            centre,
+            scale: if sd > 0.0 { sd } else { 1.0 },
+            lag: None,
+        })
+    }
 }
 
 impl Term for ColTerm {
     fn name(&self) -> String {
-        format!("col:{}", self.column)
+        let head = if self.lag.is_some() { "lag" } else { "col" };
+        format!("{head}:{}", self.column)
     }
     fn param_names(&self) -> Vec<String> {
         vec!["slope".into()]
@@ -59,14 +79,43 @@ impl Term for ColTerm {
             idx: covariate_position(covariates, &self.column, &self.name())?,
             centre: self.centre,
             scale: self.scale,
+            lag: self.lag.map(|l| FirstOrderLag::new(l.tau)),
         }))
     }
-    fn report(&self, coef: &[f64], cov: &[f64], _nl: Option<f64>) -> Vec<Param> {
-        vec![Param {
+    fn nonlinear(&self) -> Option<Nonlinear> {
+        self.lag.map(|l| Nonlinear {
+            name: "ln_tau".into(),
+            value: l.tau.ln(),
+            lo: l.ln_lo,
+            hi: l.ln_hi,
+        })
+    }
+    fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
+        let l = self.lag?;
+        Some(Arc::new(ColTerm {
+            lag: Some(LagStage {
+                tau: t.clamp(l.ln_lo, l.ln_hi).exp(),
+                ..l
+            }),
+            ..self.clone()
+        }))
+    }
+    /// `NAME.slope` (counts per unit of the column) and, with a lag stage, `lag:NAME.tau` (s;
+    /// standard error by the delta method from that of `ln τ`).
+    fn report(&self, coef: &[f64], cov: &[f64], nl_se: Option<f64>) -> Vec<Param> {
+        let mut out = vec![Param {
             name: format!("{}.slope", self.name()),
             value: coef[0] / self.scale,
             se: se_from_cov(cov, 1, 0).map(|s| s / self.scale),
-        }]
+        }];
+        if let Some(l) = self.lag {
+            out.push(Param {
+                name: format!("{}.tau", self.name()),
+                value: l.tau,
+                se: nl_se.map(|s| s * l.tau),
+            });
+        }
+        out
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
@@ -78,13 +127,28 @@ struct ColState {
     idx: usize,
     centre: f64,
     scale: f64,
+    lag: Option<FirstOrderLag>,
+}
+
+impl ColState {
+    fn input(&self, seek: &Seek<'_>) -> f64 {
+        let c = seek.covariates[self.idx];
+        match &self.lag {
+            Some(lag) => lag.peek(seek.features.time_s, c),
+            None => c,
+        }
+    }
 }
 
 impl TermState for ColState {
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
-        out[0] = (seek.covariates[self.idx] - self.centre) / self.scale;
+        out[0] = (self.input(seek) - self.centre) / self.scale;
     }
-    fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
+    fn update(&mut self, seek: &Seek<'_>, _residual: Option<f64>) {
+        if let Some(lag) = &mut self.lag {
+            lag.step(seek.features.time_s, seek.covariates[self.idx]);
+        }
+    }
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }

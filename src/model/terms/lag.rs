@@ -14,10 +14,10 @@
 //! `[median Δt / 2, time span]` of the training log (its own sampling and length, never an
 //! absolute unit). As τ → 0 the term becomes `col:NAME`.
 
-use super::covariate_position;
+use super::covariate::ColTerm;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term::{Term, TermSpec};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -32,11 +32,10 @@ impl TermSpec for LagSpec {
     fn name(&self) -> String {
         format!("lag:{}", self.column)
     }
+    /// The `col:NAME` term with a lag stage whose `ln τ` search interval is
+    /// `[ln(median Δt / 2), ln(time span)]` of the training log, starting at its middle.
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let idx = data.covariate(&self.column, &self.name())?;
-        let v = data.measured_values(|s| Some(s.covariates[idx]));
-        let centre = crate::numeric::stats::mean(&v).unwrap_or(0.0);
-        let sd = crate::numeric::stats::std_dev(&v).unwrap_or(0.0);
+        let mut term = ColTerm::prepare(data, &self.column, &self.name())?;
         let rows = &data.log().rows;
         let steps: Vec<f64> = rows
             .windows(2)
@@ -53,26 +52,18 @@ impl TermSpec for LagSpec {
             });
         }
         let (lo, hi) = ((0.5 * median).ln(), span.ln());
-        Ok(Arc::new(LagTerm {
-            column: self.column.clone(),
-            centre,
-            scale: if sd > 0.0 { sd } else { 1.0 },
+        term.lag = Some(LagStage {
             tau: (0.5 * (lo + hi)).exp(),
             ln_lo: lo,
             ln_hi: hi,
-        }))
+        });
+        Ok(Arc::new(term))
     }
 }
 
-/// The fitted `lag:NAME` term.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct LagTerm {
-    /// The covariate column.
-    pub column: String,
-    /// Training mean of the column.
-    pub centre: f64,
-    /// Training standard deviation of the column (1 if it was constant).
-    pub scale: f64,
+/// The lag stage of a fitted `lag:NAME` term ([`ColTerm::lag`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LagStage {
     /// Time constant τ of the lag, s.
     pub tau: f64,
     /// Lower end of the `ln τ` search interval.
@@ -81,57 +72,20 @@ pub struct LagTerm {
     pub ln_hi: f64,
 }
 
-impl Term for LagTerm {
-    fn name(&self) -> String {
-        format!("lag:{}", self.column)
+/// Restores a saved `lag:NAME` term (a [`ColTerm`] whose settings hold `tau`, `ln_lo` and
+/// `ln_hi`); registry entry.
+pub fn restore(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+    let t: ColTerm = serde_json::from_value(settings.clone()).map_err(|e| ModelError::BadTerm {
+        term: name.to_string(),
+        why: e.to_string(),
+    })?;
+    if t.lag.is_none() {
+        return Err(ModelError::BadTerm {
+            term: name.to_string(),
+            why: "a `lag` term needs `tau`, `ln_lo` and `ln_hi`".into(),
+        });
     }
-    fn param_names(&self) -> Vec<String> {
-        vec!["slope".into()]
-    }
-    fn covariates(&self) -> Vec<String> {
-        vec![self.column.clone()]
-    }
-    fn start(&self, covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
-        Ok(Box::new(LagState {
-            idx: covariate_position(covariates, &self.column, &self.name())?,
-            centre: self.centre,
-            scale: self.scale,
-            lag: FirstOrderLag::new(self.tau),
-        }))
-    }
-    fn nonlinear(&self) -> Option<Nonlinear> {
-        Some(Nonlinear {
-            name: "ln_tau".into(),
-            value: self.tau.ln(),
-            lo: self.ln_lo,
-            hi: self.ln_hi,
-        })
-    }
-    fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
-        Some(Arc::new(LagTerm {
-            tau: t.clamp(self.ln_lo, self.ln_hi).exp(),
-            ..self.clone()
-        }))
-    }
-    /// `lag:NAME.slope` (counts per unit of the column) and `lag:NAME.tau` (s; standard error
-    /// by the delta method from that of `ln τ`).
-    fn report(&self, coef: &[f64], cov: &[f64], nl_se: Option<f64>) -> Vec<Param> {
-        vec![
-            Param {
-                name: format!("{}.slope", self.name()),
-                value: coef[0] / self.scale,
-                se: se_from_cov(cov, 1, 0).map(|s| s / self.scale),
-            },
-            Param {
-                name: format!("{}.tau", self.name()),
-                value: self.tau,
-                se: nl_se.map(|s| s * self.tau),
-            },
-        ]
-    }
-    fn settings(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or_default()
-    }
+    Ok(Arc::new(t))
 }
 
 /// A first-order lag `τ·dz/dt = c − z` of a sampled signal, linear between samples (exact
@@ -177,30 +131,6 @@ impl FirstOrderLag {
         let z = self.peek(t, c);
         self.last = Some((t, c, z));
         z
-    }
-}
-
-#[derive(Debug, Clone)]
-struct LagState {
-    idx: usize,
-    centre: f64,
-    scale: f64,
-    lag: FirstOrderLag,
-}
-
-impl TermState for LagState {
-    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
-        let z = self
-            .lag
-            .peek(seek.features.time_s, seek.covariates[self.idx]);
-        out[0] = (z - self.centre) / self.scale;
-    }
-    fn update(&mut self, seek: &Seek<'_>, _residual: Option<f64>) {
-        self.lag
-            .step(seek.features.time_s, seek.covariates[self.idx]);
-    }
-    fn clone_box(&self) -> Box<dyn TermState> {
-        Box::new(self.clone())
     }
 }
 
