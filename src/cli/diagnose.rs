@@ -1,7 +1,6 @@
 //! `biasctl diagnose`: compare a fitted model with a log and name the missing effect.
 
 use super::predict::ModelLogArgs;
-use anyhow::Context;
 use biasctl::diagnose::{
     DiagnoseConfig, PathStep, VerifyConfig, diagnose_model, diagnose_verified, suggestion_path_from,
 };
@@ -62,7 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         folds: args.verify_folds,
         ..VerifyConfig::default()
     };
-    verify.validate().context("--verify-folds")?;
+    verify.validate()?;
     let model = FittedModel::load(&args.input.model)?;
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());

@@ -44,10 +44,10 @@ impl Default for DiscoverConfig {
 #[non_exhaustive]
 pub enum DiscoverError {
     /// A setting is out of range.
-    #[error("invalid discover setting `{field}`: {message}")]
+    #[error("invalid discover setting {field}: {message}")]
     InvalidConfig {
         /// The setting.
-        field: &'static str,
+        field: crate::field::Field,
         /// What is wrong and what is allowed.
         message: String,
     },
@@ -145,7 +145,7 @@ pub fn discover(
 ) -> Result<(Discovery, FittedModel), DiscoverError> {
     if !(1..=30).contains(&config.max_steps) {
         return Err(DiscoverError::InvalidConfig {
-            field: "max_steps",
+            field: crate::field::Field::MaxSteps,
             message: format!("{} is not in 1..=30", config.max_steps),
         });
     }

@@ -54,17 +54,20 @@ impl VerifyConfig {
         let bad =
             |field, message: String| Err(super::DiagnoseError::InvalidConfig { field, message });
         if !(2..=20).contains(&self.folds) {
-            return bad("verify_folds", format!("{} is not in 2..=20", self.folds));
+            return bad(
+                crate::field::Field::VerifyFolds,
+                format!("{} is not in 2..=20", self.folds),
+            );
         }
         if !(1..=20).contains(&self.candidates) {
             return bad(
-                "verify_candidates",
+                crate::field::Field::VerifyCandidates,
                 format!("{} is not in 1..=20", self.candidates),
             );
         }
         if !(self.min_z.is_finite() && self.min_z >= 0.0) {
             return bad(
-                "min_z",
+                crate::field::Field::MinZ,
                 format!("{} is not a finite number ≥ 0", self.min_z),
             );
         }
