@@ -49,7 +49,9 @@
 //! type; the entry points accept only the checked one, so no numerics run on unchecked
 //! settings: [`FitOptions::check`] → [`CheckedFitOptions`] for [`fit()`],
 //! [`DiagnoseConfig::check`] → [`CheckedDiagnoseConfig`] for [`diagnose()`] and
-//! [`diagnose_model`], [`SettleSpec::check`] → [`SettleConfig`] for [`analyse`] and
+//! [`diagnose_model`], [`VerifyConfig::check`] → [`CheckedVerifyConfig`] for
+//! [`diagnose_verified`], [`DiscoverConfig::check`] → [`CheckedDiscoverConfig`] for
+//! [`discover()`], [`SettleSpec::check`] → [`SettleConfig`] for [`analyse`] and
 //! [`StartValues::new`], [`SimConfig::new`] (a [`SimConfig`] exists only checked) for
 //! [`simulate_log`]. The `Default` of a checked type is the checked default.
 //!
@@ -138,8 +140,8 @@ pub mod report;
 // The curated public API: what a user of the library needs, one `use biasctl::…` away.
 pub use control::settle::{SettleConfig, SettleReport, SettleSpec, analyse};
 pub use diagnose::{
-    CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, DiscoverConfig, VerifyConfig, diagnose,
-    diagnose_model, diagnose_verified, discover,
+    CheckedDiagnoseConfig, CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis,
+    DiscoverConfig, VerifyConfig, diagnose, diagnose_model, diagnose_verified, discover,
 };
 pub use export::{COptions, CSource, c_source};
 pub use field::Field;

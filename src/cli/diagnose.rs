@@ -60,8 +60,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let verify = VerifyConfig {
         folds: args.verify_folds,
         ..VerifyConfig::default()
-    };
-    verify.validate()?;
+    }
+    .check()?;
     let model = FittedModel::load(&args.input.model)?;
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());

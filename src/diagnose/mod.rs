@@ -109,7 +109,9 @@ mod verify;
 
 pub use absorbed::{Absorption, FAST_FORGETTING, absorbed, rate_warnings};
 pub use advice::{DAHL_TERM, Shape};
-pub use discover::{DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover};
+pub use discover::{
+    CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
+};
 pub use features::{
     FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION, LAG_MIN_VARIANCE, LAG_POINTS,
     MEMSUM_FRACTIONS, lagged_column,
@@ -123,8 +125,8 @@ pub use model::{
 pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 pub use verify::{
-    Candidate, RejectedEdit, Verification, VerifiedEdit, VerifyConfig, candidates, cv_residuals,
-    edit_for, table_spacing, verify,
+    Candidate, CheckedVerifyConfig, RejectedEdit, Verification, VerifiedEdit, VerifyConfig,
+    candidates, cv_residuals, edit_for, table_spacing, verify,
 };
 
 use crate::history::Feature;

@@ -171,7 +171,7 @@ fn drift_following_a_slow_covariate_is_named() {
         &model,
         &log,
         &CheckedDiagnoseConfig::default(),
-        &VerifyConfig::default(),
+        &CheckedVerifyConfig::default(),
     )
     .unwrap();
     let a = d
@@ -251,7 +251,7 @@ fn position_first_on_calibration_gets_a_table_that_fits() {
         &model,
         &log,
         &CheckedDiagnoseConfig::default(),
-        &VerifyConfig::default(),
+        &CheckedVerifyConfig::default(),
     )
     .unwrap();
     assert_eq!(d.features[0].name, "position", "{}", d.to_text());
@@ -374,7 +374,7 @@ fn discover_finds_both_hidden_effects_and_stops() {
         &ModelSpec::parse("poly2").unwrap(),
         &train,
         Some(&test),
-        &DiscoverConfig::default(),
+        &CheckedDiscoverConfig::default(),
     )
     .unwrap();
     let text = d.to_string();
@@ -490,7 +490,7 @@ fn by_term_fits_a_covariate_times_position() {
         &base,
         &log,
         &CheckedDiagnoseConfig::default(),
-        &VerifyConfig::default(),
+        &CheckedVerifyConfig::default(),
     )
     .unwrap();
     let best = d

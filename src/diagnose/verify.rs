@@ -49,8 +49,15 @@ impl Default for VerifyConfig {
 }
 
 impl VerifyConfig {
+    /// Checks every setting's range once (the error names the setting) into the checked type
+    /// [`verify`] and [`super::diagnose_verified`] accept.
+    pub fn check(self) -> Result<CheckedVerifyConfig, super::DiagnoseError> {
+        self.validate()?;
+        Ok(CheckedVerifyConfig(self))
+    }
+
     /// Checks every setting's range; the error names the setting.
-    pub fn validate(&self) -> Result<(), super::DiagnoseError> {
+    fn validate(&self) -> Result<(), super::DiagnoseError> {
         let bad =
             |field, message: String| Err(super::DiagnoseError::InvalidConfig { field, message });
         if !(2..=20).contains(&self.folds) {
@@ -72,6 +79,18 @@ impl VerifyConfig {
             );
         }
         Ok(())
+    }
+}
+
+/// Verification settings that passed [`VerifyConfig::check`]; read them through `Deref`.
+/// `Default` is the checked default.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CheckedVerifyConfig(VerifyConfig);
+
+impl std::ops::Deref for CheckedVerifyConfig {
+    type Target = VerifyConfig;
+    fn deref(&self) -> &VerifyConfig {
+        &self.0
     }
 }
 
@@ -330,9 +349,8 @@ pub fn verify(
     cands: &[Candidate],
     block_len: usize,
     min_effect: f64,
-    config: &VerifyConfig,
+    config: &CheckedVerifyConfig,
 ) -> Result<Verification, ModelDiagnosisError> {
-    config.validate()?;
     let mut v = Verification {
         folds: config.folds,
         block_len,
