@@ -23,7 +23,7 @@ use crate::model::{FittedModel, ModelSpec};
 pub struct DiscoverConfig {
     /// The diagnosis at each step (checked by [`super::DiagnoseConfig::check`]).
     pub diagnose: CheckedDiagnoseConfig,
-    /// The verification refits at each step (checked by [`VerifyConfig::check`]; their fit
+    /// The verification refits at each step (checked by [`super::VerifyConfig::check`]; their fit
     /// options fit every model).
     pub verify: CheckedVerifyConfig,
     /// Most edits applied, 1..=30 (default 8).
