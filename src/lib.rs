@@ -33,8 +33,8 @@
 //!   projection for the Dahl rate.
 //! - [`score`](mod@score): error statistics of a model on a log: moments, percentiles, histogram,
 //!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
-//! - [`diagnose`](mod@diagnose): which missing effect the residual follows: cross-validated smoother per
-//!   feature, permutation test, advice, ladder.
+//! - [`diagnose`](mod@diagnose): which missing effect the residual follows: cross-validated
+//!   smoother per feature, permutation test, advice, ladder.
 //! - [`control`]: plant → controller → settle: continuous plant with modes, ZOH with
 //!   fractional delay, DARE/LQR, and ([`control::settle`]) the settle-optimal integrator start
 //!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table.
