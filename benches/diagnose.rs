@@ -9,8 +9,8 @@
 use std::hint::black_box;
 
 use biasctl::diagnose::{
-    DiagnoseConfig, DiscoverConfig, FeatureTable, VerifyConfig, diagnose, diagnose_verified,
-    discover,
+    CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, FeatureTable, diagnose,
+    diagnose_verified, discover,
 };
 use biasctl::fit::{CheckedFitOptions, fit};
 use biasctl::log::{ColumnMap, Log, LogWriter};
@@ -90,7 +90,7 @@ fn bench(c: &mut Criterion) {
         &CheckedFitOptions::default(),
     )
     .expect("fit");
-    let verify = VerifyConfig::default();
+    let verify = CheckedVerifyConfig::default();
     let d = diagnose_verified(&model, &big, &config, &verify).expect("diagnosis");
     let best = d
         .verification
@@ -108,7 +108,7 @@ fn bench(c: &mut Criterion) {
     // discover on 6,000 rows from poly2.
     let small = effects_log(6000, 4);
     let start = ModelSpec::parse("poly2").expect("spec");
-    let dc = DiscoverConfig::default();
+    let dc = CheckedDiscoverConfig::default();
     let (found, _) = discover(&start, &small, None, &dc).expect("discover");
     assert!(found.steps.len() >= 2, "{found}");
     let mut group = c.benchmark_group("discover_6k");

@@ -9,7 +9,7 @@ use std::hint::black_box;
 
 fn handoff(c: &mut Criterion) {
     let cfg = SettleSpec::preset("paper1997")
-        .and_then(|s| s.validate())
+        .and_then(|s| s.check())
         .expect("preset is valid");
     let ctl = Controller::design(&cfg.plant, &cfg.weights).expect("preset designs");
     let window = cfg.scenario.window;

@@ -20,7 +20,7 @@
 //! same code.
 
 use biasctl::diagnose::{
-    CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, VerifyConfig, diagnose_model,
+    CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis, diagnose_model,
     diagnose_verified, suggestion_path_from,
 };
 use biasctl::fit::{CheckedFitOptions, FitOptions, fit};
@@ -181,8 +181,8 @@ pub fn run(drive: &FamilyDrive, effects: &[HiddenEffect], seed: u64, n: usize) -
     let log = &fam.log;
     let base = base_terms(drive);
     let model = fit_terms(&base, log);
-    let d =
-        diagnose_verified(&model, log, &config(seed), &VerifyConfig::default()).expect("diagnose");
+    let d = diagnose_verified(&model, log, &config(seed), &CheckedVerifyConfig::default())
+        .expect("diagnose");
     let first = first_flagged(&d).map(|f| f.name.clone());
     let right_first = first
         .as_deref()

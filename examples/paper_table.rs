@@ -168,7 +168,7 @@ fn main() -> anyhow::Result<()> {
         );
     }
     // Prediction → settling: Δb = the model's test-run error std.
-    let cfg = SettleSpec::preset("paper1997")?.validate()?;
+    let cfg = SettleSpec::preset("paper1997")?.check()?;
     let ctl = Controller::design(&cfg.plant, &cfg.weights)?;
     let table = HandoffTable::new(&ctl, cfg.scenario.horizon)?;
     let h = cfg.scenario.handoff();

@@ -29,12 +29,12 @@
 //! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
 //! - [`model`]: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl,
 //!   col, bins), presets, the online predictor.
-//! - [`fit`]: one least-squares solve (streaming QR) for all linear parameters, variable
+//! - [`fit`](mod@fit): one least-squares solve (streaming QR) for all linear parameters, variable
 //!   projection for the Dahl rate.
-//! - [`score`]: error statistics of a model on a log: moments, percentiles, histogram,
+//! - [`score`](mod@score): error statistics of a model on a log: moments, percentiles, histogram,
 //!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
-//! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per
-//!   feature, permutation test, advice, ladder.
+//! - [`diagnose`](mod@diagnose): which missing effect the residual follows: cross-validated
+//!   smoother per feature, permutation test, advice, ladder.
 //! - [`control`]: plant → controller → settle: continuous plant with modes, ZOH with
 //!   fractional delay, DARE/LQR, and ([`control::settle`]) the settle-optimal integrator start
 //!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table.
@@ -43,6 +43,29 @@
 //!   finite-only numbers.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
 //! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
+//!
+//! ## Settings: unchecked → checked (linfa's `ParamGuard`)
+//! Every settings type is written freely and checked once, before any numerics, into a checked
+//! type; the entry points accept only the checked one, so no numerics run on unchecked
+//! settings: [`FitOptions::check`] → [`CheckedFitOptions`] for [`fit()`],
+//! [`DiagnoseConfig::check`] → [`CheckedDiagnoseConfig`] for [`diagnose()`] and
+//! [`diagnose_model`], [`VerifyConfig::check`] → [`CheckedVerifyConfig`] for
+//! [`diagnose_verified`], [`DiscoverConfig::check`] → [`CheckedDiscoverConfig`] for
+//! [`discover()`], [`SettleSpec::check`] → [`SettleConfig`] for [`analyse`] and
+//! [`StartValues::new`], [`SimConfig::new`] (a [`SimConfig`] exists only checked) for
+//! [`simulate_log`]. The `Default` of a checked type is the checked default.
+//!
+//! ## Errors name settings, not flags
+//! An error about a setting carries a [`Field`] (`SettleSpec::step_um`, `ColumnMap::bias`,
+//! `SequenceOptions::span`, …) and prints its name. The library never names a command-line
+//! flag: the `biasctl` binary holds the one table field → flag and prints `--step-um` there.
+//!
+//! ## The public API
+//! What a user needs is re-exported here at the top ([`Log`], [`replay`], [`simulate_log`],
+//! [`ModelSpec`], [`FittedModel`], [`Predictor`], [`Term`], [`fit()`], [`score()`],
+//! [`diagnose_model`], [`discover()`], [`analyse`], [`StartValues`], [`c_source`],
+//! [`write_atomic`], …); the modules hold the rest. Internal numerics (the golden-section
+//! search, incomplete beta and gamma functions, the matrix exponential) are crate-private.
 //!
 //! ## The whole pipeline in one example
 //!
@@ -78,7 +101,7 @@
 //! assert!(d.features[0].explained > 0.0);
 //!
 //! // 5. Settle: the paper's 10 kHz test bed, 15 µm step, ±0.5 µm window.
-//! let report = analyse(&SettleSpec::preset("paper1997")?.validate()?)?;
+//! let report = analyse(&SettleSpec::preset("paper1997")?.check()?)?;
 //! assert_eq!(report.k_star, Some(14)); // 1.4 ms instead of 2.8 ms at zero feedforward
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -86,6 +109,8 @@
 #![warn(missing_docs)]
 
 // Modules in the order a log travels through them; a module imports only modules above it.
+pub mod field;
+
 pub mod numeric;
 
 pub mod log;
@@ -111,3 +136,21 @@ pub mod render;
 pub mod plot;
 
 pub mod report;
+
+// The curated public API: what a user of the library needs, one `use biasctl::…` away.
+pub use control::settle::{SettleConfig, SettleReport, SettleSpec, analyse};
+pub use diagnose::{
+    CheckedDiagnoseConfig, CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis,
+    DiscoverConfig, VerifyConfig, diagnose, diagnose_model, diagnose_verified, discover,
+};
+pub use export::{COptions, CSource, c_source};
+pub use field::Field;
+pub use fit::{CheckedFitOptions, FitError, FitOptions, fit};
+pub use history::{Feature, SeekFeatures, replay};
+pub use log::{ColumnMap, Log, LogError, LogSchema, Units};
+pub use model::term::{Term, TermSpec, TermState};
+pub use model::{FittedModel, ModelEdit, ModelSpec, Prediction, Predictor, StartValues};
+pub use render::{OutputError, write_atomic, write_stdout, write_string_atomic};
+pub use report::story::{StoryOptions, data_report, demo_report};
+pub use score::{Score, score, score_with_units};
+pub use sim::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};

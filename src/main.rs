@@ -20,7 +20,7 @@ fn main() -> ExitCode {
             // stderr gone too: nothing left to tell, the exit code still says it.
             let _ = std::io::Write::write_all(
                 &mut std::io::stderr(),
-                format!("error: {}\n", render::message(err.as_ref())).as_bytes(),
+                format!("error: {}\n", cli::message(err.as_ref())).as_bytes(),
             );
             ExitCode::from(2)
         }

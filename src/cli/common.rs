@@ -2,12 +2,94 @@
 
 use anyhow::Context;
 use biasctl::control::settle::SettleSpec;
+use biasctl::field::Field;
 use biasctl::log::{
     ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL, Log, LogSchema, Units,
     check_unit_label,
 };
 use clap::Args;
 use std::path::{Path, PathBuf};
+
+/// The one table library setting → command-line flag (as ripgrep's flags → `HiArgs`). The
+/// library's errors name settings ([`Field`]); [`with_flags`] renders each as its flag in every
+/// message the CLI prints. `None`: no command sets the field (a library-only setting such as
+/// `FitOptions::grid`), so its name stays. Every [`Field`] is listed once (a test checks).
+pub const FLAGS: [(Field, Option<&str>); 36] = [
+    (Field::TimeColumn, Some("--time-col")),
+    (Field::TrackColumn, Some("--track-col")),
+    (Field::BiasColumn, Some("--bias-col")),
+    (Field::BiasUnit, Some("--bias-unit")),
+    (Field::PositionUnit, Some("--track-unit")),
+    (Field::Sequence, Some("--sequence")),
+    (Field::Disabled, Some("--disable")),
+    (Field::SeekCount, Some("--n")),
+    (Field::Span, Some("--span")),
+    (Field::Center, Some("--center")),
+    (Field::DwellMin, Some("--dwell-min")),
+    (Field::DwellMax, Some("--dwell-max")),
+    (Field::Script, Some("--script")),
+    (Field::StepUm, Some("--step-um")),
+    (Field::WindowUm, Some("--window-um")),
+    (Field::Bias, Some("--bias")),
+    (Field::BiasUncertainty, Some("--bias-uncertainty")),
+    (Field::Horizon, Some("--horizon")),
+    (Field::Hold, Some("--hold")),
+    (Field::RankTolerance, None),
+    (Field::Grid, None),
+    (Field::Refine, None),
+    (Field::Folds, Some("--folds")),
+    (Field::BlockLen, None),
+    (Field::Alpha, Some("--alpha")),
+    (Field::Permutations, Some("--permutations")),
+    (Field::MaxBins, None),
+    (Field::MinBinRows, None),
+    (Field::MaxDiscrete, None),
+    (Field::LjungBoxLags, None),
+    (Field::NullBlock, None),
+    (Field::MinEffect, None),
+    (Field::VerifyFolds, Some("--verify-folds")),
+    (Field::VerifyCandidates, None),
+    (Field::MinZ, None),
+    (Field::MaxSteps, Some("--max-steps")),
+];
+
+/// The flag that sets `field`, from [`FLAGS`]; `None` for a library-only setting.
+pub fn flag(field: Field) -> Option<&'static str> {
+    FLAGS
+        .iter()
+        .find(|(f, _)| *f == field)
+        .and_then(|(_, flag)| *flag)
+}
+
+/// How the CLI names `field` in a message: its flag (`--span`), or for a setting a plant file
+/// can also set, its key and flag (`window_um (--window-um)`), since the value may come from
+/// either; a library-only setting keeps its library name.
+fn cli_name(field: Field) -> String {
+    match (flag(field), field.file_key()) {
+        (Some(flag), Some(key)) => format!("{key} ({flag})"),
+        (Some(flag), None) => flag.to_string(),
+        (None, _) => field.name().to_string(),
+    }
+}
+
+/// `text` with every whole occurrence of a library setting name ([`Field::find_in`]) replaced
+/// by the CLI's name for it ([`cli_name`]).
+pub fn with_flags(text: &str) -> String {
+    let mut found: Vec<(std::ops::Range<usize>, Field)> = Field::ALL
+        .iter()
+        .flat_map(|&f| f.find_in(text).into_iter().map(move |r| (r, f)))
+        .collect();
+    found.sort_by_key(|(r, _)| r.start);
+    let mut out = String::with_capacity(text.len());
+    let mut at = 0;
+    for (r, f) in found {
+        out.push_str(&text[at..r.start]);
+        out.push_str(&cli_name(f));
+        at = r.end;
+    }
+    out.push_str(&text[at..]);
+    out
+}
 
 /// Column-name and unit flags accepted by every command that reads a log.
 #[derive(Debug, Clone, Args)]
@@ -154,7 +236,7 @@ impl SettleArgs {
     }
 
     /// The preset or plant file with the flags' overrides applied (validated later by
-    /// `SettleSpec::validate`).
+    /// `SettleSpec::check`).
     pub fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
             Some(path) => {
@@ -211,5 +293,96 @@ pub fn refuse_clashes(
 pub fn warn_outside_range(model: &biasctl::model::FittedModel, file: &str, positions: &[f64]) {
     if let Some(w) = model.outside_range(positions) {
         eprintln!("warning: {file}: {w}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every library setting is in the table exactly once, and every flag there is a flag some
+    /// command accepts (reference: clap's own command tree).
+    #[test]
+    fn every_field_has_one_row_and_every_flag_exists() {
+        for f in Field::ALL {
+            let rows = FLAGS.iter().filter(|(g, _)| *g == f).count();
+            assert_eq!(rows, 1, "{f} has {rows} rows in FLAGS");
+        }
+        assert_eq!(FLAGS.len(), Field::ALL.len());
+        let cmd = <super::super::Cli as clap::CommandFactory>::command();
+        let mut known = std::collections::BTreeSet::new();
+        for sub in cmd.get_subcommands() {
+            for a in sub.get_arguments() {
+                if let Some(l) = a.get_long() {
+                    known.insert(format!("--{l}"));
+                }
+            }
+        }
+        for (f, flag) in FLAGS {
+            if let Some(flag) = flag {
+                assert!(
+                    known.contains(flag),
+                    "{f}: {flag} is no flag of any command"
+                );
+            }
+        }
+    }
+
+    /// Every library error that names a flagged setting is printed with the flag and without
+    /// the library name (reference: the table row itself), through the same path `main` uses.
+    #[test]
+    fn every_message_names_the_flag_not_the_field() {
+        for (f, flag) in FLAGS {
+            let Some(flag) = flag else { continue };
+            let err = std::io::Error::other(format!("{f} 0: must be > 0; see {f}"));
+            let text = super::super::message(&err);
+            assert_eq!(text.matches(flag).count(), 2, "{text}");
+            assert!(!text.contains(f.name()), "{text}");
+        }
+        // A prefix of a longer name is not taken for it; the file key stays for settle fields.
+        assert_eq!(
+            with_flags("SettleSpec::bias_uncertainty must be ≥ 0, SettleSpec::bias 3"),
+            "bias_uncertainty (--bias-uncertainty) must be ≥ 0, bias (--bias) 3"
+        );
+        assert_eq!(
+            with_flags("name it with ColumnMap::track."),
+            "name it with --track-col."
+        );
+    }
+
+    /// No library source outside its tests names a flag of the table: the library names
+    /// settings, the CLI alone maps them to flags (reference: the source text itself).
+    #[test]
+    fn the_library_names_no_flag_of_the_table() {
+        let flags: Vec<&str> = FLAGS.iter().filter_map(|(_, f)| *f).collect();
+        let mut stack = vec![std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src")];
+        let mut offenders = Vec::new();
+        while let Some(dir) = stack.pop() {
+            for entry in std::fs::read_dir(&dir).unwrap() {
+                let path = entry.unwrap().path();
+                if path.ends_with("cli") || path.ends_with("main.rs") {
+                    continue;
+                }
+                if path.is_dir() {
+                    stack.push(path);
+                    continue;
+                }
+                let text = std::fs::read_to_string(&path).unwrap();
+                let code = text.split("#[cfg(test)]").next().unwrap_or_default();
+                for (i, line) in code.lines().enumerate() {
+                    let line = line.trim_start();
+                    if line.starts_with("//") {
+                        continue;
+                    }
+                    for flag in &flags {
+                        let quoted = |c: char| line.contains(&format!("{flag}{c}"));
+                        if quoted('"') || quoted(' ') || quoted(')') || quoted(',') {
+                            offenders.push(format!("{}:{}: {flag}", path.display(), i + 1));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(offenders.is_empty(), "{offenders:#?}");
     }
 }

@@ -1,7 +1,6 @@
 //! `biasctl diagnose`: compare a fitted model with a log and name the missing effect.
 
 use super::predict::ModelLogArgs;
-use anyhow::Context;
 use biasctl::diagnose::{
     DiagnoseConfig, PathStep, VerifyConfig, diagnose_model, diagnose_verified, suggestion_path_from,
 };
@@ -61,8 +60,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let verify = VerifyConfig {
         folds: args.verify_folds,
         ..VerifyConfig::default()
-    };
-    verify.validate().context("--verify-folds")?;
+    }
+    .check()?;
     let json_out = args.out.as_ref().map(|d| d.join("diagnosis.json"));
     // The feature CSVs' names are known only after the run: the inputs registered here are
     // also refused when the staged folder is moved into place.

@@ -72,10 +72,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         verify: VerifyConfig {
             folds: args.verify_folds,
             ..VerifyConfig::default()
-        },
+        }
+        .check()?,
         max_steps: args.max_steps,
-    };
-    config.verify.validate().context("--verify-folds")?;
+    }
+    .check()?;
     if let Some(dir) = &args.out
         && dir.exists()
         && !dir.is_dir()

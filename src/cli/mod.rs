@@ -110,6 +110,12 @@ fn column_clash(m: &clap::ArgMatches) -> Option<String> {
     None
 }
 
+/// The text printed after `error: ` ([`biasctl::render::message_with`]), every library setting
+/// name rendered as its flag by the one table ([`common::FLAGS`]).
+pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
+    biasctl::render::message_with(err, &common::with_flags)
+}
+
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {

@@ -151,7 +151,7 @@ fn model(name: &str, log: &Log) -> anyhow::Result<(String, FittedModel)> {
 /// The SVG text of the figure.
 fn draw(a: &Args) -> anyhow::Result<String> {
     if is_settle(a.kind) {
-        let report = analyse(&a.settle.spec()?.validate()?)?;
+        let report = analyse(&a.settle.spec()?.check()?)?;
         return Ok(match a.kind {
             Kind::Bounds => views::settle_bounds(&report),
             _ => views::settle_responses(&report),

@@ -65,7 +65,7 @@ pub fn handoff_plan(
         plant: is_file.then(|| PathBuf::from(handoff)),
         ..SettleArgs::default()
     };
-    let cfg = settle.spec()?.validate()?;
+    let cfg = settle.spec()?.check()?;
     let delta_b = delta_b.unwrap_or(model.fit.residual_std);
     Ok(StartValues::new(&cfg, delta_b)?)
 }

@@ -142,7 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         spec.bias_uncertainty = l.delta_b;
     }
-    let cfg = spec.validate()?;
+    let cfg = spec.check()?;
     let report = analyse(&cfg)?;
     if let Some(path) = &args.bounds_out {
         write_string_atomic(path, &report.bounds_csv())?;

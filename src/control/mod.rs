@@ -3,7 +3,7 @@
 //!
 //! - [`plant`]: continuous rigid body (plus optional flexible modes) and its exact ZOH
 //!   discretisation with a fractional computation delay τ.
-//! - [`expm`]: the matrix exponential (scaling and squaring with a Padé approximant).
+//! - `expm`: the matrix exponential (scaling and squaring with a Padé approximant).
 //! - [`lqr`]: the DARE solver (structured doubling) and the LQR gain.
 //! - [`Controller`]: the loop state, the LQR design and the closed loop.
 //! - [`settle`]: the settle-time analysis (eq. 14–16) and the allocation-free handoff table.
@@ -23,7 +23,9 @@
 //! assert!(c.spectral_radius() < 1.0);
 //! ```
 
-pub mod expm;
+pub(crate) mod expm;
+/// The matrix exponential's error, part of [`plant::PlantError`].
+pub use expm::ExpmError;
 pub mod lqr;
 pub mod plant;
 pub mod settle;

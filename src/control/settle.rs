@@ -49,11 +49,11 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum SettleError {
-    /// A value is out of range; names the field (and the command-line flag).
+    /// A value is out of range; names the setting.
     #[error("{field} must be {what}, got {value}")]
     Invalid {
-        /// Field name, with its flag.
-        field: &'static str,
+        /// The setting.
+        field: crate::field::Field,
         /// The accepted range.
         what: &'static str,
         /// The value given.
@@ -130,7 +130,7 @@ pub struct SettleSpec {
 fn check_horizon(horizon: usize) -> Result<(), SettleError> {
     if horizon == 0 || horizon > MAX_HORIZON {
         return Err(SettleError::Invalid {
-            field: "horizon (--horizon)",
+            field: crate::field::Field::Horizon,
             what: "between 1 and 1000000 samples",
             value: horizon as f64,
         });
@@ -210,7 +210,7 @@ impl SettleSpec {
     /// Validates everything before any numerics: the plant (Ts, τ, Kp, modes), the weights
     /// (Q ≥ 0, R > 0), the window (> 0), horizon (1 ..= [`MAX_HORIZON`]), hold (1 ..= horizon),
     /// a finite step and bias, and Δb ≥ 0.
-    pub fn validate(&self) -> Result<SettleConfig, ConfigError> {
+    pub fn check(&self) -> Result<SettleConfig, ConfigError> {
         let plant = Plant::new(&PlantSpec {
             ts_s: self.ts_s,
             tau_s: self.tau_s,
@@ -219,7 +219,7 @@ impl SettleSpec {
         })?;
         let weights =
             LqrWeights::new(&self.q, self.r, plant.order()).map_err(ConfigError::Weights)?;
-        let bounded = |field: &'static str, v: f64, limit: f64, what: &'static str| {
+        let bounded = |field: crate::field::Field, v: f64, limit: f64, what: &'static str| {
             if v.is_finite() && v.abs() <= limit {
                 Ok(v)
             } else {
@@ -231,21 +231,26 @@ impl SettleSpec {
             }
         };
         let step_um = bounded(
-            "step_um (--step-um)",
+            crate::field::Field::StepUm,
             self.step_um,
             MAX_STEP_UM,
             "within ±1e6 µm",
         )?;
-        let bias = bounded("bias (--bias)", self.bias, MAX_BIAS, "within ±1e9 counts")?;
+        let bias = bounded(
+            crate::field::Field::Bias,
+            self.bias,
+            MAX_BIAS,
+            "within ±1e9 counts",
+        )?;
         let db = bounded(
-            "bias_uncertainty (--bias-uncertainty)",
+            crate::field::Field::BiasUncertainty,
             self.bias_uncertainty,
             MAX_BIAS,
             "within 0 … 1e9 counts",
         )?;
         if db < 0.0 {
             return Err(SettleError::Invalid {
-                field: "bias_uncertainty (--bias-uncertainty)",
+                field: crate::field::Field::BiasUncertainty,
                 what: "≥ 0",
                 value: db,
             }
@@ -254,7 +259,7 @@ impl SettleSpec {
         check_horizon(self.horizon)?;
         if self.hold > self.horizon {
             return Err(SettleError::Invalid {
-                field: "hold (--hold)",
+                field: crate::field::Field::Hold,
                 what: "at most the horizon",
                 value: self.hold as f64,
             }
@@ -341,14 +346,14 @@ impl Window {
     pub fn new(half_width_um: f64, hold: usize) -> Result<Self, SettleError> {
         if !(half_width_um > 0.0 && half_width_um <= MAX_STEP_UM) {
             return Err(SettleError::Invalid {
-                field: "window_um (--window-um)",
+                field: crate::field::Field::WindowUm,
                 what: "> 0 and at most 1e6 µm",
                 value: half_width_um,
             });
         }
         if hold == 0 {
             return Err(SettleError::Invalid {
-                field: "hold (--hold)",
+                field: crate::field::Field::Hold,
                 what: "≥ 1",
                 value: 0.0,
             });
@@ -1154,7 +1159,7 @@ fn csv_cell(x: f64) -> String {
 /// ```
 /// use biasctl::control::Controller;
 /// use biasctl::control::settle::{SettleSpec, HandoffTable, worst_case_settle};
-/// let cfg = SettleSpec::preset("paper1997").unwrap().validate().unwrap();
+/// let cfg = SettleSpec::preset("paper1997").unwrap().check().unwrap();
 /// let ctl = Controller::design(&cfg.plant, &cfg.weights).unwrap();
 /// let table = HandoffTable::new(&ctl, cfg.scenario.horizon).unwrap();
 /// let h = cfg.scenario.handoff();
@@ -1169,7 +1174,7 @@ pub fn worst_case_settle(
 ) -> Result<WorstCase, SettleError> {
     if !delta_b.is_finite() || delta_b < 0.0 {
         return Err(SettleError::Invalid {
-            field: "bias_uncertainty (--bias-uncertainty)",
+            field: crate::field::Field::BiasUncertainty,
             what: "finite and ≥ 0",
             value: delta_b,
         });
@@ -1642,7 +1647,7 @@ mod tests {
     fn fast_handoff_equals_reference_on_designed_controllers() {
         let mut rng = SimRng::new(16);
         for preset in PRESETS {
-            let cfg = SettleSpec::preset(preset).unwrap().validate().unwrap();
+            let cfg = SettleSpec::preset(preset).unwrap().check().unwrap();
             let ctl = Controller::design(&cfg.plant, &cfg.weights).unwrap();
             let scale = cfg.scenario.step_um;
             let (mut settled, mut unsettled) = (0, 0);

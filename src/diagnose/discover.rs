@@ -13,7 +13,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 
 use super::model::{ModelDiagnosisError, diagnose_model, replay_model};
-use super::{CheckedDiagnoseConfig, VerifyConfig, candidates, verify};
+use super::{CheckedDiagnoseConfig, CheckedVerifyConfig, candidates, verify};
 use crate::fit::{FitError, fit};
 use crate::log::Log;
 use crate::model::{FittedModel, ModelSpec};
@@ -23,8 +23,9 @@ use crate::model::{FittedModel, ModelSpec};
 pub struct DiscoverConfig {
     /// The diagnosis at each step (checked by [`super::DiagnoseConfig::check`]).
     pub diagnose: CheckedDiagnoseConfig,
-    /// The verification refits at each step (their fit options fit every model).
-    pub verify: VerifyConfig,
+    /// The verification refits at each step (checked by [`super::VerifyConfig::check`]; their fit
+    /// options fit every model).
+    pub verify: CheckedVerifyConfig,
     /// Most edits applied, 1..=30 (default 8).
     pub max_steps: usize,
 }
@@ -33,9 +34,35 @@ impl Default for DiscoverConfig {
     fn default() -> Self {
         Self {
             diagnose: CheckedDiagnoseConfig::default(),
-            verify: VerifyConfig::default(),
+            verify: CheckedVerifyConfig::default(),
             max_steps: 8,
         }
+    }
+}
+
+impl DiscoverConfig {
+    /// Checks `max_steps` (its diagnosis and verification settings are checked types already)
+    /// into the checked type [`discover`] accepts.
+    pub fn check(self) -> Result<CheckedDiscoverConfig, DiscoverError> {
+        if !(1..=30).contains(&self.max_steps) {
+            return Err(DiscoverError::InvalidConfig {
+                field: crate::field::Field::MaxSteps,
+                message: format!("{} is not in 1..=30", self.max_steps),
+            });
+        }
+        Ok(CheckedDiscoverConfig(self))
+    }
+}
+
+/// Settings that passed [`DiscoverConfig::check`]; read them through `Deref`. `Default` is the
+/// checked default.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CheckedDiscoverConfig(DiscoverConfig);
+
+impl std::ops::Deref for CheckedDiscoverConfig {
+    type Target = DiscoverConfig;
+    fn deref(&self) -> &DiscoverConfig {
+        &self.0
     }
 }
 
@@ -44,10 +71,10 @@ impl Default for DiscoverConfig {
 #[non_exhaustive]
 pub enum DiscoverError {
     /// A setting is out of range.
-    #[error("invalid discover setting `{field}`: {message}")]
+    #[error("invalid discover setting {field}: {message}")]
     InvalidConfig {
         /// The setting.
-        field: &'static str,
+        field: crate::field::Field,
         /// What is wrong and what is allowed.
         message: String,
     },
@@ -142,18 +169,8 @@ pub fn discover(
     start: &ModelSpec,
     train: &Log,
     test: Option<&Log>,
-    config: &DiscoverConfig,
+    config: &CheckedDiscoverConfig,
 ) -> Result<(Discovery, FittedModel), DiscoverError> {
-    if !(1..=30).contains(&config.max_steps) {
-        return Err(DiscoverError::InvalidConfig {
-            field: "max_steps",
-            message: format!("{} is not in 1..=30", config.max_steps),
-        });
-    }
-    config
-        .verify
-        .validate()
-        .map_err(ModelDiagnosisError::from)?;
     let opts = &config.verify.fit;
     let mut spec = start.clone();
     let mut model = fit(&spec, train, opts).map_err(|source| DiscoverError::Start {

@@ -114,7 +114,9 @@ mod verify;
 
 pub use absorbed::{Absorption, FAST_FORGETTING, absorbed, rate_warnings};
 pub use advice::{DAHL_TERM, Shape};
-pub use discover::{DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover};
+pub use discover::{
+    CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
+};
 pub use features::{
     FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION, LAG_MIN_VARIANCE, LAG_POINTS,
     MEMSUM_FRACTIONS, lagged_column,
@@ -128,8 +130,8 @@ pub use model::{
 pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 pub use verify::{
-    Candidate, RejectedEdit, Verification, VerifiedEdit, VerifyConfig, candidates, cv_residuals,
-    edit_for, measured_rows, table_spacing, verify,
+    Candidate, CheckedVerifyConfig, RejectedEdit, Verification, VerifiedEdit, VerifyConfig,
+    candidates, cv_residuals, edit_for, measured_rows, table_spacing, verify,
 };
 
 use crate::history::Feature;
@@ -186,10 +188,10 @@ pub enum DiagnoseError {
         value: f64,
     },
     /// A configuration value is out of range.
-    #[error("invalid diagnosis setting `{field}`: {message}")]
+    #[error("invalid diagnosis setting {field}: {message}")]
     InvalidConfig {
         /// The setting.
-        field: &'static str,
+        field: crate::field::Field,
         /// What is wrong and what is allowed.
         message: String,
     },
@@ -283,21 +285,30 @@ impl Default for DiagnoseConfig {
 
 impl DiagnoseConfig {
     /// Checks every setting's range; the error names the setting and what is allowed.
-    pub fn validate(&self) -> Result<(), DiagnoseError> {
+    fn validate(&self) -> Result<(), DiagnoseError> {
         let bad = |field, message: String| Err(DiagnoseError::InvalidConfig { field, message });
         if !(2..=50).contains(&self.folds) {
-            return bad("folds", format!("{} is not in 2..=50", self.folds));
+            return bad(
+                crate::field::Field::Folds,
+                format!("{} is not in 2..=50", self.folds),
+            );
         }
         if self.block_len == Some(0) {
-            return bad("block_len", "0 seeks; use at least 1 (or auto)".into());
+            return bad(
+                crate::field::Field::BlockLen,
+                "0 seeks; use at least 1 (or auto)".into(),
+            );
         }
         if !(self.alpha > 0.0 && self.alpha <= 0.5) {
-            return bad("alpha", format!("{} is not in (0, 0.5]", self.alpha));
+            return bad(
+                crate::field::Field::Alpha,
+                format!("{} is not in (0, 0.5]", self.alpha),
+            );
         }
         let needed = ((1.0 / self.alpha).ceil() as usize).saturating_sub(1);
         if self.permutations < needed || self.permutations > 100_000 {
             return bad(
-                "permutations",
+                crate::field::Field::Permutations,
                 format!(
                     "{} is not in {needed}..=100000 (at least 1/alpha − 1 = {needed} so that a \
                      p-value can reach alpha = {})",
@@ -306,34 +317,46 @@ impl DiagnoseConfig {
             );
         }
         if !(2..=4096).contains(&self.max_bins) {
-            return bad("max_bins", format!("{} is not in 2..=4096", self.max_bins));
+            return bad(
+                crate::field::Field::MaxBins,
+                format!("{} is not in 2..=4096", self.max_bins),
+            );
         }
         if self.min_bin_rows < 2 {
-            return bad("min_bin_rows", format!("{} is below 2", self.min_bin_rows));
+            return bad(
+                crate::field::Field::MinBinRows,
+                format!("{} is below 2", self.min_bin_rows),
+            );
         }
         if !(2..=256).contains(&self.max_discrete) {
             return bad(
-                "max_discrete",
+                crate::field::Field::MaxDiscrete,
                 format!("{} is not in 2..=256", self.max_discrete),
             );
         }
         if self.ljung_box_lags == 0 {
-            return bad("ljung_box_lags", "0; use at least 1".into());
+            return bad(
+                crate::field::Field::LjungBoxLags,
+                "0; use at least 1".into(),
+            );
         }
         if self.null_block == Some(0) {
-            return bad("null_block", "0 seeks; use at least 1 (or auto)".into());
+            return bad(
+                crate::field::Field::NullBlock,
+                "0 seeks; use at least 1 (or auto)".into(),
+            );
         }
         if !(self.min_effect >= 0.0 && self.min_effect < 1.0) {
             return bad(
-                "min_effect",
+                crate::field::Field::MinEffect,
                 format!("{} is not in [0, 1)", self.min_effect),
             );
         }
         Ok(())
     }
 
-    /// Validates the settings once ([`DiagnoseConfig::validate`]) into the checked type the
-    /// entry points accept.
+    /// Checks every setting's range once (the error names the setting and what is allowed) into
+    /// the checked type the entry points accept.
     pub fn check(self) -> Result<CheckedDiagnoseConfig, DiagnoseError> {
         self.validate()?;
         Ok(CheckedDiagnoseConfig(self))
@@ -456,7 +479,7 @@ pub fn diagnose(
     let n_blocks = n.div_ceil(block_len);
     if n_blocks < config.folds {
         return Err(DiagnoseError::InvalidConfig {
-            field: "block_len",
+            field: crate::field::Field::BlockLen,
             message: format!(
                 "blocks of {block_len} seeks cut {n} rows into {n_blocks} blocks, fewer than the \
                  {} folds",

@@ -113,7 +113,7 @@ pub fn diagnose_verified(
     model: &FittedModel,
     log: &Log,
     config: &CheckedDiagnoseConfig,
-    verify_config: &super::VerifyConfig,
+    verify_config: &super::CheckedVerifyConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let mut d = diagnose_model(model, log, config)?;
     let spec = model_spec(model)?;

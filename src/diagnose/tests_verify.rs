@@ -45,7 +45,7 @@ fn verified(model: &crate::model::FittedModel, log: &Log) -> Diagnosis {
         model,
         log,
         &CheckedDiagnoseConfig::default(),
-        &VerifyConfig::default(),
+        &CheckedVerifyConfig::default(),
     )
     .unwrap()
 }
@@ -371,7 +371,7 @@ fn discover_finds_both_hidden_effects_and_stops() {
         &ModelSpec::parse("poly2").unwrap(),
         &train,
         Some(&test),
-        &DiscoverConfig::default(),
+        &CheckedDiscoverConfig::default(),
     )
     .unwrap();
     let text = d.to_string();
@@ -502,7 +502,9 @@ fn results_are_identical_for_1_2_and_4_threads() {
         diagnose: config.clone(),
         max_steps: 1,
         ..DiscoverConfig::default()
-    };
+    }
+    .check()
+    .unwrap();
     let start = ModelSpec::parse("poly2").unwrap();
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -510,7 +512,8 @@ fn results_are_identical_for_1_2_and_4_threads() {
             .build()
             .unwrap();
         pool.install(|| {
-            let d = diagnose_verified(&model, &log, &config, &VerifyConfig::default()).unwrap();
+            let d =
+                diagnose_verified(&model, &log, &config, &CheckedVerifyConfig::default()).unwrap();
             let (found, _) = discover(&start, &log, None, &dc).unwrap();
             (d, found)
         })

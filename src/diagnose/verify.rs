@@ -53,26 +53,48 @@ impl Default for VerifyConfig {
 }
 
 impl VerifyConfig {
+    /// Checks every setting's range once (the error names the setting) into the checked type
+    /// [`verify`] and [`super::diagnose_verified`] accept.
+    pub fn check(self) -> Result<CheckedVerifyConfig, super::DiagnoseError> {
+        self.validate()?;
+        Ok(CheckedVerifyConfig(self))
+    }
+
     /// Checks every setting's range; the error names the setting.
-    pub fn validate(&self) -> Result<(), super::DiagnoseError> {
+    fn validate(&self) -> Result<(), super::DiagnoseError> {
         let bad =
             |field, message: String| Err(super::DiagnoseError::InvalidConfig { field, message });
         if !(2..=20).contains(&self.folds) {
-            return bad("verify_folds", format!("{} is not in 2..=20", self.folds));
+            return bad(
+                crate::field::Field::VerifyFolds,
+                format!("{} is not in 2..=20", self.folds),
+            );
         }
         if !(1..=20).contains(&self.candidates) {
             return bad(
-                "verify_candidates",
+                crate::field::Field::VerifyCandidates,
                 format!("{} is not in 1..=20", self.candidates),
             );
         }
         if !(self.min_z.is_finite() && self.min_z >= 0.0) {
             return bad(
-                "min_z",
+                crate::field::Field::MinZ,
                 format!("{} is not a finite number ≥ 0", self.min_z),
             );
         }
         Ok(())
+    }
+}
+
+/// Verification settings that passed [`VerifyConfig::check`]; read them through `Deref`.
+/// `Default` is the checked default.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CheckedVerifyConfig(VerifyConfig);
+
+impl std::ops::Deref for CheckedVerifyConfig {
+    type Target = VerifyConfig;
+    fn deref(&self) -> &VerifyConfig {
+        &self.0
     }
 }
 
@@ -367,9 +389,8 @@ pub fn verify(
     cands: &[Candidate],
     block_len: usize,
     min_effect: f64,
-    config: &VerifyConfig,
+    config: &CheckedVerifyConfig,
 ) -> Result<Verification, ModelDiagnosisError> {
-    config.validate()?;
     let mut v = Verification {
         folds: config.folds,
         block_len,

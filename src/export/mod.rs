@@ -201,9 +201,7 @@ impl CSource {
         if dir.exists() && !dir.is_dir() {
             return Err(ExportError::Folder {
                 path: dir.display().to_string(),
-                why:
-                    "exists and is not a folder (--out names the folder to write the C files into)"
-                        .into(),
+                why: "exists and is not a folder (the C files are written into a folder)".into(),
             });
         }
         // Staged beside `dir` and moved in whole: all three files or none.

@@ -172,10 +172,6 @@ pub const DEFAULT_POSITION_UNIT: &str = "tracks";
 pub const BIAS_UNIT_KEY: &str = "bias_unit";
 /// Metadata key naming the position unit (`# position_unit = m`).
 pub const POSITION_UNIT_KEY: &str = "position_unit";
-/// The CLI flag that sets the bias unit (named in errors).
-pub const BIAS_UNIT_FLAG: &str = "--bias-unit";
-/// The CLI flag that sets the position unit (named in errors).
-pub const POSITION_UNIT_FLAG: &str = "--track-unit";
 
 /// The unit labels of a log's bias and position, for every text, table and axis that shows
 /// log data. JSON: `{"bias": "N", "position": "m"}`.
@@ -206,11 +202,12 @@ impl Default for Units {
     }
 }
 
-/// A unit label that cannot be used (from a flag or from a log's metadata).
+/// A unit label that cannot be used (given explicitly or from a log's metadata).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{origin} `{label}`: {problem}; give a plain label such as `N`, `mA` or `counts`")]
 pub struct UnitError {
-    /// Where the label came from: the flag (`--bias-unit`) or the log's metadata line.
+    /// Where the label came from: the setting (`Units::bias`, a [`crate::field::Field`]) or the
+    /// log's metadata line.
     pub origin: String,
     /// The label as given.
     pub label: String,
@@ -240,21 +237,23 @@ impl Units {
     /// `position_unit`), then a default from the column: `counts` for the default bias column
     /// `bias`, else the bias column's name (`force_N`); `tracks` for the default track column
     /// `track`, else its name (`position_m`). A bad label (empty, a control character or a
-    /// comma) is an error naming its flag or the log file and metadata key.
+    /// comma) is an error naming its setting ([`Field::BiasUnit`](crate::field::Field::BiasUnit),
+    /// [`Field::PositionUnit`](crate::field::Field::PositionUnit)) or the log file and metadata
+    /// key.
     pub fn resolve(
         bias: Option<&str>,
         position: Option<&str>,
         schema: &LogSchema,
     ) -> Result<Units, UnitError> {
         let one = |flag_value: Option<&str>,
-                   flag: &str,
+                   field: crate::field::Field,
                    key: &str,
                    column: &str,
                    default_column: &str,
                    default_unit: &str|
          -> Result<String, UnitError> {
             let (label, origin) = match (flag_value, schema.metadata_value(key)) {
-                (Some(l), _) => (l, flag.to_string()),
+                (Some(l), _) => (l, field.to_string()),
                 (None, Some(m)) => (m, format!("{}: metadata `{key}`", schema.file)),
                 (None, None) if column == default_column => return Ok(default_unit.into()),
                 (None, None) => return Ok(column.into()),
@@ -270,7 +269,7 @@ impl Units {
         Ok(Units {
             bias: one(
                 bias,
-                BIAS_UNIT_FLAG,
+                crate::field::Field::BiasUnit,
                 BIAS_UNIT_KEY,
                 &schema.map.bias,
                 DEFAULT_BIAS_COL,
@@ -278,7 +277,7 @@ impl Units {
             )?,
             position: one(
                 position,
-                POSITION_UNIT_FLAG,
+                crate::field::Field::PositionUnit,
                 POSITION_UNIT_KEY,
                 &schema.map.track,
                 DEFAULT_TRACK_COL,
@@ -322,7 +321,7 @@ pub enum LogError {
     },
     /// A required column is not in the header.
     #[error(
-        "{file}: line {line}: missing required column `{column}` (columns found: {found}){}; name it with {flag}",
+        "{file}: line {line}: missing required column `{column}` (columns found: {found}){}; name it with {field}",
         did_you_mean(.suggestion)
     )]
     MissingColumn {
@@ -334,8 +333,8 @@ pub enum LogError {
         column: String,
         /// The columns the header holds.
         found: String,
-        /// The flag that renames it.
-        flag: &'static str,
+        /// The setting that renames it.
+        field: crate::field::Field,
         /// The header's column most like the one looked for, if any.
         suggestion: Option<String>,
     },
@@ -690,7 +689,7 @@ impl<R: Read> LogReader<R> {
         }
         // A required column: its exact name, else the one name equal to it ignoring case and
         // surrounding spaces.
-        let mut find = |name: &str, flag: &'static str| {
+        let mut find = |name: &str, field: crate::field::Field| {
             let wanted = name.trim();
             if let Some(i) = columns.iter().position(|c| c == wanted) {
                 return Ok(i);
@@ -710,15 +709,16 @@ impl<R: Read> LogReader<R> {
                 line: header_line,
                 column: wanted.into(),
                 found: columns.join(", "),
-                flag,
+                field,
                 suggestion: closest_column(wanted, &columns).map(str::to_string),
             })
         };
-        let time_idx = find(&map.time, "--time-col")?;
-        let track_idx = find(&map.track, "--track-col")?;
+        use crate::field::Field;
+        let time_idx = find(&map.time, Field::TimeColumn)?;
+        let track_idx = find(&map.track, Field::TrackColumn)?;
         let bias_idx = match bias_column {
-            BiasColumn::Optional => find(&map.bias, "--bias-col").ok(),
-            _ => Some(find(&map.bias, "--bias-col")?),
+            BiasColumn::Optional => find(&map.bias, Field::BiasColumn).ok(),
+            _ => Some(find(&map.bias, Field::BiasColumn)?),
         };
         // Read ahead to classify the other columns: a column is a numeric covariate unless it has
         // no name and no values, or no values, or a value that is not a number in these rows.
@@ -1307,9 +1307,10 @@ mod tests {
         assert_eq!(check_unit_label(" N·m "), Ok("N·m"));
         let log = read("time_s,track,bias\n0,1,2\n").unwrap();
         let e = Units::resolve(Some(""), None, &log.schema).unwrap_err();
-        assert!(e.to_string().starts_with("--bias-unit ``: "), "{e}");
+        // The library names the setting; the CLI renders it as its flag (tests/it/units.rs).
+        assert!(e.to_string().starts_with("Units::bias ``: "), "{e}");
         let e = Units::resolve(None, Some("a,b"), &log.schema).unwrap_err();
-        assert!(e.to_string().starts_with("--track-unit `a,b`: "), "{e}");
+        assert!(e.to_string().starts_with("Units::position `a,b`: "), "{e}");
         let err = read("# bias_unit =\ntime_s,track,bias\n0,1,2\n")
             .unwrap_err()
             .to_string();

@@ -1,4 +1,4 @@
-//! What the model layer needs to be fitted, below the solver ([`crate::fit`]): the training
+//! What the model layer needs to be fitted, below the solver ([`crate::fit`](mod@crate::fit)): the training
 //! data as terms see it while they prepare ([`FitData`]), the error a fit (and a term's
 //! [`TermSpec::prepare`](super::term::TermSpec::prepare)) returns ([`FitError`]) and the record
 //! of how a fit ended ([`FitReport`], saved in the model file). `crate::fit` re-exports all three.
@@ -75,10 +75,11 @@ pub enum FitError {
         hint: &'static str,
     },
     /// A fit setting ([`crate::fit::FitOptions`]) is out of range.
-    #[error("fit setting `{field}`: {message}")]
+    #[error("fit setting {field}: {message}")]
     InvalidOptions {
-        /// The setting (`rank_tolerance`, `grid`, `refine`).
-        field: &'static str,
+        /// The setting ([`Field::RankTolerance`](crate::field::Field::RankTolerance), `Grid`,
+        /// `Refine`).
+        field: crate::field::Field,
         /// What is wrong and what is allowed.
         message: String,
     },

@@ -139,7 +139,7 @@ pub enum ModelError {
     },
     /// The log's required columns are named differently from the ones the model was fitted on.
     #[error(
-        "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({flag}); the names must match: read a log that has `{model}` with {flag} {model}, or refit the model on this log"
+        "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({field}); the names must match: read a log that has `{model}` with {field} {model}, or refit the model on this log"
     )]
     ColumnMismatch {
         /// Which column (time, track, bias).
@@ -148,8 +148,8 @@ pub enum ModelError {
         model: String,
         /// Name now.
         log: String,
-        /// The flag that renames it.
-        flag: &'static str,
+        /// The setting that renames it.
+        field: crate::field::Field,
     },
     /// The log has no rows to predict from.
     #[error("{file}: the log has no rows")]
@@ -560,17 +560,18 @@ impl FittedModel {
     /// column's name is not compared when the log has none (a plan).
     pub fn check_schema(&self, schema: &crate::log::LogSchema) -> Result<(), ModelError> {
         let map = &schema.map;
-        for (what, model, now, flag) in [
-            ("time", &self.columns.time, &map.time, "--time-col"),
-            ("track", &self.columns.track, &map.track, "--track-col"),
-            ("bias", &self.columns.bias, &map.bias, "--bias-col"),
+        use crate::field::Field;
+        for (what, model, now, field) in [
+            ("time", &self.columns.time, &map.time, Field::TimeColumn),
+            ("track", &self.columns.track, &map.track, Field::TrackColumn),
+            ("bias", &self.columns.bias, &map.bias, Field::BiasColumn),
         ] {
             if model != now && (what != "bias" || schema.has_bias()) {
                 return Err(ModelError::ColumnMismatch {
                     what,
                     model: model.clone(),
                     log: now.clone(),
-                    flag,
+                    field,
                 });
             }
         }

@@ -147,12 +147,12 @@ impl Predictor {
 /// use biasctl::model::StartValues;
 /// use biasctl::control::settle::{SettleSpec, analyse};
 /// let mut spec = SettleSpec::preset("paper1997").unwrap();
-/// let starts = StartValues::new(&spec.validate().unwrap(), 8.0).unwrap();
+/// let starts = StartValues::new(&spec.check().unwrap(), 8.0).unwrap();
 /// let z = starts.integrator_start(30.0).unwrap();
 /// // What `biasctl settle --bias 30 --bias-uncertainty 8` reports:
 /// spec.bias = 30.0;
 /// spec.bias_uncertainty = 8.0;
-/// let r = analyse(&spec.validate().unwrap()).unwrap();
+/// let r = analyse(&spec.check().unwrap()).unwrap();
 /// assert!((z - (r.z_converged + r.robust.unwrap().ff)).abs() < 1e-9);
 /// ```
 #[derive(Debug, Clone)]
@@ -169,8 +169,8 @@ impl StartValues {
     pub fn new(cfg: &SettleConfig, delta_b: f64) -> Result<Self, AnalyseError> {
         if !delta_b.is_finite() || delta_b < 0.0 {
             return Err(crate::control::settle::SettleError::Invalid {
-                field: "bias_uncertainty (the model's residual_std or --bias-uncertainty)",
-                what: "finite and ≥ 0",
+                field: crate::field::Field::BiasUncertainty,
+                what: "finite and ≥ 0 (the model's residual_std when none is given)",
                 value: delta_b,
             }
             .into());

@@ -8,7 +8,7 @@
 //! (`fn(&TermText) -> Result<Arc<dyn TermSpec>, SpecError>`) and, if its fitted form has saved
 //! settings, `#[derive(Serialize, Deserialize)]` on the fitted type; declare the module in
 //! `terms/mod.rs` (`pub mod NAME;`) and add its row to [`BUILTINS`]. Nothing in the solver
-//! ([`crate::fit`]) knows term names: a term reports its parameter count, whether it may drop
+//! ([`crate::fit`](mod@crate::fit)) knows term names: a term reports its parameter count, whether it may drop
 //! undetermined columns ([`Term::droppable`]) and its own fit warnings ([`Term::fit_warnings`]).
 //!
 //! ```

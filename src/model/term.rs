@@ -5,8 +5,8 @@
 //!   [`TermSpec::prepare`] looks at the training data once (to place knots, centre a column) and
 //!   returns a
 //! - [`Term`]: a term whose data-dependent settings are fixed. It has `n` **linear** parameters
-//!   (fitted by the one least-squares solve of [`crate::fit`]) and at most one **nonlinear**
-//!   parameter (searched by variable projection). [`Term::start`] gives its per-log
+//!   (fitted by the one least-squares solve of [`crate::fit`](mod@crate::fit)) and at most one
+//!   **nonlinear** parameter (searched by variable projection). [`Term::start`] gives its per-log
 //!   [`TermState`], which turns each seek into `n` basis values; the contribution is the dot
 //!   product of the basis with the fitted coefficients, plus an optional causal offset.
 //!

@@ -583,7 +583,7 @@ pub fn normal_cdf(z: f64) -> f64 {
 
 /// Complementary error function (W. J. Cody's rational approximations via the incomplete gamma
 /// function: erfc(x) = Q(1/2, x²) for x ≥ 0), accurate to ~1e-14 relative.
-pub fn erfc(x: f64) -> f64 {
+pub(crate) fn erfc(x: f64) -> f64 {
     if x >= 0.0 {
         gamma_q(0.5, x * x)
     } else {
@@ -593,7 +593,7 @@ pub fn erfc(x: f64) -> f64 {
 
 /// Two-sided p-value of a Student t statistic with `dof` degrees of freedom:
 /// P(|T| ≥ |t|) = I_{dof/(dof+t²)}(dof/2, 1/2).
-pub fn student_t_two_sided_p(t: f64, dof: f64) -> f64 {
+pub(crate) fn student_t_two_sided_p(t: f64, dof: f64) -> f64 {
     if dof <= 0.0 {
         return 1.0;
     }
@@ -601,7 +601,7 @@ pub fn student_t_two_sided_p(t: f64, dof: f64) -> f64 {
 }
 
 /// Survival function of the chi-square distribution: P(X ≥ q) with `dof` degrees of freedom.
-pub fn chi2_sf(q: f64, dof: f64) -> f64 {
+pub(crate) fn chi2_sf(q: f64, dof: f64) -> f64 {
     if q <= 0.0 {
         return 1.0;
     }
@@ -609,7 +609,7 @@ pub fn chi2_sf(q: f64, dof: f64) -> f64 {
 }
 
 /// ln Γ(x) for x > 0 (Lanczos, g = 7, n = 9; ~1e-15 relative).
-pub fn ln_gamma(x: f64) -> f64 {
+pub(crate) fn ln_gamma(x: f64) -> f64 {
     const G: f64 = 7.0;
     const C: [f64; 9] = [
         0.999_999_999_999_809_9,
@@ -638,7 +638,7 @@ pub fn ln_gamma(x: f64) -> f64 {
 
 /// Regularised upper incomplete gamma function Q(a, x) (series / continued fraction, Numerical
 /// Recipes §6.2).
-pub fn gamma_q(a: f64, x: f64) -> f64 {
+pub(crate) fn gamma_q(a: f64, x: f64) -> f64 {
     if x <= 0.0 {
         return 1.0;
     }
@@ -677,7 +677,7 @@ pub fn gamma_q(a: f64, x: f64) -> f64 {
 }
 
 /// Regularised incomplete beta function I_x(a, b) (continued fraction, Numerical Recipes §6.4).
-pub fn reg_inc_beta(a: f64, b: f64, x: f64) -> f64 {
+pub(crate) fn reg_inc_beta(a: f64, b: f64, x: f64) -> f64 {
     if x <= 0.0 {
         return 0.0;
     }

@@ -105,10 +105,19 @@ pub fn quote(value: &str) -> String {
 /// [`QUOTE_CHARS`] shortened by [`quote`] and every line cut to [`MESSAGE_LINE_CHARS`]: what
 /// the CLI prints after `error: `.
 pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
-    let mut text = shorten_line(&err.to_string());
+    message_with(err, &|line| line.to_string())
+}
+
+/// As [`message`], with each error's text passed through `rewrite` before it is shortened (the
+/// CLI renders the library's setting names as its flags there).
+pub fn message_with(
+    err: &(dyn std::error::Error + 'static),
+    rewrite: &dyn Fn(&str) -> String,
+) -> String {
+    let mut text = shorten_line(&rewrite(&err.to_string()));
     let mut cause = err.source();
     while let Some(c) = cause {
-        let line = shorten_line(&c.to_string());
+        let line = shorten_line(&rewrite(&c.to_string()));
         if !text.contains(&line) {
             text.push_str("\n  caused by: ");
             text.push_str(&line);

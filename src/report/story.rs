@@ -720,7 +720,7 @@ pub fn demo_report(
 
     steps.start("settle analysis");
     let spec = SettleSpec::preset(&opts.settle_preset)?;
-    let cfg = spec.validate()?;
+    let cfg = spec.check()?;
     let settle = analyse(&cfg)?;
     out.text(
         "settle.json",

@@ -39,6 +39,7 @@ pub use drive::{Drive, DriveError};
 pub use measure::{Handoff, Measured, Servo};
 pub use sequence::{ScriptError, Step};
 
+use crate::field::Field;
 use crate::history::{History, sign};
 use crate::log::{Log, LogError, LogWriter, fmt_fixed};
 use crate::numeric::rng::SimRng;
@@ -213,22 +214,22 @@ impl Sequence {
     }
 }
 
-/// A bad simulation setting; names the flag.
+/// A bad simulation setting; names the setting.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ConfigError {
-    /// A flag's value is not allowed.
-    #[error("{flag} {value}: {reason}")]
-    BadFlag {
-        /// The flag, e.g. `--span`.
-        flag: &'static str,
+    /// A setting's value is not allowed.
+    #[error("{field} {value}: {reason}")]
+    Invalid {
+        /// The setting, e.g. [`Field::Span`].
+        field: Field,
         /// Its value.
         value: String,
         /// What it must be.
         reason: String,
     },
     /// The script could not be used.
-    #[error("--script: {0}")]
+    #[error("{field}: {0}", field = Field::Script)]
     Script(#[from] ScriptError),
 }
 
@@ -251,8 +252,8 @@ pub const DWELL_RUN_S: (f64, f64) = (0.1, 10.0);
 
 impl SimConfig {
     /// Validates `sequence` (one of [`SEQUENCE_NAMES`]) with `opts` against `drive`.
-    /// `disabled` lists effect names to switch off. Errors name the flag (`--sequence`, `--n`,
-    /// `--span`, `--center`, `--script`, `--disable`, `--dwell-min`, `--dwell-max`).
+    /// `disabled` lists effect names to switch off. Errors name the setting ([`Field::Sequence`],
+    /// [`Field::Disabled`] or a field of [`SequenceOptions`]).
     pub fn new(
         drive: Drive,
         sequence: &str,
@@ -260,8 +261,8 @@ impl SimConfig {
         seed: u64,
         disabled: &[&str],
     ) -> Result<SimConfig, ConfigError> {
-        let bad = |flag, value: String, reason: String| ConfigError::BadFlag {
-            flag,
+        let bad = |field, value: String, reason: String| ConfigError::Invalid {
+            field,
             value,
             reason,
         };
@@ -269,7 +270,7 @@ impl SimConfig {
         for name in disabled {
             let e = Effect::from_name(name.trim()).ok_or_else(|| {
                 bad(
-                    "--disable",
+                    Field::Disabled,
                     (*name).to_string(),
                     format!(
                         "unknown effect; expected one of {}",
@@ -283,7 +284,7 @@ impl SimConfig {
         let center = opts.center.unwrap_or_else(|| drive.mid_track());
         if !center.is_finite() || !(0.0..=max).contains(&center) {
             return Err(bad(
-                "--center",
+                Field::Center,
                 center.to_string(),
                 format!("must lie in the stroke 0..={max}"),
             ));
@@ -291,29 +292,32 @@ impl SimConfig {
         let random = || -> Result<RandomSpec, ConfigError> {
             let n = opts.n.unwrap_or(DEFAULT_N);
             if n == 0 {
-                return Err(bad("--n", "0".into(), "must be ≥ 1".into()));
+                return Err(bad(Field::SeekCount, "0".into(), "must be ≥ 1".into()));
             }
             let span = opts.span.unwrap_or(DEFAULT_SPAN);
             if !span.is_finite() || span <= 0.0 {
-                return Err(bad("--span", span.to_string(), "must be > 0".into()));
+                return Err(bad(Field::Span, span.to_string(), "must be > 0".into()));
             }
             if center - span / 2.0 < 0.0 || center + span / 2.0 > max {
                 return Err(bad(
-                    "--span",
+                    Field::Span,
                     span.to_string(),
-                    format!("--center {center} ± span/2 leaves the stroke 0..={max}"),
+                    format!(
+                        "{} {center} ± span/2 leaves the stroke 0..={max}",
+                        Field::Center
+                    ),
                 ));
             }
             let lo = opts.dwell_min_s.unwrap_or(DEFAULT_DWELL_S.0);
             let hi = opts.dwell_max_s.unwrap_or(DEFAULT_DWELL_S.1);
             if !lo.is_finite() || lo < 0.0 {
-                return Err(bad("--dwell-min", lo.to_string(), "must be ≥ 0 s".into()));
+                return Err(bad(Field::DwellMin, lo.to_string(), "must be ≥ 0 s".into()));
             }
             if !hi.is_finite() || hi < lo {
                 return Err(bad(
-                    "--dwell-max",
+                    Field::DwellMax,
                     hi.to_string(),
-                    "must be ≥ --dwell-min".into(),
+                    format!("must be ≥ {}", Field::DwellMin),
                 ));
             }
             Ok(RandomSpec {
@@ -329,7 +333,7 @@ impl SimConfig {
                 let steps = sequence::table(t, center, far, max).unwrap_or_default();
                 if steps.iter().any(|s| !(0.0..=max).contains(&s.target)) {
                     return Err(bad(
-                        "--center",
+                        Field::Center,
                         center.to_string(),
                         format!("table{t} would seek outside the stroke 0..={max}"),
                     ));
@@ -347,9 +351,9 @@ impl SimConfig {
             "script" => {
                 let path = opts.script.as_ref().ok_or_else(|| {
                     bad(
-                        "--script",
+                        Field::Script,
                         "(missing)".into(),
-                        "the script sequence needs --script FILE.csv".into(),
+                        format!("the script sequence needs {} FILE.csv", Field::Script),
                     )
                 })?;
                 Sequence::Script {
@@ -364,7 +368,7 @@ impl SimConfig {
                     .filter(|n| (1..=7).contains(n))
                     .ok_or_else(|| {
                         bad(
-                            "--sequence",
+                            Field::Sequence,
                             name.to_string(),
                             format!(
                                 "unknown sequence; expected one of {}",

@@ -366,11 +366,29 @@ fn cli_bad_inputs_exit_2_with_a_clear_message() {
         &["too few measured rows"],
     );
     // Settings out of range.
-    fails_with(
+    // The library names the setting (`DiagnoseConfig::folds`); the CLI prints its flag.
+    let err = fails_with(
         &[
             "diagnose", "--model", &model, "--data", &train, "--folds", "1",
         ],
-        &["folds"],
+        &["--folds", "2..=50"],
+    );
+    assert!(!err.contains("DiagnoseConfig::"), "{err}");
+    fails_with(
+        &[
+            "diagnose",
+            "--model",
+            &model,
+            "--data",
+            &train,
+            "--verify-folds",
+            "1",
+        ],
+        &["--verify-folds", "2..=20"],
+    );
+    fails_with(
+        &["discover", "--data", &train, "--max-steps", "0"],
+        &["--max-steps", "1..=30"],
     );
     fails_with(
         &[

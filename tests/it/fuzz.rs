@@ -373,7 +373,7 @@ fn exercise(kind: Kind, name: &str, bytes: &[u8], ctx: &Ctx) -> Res {
             let text = std::str::from_utf8(bytes)?;
             biasctl::log::limits::check_toml_numbers(text).map_err(Box::<dyn Error>::from)?;
             let spec: SettleSpec = toml::from_str(text)?;
-            let report = analyse(&spec.validate()?)?;
+            let report = analyse(&spec.check()?)?;
             finite("LQR gain", report.gain.iter().copied())?;
             text_ok("settle text", &report.to_text())?;
             text_ok("bounds CSV", &report.bounds_csv())?;

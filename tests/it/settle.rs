@@ -9,7 +9,7 @@ use biasctl::control::settle::{
 use biasctl::numeric::rng::SimRng;
 
 fn controller(preset: &str) -> Controller {
-    let cfg = SettleSpec::preset(preset).unwrap().validate().unwrap();
+    let cfg = SettleSpec::preset(preset).unwrap().check().unwrap();
     Controller::design(&cfg.plant, &cfg.weights).unwrap()
 }
 
@@ -21,7 +21,7 @@ fn close(got: f64, want: f64, tol: f64) -> bool {
 /// test bed (brief of issue #4); paper text: one-track settle < 3 ms with < 30 % overshoot.
 #[test]
 fn paper1997_golden_values() {
-    let cfg = SettleSpec::preset("paper1997").unwrap().validate().unwrap();
+    let cfg = SettleSpec::preset("paper1997").unwrap().check().unwrap();
     let r = analyse(&cfg).unwrap();
     let k_want = [3.30099, 35.5194, 0.0143960, 0.550064];
     for (g, w) in r.gain.iter().zip(k_want) {
@@ -43,7 +43,7 @@ fn paper1997_golden_values() {
 
     let mut spec = SettleSpec::preset("paper1997").unwrap();
     spec.step_um = 5.0;
-    let r5 = analyse(&spec.validate().unwrap()).unwrap();
+    let r5 = analyse(&spec.check().unwrap()).unwrap();
     assert!(close(r5.zero_ff_settle_ms.unwrap(), 2.2, 1e-9));
     assert!(
         close(r5.zero_ff_overshoot_pct, 25.0, 0.5),
@@ -176,7 +176,7 @@ fn zero_gain_sample_is_handled() {
 /// case matches its simulation too.
 #[test]
 fn robust_choice_worst_case_verified_by_simulation() {
-    let cfg = SettleSpec::preset("paper1997").unwrap().validate().unwrap();
+    let cfg = SettleSpec::preset("paper1997").unwrap().check().unwrap();
     let ctl = Controller::design(&cfg.plant, &cfg.weights).unwrap();
     let sc = cfg.scenario;
     let n = sc.horizon;
