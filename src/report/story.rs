@@ -360,7 +360,8 @@ fn demo_page(run: &DemoRun, notes: &mut Notes) -> Report {
     discover::discover(
         r.section("Discover: the terms the data ask for"),
         &run.discovery,
-        "calibration.csv, each edit verified and scored on random.csv",
+        "calibration.csv",
+        "random.csv",
     );
 
     // 6. Settle, 7. Link.
@@ -596,7 +597,8 @@ fn data_page(run: &DataRun, notes: &mut Notes) -> Report {
     discover::discover(
         r.section("Discover: the terms the data ask for"),
         &run.discovery,
-        "the first half, each edit verified and scored on the second half",
+        "the first half of the log",
+        "the second half",
     );
     r
 }

@@ -1061,3 +1061,36 @@ fn fig15_zooms_on_the_start_values() {
         "{names:?}"
     );
 }
+
+/// Figs. 10/11 share the error axis only when the models' errors overlap. Reference: ranges
+/// chosen by construction — [−1, 1] and [−2, 2] overlap (union 4 ≤ 2 × 4); [−1, 1] and
+/// [−1201, −1199] do not (union 1202 > 2 × 2), and then each column has its own error ticks.
+#[test]
+fn error_figure_shares_the_error_axis_only_when_errors_overlap() {
+    let m = |name: &str, lo: f64, hi: f64| ModelErrors {
+        name: name.into(),
+        position: (0..50).map(|i| i as f64).collect(),
+        error: (0..50).map(|i| lo + (hi - lo) * i as f64 / 49.0).collect(),
+    };
+    assert!(errors_overlap(&[m("a", -1.0, 1.0), m("b", -2.0, 2.0)]));
+    let far = [m("a", -1.0, 1.0), m("b", -1201.0, -1199.0)];
+    assert!(!errors_overlap(&far));
+    let svg = prediction_errors(&far, &Units::default());
+    let doc = parse(&svg);
+    let charts: Vec<Node> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("g") && has_class(n, "chart"))
+        .collect();
+    let y_ticks = |c: &Node| -> Vec<f64> {
+        c.descendants()
+            .filter(|n| has_class(n, "tick") && n.attribute("text-anchor") == Some("end"))
+            .map(|n| n.text().unwrap().parse::<f64>().unwrap())
+            .collect()
+    };
+    assert!(y_ticks(&charts[0]).iter().all(|t| t.abs() <= 1.1));
+    assert!(
+        y_ticks(&charts[1])
+            .iter()
+            .all(|t| (-1201.1..=-1198.9).contains(t))
+    );
+}

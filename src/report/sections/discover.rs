@@ -37,12 +37,13 @@ pub fn discover_table(d: &Discovery) -> Table {
 }
 
 /// The section body: what discover does, the steps table (or that no edit was verified), the
-/// final terms and why it stopped; or why it could not run.
-pub fn discover(s: &mut Section, d: &Step<Discovery>, data: &str) {
+/// final terms and why it stopped; or why it could not run. `train` and `test` name the logs it
+/// fitted on and scored on.
+pub fn discover(s: &mut Section, d: &Step<Discovery>, train: &str, test: &str) {
     s.paragraph(format!(
-        "discover starts from {DISCOVER_START} fitted on {data}, diagnoses its error, applies \
+        "discover starts from {DISCOVER_START} fitted on {train}, diagnoses its error, applies \
          the best edit whose gain is verified on held-out seeks, and repeats until no edit \
-         gains more than noise allows."
+         gains more than noise allows; each step's error std is measured on {test}."
     ));
     match d {
         Ok(d) => {
