@@ -38,14 +38,36 @@ pub fn fit_summary_table<'a>(
             f.parameters.into(),
             Cell::Fixed(f.residual_std, 2),
             if f.converged { "yes" } else { "no" }.into(),
-            if s.model.warnings.is_empty() {
-                "none".into()
-            } else {
-                s.model.warnings.join("; ").into()
-            },
+            warnings_cell(&s.model.warnings).into(),
         ]);
     }
     t
+}
+
+/// A fit's warnings in one cell: "none", or each distinct warning once, in order, with "(×n)"
+/// when the fit gave it n > 1 times (one per coefficient of a multi-coefficient term).
+fn warnings_cell(warnings: &[String]) -> String {
+    if warnings.is_empty() {
+        return "none".into();
+    }
+    let mut distinct: Vec<(&str, usize)> = Vec::new();
+    for w in warnings {
+        match distinct.iter_mut().find(|(d, _)| *d == w.as_str()) {
+            Some((_, n)) => *n += 1,
+            None => distinct.push((w.as_str(), 1)),
+        }
+    }
+    distinct
+        .iter()
+        .map(|(w, n)| {
+            if *n > 1 {
+                format!("{w} (×{n})")
+            } else {
+                w.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// The out-of-sample scores of `scored` (replayed causally over rows they were not fitted on,
@@ -127,4 +149,22 @@ pub fn curves_figure(
         &format!("The {} model's curves", m.label),
         notes,
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reference: the list written out by hand.
+    #[test]
+    fn repeated_warnings_are_counted_once() {
+        assert_eq!(warnings_cell(&[]), "none");
+        let w = [
+            "a".to_string(),
+            "b".to_string(),
+            "a".to_string(),
+            "a".to_string(),
+        ];
+        assert_eq!(warnings_cell(&w), "a (×3); b");
+    }
 }
