@@ -109,8 +109,8 @@ fn file_stem(label: &str) -> String {
     label.replace([',', ':'], "_")
 }
 
-fn pretty<T: serde::Serialize>(v: &T) -> String {
-    serde_json::to_string_pretty(v).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+fn pretty<T: serde::Serialize>(v: &T) -> Result<String, crate::render::OutputError> {
+    crate::render::json::to_string_pretty(v)
 }
 
 /// Writes a scored model's `model_*.json` and `score_*.json`.
@@ -123,12 +123,12 @@ fn write_scored(
     let stem = file_stem(&s.label);
     out.text(
         &format!("model_{stem}.json"),
-        &s.model.to_json(),
+        &s.model.to_json()?,
         &format!("{} {fitted}", s.label),
     )?;
     out.text(
         &format!("score_{stem}.json"),
-        &pretty(&s.score),
+        &pretty(&s.score)?,
         &format!("{} {scored}", s.label),
     )
 }
@@ -158,25 +158,25 @@ pub fn demo_report(
     }
     out.text(
         "diagnosis.json",
-        &run.diagnosis.diagnosis.to_json(),
+        &run.diagnosis.diagnosis.to_json()?,
         "diagnosis of the position-direction model on random.csv",
     )?;
     out.text(
         "ladder.json",
-        &run.ladder.to_json(),
+        &run.ladder.to_json()?,
         "test error std after each added term",
     )?;
     if let Ok(d) = &run.discovery {
         out.text(
             "discover.json",
-            &d.to_json(),
+            &d.to_json()?,
             "discover's verified edits, calibration.csv → random.csv",
         )?;
     }
     let settle = &run.settle.report;
     out.text(
         "settle.json",
-        &pretty(settle),
+        &pretty(settle)?,
         &format!("settle analysis ({})", run.settle.preset),
     )?;
     out.text(
@@ -197,7 +197,7 @@ pub fn demo_report(
                 .iter()
                 .map(|(l, _, w)| (l.clone(), *w))
                 .collect::<Vec<_>>(),
-        ),
+        )?,
         "worst-case settle with each model's test error std as Δb",
     )?;
 
@@ -454,28 +454,28 @@ pub fn data_report(
     if let Some(Ok(u)) = &run.user {
         out.text(
             "score_your_model.json",
-            &pretty(&u.score),
+            &pretty(&u.score)?,
             "your model scored on the whole log",
         )?;
     }
     if let Ok(d) = &run.diagnosis {
         out.text(
             "diagnosis.json",
-            &d.diagnosis.to_json(),
+            &d.diagnosis.to_json()?,
             &format!("diagnosis of {}", d.name),
         )?;
     }
     if let Ok(l) = &run.ladder {
         out.text(
             "ladder.json",
-            &l.to_json(),
+            &l.to_json()?,
             "test error std after each added term",
         )?;
     }
     if let Ok(d) = &run.discovery {
         out.text(
             "discover.json",
-            &d.to_json(),
+            &d.to_json()?,
             "discover's verified edits, first half → second half",
         )?;
     }
