@@ -16,9 +16,9 @@ fi
 "$venv/bin/pip" install -q -r "$here/requirements.txt"
 cargo build --release --quiet
 crit=(-- --warm-up-time 1 --measurement-time 3 --sample-size 10)
-cargo bench --quiet --bench dahl "${crit[@]}" 'dahl/predictor_1M_seeks'
-cargo bench --quiet --bench handoff "${crit[@]}" 'handoff/(solve|bounds_into)/64$'
-cargo bench --quiet --bench read "${crit[@]}" 'read/check_summarise_1M_rows'
-cargo bench --quiet --bench fit "${crit[@]}"
-cargo bench --quiet --bench predict "${crit[@]}" 'predict/replay_and_write_1M_rows'
+cargo bench --quiet --features bench --bench dahl "${crit[@]}" 'dahl/predictor_1M_seeks'
+cargo bench --quiet --features bench --bench handoff "${crit[@]}" 'handoff/(solve|bounds_into)/64$'
+cargo bench --quiet --features bench --bench read "${crit[@]}" 'read/check_summarise_1M_rows'
+cargo bench --quiet --features bench --bench fit "${crit[@]}"
+cargo bench --quiet --features bench --bench predict "${crit[@]}" 'predict/replay_and_write_1M_rows'
 "$venv/bin/python" "$here/peers.py" --root "$root" --exe "$root/target/release/biasctl" --work "$work"

@@ -90,5 +90,8 @@ pub fn print_outcome(o: &StoryOutcome) -> anyhow::Result<()> {
     for line in &o.summary {
         outln!("  {line}")?;
     }
+    for w in &o.warnings {
+        eprintln!("warning: {w}");
+    }
     Ok(())
 }

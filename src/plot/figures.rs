@@ -229,9 +229,65 @@ pub struct ModelErrors {
 
 /// Figs. 10/11: for each model one column with the error vs position (top) and the error
 /// histogram (bottom); the error standard deviation is in each title. All columns share the
-/// position range, the error range and the histogram bins, so they compare directly. `units`
-/// are those of every model's errors and positions.
+/// position range, and the error range and the histogram bins so they compare directly — unless
+/// the models' errors hardly overlap ([`errors_overlap`]: one model far off would squash the
+/// others to a line), when each column gets its own error range and bins. `units` are those of
+/// every model's errors and positions.
 pub fn prediction_errors(models: &[ModelErrors], units: &Units) -> String {
+    let width = if models.len() > 2 { 420.0 } else { 520.0 };
+    if models.len() > 1 && !errors_overlap(models) {
+        // Each model on its own error axis, the position axis still shared.
+        let all_pos: Vec<f64> = models
+            .iter()
+            .flat_map(|m| m.position.iter().copied())
+            .filter(|v| v.is_finite())
+            .collect();
+        let pos = finite_range(&all_pos).padded();
+        let charts: Vec<(Chart, Chart)> = models
+            .iter()
+            .flat_map(|m| error_columns(std::slice::from_ref(m), units, Some(pos), width))
+            .collect();
+        return error_panel(charts, models.len());
+    }
+    let charts = error_columns(models, units, None, width);
+    error_panel(charts, models.len())
+}
+
+/// Whether the models' error ranges overlap enough to share one axis: the union of their
+/// finite ranges is at most twice as wide as the widest model's own range.
+pub fn errors_overlap(models: &[ModelErrors]) -> bool {
+    let spans: Vec<[f64; 2]> = models
+        .iter()
+        .filter_map(|m| {
+            let v: Vec<f64> = m.error.iter().copied().filter(|v| v.is_finite()).collect();
+            stats::range(&v)
+        })
+        .collect();
+    let widest = spans.iter().map(|[lo, hi]| hi - lo).fold(0.0, f64::max);
+    let lo = spans.iter().map(|r| r[0]).fold(f64::INFINITY, f64::min);
+    let hi = spans.iter().map(|r| r[1]).fold(f64::NEG_INFINITY, f64::max);
+    spans.len() < 2 || hi - lo <= 2.0 * widest
+}
+
+/// The panel of Figs. 10/11: scatters on the first row, histograms on the second.
+fn error_panel(charts: Vec<(Chart, Chart)>, columns: usize) -> String {
+    let (scatters, histograms): (Vec<Chart>, Vec<Chart>) = charts.into_iter().unzip();
+    let mut panel = Panel::new("Figs. 10/11 — prediction error vs position and its histogram")
+        .columns(columns.max(1));
+    for c in scatters.into_iter().chain(histograms) {
+        panel = panel.chart(c);
+    }
+    panel.to_svg()
+}
+
+/// The (scatter, histogram) pair of each model, sharing the error range and bins of `models`
+/// and the position range `pos` (or that of `models`).
+fn error_columns(
+    models: &[ModelErrors],
+    units: &Units,
+    pos: Option<AxisRange>,
+    width: f64,
+) -> Vec<(Chart, Chart)> {
     let all_err: Vec<f64> = models
         .iter()
         .flat_map(|m| m.error.iter().copied())
@@ -242,11 +298,10 @@ pub fn prediction_errors(models: &[ModelErrors], units: &Units) -> String {
         .flat_map(|m| m.position.iter().copied())
         .filter(|v| v.is_finite())
         .collect();
-    let err_range = finite_range(&all_err);
-    let pos_range = finite_range(&all_pos);
+    // Shared by every chart (so they compare), padded like an automatic range.
+    let err_range = finite_range(&all_err).padded();
+    let pos_range = pos.unwrap_or_else(|| finite_range(&all_pos).padded());
     let edges = common_edges(&all_err);
-    let columns = models.len().max(1);
-    let width = if columns > 2 { 420.0 } else { 520.0 };
     let mut scatters = Vec::new();
     let mut histograms = Vec::new();
     for m in models {
@@ -300,12 +355,7 @@ pub fn prediction_errors(models: &[ModelErrors], units: &Units) -> String {
             );
         histograms.push(histogram);
     }
-    let mut panel =
-        Panel::new("Figs. 10/11 — prediction error vs position and its histogram").columns(columns);
-    for c in scatters.into_iter().chain(histograms) {
-        panel = panel.chart(c);
-    }
-    panel.to_svg()
+    scatters.into_iter().zip(histograms).collect()
 }
 
 /// The fixed range of the finite values, or automatic if there are none.
@@ -530,9 +580,49 @@ fn per_sample(period_ms: f64, v: &[f64]) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Fig. 15: the bounds U_k, L_k (thin) and their running min/max U*, L* (thick) vs time, with
-/// the chosen start values as horizontal lines. The y range follows the running bounds and the
-/// choices (the raw bounds grow without limit near k = 0 and are clipped).
+/// Dash patterns that tell apart lines drawn on top of each other: solid first, then dashed,
+/// dotted, dash-dot.
+const DASHES: [Option<&str>; 4] = [None, Some("7 4"), Some("2 3"), Some("9 3 2 3")];
+
+/// The sample at which start value `v` enters the running bounds, `L*(k) ≤ v ≤ U*(k)` (its
+/// settle sample when the running bounds are those of a settle analysis).
+fn entry_sample(b: &SettleBounds, v: f64) -> Option<usize> {
+    b.lower_running
+        .iter()
+        .zip(&b.upper_running)
+        .position(|(&lo, &hi)| lo <= v && v <= hi)
+}
+
+/// The four bound curves of Fig. 15 on chart `c` (thin U, L; dashed running U*, L*).
+fn bound_series(c: Chart, b: &SettleBounds) -> Chart {
+    let t = b.sample_period_ms;
+    c.series(Series::new("upper bound U", SeriesData::Line(per_sample(t, &b.upper))).color(0))
+        .series(Series::new("lower bound L", SeriesData::Line(per_sample(t, &b.lower))).color(1))
+        .series(
+            Series::new(
+                "running min U*",
+                SeriesData::Step(per_sample(t, &b.upper_running)),
+            )
+            .color(0)
+            .dashed(),
+        )
+        .series(
+            Series::new(
+                "running max L*",
+                SeriesData::Step(per_sample(t, &b.lower_running)),
+            )
+            .color(1)
+            .dashed(),
+        )
+}
+
+/// Fig. 15, two panels. Left, the whole horizon: the bounds U_k, L_k (thin) and their running
+/// min/max U*, L* (dashed) vs time, the chosen start values as unlabelled grey lines; the y range
+/// follows the running bounds and the choices (the raw bounds grow without limit near k = 0 and
+/// are clipped). Right, the decision region: time up to a little past the last sample at which
+/// a chosen start value enters the running bounds, values around the choices, each choice a
+/// legend entry with its value (own colour and dash pattern, so values a few units apart stay
+/// legible). With no finite choice the right panel repeats the left one's range.
 pub fn fig15_settle_bounds(b: &SettleBounds) -> String {
     let t = b.sample_period_ms;
     let mut focus: Vec<f64> = b
@@ -562,35 +652,70 @@ pub fn fig15_settle_bounds(b: &SettleBounds) -> String {
         }
         auto => auto,
     };
-    let mut c = Chart::new("Fig. 15 — bounds on the integrator start value")
+    let y_label = format!("start value − converged ({})", b.unit);
+    let mut whole = Chart::new("whole horizon")
+        .size(520.0, 380.0)
         .x_label("time after handoff (ms)")
-        .y_label(format!("start value − converged ({})", b.unit))
-        .y_range(y_range)
-        .series(Series::new("upper bound U", SeriesData::Line(per_sample(t, &b.upper))).color(0))
-        .series(Series::new("lower bound L", SeriesData::Line(per_sample(t, &b.lower))).color(1))
-        .series(
-            Series::new(
-                "running min U*",
-                SeriesData::Step(per_sample(t, &b.upper_running)),
-            )
-            .color(0)
-            .dashed(),
+        .y_label(y_label.clone())
+        .y_range(y_range);
+    whole = bound_series(whole, b);
+    for (_, v) in &b.choices {
+        whole = whole.hline(*v, "");
+    }
+    // The decision region.
+    let values: Vec<f64> = b
+        .choices
+        .iter()
+        .map(|c| c.1)
+        .filter(|v| v.is_finite())
+        .collect();
+    let last_entry = values
+        .iter()
+        .filter_map(|&v| entry_sample(b, v))
+        .chain(b.settle_ms.map(|s| (s / t).round() as usize))
+        .max();
+    let n = b.upper.len().max(b.lower.len());
+    let x_hi = last_entry.map_or(n as f64 * t, |k| {
+        ((k as f64 * 1.3).ceil() + 2.0).min(n as f64) * t
+    });
+    let mut zoom = Chart::new("zoom on the decision region")
+        .size(520.0, 380.0)
+        .x_label("time after handoff (ms)")
+        .y_label(y_label);
+    zoom = match finite_range(&values) {
+        AxisRange::Fixed { lo, hi } => {
+            let pad = 0.3 * (hi - lo);
+            zoom.y_range(AxisRange::Fixed {
+                lo: lo - pad,
+                hi: hi + pad,
+            })
+        }
+        AxisRange::Auto => zoom.y_range(y_range),
+    };
+    if x_hi.is_finite() && x_hi > 0.0 {
+        zoom = zoom.x_range(AxisRange::Fixed { lo: 0.0, hi: x_hi });
+    }
+    zoom = bound_series(zoom, b);
+    for (i, (name, v)) in b.choices.iter().enumerate() {
+        let mut s = Series::new(
+            format!("{name}: {}", fmt_num(*v)),
+            SeriesData::Line(vec![(0.0, *v), (x_hi, *v)]),
         )
-        .series(
-            Series::new(
-                "running max L*",
-                SeriesData::Step(per_sample(t, &b.lower_running)),
-            )
-            .color(1)
-            .dashed(),
-        );
-    for (name, v) in &b.choices {
-        c = c.hline(*v, format!("{name}: {}", fmt_num(*v)));
+        .color(2 + i);
+        if let Some(d) = DASHES[i % DASHES.len()] {
+            s = s.dash(d);
+        }
+        zoom = zoom.series(s);
     }
     if let Some(s) = b.settle_ms {
-        c = c.vline(s, format!("settle {} ms", fmt_num(s)));
+        whole = whole.vline(s, format!("settle {} ms", fmt_num(s)));
+        zoom = zoom.vline(s, format!("settle {} ms", fmt_num(s)));
     }
-    c.to_svg()
+    Panel::new("Fig. 15 — bounds on the integrator start value")
+        .columns(2)
+        .chart(whole)
+        .chart(zoom)
+        .to_svg()
 }
 
 /// The position-error response for one start-value choice.
@@ -616,9 +741,55 @@ pub struct SettleResponses {
     pub responses: Vec<Response>,
 }
 
+/// Which earlier response each response lies on top of: `Some(j)` when its largest distance
+/// from response `j < i` is under 3 % of the whole figure's error range (about 6 pixels of the
+/// whole-response chart: the two curves cannot be told apart by position alone at that scale;
+/// on paper1997 zero feedforward and the paper's robust choice are 1.8 % apart, the optimal and
+/// the worst-case robust choice 1.4 %).
+fn coinciding(r: &SettleResponses) -> Vec<Option<usize>> {
+    let all: Vec<f64> = r
+        .responses
+        .iter()
+        .flat_map(|x| x.error_um.iter().copied())
+        .filter(|v| v.is_finite())
+        .collect();
+    let span = match finite_range(&all) {
+        AxisRange::Fixed { lo, hi } => hi - lo,
+        AxisRange::Auto => return vec![None; r.responses.len()],
+    };
+    let gap = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0f64, f64::max)
+    };
+    (0..r.responses.len())
+        .map(|i| {
+            (0..i).find(|&j| {
+                r.responses[i].error_um.len() == r.responses[j].error_um.len()
+                    && gap(&r.responses[i].error_um, &r.responses[j].error_um) < 0.03 * span
+            })
+        })
+        .collect()
+}
+
 /// Fig. 16: e(k) for each start-value choice with the ±δ window as a band; left the whole
-/// response, right zoomed to ±5δ around the window.
+/// response, right zoomed to ±5δ around the window. A response that lies on top of an earlier
+/// one ([`coinciding`]) is drawn with a dash pattern over it, and its legend entry says which
+/// one it coincides with.
 pub fn fig16_responses(r: &SettleResponses) -> String {
+    let on_top = coinciding(r);
+    // Each response's dash pattern: the k-th curve of a group drawn on top of each other gets
+    // the k-th pattern (the first stays solid).
+    let mut roots: Vec<usize> = Vec::with_capacity(on_top.len());
+    for (i, j) in on_top.iter().enumerate() {
+        let root = j.map_or(i, |j| roots[j]);
+        roots.push(root);
+    }
+    let dash_index: Vec<usize> = (0..roots.len())
+        .map(|i| (0..i).filter(|&k| roots[k] == roots[i]).count())
+        .collect();
     let chart = |title: &str, zoom: bool| {
         let mut c = Chart::new(title)
             .size(520.0, 360.0)
@@ -636,12 +807,23 @@ pub fn fig16_responses(r: &SettleResponses) -> String {
             });
         }
         for (i, resp) in r.responses.iter().enumerate() {
-            let name = match resp.settle_ms {
-                Some(s) => format!("{} (settles {} ms)", resp.name, fmt_num(s)),
-                None => format!("{} (does not settle)", resp.name),
+            let settles = match resp.settle_ms {
+                Some(s) => format!("settles {} ms", fmt_num(s)),
+                None => "does not settle".into(),
+            };
+            let name = match on_top[i] {
+                Some(j) => format!(
+                    "{} ({settles}; coincides with {})",
+                    resp.name, r.responses[j].name
+                ),
+                None => format!("{} ({settles})", resp.name),
             };
             let pts = per_sample(r.sample_period_ms, &resp.error_um);
-            c = c.series(Series::new(name, SeriesData::Line(pts)).color(i));
+            let mut s = Series::new(name, SeriesData::Line(pts)).color(i);
+            if let Some(d) = DASHES[dash_index[i] % DASHES.len()] {
+                s = s.dash(d);
+            }
+            c = c.series(s);
             if let Some(s) = resp.settle_ms {
                 c = c.vline(s, "");
             }

@@ -270,8 +270,8 @@ pub fn bounds_extent(r: &SettleReport) -> usize {
         .map_or(n, |k| k.max(2 * k_star).min(n))
 }
 
-/// Fig. 15 of a settle analysis: bounds, running bounds, the chosen start values, k*; drawn
-/// over [`bounds_extent`] samples.
+/// Fig. 15 of a settle analysis: bounds, running bounds, every chosen start value (zero
+/// feedforward's 0 included), k*; drawn over [`bounds_extent`] samples.
 pub fn settle_bounds(r: &SettleReport) -> String {
     let b = &r.bounds;
     let n = bounds_extent(r);
@@ -284,7 +284,6 @@ pub fn settle_bounds(r: &SettleReport) -> String {
         choices: r
             .responses
             .iter()
-            .filter(|x| x.name != "zero_ff")
             .map(|x| (choice_name(x.name).to_string(), x.ff))
             .collect(),
         settle_ms: r.optimal_settle_ms,

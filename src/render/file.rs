@@ -579,6 +579,11 @@ impl StagedDir {
         &self.dir
     }
 
+    /// The staging folder files are written into until [`StagedDir::commit`].
+    pub fn stage(&self) -> &Path {
+        &self.stage
+    }
+
     /// Moves every staged file into the final folder and removes the staging folder. Every
     /// destination is checked before anything moves, so a blocked one leaves `dir` as it was.
     pub fn commit(mut self) -> Result<(), OutputError> {

@@ -5,7 +5,9 @@
 //! captions. The output is HTML5 that is also well-formed XML (every element closed, only the
 //! five XML entities), with a table of contents linking to the sections. All text is escaped;
 //! figures must be SVG text from [`crate::plot`] (anything else is replaced by a notice).
-//! [`story`] tells the whole story (the built-in drive, or a user's log) as one report.
+//! [`story`] tells the whole story (the built-in drive, or a user's log) as one report: it
+//! computes a run ([`run`], no HTML), writes its files and assembles the page from the
+//! [`sections`] the demo and the data report share.
 //!
 //! ```
 //! use biasctl::report::{Report, Table};
@@ -20,6 +22,8 @@
 //! assert!(!html.contains("<script"));
 //! ```
 
+pub mod run;
+pub mod sections;
 pub mod story;
 
 use std::fmt::Write;

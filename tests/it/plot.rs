@@ -602,7 +602,8 @@ fn all_figures() -> Vec<(&'static str, String, usize)> {
         ("dahl", dahl_loop(&dahl), 2),
         ("diagnose", diagnose_panel(&diag, &Units::default()), 3),
         ("ladder", ladder(&steps, &Units::default()), 1),
-        ("fig15", fig15_settle_bounds(&bounds()), 4),
+        // Two panels: 4 bound curves each, and one line per start value in the zoom.
+        ("fig15", fig15_settle_bounds(&bounds()), 10),
         ("fig16", fig16_responses(&responses), 4),
     ]
 }
@@ -978,4 +979,118 @@ fn large_scatters_draw_one_mark_per_occupied_cell() {
     let s = series(&doc);
     assert_eq!(s[0].1.attribute("data-points"), Some("35000"));
     assert!(svg.len() < 2_000_000, "{} bytes", svg.len());
+}
+
+/// Fig. 16 with two identical responses and a different one. Reference: identity by
+/// construction — the copy must say it coincides and be dashed; the distinct one must not.
+#[test]
+fn fig16_tells_coinciding_curves_apart() {
+    let r = SettleResponses {
+        sample_period_ms: 0.1,
+        delta_um: 0.5,
+        responses: vec![
+            Response {
+                name: "zero feedforward".into(),
+                error_um: response(0.0),
+                settle_ms: Some(2.6),
+            },
+            Response {
+                name: "paper's robust".into(),
+                error_um: response(0.0),
+                settle_ms: Some(2.6),
+            },
+            Response {
+                name: "optimal".into(),
+                error_um: response(4.2),
+                settle_ms: Some(1.4),
+            },
+        ],
+    };
+    let svg = fig16_responses(&r);
+    let doc = parse(&svg);
+    let s = series(&doc);
+    assert_eq!(s.len(), 6, "three responses in each of two charts");
+    for (name, g) in &s[..3] {
+        let dashed = path_d_attr(g, "stroke-dasharray").is_some();
+        if name.starts_with("paper's robust") {
+            assert!(
+                name.contains("coincides with zero feedforward") && dashed,
+                "{name}"
+            );
+        } else {
+            assert!(!name.contains("coincides") && !dashed, "{name}");
+        }
+    }
+}
+
+fn path_d_attr<'a>(g: &Node<'a, 'a>, attr: &str) -> Option<&'a str> {
+    g.descendants()
+        .find(|n| n.has_tag_name("path"))
+        .and_then(|p| p.attribute(attr))
+}
+
+/// Fig. 15's right panel zooms on the start values: its y ticks lie within the choices' span
+/// widened by 30 % on each side (0 and 4.2 here: −1.26 … 5.46), and every choice is a legend
+/// entry carrying its value.
+#[test]
+fn fig15_zooms_on_the_start_values() {
+    let svg = fig15_settle_bounds(&bounds());
+    let doc = parse(&svg);
+    let charts: Vec<Node> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("g") && has_class(n, "chart"))
+        .collect();
+    assert_eq!(charts.len(), 2);
+    let y_ticks: Vec<f64> = charts[1]
+        .descendants()
+        .filter(|n| has_class(n, "tick") && n.attribute("text-anchor") == Some("end"))
+        .map(|n| n.text().unwrap().replace('−', "-").parse::<f64>().unwrap())
+        .collect();
+    assert!(y_ticks.len() >= 3, "{y_ticks:?}");
+    assert!(
+        y_ticks.iter().all(|&t| (-1.26..=5.46).contains(&t)),
+        "{y_ticks:?}"
+    );
+    let names: Vec<String> = series(&doc).into_iter().map(|s| s.0).collect();
+    assert!(
+        names.contains(&"zero feedforward: 0".to_string()),
+        "{names:?}"
+    );
+    assert!(
+        names.contains(&"robust optimal: 4.2".to_string()),
+        "{names:?}"
+    );
+}
+
+/// Figs. 10/11 share the error axis only when the models' errors overlap. Reference: ranges
+/// chosen by construction — [−1, 1] and [−2, 2] overlap (union 4 ≤ 2 × 4); [−1, 1] and
+/// [−1201, −1199] do not (union 1202 > 2 × 2), and then each column has its own error ticks.
+#[test]
+fn error_figure_shares_the_error_axis_only_when_errors_overlap() {
+    let m = |name: &str, lo: f64, hi: f64| ModelErrors {
+        name: name.into(),
+        position: (0..50).map(|i| i as f64).collect(),
+        error: (0..50).map(|i| lo + (hi - lo) * i as f64 / 49.0).collect(),
+    };
+    assert!(errors_overlap(&[m("a", -1.0, 1.0), m("b", -2.0, 2.0)]));
+    let far = [m("a", -1.0, 1.0), m("b", -1201.0, -1199.0)];
+    assert!(!errors_overlap(&far));
+    let svg = prediction_errors(&far, &Units::default());
+    let doc = parse(&svg);
+    let charts: Vec<Node> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("g") && has_class(n, "chart"))
+        .collect();
+    let y_ticks = |c: &Node| -> Vec<f64> {
+        c.descendants()
+            .filter(|n| has_class(n, "tick") && n.attribute("text-anchor") == Some("end"))
+            .map(|n| n.text().unwrap().parse::<f64>().unwrap())
+            .collect()
+    };
+    assert!(y_ticks(&charts[0]).iter().all(|t| t.abs() <= 1.1));
+    assert!(
+        y_ticks(&charts[1])
+            .iter()
+            .all(|t| (-1201.1..=-1198.9).contains(t))
+    );
 }

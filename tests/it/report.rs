@@ -330,6 +330,25 @@ fn every_plot_kind_works_from_the_command_line() {
                 names[0].starts_with("zero feedforward (settles"),
                 "{names:?}"
             );
+        } else if *kind == "bounds" {
+            // Two panels: the whole horizon's four bound curves, then the decision region's
+            // four and one line per start value, its value in the name.
+            assert_eq!(&names[..4], want, "plot bounds");
+            assert_eq!(&names[4..8], want, "plot bounds");
+            let choices: Vec<&str> = names[8..]
+                .iter()
+                .map(|n| n.split(": ").next().unwrap())
+                .collect();
+            assert_eq!(
+                choices,
+                [
+                    "zero feedforward",
+                    "optimal (midpoint)",
+                    "paper's robust",
+                    "worst-case robust"
+                ],
+                "{names:?}"
+            );
         } else {
             assert_eq!(&names, want, "plot {kind}");
         }
