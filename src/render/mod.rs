@@ -11,11 +11,13 @@
 //! - [`write_stdout`] is the one path to standard output: a closed pipe becomes
 //!   [`OutputError::BrokenPipe`] (the CLI ends quietly with exit 0), any other write error a
 //!   clear [`OutputError::Stdout`].
+//! - [`number::write_shortest`] writes a CSV number as `Display` would, through `ryu`.
 //! - [`finite`] refuses to emit a non-finite number; [`quote`] and [`message`] keep error
 //!   messages short whatever the user typed.
 
 pub mod file;
 pub mod finite;
+pub mod number;
 pub mod stdout;
 
 pub use file::{
