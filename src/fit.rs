@@ -563,6 +563,17 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         },
         warnings,
     };
+    if let Some(p) = model.params().find(|p| !p.value.is_finite()) {
+        let (lo, hi) = log.rows.iter().fold((f64::MAX, f64::MIN), |(lo, hi), r| {
+            (lo.min(r.track), hi.max(r.track))
+        });
+        return Err(FitError::ParamOverflow {
+            file: log.schema.file.clone(),
+            param: p.name.clone(),
+            value: p.value,
+            spread: (hi - lo).max(0.0),
+        });
+    }
     let pred = model.predict_log(log)?;
     model.fit.position_range = crate::numeric::stats::range(&pred.positions);
     let sst = crate::numeric::stats::sum_sq_about_mean(&pred.measured);

@@ -72,21 +72,26 @@ pub struct Score {
     pub percentiles: Vec<(f64, f64)>,
     /// Histogram of the error (Freedman–Diaconis bins).
     pub histogram: Histogram,
-    /// Sarle's bimodality coefficient (`null` for fewer than 4 values or no spread); above
+    /// Sarle's bimodality coefficient (absent for fewer than 4 values or no spread: `score`
+    /// never writes `null`); above
     /// [`stats::BIMODALITY_THRESHOLD`] (5/9) it suggests two modes. A heuristic: it misses
     /// overlapping humps and flags skewed single ones; `bimodal` uses the dip test instead.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bimodality: Option<f64>,
     /// Hartigans' dip test of unimodality of the error: `{"statistic", "p_value",
-    /// "modal_interval": [lo, hi], "n"}` (`null` for fewer than 4 values, no spread or a
+    /// "modal_interval": [lo, hi], "n"}` (absent for fewer than 4 values, no spread or a
     /// non-finite residual). See [`stats::dip_test`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dip: Option<DipTest>,
     /// Whether the error has two or more modes: the dip test rejects unimodality at the 5 %
-    /// level ([`stats::DIP_SIGNIFICANCE`], p-value below 0.05). `false` where `dip` is `null`.
+    /// level ([`stats::DIP_SIGNIFICANCE`], p-value below 0.05). `false` where `dip` is absent.
     /// Residuals that take few distinct values (quantised measurements and a model with few
     /// distinct predictions) are point masses to the test, which then rejects.
     pub bimodal: bool,
-    /// Least-squares trend of the error against position (`null` if undefined); its slope is in
+    /// Least-squares trend of the error against position (absent if undefined: fewer than three
+    /// rows or positions without spread); its slope is in
     /// bias unit per position unit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trend: Option<Trend>,
     /// The units of the error and the positions: `{"bias": "N", "position": "m"}` (counts and
     /// tracks when absent).
@@ -291,6 +296,14 @@ mod tests {
         assert!(s.to_text().contains("dip test undefined"));
         let s = score(&[2.0; 10], &positions(10)).unwrap();
         assert!(s.dip.is_none() && !s.bimodal);
+        // Undefined statistics are absent from the JSON, never `null` (issue #17).
+        let json = crate::render::json::to_string_pretty(&s).unwrap();
+        assert!(
+            !json.contains("null") && !json.contains("\"dip\""),
+            "{json}"
+        );
+        let back: Score = serde_json::from_str(&json).unwrap();
+        assert!(back.dip.is_none() && back.bimodality.is_none());
     }
 
     #[test]

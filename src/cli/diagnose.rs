@@ -63,6 +63,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..VerifyConfig::default()
     };
     verify.validate().context("--verify-folds")?;
+    let json_out = args.out.as_ref().map(|d| d.join("diagnosis.json"));
+    // The feature CSVs' names are known only after the run: the inputs registered here are
+    // also refused when the staged folder is moved into place.
+    super::common::refuse_clashes(
+        &[
+            ("--model", Some(&args.input.model)),
+            ("--data", Some(&args.input.log.data)),
+        ],
+        &[("--out diagnosis.json", json_out.as_deref())],
+    )?;
     let model = FittedModel::load(&args.input.model)?;
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());
@@ -93,20 +103,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         // Built in a staging folder beside `dir` and moved in whole: no partial output.
         let staged = biasctl::render::StagedDir::create(dir)?;
-        let json = d.to_json();
+        let json = d.to_json()?;
         write_atomic(&staged.path("diagnosis.json"), |w| writeln!(w, "{json}"))?;
         d.write_feature_csvs(&staged.path(""))?;
         staged.commit()?;
     }
     if args.json {
         if args.path > 0 {
-            let mut v = serde_json::to_value(&d)?;
-            if let Some(obj) = v.as_object_mut() {
-                obj.insert("path".into(), serde_json::to_value(&path)?);
+            /// The diagnosis with its `path` key, checked by the one JSON writer.
+            #[derive(serde::Serialize)]
+            struct WithPath<'a, D, P> {
+                #[serde(flatten)]
+                diagnosis: &'a D,
+                path: &'a P,
             }
-            outln!("{}", serde_json::to_string_pretty(&v)?)?;
+            let v = WithPath {
+                diagnosis: &d,
+                path: &path,
+            };
+            outln!("{}", biasctl::render::json::to_string_pretty(&v)?)?;
         } else {
-            outln!("{}", d.to_json())?;
+            outln!("{}", d.to_json()?)?;
         }
     } else {
         outln!(

@@ -4,7 +4,7 @@ use super::common::ColumnArgs;
 use anyhow::Context;
 use biasctl::diagnose::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
 use biasctl::model::{FittedModel, ModelSpec};
-use biasctl::render::write_atomic;
+use biasctl::render::{StagedDir, write_atomic};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -44,6 +44,9 @@ pub struct Args {
     verify_folds: usize,
 }
 
+/// The files `discover --out DIR` writes into DIR.
+const DISCOVER_FILES: [&str; 3] = ["discover.json", "discover.txt", "model.json"];
+
 /// The starting spec: a preset, a model file's terms, or a term list.
 fn start_spec(start: &str) -> anyhow::Result<ModelSpec> {
     if let Ok(s) = ModelSpec::preset(start) {
@@ -82,6 +85,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             dir.display()
         );
     }
+    let start_file = Path::new(&args.start);
+    let out_files: Vec<(String, PathBuf)> = args
+        .out
+        .iter()
+        .flat_map(|d| DISCOVER_FILES.map(|f| (format!("--out {f}"), d.join(f))))
+        .collect();
+    super::common::refuse_clashes(
+        &[
+            ("--data", Some(&args.data)),
+            ("--test", args.test.as_deref()),
+            ("--start", start_file.is_file().then_some(start_file)),
+        ],
+        &out_files
+            .iter()
+            .map(|(f, p)| (f.as_str(), Some(p.as_path())))
+            .collect::<Vec<_>>(),
+    )?;
     let start = start_spec(&args.start)?;
     let train = args.columns.read_log(&args.data).context("--data")?;
     let test = match &args.test {
@@ -90,15 +110,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let (d, model) = discover(&start, &train, test.as_ref(), &config)?;
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        let json = d.to_json();
-        write_atomic(&dir.join("discover.json"), |w| writeln!(w, "{json}"))?;
+        // Built in a staging folder beside `dir` and moved in whole: all three files or none.
+        let staged = StagedDir::create(dir)?;
+        let json = d.to_json()?;
+        write_atomic(&staged.path("discover.json"), |w| writeln!(w, "{json}"))?;
         let text = d.to_string();
-        write_atomic(&dir.join("discover.txt"), |w| write!(w, "{text}"))?;
-        model.save(&dir.join("model.json"))?;
+        write_atomic(&staged.path("discover.txt"), |w| write!(w, "{text}"))?;
+        model.save(&staged.path("model.json"))?;
+        staged.commit()?;
     }
     if args.json {
-        outln!("{}", d.to_json())?;
+        outln!("{}", d.to_json()?)?;
     } else {
         out!("{d}")?;
         if let Some(dir) = &args.out {

@@ -1,7 +1,7 @@
 //! `biasctl export c`: a fitted model as C99 source for the drive's firmware.
 
 use super::predict::handoff_plan;
-use biasctl::export::{CHandoff, COptions, CPrecision, c_source};
+use biasctl::export::{C_FILES, CHandoff, COptions, CPrecision, c_source};
 use biasctl::model::FittedModel;
 use std::path::PathBuf;
 
@@ -43,6 +43,21 @@ struct CArgs {
 /// Loads the model, generates the C files and writes them.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let Target::C(a) = args.target;
+    let handoff_file = a.handoff.as_deref().map(std::path::Path::new);
+    let outs: Vec<(String, PathBuf)> = C_FILES
+        .iter()
+        .map(|f| (format!("--out {f}"), a.out.join(f)))
+        .collect();
+    super::common::refuse_clashes(
+        &[
+            ("--model", Some(a.model.as_path())),
+            ("--handoff", handoff_file.filter(|p| p.is_file())),
+        ],
+        &outs
+            .iter()
+            .map(|(f, p)| (f.as_str(), Some(p.as_path())))
+            .collect::<Vec<_>>(),
+    )?;
     let model = FittedModel::load(&a.model)?;
     let start = match &a.handoff {
         Some(h) => Some(handoff_plan(&model, h, a.bias_uncertainty)?),

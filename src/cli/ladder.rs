@@ -32,7 +32,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let test = args.columns.read_log(&args.test).context("--test")?;
     let l = ladder_fit(&train, &test, &terms, &FitOptions::default().check()?)?;
     if args.json {
-        outln!("{}", l.to_json())?;
+        outln!("{}", l.to_json()?)?;
     } else {
         let units = &test.schema.units;
         outln!(

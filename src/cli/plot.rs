@@ -220,6 +220,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     check_flags(&args)?;
     let svg = draw(&args)?;
+    // The last guard before the file: no `NaN`/`inf` coordinate leaves (exit 2, nothing written).
+    biasctl::render::check_text(&svg, &args.out.display().to_string())?;
     write_string_atomic(&args.out, &svg)?;
     outln!("wrote {}", args.out.display())?;
     Ok(())

@@ -75,6 +75,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &[
             ("--model", Some(args.input.model.as_path())),
             ("--data", Some(args.input.log.data.as_path())),
+            (
+                "--handoff",
+                args.handoff
+                    .as_deref()
+                    .map(Path::new)
+                    .filter(|p| p.is_file()),
+            ),
         ],
         &[("--out", Some(args.out.as_path()))],
     )?;

@@ -50,6 +50,16 @@ pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
         random_seeks: args.seeks,
         ..StoryOptions::default()
     };
+    // The report's other files are named during the run (models, figures): the inputs this
+    // registers are also refused when the staged folder is moved into place.
+    let html = args.out.join("report.html");
+    super::common::refuse_clashes(
+        &[
+            ("--data", args.data.as_deref()),
+            ("--model", args.model.as_deref()),
+        ],
+        &[("--out report.html", Some(html.as_path()))],
+    )?;
     let mut bar = Bar::new();
     let outcome = match &args.data {
         None => demo_report(&args.out, &opts, &mut |p| bar.update(p)),

@@ -20,7 +20,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, log, pred) = args.input.replay()?;
     let s = score_with_units(&pred.residual, &pred.positions, &log.schema.units)?;
     if args.json {
-        outln!("{}", serde_json::to_string_pretty(&s)?)?;
+        outln!("{}", biasctl::render::json::to_string_pretty(&s)?)?;
     } else {
         outln!("{}: model `{}`", log.schema.file, model.spec)?;
         out!("{}", s.to_text())?;

@@ -2,7 +2,7 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::Context;
-use biasctl::control::settle::analyse;
+use biasctl::control::settle::{SettleReport, analyse};
 use biasctl::log::{DEFAULT_BIAS_UNIT, Units};
 use biasctl::model::{FittedModel, NextPrediction, predict_next};
 use biasctl::render::write_string_atomic;
@@ -40,6 +40,39 @@ pub struct Args {
     target: Option<f64>,
     #[command(flatten)]
     columns: ColumnArgs,
+}
+
+/// `settle --json`: the report's keys, `absolute` and (with `--model`) `prediction`, written by
+/// the one JSON writer (a non-finite number is refused naming its key).
+#[derive(serde::Serialize)]
+struct SettleJson<'a> {
+    #[serde(flatten)]
+    report: &'a SettleReport,
+    absolute: Absolute,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    prediction: Option<PredictionJson<'a>>,
+}
+
+/// The absolute integrator start values (µm·samples): `z_converged` + each relative value.
+#[derive(serde::Serialize)]
+struct Absolute {
+    zero_ff: f64,
+    ff_midpoint: Option<f64>,
+    paper_robust: Option<f64>,
+    robust: Option<f64>,
+}
+
+/// `prediction` of `settle --model --data --json`: the handoff bias the model predicts.
+#[derive(serde::Serialize)]
+struct PredictionJson<'a> {
+    model: String,
+    target: f64,
+    bias: f64,
+    delta_b: f64,
+    rows_replayed: usize,
+    units: &'a Units,
+    robust_worst_settle_ms: Option<f64>,
+    zero_ff_worst_settle_ms: Option<f64>,
 }
 
 /// The bias a model predicts at handoff, and the uncertainty used for it.
@@ -118,35 +151,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_string_atomic(path, &report.responses_csv())?;
     }
     if args.json {
-        let mut value = serde_json::to_value(&report)?;
-        if let Some(obj) = value.as_object_mut() {
-            let abs = |v: Option<f64>| v.map(|v| report.absolute(v));
-            obj.insert(
-                "absolute".into(),
-                serde_json::json!({
-                    "zero_ff": report.absolute(0.0),
-                    "ff_midpoint": abs(report.ff_midpoint),
-                    "paper_robust": abs(report.paper_robust.as_ref().map(|p| p.ff)),
-                    "robust": abs(report.robust.as_ref().map(|c| c.ff)),
-                }),
-            );
-        }
-        if let (Some(l), Some(obj)) = (&link, value.as_object_mut()) {
-            obj.insert(
-                "prediction".into(),
-                serde_json::json!({
-                    "model": l.model.display().to_string(),
-                    "target": l.next.target,
-                    "bias": l.next.bias,
-                    "delta_b": l.delta_b,
-                    "rows_replayed": l.next.rows_replayed,
-                    "units": l.units,
-                    "robust_worst_settle_ms": report.worst_case.robust_worst_settle_ms,
-                    "zero_ff_worst_settle_ms": report.worst_case.zero_ff_worst_settle_ms,
-                }),
-            );
-        }
-        outln!("{}", serde_json::to_string_pretty(&value)?)?;
+        let abs = |v: Option<f64>| v.map(|v| report.absolute(v));
+        let value = SettleJson {
+            report: &report,
+            absolute: Absolute {
+                zero_ff: report.absolute(0.0),
+                ff_midpoint: abs(report.ff_midpoint),
+                paper_robust: abs(report.paper_robust.as_ref().map(|p| p.ff)),
+                robust: abs(report.robust.as_ref().map(|c| c.ff)),
+            },
+            prediction: link.as_ref().map(|l| PredictionJson {
+                model: l.model.display().to_string(),
+                target: l.next.target,
+                bias: l.next.bias,
+                delta_b: l.delta_b,
+                rows_replayed: l.next.rows_replayed,
+                units: &l.units,
+                robust_worst_settle_ms: report.worst_case.robust_worst_settle_ms,
+                zero_ff_worst_settle_ms: report.worst_case.zero_ff_worst_settle_ms,
+            }),
+        };
+        outln!("{}", biasctl::render::json::to_string_pretty(&value)?)?;
     } else {
         if let Some(l) = &link {
             outln!(

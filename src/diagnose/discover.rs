@@ -105,8 +105,9 @@ pub struct Discovery {
 
 impl Discovery {
     /// The discovery as pretty JSON.
-    pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    /// Through the one JSON writer: a non-finite number is refused naming its key path.
+    pub fn to_json(&self) -> Result<String, crate::render::OutputError> {
+        crate::render::json::to_string_pretty(self)
     }
 }
 

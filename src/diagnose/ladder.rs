@@ -116,8 +116,9 @@ impl Ladder {
     }
 
     /// The JSON of the contract (pretty-printed).
-    pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    /// Through the one JSON writer: a non-finite number is refused naming its key path.
+    pub fn to_json(&self) -> Result<String, crate::render::OutputError> {
+        crate::render::json::to_string_pretty(self)
     }
 }
 
@@ -166,7 +167,7 @@ mod tests {
         assert!(text.contains("60.0%"), "{text}");
         assert_eq!(l.steps[2].added_since(&l.steps[1]), ["memory"]);
         assert!(l.steps[1].added_since(&l.steps[2]).is_empty());
-        let v: serde_json::Value = serde_json::from_str(&l.to_json()).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&l.to_json().unwrap()).unwrap();
         let keys: Vec<&String> = v["steps"][0].as_object().unwrap().keys().collect();
         assert_eq!(keys, ["reduction", "std", "terms"]);
         assert_eq!(v.as_object().unwrap().len(), 1);

@@ -664,9 +664,9 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
 
 impl Diagnosis {
     /// The JSON of the contract (pretty-printed).
-    pub fn to_json(&self) -> String {
-        // Serialising plain structs of finite numbers and strings cannot fail.
-        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    /// Through the one JSON writer: a non-finite number is refused naming its key path.
+    pub fn to_json(&self) -> Result<String, crate::render::OutputError> {
+        crate::render::json::to_string_pretty(self)
     }
 
     /// The report of feature `name`, if present.

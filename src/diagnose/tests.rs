@@ -423,7 +423,7 @@ fn constant_and_undefined_features_are_skipped_with_a_note() {
     let heater = d.feature("heater").unwrap();
     assert!(heater.note.as_deref().unwrap().contains("constant"));
     assert!(heater.explained.abs() < 1e-15 && !heater.flagged);
-    let json = d.to_json();
+    let json = d.to_json().unwrap();
     assert!(!json.contains("NaN") && !json.contains("inf"));
     assert!(d.summary.contains("`heater`"));
     // A column of the wrong length or a taken name is refused.
@@ -532,7 +532,7 @@ fn bad_inputs_give_typed_errors() {
             .iter()
             .all(|f| !f.flagged && f.explained.abs() < 1e-15)
     );
-    assert!(!d.to_json().contains("NaN"));
+    assert!(!d.to_json().unwrap().contains("NaN"));
 }
 
 #[test]
@@ -541,7 +541,7 @@ fn json_has_the_contract_keys_and_round_trips() {
     let dc = values(&t, "direction_change").to_vec();
     let r = residuals(&t, 14, 1.0, |i| 2.0 * dc[i].unwrap_or(0.0));
     let d = run(&t, &r);
-    let json = d.to_json();
+    let json = d.to_json().unwrap();
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let keys: Vec<&String> = v.as_object().unwrap().keys().collect();
     assert_eq!(
@@ -683,7 +683,7 @@ fn text_summary_and_json_use_the_tables_units() {
     );
     assert!(!text.contains("count") && !text.contains("track"), "{text}");
     assert!(d.summary.contains(" N/m, p "), "{}", d.summary);
-    let v: serde_json::Value = serde_json::from_str(&d.to_json()).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&d.to_json().unwrap()).unwrap();
     assert_eq!(
         v["units"],
         serde_json::json!({"bias": "N", "position": "m"})

@@ -396,7 +396,7 @@ fn discover_finds_both_hidden_effects_and_stops() {
     assert!(d.steps.last().unwrap().std_after < 1.3, "{text}");
     assert!(!d.stopped_because.is_empty(), "{text}");
     assert_eq!(model.spec.to_string(), d.final_terms.join(","));
-    let v: serde_json::Value = serde_json::from_str(&d.to_json()).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&d.to_json().unwrap()).unwrap();
     for key in ["steps", "final_terms", "stopped_because"] {
         assert!(v.get(key).is_some(), "{key}");
     }
@@ -500,7 +500,7 @@ fn by_term_fits_a_covariate_times_position() {
         .unwrap_or_else(|| panic!("{}", d.to_text()));
     assert!(best.edit.starts_with("add by:"), "{}", d.to_text());
     // The model file round-trips the term.
-    let json = with.to_json();
+    let json = with.to_json().unwrap();
     let back =
         crate::model::FittedModel::from_json(&json, std::path::Path::new("m.json"), &|_, _| None)
             .unwrap();

@@ -33,7 +33,7 @@ pub mod builtin;
 
 use crate::model::FittedModel;
 use crate::model::predictor::REST_CAPACITY;
-use crate::render::{OutputError, write_string_atomic};
+use crate::render::{OutputError, StagedDir, write_string_atomic};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -190,9 +190,13 @@ pub struct CSource {
     pub replay: String,
 }
 
+/// The files [`CSource::write`] puts into its folder, in order: header, source, replay.
+pub const C_FILES: [&str; 3] = ["bias_model.h", "bias_model.c", "replay.c"];
+
 impl CSource {
-    /// Writes `bias_model.h`, `bias_model.c` and `replay.c` into `dir` (created if missing),
-    /// each atomically.
+    /// Writes `bias_model.h`, `bias_model.c` and `replay.c` into `dir` (created if missing):
+    /// staged in one temporary folder and moved into place together ([`StagedDir`]), so a
+    /// failure leaves `dir` as it was.
     pub fn write(&self, dir: &Path) -> Result<(), ExportError> {
         if dir.exists() && !dir.is_dir() {
             return Err(ExportError::Folder {
@@ -202,18 +206,16 @@ impl CSource {
                         .into(),
             });
         }
-        std::fs::create_dir_all(dir).map_err(|e| ExportError::Folder {
-            path: dir.display().to_string(),
-            why: format!("cannot create the folder: {e}"),
-        })?;
+        // Staged beside `dir` and moved in whole: all three files or none.
+        let staged = StagedDir::create(dir)?;
         for (name, text) in [
-            ("bias_model.h", &self.header),
-            ("bias_model.c", &self.source),
-            ("replay.c", &self.replay),
+            (C_FILES[0], &self.header),
+            (C_FILES[1], &self.source),
+            (C_FILES[2], &self.replay),
         ] {
-            write_string_atomic(&dir.join(name), text)?;
+            write_string_atomic(&staged.path(name), text)?;
         }
-        Ok(())
+        Ok(staged.commit()?)
     }
 }
 

@@ -105,6 +105,22 @@ pub enum FitError {
         /// Largest |position| in the log.
         max_pos: f64,
     },
+    /// A parameter in the log's units is not a finite number although the fit in centred,
+    /// scaled columns succeeded: the positions' spread is so small (or large) that its powers
+    /// underflow (or overflow) when the parameter is converted back.
+    #[error(
+        "{file}: parameter `{param}` is {value} in the log's units (position spread {spread:.3e}); rescale the position column"
+    )]
+    ParamOverflow {
+        /// The log file.
+        file: String,
+        /// The parameter (`poly2.c2`, …).
+        param: String,
+        /// Its non-finite value.
+        value: f64,
+        /// Largest minus smallest position in the log.
+        spread: f64,
+    },
 }
 
 /// How a fit ended (saved in the model file under `fit`).

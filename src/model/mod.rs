@@ -429,8 +429,10 @@ impl FittedModel {
         self.params().find(|p| p.name == name)
     }
 
-    /// The model file as JSON text.
-    pub fn to_json(&self) -> String {
+    /// The model file as JSON text, through the one JSON writer
+    /// ([`crate::render::json::to_string_pretty`]): a non-finite coefficient or parameter is
+    /// refused naming its key path (`terms[1].coefficients[0]`).
+    pub fn to_json(&self) -> Result<String, OutputError> {
         let file = ModelFile {
             format: FORMAT.into(),
             version: FORMAT_VERSION,
@@ -449,12 +451,12 @@ impl FittedModel {
             fit: self.fit.clone(),
             warnings: self.warnings.clone(),
         };
-        serde_json::to_string_pretty(&file).unwrap_or_default() + "\n"
+        Ok(crate::render::json::to_string_pretty(&file)? + "\n")
     }
 
     /// Writes the model file atomically.
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
-        Ok(write_string_atomic(path, &self.to_json())?)
+        Ok(write_string_atomic(path, &self.to_json()?)?)
     }
 
     /// Reads a model file with built-in terms only.

@@ -126,6 +126,11 @@ pub fn skew_kurtosis(x: &[f64]) -> Option<(f64, f64)> {
     if x.len() < 4 {
         return None;
     }
+    // Both are scale-free: computed on x / 2^k so that fourth powers of 1e100 or 1e-100 neither
+    // overflow nor underflow (a power of two scales exactly: in-range data give the same bits).
+    let k = pow2_scale(x);
+    let scaled: Vec<f64> = x.iter().map(|v| v / k).collect();
+    let x = &scaled[..];
     let m = mean(x)?;
     let m2 = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n;
     if m2 <= 0.0 {
@@ -138,6 +143,21 @@ pub fn skew_kurtosis(x: &[f64]) -> Option<(f64, f64)> {
     let skew = g1 * (n * (n - 1.0)).sqrt() / (n - 2.0);
     let kurt = ((n + 1.0) * g2 + 6.0) * (n - 1.0) / ((n - 2.0) * (n - 3.0));
     Some((skew, kurt))
+}
+
+/// The power of two nearest below the largest |value| of `x` (1 when that is 0, not finite,
+/// or already between 2^-64 and 2^64): dividing by it is exact and brings the values near 1.
+fn pow2_scale(x: &[f64]) -> f64 {
+    let m = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    if !(m.is_finite() && m > 0.0) {
+        return 1.0;
+    }
+    let e = m.log2().floor();
+    if e.abs() <= 64.0 {
+        1.0
+    } else {
+        2f64.powi(e.clamp(-1000.0, 1000.0) as i32)
+    }
 }
 
 /// Sarle's bimodality coefficient b = (skew² + 1) / (kurt + 3(n−1)²/((n−2)(n−3))) with the
@@ -484,7 +504,13 @@ pub fn linear_trend(x: &[f64], y: &[f64]) -> Option<Trend> {
     if n < 3 {
         return None;
     }
-    let (x, y) = (&x[..n], &y[..n]);
+    // Computed on x / 2^a and y / 2^b (exact scalings; in-range data give the same bits) so
+    // that squares of 1e-200 or 1e200 neither underflow nor overflow; slope, intercept and
+    // slope_se are scaled back, t, p and r² are scale-free.
+    let (kx, ky) = (pow2_scale(&x[..n]), pow2_scale(&y[..n]));
+    let xs: Vec<f64> = x[..n].iter().map(|v| v / kx).collect();
+    let ys: Vec<f64> = y[..n].iter().map(|v| v / ky).collect();
+    let (x, y) = (&xs[..], &ys[..]);
     let mx = mean(x)?;
     let my = mean(y)?;
     let sxx: f64 = x.iter().map(|v| (v - mx).powi(2)).sum();
@@ -508,9 +534,9 @@ pub fn linear_trend(x: &[f64], y: &[f64]) -> Option<Trend> {
     let p_value = student_t_two_sided_p(t, dof);
     let r2 = if syy > 0.0 { 1.0 - sse / syy } else { 0.0 };
     Some(Trend {
-        slope,
-        intercept: my - slope * mx,
-        slope_se,
+        slope: slope * (ky / kx),
+        intercept: (my - slope * mx) * ky,
+        slope_se: slope_se * (ky / kx),
         t,
         p_value,
         r2,
@@ -826,5 +852,39 @@ mod tests {
             .collect();
         assert!(ljung_box(&white, 10).unwrap().1 > 0.01);
         assert!(ljung_box(&walk, 10).unwrap().1 < 1e-10);
+    }
+
+    /// Reference: the moments' ratios and the trend's t, p and r² are scale-free, and the slope
+    /// scales as y/x: the same data at 1e±150 must give the in-range figures (scaled) instead
+    /// of overflowing or underflowing to `None` (a fuzz finding of issue #17).
+    #[test]
+    fn moments_and_trend_survive_extreme_scales() {
+        let x: Vec<f64> = (0..200).map(|i| ((i * 37) % 101) as f64 - 40.0).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(i, v)| 0.3 * v + ((i * 13) % 7) as f64)
+            .collect();
+        let b0 = bimodality_coefficient(&y).unwrap();
+        let t0 = linear_trend(&x, &y).unwrap();
+        let rel = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+        for (sx, sy) in [
+            (1e150, 1e-150),
+            (1e-150, 1e150),
+            (1e-200, 1e-200),
+            (1e200, 1e100),
+        ] {
+            let xs: Vec<f64> = x.iter().map(|v| v * sx).collect();
+            let ys: Vec<f64> = y.iter().map(|v| v * sy).collect();
+            assert!(rel(bimodality_coefficient(&ys).unwrap(), b0), "{sy}");
+            let t = linear_trend(&xs, &ys).unwrap();
+            assert!(rel(t.slope, t0.slope * sy / sx), "{sx} {sy}");
+            assert!(rel(t.intercept, t0.intercept * sy), "{sx} {sy}");
+            assert!(rel(t.t, t0.t) && rel(t.r2, t0.r2), "{sx} {sy}");
+        }
+        // The scaling is by powers of two, so data that differ by one give the same bits.
+        let ys: Vec<f64> = y.iter().map(|v| v * 2f64.powi(100)).collect();
+        let t = linear_trend(&x, &ys).unwrap();
+        assert_eq!(t.t.to_bits(), t0.t.to_bits());
     }
 }

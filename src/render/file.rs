@@ -194,6 +194,7 @@ where
     if path.as_os_str() == "-" {
         return write_direct(path, Dest::Stdout(stdout_sink()), produce);
     }
+    refuse_protected("the output", path)?;
     let (target, special) = resolve(path).map_err(io_err)?;
     if special && is_own_stdout(&target) {
         return write_direct(path, Dest::Stdout(stdout_sink()), produce);
@@ -606,6 +607,9 @@ impl StagedDir {
                 ),
             });
         }
+        for (_, to) in &moves {
+            refuse_protected(&format!("a file of {}", self.dir.display()), to)?;
+        }
         for (from, to) in &moves {
             fs::rename(from, to).map_err(io_err(to))?;
         }
@@ -620,6 +624,44 @@ impl Drop for StagedDir {
         if !self.committed {
             let _ = fs::remove_dir_all(&self.stage);
         }
+    }
+}
+
+/// The inputs of this run ([`protect_inputs`]): no write may replace one of them.
+static PROTECTED: std::sync::Mutex<Vec<(String, PathBuf)>> = std::sync::Mutex::new(Vec::new());
+
+/// Registers the input files of this run (each with its role, e.g. the flag `--data`): from
+/// then on [`write_atomic`] and [`StagedDir::commit`] refuse to replace any of them with
+/// [`OutputError::SamePath`], nothing written. This covers outputs whose names are known only
+/// after the run (a report's or `diagnose --out`'s files inside a folder); outputs known before
+/// the run are compared up front by [`check_paths`], which registers its inputs too.
+pub fn protect_inputs(inputs: &[(&str, &Path)]) {
+    if let Ok(mut list) = PROTECTED.lock() {
+        list.extend(inputs.iter().map(|(r, p)| (r.to_string(), p.to_path_buf())));
+    }
+}
+
+/// [`OutputError::SamePath`] if `path` names a file registered by [`protect_inputs`].
+fn refuse_protected(role: &str, path: &Path) -> Result<(), OutputError> {
+    let Some(id) = identity(path, true) else {
+        return Ok(());
+    };
+    let list = PROTECTED.lock().map_err(|_| OutputError::Io {
+        path: path.to_path_buf(),
+        source: io::Error::other("the list of inputs is poisoned"),
+    })?;
+    // Identities are taken now, not when registered: a deleted input's inode may be reused.
+    match list
+        .iter()
+        .find(|(_, input)| identity(input, false).as_ref() == Some(&id))
+    {
+        Some((in_role, _)) => Err(OutputError::SamePath {
+            first: in_role.clone(),
+            second: role.to_string(),
+            path: path.to_path_buf(),
+            why: "the output would replace the input; write to another file",
+        }),
+        None => Ok(()),
     }
 }
 
@@ -665,8 +707,9 @@ fn identity(path: &Path, is_output: bool) -> Option<Identity> {
 /// replaced before or while it is read) or as another output (the last would win). Each path
 /// comes with its role (the CLI passes the flag, e.g. `--out`), which the error names. Files are
 /// compared by device and inode, new paths by canonical directory and name; devices and FIFOs
-/// (`/dev/null` twice) are allowed.
+/// (`/dev/null` twice) are allowed. The inputs are also registered by [`protect_inputs`].
 pub fn check_paths(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<(), OutputError> {
+    protect_inputs(inputs);
     let ins: Vec<_> = inputs
         .iter()
         .map(|(r, p)| (*r, *p, identity(p, false)))

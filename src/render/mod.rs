@@ -12,16 +12,20 @@
 //!   [`OutputError::BrokenPipe`] (the CLI ends quietly with exit 0), any other write error a
 //!   clear [`OutputError::Stdout`].
 //! - [`number::write_shortest`] writes a CSV number as `Display` would, through `ryu`.
+//! - [`json::to_string_pretty`] is the one JSON writer: a non-finite number (which serde_json
+//!   would write as `null`) is refused naming its key path.
 //! - [`finite`] refuses to emit a non-finite number; [`quote`] and [`message`] keep error
 //!   messages short whatever the user typed.
 
 pub mod file;
 pub mod finite;
+pub mod json;
 pub mod number;
 pub mod stdout;
 
 pub use file::{
-    Sink, StagedDir, check_paths, sweep_stale, with_write_fault, write_atomic, write_string_atomic,
+    Sink, StagedDir, check_paths, protect_inputs, sweep_stale, with_write_fault, write_atomic,
+    write_string_atomic,
 };
 pub use finite::{NonFinite, check_finite, check_prediction, check_text};
 pub use stdout::{flush_stdout, is_broken_pipe, write_stdout};

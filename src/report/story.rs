@@ -245,8 +245,8 @@ fn file_stem(label: &str) -> String {
     label.replace([',', ':'], "_")
 }
 
-fn pretty<T: serde::Serialize>(v: &T) -> String {
-    serde_json::to_string_pretty(v).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+fn pretty<T: serde::Serialize>(v: &T) -> Result<String, OutputError> {
+    crate::render::json::to_string_pretty(v)
 }
 
 fn ms(v: Option<f64>) -> String {
@@ -672,7 +672,7 @@ pub fn demo_report(
         let model = fit_named(terms, label, train_log)?;
         out.text(
             &format!("model_{stem}.json"),
-            &model.to_json(),
+            &model.to_json()?,
             &format!("{label} model fitted on {train}.csv"),
         )?;
         let prediction = model.predict_log(&random)?;
@@ -683,7 +683,7 @@ pub fn demo_report(
         )?;
         out.text(
             &format!("score_{stem}.json"),
-            &pretty(&sc),
+            &pretty(&sc)?,
             &format!("{label} scored on random.csv"),
         )?;
         scored.push(Scored {
@@ -705,7 +705,7 @@ pub fn demo_report(
     )?;
     out.text(
         "diagnosis.json",
-        &diagnosis.to_json(),
+        &diagnosis.to_json()?,
         "diagnosis of the position-direction model on random.csv",
     )?;
 
@@ -714,7 +714,7 @@ pub fn demo_report(
     let ladder = ladder_fit(&calibration, &random, &terms, &CheckedFitOptions::default())?;
     out.text(
         "ladder.json",
-        &ladder.to_json(),
+        &ladder.to_json()?,
         "test error std after each added term",
     )?;
 
@@ -724,7 +724,7 @@ pub fn demo_report(
     let settle = analyse(&cfg)?;
     out.text(
         "settle.json",
-        &pretty(&settle),
+        &pretty(&settle)?,
         "settle analysis (paper1997)",
     )?;
     out.text(
@@ -754,7 +754,7 @@ pub fn demo_report(
                 .iter()
                 .map(|(l, _, w)| (l.clone(), *w))
                 .collect::<Vec<_>>(),
-        ),
+        )?,
         "worst-case settle with each model's test error std as Δb",
     )?;
 
@@ -1280,12 +1280,12 @@ pub fn data_report(
                 let stem = file_stem(label);
                 out.text(
                     &format!("model_{stem}.json"),
-                    &s.model.to_json(),
+                    &s.model.to_json()?,
                     &format!("{label} fitted on the first half"),
                 )?;
                 out.text(
                     &format!("score_{stem}.json"),
-                    &pretty(&s.score),
+                    &pretty(&s.score)?,
                     &format!("{label} scored on the second half"),
                 )?;
                 scored.push(s);
@@ -1303,7 +1303,7 @@ pub fn data_report(
             Ok((p, sc)) => {
                 out.text(
                     "score_your_model.json",
-                    &pretty(&sc),
+                    &pretty(&sc)?,
                     "your model scored on the whole log",
                 )?;
                 user = Some(Scored {
@@ -1421,7 +1421,7 @@ pub fn data_report(
             Some(Ok((d, table, residual))) => {
                 out.text(
                     "diagnosis.json",
-                    &d.to_json(),
+                    &d.to_json()?,
                     &format!("diagnosis of {dname}"),
                 )?;
                 s.paragraph(format!("The residual of {dname}."))
@@ -1449,7 +1449,7 @@ pub fn data_report(
             Ok(l) => {
                 out.text(
                     "ladder.json",
-                    &l.to_json(),
+                    &l.to_json()?,
                     "test error std after each added term",
                 )?;
                 s.table(ladder_table(&l, units)).figure(

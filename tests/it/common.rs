@@ -82,3 +82,19 @@ pub fn real_data(rel: &str) -> Option<String> {
         .join(rel);
     p.exists().then(|| p.display().to_string())
 }
+
+/// The arguments of `simulate --sequence random --n N --seed S --out OUT` on the default drive:
+/// the random-seek log several tests start from.
+pub fn simulate_random_args<'a>(n: &'a str, seed: &'a str, out: &'a str) -> [&'a str; 9] {
+    [
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        n,
+        "--seed",
+        seed,
+        "--out",
+        out,
+    ]
+}

@@ -651,17 +651,8 @@ mod tests {
 
     fn simulate(dir: &Path, seed: &str, n: &str, out: &str) -> Command {
         let mut c = bin();
-        c.current_dir(dir).args([
-            "simulate",
-            "--sequence",
-            "random",
-            "--n",
-            n,
-            "--seed",
-            seed,
-            "--out",
-            out,
-        ]);
+        c.current_dir(dir)
+            .args(crate::common::simulate_random_args(n, seed, out));
         c
     }
 

@@ -833,7 +833,7 @@ fn model_files_record_the_fitted_position_range_and_older_files_still_load() {
     assert_eq!((w.outside, w.total, w.seen), (2, 3, [1390.0, 1700.0]));
     assert!(w.to_string().contains("2 of 3 targets"), "{w}");
     // A model file written before the range was recorded: loads, and cannot warn.
-    let mut v: serde_json::Value = serde_json::from_str(&model.to_json()).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&model.to_json().unwrap()).unwrap();
     v["fit"].as_object_mut().unwrap().remove("position_range");
     std::fs::write(&path, v.to_string()).unwrap();
     let old = FittedModel::load(&path).unwrap();

@@ -1,7 +1,7 @@
 //! `settle`: the paper's Section IV golden values, the handoff fast path against a naive
 //! simulation, the robust choice against simulated biases, CLI contracts and bad plant files.
 
-use crate::common::{biasctl, data, fails_with, ok, write};
+use crate::common::{biasctl, data, fails_with, ok, simulate_random_args, write};
 use biasctl::control::Controller;
 use biasctl::control::settle::{
     Bounds, Handoff, HandoffTable, SettleSpec, Window, analyse, handoff_state, settle_index,
@@ -316,17 +316,7 @@ fn settle_bad_plant_descriptions_exit_2_and_write_nothing() {
 
 /// `simulate --sequence random --n n --seed seed --out out` on the default drive.
 fn simulate_random(n: &str, seed: &str, out: &str) {
-    ok(&[
-        "simulate",
-        "--sequence",
-        "random",
-        "--n",
-        n,
-        "--seed",
-        seed,
-        "--out",
-        out,
-    ]);
+    ok(&simulate_random_args(n, seed, out));
 }
 
 /// `fit --data data --model preset --out out`.
