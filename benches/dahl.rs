@@ -1,10 +1,15 @@
 //! Dahl prediction throughput (eqs. 8–9): seeks per second of the allocation-free
-//! `DahlPredictor` over 1M random seeks within 250 tracks (the paper's random-seek test range),
-//! and of the generic term-sum `Predictor` on the same model for comparison.
+//! `DahlPredictor` over 1M random seeks within 250 tracks (the paper's random-seek test range):
+//! one `step` per seek, and `step_many` over the whole sequence (the per-seek factors computed a
+//! block ahead of the loop-carried chain); and 1M candidate peeks.
 
-use biasctl::model::terms::dahl::DahlPredictor;
+use biasctl::model::terms::dahl::{DahlPredictor, DahlState};
 use biasctl::numeric::rng::SimRng;
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+#[path = "common/cputime.rs"]
+mod cputime;
+
+use criterion::measurement::Measurement;
+use criterion::{Criterion, Throughput};
 use std::hint::black_box;
 
 const N: usize = 1_000_000;
@@ -14,7 +19,7 @@ fn targets() -> Vec<f64> {
     (0..N).map(|_| 1000.0 + rng.below(250) as f64).collect()
 }
 
-fn bench(c: &mut Criterion) {
+fn bench<M: Measurement>(c: &mut Criterion<M>) {
     let xs = targets();
     let mut g = c.benchmark_group("dahl");
     g.throughput(Throughput::Elements(N as u64));
@@ -27,6 +32,32 @@ fn bench(c: &mut Criterion) {
                 acc += p.step(x);
             }
             black_box(acc)
+        })
+    });
+    g.bench_function("reference_eq8_1M_seeks", |b| {
+        // The per-seek arithmetic before `affine`: DahlState::step, s + (G − s)·r^|dx| with a
+        // branch on the sign (what `DahlPredictor::step` ran until then).
+        let (c, fc, r) = ([5.0, 0.01, -1e-6], 15.0, 1.0 - 1.2 / 15.0);
+        b.iter(|| {
+            let mut g = DahlState::new(r);
+            let mut prev = None::<f64>;
+            let mut acc = 0.0;
+            for &x in black_box(&xs) {
+                let dx = prev.map_or(0.0, |p| x - p);
+                prev = Some(x);
+                acc += c[0] + x * (c[1] + x * c[2]) + fc * g.step(dx);
+            }
+            black_box(acc)
+        })
+    });
+    g.bench_function("step_many_1M_seeks", |b| {
+        let mut out = Vec::with_capacity(N);
+        b.iter(|| {
+            let mut p =
+                DahlPredictor::new([5.0, 0.01, -1e-6], 15.0, 1.2).expect("valid parameters");
+            out.clear();
+            p.step_many(black_box(&xs), &mut out);
+            black_box(&out);
         })
     });
     g.bench_function("peek_1M_candidates", |b| {
@@ -43,5 +74,4 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
-criterion_main!(benches);
+bench_main!(bench);

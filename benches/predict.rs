@@ -1,69 +1,37 @@
 //! `biasctl predict` on 1,000,000 rows: streaming a 1M-seek random log (held in memory as CSV
 //! text) through the `calibration` model (eq. 1, fitted on the calibration run of the built-in
-//! drive) with `replay_stream`, and writing the predict CSV (input columns, `predicted`,
-//! `residual`, one column per term) into a `Vec<u8>`; and the same replay into a sink that
-//! drops the rows, to separate the writer's share. The writer below is the row format of
-//! `src/cli/predict.rs` (without --handoff); the set-up checks it byte for byte against the real
-//! `biasctl predict` on a small log, so it cannot drift from the CLI unnoticed. This bench only
-//! measures: the reader and writers are being changed elsewhere.
+//! drive) with `write_predictions_csv` (what `biasctl predict` calls; input columns,
+//! `predicted`, `residual`, one column per term) into a `Vec<u8>`; and the same replay into a
+//! sink that drops the rows (`replay_stream`), to separate the writer's share. The set-up checks
+//! the output byte for byte against the real `biasctl predict` on a small log.
 
 use biasctl::fit::{FitOptions, fit};
 use biasctl::log::{BiasColumn, ColumnMap, LogReader};
-use biasctl::model::{FittedModel, ModelSpec, RowPrediction, replay_stream};
+use biasctl::model::{FittedModel, ModelSpec, RowPrediction, replay_stream, write_predictions_csv};
 use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+#[path = "common/cputime.rs"]
+mod cputime;
+
+use criterion::measurement::Measurement;
+use criterion::{Criterion, Throughput};
 use std::hint::black_box;
 
 const N: u64 = 1_000_000;
 
-/// A finite number with every digit it needs, or an empty cell (the CLI's `cell`).
-fn cell(x: Option<f64>) -> String {
-    x.filter(|v| v.is_finite())
-        .map(|v| v.to_string())
-        .unwrap_or_default()
-}
-
-/// `biasctl predict`'s CSV of the log in `text`, into `out` (or only the replay when `out` is
-/// `None`). Returns the rows replayed.
+/// `biasctl predict`'s CSV of the log in `text` (the library writer the CLI calls), into `out`
+/// (or only the replay when `out` is `None`). Returns the rows replayed.
 fn predict_csv(model: &FittedModel, text: &[u8], out: Option<&mut Vec<u8>>) -> u64 {
     let map = ColumnMap::default();
     let mut reader =
         LogReader::from_reader_with("bench.csv", text, &map, BiasColumn::Optional).expect("log");
-    let Some(out) = out else {
-        let s = replay_stream(model, &mut reader, None, |_, p: &RowPrediction, c| {
+    let s = match out {
+        Some(out) => write_predictions_csv(model, &mut reader, None, out, false),
+        None => replay_stream(model, &mut reader, None, |_, p: &RowPrediction, c| {
             black_box((p, c));
             Ok(())
-        })
-        .expect("replay");
-        return s.rows;
+        }),
     };
-    let s = reader.schema().clone();
-    let mut w = csv::WriterBuilder::new().from_writer(out);
-    let mut header: Vec<String> = vec![s.map.time.clone(), s.map.track.clone(), s.map.bias.clone()];
-    header.extend(s.covariates.iter().cloned());
-    header.extend(["predicted".to_string(), "residual".to_string()]);
-    header.extend(model.terms.iter().map(|t| t.term.name()));
-    w.write_record(&header).expect("in memory");
-    let mut record: Vec<String> = Vec::with_capacity(header.len());
-    let summary = replay_stream(
-        model,
-        &mut reader,
-        None,
-        |row, p: &RowPrediction, contrib| {
-            record.clear();
-            record.push(cell(Some(row.time_s)));
-            record.push(cell(Some(row.track)));
-            record.push(cell(row.bias));
-            record.extend(row.covariates.iter().map(|c| cell(Some(*c))));
-            record.push(cell(Some(p.predicted)));
-            record.push(cell(p.residual));
-            record.extend(contrib.iter().map(|c| cell(Some(*c))));
-            w.write_record(&record).map_err(std::io::Error::other)
-        },
-    )
-    .expect("replay");
-    w.flush().expect("in memory");
-    summary.rows
+    s.expect("replay").rows
 }
 
 fn log_text(n: u64, seed: u64) -> Vec<u8> {
@@ -116,7 +84,7 @@ fn check_against_cli(model: &FittedModel) {
     );
 }
 
-fn bench(c: &mut Criterion) {
+fn bench<M: Measurement>(c: &mut Criterion<M>) {
     let opts = SequenceOptions::default();
     let cal = SimConfig::new(Drive::paper1997(), "calibration", &opts, 1, &[]).expect("config");
     let train = simulate_log(&cal).expect("calibration run");
@@ -144,5 +112,4 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
-criterion_main!(benches);
+bench_main!(bench);

@@ -7,12 +7,16 @@
 
 use biasctl::log::{ColumnMap, Log, LogReader};
 use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_to_files};
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+#[path = "common/cputime.rs"]
+mod cputime;
+
+use criterion::measurement::Measurement;
+use criterion::{Criterion, Throughput};
 use std::hint::black_box;
 
 const N: u64 = 1_000_000;
 
-fn bench(c: &mut Criterion) {
+fn bench<M: Measurement>(c: &mut Criterion<M>) {
     let dir = tempfile::tempdir().expect("temporary directory");
     let path = dir.path().join("random_1M.csv");
     let opts = SequenceOptions {
@@ -44,5 +48,4 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
-criterion_main!(benches);
+bench_main!(bench);

@@ -41,6 +41,10 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 #[derive(Debug, Parser)]
 #[command(name = "biasctl", version, about, long_about = None)]
 pub struct Cli {
+    /// Worker threads for parallel work (ladder steps, diagnose); default: one per core.
+    /// Results are the same for any number.
+    #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
     #[command(subcommand)]
     command: Command,
 }
@@ -118,6 +122,9 @@ pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    if let Some(n) = cli.threads {
+        biasctl::numeric::parallel::set_threads(n.into())?;
+    }
     match cli.command {
         Command::Check(a) => check::run(a),
         Command::Simulate(a) => simulate::run(a),

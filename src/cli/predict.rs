@@ -3,9 +3,7 @@
 
 use super::common::{LogArgs, SettleArgs};
 use biasctl::log::{BiasColumn, Log, LogReader, STDIN_PATH};
-use biasctl::model::{
-    FittedModel, Prediction, ReplaySummary, RowPrediction, StartValues, replay_stream,
-};
+use biasctl::model::{FittedModel, Prediction, ReplaySummary, StartValues, write_predictions_csv};
 use biasctl::render::write_atomic;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -70,14 +68,6 @@ pub fn handoff_plan(
     Ok(StartValues::new(&cfg, delta_b)?)
 }
 
-/// A finite number with every digit it needs to round-trip (so that neither a position in
-/// metres nor a check against another implementation is limited by the file), or an empty cell.
-fn cell(x: Option<f64>) -> String {
-    x.filter(|v| v.is_finite())
-        .map(|v| v.to_string())
-        .unwrap_or_default()
-}
-
 /// Loads the model, streams the log through it and writes the CSV (atomically to a file, or
 /// to stdout flushed per row when the input is stdin).
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -107,7 +97,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let file = reader.schema().file.clone();
     let flush_each = data.as_os_str() == STDIN_PATH;
     let mut write = |w: &mut dyn Write| -> anyhow::Result<ReplaySummary> {
-        write_predictions(&model, &mut reader, start.as_ref(), w, flush_each)
+        Ok(write_predictions_csv(
+            &model,
+            &mut reader,
+            start.as_ref(),
+            w,
+            flush_each,
+        )?)
     };
     let summary = if args.out.as_os_str() == STDIN_PATH {
         let stdout = std::io::stdout();
@@ -147,48 +143,4 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outln!("{text}")?;
     }
     Ok(())
-}
-
-/// Writes the header and one CSV row per log row as the replay yields it.
-fn write_predictions<R: std::io::Read>(
-    model: &FittedModel,
-    reader: &mut LogReader<R>,
-    start: Option<&StartValues>,
-    out: &mut dyn Write,
-    flush_each: bool,
-) -> anyhow::Result<ReplaySummary> {
-    let s = reader.schema().clone();
-    let mut w = biasctl::log::csv_writer(out);
-    let mut header: Vec<String> = vec![s.map.time.clone(), s.map.track.clone(), s.map.bias.clone()];
-    header.extend(s.covariates.iter().cloned());
-    header.extend(["predicted".to_string(), "residual".to_string()]);
-    if start.is_some() {
-        header.push("integrator_start".into());
-    }
-    header.extend(model.terms.iter().map(|t| t.term.name()));
-    w.write_record(&header)?;
-    if flush_each {
-        w.flush()?;
-    }
-    let mut record: Vec<String> = Vec::with_capacity(header.len());
-    let summary = replay_stream(model, reader, start, |row, p: &RowPrediction, contrib| {
-        record.clear();
-        record.push(cell(Some(row.time_s)));
-        record.push(cell(Some(row.track)));
-        record.push(cell(row.bias));
-        record.extend(row.covariates.iter().map(|c| cell(Some(*c))));
-        record.push(cell(Some(p.predicted)));
-        record.push(cell(p.residual));
-        if start.is_some() {
-            record.push(cell(p.integrator_start));
-        }
-        record.extend(contrib.iter().map(|c| cell(Some(*c))));
-        w.write_record(&record)?;
-        if flush_each {
-            w.flush()?;
-        }
-        Ok(())
-    })?;
-    w.flush()?;
-    Ok(summary)
 }

@@ -172,40 +172,49 @@ pub fn ladder_terms(list: &str) -> Result<Vec<String>, ModelDiagnosisError> {
 }
 
 /// The ladder: for k = 1..=terms.len(), fits the first k terms on `train`, replays on `test`
-/// and records the test error std (counts); reductions are relative to the first step.
+/// and records the test error std (counts); reductions are relative to the first step. The
+/// steps run in parallel ([`crate::numeric::parallel`]); the result does not depend on the
+/// thread count.
 pub fn ladder_fit(
     train: &Log,
     test: &Log,
     terms: &[String],
     opts: &CheckedFitOptions,
 ) -> Result<Ladder, ModelDiagnosisError> {
-    let mut inputs = Vec::with_capacity(terms.len());
-    for k in 1..=terms.len() {
-        let list = terms[..k].join(",");
-        let step = k - 1; // numbered as in the ladder table: step 0 is the first term alone
-        let spec = ModelSpec::parse(&list).map_err(|source| ModelDiagnosisError::Spec {
-            step,
-            terms: list.clone(),
-            source,
-        })?;
-        let model = fit(&spec, train, opts).map_err(|source| ModelDiagnosisError::Fit {
-            step,
-            terms: list.clone(),
-            file: train.schema.file.clone(),
-            source: Box::new(source),
-        })?;
-        let prediction = replay_model(&model, test)?;
-        let std = crate::numeric::stats::std_dev(&prediction.residual).ok_or_else(|| {
-            ModelDiagnosisError::TooFewTestRows {
+    use rayon::prelude::*;
+    // Each step is fitted and scored on its own (nothing shared but the logs): in parallel on
+    // the process's pool, collected in step order, so the ladder and the error of the first
+    // failing step are the same for any thread count.
+    let steps: Vec<Result<LadderInput, ModelDiagnosisError>> = (1..=terms.len())
+        .into_par_iter()
+        .map(|k| -> Result<LadderInput, ModelDiagnosisError> {
+            let list = terms[..k].join(",");
+            let step = k - 1; // numbered as in the ladder table: step 0 is the first term alone
+            let spec = ModelSpec::parse(&list).map_err(|source| ModelDiagnosisError::Spec {
                 step,
-                file: test.schema.file.clone(),
-            }
-        })?;
-        inputs.push(LadderInput {
-            terms: terms[..k].to_vec(),
-            std,
-        });
-    }
+                terms: list.clone(),
+                source,
+            })?;
+            let model = fit(&spec, train, opts).map_err(|source| ModelDiagnosisError::Fit {
+                step,
+                terms: list.clone(),
+                file: train.schema.file.clone(),
+                source: Box::new(source),
+            })?;
+            let prediction = replay_model(&model, test)?;
+            let std = crate::numeric::stats::std_dev(&prediction.residual).ok_or_else(|| {
+                ModelDiagnosisError::TooFewTestRows {
+                    step,
+                    file: test.schema.file.clone(),
+                }
+            })?;
+            Ok(LadderInput {
+                terms: terms[..k].to_vec(),
+                std,
+            })
+        })
+        .collect();
+    let inputs = steps.into_iter().collect::<Result<Vec<_>, _>>()?;
     Ok(ladder(&inputs)?)
 }
 

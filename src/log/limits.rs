@@ -105,6 +105,15 @@ impl<R> LineLimit<R> {
 impl<R: Read> Read for LineLimit<R> {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         let n = self.inner.read(buf)?;
+        // No line can pass the limit within this chunk: only the run after its last newline
+        // matters (found from the end, a line's length away), not a scan of every byte.
+        if self.run + n as u64 <= MAX_LINE_BYTES {
+            self.run = match buf[..n].iter().rposition(|&b| b == b'\n') {
+                Some(i) => (n - 1 - i) as u64,
+                None => self.run + n as u64,
+            };
+            return Ok(n);
+        }
         for &b in &buf[..n] {
             if b == b'\n' {
                 self.run = 0;

@@ -18,7 +18,7 @@ pub mod terms;
 
 pub use predictor::{
     NextPrediction, Predictor, REST_CAPACITY, ReplayError, ReplaySummary, RowPrediction,
-    StartValues, predict_next, replay_stream,
+    StartValues, predict_next, replay_stream, write_predictions_csv,
 };
 
 use crate::log::Log;

@@ -328,6 +328,68 @@ pub fn replay_stream<R: Read>(
     Ok(summary)
 }
 
+/// Streams `reader` through `model` ([`replay_stream`]) and writes `biasctl predict`'s CSV to
+/// `out`: the header (time, track and bias columns as the log names them, its covariates,
+/// `predicted`, `residual`, with `start` also `integrator_start`, then one column per term),
+/// then one row per log row as soon as it is read. Numbers are written with every digit they
+/// need to read back exactly ([`crate::render::number::write_shortest`], the text of
+/// `to_string()`); an unmeasured bias, its residual, or a start value that does not exist is an
+/// empty cell. With `flush_each`, every row is flushed as written (a stream answered row by
+/// row). Nothing is allocated per row.
+pub fn write_predictions_csv<R: Read>(
+    model: &FittedModel,
+    reader: &mut LogReader<R>,
+    start: Option<&StartValues>,
+    out: &mut dyn std::io::Write,
+    flush_each: bool,
+) -> Result<ReplaySummary, ReplayError> {
+    let s = reader.schema().clone();
+    let mut w = crate::log::csv_writer(out);
+    let mut header: Vec<String> = vec![s.map.time.clone(), s.map.track.clone(), s.map.bias.clone()];
+    header.extend(s.covariates.iter().cloned());
+    header.extend(["predicted".to_string(), "residual".to_string()]);
+    if start.is_some() {
+        header.push("integrator_start".into());
+    }
+    header.extend(model.terms.iter().map(|t| t.term.name()));
+    let sink_err = |e: csv::Error| ReplayError::Sink(e.into());
+    w.write_record(&header).map_err(sink_err)?;
+    if flush_each {
+        w.flush().map_err(ReplayError::Sink)?;
+    }
+    let mut buf = Vec::with_capacity(32);
+    let summary = replay_stream(model, reader, start, |row, p: &RowPrediction, contrib| {
+        let mut put = |x: Option<f64>| {
+            buf.clear();
+            if let Some(v) = x {
+                crate::render::number::write_shortest(v, &mut buf);
+            }
+            w.write_field(&buf[..])
+        };
+        put(Some(row.time_s))?;
+        put(Some(row.track))?;
+        put(row.bias)?;
+        for &c in &row.covariates {
+            put(Some(c))?;
+        }
+        put(Some(p.predicted))?;
+        put(p.residual)?;
+        if start.is_some() {
+            put(p.integrator_start)?;
+        }
+        for &c in contrib {
+            put(Some(c))?;
+        }
+        w.write_record(None::<&[u8]>)?;
+        if flush_each {
+            w.flush()?;
+        }
+        Ok(())
+    })?;
+    w.flush().map_err(ReplayError::Sink)?;
+    Ok(summary)
+}
+
 /// The bias a model predicts for one seek after a replayed log (what `settle --model` feeds to
 /// the handoff).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -11,6 +11,7 @@
 //! - [`write_stdout`] is the one path to standard output: a closed pipe becomes
 //!   [`OutputError::BrokenPipe`] (the CLI ends quietly with exit 0), any other write error a
 //!   clear [`OutputError::Stdout`].
+//! - [`number::write_shortest`] writes a CSV number as `Display` would, through `ryu`.
 //! - [`json::to_string_pretty`] is the one JSON writer: a non-finite number (which serde_json
 //!   would write as `null`) is refused naming its key path.
 //! - [`finite`] refuses to emit a non-finite number; [`quote`] and [`message`] keep error
@@ -19,6 +20,7 @@
 pub mod file;
 pub mod finite;
 pub mod json;
+pub mod number;
 pub mod stdout;
 
 pub use file::{

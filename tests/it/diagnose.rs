@@ -57,6 +57,33 @@ fn test_std(train: &Log, test: &Log, terms: &str) -> f64 {
         .std
 }
 
+#[test]
+fn ladder_is_identical_for_any_thread_count() {
+    // Reference: the ladder computed on one thread (the serial order). Its steps run in
+    // parallel; on 2 and 3 threads every step's std and reduction must be the same bits.
+    let (train, test) = logs_n("diag_base.toml", &["memory"], 0.05, 7, 1500);
+    let terms: Vec<String> = "poly2,direction,seek,memory"
+        .split(',')
+        .map(String::from)
+        .collect();
+    let opts = FitOptions::default().check().unwrap();
+    let run = |threads| {
+        biasctl::numeric::parallel::with_threads(threads, || {
+            ladder_fit(&train, &test, &terms, &opts).unwrap()
+        })
+        .unwrap()
+    };
+    let one = run(1);
+    assert_eq!(one.steps.len(), 4);
+    for threads in [2, 3] {
+        assert_eq!(run(threads), one, "{threads} threads");
+    }
+    assert!(matches!(
+        biasctl::numeric::parallel::with_threads(0, || ()),
+        Err(biasctl::numeric::parallel::ThreadsError::Zero)
+    ));
+}
+
 /// Fits `base` on train and diagnoses it on test with `config`.
 fn diagnose_fit(train: &Log, test: &Log, base: &str, config: &DiagnoseConfig) -> Diagnosis {
     let model = fit(

@@ -253,6 +253,70 @@ fn dahl_state_matches_naive_one_track_loop_and_stays_within_fc() {
 }
 
 #[test]
+fn dahl_predictor_fast_paths_match_eq8_and_each_other() {
+    // Reference: eq. 8-9 written out with powf, G = s + (G - s)·r^|dx| (slow, obvious). The
+    // per-seek `step` and the blocked `step_many` must agree with it to 1e-12 relative (of Fc,
+    // the scale of G's contribution) and with each other bit for bit; the seeks mix integer
+    // lengths (the table), non-integer and long ones (exp), zero-length ones and blocks that
+    // do not divide STEP_BLOCK, split across calls.
+    let (c, fc, sigma) = ([5.0, 0.01, -1e-6], 15.0, 1.2);
+    let r: f64 = 1.0 - sigma / fc;
+    let mut rng = SimRng::new(21);
+    let mut x = 1000.0;
+    let targets: Vec<f64> = (0..5000)
+        .map(|i| {
+            x += match i % 4 {
+                0 => rng.below(501) as f64 - 250.0,
+                1 => 0.0,
+                2 => rng.range(-40.5, 40.5),
+                _ => rng.below(3001) as f64 - 1500.0,
+            };
+            x
+        })
+        .collect();
+    let (mut g, mut prev) = (0.0f64, None::<f64>);
+    let reference: Vec<f64> = targets
+        .iter()
+        .map(|&x| {
+            let dx = prev.map_or(0.0, |p| x - p);
+            prev = Some(x);
+            if dx.abs() > 0.0 {
+                let s = dx.signum();
+                g = s + (g - s) * r.powf(dx.abs());
+            }
+            c[0] + c[1] * x + c[2] * x * x + fc * g
+        })
+        .collect();
+    let mut one = DahlPredictor::new(c, fc, sigma).unwrap();
+    let stepped: Vec<f64> = targets.iter().map(|&x| one.step(x)).collect();
+    let mut many = DahlPredictor::new(c, fc, sigma).unwrap();
+    let mut blocked = Vec::new();
+    for part in [
+        &targets[..1],
+        &targets[1..700],
+        &targets[700..],
+        &targets[..0],
+    ] {
+        many.step_many(part, &mut blocked);
+    }
+    assert_eq!(blocked.len(), targets.len());
+    for i in 0..targets.len() {
+        let (a, b, want) = (stepped[i], blocked[i], reference[i]);
+        assert_eq!(
+            a.to_bits(),
+            b.to_bits(),
+            "seek {i}: step {a} vs step_many {b}"
+        );
+        assert!(
+            (a - want).abs() <= 1e-12 * fc,
+            "seek {i}: {a} vs eq. 8 {want}"
+        );
+    }
+    // Both leave the predictor in the same state.
+    assert_eq!(one.peek(1234.0).to_bits(), many.peek(1234.0).to_bits());
+}
+
+#[test]
 fn dahl_predictor_equals_generic_model_replay() {
     // Reference: the generic term-sum predictor on the same parameters.
     let rows = tracks(3, 500, 300.0);

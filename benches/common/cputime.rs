@@ -1,0 +1,76 @@
+//! A criterion measurement of the benchmarking thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`),
+//! reported in the same units as wall time. On a shared machine (the project's 2-core VM runs
+//! several builds at once) wall time measures the queue for a core as much as the code; the
+//! thread's CPU time is the work a dedicated core would do, so per-core throughputs from it are
+//! comparable across runs. Select it with `BIASCTL_BENCH_CPU=1` (else wall time, criterion's
+//! default). Shared memory bandwidth and caches still vary with the load.
+
+use criterion::measurement::{Measurement, ValueFormatter, WallTime};
+use std::time::Duration;
+
+/// The CPU time of the calling thread (see the module docs).
+pub struct ThreadCpuTime;
+
+/// The calling thread's CPU time so far.
+fn now() -> Duration {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid timespec; the clock id is a constant Linux and macOS know.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
+    Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
+}
+
+/// Wall time's formatter (values are nanoseconds in both).
+static WALL: WallTime = WallTime;
+
+impl Measurement for ThreadCpuTime {
+    type Intermediate = Duration;
+    type Value = Duration;
+    fn start(&self) -> Duration {
+        now()
+    }
+    fn end(&self, start: Duration) -> Duration {
+        now().saturating_sub(start)
+    }
+    fn add(&self, a: &Duration, b: &Duration) -> Duration {
+        *a + *b
+    }
+    fn zero(&self) -> Duration {
+        Duration::ZERO
+    }
+    fn to_f64(&self, v: &Duration) -> f64 {
+        v.as_nanos() as f64
+    }
+    fn formatter(&self) -> &dyn ValueFormatter {
+        WALL.formatter()
+    }
+}
+
+/// Whether `BIASCTL_BENCH_CPU` asks for CPU time.
+pub fn cpu_time_requested() -> bool {
+    std::env::var_os("BIASCTL_BENCH_CPU").is_some_and(|v| v != "0")
+}
+
+/// `fn main` of a bench whose one function `$bench` is generic over the measurement: thread
+/// CPU time with `BIASCTL_BENCH_CPU=1`, else wall time; the usual criterion flags apply.
+#[macro_export]
+macro_rules! bench_main {
+    ($bench:ident) => {
+        fn main() {
+            if cputime::cpu_time_requested() {
+                let mut c = criterion::Criterion::default()
+                    .with_measurement(cputime::ThreadCpuTime)
+                    .configure_from_args();
+                $bench(&mut c);
+                c.final_summary();
+            } else {
+                let mut c = criterion::Criterion::default().configure_from_args();
+                $bench(&mut c);
+                c.final_summary();
+            }
+        }
+    };
+}

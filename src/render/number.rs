@@ -1,0 +1,177 @@
+//! Numbers in CSV output without allocating: the layout of Rust's `Display` (`x.to_string()`:
+//! the shortest digits that read back as exactly `x`, never an exponent) produced through `ryu`,
+//! which is several times faster than `Display` and writes into a reused buffer.
+//!
+//! `ryu` and `Display` both write the shortest digit string that reads back as exactly `x`, and
+//! of several such strings the one closest to `x`; they differ only in layout (`1.0`, `1e-7`,
+//! `1.5e20`), which [`write_shortest`] undoes (`1`, `0.0000001`, `150000000000000000000`), and
+//! in one rare case: when `x` lies exactly halfway between two shortest candidates, ryu rounds
+//! the last digit to even and `Display` up (`-808126719656951.25` is written `…951.2` here and
+//! `…951.3` by `Display`). Either text reads back as the same `x`; the tests check that and
+//! the agreement with `to_string()` everywhere else.
+
+/// Appends the text of finite `x` to `out` as `x.to_string()` lays it out (`-0` for negative
+/// zero; no exponent), with ryu's shortest round-trip digits (see the module docs for the one
+/// rare difference from `Display`), allocating nothing beyond `out`'s growth. A non-finite `x`
+/// appends nothing (callers write an empty cell for it, as the CSV writers do).
+pub fn write_shortest(x: f64, out: &mut Vec<u8>) {
+    if !x.is_finite() {
+        return;
+    }
+    let mut buf = ryu::Buffer::new();
+    let text = buf.format_finite(x).as_bytes();
+    // Without an exponent ryu's text is Display's, except that an integer ends in `.0`.
+    if !text.contains(&b'e') {
+        out.extend_from_slice(text.strip_suffix(b".0").unwrap_or(text));
+        return;
+    }
+    let (negative, text) = match text.split_first() {
+        Some((b'-', rest)) => (true, rest),
+        _ => (false, text),
+    };
+    // With an exponent, ryu writes `I[.F]eE`: the digits are I then F; the decimal point sits
+    // after |I| + E of them.
+    let (mantissa, exponent) = match text.iter().position(|&b| b == b'e') {
+        Some(i) => (&text[..i], parse_exponent(&text[i + 1..])),
+        None => (text, 0),
+    };
+    let (int, frac) = match mantissa.iter().position(|&b| b == b'.') {
+        Some(i) => (&mantissa[..i], &mantissa[i + 1..]),
+        None => (mantissa, &mantissa[..0]),
+    };
+    let mut digits = [0u8; 40];
+    let mut n = 0;
+    for &d in int.iter().chain(frac) {
+        if n < digits.len() {
+            digits[n] = d;
+            n += 1;
+        }
+    }
+    let mut point = int.len() as i64 + exponent;
+    // Leading zeros move the point; trailing zeros are dropped.
+    let mut start = 0;
+    while start < n && digits[start] == b'0' {
+        start += 1;
+        point -= 1;
+    }
+    while n > start && digits[n - 1] == b'0' {
+        n -= 1;
+    }
+    if negative {
+        out.push(b'-');
+    }
+    let d = &digits[start..n];
+    if d.is_empty() {
+        out.push(b'0');
+        return;
+    }
+    if point <= 0 {
+        out.extend_from_slice(b"0.");
+        out.extend(std::iter::repeat_n(b'0', point.unsigned_abs() as usize));
+        out.extend_from_slice(d);
+    } else if point as usize >= d.len() {
+        out.extend_from_slice(d);
+        out.extend(std::iter::repeat_n(b'0', point as usize - d.len()));
+    } else {
+        let (a, b) = d.split_at(point as usize);
+        out.extend_from_slice(a);
+        out.push(b'.');
+        out.extend_from_slice(b);
+    }
+}
+
+/// The signed decimal exponent ryu wrote after `e` (at most three digits).
+fn parse_exponent(text: &[u8]) -> i64 {
+    let (sign, digits) = match text.split_first() {
+        Some((b'-', rest)) => (-1, rest),
+        _ => (1, text),
+    };
+    sign * digits
+        .iter()
+        .fold(0i64, |acc, &d| acc * 10 + i64::from(d.wrapping_sub(b'0')))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numeric::rng::SimRng;
+
+    fn text(x: f64) -> String {
+        let mut out = Vec::new();
+        write_shortest(x, &mut out);
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn equals_display_on_edge_cases_and_random_bit_patterns() {
+        // Reference: Rust's own `Display` (`to_string()`), which the predict CSV used before, and
+        // `str::parse` reading the text back.
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.1,
+            1e-7,
+            -1.5e-7,
+            1e15,
+            1e16,
+            1.5e20,
+            123456.789,
+            f64::MAX,
+            f64::MIN,
+            f64::MIN_POSITIVE,
+            5e-324,
+            -5e-324,
+            0.30000000000000004,
+            1e300,
+            2.5e-300,
+            1e-5,
+            1e-4,
+            9.999999999999999e15,
+        ];
+        let mut rng = SimRng::new(16);
+        for _ in 0..100_000 {
+            // Uniform bit patterns cover every exponent; decimal-looking values cover logs.
+            xs.push(f64::from_bits(rng.next_u64()));
+            xs.push(rng.below(1_000_000) as f64 / 1000.0 - 500.0);
+            xs.push(rng.range(-1e6, 1e6));
+            xs.push(rng.range(-1.0, 1.0) * 10f64.powi(rng.below(60) as i32 - 30));
+        }
+        let mut ties = 0;
+        let n = xs.len();
+        for x in xs.into_iter().filter(|x| x.is_finite()) {
+            let (mine, display) = (text(x), x.to_string());
+            // Reads back as exactly x, in Display's layout and length.
+            let back: f64 = mine.parse().unwrap();
+            assert_eq!(
+                back.to_bits(),
+                x.to_bits(),
+                "{mine} for bits {:#x}",
+                x.to_bits()
+            );
+            assert!(
+                !mine.contains('e') && mine.len() == display.len(),
+                "{mine} vs {display}"
+            );
+            if mine != display {
+                // Only the halfway case: the texts differ in the last digit, by one.
+                let (a, b) = (mine.as_bytes(), display.as_bytes());
+                let k = a.len() - 1;
+                assert!(
+                    a[..k] == b[..k] && a[k].abs_diff(b[k]) == 1,
+                    "{mine} vs {display}"
+                );
+                ties += 1;
+            }
+        }
+        assert!(ties * 1000 < n, "{ties} of {n} differ from Display");
+    }
+
+    #[test]
+    fn non_finite_writes_nothing() {
+        for x in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert_eq!(text(x), "");
+        }
+    }
+}
