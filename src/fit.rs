@@ -493,6 +493,19 @@ fn param_label(terms: &[Arc<dyn Term>], col: usize) -> (String, bool) {
     (format!("column {col}"), false)
 }
 
+/// The ridge penalty of design column `col` (its term's [`Term::ridge`]).
+fn ridge_of(terms: &[Arc<dyn Term>], col: usize) -> f64 {
+    let mut start = 0;
+    for t in terms {
+        let w = t.param_names().len();
+        if col < start + w {
+            return t.ridge();
+        }
+        start += w;
+    }
+    0.0
+}
+
 fn solve(
     terms: &[Arc<dyn Term>],
     data: &FitData<'_>,
@@ -512,6 +525,18 @@ fn solve(
         qr.push(&xp, y);
     })?;
     let n = qr.rows();
+    // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column.
+    let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
+    if ridge.iter().any(|&l| l > 0.0) {
+        let colsq = qr.colsq.clone();
+        for (q, &c) in order.iter().enumerate() {
+            if ridge[c] > 0.0 && colsq[q] > 0.0 {
+                xp.fill(0.0);
+                xp[q] = (ridge[c] * colsq[q]).sqrt();
+                qr.push(&xp, 0.0);
+            }
+        }
+    }
     let (r, colsq) = qr.finish();
     let mut keep = Vec::new();
     let mut dropped = Vec::new();

@@ -45,7 +45,9 @@ pub struct SeekFeatures {
     /// Whether this seek reverses the direction of the move into its source (`direction_change`).
     /// False for zero-length seeks and for the first move.
     pub direction_change: bool,
-    /// Tracks travelled since the last direction change, this seek included (`since_reversal`).
+    /// Distance from the last turning point (where the last direction change began) to the
+    /// target (`since_reversal`); with deadband 0, the tracks travelled since the last direction
+    /// change, this seek included.
     pub since_reversal: f64,
     /// Distance from the target to the nearest uncrossed earlier rest position on the OD side
     /// (smaller track numbers), not counting the source (`rest_distance_od`); `None` if there is none.
@@ -232,15 +234,142 @@ pub struct History {
     start_time: f64,
     last_time: f64,
     seeks: u64,
-    direction: i8,
-    since_reversal: f64,
+    turns: DirectionTracker,
     memory: RestMemory,
 }
 
+/// The direction of motion with a deadband, a hysteretic detector: the direction reverses only
+/// once the position has come back more than `deadband` (position unit) from the furthest point
+/// reached in the current direction, so sensor noise on a densely sampled log does not fake
+/// reversals. With deadband 0 (the default, for seek logs) every move against the direction is a
+/// reversal. The *turning point* is that furthest point; `since_reversal` is the distance from it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DirectionTracker {
+    deadband: f64,
+    direction: i8,
+    anchor: Option<f64>,
+    extreme: f64,
+    turn: f64,
+}
+
+/// What [`DirectionTracker::peek`] says about one move.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DirectionStep {
+    /// Direction after the move: +1 inbound, −1 outbound, 0 before the first move out of the band.
+    pub direction: i8,
+    /// Whether the move reversed the direction.
+    pub reversal: bool,
+    /// Distance from the last turning point (or the first position) to the target.
+    pub since_reversal: f64,
+    extreme: f64,
+    turn: f64,
+}
+
+impl DirectionTracker {
+    /// A tracker with `deadband` ≥ 0 in the log's position unit (negative or non-finite counts as 0).
+    pub fn new(deadband: f64) -> Self {
+        Self {
+            deadband: if deadband.is_finite() {
+                deadband.max(0.0)
+            } else {
+                0.0
+            },
+            ..Self::default()
+        }
+    }
+
+    /// The deadband, position unit.
+    pub fn deadband(&self) -> f64 {
+        self.deadband
+    }
+
+    /// The direction so far.
+    pub fn direction(&self) -> i8 {
+        self.direction
+    }
+
+    /// The outcome of a move to `target` without changing the tracker; `moved` is the signed
+    /// direction the move's own sign suggests when the caller has a better source of it (a
+    /// velocity column), `None` to use positions.
+    pub fn peek(&self, target: f64, moved: Option<i8>) -> DirectionStep {
+        let d = self.deadband;
+        let Some(anchor) = self.anchor else {
+            return DirectionStep {
+                direction: 0,
+                reversal: false,
+                since_reversal: 0.0,
+                extreme: target,
+                turn: target,
+            };
+        };
+        let dir = self.direction;
+        let step = |direction: i8, reversal: bool, extreme: f64, turn: f64| DirectionStep {
+            direction,
+            reversal,
+            since_reversal: (target - turn).abs(),
+            extreme,
+            turn,
+        };
+        if let Some(m) = moved {
+            // Direction from a velocity sign: a reversal wherever the sign flips.
+            let extreme = if dir == 0 || (target - self.extreme) * f64::from(dir) > 0.0 {
+                target
+            } else {
+                self.extreme
+            };
+            return if m == 0 || m == dir {
+                step(
+                    dir,
+                    false,
+                    extreme,
+                    if dir == 0 { anchor } else { self.turn },
+                )
+            } else if dir == 0 {
+                step(m, false, target, anchor)
+            } else {
+                step(m, true, target, self.extreme)
+            };
+        }
+        if dir == 0 {
+            return if (target - anchor).abs() > d {
+                step(sign(target - anchor), false, target, anchor)
+            } else {
+                step(0, false, anchor, anchor)
+            };
+        }
+        let ahead = (target - self.extreme) * f64::from(dir);
+        if ahead > 0.0 {
+            step(dir, false, target, self.turn)
+        } else if -ahead > d {
+            step(-dir, true, target, self.extreme)
+        } else {
+            step(dir, false, self.extreme, self.turn)
+        }
+    }
+
+    /// Records the move `s` returned by [`DirectionTracker::peek`] for `target`.
+    pub fn commit(&mut self, target: f64, s: &DirectionStep) {
+        if self.anchor.is_none() {
+            self.anchor = Some(target);
+        }
+        self.direction = s.direction;
+        self.extreme = s.extreme;
+        self.turn = s.turn;
+    }
+}
+
 impl History {
-    /// A history before the first row.
+    /// A history before the first row, direction from raw position steps (deadband 0).
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A history whose direction has a deadband (position unit; see [`DirectionTracker`]).
+    pub fn with_deadband(deadband: f64) -> Self {
+        Self {
+            turns: DirectionTracker::new(deadband),
+            ..Self::default()
+        }
     }
 
     /// Current head position (the last target), if any row was seen.
@@ -250,7 +379,7 @@ impl History {
 
     /// Direction of the last non-zero move (+1, −1, or 0 before any move).
     pub fn direction(&self) -> i8 {
-        self.direction
+        self.turns.direction()
     }
 
     /// Number of seeks seen so far.
@@ -267,18 +396,7 @@ impl History {
     pub fn peek(&self, time_s: f64, target: f64) -> SeekFeatures {
         let source = self.position.unwrap_or(target);
         let seek_length = target - source;
-        let move_dir = sign(seek_length);
-        let direction_change = move_dir != 0 && self.direction != 0 && move_dir != self.direction;
-        let direction = if move_dir == 0 {
-            self.direction
-        } else {
-            move_dir
-        };
-        let since_reversal = if direction_change || self.direction == 0 {
-            seek_length.abs()
-        } else {
-            self.since_reversal + seek_length.abs()
-        };
+        let turn = self.turns.peek(target, None);
         let (od, id) = self.memory.nearest_after_move(source, target);
         let first = self.position.is_none();
         SeekFeatures {
@@ -289,9 +407,9 @@ impl History {
             source,
             target,
             seek_length,
-            direction,
-            direction_change,
-            since_reversal,
+            direction: turn.direction,
+            direction_change: turn.reversal,
+            since_reversal: turn.since_reversal,
             rest_distance_od: od.map(|p| target - p),
             rest_distance_id: id.map(|p| p - target),
         }
@@ -307,10 +425,31 @@ impl History {
         self.position = Some(target);
         self.last_time = time_s;
         self.seeks += 1;
-        self.direction = f.direction;
-        self.since_reversal = f.since_reversal;
+        let turn = self.turns.peek(target, None);
+        self.turns.commit(target, &turn);
         f
     }
+}
+
+/// The turning points of a replayed log, in order: where each direction change began
+/// (`target − direction·since_reversal` of every seek with `direction_change`), position unit.
+pub fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
+    features
+        .iter()
+        .filter(|f| f.direction_change)
+        .map(|f| f.target - f64::from(f.direction) * f.since_reversal)
+        .collect()
+}
+
+/// The reversal amplitudes of a replayed log: distances between consecutive turning points
+/// ([`turning_points`]), position unit; the travel a hysteresis loop of the log spans. Empty
+/// with fewer than two reversals.
+pub fn reversal_amplitudes(features: &[SeekFeatures]) -> Vec<f64> {
+    turning_points(features)
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|a| *a > 0.0)
+        .collect()
 }
 
 /// Sign of a seek length as a direction: +1 inbound, −1 outbound, 0 for no move.

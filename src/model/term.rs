@@ -124,6 +124,13 @@ pub trait Term: Debug + Send + Sync {
     fn droppable(&self) -> bool {
         false
     }
+    /// Relative ridge penalty on this term's coefficients (default 0: plain least squares):
+    /// each of its columns `j` adds `λ·‖x_j‖²·β_j²` to the least-squares objective, pulling
+    /// the coefficient towards 0. Scale free (the same for any bias or position unit); for
+    /// families of strongly collinear elements such as `play`.
+    fn ridge(&self) -> f64 {
+        0.0
+    }
     /// Covariate columns this term reads.
     fn covariates(&self) -> Vec<String> {
         Vec::new()

@@ -8,6 +8,7 @@ pub mod drift;
 pub mod intercept;
 pub mod knots;
 pub mod memory;
+pub mod play;
 pub mod poly;
 pub mod seek;
 pub mod table;
@@ -17,7 +18,7 @@ use super::{ModelError, SpecError};
 use std::sync::Arc;
 
 /// The names of the built-in terms, for messages.
-pub const BUILTIN_NAMES: &str = "poly2, table[:SPACING], direction, seek[:KNOTS], memory[:KNOTS], drift[:ALPHA], dahl, dahl:N, col:NAME, bins:FEATURE[:KNOTS], dbins:FEATURE[:KNOTS]";
+pub const BUILTIN_NAMES: &str = "poly2, table[:SPACING], direction, seek[:KNOTS], memory[:KNOTS], drift[:ALPHA], dahl, dahl:N, play[:N], col:NAME, bins:FEATURE[:KNOTS], dbins:FEATURE[:KNOTS]";
 
 /// Parses one built-in term spec (`poly2`, `table:50`, `dahl:4`, `col:temp_c`, `bins:dwell_s`,
 /// `dbins:dwell_s:6`…).
@@ -92,6 +93,12 @@ pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
                 .map(|a| count(a, "the number of Dahl elements", 16))
                 .transpose()?,
         })),
+        "play" => Ok(Arc::new(play::PlaySpec {
+            elements: arg
+                .map(|a| count(a, "the number of play elements", 256))
+                .transpose()?
+                .unwrap_or(play::DEFAULT_ELEMENTS),
+        })),
         "col" => match arg {
             Some(name) if !name.is_empty() => Ok(Arc::new(covariate::ColSpec {
                 column: name.to_string(),
@@ -146,6 +153,7 @@ pub fn restore_term(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn 
         "memory" => Arc::new(de::<memory::MemoryTerm>(name, settings)?),
         "drift" => Arc::new(de::<drift::DriftTerm>(name, settings)?),
         "dahl" => Arc::new(de::<dahl::DahlTerm>(name, settings)?),
+        "play" => Arc::new(de::<play::PlayTerm>(name, settings)?),
         "col" => Arc::new(de::<covariate::ColTerm>(name, settings)?),
         "bins" | "dbins" => Arc::new(bins::BinsTerm {
             by_direction: head == "dbins",
