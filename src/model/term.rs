@@ -131,6 +131,12 @@ pub trait Term: Debug + Send + Sync {
     fn ridge(&self) -> f64 {
         0.0
     }
+    /// Whether the term's contribution adapts to the measured bias while a log is replayed
+    /// (its state uses the `residual` of [`TermState::update`], like `drift`): then its
+    /// one-step error and its free-run error differ and both are reported.
+    fn adaptive(&self) -> bool {
+        false
+    }
     /// Covariate columns this term reads.
     fn covariates(&self) -> Vec<String> {
         Vec::new()

@@ -5,6 +5,7 @@ mod check;
 mod common;
 mod diagnose;
 mod extend;
+mod invariance;
 mod model;
 mod plot;
 mod real;
