@@ -158,9 +158,18 @@ pub fn ladder_fit(
                 file: test.schema.file.clone(),
             }
         })?;
+        let free_run_std = if model.adaptive() {
+            model
+                .predict_log_with(test, crate::model::Feedback::Never)
+                .ok()
+                .and_then(|p| crate::stats::std_dev(&p.residual))
+        } else {
+            None
+        };
         inputs.push(LadderInput {
             terms: terms[..k].to_vec(),
             std,
+            free_run_std,
         });
     }
     Ok(ladder(&inputs)?)
