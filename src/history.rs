@@ -452,6 +452,120 @@ pub fn reversal_amplitudes(features: &[SeekFeatures]) -> Vec<f64> {
         .collect()
 }
 
+/// How a log samples the motion, and how its direction of motion is read (`biasctl check`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sampling {
+    /// Rows per second (rows − 1 over the time span); `None` for a log without a time span.
+    pub rows_per_s: Option<f64>,
+    /// Median |position step| between consecutive rows, position unit.
+    pub median_step: f64,
+    /// The travel: 5–95 % quantile range of the positions, position unit.
+    pub travel: f64,
+    /// Position noise estimate, position unit: 1.4826·MAD(Δ²x)/√6 (the spread of the second
+    /// difference, which removes a smooth motion; white noise of std σ gives σ).
+    pub noise: f64,
+    /// Whether the log is a dense time series (median step below 1 % of the travel) rather
+    /// than a log of seeks.
+    pub dense: bool,
+    /// The deadband [`estimate_deadband`] chooses: 3 × the noise for a dense log, else 0.
+    pub deadband: f64,
+    /// Direction reversals from the raw sign of each step.
+    pub raw_reversals: usize,
+    /// Direction reversals with the deadband.
+    pub reversals: usize,
+}
+
+/// Describes how `positions` (in row order, position unit) sample the motion; `times_s` are the
+/// rows' times. A seek log (each row a seek; median step ≥ 1 % of the travel) keeps deadband 0.
+pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
+    let steps: Vec<f64> = positions.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    let median_step =
+        crate::stats::percentile_sorted(&crate::stats::sorted(&steps), 50.0).unwrap_or(0.0);
+    let sorted_x = crate::stats::sorted(positions);
+    let q = |p: f64| crate::stats::percentile_sorted(&sorted_x, p).unwrap_or(0.0);
+    let travel = q(95.0) - q(5.0);
+    let d2: Vec<f64> = positions
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    let mad = crate::stats::percentile_sorted(&crate::stats::sorted(&d2), 50.0).unwrap_or(0.0);
+    let noise = 1.4826 * mad / 6f64.sqrt();
+    let dense = travel > 0.0 && median_step < 0.01 * travel;
+    let deadband = if dense { 3.0 * noise } else { 0.0 };
+    let count = |d: f64| {
+        let mut t = DirectionTracker::new(d);
+        positions
+            .iter()
+            .filter(|&&x| {
+                let s = t.peek(x, None);
+                t.commit(x, &s);
+                s.reversal
+            })
+            .count()
+    };
+    let span = match (times_s.first(), times_s.last()) {
+        (Some(a), Some(b)) if b > a => Some(b - a),
+        _ => None,
+    };
+    Sampling {
+        rows_per_s: span.map(|s| (positions.len().saturating_sub(1)) as f64 / s),
+        median_step,
+        travel,
+        noise,
+        dense,
+        deadband,
+        raw_reversals: count(0.0),
+        reversals: count(deadband),
+    }
+}
+
+/// The deadband [`sampling`] estimates for a log: 3 × the position noise on a dense time
+/// series, 0 on a log of seeks.
+pub fn estimate_deadband(times_s: &[f64], positions: &[f64]) -> f64 {
+    sampling(times_s, positions).deadband
+}
+
+impl Sampling {
+    /// Plain-language lines for `check`, positions in `unit`.
+    pub fn describe(&self, unit: &str) -> Vec<String> {
+        let g = |v: f64| format!("{v:.4e}");
+        let mut out = vec![match self.rows_per_s {
+            Some(r) => format!("sampling: {} rows/s", crate::log::fmt_trimmed(r, 3)),
+            None => "sampling: no time span".into(),
+        }];
+        if self.dense {
+            out.push(format!(
+                "mode: dense time series (the median step, {} {unit}, is below 1 % of the travel, {} {unit}); \
+                 each row is one sample of a continuous motion, and the direction reverses only once the \
+                 position has come back more than a deadband of {} {unit} (3 × the estimated position noise, {} {unit}) \
+                 from its furthest point",
+                g(self.median_step), g(self.travel), g(self.deadband), g(self.noise)
+            ));
+            out.push(format!(
+                "reversals: {} with the deadband ({} from the raw sign of each step)",
+                self.reversals, self.raw_reversals
+            ));
+            if self.raw_reversals > 3 * self.reversals.max(1) {
+                out.push(format!(
+                    "warning: the raw steps reverse {} times, {}× the {} reversals with the deadband: \
+                     sensor noise fakes reversals when direction is read from raw steps",
+                    self.raw_reversals,
+                    self.raw_reversals / self.reversals.max(1),
+                    self.reversals
+                ));
+            }
+        } else {
+            out.push(format!(
+                "mode: seek log (the median step, {} {unit}, is at least 1 % of the travel, {} {unit}); \
+                 each row is one seek and its direction is the sign of the move (no deadband)",
+                g(self.median_step), g(self.travel)
+            ));
+            out.push(format!("reversals: {}", self.raw_reversals));
+        }
+        out
+    }
+}
+
 /// Sign of a seek length as a direction: +1 inbound, −1 outbound, 0 for no move.
 pub fn sign(x: f64) -> i8 {
     if x > 0.0 {

@@ -10,7 +10,8 @@ pub struct Args {
     log: LogArgs,
 }
 
-/// Streams the log once and prints rows, measured rows, span, units and covariates.
+/// Streams the log and prints rows, measured rows, span, units, the sampling (rows/s, how the
+/// direction of motion is read, reversals, the position-noise estimate) and covariates.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut reader = LogReader::open(&args.log.data, &args.log.columns.map())?;
     let units = args.log.columns.units(reader.schema())?;
@@ -26,6 +27,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "  time {} .. {} s (column {})",
         sum.times_s[0], sum.times_s[1], s.map.time
     );
+    let log = args.log.columns.read_log(&args.log.data)?;
+    let times: Vec<f64> = log.rows.iter().map(|r| r.time_s).collect();
+    let positions: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+    for line in biasctl::history::sampling(&times, &positions).describe(&units.position) {
+        println!("  {line}");
+    }
     if !s.covariates.is_empty() {
         println!("  covariates: {}", s.covariates.join(", "));
     }
