@@ -37,7 +37,7 @@ fn bench(c: &mut Criterion) {
         .iter()
         .map(|v| 3.0 * v.unwrap_or(0.0) + rng.normal())
         .collect();
-    let config = DiagnoseConfig::default();
+    let config = DiagnoseConfig::default().check().expect("config");
     // The benchmark measures a real diagnosis: check that it finds the planted effect.
     let d = diagnose(&table, &residuals, &config).expect("diagnosis");
     assert_eq!(d.features[0].name, "direction_change");

@@ -41,7 +41,16 @@ fn bench(c: &mut Criterion) {
     let spec = ModelSpec::preset("calibration").expect("preset");
     let mut g = c.benchmark_group("fit");
     g.bench_function("calibration_1M_rows", |b| {
-        b.iter(|| black_box(fit(&spec, black_box(&log), &FitOptions::default()).expect("fit")))
+        b.iter(|| {
+            black_box(
+                fit(
+                    &spec,
+                    black_box(&log),
+                    &FitOptions::default().check().unwrap(),
+                )
+                .expect("fit"),
+            )
+        })
     });
     g.finish();
 }

@@ -115,7 +115,7 @@ pub fn fit_with(
     for t in user {
         spec = spec.with_term(t.clone());
     }
-    Ok(fit(&spec, train, &FitOptions::default())?)
+    Ok(fit(&spec, train, &FitOptions::default().check()?)?)
 }
 
 /// Standard deviation of the causal prediction error of `model` on `test`, counts.
@@ -142,7 +142,7 @@ fn print_top(d: &Diagnosis, k: usize) {
 #[allow(dead_code)]
 fn main() -> anyhow::Result<()> {
     let (train, test) = (p3_log(3000, 1, &[])?, p3_log(3000, 2, &[])?);
-    let config = DiagnoseConfig::default();
+    let config = DiagnoseConfig::default().check()?;
     println!(
         "drive data/diag_base.toml, every effect on, dwell 0.05–4 s, 3000 train / 3000 test seeks\n"
     );

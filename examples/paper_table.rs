@@ -116,7 +116,7 @@ fn main() -> anyhow::Result<()> {
             } else {
                 &calibration
             };
-            let model = fit(&spec(s)?, train, &FitOptions::default())?;
+            let model = fit(&spec(s)?, train, &FitOptions::default().check()?)?;
             let p = model.predict_log(&test)?;
             scores[m].push(score(&p.residual, &p.positions)?);
         }

@@ -17,114 +17,66 @@
 //! 4. **Causal offsets** (`drift`) are tuned on the residual series of the other terms.
 //! 5. The fitted model is replayed causally over the training log for the fit statistics.
 
-use crate::history::{History, SeekFeatures};
 use crate::log::Log;
 use crate::model::term::{Param, Seek, Term};
 use crate::model::terms::intercept::InterceptTerm;
-use crate::model::{ColumnsUsed, FittedModel, FittedTerm, ModelError, ModelSpec, SpecError};
+use crate::model::{ColumnsUsed, FittedModel, FittedTerm, ModelSpec};
 use nalgebra::DMatrix;
-use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
-/// An error fitting a model. Nothing is written when a fit fails.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum FitError {
-    /// The spec string is invalid.
-    #[error(transparent)]
-    Spec(#[from] SpecError),
-    /// Fewer measured rows than the model needs.
-    #[error(
-        "{file}: {measured} measured rows, but the model `{spec}` has {params} linear parameters and needs at least {needed} measured rows"
-    )]
-    TooShort {
-        /// The log file.
-        file: String,
-        /// Measured rows in the log.
-        measured: usize,
-        /// Linear parameters of the model.
-        params: usize,
-        /// Rows needed.
-        needed: usize,
-        /// The model.
-        spec: String,
-    },
-    /// A parameter the log cannot determine (for example `poly2` on a log at one position).
-    #[error(
-        "{file}: parameter `{param}` cannot be determined from this log: its column is zero or a combination of the others ({hint})"
-    )]
-    RankDeficient {
-        /// The log file.
-        file: String,
-        /// Full parameter name.
-        param: String,
-        /// What usually causes it.
-        hint: String,
-    },
-    /// The log lacks a covariate column a term needs.
-    #[error(
-        "{file}: term `{term}` needs column `{column}`, which the log lacks (covariates in the log: {available})"
-    )]
-    MissingCovariate {
-        /// The log file.
-        file: String,
-        /// The term.
-        term: String,
-        /// The missing column.
-        column: String,
-        /// The covariates present.
-        available: String,
-    },
-    /// A term names one of the log's required columns (time, position, bias) as a covariate.
-    #[error(
-        "{file}: term `{term}` reads column `{column}`, which is the log's {role} column, not a covariate: {hint}"
-    )]
-    NotACovariate {
-        /// The log file.
-        file: String,
-        /// The term.
-        term: String,
-        /// The column.
-        column: String,
-        /// Its role: `time`, `position` or `bias`.
-        role: &'static str,
-        /// What to use instead.
-        hint: &'static str,
-    },
-    /// A term's setting does not suit the data.
-    #[error("term `{term}`: {why}")]
-    BadSetting {
-        /// The term.
-        term: String,
-        /// What is wrong.
-        why: String,
-    },
-    /// A term could not start on this log.
-    #[error(transparent)]
-    Model(#[from] ModelError),
-    /// The values are so large that the fit's sums of squares overflow.
-    #[error(
-        "{file}: the fit overflows: its residual sum of squares is not a finite number (largest |bias| {max_abs:.3e}, largest |position| {max_pos:.3e}); rescale the bias or position column"
-    )]
-    Overflow {
-        /// The log file.
-        file: String,
-        /// Largest measured |bias| in the log.
-        max_abs: f64,
-        /// Largest |position| in the log.
-        max_pos: f64,
-    },
-}
+pub use crate::model::data::{FitData, FitError, FitReport};
 
-/// Fit settings.
+/// Fit settings as given (unchecked). [`FitOptions::check`] validates them once into the
+/// [`CheckedFitOptions`] that [`fit`] accepts (linfa's `ParamGuard` pattern).
+///
+/// ```
+/// use biasctl::fit::FitOptions;
+/// let opts = FitOptions { grid: 48, ..FitOptions::default() }.check().unwrap();
+/// assert_eq!(opts.grid, 48);
+/// assert!(FitOptions { rank_tolerance: f64::NAN, ..FitOptions::default() }.check().is_err());
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitOptions {
-    /// Relative size of an `R` diagonal below which a column is called undetermined.
+    /// Relative size of an `R` diagonal below which a column is called undetermined; in (0, 1)
+    /// (default 1e-9).
     pub rank_tolerance: f64,
-    /// Grid points of the nonlinear search before golden-section refinement.
+    /// Grid points of the nonlinear search before golden-section refinement, 3..=10000
+    /// (default 24).
     pub grid: usize,
-    /// Golden-section iterations.
+    /// Golden-section iterations, 0..=1000 (default 40).
     pub refine: usize,
+}
+
+impl FitOptions {
+    /// Checks every setting's range; the error names the setting and what is allowed.
+    pub fn check(self) -> Result<CheckedFitOptions, FitError> {
+        let bad = |field, message: String| Err(FitError::InvalidOptions { field, message });
+        if !(self.rank_tolerance > 0.0 && self.rank_tolerance < 1.0) {
+            return bad(
+                "rank_tolerance",
+                format!("{} is not in (0, 1)", self.rank_tolerance),
+            );
+        }
+        if !(3..=10_000).contains(&self.grid) {
+            return bad("grid", format!("{} is not in 3..=10000", self.grid));
+        }
+        if self.refine > 1000 {
+            return bad("refine", format!("{} is not in 0..=1000", self.refine));
+        }
+        Ok(CheckedFitOptions(self))
+    }
+}
+
+/// Fit settings that passed [`FitOptions::check`]; the only settings [`fit`] accepts. Read
+/// them through `Deref` ([`FitOptions`]'s fields). `Default` is the checked default.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CheckedFitOptions(FitOptions);
+
+impl std::ops::Deref for CheckedFitOptions {
+    type Target = FitOptions;
+    fn deref(&self) -> &FitOptions {
+        &self.0
+    }
 }
 
 impl Default for FitOptions {
@@ -134,125 +86,6 @@ impl Default for FitOptions {
             grid: 24,
             refine: 40,
         }
-    }
-}
-
-/// How a fit ended (saved in the model file under `fit`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FitReport {
-    /// Measured rows used.
-    pub rows_used: usize,
-    /// Linear parameters fitted (after dropping undetermined hinge columns).
-    pub parameters: usize,
-    /// Standard deviation of the causal residuals on the training log, counts.
-    pub residual_std: f64,
-    /// RMS of the causal residuals, counts.
-    pub residual_rms: f64,
-    /// 1 − SS(residual)/SS(bias about its mean), causal prediction.
-    pub r2: f64,
-    /// Residual sum of squares of the least-squares solve (no causal offsets), counts².
-    pub ls_rss: f64,
-    /// Parameters fixed at 0 because the log cannot determine them.
-    pub dropped: Vec<String>,
-    /// Objective evaluations of the nonlinear search (0 if none).
-    pub evaluations: usize,
-    /// Whether every nonlinear search ended inside its interval.
-    pub converged: bool,
-    /// Smallest and largest target position of the measured training rows, tracks: where the
-    /// position terms were fitted ([`crate::model::FittedModel::outside_range`] warns when a
-    /// log goes beyond it). `null` in model files written before it was recorded.
-    #[serde(default)]
-    pub position_range: Option<[f64; 2]>,
-}
-
-/// The training data as terms see it while they prepare: the log and every row's seek features.
-#[derive(Debug)]
-pub struct FitData<'a> {
-    log: &'a Log,
-    features: Vec<SeekFeatures>,
-}
-
-impl<'a> FitData<'a> {
-    /// Replays the log's seek history once.
-    pub fn new(log: &'a Log) -> Self {
-        let mut h = History::new();
-        let features = log.rows.iter().map(|r| h.step(r.time_s, r.track)).collect();
-        Self { log, features }
-    }
-
-    /// The log.
-    pub fn log(&self) -> &Log {
-        self.log
-    }
-
-    /// Seek features of every row, in log order.
-    pub fn features(&self) -> &[SeekFeatures] {
-        &self.features
-    }
-
-    /// `f` of every measured row, as `Option`s (in log order).
-    pub fn measured_map(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<Option<f64>> {
-        self.log
-            .rows
-            .iter()
-            .zip(&self.features)
-            .filter(|(r, _)| r.bias.is_some())
-            .map(|(r, feat)| {
-                f(&Seek {
-                    features: feat,
-                    covariates: &r.covariates,
-                })
-            })
-            .collect()
-    }
-
-    /// The defined values of `f` over the measured rows.
-    pub fn measured_values(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
-        self.measured_map(f).into_iter().flatten().collect()
-    }
-
-    /// Index of covariate `column`, or the error naming `term`.
-    pub fn covariate(&self, column: &str, term: &str) -> Result<usize, FitError> {
-        let s = &self.log.schema;
-        let role = [
-            (
-                &s.map.time,
-                "time",
-                "for slow change over time use `drift` or `bins:elapsed_s`",
-            ),
-            (
-                &s.map.track,
-                "position",
-                "position enters through `poly2` or `table` (or `bins:position`)",
-            ),
-            (
-                &s.map.bias,
-                "bias",
-                "the bias is what the model predicts and cannot be one of its inputs",
-            ),
-        ]
-        .into_iter()
-        .find(|(name, _, _)| name.as_str() == column);
-        if let Some((_, role, hint)) = role {
-            return Err(FitError::NotACovariate {
-                file: s.file.clone(),
-                term: term.into(),
-                column: column.into(),
-                role,
-                hint,
-            });
-        }
-        s.covariate_index(column)
-            .ok_or_else(|| FitError::MissingCovariate {
-                file: s.file.clone(),
-                term: term.into(),
-                column: column.into(),
-                available: if s.covariates.is_empty() {
-                    "none".into()
-                } else {
-                    s.covariates.join(", ")
-                },
-            })
     }
 }
 
@@ -441,7 +274,7 @@ fn offsets(terms: &[Arc<dyn Term>]) -> (Vec<usize>, usize) {
     let mut p = 0;
     for t in terms {
         off.push(p);
-        p += t.param_names().len();
+        p += t.param_count();
     }
     (off, p)
 }
@@ -452,15 +285,15 @@ fn design_pass(
     data: &FitData<'_>,
     mut visit: impl FnMut(&[f64], f64),
 ) -> Result<(), FitError> {
-    let covs = &data.log.schema.covariates;
+    let covs = &data.log().schema.covariates;
     let mut states = terms
         .iter()
         .map(|t| t.start(covs))
         .collect::<Result<Vec<_>, _>>()?;
     let (off, p) = offsets(terms);
-    let widths: Vec<usize> = terms.iter().map(|t| t.param_names().len()).collect();
+    let widths: Vec<usize> = terms.iter().map(|t| t.param_count()).collect();
     let mut buf = vec![0.0; p];
-    for (row, f) in data.log.rows.iter().zip(&data.features) {
+    for (row, f) in data.log().rows.iter().zip(data.features()) {
         let seek = Seek {
             features: f,
             covariates: &row.covariates,
@@ -509,7 +342,7 @@ fn ridge_of(terms: &[Arc<dyn Term>], col: usize) -> f64 {
 fn solve(
     terms: &[Arc<dyn Term>],
     data: &FitData<'_>,
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Solution, FitError> {
     let (_, p) = offsets(terms);
     // Essential columns first, so that a dependency is blamed on a droppable hinge if possible.
@@ -546,7 +379,7 @@ fn solve(
             let (name, ok) = param_label(terms, order[q]);
             if !ok {
                 return Err(FitError::RankDeficient {
-                    file: data.log.schema.file.clone(),
+                    file: data.log().schema.file.clone(),
                     param: name,
                     hint: "too few distinct positions, seeks or covariate values for this term, or two terms describing the same thing".into(),
                 });
@@ -598,7 +431,7 @@ fn solve(
 }
 
 /// Fits `spec` to the measured rows of `log`.
-pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel, FitError> {
+pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
     let data = FitData::new(log);
     let mut terms = spec
         .terms
@@ -666,7 +499,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
     let sol = solve(&terms, &data, opts)?;
 
     // Causal offsets tuned on the static residuals.
-    if terms.iter().any(|t| t.param_names().is_empty()) {
+    if terms.iter().any(|t| t.param_count() == 0) {
         let mut residuals = Vec::with_capacity(sol.n);
         design_pass(&terms, &data, |x, y| {
             residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
@@ -682,7 +515,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
     let mut warnings = Vec::new();
     let mut fitted = Vec::with_capacity(terms.len());
     for (k, t) in terms.iter().enumerate() {
-        let w = t.param_names().len();
+        let w = t.param_count();
         let coef = sol.coef[off[k]..off[k] + w].to_vec();
         let mut cov = vec![0.0; w * w];
         for a in 0..w {
@@ -705,11 +538,10 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
                 ));
             }
         }
-        if w == 0 && (t.name().starts_with("seek") || t.name().starts_with("memory")) {
-            warnings.push(format!(
-                "term `{}` has no knots: the log has no data for it",
-                t.name()
-            ));
+        for w in t.fit_warnings(&terms) {
+            if !warnings.contains(&w) {
+                warnings.push(w);
+            }
         }
         fitted.push(FittedTerm {
             term: t.clone(),
@@ -730,26 +562,11 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &FitOptions) -> Result<FittedModel
     if !converged {
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
-    // A `dbins` curve times the direction has no direction×constant column by design (it would
-    // duplicate `direction`); without a term that carries the inbound/outbound offset, that
-    // offset is not modelled at all.
-    let has = |head: &str| {
-        terms
-            .iter()
-            .any(|t| t.name().split(':').next() == Some(head))
-    };
-    if has("dbins") && !has("direction") && !has("dahl") {
-        warnings.push(
-            "`dbins` curves have no direction×constant column: add `direction` or `dahl` to model \
-             the constant inbound/outbound offset (the two curves of Fig. 3)"
-                .into(),
-        );
-    }
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
     let map = &log.schema.map;
     let mut model = FittedModel {
-        spec: spec.to_string(),
+        spec: spec.clone(),
         columns: ColumnsUsed {
             time: map.time.clone(),
             track: map.track.clone(),
@@ -824,6 +641,50 @@ mod tests {
         }
         let rss = (&y - &x * &svd).norm_squared();
         assert!((r[(p, p)].powi(2) - rss).abs() < 1e-9 * rss);
+    }
+
+    #[test]
+    fn fit_options_check_names_the_bad_setting() {
+        // Reference: the documented ranges; the default passes and equals the checked default.
+        assert_eq!(
+            FitOptions::default().check().unwrap(),
+            CheckedFitOptions::default()
+        );
+        for (opts, field) in [
+            (
+                FitOptions {
+                    rank_tolerance: 0.0,
+                    ..FitOptions::default()
+                },
+                "rank_tolerance",
+            ),
+            (
+                FitOptions {
+                    rank_tolerance: f64::INFINITY,
+                    ..FitOptions::default()
+                },
+                "rank_tolerance",
+            ),
+            (
+                FitOptions {
+                    grid: 2,
+                    ..FitOptions::default()
+                },
+                "grid",
+            ),
+            (
+                FitOptions {
+                    refine: 1001,
+                    ..FitOptions::default()
+                },
+                "refine",
+            ),
+        ] {
+            match opts.check() {
+                Err(FitError::InvalidOptions { field: f, .. }) => assert_eq!(f, field),
+                other => panic!("{field}: {other:?}"),
+            }
+        }
     }
 
     #[test]

@@ -566,6 +566,50 @@ impl Sampling {
     }
 }
 
+/// The one replay of a log's seek history: every row of `log` in order, with its index in
+/// `log.rows` and its [`SeekFeatures`]. Unmeasured rows move the head too, so they are yielded
+/// as well; callers that want only measured rows filter on `row.bias`. Used by the fit
+/// ([`crate::model::data::FitData`]), diagnose, the plots and the report.
+///
+/// ```
+/// use biasctl::history::replay;
+/// use biasctl::log::{ColumnMap, Log};
+/// let text = "time_s,track,bias\n0,100,5\n1,150,\n2,120,3\n";
+/// let log = Log::from_reader("t.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+/// let seeks: Vec<f64> = replay(&log).map(|(_, _, f)| f.seek_length).collect();
+/// assert_eq!(seeks, [0.0, 50.0, -30.0]);
+/// let (i, row, f) = replay(&log).filter(|(_, r, _)| r.bias.is_some()).last().unwrap();
+/// assert_eq!((i, row.track, f.direction), (2, 120.0, -1));
+/// ```
+pub fn replay(log: &crate::log::Log) -> Replay<'_> {
+    Replay {
+        rows: log.rows.iter().enumerate(),
+        history: History::new(),
+    }
+}
+
+/// The iterator of [`replay`]: yields `(index, row, features)` for every row of a log.
+#[derive(Debug, Clone)]
+pub struct Replay<'a> {
+    rows: std::iter::Enumerate<std::slice::Iter<'a, crate::log::Row>>,
+    history: History,
+}
+
+impl<'a> Iterator for Replay<'a> {
+    type Item = (usize, &'a crate::log::Row, SeekFeatures);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let (i, row) = self.rows.next()?;
+        Some((i, row, self.history.step(row.time_s, row.track)))
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.rows.size_hint()
+    }
+}
+
+impl ExactSizeIterator for Replay<'_> {}
+
 /// Sign of a seek length as a direction: +1 inbound, −1 outbound, 0 for no move.
 pub fn sign(x: f64) -> i8 {
     if x > 0.0 {

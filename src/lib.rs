@@ -62,8 +62,8 @@
 //! let test = simulate_log(&SimConfig::new(Drive::paper1997(), "random", &opts, 2, &[])?)?;
 //!
 //! // 2. Fit two models: position + direction (1997 practice) and eq. 1.
-//! let pd = fit(&ModelSpec::preset("position-direction")?, &train, &FitOptions::default())?;
-//! let cal = fit(&ModelSpec::preset("calibration")?, &train, &FitOptions::default())?;
+//! let pd = fit(&ModelSpec::preset("position-direction")?, &train, &FitOptions::default().check()?)?;
+//! let cal = fit(&ModelSpec::preset("calibration")?, &train, &FitOptions::default().check()?)?;
 //!
 //! // 3. Score causally on the test run: the full model leaves a smaller error.
 //! let p_pd = pd.predict_log(&test)?;
@@ -73,7 +73,7 @@
 //! assert!(s_cal.std < s_pd.std);
 //!
 //! // 4. Diagnose the poorer model: features ranked by out-of-sample explained variance.
-//! let d = diagnose_model(&pd, &test, &DiagnoseConfig::default())?;
+//! let d = diagnose_model(&pd, &test, &DiagnoseConfig::default().check()?)?;
 //! assert!(d.features[0].explained > 0.0);
 //!
 //! // 5. Settle: the paper's 10 kHz test bed, 15 µm step, ±0.5 µm window.

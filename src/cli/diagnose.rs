@@ -47,8 +47,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
         folds: args.folds,
         ..DiagnoseConfig::default()
-    };
-    config.validate()?;
+    }
+    .check()?;
     let model = FittedModel::load(&args.input.model)?;
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());
@@ -61,7 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             first,
             &config,
             args.path,
-            &FitOptions::default(),
+            &FitOptions::default().check()?,
         )?
     } else {
         Vec::new()

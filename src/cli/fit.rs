@@ -33,7 +33,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         _ => anyhow::bail!("give a model: --model PRESET or --terms T1,T2,..."),
     };
     let log = args.log.columns.read_log(&args.log.data)?;
-    let model = fit(&spec, &log, &FitOptions::default())?;
+    let model = fit(&spec, &log, &FitOptions::default().check()?)?;
     model.save(&args.out)?;
     let f = &model.fit;
     println!(

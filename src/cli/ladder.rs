@@ -30,7 +30,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let terms = ladder_terms(&args.terms).context("--terms")?;
     let train = args.columns.read_log(&args.data).context("--data")?;
     let test = args.columns.read_log(&args.test).context("--test")?;
-    let l = ladder_fit(&train, &test, &terms, &FitOptions::default())?;
+    let l = ladder_fit(&train, &test, &terms, &FitOptions::default().check()?)?;
     if args.json {
         println!("{}", l.to_json());
     } else {

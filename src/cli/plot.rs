@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(
         long,
         value_name = "T1,T2,...",
-        default_value = "poly2,direction,seek,memory,drift"
+        default_value = biasctl::model::preset::CALIBRATION
     )]
     terms: String,
     /// Top features of the `diagnose` plot.
@@ -143,7 +143,7 @@ fn model(name: &str, log: &Log) -> anyhow::Result<(String, FittedModel)> {
     let spec = ModelSpec::preset(name)
         .or_else(|_| ModelSpec::parse(name))
         .with_context(|| format!("--model {name}: not a model file, a preset or a term list"))?;
-    let m = fit(&spec, log, &FitOptions::default())
+    let m = fit(&spec, log, &FitOptions::default().check()?)
         .with_context(|| format!("fitting --model {name} on {}", log.schema.file))?;
     Ok((name.to_string(), m))
 }
@@ -189,14 +189,14 @@ fn draw(a: &Args) -> anyhow::Result<String> {
             let m = single()?;
             let residual = replay_model(&m, &log)?.residual;
             let table = FeatureTable::from_log(&log);
-            let d = diagnose_residual(&m, &table, &residual, &DiagnoseConfig::default())?;
+            let d = diagnose_residual(&m, &table, &residual, &DiagnoseConfig::default().check()?)?;
             views::diagnose_panel(&d, &table, &residual, a.top)
         }
         Kind::Ladder => {
             let test_path = a.test.as_ref().context("--test")?;
             let test = a.columns.read_log(test_path)?;
             let terms = ladder_terms(&a.terms).context("--terms")?;
-            let l = ladder_fit(&log, &test, &terms, &FitOptions::default())?;
+            let l = ladder_fit(&log, &test, &terms, &FitOptions::default().check()?)?;
             views::ladder(&l, &test.schema.units)
         }
         Kind::Bounds | Kind::Responses => bail!("plot bounds/responses take no log"),

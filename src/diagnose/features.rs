@@ -1,7 +1,7 @@
 //! The candidate features of every measured row: the seek history replayed over the whole log,
 //! plus every covariate column, aligned with the rows that carry a measured bias.
 
-use crate::history::{Feature, History};
+use crate::history::{Feature, replay};
 use crate::log::{Log, Units};
 
 use super::DiagnoseError;
@@ -28,7 +28,7 @@ pub struct FeatureColumn {
 
 /// Candidate features aligned with the measured rows of a log.
 ///
-/// Built with [`FeatureTable::from_log`]: the [`History`] is replayed over **all** rows (a move
+/// Built with [`FeatureTable::from_log`]: the [`History`](crate::history::History) is replayed over **all** rows (a move
 /// that was not measured still changes direction, reversals and rest memory), and the values are
 /// kept only for rows with a measured bias, so they line up with one residual per measured row.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -56,9 +56,7 @@ impl FeatureTable {
             .map(|_| Vec::with_capacity(measured))
             .collect();
         let mut lines = Vec::with_capacity(measured);
-        let mut history = History::new();
-        for row in &log.rows {
-            let f = history.step(row.time_s, row.track);
+        for (_, row, f) in replay(log) {
             if row.bias.is_none() {
                 continue;
             }

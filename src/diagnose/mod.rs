@@ -24,7 +24,7 @@
 //! for (i, v) in change.values.iter().enumerate() {
 //!     residuals.push(5.0 * v.unwrap_or(0.0) + ((i * 7919) % 13) as f64 * 0.1);
 //! }
-//! let config = DiagnoseConfig { permutations: 99, ..DiagnoseConfig::default() };
+//! let config = DiagnoseConfig { permutations: 99, ..DiagnoseConfig::default() }.check().unwrap();
 //! let d = diagnose(&table, &residuals, &config).unwrap();
 //! assert_eq!(d.features[0].name, "direction_change");
 //! assert_eq!(d.features[0].suggested_term.as_deref(), Some("seek"));
@@ -203,8 +203,9 @@ pub enum DiagnoseError {
     Output(#[from] OutputError),
 }
 
-/// Settings of the diagnosis. Build with struct-update syntax from [`Default`]; [`diagnose`]
-/// checks them with [`DiagnoseConfig::validate`] before doing anything.
+/// Settings of the diagnosis as given (unchecked). Build with struct-update syntax from
+/// [`Default`]; [`DiagnoseConfig::check`] validates them once into the
+/// [`CheckedDiagnoseConfig`] that [`diagnose`] and the model entry points accept.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagnoseConfig {
     /// Cross-validation folds, 2..=50 (default 5).
@@ -292,6 +293,13 @@ impl DiagnoseConfig {
         Ok(())
     }
 
+    /// Validates the settings once ([`DiagnoseConfig::validate`]) into the checked type the
+    /// entry points accept.
+    pub fn check(self) -> Result<CheckedDiagnoseConfig, DiagnoseError> {
+        self.validate()?;
+        Ok(CheckedDiagnoseConfig(self))
+    }
+
     /// Fewest measured rows a diagnosis with these settings accepts.
     pub fn min_rows(&self) -> usize {
         MIN_ROWS.max(self.folds * MIN_ROWS_PER_FOLD)
@@ -300,6 +308,28 @@ impl DiagnoseConfig {
     fn block_len_for(&self, n: usize) -> usize {
         self.block_len
             .unwrap_or_else(|| (n / (25 * self.folds)).clamp(1, 50))
+    }
+}
+
+/// Diagnosis settings that passed [`DiagnoseConfig::check`]; read them through `Deref`.
+/// `Default` is the checked default.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CheckedDiagnoseConfig(DiagnoseConfig);
+
+impl std::ops::Deref for CheckedDiagnoseConfig {
+    type Target = DiagnoseConfig;
+    fn deref(&self) -> &DiagnoseConfig {
+        &self.0
+    }
+}
+
+impl CheckedDiagnoseConfig {
+    /// Adds `term` to [`DiagnoseConfig::existing_terms`] (any text is valid there) unless it
+    /// is already listed.
+    pub fn add_existing_term(&mut self, term: String) {
+        if !self.0.existing_terms.contains(&term) {
+            self.0.existing_terms.push(term);
+        }
     }
 }
 
@@ -355,9 +385,8 @@ fn signable(col: &FeatureColumn) -> bool {
 pub fn diagnose(
     table: &FeatureTable,
     residuals: &[f64],
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, DiagnoseError> {
-    config.validate()?;
     let n = table.len();
     if residuals.len() != n {
         return Err(DiagnoseError::LengthMismatch {

@@ -2,11 +2,13 @@
 //! [`crate::model`]/[`crate::fit`] and the model-independent engine of this module.
 
 use super::{
-    DiagnoseConfig, DiagnoseError, Diagnosis, FeatureTable, Ladder, LadderInput, diagnose, ladder,
+    CheckedDiagnoseConfig, DiagnoseError, Diagnosis, FeatureTable, Ladder, LadderInput, diagnose,
+    ladder,
 };
-use crate::fit::{FitError, FitOptions, fit};
+use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::Log;
-use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
+use crate::model::terms::parse_term;
+use crate::model::{FittedModel, ModelEdit, ModelError, ModelSpec, Prediction, SpecError};
 
 /// An error diagnosing a model or building a ladder: which stage failed and why.
 #[derive(Debug, thiserror::Error)]
@@ -79,7 +81,7 @@ pub fn model_terms(model: &FittedModel) -> Vec<String> {
 pub fn diagnose_model(
     model: &FittedModel,
     log: &Log,
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let prediction = replay_model(model, log)?;
     let table = FeatureTable::from_log(log);
@@ -93,13 +95,11 @@ pub fn diagnose_residual(
     model: &FittedModel,
     table: &FeatureTable,
     residual: &[f64],
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let mut config = config.clone();
     for t in model_terms(model) {
-        if !config.existing_terms.contains(&t) {
-            config.existing_terms.push(t);
-        }
+        config.add_existing_term(t);
     }
     Ok(diagnose(table, residual, &config)?)
 }
@@ -134,7 +134,7 @@ pub fn ladder_fit(
     train: &Log,
     test: &Log,
     terms: &[String],
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Ladder, ModelDiagnosisError> {
     let mut inputs = Vec::with_capacity(terms.len());
     for k in 1..=terms.len() {
@@ -203,9 +203,9 @@ pub struct PathStep {
 pub fn suggestion_path(
     model: &FittedModel,
     log: &Log,
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
     steps: usize,
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Vec<PathStep>, ModelDiagnosisError> {
     if steps == 0 {
         return Ok(Vec::new());
@@ -220,9 +220,9 @@ pub fn suggestion_path_from(
     model: &FittedModel,
     log: &Log,
     first: Diagnosis,
-    config: &DiagnoseConfig,
+    config: &CheckedDiagnoseConfig,
     steps: usize,
-    opts: &FitOptions,
+    opts: &CheckedFitOptions,
 ) -> Result<Vec<PathStep>, ModelDiagnosisError> {
     let mut path = Vec::new();
     let mut table = None;
@@ -235,16 +235,22 @@ pub fn suggestion_path_from(
         let Some(term) = top.suggested_term.clone() else {
             break;
         };
-        let spec_text = if current.spec.is_empty() {
-            term.clone()
-        } else {
-            format!("{},{term}", current.spec)
+        let spec_err = |source| {
+            let terms = if current.spec.terms.is_empty() {
+                term.clone()
+            } else {
+                format!("{},{term}", current.spec)
+            };
+            ModelDiagnosisError::Spec {
+                step,
+                terms,
+                source,
+            }
         };
-        let spec = ModelSpec::parse(&spec_text).map_err(|source| ModelDiagnosisError::Spec {
-            step,
-            terms: spec_text.clone(),
-            source,
-        })?;
+        let spec = parse_term(&term)
+            .and_then(|t| current.spec.apply(&ModelEdit::Add(t)))
+            .map_err(spec_err)?;
+        let spec_text = spec.to_string();
         let next = fit(&spec, log, opts).map_err(|source| ModelDiagnosisError::Fit {
             step,
             terms: spec_text.clone(),

@@ -44,7 +44,7 @@ fn residuals(t: &FeatureTable, seed: u64, noise: f64, f: impl Fn(usize) -> f64) 
 }
 
 fn run(t: &FeatureTable, r: &[f64]) -> Diagnosis {
-    diagnose(t, r, &DiagnoseConfig::default()).expect("diagnosis")
+    diagnose(t, r, &DiagnoseConfig::default().check().unwrap()).expect("diagnosis")
 }
 
 fn assert_first(d: &Diagnosis, names: &[&str], term: &str) -> FeatureReport {
@@ -197,18 +197,18 @@ fn terms_already_in_the_model_are_never_suggested() {
         existing_terms: vec!["table".into(), "seek".into()],
         ..DiagnoseConfig::default()
     };
-    let d = diagnose(&t, &r, &config).unwrap();
+    let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let top = &d.features[0];
     assert_eq!(top.suggested_term.as_deref(), Some(DAHL_TERM));
     assert!(top.note.as_deref().unwrap().contains("already has `seek`"));
     config.existing_terms = vec!["seek".into(), "dahl:6".into()];
-    let d = diagnose(&t, &r, &config).unwrap();
+    let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     assert_eq!(
         d.features[0].suggested_term.as_deref(),
         Some("bins:direction_change")
     );
     config.existing_terms.push("bins:direction_change".into());
-    let d = diagnose(&t, &r, &config).unwrap();
+    let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     assert_eq!(d.features[0].suggested_term, None);
     assert!(d.to_text().contains("already has every term"));
     // No report anywhere suggests a term the model has.
@@ -231,7 +231,7 @@ fn pure_noise_raises_no_false_alarm_in_nine_of_ten_seeds() {
             seed,
             ..DiagnoseConfig::default()
         };
-        let d = diagnose(&t, &r, &config).unwrap();
+        let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
         if d.features.iter().any(|f| f.flagged) {
             alarms += 1;
         }
@@ -346,13 +346,13 @@ fn a_direction_step_left_by_a_model_with_direction_says_the_offset_does_not_tran
         existing_terms: vec!["poly2".into(), "direction".into()],
         ..DiagnoseConfig::default()
     };
-    let d = diagnose(&t, &r, &config).unwrap();
+    let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let f = d.feature("direction").unwrap();
     assert_eq!(f.suggested_term.as_deref(), Some(DAHL_TERM));
     let note = f.note.as_deref().unwrap();
     assert!(note.contains("offset differs"), "{note}");
     // Without `direction` in the model, the plain suggestion stands.
-    let d = diagnose(&t, &r, &DiagnoseConfig::default()).unwrap();
+    let d = diagnose(&t, &r, &DiagnoseConfig::default().check().unwrap()).unwrap();
     let f = d.feature("direction").unwrap();
     assert_eq!(f.suggested_term.as_deref(), Some("direction"));
     assert!(f.note.is_none());
@@ -382,7 +382,7 @@ fn a_velocity_like_covariate_gets_col_and_a_hysteretic_one_gets_dbins() {
         ..DiagnoseConfig::default()
     };
     let r = residuals(&t, 21, 0.5, |i| 0.8 * v[i].unwrap() - 3.0 * dir[i]);
-    let d = diagnose(&t, &r, &config).unwrap();
+    let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let f = d.feature("velocity").unwrap();
     assert!(f.flagged, "{}", d.to_text());
     assert_eq!(
@@ -392,7 +392,7 @@ fn a_velocity_like_covariate_gets_col_and_a_hysteretic_one_gets_dbins() {
         d.to_text()
     );
     let r = residuals(&t, 22, 0.5, |i| 0.5 * dir[i] * temp[i].unwrap());
-    let d = diagnose(&t, &r, &config).unwrap();
+    let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let f = d.feature("temp").unwrap();
     assert!(f.flagged && f.by_direction, "{}", d.to_text());
     assert_eq!(
@@ -437,7 +437,7 @@ fn constant_and_undefined_features_are_skipped_with_a_note() {
 fn bad_inputs_give_typed_errors() {
     let t = table(13, 20);
     let r = vec![0.0; t.len()];
-    let e = diagnose(&t, &r, &DiagnoseConfig::default()).unwrap_err();
+    let e = diagnose(&t, &r, &DiagnoseConfig::default().check().unwrap()).unwrap_err();
     assert!(
         matches!(e, DiagnoseError::TooFewRows { needed: 50, .. }),
         "{e}"
@@ -445,7 +445,7 @@ fn bad_inputs_give_typed_errors() {
     assert!(e.to_string().contains("at least 50"), "{e}");
 
     let t = table(13, 300);
-    let e = diagnose(&t, &[0.0; 3], &DiagnoseConfig::default()).unwrap_err();
+    let e = diagnose(&t, &[0.0; 3], &DiagnoseConfig::default().check().unwrap()).unwrap_err();
     assert!(
         matches!(e, DiagnoseError::LengthMismatch { residuals: 3, .. }),
         "{e}"
@@ -453,7 +453,7 @@ fn bad_inputs_give_typed_errors() {
 
     let mut r = vec![0.5; t.len()];
     r[7] = f64::NAN;
-    let e = diagnose(&t, &r, &DiagnoseConfig::default()).unwrap_err();
+    let e = diagnose(&t, &r, &DiagnoseConfig::default().check().unwrap()).unwrap_err();
     assert!(
         matches!(e, DiagnoseError::BadResidual { index: 7, .. }),
         "{e}"
@@ -516,13 +516,13 @@ fn bad_inputs_give_typed_errors() {
             "max_bins",
         ),
     ] {
-        match diagnose(&t, &r, &config) {
+        match config.check().and_then(|c| diagnose(&t, &r, &c)) {
             Err(DiagnoseError::InvalidConfig { field: f, .. }) => assert_eq!(f, field),
             other => panic!("{field}: {other:?}"),
         }
     }
     // Constant residuals: a perfect model; nothing to explain, nothing NaN.
-    let d = diagnose(&t, &r, &DiagnoseConfig::default()).unwrap();
+    let d = diagnose(&t, &r, &DiagnoseConfig::default().check().unwrap()).unwrap();
     assert!(
         d.features
             .iter()
@@ -628,12 +628,18 @@ fn model_wiring_finds_a_missing_covariate_and_the_ladder_drops_to_noise() {
     };
     let (train, test) = (make(1), make(2));
     let spec = ModelSpec::parse("poly2").unwrap();
-    let model = crate::fit::fit(&spec, &train, &FitOptions::default()).unwrap();
-    let d = diagnose_model(&model, &test, &DiagnoseConfig::default()).unwrap();
+    let model = crate::fit::fit(&spec, &train, &FitOptions::default().check().unwrap()).unwrap();
+    let d = diagnose_model(&model, &test, &DiagnoseConfig::default().check().unwrap()).unwrap();
     assert_eq!(d.features[0].name, "temp_c", "{}", d.to_text());
     assert_eq!(d.features[0].suggested_term.as_deref(), Some("col:temp_c"));
     let terms = vec!["poly2".to_string(), "col:temp_c".to_string()];
-    let l = ladder_fit(&train, &test, &terms, &FitOptions::default()).unwrap();
+    let l = ladder_fit(
+        &train,
+        &test,
+        &terms,
+        &FitOptions::default().check().unwrap(),
+    )
+    .unwrap();
     assert!(l.steps[0].std > 7.0, "{:?}", l.steps);
     assert!((l.steps[1].std - 2.0).abs() < 0.3, "{:?}", l.steps);
     assert!(l.steps[1].reduction > 0.7, "{:?}", l.steps);

@@ -9,16 +9,18 @@
 //! assert!(ModelSpec::parse("poly2,frobnicate").is_err());
 //! ```
 
+pub mod data;
 pub mod predictor;
 pub mod preset;
+pub mod registry;
 pub mod term;
 pub mod terms;
 
 pub use predictor::{NextPrediction, Predictor, predict_next};
 
-use crate::fit::FitReport;
 use crate::log::Log;
 use crate::output::{OutputError, write_string_atomic};
+use data::FitReport;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -35,7 +37,10 @@ pub const FORMAT_VERSION: u32 = 1;
 #[non_exhaustive]
 pub enum SpecError {
     /// A term name that is not built in.
-    #[error("unknown term `{term}` (built-in terms: {})", terms::BUILTIN_NAMES)]
+    #[error(
+        "unknown term `{term}` (built-in terms: {})",
+        registry::builtin_names()
+    )]
     UnknownTerm {
         /// The offending item.
         term: String,
@@ -305,11 +310,27 @@ pub struct FittedTerm {
     pub params: Vec<Param>,
 }
 
+/// A term of a loaded model file whose spec is not built in (a user's term, rebuilt by the
+/// `restore` of [`FittedModel::load_with`]): preparing it returns the fitted term as saved, so
+/// a re-fit (`diagnose --path`) keeps it, with the data-dependent settings of the first fit.
+#[derive(Debug, Clone)]
+pub struct FittedSpec(pub Arc<dyn Term>);
+
+impl TermSpec for FittedSpec {
+    fn name(&self) -> String {
+        self.0.name()
+    }
+    fn prepare(&self, _data: &data::FitData<'_>) -> Result<Arc<dyn Term>, data::FitError> {
+        Ok(self.0.clone())
+    }
+}
+
 /// A fitted model: what `biasctl fit` writes and `predict`/`score` read.
 #[derive(Debug, Clone)]
 pub struct FittedModel {
-    /// The spec string the model was fitted from.
-    pub spec: String,
+    /// The spec the model was fitted from, as [`TermSpec`] objects (so a user's term survives a
+    /// re-fit); written to the model file as its string ([`ModelSpec`]'s `Display`).
+    pub spec: ModelSpec,
     /// The columns of the training log.
     pub columns: ColumnsUsed,
     /// Fitted terms (with an `intercept` first if the spec had no term spanning a constant).
@@ -410,7 +431,7 @@ impl FittedModel {
         let file = ModelFile {
             format: FORMAT.into(),
             version: FORMAT_VERSION,
-            spec: self.spec.clone(),
+            spec: self.spec.to_string(),
             columns: self.columns.clone(),
             terms: self
                 .terms
@@ -494,13 +515,34 @@ impl FittedModel {
         if terms.is_empty() {
             return Err(corrupt("no terms".into()));
         }
+        let spec = Self::spec_from_file(&file.spec, &terms).map_err(corrupt)?;
         Ok(FittedModel {
-            spec: file.spec,
+            spec,
             columns: file.columns,
             terms,
             fit: file.fit,
             warnings: file.warnings,
         })
+    }
+
+    /// The typed spec of a model file's `spec` string: built-in terms are parsed; any other
+    /// item must name one of the file's (restored) terms and becomes a [`FittedSpec`].
+    fn spec_from_file(list: &str, terms: &[FittedTerm]) -> Result<ModelSpec, String> {
+        let mut spec = ModelSpec::default();
+        if list.trim().is_empty() {
+            return Ok(spec);
+        }
+        for item in list.split(',') {
+            let term = match terms::parse_term(item) {
+                Ok(t) => t,
+                Err(e) => match terms.iter().find(|t| t.term.name() == item.trim()) {
+                    Some(t) => Arc::new(FittedSpec(t.term.clone())),
+                    None => return Err(format!("spec `{list}`: {e}")),
+                },
+            };
+            spec = spec.with_term(term);
+        }
+        Ok(spec)
     }
 
     /// Checks that `log` has the columns this model was fitted on (names of the three required
@@ -533,7 +575,7 @@ impl FittedModel {
     /// # use biasctl::{fit::{fit, FitOptions}, log::{ColumnMap, Log}, model::ModelSpec};
     /// let csv = "time_s,track,bias\n0,100,1\n1,200,2\n2,150,1.5\n3,120,1.2\n4,180,1.8\n";
     /// let log = Log::from_reader("a.csv", csv.as_bytes(), &ColumnMap::default()).unwrap();
-    /// let model = fit(&ModelSpec::parse("poly2").unwrap(), &log, &FitOptions::default()).unwrap();
+    /// let model = fit(&ModelSpec::parse("poly2").unwrap(), &log, &FitOptions::default().check().unwrap()).unwrap();
     /// assert_eq!(model.fit.position_range, Some([100.0, 200.0]));
     /// assert!(model.outside_range(&[120.0, 199.0]).is_none());
     /// let w = model.outside_range(&[50.0, 150.0, 260.0, 300.0]).unwrap();

@@ -55,14 +55,14 @@
 //! }
 //! let log = biasctl::log::Log::from_reader("x.csv", text.as_bytes(), &Default::default()).unwrap();
 //! let spec = ModelSpec::parse("").unwrap().with_term(Arc::new(SeekSquared));
-//! let model = fit(&spec, &log, &FitOptions::default()).unwrap();
+//! let model = fit(&spec, &log, &FitOptions::default().check().unwrap()).unwrap();
 //! let k = model.param("seek_squared.k").unwrap();
 //! assert!((k.value - 0.01).abs() < 1e-9);
 //! ```
 
-use crate::fit::{FitData, FitError};
 use crate::history::SeekFeatures;
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use serde::{Deserialize, Serialize};
 use std::fmt::Debug;
 use std::sync::Arc;
@@ -136,6 +136,23 @@ pub trait Term: Debug + Send + Sync {
     /// one-step error and its free-run error differ and both are reported.
     fn adaptive(&self) -> bool {
         false
+    }
+    /// Number of linear parameters (basis values); the solver sizes the design by it.
+    /// Default: the length of [`Term::param_names`].
+    fn param_count(&self) -> usize {
+        self.param_names().len()
+    }
+    /// Whether the basis carries a constant inbound/outbound offset (a direction × constant
+    /// column, as `direction` and `dahl` do); terms that need such a companion ask the other
+    /// terms of the model through this in [`Term::fit_warnings`].
+    fn spans_direction_offset(&self) -> bool {
+        false
+    }
+    /// Warnings about this term once fitted, given every term of the model (itself included):
+    /// for example a hinge term left with no knots, or a missing companion term. The fit adds
+    /// them to [`crate::model::FittedModel::warnings`] (each distinct text once). Default: none.
+    fn fit_warnings(&self, _model: &[Arc<dyn Term>]) -> Vec<String> {
+        Vec::new()
     }
     /// Covariate columns this term reads.
     fn covariates(&self) -> Vec<String> {

@@ -15,18 +15,13 @@
 
 use super::figures::{BiasVsPosition, BiasVsTime, bias_label, fig4_bias_vs_time, position_chart};
 use super::svg::{Chart, Series, SeriesData};
-use crate::history::{History, SeekFeatures};
+use crate::history::{SeekFeatures, replay};
 use crate::log::Log;
 
 /// The history features and measured bias of every measured row.
 fn measured(log: &Log) -> Vec<(SeekFeatures, f64)> {
-    let mut h = History::new();
-    log.rows
-        .iter()
-        .filter_map(|r| {
-            let f = h.step(r.time_s, r.track);
-            r.bias.map(|b| (f, b))
-        })
+    replay(log)
+        .filter_map(|(_, r, f)| r.bias.map(|b| (f, b)))
         .collect()
 }
 

@@ -10,12 +10,12 @@ use std::path::{Path, PathBuf};
 
 use super::{Cell, Report, Table};
 use crate::diagnose::{
-    DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError, diagnose_residual,
-    ladder_fit, replay_model,
+    CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError,
+    diagnose_residual, ladder_fit, replay_model,
 };
-use crate::fit::{FitError, FitOptions, fit};
-use crate::history::History;
+use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::{Log, LogError, Units};
+use crate::model::preset;
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
 use crate::output::{OutputError, write_string_atomic};
 use crate::plot::figures::{Sweep, SweepFigure, SweepSeries, calibration_sweep};
@@ -143,18 +143,14 @@ pub struct StoryOutcome {
 /// calibrated as the paper (and 1997 practice) calibrates it, on the two far curves of Table I;
 /// the others on the whole calibration run.
 pub const STORY_MODELS: [(&str, &str, &str); 4] = [
-    ("position-direction", "poly2,direction", "table1"),
-    (
-        "calibration",
-        "poly2,direction,seek,memory,drift",
-        "calibration",
-    ),
-    ("dahl", "poly2,dahl", "calibration"),
-    ("poly2,dahl:4", "poly2,dahl:4", "calibration"),
+    ("position-direction", preset::POSITION_DIRECTION, "table1"),
+    ("calibration", preset::CALIBRATION, "calibration"),
+    ("dahl", preset::DAHL, "calibration"),
+    (preset::RICH_DAHL, preset::RICH_DAHL, "calibration"),
 ];
 
 /// The ladder's terms, added one at a time.
-pub const LADDER_TERMS: [&str; 5] = ["poly2", "direction", "seek", "memory", "drift"];
+pub const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;
 
 /// Files written for a run, with a one-line description each. They are written into a staging
 /// folder beside `dir` and moved into `dir` only when the whole run has succeeded
@@ -292,7 +288,7 @@ fn start<'a>(
 
 fn fit_named(spec: &str, label: &str, log: &Log) -> Result<FittedModel, StoryError> {
     let spec = ModelSpec::parse(spec)?;
-    fit(&spec, log, &FitOptions::default()).map_err(|e| StoryError::Fit {
+    fit(&spec, log, &CheckedFitOptions::default()).map_err(|e| StoryError::Fit {
         model: label.to_string(),
         file: log.schema.file.clone(),
         source: Box::new(e),
@@ -323,10 +319,8 @@ fn pct(from: f64, to: f64) -> String {
 /// `(x, bias)` of the measured rows of a table log with their history features, and the
 /// previous rows' tracks (for the rest offset of Table VI).
 fn measured_rows(log: &Log) -> Vec<(crate::history::SeekFeatures, f64, Option<f64>)> {
-    let mut h = History::new();
     let mut out = Vec::new();
-    for (i, r) in log.rows.iter().enumerate() {
-        let f = h.step(r.time_s, r.track);
+    for (i, r, f) in crate::history::replay(log) {
         let two_back = i.checked_sub(2).map(|j| log.rows[j].track);
         if let Some(b) = r.bias {
             out.push((f, b, two_back));
@@ -580,7 +574,7 @@ fn score_table<'a>(
             .unwrap_or_else(|| "n/a".into());
         t = t.row(vec![
             s.label.clone().into(),
-            s.model.spec.clone().into(),
+            s.model.spec.to_string().into(),
             s.model.fit.parameters.into(),
             Cell::Fixed(s.model.fit.residual_std, 2),
             Cell::Fixed(s.score.std, 2),
@@ -637,12 +631,13 @@ fn ladder_table(l: &Ladder, units: &Units) -> Table {
     t
 }
 
-fn diagnose_config(opts: &StoryOptions) -> DiagnoseConfig {
-    DiagnoseConfig {
+fn diagnose_config(opts: &StoryOptions) -> Result<CheckedDiagnoseConfig, StoryError> {
+    let config = DiagnoseConfig {
         permutations: opts.permutations,
         seed: opts.seed,
         ..DiagnoseConfig::default()
-    }
+    };
+    Ok(config.check().map_err(ModelDiagnosisError::from)?)
 }
 
 fn files_section(report: &mut Report, out: &Out<'_>) {
@@ -746,7 +741,7 @@ pub fn demo_report(
     }
 
     steps.start("diagnosing the position-direction residual");
-    let dcfg = diagnose_config(opts);
+    let dcfg = diagnose_config(opts)?;
     let table = FeatureTable::from_log(&random);
     let diagnosis = diagnose_residual(
         &scored[0].model,
@@ -762,7 +757,7 @@ pub fn demo_report(
 
     steps.start("building the ladder");
     let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
-    let ladder = ladder_fit(&calibration, &random, &terms, &FitOptions::default())?;
+    let ladder = ladder_fit(&calibration, &random, &terms, &CheckedFitOptions::default())?;
     out.text(
         "ladder.json",
         &ladder.to_json(),
@@ -1133,10 +1128,10 @@ pub fn demo_report(
 
 /// The presets fitted on a user's log: (label, term list).
 pub const DATA_MODELS: [(&str, &str); 4] = [
-    ("position-direction", "poly2,direction"),
-    ("dahl", "poly2,dahl"),
-    ("calibration", "poly2,direction,seek,memory,drift"),
-    ("poly2,dahl:4", "poly2,dahl:4"),
+    ("position-direction", preset::POSITION_DIRECTION),
+    ("dahl", preset::DAHL),
+    ("calibration", preset::CALIBRATION),
+    (preset::RICH_DAHL, preset::RICH_DAHL),
 ];
 
 /// A log holding rows `range` of `log` (its seek history starts afresh at the first row).
@@ -1339,7 +1334,7 @@ pub fn data_report(
     }
 
     steps.start("diagnosing");
-    let dcfg = diagnose_config(opts);
+    let dcfg = diagnose_config(opts)?;
     // The replay scored above, when there is one, is the one the diagnosis needs.
     let first_scored_name = scored
         .first()
@@ -1401,7 +1396,7 @@ pub fn data_report(
     let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
     {
         let s = r.section("The ladder: adding one effect at a time");
-        match ladder_fit(&train, &test, &terms, &FitOptions::default()) {
+        match ladder_fit(&train, &test, &terms, &CheckedFitOptions::default()) {
             Ok(l) => {
                 out.text(
                     "ladder.json",

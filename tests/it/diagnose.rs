@@ -49,7 +49,7 @@ fn logs_n(file: &str, on: &[&str], dwell_max_s: f64, seed: u64, n_train: u64) ->
 
 fn test_std(train: &Log, test: &Log, terms: &str) -> f64 {
     let t: Vec<String> = terms.split(',').map(String::from).collect();
-    ladder_fit(train, test, &t, &FitOptions::default())
+    ladder_fit(train, test, &t, &FitOptions::default().check().unwrap())
         .unwrap()
         .steps
         .last()
@@ -62,16 +62,21 @@ fn diagnose_fit(train: &Log, test: &Log, base: &str, config: &DiagnoseConfig) ->
     let model = fit(
         &ModelSpec::parse(base).unwrap(),
         train,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
-    diagnose_model(&model, test, config).unwrap()
+    diagnose_model(&model, test, &config.clone().check().unwrap()).unwrap()
 }
 
 /// Diagnoses `base` fitted on train, on test; asserts the top feature is one of `expected`,
 /// returns its suggested term.
 fn top(train: &Log, test: &Log, base: &str, expected: &[&str]) -> Option<String> {
-    let d = diagnose_fit(train, test, base, &DiagnoseConfig::default());
+    let d = diagnose_fit(
+        train,
+        test,
+        base,
+        &DiagnoseConfig::default().check().unwrap(),
+    );
     let f = &d.features[0];
     assert!(
         expected.contains(&f.name.as_str()) && f.flagged,
@@ -149,7 +154,12 @@ fn drift_ranks_time_and_drift_fixes_it() {
 #[test]
 fn time_at_track_ranks_dwell_by_direction() {
     let (train, test) = logs("diag_base.toml", &["time"], 4.0, 4);
-    let d = diagnose_fit(&train, &test, "poly2,dahl", &DiagnoseConfig::default());
+    let d = diagnose_fit(
+        &train,
+        &test,
+        "poly2,dahl",
+        &DiagnoseConfig::default().check().unwrap(),
+    );
     let f = &d.features[0];
     assert_eq!(f.name, "dwell_s", "{}", d.to_text());
     assert!(f.flagged && f.by_direction, "{}", d.to_text());

@@ -6,7 +6,7 @@
 #[allow(dead_code)]
 mod new_effect;
 
-use biasctl::diagnose::{DiagnoseConfig, diagnose_model};
+use biasctl::diagnose::{DiagnoseConfig, diagnose_model, suggestion_path};
 use biasctl::fit::{FitOptions, fit};
 use biasctl::log::{ColumnMap, Log};
 use biasctl::model::term::TermSpec;
@@ -67,7 +67,7 @@ fn dbins_recovers_direction_times_piecewise_linear_exactly() {
     let (train, truth) = synthetic(5);
     let (test, test_truth) = synthetic(7);
     let spec = ModelSpec::parse("dbins:dwell_s,direction").unwrap();
-    let model = fit(&spec, &train, &FitOptions::default()).unwrap();
+    let model = fit(&spec, &train, &FitOptions::default().check().unwrap()).unwrap();
     assert!(max_error(&model, &train, &truth) < 1e-9);
     assert!(max_error(&model, &test, &test_truth) < 1e-9);
     let term = model
@@ -88,7 +88,7 @@ fn dbins_recovers_direction_times_piecewise_linear_exactly() {
     let blind = fit(
         &ModelSpec::parse("bins:dwell_s,direction").unwrap(),
         &train,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     assert!(max_error(&blind, &test, &test_truth) > 1.0);
@@ -106,6 +106,31 @@ fn dbins_spec_strings() {
     }
 }
 
+/// Issue #13: a user's `TermSpec` survives `diagnose --path` (the re-fits are typed edits of
+/// the model's spec, not string concatenation, which failed with "unknown term"). Reference:
+/// the path's first step re-fits the model with the user term still in it, in place.
+#[test]
+fn user_term_survives_the_suggestion_path() {
+    let off = ["overshoot", "memory", "drift", "runout", "temperature"];
+    let (train, test) = (
+        p3_log(1500, 31, &off).unwrap(),
+        p3_log(1500, 32, &off).unwrap(),
+    );
+    let opts = FitOptions::default().check().unwrap();
+    let time: Arc<dyn TermSpec> = Arc::new(TimeAtTrack { tau_s: 1.0 });
+    let spec = ModelSpec::parse("poly2").unwrap().with_term(time);
+    let model = fit(&spec, &train, &opts).unwrap();
+    assert_eq!(model.spec.to_string(), "poly2,time_at_track");
+    let config = DiagnoseConfig::default().check().unwrap();
+    let path = suggestion_path(&model, &test, &config, 1, &opts).unwrap();
+    assert_eq!(path.len(), 1, "the direction offset must be flagged");
+    assert!(
+        path[0].spec.starts_with("poly2,time_at_track,") && path[0].spec.ends_with(&path[0].term),
+        "{}",
+        path[0].spec
+    );
+}
+
 /// P3 row of issue #5's acceptance. Drive `data/diag_base.toml` with P1, P2, P8 and P3 (time at
 /// track) on, random seeks with dwell 0.05–4 s, 3000 train / 3000 test. The model lacking the
 /// matching term is `poly2,dahl`; the diagnosis must rank `dwell_s` first (by direction, as the
@@ -119,11 +144,11 @@ fn p3_time_at_track_dbins_within_ten_percent_of_the_physical_term() {
         p3_log(3000, 11, &off).unwrap(),
         p3_log(3000, 12, &off).unwrap(),
     );
-    let opts = FitOptions::default();
+    let opts = FitOptions::default().check().unwrap();
     let fit_spec = |spec: ModelSpec| fit(&spec, &train, &opts).unwrap();
 
     let base = fit_spec(ModelSpec::parse("poly2,dahl").unwrap());
-    let d = diagnose_model(&base, &test, &DiagnoseConfig::default()).unwrap();
+    let d = diagnose_model(&base, &test, &DiagnoseConfig::default().check().unwrap()).unwrap();
     assert_eq!(d.features[0].name, "dwell_s", "{}", d.to_text());
     assert!(d.features[0].flagged && d.features[0].by_direction);
 

@@ -71,7 +71,7 @@ fn synth(
         }
     }
     let truth = FittedModel {
-        spec: spec.to_string(),
+        spec: spec.clone(),
         columns: ColumnsUsed {
             time: "time_s".into(),
             track: "track".into(),
@@ -91,7 +91,7 @@ fn synth(
         fit: fit(
             &ModelSpec::parse("").unwrap(),
             &skeleton,
-            &FitOptions::default(),
+            &FitOptions::default().check().unwrap(),
         )
         .unwrap()
         .fit,
@@ -141,7 +141,7 @@ fn exact_recovery_of_every_term_from_noise_free_data() {
         let model = fit(
             &ModelSpec::parse(spec).unwrap(),
             &log,
-            &FitOptions::default(),
+            &FitOptions::default().check().unwrap(),
         )
         .unwrap();
         for (ft, tt) in model.terms.iter().zip(&truth.terms) {
@@ -183,7 +183,7 @@ fn noisy_recovery_within_reported_standard_errors() {
     let model = fit(
         &ModelSpec::parse("poly2,direction,col:temp_c,dahl").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     let mut checked = 0;
@@ -267,7 +267,7 @@ fn dahl_predictor_equals_generic_model_replay() {
     let model = fit(
         &ModelSpec::preset("dahl").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     let c = ["poly2.c0", "poly2.c1", "poly2.c2"].map(|n| model.param(n).unwrap().value);
@@ -357,7 +357,7 @@ fn hinge_fit_reproduces_a_known_piecewise_linear_function() {
     let model = fit(
         &ModelSpec::parse("bins:since_reversal:30").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     assert!(model.fit.residual_rms < 0.8, "{}", model.fit.residual_rms);
@@ -374,7 +374,7 @@ fn hinge_fit_reproduces_a_known_piecewise_linear_function() {
     let model = fit(
         &ModelSpec::parse("bins:position:2").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     assert!(model.fit.residual_rms < 1e-9, "{}", model.fit.residual_rms);
@@ -403,7 +403,7 @@ fn drift_forgetting_factor_near_the_kalman_gain_of_a_random_walk() {
     let model = fit(
         &ModelSpec::parse("poly2,drift").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     let alpha = model.param("drift.alpha").unwrap().value;
@@ -416,7 +416,7 @@ fn drift_forgetting_factor_near_the_kalman_gain_of_a_random_walk() {
     let without = fit(
         &ModelSpec::parse("poly2").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     assert!(model.fit.residual_std < 0.8 * without.fit.residual_std);
@@ -437,7 +437,7 @@ fn prediction_is_causal() {
     let model = fit(
         &ModelSpec::preset("calibration").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     let a = model.predict_log(&log).unwrap();
@@ -469,7 +469,7 @@ fn online_peek_equals_step() {
     let model = fit(
         &ModelSpec::parse("poly2,direction,seek,memory,drift,dahl:2,col:temp_c").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     let mut p = Predictor::new(&model, &log.schema.covariates).unwrap();
@@ -719,7 +719,12 @@ fn calibration_preset_survives_a_table_dominated_training_run() {
     let test = sim("random", 2000, 2);
     let spec = ModelSpec::preset("calibration").unwrap();
     let test_std = |n: u64| {
-        let model = fit(&spec, &sim("calibration", n, 1), &FitOptions::default()).unwrap();
+        let model = fit(
+            &spec,
+            &sim("calibration", n, 1),
+            &FitOptions::default().check().unwrap(),
+        )
+        .unwrap();
         let p = model.predict_log(&test).unwrap();
         let sd = biasctl::stats::std_dev(&p.residual).unwrap();
         let k = p.term_names.iter().position(|n| n == "memory").unwrap();
@@ -751,7 +756,7 @@ fn model_files_record_the_fitted_position_range_and_older_files_still_load() {
     let model = fit(
         &ModelSpec::parse("poly2,direction").unwrap(),
         &log,
-        &FitOptions::default(),
+        &FitOptions::default().check().unwrap(),
     )
     .unwrap();
     assert_eq!(model.fit.position_range, Some([1400.0, 1650.0]));
@@ -789,7 +794,7 @@ fn dbins_without_a_direction_term_warns_and_with_one_does_not() {
         fit(
             &ModelSpec::parse(spec).unwrap(),
             &log,
-            &FitOptions::default(),
+            &FitOptions::default().check().unwrap(),
         )
         .unwrap()
         .warnings

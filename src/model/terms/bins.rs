@@ -18,9 +18,9 @@
 
 use super::covariate_position;
 use super::knots::{interior_knots, label};
-use crate::fit::{FitData, FitError};
 use crate::history::Feature;
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -124,6 +124,20 @@ impl Term for BinsTerm {
     fn droppable(&self) -> bool {
         true
     }
+    /// A `dbins` curve times the direction has no direction×constant column by design (it would
+    /// duplicate `direction`); without a term that carries the inbound/outbound offset, that
+    /// offset is not modelled at all.
+    fn fit_warnings(&self, model: &[Arc<dyn Term>]) -> Vec<String> {
+        if self.by_direction && !model.iter().any(|t| t.spans_direction_offset()) {
+            vec![
+                "`dbins` curves have no direction×constant column: add `direction` or `dahl` to model \
+                 the constant inbound/outbound offset (the two curves of Fig. 3)"
+                    .into(),
+            ]
+        } else {
+            Vec::new()
+        }
+    }
     fn covariates(&self) -> Vec<String> {
         if self.covariate {
             vec![self.source.clone()]
@@ -191,4 +205,41 @@ impl TermState for BinsState {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Parses `bins:FEATURE[:KNOTS]` and `dbins:FEATURE[:KNOTS]`; the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    let head = t.head;
+    let missing = || {
+        t.bad(format!(
+            "`{head}` needs a feature or column name: `{head}:FEATURE`"
+        ))
+    };
+    let Some(a) = t.arg.filter(|a| !a.is_empty()) else {
+        return Err(missing());
+    };
+    let (source, knots) = match a.rsplit_once(':') {
+        Some((s, k)) => (s, t.count(k, "the number of knots", 32)?),
+        None => (a, DEFAULT_KNOTS),
+    };
+    if source.is_empty() {
+        return Err(missing());
+    }
+    Ok(Arc::new(BinsSpec::new(source, knots, head == "dbins")))
+}
+
+/// Rebuilds a fitted `bins`/`dbins` term (the head of `name` says which); the registry's
+/// restorer.
+pub fn restore(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+    let t: BinsTerm =
+        serde_json::from_value(settings.clone()).map_err(|e| ModelError::BadTerm {
+            term: name.to_string(),
+            why: e.to_string(),
+        })?;
+    Ok(Arc::new(BinsTerm {
+        by_direction: name.split(':').next() == Some("dbins"),
+        ..t
+    }))
 }

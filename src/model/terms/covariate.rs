@@ -3,8 +3,8 @@
 //! reported `slope` is in counts per unit of the column.
 
 use super::covariate_position;
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -87,5 +87,17 @@ impl TermState for ColState {
     fn update(&mut self, _seek: &Seek<'_>, _residual: Option<f64>) {}
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
+    }
+}
+
+/// Parses `col:NAME`; the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    match t.arg {
+        Some(name) if !name.is_empty() => Ok(Arc::new(ColSpec {
+            column: name.to_string(),
+        })),
+        _ => Err(t.bad("`col` needs a column name: `col:NAME`".into())),
     }
 }

@@ -16,8 +16,8 @@
 //! overshoot/undershoot eq. 8 cannot. O(N) state. Both ranges come from the data, so a log in
 //! metres and the same log in micrometres give the same predictions.
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -252,6 +252,9 @@ impl Term for DahlTerm {
     fn name(&self) -> String {
         self.name.clone()
     }
+    fn spans_direction_offset(&self) -> bool {
+        true
+    }
     fn param_names(&self) -> Vec<String> {
         if self.search {
             vec!["Fc".into()]
@@ -367,4 +370,16 @@ impl TermState for DahlTermState {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Parses `dahl` or `dahl:N` (N Dahl elements, 1 to 16); the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    Ok(Arc::new(DahlSpec {
+        elements: t
+            .arg
+            .map(|a| t.count(a, "the number of Dahl elements", 16))
+            .transpose()?,
+    }))
 }

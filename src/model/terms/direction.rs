@@ -2,8 +2,8 @@
 //! −Fc after an outbound one, 0 before the head has moved). Fc in counts: half the gap between
 //! the inbound and outbound curves of the paper's Fig. 3.
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use std::sync::Arc;
 
@@ -31,6 +31,9 @@ impl Term for DirectionTerm {
     fn param_names(&self) -> Vec<String> {
         vec!["Fc".into()]
     }
+    fn spans_direction_offset(&self) -> bool {
+        true
+    }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(DirectionState))
     }
@@ -47,4 +50,16 @@ impl TermState for DirectionState {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(*self)
     }
+}
+
+/// Parses `direction` (no argument); the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    t.no_arg(Arc::new(DirectionSpec))
+}
+
+/// The fitted `direction` term (it has no saved settings); the registry's restorer.
+pub fn restore(_name: &str, _settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+    Ok(Arc::new(DirectionTerm))
 }

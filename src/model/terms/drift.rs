@@ -8,8 +8,8 @@
 //! `ln alpha ∈ [ln 1e-4, 0]` (16-point grid, then five zooms around the best), minimising the one-step-ahead squared error
 //! of the other terms' residuals. It has no standard error (reported as `null`).
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -153,4 +153,22 @@ impl TermState for DriftState {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Parses `drift[:ALPHA]` (forgetting factor in (0, 1]); the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    let alpha = match t.arg {
+        None => None,
+        Some(a) => match a.parse::<f64>() {
+            Ok(v) if v > 0.0 && v <= 1.0 => Some(v),
+            _ => {
+                return Err(t.bad(format!(
+                    "the forgetting factor must be in (0, 1], got `{a}`"
+                )));
+            }
+        },
+    };
+    Ok(Arc::new(DriftSpec { alpha }))
 }

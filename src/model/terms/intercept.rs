@@ -1,7 +1,7 @@
 //! `intercept`: a constant, counts. Added automatically when no other term spans a constant.
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use std::sync::Arc;
 
@@ -49,4 +49,16 @@ impl TermState for Constant {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(*self)
     }
+}
+
+/// Parses `intercept` (no argument); the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    t.no_arg(Arc::new(InterceptSpec))
+}
+
+/// The fitted `intercept` term (it has no saved settings); the registry's restorer.
+pub fn restore(_name: &str, _settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+    Ok(Arc::new(InterceptTerm))
 }

@@ -77,3 +77,16 @@ pub fn curve_param_names(curves: &[&str], knots: &[f64]) -> Vec<String> {
         .flat_map(|c| knots.iter().map(move |&k| format!("{c}@{}", label(k))))
         .collect()
 }
+
+/// The fit warning of a hinge term whose data gave it no knots (`seek`, `memory`): the log has
+/// no data for it, so it contributes nothing. Empty if `term` has parameters.
+pub fn no_knots_warning(term: &dyn super::super::term::Term) -> Vec<String> {
+    if term.param_count() == 0 {
+        vec![format!(
+            "term `{}` has no knots: the log has no data for it",
+            term.name()
+        )]
+    } else {
+        Vec::new()
+    }
+}

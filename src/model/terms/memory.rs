@@ -14,8 +14,8 @@
 //! distance: the contribution is 0** (the same as a rest position too far away to matter).
 
 use super::knots::{curve_hinges, curve_param_names, direction_side, interior_knots, spec_name};
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -62,6 +62,9 @@ impl Term for MemoryTerm {
     fn droppable(&self) -> bool {
         true
     }
+    fn fit_warnings(&self, _model: &[Arc<dyn Term>]) -> Vec<String> {
+        super::knots::no_knots_warning(self)
+    }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(self.clone()))
     }
@@ -80,4 +83,13 @@ impl TermState for MemoryTerm {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Parses `memory[:KNOTS]`; the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    Ok(Arc::new(MemorySpec {
+        knots: t.knots_or(DEFAULT_KNOTS)?,
+    }))
 }

@@ -307,3 +307,16 @@ mod tests {
         assert!(thresholds(&[5.0], 4).is_none());
     }
 }
+
+/// Parses `play` / `play:N` (N from 1 to 256; default [`DEFAULT_ELEMENTS`]).
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    Ok(Arc::new(PlaySpec {
+        elements: t
+            .arg
+            .map(|a| t.count(a, "the number of play elements", 256))
+            .transpose()?
+            .unwrap_or(DEFAULT_ELEMENTS),
+    }))
+}

@@ -5,8 +5,8 @@
 //! on raw track numbers; the reported `c0, c1, c2` are converted back to tracks, with standard
 //! errors carried through the exact linear map.
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -95,4 +95,11 @@ impl TermState for Poly2Term {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(*self)
     }
+}
+
+/// Parses `poly2` (no argument); the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    t.no_arg(Arc::new(Poly2Spec))
 }

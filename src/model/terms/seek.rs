@@ -15,8 +15,8 @@
 //! (the curve's value at `a = 0` is the sum of its coefficients weighted by `k_j/k_max`).
 
 use super::knots::{curve_hinges, curve_param_names, direction_side, interior_knots, spec_name};
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -75,6 +75,9 @@ impl Term for SeekTerm {
     fn droppable(&self) -> bool {
         true
     }
+    fn fit_warnings(&self, _model: &[Arc<dyn Term>]) -> Vec<String> {
+        super::knots::no_knots_warning(self)
+    }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(self.clone()))
     }
@@ -92,4 +95,13 @@ impl TermState for SeekTerm {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Parses `seek[:KNOTS]`; the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    Ok(Arc::new(SeekSpec {
+        knots: t.knots_or(DEFAULT_KNOTS)?,
+    }))
 }

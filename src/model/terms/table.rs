@@ -3,8 +3,8 @@
 //! knots. Its values (counts) are the parameters; the hat basis sums to 1, so it spans the
 //! intercept.
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -106,4 +106,22 @@ impl TermState for TableTerm {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Parses `table[:SPACING]` (knot spacing in the log's position unit); the registry's parser.
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    let spacing = match t.arg {
+        None => None,
+        Some(a) => match a.parse::<f64>() {
+            Ok(h) if h.is_finite() && h > 0.0 => Some(h),
+            _ => {
+                return Err(t.bad(format!(
+                    "knot spacing must be a positive number (in the log's position unit), got `{a}`"
+                )));
+            }
+        },
+    };
+    Ok(Arc::new(TableSpec { spacing }))
 }

@@ -1,0 +1,226 @@
+//! What the model layer needs to be fitted, below the solver ([`crate::fit`]): the training
+//! data as terms see it while they prepare ([`FitData`]), the error a fit (and a term's
+//! [`TermSpec::prepare`](super::term::TermSpec::prepare)) returns ([`FitError`]) and the record
+//! of how a fit ended ([`FitReport`], saved in the model file). `crate::fit` re-exports all three.
+
+use super::term::Seek;
+use super::{ModelError, SpecError};
+use crate::history::SeekFeatures;
+use crate::log::Log;
+use serde::{Deserialize, Serialize};
+
+/// An error fitting a model. Nothing is written when a fit fails.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FitError {
+    /// The spec string is invalid.
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// Fewer measured rows than the model needs.
+    #[error(
+        "{file}: {measured} measured rows, but the model `{spec}` has {params} linear parameters and needs at least {needed} measured rows"
+    )]
+    TooShort {
+        /// The log file.
+        file: String,
+        /// Measured rows in the log.
+        measured: usize,
+        /// Linear parameters of the model.
+        params: usize,
+        /// Rows needed.
+        needed: usize,
+        /// The model.
+        spec: String,
+    },
+    /// A parameter the log cannot determine (for example `poly2` on a log at one position).
+    #[error(
+        "{file}: parameter `{param}` cannot be determined from this log: its column is zero or a combination of the others ({hint})"
+    )]
+    RankDeficient {
+        /// The log file.
+        file: String,
+        /// Full parameter name.
+        param: String,
+        /// What usually causes it.
+        hint: String,
+    },
+    /// The log lacks a covariate column a term needs.
+    #[error(
+        "{file}: term `{term}` needs column `{column}`, which the log lacks (covariates in the log: {available})"
+    )]
+    MissingCovariate {
+        /// The log file.
+        file: String,
+        /// The term.
+        term: String,
+        /// The missing column.
+        column: String,
+        /// The covariates present.
+        available: String,
+    },
+    /// A term names one of the log's required columns (time, position, bias) as a covariate.
+    #[error(
+        "{file}: term `{term}` reads column `{column}`, which is the log's {role} column, not a covariate: {hint}"
+    )]
+    NotACovariate {
+        /// The log file.
+        file: String,
+        /// The term.
+        term: String,
+        /// The column.
+        column: String,
+        /// Its role: `time`, `position` or `bias`.
+        role: &'static str,
+        /// What to use instead.
+        hint: &'static str,
+    },
+    /// A fit setting ([`crate::fit::FitOptions`]) is out of range.
+    #[error("fit setting `{field}`: {message}")]
+    InvalidOptions {
+        /// The setting (`rank_tolerance`, `grid`, `refine`).
+        field: &'static str,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// A term's setting does not suit the data.
+    #[error("term `{term}`: {why}")]
+    BadSetting {
+        /// The term.
+        term: String,
+        /// What is wrong.
+        why: String,
+    },
+    /// A term could not start on this log.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The values are so large that the fit's sums of squares overflow.
+    #[error(
+        "{file}: the fit overflows: its residual sum of squares is not a finite number (largest |bias| {max_abs:.3e}, largest |position| {max_pos:.3e}); rescale the bias or position column"
+    )]
+    Overflow {
+        /// The log file.
+        file: String,
+        /// Largest measured |bias| in the log.
+        max_abs: f64,
+        /// Largest |position| in the log.
+        max_pos: f64,
+    },
+}
+
+/// How a fit ended (saved in the model file under `fit`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitReport {
+    /// Measured rows used.
+    pub rows_used: usize,
+    /// Linear parameters fitted (after dropping undetermined hinge columns).
+    pub parameters: usize,
+    /// Standard deviation of the causal residuals on the training log, counts.
+    pub residual_std: f64,
+    /// RMS of the causal residuals, counts.
+    pub residual_rms: f64,
+    /// 1 − SS(residual)/SS(bias about its mean), causal prediction.
+    pub r2: f64,
+    /// Residual sum of squares of the least-squares solve (no causal offsets), counts².
+    pub ls_rss: f64,
+    /// Parameters fixed at 0 because the log cannot determine them.
+    pub dropped: Vec<String>,
+    /// Objective evaluations of the nonlinear search (0 if none).
+    pub evaluations: usize,
+    /// Whether every nonlinear search ended inside its interval.
+    pub converged: bool,
+    /// Smallest and largest target position of the measured training rows, tracks: where the
+    /// position terms were fitted ([`crate::model::FittedModel::outside_range`] warns when a
+    /// log goes beyond it). `null` in model files written before it was recorded.
+    #[serde(default)]
+    pub position_range: Option<[f64; 2]>,
+}
+
+/// The training data as terms see it while they prepare: the log and every row's seek features.
+#[derive(Debug)]
+pub struct FitData<'a> {
+    log: &'a Log,
+    features: Vec<SeekFeatures>,
+}
+
+impl<'a> FitData<'a> {
+    /// Replays the log's seek history once ([`crate::history::replay`]).
+    pub fn new(log: &'a Log) -> Self {
+        let features = crate::history::replay(log).map(|(_, _, f)| f).collect();
+        Self { log, features }
+    }
+
+    /// The log.
+    pub fn log(&self) -> &Log {
+        self.log
+    }
+
+    /// Seek features of every row, in log order.
+    pub fn features(&self) -> &[SeekFeatures] {
+        &self.features
+    }
+
+    /// `f` of every measured row, as `Option`s (in log order).
+    pub fn measured_map(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<Option<f64>> {
+        self.log
+            .rows
+            .iter()
+            .zip(&self.features)
+            .filter(|(r, _)| r.bias.is_some())
+            .map(|(r, feat)| {
+                f(&Seek {
+                    features: feat,
+                    covariates: &r.covariates,
+                })
+            })
+            .collect()
+    }
+
+    /// The defined values of `f` over the measured rows.
+    pub fn measured_values(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
+        self.measured_map(f).into_iter().flatten().collect()
+    }
+
+    /// Index of covariate `column`, or the error naming `term`.
+    pub fn covariate(&self, column: &str, term: &str) -> Result<usize, FitError> {
+        let s = &self.log.schema;
+        let role = [
+            (
+                &s.map.time,
+                "time",
+                "for slow change over time use `drift` or `bins:elapsed_s`",
+            ),
+            (
+                &s.map.track,
+                "position",
+                "position enters through `poly2` or `table` (or `bins:position`)",
+            ),
+            (
+                &s.map.bias,
+                "bias",
+                "the bias is what the model predicts and cannot be one of its inputs",
+            ),
+        ]
+        .into_iter()
+        .find(|(name, _, _)| name.as_str() == column);
+        if let Some((_, role, hint)) = role {
+            return Err(FitError::NotACovariate {
+                file: s.file.clone(),
+                term: term.into(),
+                column: column.into(),
+                role,
+                hint,
+            });
+        }
+        s.covariate_index(column)
+            .ok_or_else(|| FitError::MissingCovariate {
+                file: s.file.clone(),
+                term: term.into(),
+                column: column.into(),
+                available: if s.covariates.is_empty() {
+                    "none".into()
+                } else {
+                    s.covariates.join(", ")
+                },
+            })
+    }
+}
