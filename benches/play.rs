@@ -5,7 +5,7 @@
 //! The log: a smooth random trajectory (sum of slowly varying sinusoids with random reversal
 //! amplitudes, 1 kHz) through a 3-element stop-operator hysteresis plus a line and noise.
 
-use biasctl::fit::{FitOptions, fit};
+use biasctl::fit::{CheckedFitOptions, fit};
 use biasctl::log::{ColumnMap, Log};
 use biasctl::model::ModelSpec;
 use biasctl::model::terms::play::{PlayPredictor, PlayTerm};
@@ -55,9 +55,9 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("play");
     g.sample_size(10);
     g.bench_function("fit_play32_1M_rows", |b| {
-        b.iter(|| fit(&spec, black_box(&data), &FitOptions::default()).expect("fits"))
+        b.iter(|| fit(&spec, black_box(&data), &CheckedFitOptions::default()).expect("fits"))
     });
-    let model = fit(&spec, &data, &FitOptions::default()).expect("fits");
+    let model = fit(&spec, &data, &CheckedFitOptions::default()).expect("fits");
     let t = model
         .terms
         .iter()

@@ -7,8 +7,8 @@
 //! random sequence of moves of mixed length through a two-element stop-operator hysteresis, a
 //! quadratic position curve and noise, so every term has something to fit.
 
-use biasctl::diagnose::{DiagnoseConfig, diagnose_model};
-use biasctl::fit::{FitOptions, fit};
+use biasctl::diagnose::{CheckedDiagnoseConfig, diagnose_model};
+use biasctl::fit::{CheckedFitOptions, fit};
 use biasctl::log::{ColumnMap, Log};
 use biasctl::model::ModelSpec;
 
@@ -71,7 +71,7 @@ fn predictions_and_diagnosis_do_not_depend_on_units() {
         "poly2,play:8",
         "table,direction",
     ];
-    let opts = FitOptions::default();
+    let opts = CheckedFitOptions::default();
     for spec_text in specs {
         let spec = biasctl::model::preset::preset_terms(spec_text)
             .map_or_else(|| ModelSpec::parse(spec_text), ModelSpec::parse)
@@ -79,7 +79,7 @@ fn predictions_and_diagnosis_do_not_depend_on_units() {
         let m0 = fit(&spec, &base.0, &opts).unwrap();
         let p0 = m0.predict_log(&base.1).unwrap();
         let spread = p0.measured.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let d0 = diagnose_model(&m0, &base.1, &DiagnoseConfig::default()).unwrap();
+        let d0 = diagnose_model(&m0, &base.1, &CheckedDiagnoseConfig::default()).unwrap();
         for (xs, bs) in [(1e-6, 1.0), (1e6, 1e-3), (0.01, 1e4), (1e3, 2.5)] {
             let scaled = (log(&train, xs, bs), log(&test, xs, bs));
             let m = fit(&spec, &scaled.0, &opts).unwrap();
@@ -91,7 +91,7 @@ fn predictions_and_diagnosis_do_not_depend_on_units() {
                     b / bs
                 );
             }
-            let d = diagnose_model(&m, &scaled.1, &DiagnoseConfig::default()).unwrap();
+            let d = diagnose_model(&m, &scaled.1, &CheckedDiagnoseConfig::default()).unwrap();
             // The top of the ranking (the three strongest features explaining at least 5 %; weak
             // features are near ties whose order rounding may flip), with the suggested terms.
             let names = |d: &biasctl::diagnose::Diagnosis| -> Vec<(String, Option<String>)> {

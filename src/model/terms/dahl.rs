@@ -160,10 +160,10 @@ impl TermSpec for DahlSpec {
             Some(n) => {
                 let mut lo = q(&steps, 5.0);
                 let mut hi = q(&steps, 95.0).max(q(&amps, 95.0));
-                if !(lo > 0.0) {
+                if lo.is_nan() || lo <= 0.0 {
                     lo = 1.0;
                 }
-                if !(hi > lo) {
+                if hi.is_nan() || hi <= lo {
                     hi = 10.0 * lo;
                 }
                 (0..n)
@@ -207,7 +207,7 @@ pub struct DahlTerm {
 }
 
 /// Fallback search interval of `ln L` (a log without moves): L from 0.1 to 10⁴.
-const T_LO: f64 = -2.302_585_092_994_046;
+const T_LO: f64 = -std::f64::consts::LN_10;
 const T_HI: f64 = 9.210_340_371_976_184;
 
 /// The searched coordinate rounded to 2⁻²⁰ of the search range: finer than that the RSS is flat

@@ -246,6 +246,19 @@ impl TermState for PlayState {
     }
 }
 
+/// Parses `play` / `play:N` (N from 1 to 256; default [`DEFAULT_ELEMENTS`]).
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    Ok(Arc::new(PlaySpec {
+        elements: t
+            .arg
+            .map(|a| t.count(a, "the number of play elements", 256))
+            .transpose()?
+            .unwrap_or(DEFAULT_ELEMENTS),
+    }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -306,17 +319,4 @@ mod tests {
         assert!(a.windows(2).all(|w| w[0] < w[1]));
         assert!(thresholds(&[5.0], 4).is_none());
     }
-}
-
-/// Parses `play` / `play:N` (N from 1 to 256; default [`DEFAULT_ELEMENTS`]).
-pub fn parse(
-    t: &crate::model::registry::TermText<'_>,
-) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
-    Ok(Arc::new(PlaySpec {
-        elements: t
-            .arg
-            .map(|a| t.count(a, "the number of play elements", 256))
-            .transpose()?
-            .unwrap_or(DEFAULT_ELEMENTS),
-    }))
 }
