@@ -3,7 +3,7 @@
 //! and of the generic term-sum `Predictor` on the same model for comparison.
 
 use biasctl::model::terms::dahl::DahlPredictor;
-use biasctl::rng::SimRng;
+use biasctl::numeric::rng::SimRng;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 

@@ -5,7 +5,7 @@ use biasctl::fit::{FitOptions, fit};
 use biasctl::history::History;
 use biasctl::log::{ColumnMap, Log};
 use biasctl::model::ModelSpec;
-use biasctl::rng::SimRng;
+use biasctl::numeric::rng::SimRng;
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 

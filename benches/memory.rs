@@ -3,7 +3,7 @@
 //! the time per seek must be the same at both counts (linear total time).
 
 use biasctl::history::History;
-use biasctl::rng::SimRng;
+use biasctl::numeric::rng::SimRng;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 

@@ -9,7 +9,7 @@ use biasctl::fit::{CheckedFitOptions, fit};
 use biasctl::log::{ColumnMap, Log};
 use biasctl::model::ModelSpec;
 use biasctl::model::terms::play::{PlayPredictor, PlayTerm};
-use biasctl::rng::SimRng;
+use biasctl::numeric::rng::SimRng;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 

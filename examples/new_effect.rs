@@ -121,7 +121,8 @@ pub fn fit_with(
 /// Standard deviation of the causal prediction error of `model` on `test`, counts.
 pub fn test_std(model: &FittedModel, test: &Log) -> anyhow::Result<f64> {
     let p = model.predict_log(test)?;
-    biasctl::stats::std_dev(&p.residual).ok_or_else(|| anyhow::anyhow!("too few test rows"))
+    biasctl::numeric::stats::std_dev(&p.residual)
+        .ok_or_else(|| anyhow::anyhow!("too few test rows"))
 }
 
 fn print_top(d: &Diagnosis, k: usize) {

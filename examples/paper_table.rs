@@ -15,13 +15,13 @@
 //! calibration run for comparison. "Two humps" is Hartigans' dip test rejecting a unimodal error
 //! distribution at 1 % on that seed pair's test run.
 
+use biasctl::control::Controller;
+use biasctl::control::settle::{HandoffTable, SettleSpec, worst_case_settle};
 use biasctl::fit::{FitOptions, fit};
 use biasctl::model::ModelSpec;
+use biasctl::numeric::stats::{mean, std_dev};
 use biasctl::score::{Score, score};
-use biasctl::servo::Controller;
-use biasctl::settle::{HandoffTable, SettleSpec, worst_case_settle};
 use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-use biasctl::stats::{mean, std_dev};
 
 /// (label, term list or preset, training sequence, the paper's error std in counts). The first
 /// row is the paper's baseline: position+direction calibrated the 1997 way, b_p and Fc from the

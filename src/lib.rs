@@ -21,7 +21,10 @@
 //! log → seek history → simulated drive → model terms → fit → score/diagnose → plant/controller →
 //! settle → plots/report.
 //!
-//! - [`log`]: the measurement log (CSV), streaming reader with column mapping, atomic writer.
+//! - [`numeric`]: shared numerics below everything: statistics (moments, histogram, bimodality
+//!   and dip tests, trend and whiteness tests) and the seeded, portable random generator.
+//! - [`log`]: the measurement log (CSV), streaming reader with column mapping, and the input
+//!   limits ([`log::limits`]) every reader enforces.
 //! - [`history`]: the seek-history state machine: direction, reversals, uncrossed rest positions.
 //! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
 //! - [`model`]: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl,
@@ -32,16 +35,14 @@
 //!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
 //! - [`diagnose`]: which missing effect the residual follows: cross-validated smoother per
 //!   feature, permutation test, advice, ladder.
-//! - [`servo`]: plant → controller: continuous plant with modes, ZOH with fractional delay,
-//!   DARE/LQR.
-//! - [`settle`]: the settle-optimal integrator start value at handoff (eq. 14–16), robust
-//!   choices, the allocation-free handoff table.
+//! - [`control`]: plant → controller → settle: continuous plant with modes, ZOH with
+//!   fractional delay, DARE/LQR, and ([`control::settle`]) the settle-optimal integrator start
+//!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table.
+//! - [`export`]: the fitted model and the handoff table as C99, checked against the predictor.
+//! - [`render`]: the one output layer: text, JSON and CSV, atomic and safe file writing,
+//!   finite-only numbers.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
 //! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
-//!
-//! Shared utilities: [`rng`] (the seeded, portable random generator every simulation uses),
-//! [`stats`] (moments, histogram, bimodality and dip tests, trend and whiteness tests), [`output`] (atomic
-//! file output).
 //!
 //! ## The whole pipeline in one example
 //!
@@ -53,7 +54,7 @@
 //! use biasctl::diagnose::{DiagnoseConfig, diagnose_model};
 //! use biasctl::fit::{FitOptions, fit};
 //! use biasctl::model::ModelSpec;
-//! use biasctl::settle::{SettleSpec, analyse};
+//! use biasctl::control::settle::{SettleSpec, analyse};
 //! use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
 //!
 //! // 1. Simulate: a training run and a test run with another seed (tracks, counts, s).
@@ -84,18 +85,29 @@
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 
-pub mod diagnose;
-pub mod fit;
-pub mod history;
+// Modules in the order a log travels through them; a module imports only modules above it.
+pub mod numeric;
+
 pub mod log;
-pub mod model;
-pub mod plot;
-pub mod report;
-pub mod score;
-pub mod servo;
-pub mod settle;
+
+pub mod history;
+
 pub mod sim;
 
-pub mod output;
-pub mod rng;
-pub mod stats;
+pub mod model;
+
+pub mod fit;
+
+pub mod score;
+
+pub mod diagnose;
+
+pub mod control;
+
+pub mod export;
+
+pub mod render;
+
+pub mod plot;
+
+pub mod report;

@@ -1,49 +1,28 @@
 //! The `biasctl` command line: parses flags into the library's validated configs and calls the
-//! library. Every error is printed with its cause chain and exits with code 2.
+//! library. Exit codes: 0 success (also when the reader of stdout goes away, as with
+//! `biasctl … | head`), 2 bad input or a failed write (one message on stderr).
 
 mod cli;
 
+use biasctl::render;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    restore_sigpipe();
     let args = match cli::parse() {
         Ok(args) => args,
         Err(e) => e.exit(),
     };
-    match cli::run(args) {
+    let result = cli::run(args).and_then(|()| Ok(render::flush_stdout()?));
+    match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(err) if render::is_broken_pipe(err.as_ref()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("{}", error_text(&err));
+            // stderr gone too: nothing left to tell, the exit code still says it.
+            let _ = std::io::Write::write_all(
+                &mut std::io::stderr(),
+                format!("error: {}\n", render::message(err.as_ref())).as_bytes(),
+            );
             ExitCode::from(2)
         }
     }
 }
-
-/// The error and its causes, one per line; a cause whose text the lines above already contain
-/// (an error that prints its source inside its own message) is not repeated.
-fn error_text(err: &anyhow::Error) -> String {
-    let mut text = format!("error: {err}");
-    for cause in err.chain().skip(1) {
-        let c = cause.to_string();
-        if !text.contains(&c) {
-            text.push_str(&format!("\n  caused by: {c}"));
-        }
-    }
-    text
-}
-
-/// Restores the default action of SIGPIPE, so that `biasctl … | head` ends quietly when the
-/// reader goes away, as other Unix tools do, instead of panicking in `println!` (the Rust
-/// runtime ignores SIGPIPE by default).
-#[cfg(unix)]
-fn restore_sigpipe() {
-    // SAFETY: called first thing in `main`, before any other thread exists; SIG_DFL is a valid
-    // disposition for SIGPIPE.
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
-    }
-}
-
-#[cfg(not(unix))]
-fn restore_sigpipe() {}

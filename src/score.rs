@@ -15,7 +15,7 @@
 
 use crate::log::{Log, Units};
 use crate::model::{Feedback, FittedModel, ModelError};
-use crate::stats::{self, DipTest, Histogram, Trend};
+use crate::numeric::stats::{self, DipTest, Histogram, Trend};
 use serde::{Deserialize, Serialize};
 
 /// An error computing a score.
@@ -25,6 +25,25 @@ pub enum ScoreError {
     /// No residuals.
     #[error("no measured rows to score")]
     Empty,
+    /// A residual or position is not a finite number (`index` is 0-based).
+    #[error("residual or position {index} is {value}, not a finite number")]
+    NonFinite {
+        /// Index of the value.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
+    /// A statistic overflowed: residuals so large (a model far off the log's scale) that their
+    /// sums leave the range of f64.
+    #[error(
+        "the error statistics overflow (`{statistic}` is {value}); the model's predictions are far off this log's scale"
+    )]
+    Overflow {
+        /// The statistic (`mean`, `std`, ...).
+        statistic: &'static str,
+        /// Its value.
+        value: f64,
+    },
     /// Residuals and positions differ in length.
     #[error("{residuals} residuals but {positions} positions")]
     Length {
@@ -98,11 +117,22 @@ pub fn score_with_units(
             positions: positions.len(),
         });
     }
+    if let Some((index, &value)) = residuals
+        .iter()
+        .chain(positions)
+        .enumerate()
+        .find(|(_, v)| !v.is_finite())
+    {
+        return Err(ScoreError::NonFinite {
+            index: index % residuals.len(),
+            value,
+        });
+    }
     let sorted = stats::sorted(residuals);
     let abs: Vec<f64> = stats::sorted(&residuals.iter().map(|e| e.abs()).collect::<Vec<_>>());
     let bimodality = stats::bimodality_coefficient(residuals);
     let dip = stats::dip_test_sorted(&sorted);
-    Ok(Score {
+    let score = Score {
         n: residuals.len(),
         mean: stats::mean(residuals).unwrap_or(0.0),
         std: stats::std_dev(residuals).unwrap_or(0.0),
@@ -118,10 +148,40 @@ pub fn score_with_units(
         bimodal: dip.is_some_and(|t| t.rejects_unimodality(stats::DIP_SIGNIFICANCE)),
         trend: stats::linear_trend(positions, residuals),
         units: units.clone(),
-    })
+    };
+    score.check_finite()?;
+    Ok(score)
 }
 
 impl Score {
+    /// Every number of the score is finite, or [`ScoreError::Overflow`] naming the first that
+    /// is not: the JSON then never carries a `null` for a number.
+    fn check_finite(&self) -> Result<(), ScoreError> {
+        let mut named = vec![
+            ("mean", self.mean),
+            ("std", self.std),
+            ("rms", self.rms),
+            ("median_abs", self.median_abs),
+        ];
+        named.extend(self.percentiles.iter().map(|p| ("percentiles", p.1)));
+        named.extend(self.bimodality.map(|b| ("bimodality", b)));
+        named.extend(self.histogram.edges.iter().map(|&e| ("histogram.edges", e)));
+        if let Some(t) = &self.trend {
+            named.extend([
+                ("trend.slope", t.slope),
+                ("trend.intercept", t.intercept),
+                ("trend.slope_se", t.slope_se),
+                ("trend.t", t.t),
+                ("trend.p_value", t.p_value),
+                ("trend.r2", t.r2),
+            ]);
+        }
+        match named.into_iter().find(|(_, v)| !v.is_finite()) {
+            None => Ok(()),
+            Some((statistic, value)) => Err(ScoreError::Overflow { statistic, value }),
+        }
+    }
+
     /// A human-readable summary, every value labelled with [`Score::units`].
     pub fn to_text(&self) -> String {
         let u = &self.units.bias;
@@ -196,7 +256,7 @@ impl Score {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::SimRng;
+    use crate::numeric::rng::SimRng;
 
     fn positions(n: usize) -> Vec<f64> {
         (0..n).map(|i| i as f64).collect()
@@ -329,7 +389,7 @@ pub struct ModelScore {
     /// Label of the free run's feedback (`free run`, `free run, measured bias every N rows`).
     pub free_run_feedback: Option<String>,
     /// Warnings: a mean error large against the std, a one-step figure much better than the
-    /// free run.
+    /// free run, and the model's own fit warnings (prefixed `fit: `).
     pub warnings: Vec<String>,
 }
 
@@ -386,6 +446,8 @@ pub fn score_model(
     if let Some(f) = &free {
         warnings.extend(mean_warning(f, "free-run"));
     }
+    // The fit's own self-check travels with the model (issue #11).
+    warnings.extend(model.warnings.iter().map(|w| format!("fit: {w}")));
     Ok(ModelScore {
         one_step,
         figure: Feedback::EveryRow.label(),

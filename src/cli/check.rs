@@ -15,29 +15,38 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut reader = LogReader::open(&args.log.data, &args.log.columns.map())?;
     let units = args.log.columns.units(reader.schema())?;
-    let sum = reader.summarise()?;
+    let (mut times, mut positions) = (Vec::new(), Vec::new());
+    let sum = reader.summarise_each(|r| {
+        times.push(r.time_s);
+        positions.push(r.track);
+    })?;
     let s = reader.schema();
-    println!("{}: {} rows, {} measured", s.file, sum.rows, sum.measured);
-    println!(
+    outln!("{}: {} rows, {} measured", s.file, sum.rows, sum.measured)?;
+    outln!(
         "  positions {} .. {} {} (column {})",
-        sum.positions[0], sum.positions[1], units.position, s.map.track
-    );
-    println!("  bias in {} (column {})", units.bias, s.map.bias);
-    println!(
+        sum.positions[0],
+        sum.positions[1],
+        units.position,
+        s.map.track
+    )?;
+    outln!("  bias in {} (column {})", units.bias, s.map.bias)?;
+    outln!(
         "  time {} .. {} s (column {})",
-        sum.times_s[0], sum.times_s[1], s.map.time
-    );
-    let log = args.log.columns.read_log(&args.log.data)?;
-    let times: Vec<f64> = log.rows.iter().map(|r| r.time_s).collect();
-    let positions: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+        sum.times_s[0],
+        sum.times_s[1],
+        s.map.time
+    )?;
     for line in biasctl::history::sampling(&times, &positions).describe(&units.position) {
-        println!("  {line}");
+        outln!("  {line}")?;
     }
     if !s.covariates.is_empty() {
-        println!("  covariates: {}", s.covariates.join(", "));
+        outln!("  covariates: {}", s.covariates.join(", "))?;
+    }
+    for note in &s.notes {
+        outln!("  note: {note}")?;
     }
     for m in &s.metadata {
-        println!("  # {m}");
+        outln!("  # {m}")?;
     }
     Ok(())
 }

@@ -1,11 +1,11 @@
 //! Flags shared by several commands.
 
 use anyhow::Context;
+use biasctl::control::settle::SettleSpec;
 use biasctl::log::{
     ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL, Log, LogSchema, Units,
     check_unit_label,
 };
-use biasctl::settle::SettleSpec;
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -29,6 +29,22 @@ pub struct ColumnArgs {
     /// else tracks for the column `track`, else the track column's name.
     #[arg(long, value_name = "LABEL", value_parser = unit_label)]
     pub track_unit: Option<String>,
+    /// Field delimiter: `,` `;` or `tab` (also `comma`, `semicolon`, `\t`); default: sniffed
+    /// from the header. With `;` or tab a number may use a decimal comma (`0,25`).
+    #[arg(long, value_name = "CHAR", value_parser = delimiter)]
+    pub delimiter: Option<u8>,
+}
+
+/// Parses `--delimiter` into its byte (clap names the flag in the error).
+fn delimiter(text: &str) -> Result<u8, String> {
+    match text {
+        "," | "comma" => Ok(b','),
+        ";" | "semicolon" => Ok(b';'),
+        "tab" | "\\t" | "\t" => Ok(b'\t'),
+        _ => Err(format!(
+            "`{text}` is not a delimiter biasctl reads; use `,`, `;` or `tab`"
+        )),
+    }
 }
 
 /// Validates a `--bias-unit` / `--track-unit` label (clap names the flag in the error).
@@ -48,6 +64,7 @@ impl Default for ColumnArgs {
             bias_col: m.bias,
             bias_unit: None,
             track_unit: None,
+            delimiter: None,
         }
     }
 }
@@ -59,6 +76,7 @@ impl ColumnArgs {
             time: self.time_col.clone(),
             track: self.track_col.clone(),
             bias: self.bias_col.clone(),
+            delimiter: self.delimiter,
         }
     }
 
@@ -75,6 +93,9 @@ impl ColumnArgs {
     /// Reads the whole log at `path` with these column names and unit labels.
     pub fn read_log(&self, path: &Path) -> anyhow::Result<Log> {
         let mut log = Log::read(path, &self.map())?;
+        for note in &log.schema.notes {
+            eprintln!("note: {note}");
+        }
         log.schema.units = self.units(&log.schema)?;
         Ok(log)
     }
@@ -88,6 +109,50 @@ pub struct LogArgs {
     pub data: PathBuf,
     #[command(flatten)]
     pub columns: ColumnArgs,
+}
+
+/// How the direction of motion is read (issue #11): `--deadband X` or `--velocity-col NAME`;
+/// neither: a deadband estimated from the position noise on a dense time series, raw position
+/// steps on a log of seeks.
+#[derive(Debug, Clone, Default, Args)]
+pub struct DirectionArgs {
+    /// Direction reverses only once the position has come back more than X (the log's position
+    /// unit, ≥ 0; 0: every step against the direction) from its furthest point. Default: the
+    /// range the position noise spans over the log (2·√(2 ln n) × its std) on a densely sampled
+    /// log, 0 on a log of seeks.
+    #[arg(
+        long,
+        value_name = "X",
+        conflicts_with = "velocity_col",
+        allow_negative_numbers = true
+    )]
+    pub deadband: Option<f64>,
+    /// Read the direction from the sign of this (velocity) column instead of position steps.
+    #[arg(long, value_name = "NAME")]
+    pub velocity_col: Option<String>,
+}
+
+impl DirectionArgs {
+    /// The library setting these flags ask for (checked: a bad deadband names the flag).
+    pub fn setting(&self) -> anyhow::Result<biasctl::history::DirectionSetting> {
+        use biasctl::history::DirectionSetting;
+        let s = match (&self.deadband, &self.velocity_col) {
+            (Some(d), _) => DirectionSetting::Deadband(*d),
+            (None, Some(c)) => DirectionSetting::Velocity(c.clone()),
+            (None, None) => DirectionSetting::Auto,
+        };
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// The checked default fit settings with this direction setting.
+    pub fn fit_options(&self) -> anyhow::Result<biasctl::fit::CheckedFitOptions> {
+        Ok(biasctl::fit::FitOptions {
+            direction: self.setting()?,
+            ..biasctl::fit::FitOptions::default()
+        }
+        .check()?)
+    }
 }
 
 /// The plant and scenario flags of the settle analysis (`settle`, `plot bounds|responses`).
@@ -137,8 +202,11 @@ impl SettleArgs {
     pub fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
             Some(path) => {
-                let text = std::fs::read_to_string(path)
+                let text = biasctl::log::limits::read_text(path)
                     .with_context(|| format!("cannot read plant file {}", path.display()))?;
+                biasctl::log::limits::check_toml_numbers(&text)
+                    .map_err(anyhow::Error::msg)
+                    .with_context(|| format!("invalid plant file {}", path.display()))?;
                 toml::from_str::<SettleSpec>(&text)
                     .with_context(|| format!("invalid plant file {}", path.display()))?
             }
@@ -163,6 +231,23 @@ impl SettleArgs {
         }
         Ok(spec)
     }
+}
+
+/// Refuses, before anything runs, an output flag naming the same file as an input flag or as
+/// another output flag ([`biasctl::render::check_paths`]); each path comes with its flag.
+pub fn refuse_clashes(
+    inputs: &[(&str, Option<&Path>)],
+    outputs: &[(&str, Option<&Path>)],
+) -> anyhow::Result<()> {
+    let ins: Vec<(&str, &Path)> = inputs
+        .iter()
+        .filter_map(|&(f, p)| p.map(|p| (f, p)))
+        .collect();
+    let outs: Vec<(&str, &Path)> = outputs
+        .iter()
+        .filter_map(|&(f, p)| p.map(|p| (f, p)))
+        .collect();
+    Ok(biasctl::render::check_paths(&ins, &outs)?)
 }
 
 /// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was

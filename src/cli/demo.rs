@@ -22,7 +22,7 @@ pub struct Args {
 
 /// Runs the story and prints the report's path and five headline lines.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    println!("demo: drive paper1997, seed {}", args.seed);
+    outln!("demo: drive paper1997, seed {}", args.seed)?;
     let outcome = story(&super::report::Args {
         out: args.out,
         data: None,
@@ -42,11 +42,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         })
         .filter(|n| !n.ends_with("_truth") && !n.starts_with("settle_"))
         .collect();
-    println!(
+    outln!(
         "wrote {} files; simulated logs (each with a _truth.csv): {}",
         outcome.files.len() + 1,
         logs.join(", ")
-    );
-    print_outcome(&outcome);
+    )?;
+    print_outcome(&outcome)?;
     Ok(())
 }

@@ -2,10 +2,11 @@
 
 use super::predict::ModelLogArgs;
 use anyhow::Context;
-use biasctl::diagnose::{DiagnoseConfig, PathStep, diagnose_model, suggestion_path_from};
+use biasctl::diagnose::{
+    DiagnoseConfig, PathStep, VerifyConfig, diagnose_model, diagnose_verified, suggestion_path_from,
+};
 use biasctl::fit::FitOptions;
-use biasctl::model::FittedModel;
-use biasctl::output::write_atomic;
+use biasctl::render::write_atomic;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -37,6 +38,13 @@ pub struct Args {
     /// diagnose again; prints the path (and adds a `path` key to the JSON).
     #[arg(long, value_name = "N", default_value_t = 0)]
     path: usize,
+    /// Skip the verification refits (the leading suggestions applied, refitted on --data and
+    /// scored on held-out folds of consecutive seeks).
+    #[arg(long)]
+    no_verify: bool,
+    /// Folds of consecutive seeks of the verification refits, 2..=20.
+    #[arg(long, default_value_t = 3)]
+    verify_folds: usize,
 }
 
 /// Validates the settings, replays the model, diagnoses, prints and writes.
@@ -49,20 +57,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..DiagnoseConfig::default()
     }
     .check()?;
-    let model = FittedModel::load(&args.input.model)?;
+    let model = args.input.load_model()?;
+    // Re-fits read direction the way the model does.
+    let fit_opts = FitOptions {
+        direction: model.direction.setting(),
+        ..FitOptions::default()
+    }
+    .check()?;
+    let verify = VerifyConfig {
+        folds: args.verify_folds,
+        fit: fit_opts.clone(),
+        ..VerifyConfig::default()
+    };
+    verify.validate().context("--verify-folds")?;
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());
-    let d = diagnose_model(&model, &log, &config)?;
+    let d = if args.no_verify {
+        diagnose_model(&model, &log, &config)?
+    } else {
+        diagnose_verified(&model, &log, &config, &verify)?
+    };
     let path = if args.path > 0 {
         let first = d.clone();
-        suggestion_path_from(
-            &model,
-            &log,
-            first,
-            &config,
-            args.path,
-            &FitOptions::default().check()?,
-        )?
+        suggestion_path_from(&model, &log, first, &config, args.path, &fit_opts)?
     } else {
         Vec::new()
     };
@@ -73,10 +90,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 dir.display()
             );
         }
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        // Built in a staging folder beside `dir` and moved in whole: no partial output.
+        let staged = biasctl::render::StagedDir::create(dir)?;
         let json = d.to_json();
-        write_atomic(&dir.join("diagnosis.json"), |w| writeln!(w, "{json}"))?;
-        d.write_feature_csvs(dir)?;
+        write_atomic(&staged.path("diagnosis.json"), |w| writeln!(w, "{json}"))?;
+        d.write_feature_csvs(&staged.path(""))?;
+        staged.commit()?;
     }
     if args.json {
         if args.path > 0 {
@@ -84,32 +103,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if let Some(obj) = v.as_object_mut() {
                 obj.insert("path".into(), serde_json::to_value(&path)?);
             }
-            println!("{}", serde_json::to_string_pretty(&v)?);
+            outln!("{}", serde_json::to_string_pretty(&v)?)?;
         } else {
-            println!("{}", d.to_json());
+            outln!("{}", d.to_json())?;
         }
     } else {
-        println!(
+        outln!(
             "{}: model `{}`, {} measured rows",
             log.schema.file,
             model.spec,
             log.measured_count()
-        );
-        print!("{}", d.to_text());
+        )?;
+        out!("{}", d.to_text())?;
         if args.path > 0 {
-            print_path(&path, args.path, &log.schema.units.bias);
+            print_path(&path, args.path, &log.schema.units.bias)?;
         }
         if let Some(dir) = &args.out {
-            println!("wrote {}", dir.display());
+            outln!("wrote {}", dir.display())?;
         }
     }
     Ok(())
 }
 
-fn print_path(path: &[PathStep], asked: usize, unit: &str) {
-    println!("\nFollowing the advice (refit on this log after each step):");
+fn print_path(path: &[PathStep], asked: usize, unit: &str) -> anyhow::Result<()> {
+    outln!("\nFollowing the advice (refit on this log after each step):")?;
     for (i, p) in path.iter().enumerate() {
-        println!(
+        outln!(
             "  {}. `{}` ({:.1} % explained) → add `{}`: residual std {:.4} → {:.4} {unit}",
             i + 1,
             p.feature,
@@ -117,12 +136,13 @@ fn print_path(path: &[PathStep], asked: usize, unit: &str) {
             p.term,
             p.std_before,
             p.std_after
-        );
+        )?;
     }
     if path.len() < asked {
-        println!(
+        outln!(
             "  (stopped after {} step(s): nothing flagged with a term left to add)",
             path.len()
-        );
+        )?;
     }
+    Ok(())
 }

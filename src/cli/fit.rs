@@ -1,8 +1,8 @@
 //! `biasctl fit`: fit a model (a preset or a term list) to a log and write the model file.
 
-use super::common::LogArgs;
+use super::common::{DirectionArgs, LogArgs};
 use anyhow::Context;
-use biasctl::fit::{FitOptions, fit};
+use biasctl::fit::fit;
 use biasctl::model::ModelSpec;
 use std::path::PathBuf;
 
@@ -11,6 +11,8 @@ use std::path::PathBuf;
 pub struct Args {
     #[command(flatten)]
     log: LogArgs,
+    #[command(flatten)]
+    direction: DirectionArgs,
     /// A preset: position-direction, calibration or dahl.
     #[arg(long, value_name = "PRESET", conflicts_with = "terms")]
     model: Option<String>,
@@ -27,16 +29,21 @@ pub struct Args {
 
 /// Validates the spec, reads the log, fits, prints the parameters and writes the model.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::refuse_clashes(
+        &[("--data", Some(args.log.data.as_path()))],
+        &[("--out", Some(args.out.as_path()))],
+    )?;
     let spec = match (&args.model, &args.terms) {
         (Some(p), None) => ModelSpec::preset(p).context("--model")?,
         (None, Some(t)) => ModelSpec::parse(t).context("--terms")?,
         _ => anyhow::bail!("give a model: --model PRESET or --terms T1,T2,..."),
     };
+    let opts = args.direction.fit_options()?;
     let log = args.log.columns.read_log(&args.log.data)?;
-    let model = fit(&spec, &log, &FitOptions::default().check()?)?;
+    let model = fit(&spec, &log, &opts)?;
     model.save(&args.out)?;
     let f = &model.fit;
-    println!(
+    outln!(
         "{}: model `{}`, {} measured rows, {} parameters, residual std {:.4} {}, R² {:.4}",
         log.schema.file,
         model.spec,
@@ -45,16 +52,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         f.residual_std,
         log.schema.units.bias,
         f.r2
-    );
+    )?;
     for p in model.params() {
         match p.se {
-            Some(se) => println!("  {:<32} {:>14.6e} ± {:.3e}", p.name, p.value, se),
-            None => println!("  {:<32} {:>14.6e}", p.name, p.value),
+            Some(se) => outln!("  {:<32} {:>14.6e} ± {:.3e}", p.name, p.value, se)?,
+            None => outln!("  {:<32} {:>14.6e}", p.name, p.value)?,
         }
     }
     for w in &model.warnings {
-        println!("warning: {w}");
+        outln!("warning: {w}")?;
     }
-    println!("wrote {}", args.out.display());
+    outln!("wrote {}", args.out.display())?;
     Ok(())
 }

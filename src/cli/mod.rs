@@ -1,10 +1,30 @@
 //! Command-line flag structs, one file per command. Each command's `run` turns its flags into the
 //! library's validated configuration and calls the library; no numerics live here.
 
+/// Prints a line to stdout through the one output path ([`biasctl::render::write_stdout`]):
+/// evaluates to `Result<(), OutputError>` (a closed pipe is `OutputError::BrokenPipe`).
+macro_rules! outln {
+    () => {
+        biasctl::render::write_stdout("\n")
+    };
+    ($($t:tt)*) => {
+        biasctl::render::write_stdout(&format!("{}\n", format_args!($($t)*)))
+    };
+}
+
+/// Prints to stdout without a newline, as [`outln!`].
+macro_rules! out {
+    ($($t:tt)*) => {
+        biasctl::render::write_stdout(&format!($($t)*))
+    };
+}
+
 mod check;
 mod common;
 mod demo;
 mod diagnose;
+mod discover;
+mod export;
 mod fit;
 mod ladder;
 mod plot;
@@ -47,8 +67,12 @@ enum Command {
     Diagnose(diagnose::Args),
     /// Add terms one at a time, refit on a training log, score on a test log.
     Ladder(ladder::Args),
+    /// Run the loop: fit, diagnose, apply the best verified edit, repeat until nothing is left.
+    Discover(discover::Args),
     /// Settle-optimal integrator start value at the seek → track-following handoff.
     Settle(settle::Args),
+    /// Export a fitted model for firmware (`export c`: C99 state struct, init, step, peek).
+    Export(export::Args),
 }
 
 /// Parses the command line (exiting on `--help`, `--version` and flag errors, as clap does)
@@ -99,6 +123,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Score(a) => score::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Ladder(a) => ladder::run(a),
+        Command::Discover(a) => discover::run(a),
         Command::Settle(a) => settle::run(a),
+        Command::Export(a) => export::run(a),
     }
 }

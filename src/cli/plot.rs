@@ -3,15 +3,15 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::{Context, bail};
+use biasctl::control::settle::analyse;
 use biasctl::diagnose::{
     DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, ladder_terms, replay_model,
 };
 use biasctl::fit::{FitOptions, fit};
 use biasctl::log::Log;
 use biasctl::model::{FittedModel, ModelSpec};
-use biasctl::output::write_string_atomic;
 use biasctl::plot::{from_log, views};
-use biasctl::settle::analyse;
+use biasctl::render::write_string_atomic;
 use clap::ValueEnum;
 use std::path::{Path, PathBuf};
 
@@ -184,7 +184,10 @@ fn draw(a: &Args) -> anyhow::Result<String> {
             let refs: Vec<(&str, _)> = preds.iter().map(|(l, p)| (l.as_str(), p)).collect();
             views::errors(&refs, units)
         }
-        Kind::Loop => views::dahl_loop(&single()?.predict_log(&log)?, units),
+        Kind::Loop => {
+            let (label, m) = model(a.model.as_deref().unwrap_or_default(), &log)?;
+            views::dahl_loop(&m.predict_log(&log)?, units, &label)
+        }
         Kind::Diagnose => {
             let m = single()?;
             let residual = replay_model(&m, &log)?.residual;
@@ -205,9 +208,19 @@ fn draw(a: &Args) -> anyhow::Result<String> {
 
 /// Validates the flags, draws the figure, writes it atomically.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let model_file = args.model.as_deref().map(Path::new).filter(|p| p.is_file());
+    super::common::refuse_clashes(
+        &[
+            ("--data", args.data.as_deref()),
+            ("--test", args.test.as_deref()),
+            ("--model", model_file),
+            ("--plant", args.settle.plant.as_deref()),
+        ],
+        &[("--out", Some(args.out.as_path()))],
+    )?;
     check_flags(&args)?;
     let svg = draw(&args)?;
     write_string_atomic(&args.out, &svg)?;
-    println!("wrote {}", args.out.display());
+    outln!("wrote {}", args.out.display())?;
     Ok(())
 }

@@ -1,11 +1,14 @@
-//! `biasctl predict`: replay a model over a log causally and write per-row predictions.
+//! `biasctl predict`: replay a model over a log or a plan causally and write per-row predictions
+//! (and, with `--handoff`, the integrator start value of every seek).
 
-use super::common::LogArgs;
-use biasctl::log::{Log, fmt_fixed, fmt_trimmed};
-use biasctl::model::{FittedModel, Prediction};
-use biasctl::output::write_atomic;
+use super::common::{DirectionArgs, LogArgs, SettleArgs};
+use biasctl::log::{BiasColumn, Log, LogReader, STDIN_PATH};
+use biasctl::model::{
+    FittedModel, Prediction, ReplaySummary, RowPrediction, StartValues, replay_stream,
+};
+use biasctl::render::write_atomic;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// A model file and a log to apply it to (shared by `predict` and `score`).
 #[derive(Debug, clap::Args)]
@@ -15,14 +18,29 @@ pub struct ModelLogArgs {
     pub model: PathBuf,
     #[command(flatten)]
     pub log: LogArgs,
+    /// Without these flags the model replays direction as it was fitted (its file records
+    /// how); with them, as they say.
+    #[command(flatten)]
+    pub direction: DirectionArgs,
 }
 
 impl ModelLogArgs {
+    /// Loads the model (its direction source replaced when `--deadband`/`--velocity-col` is
+    /// given).
+    pub fn load_model(&self) -> anyhow::Result<FittedModel> {
+        let mut model = FittedModel::load(&self.model)?;
+        if let Some(d) = self.direction.setting()?.explicit()? {
+            model.direction = d;
+        }
+        Ok(model)
+    }
+
     /// Loads the model and the log and replays the model causally over the log.
     pub fn replay(&self) -> anyhow::Result<(FittedModel, Log, Prediction)> {
-        let model = FittedModel::load(&self.model)?;
+        let model = self.load_model()?;
         let log = self.log.columns.read_log(&self.log.data)?;
         let pred = model.predict_log(&log)?;
+        biasctl::render::check_prediction(&pred, &log)?;
         super::common::warn_outside_range(&model, &log.schema.file, &pred.positions);
         Ok((model, log, pred))
     }
@@ -33,58 +51,151 @@ impl ModelLogArgs {
 pub struct Args {
     #[command(flatten)]
     input: ModelLogArgs,
-    /// The CSV to write: input columns, `predicted`, `residual`, one column per term.
+    /// The CSV to write (`-`: standard output): the input columns, `predicted`, `residual`
+    /// (empty where the row is not measured), `integrator_start` with --handoff, one column per
+    /// term.
     #[arg(long, value_name = "PRED.csv")]
     out: PathBuf,
+    /// Add `integrator_start`, the settle-optimal (robust) integrator start value of each seek
+    /// for this plant (a preset such as paper1997, or a plant TOML file), from the row's
+    /// predicted bias with Δb = the model's error std.
+    #[arg(long, value_name = "PRESET|PLANT.toml")]
+    handoff: Option<String>,
+    /// Δb in counts for --handoff instead of the model's error std (the fit's residual_std).
+    #[arg(long, value_name = "DB", requires = "handoff")]
+    bias_uncertainty: Option<f64>,
 }
 
-/// Loads the model and log, replays, writes the CSV atomically.
+/// The settle description named by `--handoff`: a file when it ends in `.toml` or exists,
+/// else a preset name.
+pub fn handoff_plan(
+    model: &FittedModel,
+    handoff: &str,
+    delta_b: Option<f64>,
+) -> anyhow::Result<StartValues> {
+    let is_file = handoff.ends_with(".toml") || Path::new(handoff).is_file();
+    let settle = SettleArgs {
+        preset: (!is_file).then(|| handoff.to_string()),
+        plant: is_file.then(|| PathBuf::from(handoff)),
+        ..SettleArgs::default()
+    };
+    let cfg = settle.spec()?.validate()?;
+    let delta_b = delta_b.unwrap_or(model.fit.residual_std);
+    Ok(StartValues::new(&cfg, delta_b)?)
+}
+
+/// A finite number with every digit it needs to round-trip (so that neither a position in
+/// metres nor a check against another implementation is limited by the file), or an empty cell.
+fn cell(x: Option<f64>) -> String {
+    x.filter(|v| v.is_finite())
+        .map(|v| v.to_string())
+        .unwrap_or_default()
+}
+
+/// Loads the model, streams the log through it and writes the CSV (atomically to a file, or
+/// to stdout flushed per row when the input is stdin).
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, log, pred) = args.input.replay()?;
-    let s = &log.schema;
-    write_atomic(&args.out, |w| -> std::io::Result<()> {
-        write!(w, "{},{},{}", s.map.time, s.map.track, s.map.bias)?;
-        for c in &s.covariates {
-            write!(w, ",{c}")?;
+    super::common::refuse_clashes(
+        &[
+            ("--model", Some(args.input.model.as_path())),
+            ("--data", Some(args.input.log.data.as_path())),
+        ],
+        &[("--out", Some(args.out.as_path()))],
+    )?;
+    let model = args.input.load_model()?;
+    let start = match &args.handoff {
+        Some(h) => Some(handoff_plan(&model, h, args.bias_uncertainty)?),
+        None => None,
+    };
+    let columns = &args.input.log.columns;
+    let data = &args.input.log.data;
+    let mut reader = LogReader::open_with(data, &columns.map(), BiasColumn::Optional)?;
+    let units = columns.units(reader.schema())?;
+    let file = reader.schema().file.clone();
+    let flush_each = data.as_os_str() == STDIN_PATH;
+    let mut write = |w: &mut dyn Write| -> anyhow::Result<ReplaySummary> {
+        write_predictions(&model, &mut reader, start.as_ref(), w, flush_each)
+    };
+    let summary = if args.out.as_os_str() == STDIN_PATH {
+        let stdout = std::io::stdout();
+        let mut lock = stdout.lock();
+        let s = write(&mut lock)?;
+        lock.flush()?;
+        s
+    } else {
+        let mut summary = None;
+        write_atomic(&args.out, |w| -> anyhow::Result<()> {
+            summary = Some(write(w)?);
+            Ok(())
+        })?;
+        summary.ok_or_else(|| anyhow::anyhow!("no rows written"))?
+    };
+    if let Some(w) = &summary.outside_range {
+        eprintln!("warning: {file}: {w}");
+    }
+    let text = format!(
+        "{file}: {} rows predicted with `{}` ({} scored against a measured bias, {} only predicted; bias in {}, position in {}), wrote {}",
+        summary.rows,
+        model.spec,
+        summary.scored,
+        summary.predicted_only,
+        units.bias,
+        units.position,
+        if args.out.as_os_str() == STDIN_PATH {
+            "stdout".to_string()
+        } else {
+            args.out.display().to_string()
         }
-        write!(w, ",predicted,residual")?;
-        for t in &pred.term_names {
-            write!(w, ",{t}")?;
+    );
+    // The summary goes to stderr when the CSV goes to stdout.
+    if args.out.as_os_str() == STDIN_PATH {
+        eprintln!("{text}");
+    } else {
+        outln!("{text}")?;
+    }
+    Ok(())
+}
+
+/// Writes the header and one CSV row per log row as the replay yields it.
+fn write_predictions<R: std::io::Read>(
+    model: &FittedModel,
+    reader: &mut LogReader<R>,
+    start: Option<&StartValues>,
+    out: &mut dyn Write,
+    flush_each: bool,
+) -> anyhow::Result<ReplaySummary> {
+    let s = reader.schema().clone();
+    let mut w = biasctl::log::csv_writer(out);
+    let mut header: Vec<String> = vec![s.map.time.clone(), s.map.track.clone(), s.map.bias.clone()];
+    header.extend(s.covariates.iter().cloned());
+    header.extend(["predicted".to_string(), "residual".to_string()]);
+    if start.is_some() {
+        header.push("integrator_start".into());
+    }
+    header.extend(model.terms.iter().map(|t| t.term.name()));
+    w.write_record(&header)?;
+    if flush_each {
+        w.flush()?;
+    }
+    let mut record: Vec<String> = Vec::with_capacity(header.len());
+    let summary = replay_stream(model, reader, start, |row, p: &RowPrediction, contrib| {
+        record.clear();
+        record.push(cell(Some(row.time_s)));
+        record.push(cell(Some(row.track)));
+        record.push(cell(row.bias));
+        record.extend(row.covariates.iter().map(|c| cell(Some(*c))));
+        record.push(cell(Some(p.predicted)));
+        record.push(cell(p.residual));
+        if start.is_some() {
+            record.push(cell(p.integrator_start));
         }
-        writeln!(w)?;
-        for (i, &r) in pred.rows.iter().enumerate() {
-            let row = &log.rows[r];
-            write!(
-                w,
-                "{},{},{}",
-                fmt_fixed(row.time_s, 6),
-                fmt_trimmed(row.track, 6),
-                fmt_fixed(pred.measured[i], 4)
-            )?;
-            for c in &row.covariates {
-                write!(w, ",{}", fmt_trimmed(*c, 6))?;
-            }
-            write!(
-                w,
-                ",{},{}",
-                fmt_fixed(pred.predicted[i], 4),
-                fmt_fixed(pred.residual[i], 4)
-            )?;
-            for c in &pred.contributions {
-                write!(w, ",{}", fmt_fixed(c[i], 4))?;
-            }
-            writeln!(w)?;
+        record.extend(contrib.iter().map(|c| cell(Some(*c))));
+        w.write_record(&record)?;
+        if flush_each {
+            w.flush()?;
         }
         Ok(())
     })?;
-    println!(
-        "{}: {} measured rows predicted with `{}` (bias in {}, position in {}), wrote {}",
-        s.file,
-        pred.rows.len(),
-        model.spec,
-        s.units.bias,
-        s.units.position,
-        args.out.display()
-    );
-    Ok(())
+    w.flush()?;
+    Ok(summary)
 }

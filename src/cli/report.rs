@@ -71,14 +71,14 @@ pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
 /// Writes the report and prints its path and the headline numbers.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let outcome = story(&args)?;
-    print_outcome(&outcome);
-    Ok(())
+    print_outcome(&outcome)
 }
 
 /// Prints the report's path and the five-line summary.
-pub fn print_outcome(o: &StoryOutcome) {
-    println!("report: {}", o.report.display());
+pub fn print_outcome(o: &StoryOutcome) -> anyhow::Result<()> {
+    outln!("report: {}", o.report.display())?;
     for line in &o.summary {
-        println!("  {line}");
+        outln!("  {line}")?;
     }
+    Ok(())
 }

@@ -29,20 +29,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {}: {w}", log.schema.file);
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&s)?);
+        outln!("{}", serde_json::to_string_pretty(&s)?)?;
     } else {
-        println!("{}: model `{}`", log.schema.file, model.spec);
+        outln!("{}: model `{}`", log.schema.file, model.spec)?;
         if let (Some(f), Some(label)) = (&s.free_run, &s.free_run_feedback) {
             let u = &f.units.bias;
-            println!(
+            outln!(
                 "{label} (from the positions; adaptive terms see no measured bias or only as stated): mean {:.4} {u}, std {:.4} {u}, rms {:.4} {u}",
-                f.mean, f.std, f.rms
-            );
-            println!(
+                f.mean,
+                f.std,
+                f.rms
+            )?;
+            outln!(
                 "one-step (adaptive terms see every earlier measured bias), the statistics below:"
-            );
+            )?;
         }
-        print!("{}", s.one_step.to_text());
+        out!("{}", s.one_step.to_text())?;
     }
     Ok(())
 }

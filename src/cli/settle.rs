@@ -2,9 +2,10 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::Context;
+use biasctl::control::settle::analyse;
+use biasctl::log::{DEFAULT_BIAS_UNIT, Units};
 use biasctl::model::{FittedModel, NextPrediction, predict_next};
-use biasctl::output::write_string_atomic;
-use biasctl::settle::{SettleReport, analyse};
+use biasctl::render::write_string_atomic;
 use std::path::PathBuf;
 
 /// Flags of `biasctl settle`.
@@ -46,6 +47,7 @@ struct ModelLink {
     model: PathBuf,
     next: NextPrediction,
     delta_b: f64,
+    units: Units,
 }
 
 /// Replays the log through the model and predicts the handoff bias; Δb is the model's error std.
@@ -55,6 +57,22 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
     };
     let model = FittedModel::load(model_path)?;
     let log = args.columns.read_log(data)?;
+    let units = log.schema.units.clone();
+    // The settle plant is a disk drive's: its input is in DAC counts. A bias in another unit
+    // (N, mA) cannot be fed to it without a conversion the tool does not know.
+    if units.bias != DEFAULT_BIAS_UNIT {
+        anyhow::bail!(
+            "{} measures bias in `{}`; the plant ({}) is a disk drive driven in \
+             `{DEFAULT_BIAS_UNIT}`: use --bias-unit {DEFAULT_BIAS_UNIT} if the bias is in DAC \
+             counts, else --bias and --bias-uncertainty",
+            log.schema.file,
+            units.bias,
+            args.settle.plant.as_ref().map_or_else(
+                || args.settle.preset.clone().unwrap_or("paper1997".into()),
+                |p| p.display().to_string()
+            )
+        );
+    }
     let next = predict_next(&model, &log, args.target)
         .with_context(|| format!("predicting the handoff bias from {}", data.display()))?;
     super::common::warn_outside_range(&model, &log.schema.file, &[next.target]);
@@ -66,11 +84,23 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
         model: model_path.clone(),
         next,
         delta_b,
+        units,
     }))
 }
 
 /// Validates, designs, analyses; writes the CSVs (atomically) and prints the report.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::refuse_clashes(
+        &[
+            ("--plant", args.settle.plant.as_deref()),
+            ("--model", args.model.as_deref()),
+            ("--data", args.data.as_deref()),
+        ],
+        &[
+            ("--bounds-out", args.bounds_out.as_deref()),
+            ("--response-out", args.response_out.as_deref()),
+        ],
+    )?;
     let mut spec = args.settle.spec()?;
     let link = predict_handoff(&args)?;
     if let Some(l) = &link {
@@ -89,6 +119,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if args.json {
         let mut value = serde_json::to_value(&report)?;
+        if let Some(obj) = value.as_object_mut() {
+            let abs = |v: Option<f64>| v.map(|v| report.absolute(v));
+            obj.insert(
+                "absolute".into(),
+                serde_json::json!({
+                    "zero_ff": report.absolute(0.0),
+                    "ff_midpoint": abs(report.ff_midpoint),
+                    "paper_robust": abs(report.paper_robust.as_ref().map(|p| p.ff)),
+                    "robust": abs(report.robust.as_ref().map(|c| c.ff)),
+                }),
+            );
+        }
         if let (Some(l), Some(obj)) = (&link, value.as_object_mut()) {
             obj.insert(
                 "prediction".into(),
@@ -98,91 +140,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "bias": l.next.bias,
                     "delta_b": l.delta_b,
                     "rows_replayed": l.next.rows_replayed,
+                    "units": l.units,
                     "robust_worst_settle_ms": report.worst_case.robust_worst_settle_ms,
                     "zero_ff_worst_settle_ms": report.worst_case.zero_ff_worst_settle_ms,
                 }),
             );
         }
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        outln!("{}", serde_json::to_string_pretty(&value)?)?;
     } else {
         if let Some(l) = &link {
-            println!(
-                "model {}: predicted bias {:.3} counts at track {} (after {} rows), Δb = {:.3} counts",
+            outln!(
+                "model {}: predicted bias {:.3} {b} at {} {} (after {} rows), Δb = {:.3} {b}",
                 l.model.display(),
                 l.next.bias,
                 l.next.target,
+                l.units.position,
                 l.next.rows_replayed,
-                l.delta_b
-            );
-            println!(
+                l.delta_b,
+                b = l.units.bias,
+            )?;
+            outln!(
                 "  worst-case settle for ±Δb: robust choice {}, zero feedforward {}",
                 ms(report.worst_case.robust_worst_settle_ms),
                 ms(report.worst_case.zero_ff_worst_settle_ms)
-            );
+            )?;
         }
-        print_text(&report);
+        out!("{}", report.to_text())?;
     }
     Ok(())
 }
 
 fn ms(v: Option<f64>) -> String {
     v.map_or("not settled".to_string(), |m| format!("{m:.2} ms"))
-}
-
-fn print_text(r: &SettleReport) {
-    let gain: Vec<String> = r.gain.iter().map(|g| format!("{g:.6}")).collect();
-    let poles: Vec<String> = r.poles_abs.iter().map(|p| format!("{p:.5}")).collect();
-    println!("LQR gain K = [{}]", gain.join(", "));
-    println!(
-        "  DARE: {} doubling steps, residual {:.1e}",
-        r.dare_iterations, r.dare_residual
-    );
-    println!("closed-loop |poles| = [{}]", poles.join(", "));
-    println!("dz/dbias = {:.5} (µm·samples per count)", r.dz_dbias);
-    println!(
-        "step {} µm, window ±{} µm, horizon {} samples, hold {}; start values relative to the converged value {:.4}",
-        r.step_um, r.window_um, r.horizon, r.hold, r.z_converged
-    );
-    println!(
-        "zero feedforward: {} (overshoot {:.1} %)",
-        r.zero_ff_settle_ms
-            .map_or("does not settle within the horizon".to_string(), |m| {
-                format!("settles in {m:.2} ms")
-            }),
-        r.zero_ff_overshoot_pct
-    );
-    match (r.k_star, r.ff_interval) {
-        (Some(k), Some([lo, hi])) => println!(
-            "optimal: k* = {k}, {} for start values in [{lo:.4}, {hi:.4}] (choice {})",
-            ms(r.optimal_settle_ms),
-            r.ff_midpoint
-                .map_or("none".to_string(), |m| format!("{m:.4}"))
-        ),
-        _ => println!("optimal: no start value settles within the horizon"),
-    }
-    match &r.paper_robust {
-        Some(p) => println!(
-            "paper's robust choice: {:.4} (first local minimum of the upper bound at k = {}): {}",
-            p.ff,
-            p.k_min,
-            ms(p.settle_ms)
-        ),
-        None => println!("paper's robust choice: the upper bound has no local minimum"),
-    }
-    let w = &r.worst_case;
-    match &r.robust {
-        Some(c) => println!(
-            "robust for ±{} counts (shift ±{:.4}): {:.4}, worst case {} (simulated {}); zero feedforward worst case {}",
-            w.delta_b,
-            w.shift,
-            c.ff,
-            ms(Some(c.worst_settle_ms)),
-            ms(c.simulated_worst_settle_ms),
-            ms(w.zero_ff_worst_settle_ms)
-        ),
-        None => println!(
-            "robust for ±{} counts: no start value settles for every bias within the horizon",
-            w.delta_b
-        ),
-    }
 }

@@ -87,9 +87,19 @@ fn config(a: &Args) -> anyhow::Result<SimConfig> {
 
 /// Validates, simulates, writes the files and prints a summary.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::refuse_clashes(
+        &[
+            ("--drive", args.drive.as_deref()),
+            ("--script", args.script.as_deref()),
+        ],
+        &[
+            ("--out", Some(args.out.as_path())),
+            ("--truth", args.truth.as_deref()),
+        ],
+    )?;
     let cfg = config(&args)?;
     let s = simulate_to_files(&cfg, &args.out, args.truth.as_deref())?;
-    println!(
+    outln!(
         "simulated {} on drive {} (seed {}): {} rows, {} measured, {:.1} s -> {}",
         cfg.sequence.name(),
         cfg.drive.name,
@@ -98,9 +108,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.measured,
         s.end_time_s,
         args.out.display()
-    );
+    )?;
     if let Some(t) = &args.truth {
-        println!("truth -> {}", t.display());
+        outln!("truth -> {}", t.display())?;
     }
     Ok(())
 }

@@ -45,7 +45,7 @@ impl Shape {
             .map(|x| format!(" near {feature} ≈ {}", short(x)))
             .unwrap_or_default();
         match self {
-            Shape::Flat => "flat".to_string(),
+            Shape::Flat => "is flat".to_string(),
             Shape::Increasing => format!("increases with {feature}"),
             Shape::Decreasing => format!("decreases with {feature}"),
             Shape::Peaked => format!("peaks{at}"),
@@ -56,7 +56,7 @@ impl Shape {
             Shape::StepDown => format!("steps down{at}"),
             Shape::SaturatingRise => format!("rises at small {feature}, then levels off"),
             Shape::SaturatingFall => format!("falls at small {feature}, then levels off"),
-            Shape::Irregular => "irregular".to_string(),
+            Shape::Irregular => "varies irregularly".to_string(),
         }
     }
 }
@@ -204,6 +204,10 @@ pub(crate) fn candidate_terms(
                 vec![format!("col:{name}"), format!("dbins:{name}")]
             }
             FeatureOrigin::Covariate => vec![format!("dbins:{name}")],
+            // Summed memory × direction: the nearest rest *ahead* of the approach matters, and
+            // that is `memory` (one curve per approach direction); `memsum` has no direction.
+            FeatureOrigin::SummedMemory => vec!["memory".into(), "memsum".into()],
+            FeatureOrigin::Lagged => lag_terms(name),
         };
     }
     match origin {
@@ -220,13 +224,28 @@ pub(crate) fn candidate_terms(
         },
         FeatureOrigin::Covariate => {
             let col = format!("col:{name}");
-            if linear || odd_linear {
+            // A logged temperature often leads its effect: the first-order lagged covariate
+            // (when this build has the `lag` term) is verified beside `col:`.
+            let lag = format!("lag:{name}");
+            let lag = crate::model::terms::parse_term(&lag).is_ok().then_some(lag);
+            let mut v = if linear || odd_linear {
                 vec![col, bins]
             } else {
                 vec![bins, col]
-            }
+            };
+            v.extend(lag);
+            v
         }
+        // `bins` cannot compute a summed-memory feature, so it is no fallback here.
+        FeatureOrigin::SummedMemory => vec!["memsum".into(), "memory".into()],
+        FeatureOrigin::Lagged => lag_terms(name),
     }
+}
+
+/// `lag:COL` (then `col:COL`) for a lagged covariate feature `<COL>@lag<τ>s`.
+fn lag_terms(name: &str) -> Vec<String> {
+    let col = super::features::lagged_column(name).unwrap_or(name);
+    vec![format!("lag:{col}"), format!("col:{col}")]
 }
 
 /// Whether the model's term list `existing` already holds `term` (any `dahl:N` counts as a Dahl
@@ -272,7 +291,11 @@ pub(crate) fn suggest(
         .iter()
         .take_while(|t| has_term(existing, t))
         .collect();
-    let chosen = candidates.get(present.len()).cloned();
+    let chosen = candidates
+        .iter()
+        .skip(present.len())
+        .find(|t| !conflicts(existing, t))
+        .cloned();
     let note = match (&chosen, present.is_empty()) {
         (None, true) => Some(
             "no built-in term follows this feature (times the direction where the effect flips \
@@ -291,6 +314,34 @@ pub(crate) fn suggest(
         )),
     };
     (chosen, note)
+}
+
+/// Whether `term` belongs to another model family than one the model already has: a model
+/// with the eq. 1 seek curves (`seek`) is not given the state-space `dahl:N` (a seek-length
+/// effect left there gets `bins:seek_length`, which fits beside `seek`), and a state-space model
+/// is not given `seek`.
+fn conflicts(existing: &[String], term: &str) -> bool {
+    let is_dahl = |t: &str| t == "dahl" || t.starts_with("dahl:");
+    let has_seek = existing
+        .iter()
+        .any(|e| e == "seek" || e.starts_with("seek:"));
+    let has_dahl = existing.iter().any(|e| is_dahl(e));
+    (is_dahl(term) && has_seek) || ((term == "seek" || term.starts_with("seek:")) && has_dahl)
+}
+
+/// The candidates after `chosen` that the model does not have and that do not conflict with
+/// it: the alternatives the verification tries when the first does not fit.
+pub(crate) fn alternatives(
+    candidates: &[String],
+    existing: &[String],
+    chosen: Option<&str>,
+) -> Vec<String> {
+    candidates
+        .iter()
+        .filter(|t| Some(t.as_str()) != chosen)
+        .filter(|t| !has_term(existing, t) && !conflicts(existing, t))
+        .cloned()
+        .collect()
 }
 
 fn list(terms: &[&String]) -> String {

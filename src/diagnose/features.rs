@@ -3,6 +3,8 @@
 
 use crate::history::{Feature, replay};
 use crate::log::{Log, Units};
+use crate::model::terms::lag::FirstOrderLag;
+use crate::model::terms::memsum::MemsumState;
 
 use super::DiagnoseError;
 
@@ -13,6 +15,35 @@ pub enum FeatureOrigin {
     BuiltIn(Feature),
     /// A covariate column of the log (or any column added with [`FeatureTable::push_column`]).
     Covariate,
+    /// `memsum_L<L>`: the summed-kernel rest memory of the `memsum` term at one length scale
+    /// L (the log's position unit): `Σ_p sgn(x − p)·exp(−|x − p|/L)` over every uncrossed rest
+    /// position p ([`crate::model::terms::memsum`]).
+    SummedMemory,
+    /// `<COL>@lag<τ>s`: a covariate column through a first-order lag of time constant τ (s), as
+    /// the `lag:COL` term computes it ([`crate::model::terms::lag`]).
+    Lagged,
+}
+
+/// Length scales of the `memsum_L` features, as fractions of the log's travel (the range of
+/// positions it visits): short, medium and long memory.
+pub const MEMSUM_FRACTIONS: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 1.0 / 4.0];
+
+/// Time constants of the lagged covariates, as points on a log scale of `[median Δt, span/16]`
+/// (the log's sampling interval and a sixteenth of its duration): half-way and at the top. A
+/// longer lag would be a proxy for time itself (on a random-walk drift a lag of 2/3 of the
+/// span explained 38 % of it and smeared the drift onto the covariate).
+pub const LAG_POINTS: [f64; 2] = [0.5, 1.0];
+
+/// Share of a column's variance a lagged copy must keep to become a feature (see [`LAG_POINTS`]):
+/// a lag of a fast or noisy column keeps little of it and is only a slow random series.
+pub const LAG_MIN_VARIANCE: f64 = 0.5;
+
+/// Fraction of the log's duration that is the longest lag of a lagged-covariate feature.
+pub const LAG_MAX_FRACTION: f64 = 1.0 / 16.0;
+
+/// The covariate a lagged feature (`<COL>@lag<τ>s`) was made from.
+pub fn lagged_column(name: &str) -> Option<&str> {
+    name.rsplit_once("@lag").map(|(c, _)| c)
 }
 
 /// One candidate feature's values, one per measured row; `None` where it is undefined.
@@ -38,12 +69,107 @@ pub struct FeatureTable {
     units: Units,
 }
 
+/// The `memsum_L` features at [`MEMSUM_FRACTIONS`] of the log's travel (none if it never moves).
+fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
+    let tracks: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+    let Some(travel) = crate::numeric::stats::range(&tracks)
+        .map(|[a, b]| b - a)
+        .filter(|t| *t > 0.0)
+    else {
+        return Vec::new();
+    };
+    MEMSUM_FRACTIONS
+        .iter()
+        .map(|f| {
+            let l = f * travel;
+            let mut state = MemsumState::new(l);
+            let mut source = None;
+            let mut values = Vec::with_capacity(log.measured_count());
+            for row in &log.rows {
+                let from = source.unwrap_or(row.track);
+                if row.bias.is_some() {
+                    values.push(Some(state.value_after_move(from, row.track)));
+                }
+                state.apply_move(from, row.track);
+                source = Some(row.track);
+            }
+            FeatureColumn {
+                name: format!("memsum_L{}", super::advice::short(l)),
+                origin: FeatureOrigin::SummedMemory,
+                values,
+            }
+        })
+        .collect()
+}
+
+/// Every covariate through first-order lags at [`LAG_POINTS`] of `[median Δt, span/16]`
+/// (none if that range is empty: a log too short or too coarse for a lag to show). `measured` holds each covariate's values at
+/// the measured rows (for the skip of non-finite ones); the lag runs over every row.
+fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
+    let rows = &log.rows;
+    let steps: Vec<f64> = rows
+        .windows(2)
+        .map(|w| w[1].time_s - w[0].time_s)
+        .filter(|d| *d > 0.0)
+        .collect();
+    let median =
+        crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(&steps), 50.0);
+    let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
+    let hi = LAG_MAX_FRACTION * span;
+    let Some(lo) = median.filter(|&m| m > 0.0 && hi > m) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (k, name) in log.schema.covariates.iter().enumerate() {
+        if measured
+            .get(k)
+            .is_some_and(|v| v.iter().any(Option::is_none))
+        {
+            continue; // a gap in the column would stall the lag
+        }
+        let raw: Vec<f64> = measured[k].iter().flatten().copied().collect();
+        let raw_var = crate::numeric::stats::std_dev(&raw).map_or(0.0, |s| s * s);
+        for p in LAG_POINTS {
+            let tau = lo * (hi / lo).powf(p);
+            let mut lag = FirstOrderLag::new(tau);
+            let lagged: Vec<f64> = rows
+                .iter()
+                .filter_map(|r| {
+                    let z = lag.step(r.time_s, r.covariates.get(k).copied().unwrap_or(0.0));
+                    r.bias.is_some().then_some(z)
+                })
+                .collect();
+            // A lag that keeps less than LAG_MIN_VARIANCE of the column's variance mostly
+            // averages the column's own noise into a slow random series, which would match any
+            // slow residual by chance: no feature then.
+            let var = crate::numeric::stats::std_dev(&lagged).map_or(0.0, |s| s * s);
+            if !(var >= LAG_MIN_VARIANCE * raw_var && var > 0.0) {
+                continue;
+            }
+            let values = lagged.into_iter().map(Some).collect();
+            out.push(FeatureColumn {
+                name: format!("{name}@lag{}s", super::advice::short(tau)),
+                origin: FeatureOrigin::Lagged,
+                values,
+            });
+        }
+    }
+    out
+}
+
 impl FeatureTable {
     /// Replays the seek history over every row of `log` and collects, for every measured row,
-    /// every built-in feature ([`Feature::ALL`]) and every covariate column under its header
-    /// name. Non-finite covariate values are kept as missing. The log's units
+    /// every built-in feature ([`Feature::ALL`]), the summed-memory features `memsum_L<L>` at
+    /// [`MEMSUM_FRACTIONS`] of the log's travel, every covariate through lags at [`LAG_POINTS`]
+    /// (`<COL>@lag<τ>s`), and every covariate column under its header name. Non-finite covariate values are kept as missing. The log's units
     /// ([`crate::log::LogSchema::units`]) come along and label the diagnosis.
     pub fn from_log(log: &Log) -> FeatureTable {
+        Self::from_replay(log, replay(log))
+    }
+
+    /// [`FeatureTable::from_log`] with the seek history of `log` replayed by `history` (for
+    /// direction read another way: [`crate::history::replay_with`]).
+    pub fn from_replay(log: &Log, history: crate::history::Replay<'_>) -> FeatureTable {
         let measured = log.measured_count();
         let mut builtin: Vec<Vec<Option<f64>>> = Feature::ALL
             .iter()
@@ -56,7 +182,7 @@ impl FeatureTable {
             .map(|_| Vec::with_capacity(measured))
             .collect();
         let mut lines = Vec::with_capacity(measured);
-        for (_, row, f) in replay(log) {
+        for (_, row, f) in history {
             if row.bias.is_none() {
                 continue;
             }
@@ -77,6 +203,8 @@ impl FeatureTable {
                 values,
             })
             .collect();
+        columns.extend(summed_memory(log));
+        columns.extend(lagged(log, &covariates));
         columns.extend(
             log.schema
                 .covariates
@@ -171,5 +299,14 @@ impl FeatureTable {
     /// The column called `name`, if any.
     pub fn column(&self, name: &str) -> Option<&FeatureColumn> {
         self.columns.iter().find(|c| c.name == name)
+    }
+
+    /// This table without the columns for which `drop` is true (rows, units and origins kept).
+    pub fn without(&self, drop: impl Fn(&FeatureColumn) -> bool) -> FeatureTable {
+        FeatureTable {
+            lines: self.lines.clone(),
+            columns: self.columns.iter().filter(|c| !drop(c)).cloned().collect(),
+            units: self.units.clone(),
+        }
     }
 }

@@ -17,6 +17,8 @@ pub struct LadderInput {
     /// Free-run test-set error std (adaptive terms such as `drift` see no measured bias),
     /// for a model with an adaptive term; `None` otherwise.
     pub free_run_std: Option<f64>,
+    /// The step's warnings: its fit's self-check and a test mean error large against the std.
+    pub warnings: Vec<String>,
 }
 
 /// One rung of the ladder.
@@ -31,6 +33,10 @@ pub struct LadderStep {
     /// no measured bias; absent from the JSON when the model has none (both figures agree).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub free_run_std: Option<f64>,
+    /// The step's warnings (fit self-check, test mean error large against the std); absent
+    /// from the JSON when there are none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     /// Reduction of the std relative to the first step, as a fraction (0.36 = 36 % lower;
     /// negative if worse; 0 when the first std is 0).
     pub reduction: f64,
@@ -63,6 +69,7 @@ pub fn ladder(steps: &[LadderInput]) -> Result<Ladder, DiagnoseError> {
             terms: s.terms.clone(),
             std: s.std,
             free_run_std: s.free_run_std,
+            warnings: s.warnings.clone(),
             reduction: if first > 0.0 {
                 1.0 - s.std / first
             } else {
@@ -129,6 +136,11 @@ impl Ladder {
             out.push('\n');
             previous = Some(s);
         }
+        for (i, s) in self.steps.iter().enumerate() {
+            for w in &s.warnings {
+                out.push_str(&format!("warning: step {i}: {w}\n"));
+            }
+        }
         if free {
             out.push_str(
                 "std is one-step: adaptive terms (drift) see every earlier measured bias; the \
@@ -154,6 +166,7 @@ mod tests {
             terms: terms.iter().map(|t| t.to_string()).collect(),
             std,
             free_run_std: None,
+            warnings: Vec::new(),
         }
     }
 

@@ -96,26 +96,41 @@
 //! look like an effect. For the same reason a discrete value, or an undefined group, seen in
 //! fewer than [`DiagnoseConfig::min_bin_rows`] rows is pooled with its neighbour.
 
+mod absorbed;
 mod advice;
+mod discover;
 mod features;
 mod ladder;
 mod model;
+mod pairs;
 mod report;
 mod smoother;
+mod verify;
 
+pub use absorbed::{Absorption, FAST_FORGETTING, absorbed, rate_warnings};
 pub use advice::{DAHL_TERM, Shape};
-pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
+pub use discover::{DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover};
+pub use features::{
+    FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION, LAG_MIN_VARIANCE, LAG_POINTS,
+    MEMSUM_FRACTIONS, lagged_column,
+};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
-    ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, ladder_fit, ladder_terms,
-    model_terms, replay_model, suggestion_path, suggestion_path_from,
+    ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, diagnose_verified,
+    ladder_fit, ladder_terms, model_spec, model_terms, replay_model, suggestion_path,
+    suggestion_path_from,
 };
+pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
+pub use verify::{
+    Candidate, RejectedEdit, Verification, VerifiedEdit, VerifyConfig, candidates, cv_residuals,
+    edit_for, table_spacing, verify,
+};
 
 use crate::history::Feature;
-use crate::output::OutputError;
-use crate::rng::SimRng;
-use crate::stats;
+use crate::numeric::rng::SimRng;
+use crate::numeric::stats;
+use crate::render::OutputError;
 use smoother::{Binned, FTest, Unusable};
 
 /// Smallest number of measured rows per cross-validation fold.
@@ -232,6 +247,13 @@ pub struct DiagnoseConfig {
     pub ljung_box_lags: usize,
     /// Terms the model already has (`seek`, `dahl:2`, `col:temp_c`, …): never suggested again.
     pub existing_terms: Vec<String>,
+    /// Block length of the permutation null, in seeks; `None` = auto from the residual's
+    /// autocorrelation ([`null_block_len`]). 1 is the plain (exchangeable) row permutation.
+    pub null_block: Option<usize>,
+    /// Smallest practical effect: a significant feature is flagged only when it explains at
+    /// least this fraction of the residual variance out of sample, beyond the features ranked
+    /// before it (default 0.02: the error std falls by about 1 %), in [0, 1).
+    pub min_effect: f64,
 }
 
 impl Default for DiagnoseConfig {
@@ -247,6 +269,8 @@ impl Default for DiagnoseConfig {
             max_discrete: 12,
             ljung_box_lags: 10,
             existing_terms: Vec::new(),
+            null_block: None,
+            min_effect: 0.02,
         }
     }
 }
@@ -289,6 +313,15 @@ impl DiagnoseConfig {
         }
         if self.ljung_box_lags == 0 {
             return bad("ljung_box_lags", "0; use at least 1".into());
+        }
+        if self.null_block == Some(0) {
+            return bad("null_block", "0 seeks; use at least 1 (or auto)".into());
+        }
+        if !(self.min_effect >= 0.0 && self.min_effect < 1.0) {
+            return bad(
+                "min_effect",
+                format!("{} is not in [0, 1)", self.min_effect),
+            );
         }
         Ok(())
     }
@@ -341,7 +374,7 @@ struct Analysed {
     binned: Binned,
     shift: u32,
     explained: f64,
-    /// The smallest F-test p-value over the plain and (if signable) the signed analysis.
+    /// ln of the smallest F-test p-value over the plain and (if signable) the signed analysis.
     observed: f64,
     /// Whether the direction-signed analysis explains more than the plain one.
     by_direction: bool,
@@ -478,7 +511,12 @@ pub fn diagnose(
         analysed.push(a);
     }
 
-    let (p_raw, p_adj) = permutation_test(&analysed, &y, sst, direction.as_deref(), config);
+    let null_block = config
+        .null_block
+        .unwrap_or_else(|| null_block_len(&y))
+        .clamp(1, n.max(1));
+    let (p_raw, p_adj) =
+        permutation_test(&analysed, &y, sst, direction.as_deref(), null_block, config);
 
     let ctx = Ctx {
         direction: direction.as_deref(),
@@ -486,14 +524,14 @@ pub fn diagnose(
         folds: config.folds,
         variance,
     };
-    let flagged: Vec<usize> = (0..analysed.len())
+    let significant: Vec<usize> = (0..analysed.len())
         .filter(|&j| {
             analysed[j]
                 .as_ref()
                 .is_ok_and(|a| a.explained > 0.0 && p_adj[j] <= config.alpha)
         })
         .collect();
-    let forward = forward_pass(&analysed, &flagged, &y, &ctx);
+    let forward = forward_pass(&analysed, &significant, &y, &ctx);
 
     let signed_residuals: Option<Vec<f64>> = direction
         .as_ref()
@@ -524,6 +562,24 @@ pub fn diagnose(
                 Err(why) => report::skipped_report(col, why, residual_std),
             };
             r.explained_beyond_previous = forward.beyond[j];
+            r.significant = significant.contains(&j);
+            let beyond = forward.beyond[j].unwrap_or(0.0);
+            r.flagged = r.significant && r.explained.min(beyond) >= config.min_effect;
+            if r.significant && !r.flagged {
+                let note = format!(
+                    "significant (p = {:.3}) but too small to matter: {:.1} % of the residual \
+                     variance alone, {:.1} % beyond the features ranked before it, below the \
+                     practical minimum of {:.1} %",
+                    r.p_value,
+                    100.0 * r.explained,
+                    100.0 * beyond,
+                    100.0 * config.min_effect
+                );
+                r.note = Some(match r.note.take() {
+                    Some(n) => format!("{note}; {n}"),
+                    None => note,
+                });
+            }
             if let Some(by) = forward.explained_away_by[j] {
                 let note = format!(
                     "confounded with `{}`, which explains it away (what `{}` adds beyond it: {:.1} %)",
@@ -548,6 +604,7 @@ pub fn diagnose(
     reports.sort_by(|(ra, a), (rb, b)| ra.cmp(rb).then(report::compare(a, b)));
     let reports: Vec<FeatureReport> = reports.into_iter().map(|(_, r)| r).collect();
 
+    let (interactions, global) = pairs::screen(table, &forward.left, &ctx, config);
     let whiteness = Whiteness::of(residuals, config.ljung_box_lags, config.alpha);
     let bimodality = stats::bimodality_coefficient(residuals).filter(|b| b.is_finite());
     let dip = stats::dip_test(residuals);
@@ -559,6 +616,14 @@ pub fn diagnose(
         dip,
         summary: String::new(),
         units: table.units().clone(),
+        null_block_len: null_block,
+        absorbed: Vec::new(),
+        warnings: Vec::new(),
+        verification: None,
+        rows: n,
+        alpha: config.alpha,
+        interactions,
+        global,
     };
     d.summary = report::summary(&d, n, config.alpha);
     Ok(d)
@@ -671,6 +736,8 @@ struct Forward {
     explained_away_by: Vec<Option<usize>>,
     /// Per column with a twin: what it adds beyond that twin.
     twin_gain: Vec<f64>,
+    /// The residual left after removing the taken features' out-of-fold smooths.
+    left: Vec<f64>,
 }
 
 /// Ranks the flagged features by what each explains beyond the ones before it (see the module
@@ -689,6 +756,7 @@ fn forward_pass(
         beyond: vec![None; m],
         explained_away_by: vec![None; m],
         twin_gain: vec![0.0; m],
+        left: Vec::new(),
     };
     let eval = |j: usize, r: &[f64]| -> Option<Gain> {
         analysed[j].as_ref().ok().map(|a| {
@@ -775,6 +843,7 @@ fn forward_pass(
             out.beyond[j] = eval(j, &r).map(|g| g.explained);
         }
     }
+    out.left = r;
     out
 }
 
@@ -828,6 +897,63 @@ fn shuffle<T>(v: &mut [T], rng: &mut SimRng) {
     }
 }
 
+/// Whether a feature is a time feature (`elapsed_s`, `seek_index`): tested against the plain
+/// row permutation, since serial structure of the residual is the effect it stands for.
+pub(crate) fn is_time(origin: FeatureOrigin) -> bool {
+    matches!(
+        origin,
+        FeatureOrigin::BuiltIn(Feature::ElapsedS) | FeatureOrigin::BuiltIn(Feature::SeekIndex)
+    )
+}
+
+/// Longest block of the automatic permutation null, in seeks.
+pub const MAX_NULL_BLOCK: usize = 200;
+/// The automatic null block is this many times the residual's decorrelation lag.
+pub const NULL_BLOCK_FACTOR: usize = 6;
+/// The autocorrelation below which the residual counts as decorrelated (automatic null block).
+pub const NULL_ACF: f64 = 0.1;
+
+/// The block length of the permutation null for residual `y`: [`NULL_BLOCK_FACTOR`] times the
+/// first lag at which its autocorrelation falls below [`NULL_ACF`], at most [`MAX_NULL_BLOCK`]
+/// and n/8 (so there are at least 8 blocks to permute), at least 1. Serial correlation shorter
+/// than a block is kept by the null (a block boundary cuts it, so the block must be several
+/// correlation lengths long for the null not to be too narrow), so a slowly varying feature is
+/// not flagged for riding on it. Structure slower than the block is what the time features
+/// (`elapsed_s`, `seek_index` → `drift`) stand for, and a slow column must add to them to be
+/// flagged.
+pub fn null_block_len(y: &[f64]) -> usize {
+    let n = y.len();
+    let cap = MAX_NULL_BLOCK.min(n / 8).max(1);
+    let longest = cap.div_ceil(NULL_BLOCK_FACTOR);
+    let k0 = (1..=longest)
+        .find(|&lag| stats::autocorrelation(y, lag) < NULL_ACF)
+        .unwrap_or(longest);
+    (NULL_BLOCK_FACTOR * k0).clamp(1, cap)
+}
+
+/// Writes into `out` a block permutation of `y`: `y` rotated by a random offset (so block
+/// boundaries are not fixed), cut into consecutive blocks of `block` rows, the blocks
+/// concatenated in random order. `block == 1` is a plain row permutation.
+fn block_permute(y: &[f64], block: usize, out: &mut [f64], rng: &mut SimRng) {
+    let n = y.len();
+    if block <= 1 {
+        out.copy_from_slice(y);
+        shuffle(out, rng);
+        return;
+    }
+    let offset = rng.below(n as u64) as usize;
+    let n_blocks = n.div_ceil(block);
+    let mut order: Vec<usize> = (0..n_blocks).collect();
+    shuffle(&mut order, rng);
+    let mut k = 0;
+    for b in order {
+        for i in b * block..((b + 1) * block).min(n) {
+            out[k] = y[(i + offset) % n];
+            k += 1;
+        }
+    }
+}
+
 /// Raw and Westfall–Young family-wise permutation p-values for every feature (1 for unusable
 /// ones).
 fn permutation_test(
@@ -835,6 +961,7 @@ fn permutation_test(
     y: &[f64],
     sst: f64,
     direction: Option<&[f64]>,
+    block: usize,
     config: &DiagnoseConfig,
 ) -> (Vec<f64>, Vec<f64>) {
     let m = analysed.len();
@@ -847,26 +974,34 @@ fn permutation_test(
         .collect();
     if sst > 0.0 && !usable.is_empty() {
         let mut tests: Vec<FTest> = usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect();
-        let mut perm = y.to_vec();
-        let mut perm_signed = vec![0.0; y.len()];
+        // Two nulls: the time features see rows permuted one by one (serial structure in the
+        // residual *is* what they stand for: a slow offset that `drift` follows); every other
+        // feature sees blocks of `block` consecutive residuals permuted, so it must be
+        // associated with the residual beyond the residual's own serial correlation.
+        let n = y.len();
+        let mut perms = [y.to_vec(), y.to_vec()];
+        let mut signed = [vec![0.0; n], vec![0.0; n]];
+        let mut sst_signed = [0.0; 2];
         let mut rng = SimRng::substream(config.seed, 2);
+        let mut rng_rows = SimRng::substream(config.seed, 3);
         let mut stat = vec![0.0; usable.len()];
         for _ in 0..config.permutations {
-            shuffle(&mut perm, &mut rng);
-            let sst_signed = match direction {
-                Some(d) => {
-                    for ((s, p), d) in perm_signed.iter_mut().zip(&perm).zip(d) {
+            block_permute(y, block, &mut perms[0], &mut rng);
+            block_permute(y, 1, &mut perms[1], &mut rng_rows);
+            if let Some(d) = direction {
+                for k in 0..2 {
+                    for ((s, p), d) in signed[k].iter_mut().zip(&perms[k]).zip(d) {
                         *s = p * d;
                     }
-                    stats::sum_sq_about_mean(&perm_signed)
+                    sst_signed[k] = stats::sum_sq_about_mean(&signed[k]);
                 }
-                None => 0.0,
-            };
+            }
             let mut min_stat = f64::INFINITY;
             for (k, ((_, a), t)) in usable.iter().zip(tests.iter_mut()).enumerate() {
-                stat[k] = t.min_p(&a.binned, &perm, sst);
+                let which = usize::from(is_time(a.origin));
+                stat[k] = t.min_p(&a.binned, &perms[which], sst);
                 if a.signable && direction.is_some() {
-                    stat[k] = stat[k].min(t.min_p(&a.binned, &perm_signed, sst_signed));
+                    stat[k] = stat[k].min(t.min_p(&a.binned, &signed[which], sst_signed[which]));
                 }
                 min_stat = min_stat.min(stat[k]);
             }
@@ -899,3 +1034,5 @@ fn permutation_test(
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_verify;

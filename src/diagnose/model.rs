@@ -7,8 +7,7 @@ use super::{
 };
 use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::Log;
-use crate::model::terms::parse_term;
-use crate::model::{FittedModel, ModelEdit, ModelError, ModelSpec, Prediction, SpecError};
+use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
 
 /// An error diagnosing a model or building a ladder: which stage failed and why.
 #[derive(Debug, thiserror::Error)]
@@ -78,14 +77,68 @@ pub fn model_terms(model: &FittedModel) -> Vec<String> {
 /// Replays `model` causally over `log`, and diagnoses its residuals against every candidate
 /// feature of the log's seek history and every covariate column. The model's own terms are
 /// added to `config.existing_terms`, so nothing the model already has is suggested.
+///
+/// When the model has adaptive terms (`drift`), it also reports what they absorbed
+/// ([`super::absorbed`]) and warns about a forgetting factor much faster than a slow offset
+/// needs ([`super::rate_warnings`]).
 pub fn diagnose_model(
     model: &FittedModel,
     log: &Log,
     config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let prediction = replay_model(model, log)?;
-    let table = FeatureTable::from_log(log);
-    diagnose_residual(model, &table, &prediction.residual, config)
+    let table = model_table(model, log);
+    let mut d = diagnose_residual(model, &table, &prediction.residual, config)?;
+    let mut config = config.clone();
+    for t in model_terms(model) {
+        config.add_existing_term(t);
+    }
+    d.absorbed = super::absorbed(model, &table, &prediction, &config)?;
+    d.warnings = super::rate_warnings(model);
+    d.summary = super::report::extend_summary(&d);
+    Ok(d)
+}
+
+/// The feature table of `log` with direction read as `model` reads it
+/// ([`FittedModel::direction`]); a velocity column the log lacks (which the model's replay has
+/// already refused) falls back to raw steps.
+fn model_table(model: &FittedModel, log: &Log) -> FeatureTable {
+    crate::history::replay_with(log, &model.direction).map_or_else(
+        |_| FeatureTable::from_log(log),
+        |r| FeatureTable::from_replay(log, r),
+    )
+}
+
+/// The model's spec as typed terms (a user's own `TermSpec` included), the base every
+/// suggested [`crate::model::ModelEdit`] is applied to.
+pub fn model_spec(model: &FittedModel) -> Result<ModelSpec, ModelDiagnosisError> {
+    Ok(model.spec.clone())
+}
+
+/// [`diagnose_model`], then the leading suggestions — the top flagged features' terms and
+/// what adaptive terms absorbed — applied as typed edits, refitted on `log` and scored out of
+/// sample on folds of consecutive seeks ([`super::verify`]); the result is in
+/// [`Diagnosis::verification`], best verified gain first, and leads the summary.
+pub fn diagnose_verified(
+    model: &FittedModel,
+    log: &Log,
+    config: &CheckedDiagnoseConfig,
+    verify_config: &super::VerifyConfig,
+) -> Result<Diagnosis, ModelDiagnosisError> {
+    let mut d = diagnose_model(model, log, config)?;
+    let spec = model_spec(model)?;
+    let cands = super::candidates(&d, verify_config.candidates);
+    let v = super::verify(
+        &spec,
+        log,
+        &cands,
+        d.null_block_len,
+        config.min_effect,
+        verify_config,
+    )?;
+    d.verification = Some(v);
+    d.summary = super::report::extend_summary(&d);
+    Ok(d)
 }
 
 /// [`diagnose_model`] for a caller that has already replayed `model` over the log: `table` is
@@ -152,7 +205,7 @@ pub fn ladder_fit(
             source: Box::new(source),
         })?;
         let prediction = replay_model(&model, test)?;
-        let std = crate::stats::std_dev(&prediction.residual).ok_or_else(|| {
+        let std = crate::numeric::stats::std_dev(&prediction.residual).ok_or_else(|| {
             ModelDiagnosisError::TooFewTestRows {
                 step,
                 file: test.schema.file.clone(),
@@ -162,14 +215,25 @@ pub fn ladder_fit(
             model
                 .predict_log_with(test, crate::model::Feedback::Never)
                 .ok()
-                .and_then(|p| crate::stats::std_dev(&p.residual))
+                .and_then(|p| crate::numeric::stats::std_dev(&p.residual))
         } else {
             None
         };
+        let mut warnings: Vec<String> =
+            model.warnings.iter().map(|w| format!("fit: {w}")).collect();
+        let mean = crate::numeric::stats::mean(&prediction.residual).unwrap_or(0.0);
+        if mean.abs() > crate::score::MEAN_WARNING_RATIO * std {
+            warnings.push(format!(
+                "test mean error {mean:.4e} is {:.2}× the error std {std:.4e}: the model is \
+                 offset on the test log",
+                mean.abs() / std.max(f64::MIN_POSITIVE)
+            ));
+        }
         inputs.push(LadderInput {
             terms: terms[..k].to_vec(),
             std,
             free_run_std,
+            warnings,
         });
     }
     Ok(ladder(&inputs)?)
@@ -226,8 +290,8 @@ pub fn suggestion_path_from(
 ) -> Result<Vec<PathStep>, ModelDiagnosisError> {
     let mut path = Vec::new();
     let mut table = None;
-    let mut current = model.clone();
     let mut d = first;
+    let mut spec = model_spec(model)?;
     for step in 1..=steps {
         let Some(top) = d.features.first().filter(|f| f.flagged) else {
             break;
@@ -235,28 +299,23 @@ pub fn suggestion_path_from(
         let Some(term) = top.suggested_term.clone() else {
             break;
         };
-        let spec_err = |source| {
-            let terms = if current.spec.terms.is_empty() {
-                term.clone()
-            } else {
-                format!("{},{term}", current.spec)
-            };
-            ModelDiagnosisError::Spec {
-                step,
-                terms,
-                source,
-            }
-        };
-        let spec = parse_term(&term)
-            .and_then(|t| current.spec.apply(&ModelEdit::Add(t)))
-            .map_err(spec_err)?;
-        let spec_text = spec.to_string();
-        let next = fit(&spec, log, opts).map_err(|source| ModelDiagnosisError::Fit {
+        let spacing = (top.name == "position")
+            .then(|| super::table_spacing(top))
+            .flatten();
+        let edit = super::edit_for(&term, &spec, spacing).and_then(|e| spec.apply(&e));
+        let next_spec = edit.map_err(|source| ModelDiagnosisError::Spec {
+            step,
+            terms: format!("{spec} + {term}"),
+            source,
+        })?;
+        let spec_text = next_spec.to_string();
+        let next = fit(&next_spec, log, opts).map_err(|source| ModelDiagnosisError::Fit {
             step,
             terms: spec_text.clone(),
             file: log.schema.file.clone(),
             source: Box::new(source),
         })?;
+        spec = next_spec;
         let after = replay_model(&next, log)?;
         path.push(PathStep {
             feature: top.name.clone(),
@@ -264,13 +323,12 @@ pub fn suggestion_path_from(
             explained: top.explained,
             spec: spec_text,
             std_before: d.residual_std,
-            std_after: crate::stats::std_dev(&after.residual).unwrap_or(0.0),
+            std_after: crate::numeric::stats::std_dev(&after.residual).unwrap_or(0.0),
         });
         if step < steps {
-            let table = table.get_or_insert_with(|| FeatureTable::from_log(log));
+            let table = table.get_or_insert_with(|| model_table(&next, log));
             d = diagnose_residual(&next, table, &after.residual, config)?;
         }
-        current = next;
     }
     Ok(path)
 }

@@ -1,13 +1,12 @@
 //! The diagnosis as data (serde, JSON contract), as text, and as per-feature CSV curves.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
 use crate::log::{Units, fmt_trimmed};
-use crate::output::write_atomic;
-use crate::stats;
+use crate::numeric::stats;
+use crate::render::write_atomic;
 
 use super::advice::{self, Point, Shape, short};
 use super::features::{FeatureColumn, FeatureOrigin};
@@ -37,6 +36,36 @@ pub struct Diagnosis {
     /// `{"bias": "N", "position": "m"}` (counts and tracks when absent).
     #[serde(default)]
     pub units: Units,
+    /// Block length (seeks) of the block-permutation null behind every `p_value`: blocks of
+    /// consecutive residuals are permuted, so serial correlation shorter than this is kept by
+    /// the null (1: plain row permutation).
+    #[serde(default)]
+    pub null_block_len: usize,
+    /// Effects adaptive terms (`drift`) absorbed: candidates that explain residual + the
+    /// term's contribution (filled by [`super::diagnose_model`]).
+    #[serde(default)]
+    pub absorbed: Vec<super::Absorption>,
+    /// Warnings about the model (a forgetting factor much faster than a slow offset needs).
+    #[serde(default)]
+    pub warnings: Vec<String>,
+    /// The leading suggestions refitted and scored out of sample, best verified gain first
+    /// (filled by [`super::diagnose_verified`]; `null` when not run).
+    #[serde(default)]
+    pub verification: Option<super::Verification>,
+    /// Measured rows diagnosed.
+    #[serde(default)]
+    pub rows: usize,
+    /// The family-wise significance level used.
+    #[serde(default)]
+    pub alpha: f64,
+    /// Pairs of candidates whose joint cells explain clearly more of what the single features
+    /// left than either does alone (an interaction without a one-dimensional marginal), best
+    /// first, with the interaction term to verify.
+    #[serde(default)]
+    pub interactions: Vec<super::Interaction>,
+    /// The global check: the leading candidates' joint cells against the best single one.
+    #[serde(default)]
+    pub global: Option<super::GlobalCheck>,
 }
 
 /// What one candidate feature says about the residual.
@@ -57,9 +86,18 @@ pub struct FeatureReport {
     /// The model term that addresses this feature and is not in the model yet; `null` if there
     /// is none (or the feature was skipped).
     pub suggested_term: Option<String>,
+    /// Other terms that address the feature and are not in the model, tried in this order
+    /// when the suggested one does not fit (verification).
+    #[serde(default)]
+    pub alternatives: Vec<String>,
     /// Per-feature permutation p-value, not corrected for the number of features.
     pub p_value_raw: f64,
-    /// Whether the feature is flagged: `p_value` ≤ alpha and `explained` > 0.
+    /// Whether the feature is significant: `p_value` ≤ alpha (family-wise, block null).
+    #[serde(default)]
+    pub significant: bool,
+    /// Whether the feature is flagged: significant, and both `explained` and
+    /// `explained_beyond_previous` reach the practical minimum
+    /// ([`super::DiagnoseConfig::min_effect`]).
     pub flagged: bool,
     /// Shape of the residual against the feature at the chosen binning.
     pub shape: Shape,
@@ -299,6 +337,11 @@ pub(crate) fn feature_report(
     let candidates =
         advice::candidate_terms(&col.name, col.origin, linear, by_direction, odd_linear);
     let (suggested_term, note) = advice::suggest(&candidates, &config.existing_terms);
+    let alternatives = advice::alternatives(
+        &candidates,
+        &config.existing_terms,
+        suggested_term.as_deref(),
+    );
     let note = advice::offset_note(col.origin, &config.existing_terms).or(note);
     FeatureReport {
         name: col.name.clone(),
@@ -306,7 +349,9 @@ pub(crate) fn feature_report(
         p_value: p_adj,
         explained_beyond_previous: None,
         suggested_term,
+        alternatives,
         p_value_raw: p_raw,
+        significant: p_adj <= config.alpha && explained > 0.0,
         flagged: p_adj <= config.alpha && explained > 0.0,
         shape,
         // A discrete feature's step is between its values; a location adds nothing.
@@ -347,7 +392,9 @@ pub(crate) fn skipped_report(
         p_value: 1.0,
         explained_beyond_previous: None,
         suggested_term: None,
+        alternatives: Vec::new(),
         p_value_raw: 1.0,
+        significant: false,
         flagged: false,
         shape: Shape::Flat,
         shape_at: None,
@@ -383,11 +430,25 @@ fn percent(x: f64) -> String {
     format!("{:.1} %", 100.0 * x)
 }
 
+/// A p-value for a table cell: `< 0.0001` below 1e-4 (the permutation and dip tests resolve
+/// nothing finer), else four significant decimals.
 fn p_text(p: f64) -> String {
-    if p < 1e-3 {
-        format!("{p:.1e}")
+    if p < 1e-4 {
+        "< 0.0001".to_string()
+    } else if p < 1e-3 {
+        format!("{p:.4}")
     } else {
         format!("{p:.3}")
+    }
+}
+
+/// A p-value in a sentence: `p < 0.0001` or `p = 0.012`.
+fn p_sentence(p: f64) -> String {
+    let t = p_text(p);
+    if t.starts_with('<') {
+        format!("p {t}")
+    } else {
+        format!("p = {t}")
     }
 }
 
@@ -395,7 +456,7 @@ fn p_text(p: f64) -> String {
 fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> String {
     let mut s = format!(
         "The residual{} follows `{}`: it {}; `{}` explains {} of the residual variance out of \
-         sample (p = {}, family-wise).",
+         sample ({}, family-wise).",
         if f.by_direction {
             " times the direction of the last move"
         } else {
@@ -405,7 +466,7 @@ fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> String {
         f.shape.describe(&f.name, f.shape_at),
         f.name,
         percent(f.explained),
-        p_text(f.p_value)
+        p_sentence(f.p_value)
     );
     match &f.suggested_term {
         Some(t) => {
@@ -429,9 +490,94 @@ fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> String {
     s
 }
 
+/// The summary of `d` again, after absorption, warnings or verification were added.
+pub(crate) fn extend_summary(d: &Diagnosis) -> String {
+    summary(d, d.rows, d.alpha)
+}
+
+/// Sentences on the verified edits, absorbed effects and warnings, in that order.
+fn model_sentences(d: &Diagnosis) -> Vec<String> {
+    let mut parts = Vec::new();
+    let unit = &d.units.bias;
+    if let Some(v) = &d.verification {
+        if let Some(why) = &v.not_run {
+            parts.push(format!("Not verified: {why}."));
+        }
+        match v.best() {
+            Some(e) => parts.push(format!(
+                "Verified by refitting ({} folds of consecutive seeks, out of sample): `{}` \
+                 ({}) takes the error std from {} to {} {unit} ({} of the error variance, \
+                 z = {:.1}).",
+                v.folds,
+                e.edit,
+                e.feature,
+                short(e.std_before),
+                short(e.std_after),
+                percent(e.gain),
+                e.z
+            )),
+            None if !v.edits.is_empty() => parts.push(format!(
+                "No suggested edit is verified by refitting: the best, `{}`, changes the \
+                 out-of-sample error std from {} to {} {unit} ({} of the variance, z = {:.1}), \
+                 below what noise allows.",
+                v.edits[0].edit,
+                short(v.edits[0].std_before),
+                short(v.edits[0].std_after),
+                percent(v.edits[0].gain),
+                v.edits[0].z
+            )),
+            None => {}
+        }
+    }
+    for a in &d.absorbed {
+        parts.push(format!(
+            "`{}` is following `{}`: it explains {} of the residual plus {}'s contribution but \
+             {} of the residual alone{}.",
+            a.term,
+            a.feature,
+            percent(a.explained_with_term),
+            a.term,
+            percent(a.explained_residual),
+            a.suggested_term
+                .as_deref()
+                .map(|t| format!(": add `{t}`"))
+                .unwrap_or_default()
+        ));
+    }
+    for w in &d.warnings {
+        parts.push(format!("Warning: {w}."));
+    }
+    for i in &d.interactions {
+        parts.push(format!(
+            "`{}` × `{}` together explain {} of what the single features left, against {} for \
+             the better alone: an interaction no single feature shows; try `{}`.",
+            i.a,
+            i.b,
+            percent(i.explained_pair),
+            percent(i.best_single),
+            i.suggested_term
+        ));
+    }
+    if let Some(g) = d.global.as_ref().filter(|g| g.remains) {
+        parts.push(format!(
+            "Global check: the joint cells of {} explain {} of what the single features left, \
+             against {} for the best single one: something remains that no single feature \
+             explains.",
+            g.features
+                .iter()
+                .map(|f| format!("`{f}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            percent(g.explained_joint),
+            percent(g.best_single)
+        ));
+    }
+    parts
+}
+
 /// The plain-words summary of a diagnosis.
 pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
-    let mut parts = Vec::new();
+    let mut parts = model_sentences(d);
     let flagged: Vec<&FeatureReport> = d.features.iter().filter(|f| f.flagged).collect();
     match flagged.first() {
         Some(f) => {
@@ -474,9 +620,9 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
     match (w.white, w.ljung_box_p) {
         (false, Some(p)) => parts.push(format!(
             "The residuals are not white in seek order (lag-1 autocorrelation {:.2}, Ljung–Box \
-             p = {}): something slow is left.",
+             {}): something slow is left.",
             w.lag1,
-            p_text(p)
+            p_sentence(p)
         )),
         _ => parts.push(format!(
             "The residuals look white in seek order (lag-1 autocorrelation {:.2}).",
@@ -485,9 +631,9 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
     }
     if let Some(t) = d.dip.as_ref().filter(|t| t.rejects_unimodality(0.05)) {
         parts.push(format!(
-            "Their histogram has more than one hump (Hartigans' dip test p = {}): separate \
+            "Their histogram has more than one hump (Hartigans' dip test {}): separate \
              populations, as from a missing direction or hysteresis term.",
-            p_text(t.p_value)
+            p_sentence(t.p_value)
         ));
     }
     if let Some(pos) = d.features.iter().find(|f| f.name == "position")
@@ -495,10 +641,10 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
         && p <= alpha
     {
         parts.push(format!(
-            "A linear trend against position remains ({} {}, p = {}).",
+            "A linear trend against position remains ({} {}, {}).",
             short(slope),
             d.units.per_position(),
-            p_text(p)
+            p_sentence(p)
         ));
     }
     let skipped: Vec<String> = d
@@ -582,19 +728,88 @@ impl Diagnosis {
                 advice_line(f, self.residual_std, &self.units.bias)
             ));
         }
+        for f in self.features.iter().filter(|f| f.significant && !f.flagged) {
+            if let Some(note) = &f.note {
+                out.push_str(&format!("  `{}`: {note}.\n", f.name));
+            }
+        }
         for f in self.features.iter().filter(|f| is_skipped(f)) {
             if let Some(note) = &f.note {
                 out.push_str(&format!("  `{}` {note}\n", f.name));
             }
         }
+        out.push_str(&format!(
+            "  (p: family-wise over all features, against a null that permutes blocks of {} \
+             consecutive residuals, so serial correlation that short is not taken for an \
+             effect; flagged: significant and adds at least the practical minimum beyond the \
+             features ranked before it.)\n",
+            self.null_block_len
+        ));
+        if let Some(v) = &self.verification {
+            out.push_str(&format!(
+                "\nVerified by refitting ({} folds of consecutive seeks; error std out of \
+                 sample, {} before any edit):\n",
+                v.folds,
+                short(v.std_before)
+            ));
+            for e in &v.edits {
+                out.push_str(&format!(
+                    "  {:<32} {:<24} std {} → {} {}, gain {}, z {:.1}{}\n",
+                    e.edit,
+                    format!("({})", e.feature),
+                    short(e.std_before),
+                    short(e.std_after),
+                    self.units.bias,
+                    percent(e.gain),
+                    e.z,
+                    if e.verified {
+                        ""
+                    } else {
+                        "  (not verified: below what noise allows)"
+                    }
+                ));
+            }
+            if let Some(why) = &v.not_run {
+                out.push_str(&format!("  {why}\n"));
+            }
+            for r in &v.rejected {
+                out.push_str(&format!(
+                    "  `{}` for `{}` cannot be applied: {}\n",
+                    r.term, r.feature, r.why
+                ));
+            }
+        }
+        if !self.absorbed.is_empty() || !self.warnings.is_empty() {
+            out.push_str("\nWhat adaptive terms absorbed:\n");
+            for a in &self.absorbed {
+                out.push_str(&format!(
+                    "  `{}` is following `{}`: {} of residual + {} explained, {} of the residual \
+                     alone{}\n",
+                    a.term,
+                    a.feature,
+                    percent(a.explained_with_term),
+                    a.term,
+                    percent(a.explained_residual),
+                    a.suggested_term
+                        .as_deref()
+                        .map(|t| format!(": add `{t}`"))
+                        .unwrap_or_default()
+                ));
+            }
+            for w in &self.warnings {
+                out.push_str(&format!("  warning: {w}\n"));
+            }
+        }
         let w = &self.whiteness;
         out.push_str("\nResidual checks:\n");
         out.push_str(&format!(
-            "  whiteness: lag-1 autocorrelation {:.3}; Ljung–Box Q = {} over {} lags, p = {} → {}\n",
+            "  whiteness: lag-1 autocorrelation {:.3}; Ljung–Box Q = {} over {} lags, {} → {}\n",
             w.lag1,
             w.ljung_box_q.map(short).unwrap_or_else(|| "-".into()),
             w.lags,
-            w.ljung_box_p.map(p_text).unwrap_or_else(|| "-".into()),
+            w.ljung_box_p
+                .map(p_sentence)
+                .unwrap_or_else(|| "p -".into()),
             if w.white { "white" } else { "NOT white" }
         ));
         out.push_str(&format!(
@@ -606,9 +821,9 @@ impl Diagnosis {
         ));
         if let Some(t) = &self.dip {
             out.push_str(&format!(
-                "  dip test of unimodality: D {:.4}, p = {} ({})\n",
+                "  dip test of unimodality: D {:.4}, {} ({})\n",
                 t.statistic,
-                p_text(t.p_value),
+                p_sentence(t.p_value),
                 if t.rejects_unimodality(0.05) {
                     "more than one hump"
                 } else {
@@ -620,10 +835,10 @@ impl Diagnosis {
             && let (Some(s), Some(p)) = (pos.slope, pos.slope_p)
         {
             out.push_str(&format!(
-                "  trend against position: {} {}, p = {}\n",
+                "  trend against position: {} {}, {}\n",
                 short(s),
                 self.units.per_position(),
-                p_text(p)
+                p_sentence(p)
             ));
         }
         out.push_str(&format!("\nSummary: {}\n", self.summary));
@@ -643,7 +858,8 @@ impl Diagnosis {
             }
             let path = dir.join(format!("residual_vs_{}.csv", file_safe(&f.name)));
             write_atomic(&path, |w| -> std::io::Result<()> {
-                writeln!(w, "bin,lower,upper,centre,mean,std,count")?;
+                let mut w = crate::log::csv_writer(w);
+                w.write_record(["bin", "lower", "upper", "centre", "mean", "std", "count"])?;
                 for (i, c) in f.curve.iter().enumerate() {
                     let num = |x: Option<f64>| x.map(|v| fmt_trimmed(v, 6)).unwrap_or_default();
                     let label = if c.centre.is_some() {
@@ -651,18 +867,17 @@ impl Diagnosis {
                     } else {
                         "missing".to_string()
                     };
-                    writeln!(
-                        w,
-                        "{label},{},{},{},{},{},{}",
+                    w.write_record([
+                        label,
                         num(c.lower),
                         num(c.upper),
                         num(c.centre),
                         fmt_trimmed(c.mean, 6),
                         fmt_trimmed(c.std, 6),
-                        c.count
-                    )?;
+                        c.count.to_string(),
+                    ])?;
                 }
-                Ok(())
+                w.flush()
             })?;
             written.push(path);
         }

@@ -10,7 +10,7 @@
 //! bin per value and two candidates: all values, or one bin. Missing values always form a bin of
 //! their own, also in the one-bin candidate, so "undefined" can itself be an effect.
 
-use crate::stats::reg_inc_beta;
+use crate::numeric::stats::reg_inc_beta;
 
 /// Fine-bin index of a missing value.
 pub(crate) const MISSING: u32 = u32::MAX;
@@ -362,9 +362,11 @@ impl FTest {
         }
     }
 
-    /// The smallest one-way-ANOVA F-test p-value over the candidate levels of `b` for centred
-    /// residuals `y` with total sum of squares `sst` (the adaptive statistic the permutation test
-    /// calibrates). 1 when no level has two non-empty bins.
+    /// The natural log of the smallest one-way-ANOVA F-test p-value over the candidate levels
+    /// of `b` for centred residuals `y` with total sum of squares `sst` (the adaptive statistic
+    /// the permutation test calibrates). In log space, so that strong effects on long,
+    /// serially correlated logs do not all tie at p = 0 (see [`f_test_ln_p`]). 0 when no level
+    /// has two non-empty bins.
     pub fn min_p(&mut self, b: &Binned, y: &[f64], sst: f64) -> f64 {
         self.fine_sum.iter_mut().for_each(|s| *s = 0.0);
         for (i, &v) in y.iter().enumerate() {
@@ -372,7 +374,7 @@ impl FTest {
         }
         let n = y.len() as f64;
         let total: f64 = self.fine_sum.iter().sum();
-        let mut best = 1.0f64;
+        let mut best = 0.0f64;
         for (li, &shift) in b.levels.iter().enumerate() {
             let cnt = &self.level_cnt[li];
             self.level_sum.clear();
@@ -388,7 +390,7 @@ impl FTest {
                     groups += 1;
                 }
             }
-            best = best.min(f_test_p(ssb.max(0.0), sst, groups, y.len()));
+            best = best.min(f_test_ln_p(ssb.max(0.0), sst, groups, y.len()));
         }
         best
     }
@@ -408,6 +410,25 @@ pub(crate) fn f_test_p(ssb: f64, sst: f64, groups: usize, n: usize) -> f64 {
     }
     let f = (ssb / df1) / (ssw / df2);
     reg_inc_beta(df2 / 2.0, df1 / 2.0, df2 / (df2 + df1 * f)).clamp(0.0, 1.0)
+}
+
+/// Natural log of [`f_test_p`], continued below p = 1e-250 (where the p-value underflows) by
+/// the large-F tail of the χ² approximation, df1·F ~ χ²(df1): ln Q(k/2, x/2) ≈
+/// (k/2 − 1)·ln(x/2) − x/2 − ln Γ(k/2). Monotone in F for fixed degrees of freedom, so
+/// strong effects stay comparable instead of tying at p = 0.
+pub(crate) fn f_test_ln_p(ssb: f64, sst: f64, groups: usize, n: usize) -> f64 {
+    let p = f_test_p(ssb, sst, groups, n);
+    if p > 1e-250 {
+        return p.ln();
+    }
+    let df1 = (groups.max(2) - 1) as f64;
+    let df2 = (n.saturating_sub(groups)).max(1) as f64;
+    let ssw = (sst - ssb).max(sst * 1e-14).max(f64::MIN_POSITIVE);
+    let f = (ssb / df1) / (ssw / df2);
+    let x = df1 * f;
+    let k = df1;
+    let ln = (k / 2.0 - 1.0) * (x / 2.0).ln() - x / 2.0 - crate::numeric::stats::ln_gamma(k / 2.0);
+    ln.min(1e-250f64.ln())
 }
 
 /// Summary of one bin of the smoothed curve.

@@ -16,10 +16,13 @@ pub mod registry;
 pub mod term;
 pub mod terms;
 
-pub use predictor::{NextPrediction, Predictor, predict_next};
+pub use predictor::{
+    NextPrediction, Predictor, REST_CAPACITY, ReplayError, ReplaySummary, RowPrediction,
+    StartValues, predict_next, replay_stream,
+};
 
 use crate::log::Log;
-use crate::output::{OutputError, write_string_atomic};
+use crate::render::{OutputError, write_string_atomic};
 use data::FitReport;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -339,6 +342,9 @@ pub struct FittedModel {
     pub fit: FitReport,
     /// Warnings (parameters the log cannot determine, …).
     pub warnings: Vec<String>,
+    /// How the direction of motion was read from the training log; every replay of the model
+    /// (predict, score, diagnose) reads it the same way. Model files without it: raw steps.
+    pub direction: crate::history::DirectionSource,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -350,6 +356,8 @@ struct ModelFile {
     terms: Vec<TermFile>,
     fit: FitReport,
     warnings: Vec<String>,
+    #[serde(default)]
+    direction: crate::history::DirectionSource,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -433,6 +441,7 @@ impl FittedModel {
             version: FORMAT_VERSION,
             spec: self.spec.to_string(),
             columns: self.columns.clone(),
+            direction: self.direction.clone(),
             terms: self
                 .terms
                 .iter()
@@ -462,7 +471,7 @@ impl FittedModel {
     /// Reads a model file; `restore` rebuilds user terms from their name and saved settings
     /// (return `None` for names it does not know; built-ins are tried after it).
     pub fn load_with(path: &Path, restore: &RestoreFn) -> Result<Self, ModelError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+        let text = crate::log::limits::read_text(path).map_err(|source| ModelError::Io {
             path: path.into(),
             source,
         })?;
@@ -516,12 +525,20 @@ impl FittedModel {
             return Err(corrupt("no terms".into()));
         }
         let spec = Self::spec_from_file(&file.spec, &terms).map_err(corrupt)?;
+        if let crate::history::DirectionSource::Deadband { deadband } = file.direction
+            && !(deadband.is_finite() && deadband > 0.0)
+        {
+            return Err(corrupt(format!(
+                "direction deadband {deadband} must be finite and > 0"
+            )));
+        }
         Ok(FittedModel {
             spec,
             columns: file.columns,
             terms,
             fit: file.fit,
             warnings: file.warnings,
+            direction: file.direction,
         })
     }
 
@@ -548,13 +565,19 @@ impl FittedModel {
     /// Checks that `log` has the columns this model was fitted on (names of the three required
     /// columns as read, and every covariate the terms use).
     pub fn check_log(&self, log: &Log) -> Result<(), ModelError> {
-        let map = &log.schema.map;
+        self.check_schema(&log.schema)
+    }
+
+    /// As [`FittedModel::check_log`] for a log's header alone (a streamed log); the bias
+    /// column's name is not compared when the log has none (a plan).
+    pub fn check_schema(&self, schema: &crate::log::LogSchema) -> Result<(), ModelError> {
+        let map = &schema.map;
         for (what, model, now, flag) in [
             ("time", &self.columns.time, &map.time, "--time-col"),
             ("track", &self.columns.track, &map.track, "--track-col"),
             ("bias", &self.columns.bias, &map.bias, "--bias-col"),
         ] {
-            if model != now {
+            if model != now && (what != "bias" || schema.has_bias()) {
                 return Err(ModelError::ColumnMismatch {
                     what,
                     model: model.clone(),
@@ -588,7 +611,7 @@ impl FittedModel {
             .copied()
             .filter(|&x| x < lo || x > hi)
             .collect();
-        let seen = crate::stats::range(&outside)?;
+        let seen = crate::numeric::stats::range(&outside)?;
         Some(RangeWarning {
             outside: outside.len(),
             total: positions.len(),
@@ -677,7 +700,7 @@ impl Feedback {
     pub fn shows(self, k: u64) -> bool {
         match self {
             Feedback::EveryRow => true,
-            Feedback::Every(n) => k % n.max(1) == 0,
+            Feedback::Every(n) => k.is_multiple_of(n.max(1)),
             Feedback::Never => false,
         }
     }

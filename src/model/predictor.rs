@@ -12,33 +12,71 @@
 //! ```
 
 use super::term::{Seek, TermState};
-use super::{FittedModel, ModelError};
+use super::{FittedModel, ModelError, RangeWarning};
+use crate::control::settle::{AnalyseError, HandoffTable, SettleConfig, Window};
 use crate::history::{History, SeekFeatures};
+use crate::log::{LogError, LogReader, Row};
+use std::cell::RefCell;
+use std::io::Read;
+
+/// Uncrossed rest positions per side of the head the predictor holds without allocating
+/// ([`crate::history::RestMemory`]); beyond it the stack grows (Rust) or drops its farthest
+/// position (the C export, whose state struct holds this many).
+pub const REST_CAPACITY: usize = 1024;
 
 /// Replays a fitted model causally, one seek at a time.
+///
+/// [`Predictor::step`] and [`Predictor::peek`] allocate nothing (their buffers are sized in
+/// [`Predictor::new`]) while at most [`REST_CAPACITY`] uncrossed rest positions per side are
+/// remembered, so they can run in a real-time loop.
 #[derive(Debug, Clone)]
 pub struct Predictor {
     history: History,
+    /// Index of the velocity column among the covariates when direction comes from it.
+    velocity: Option<usize>,
     states: Vec<Box<dyn TermState>>,
     coefficients: Vec<Vec<f64>>,
-    n_covariates: usize,
+    /// Scratch: one term's basis values, then the row's covariates (padded with 0).
+    scratch: RefCell<(Vec<f64>, Vec<f64>)>,
 }
 
 impl Predictor {
     /// A predictor at the start of a log whose covariate columns are named `covariates` (the
-    /// values passed to `step`/`peek` follow this order). Fails if a term's covariate is missing.
+    /// values passed to `step`/`peek` follow this order). Fails if a term's covariate is missing,
+    /// naming the term and the column.
     pub fn new(model: &FittedModel, covariates: &[String]) -> Result<Self, ModelError> {
         let states = model
             .terms
             .iter()
             .map(|t| t.term.start(covariates))
             .collect::<Result<Vec<_>, _>>()?;
+        let widest = model
+            .terms
+            .iter()
+            .map(|t| t.coefficients.len())
+            .max()
+            .unwrap_or(0);
+        let velocity = match &model.direction {
+            crate::history::DirectionSource::Velocity { column } => Some(
+                super::terms::covariate_position(covariates, column, "direction (--velocity-col)")?,
+            ),
+            _ => None,
+        };
+        let mut history = model.direction.history();
+        history.reserve(REST_CAPACITY);
         Ok(Self {
-            history: History::new(),
+            history,
+            velocity,
             states,
             coefficients: model.terms.iter().map(|t| t.coefficients.clone()).collect(),
-            n_covariates: covariates.len(),
+            scratch: RefCell::new((vec![0.0; widest], vec![0.0; covariates.len()])),
         })
+    }
+
+    /// The direction a row's velocity column gives, when direction comes from one.
+    fn moved(&self, covariates: &[f64]) -> Option<i8> {
+        self.velocity
+            .map(|k| crate::history::DirectionSource::moved(covariates.get(k).copied()))
     }
 
     /// The seek history so far.
@@ -46,21 +84,21 @@ impl Predictor {
         &self.history
     }
 
+    /// Copies `covariates` into the scratch buffer (missing values count as 0) and sums the
+    /// terms' contributions (counts) for the seek `f`, writing each into `contrib`.
     fn evaluate(&self, f: &SeekFeatures, covariates: &[f64], contrib: &mut [f64]) -> f64 {
+        let mut scratch = self.scratch.borrow_mut();
+        let (basis, cov) = &mut *scratch;
+        for (i, c) in cov.iter_mut().enumerate() {
+            *c = covariates.get(i).copied().unwrap_or(0.0);
+        }
         let seek = Seek {
             features: f,
-            covariates,
+            covariates: cov,
         };
-        let mut stack = [0.0f64; 64];
-        let mut heap = Vec::new();
         let mut total = 0.0;
         for (k, (state, coef)) in self.states.iter().zip(&self.coefficients).enumerate() {
-            let buf: &mut [f64] = if coef.len() <= stack.len() {
-                &mut stack[..coef.len()]
-            } else {
-                heap.resize(coef.len(), 0.0);
-                &mut heap[..]
-            };
+            let buf = &mut basis[..coef.len()];
             state.basis(&seek, buf);
             let c = buf.iter().zip(coef).map(|(b, c)| b * c).sum::<f64>() + state.offset(&seek);
             if let Some(slot) = contrib.get_mut(k) {
@@ -71,15 +109,19 @@ impl Predictor {
         total
     }
 
-    /// Predicted bias (counts) if the next seek went to `target` at `time_s` with these covariate
-    /// values; the state is unchanged. Missing covariate values count as 0.
+    /// Predicted bias (counts, or the log's bias unit) if the next seek went to `target`
+    /// (tracks) at `time_s` (s) with these covariate values; the state is unchanged. Missing
+    /// covariate values count as 0.
     pub fn peek(&self, time_s: f64, target: f64, covariates: &[f64]) -> f64 {
-        let f = self.history.peek(time_s, target);
-        self.evaluate(&f, &self.pad(covariates), &mut [])
+        let f = self
+            .history
+            .peek_moved(time_s, target, self.moved(covariates));
+        self.evaluate(&f, covariates, &mut [])
     }
 
     /// Records a seek to `target` at `time_s` and, if measured, its bias; returns the prediction
-    /// made before the measurement was seen.
+    /// made before the measurement was seen (it depends on no bias of this row). Adaptive terms
+    /// (`drift`) learn from measured rows only and hold their state over unmeasured ones.
     pub fn step(&mut self, time_s: f64, target: f64, covariates: &[f64], bias: Option<f64>) -> f64 {
         self.step_detailed(time_s, target, covariates, bias, &mut [])
     }
@@ -94,29 +136,215 @@ impl Predictor {
         bias: Option<f64>,
         contrib: &mut [f64],
     ) -> f64 {
-        let cov = self.pad(covariates);
-        let f = self.history.step(time_s, target);
-        let pred = self.evaluate(&f, &cov, contrib);
+        let f = self
+            .history
+            .step_moved(time_s, target, self.moved(covariates));
+        let pred = self.evaluate(&f, covariates, contrib);
+        let residual = bias.map(|y| y - pred);
+        let scratch = self.scratch.borrow();
         let seek = Seek {
             features: &f,
-            covariates: &cov,
+            covariates: &scratch.1,
         };
-        let residual = bias.map(|y| y - pred);
         for s in &mut self.states {
             s.update(&seek, residual);
         }
         pred
     }
+}
 
-    fn pad<'a>(&self, covariates: &'a [f64]) -> std::borrow::Cow<'a, [f64]> {
-        if covariates.len() >= self.n_covariates {
-            std::borrow::Cow::Borrowed(covariates)
-        } else {
-            let mut v = covariates.to_vec();
-            v.resize(self.n_covariates, 0.0);
-            std::borrow::Cow::Owned(v)
+/// The settle-optimal integrator start value of every planned seek (`predict --handoff`): the
+/// robust choice of eq. 14–16 for the plant's handoff (a step from rest) and a bias known to
+/// ±Δb, made absolute with the seek's predicted bias.
+///
+/// `integrator_start(b̂) = ∂z/∂d·b̂ + ζ_robust` in µm·samples: the value the firmware loads into
+/// the integrator, i.e. the converged value for the predicted bias b̂ (counts) plus the robust
+/// start value relative to it, which `biasctl settle --bias B --bias-uncertainty DB` reports as
+/// `z_converged` and `robust.ff`. Allocation-free per call.
+///
+/// ```
+/// use biasctl::model::StartValues;
+/// use biasctl::control::settle::{SettleSpec, analyse};
+/// let mut spec = SettleSpec::preset("paper1997").unwrap();
+/// let starts = StartValues::new(&spec.validate().unwrap(), 8.0).unwrap();
+/// let z = starts.integrator_start(30.0).unwrap();
+/// // What `biasctl settle --bias 30 --bias-uncertainty 8` reports:
+/// spec.bias = 30.0;
+/// spec.bias_uncertainty = 8.0;
+/// let r = analyse(&spec.validate().unwrap()).unwrap();
+/// assert!((z - (r.z_converged + r.robust.unwrap().ff)).abs() < 1e-9);
+/// ```
+#[derive(Debug, Clone)]
+pub struct StartValues {
+    table: HandoffTable,
+    window: Window,
+    step_um: f64,
+    delta_b: f64,
+}
+
+impl StartValues {
+    /// Designs the controller of `cfg` (its plant, weights, step, window and horizon; its bias
+    /// is ignored) for a bias uncertainty `delta_b` (counts, finite, ≥ 0: the model's error std).
+    pub fn new(cfg: &SettleConfig, delta_b: f64) -> Result<Self, AnalyseError> {
+        if !delta_b.is_finite() || delta_b < 0.0 {
+            return Err(crate::control::settle::SettleError::Invalid {
+                field: "bias_uncertainty (the model's residual_std or --bias-uncertainty)",
+                what: "finite and ≥ 0",
+                value: delta_b,
+            }
+            .into());
         }
+        let ctl = crate::control::Controller::design(&cfg.plant, &cfg.weights)?;
+        Ok(Self {
+            table: HandoffTable::new(&ctl, cfg.scenario.horizon)?,
+            window: cfg.scenario.window,
+            step_um: cfg.scenario.step_um,
+            delta_b,
+        })
     }
+
+    /// Δb in counts.
+    pub fn delta_b(&self) -> f64 {
+        self.delta_b
+    }
+
+    /// The precomputed handoff table.
+    pub fn table(&self) -> &HandoffTable {
+        &self.table
+    }
+
+    /// The settle window.
+    pub fn window(&self) -> &Window {
+        &self.window
+    }
+
+    /// Step length in µm (the handoff starts at e0 = −step from rest).
+    pub fn step_um(&self) -> f64 {
+        self.step_um
+    }
+
+    /// The absolute integrator start value (µm·samples) for a seek whose predicted bias is
+    /// `bias` (counts); `None` when no start value settles every bias within ±Δb inside the
+    /// horizon, or the bias is not finite.
+    pub fn integrator_start(&self, bias: f64) -> Option<f64> {
+        if !bias.is_finite() {
+            return None;
+        }
+        let h = crate::control::settle::Handoff {
+            e0_um: -self.step_um,
+            v0_um_s: 0.0,
+            u_prev_counts: bias,
+            bias_counts: bias,
+        };
+        let sol = self.table.solve(&h, &self.window, self.delta_b);
+        let zeta = sol.robust?.choice(sol.shift);
+        let z = self.table.dz_dbias() * bias + zeta;
+        z.is_finite().then_some(z)
+    }
+}
+
+/// One row of a replayed plan or log.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RowPrediction {
+    /// The causal prediction (counts, or the log's bias unit): from earlier rows and this
+    /// row's seek, time and covariates, never from this row's bias.
+    pub predicted: f64,
+    /// measured − predicted, `None` where the row was not measured.
+    pub residual: Option<f64>,
+    /// The integrator start value for this seek ([`StartValues::integrator_start`]), when
+    /// start values were asked for and one settles.
+    pub integrator_start: Option<f64>,
+}
+
+/// What a streamed replay saw ([`replay_stream`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReplaySummary {
+    /// Rows predicted.
+    pub rows: u64,
+    /// Rows with a measured bias (scored: they have a residual).
+    pub scored: u64,
+    /// Rows without a measured bias (only predicted).
+    pub predicted_only: u64,
+    /// Rows whose target lies outside the model's fitted position range, if any.
+    pub outside_range: Option<RangeWarning>,
+}
+
+/// An error while streaming a replay: reading the log, applying the model, or the row sink.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReplayError {
+    /// The log could not be read (names file, line and column).
+    #[error(transparent)]
+    Log(#[from] LogError),
+    /// The model cannot be applied to this log (a missing covariate column, …).
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The row sink failed (writing the output).
+    #[error("writing the predictions: {0}")]
+    Sink(#[source] std::io::Error),
+}
+
+/// Streams `reader` through `model` in constant memory: every row is predicted (measured or
+/// not) and the history advances on every row; `sink` receives each row, its prediction and the
+/// terms' contributions (model term order) as soon as the row is read. With `start`, each row
+/// also gets its integrator start value from its predicted bias.
+pub fn replay_stream<R: Read>(
+    model: &FittedModel,
+    reader: &mut LogReader<R>,
+    start: Option<&StartValues>,
+    mut sink: impl FnMut(&Row, &RowPrediction, &[f64]) -> std::io::Result<()>,
+) -> Result<ReplaySummary, ReplayError> {
+    let schema = reader.schema().clone();
+    model.check_schema(&schema)?;
+    let mut p = Predictor::new(model, &schema.covariates)?;
+    let mut contrib = vec![0.0; model.terms.len()];
+    let mut row = Row::empty(schema.covariates.len());
+    let mut summary = ReplaySummary {
+        rows: 0,
+        scored: 0,
+        predicted_only: 0,
+        outside_range: None,
+    };
+    let fitted = model.fit.position_range;
+    let mut outside: Option<RangeWarning> = None;
+    while reader.read_into(&mut row)? {
+        let predicted = p.step_detailed(
+            row.time_s,
+            row.track,
+            &row.covariates,
+            row.bias,
+            &mut contrib,
+        );
+        let out = RowPrediction {
+            predicted,
+            residual: row.bias.map(|y| y - predicted),
+            integrator_start: start.and_then(|s| s.integrator_start(predicted)),
+        };
+        summary.rows += 1;
+        if row.bias.is_some() {
+            summary.scored += 1;
+        } else {
+            summary.predicted_only += 1;
+        }
+        if let Some([lo, hi]) = fitted
+            && (row.track < lo || row.track > hi)
+        {
+            let w = outside.get_or_insert(RangeWarning {
+                outside: 0,
+                total: 0,
+                fitted: [lo, hi],
+                seen: [row.track, row.track],
+            });
+            w.outside += 1;
+            w.seen = [w.seen[0].min(row.track), w.seen[1].max(row.track)];
+        }
+        sink(&row, &out, &contrib).map_err(ReplayError::Sink)?;
+    }
+    summary.outside_range = outside.map(|mut w| {
+        w.total = summary.rows as usize;
+        w
+    });
+    Ok(summary)
 }
 
 /// The bias a model predicts for one seek after a replayed log (what `settle --model` feeds to

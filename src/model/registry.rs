@@ -19,7 +19,8 @@
 
 use super::term::{Term, TermSpec};
 use super::terms::{
-    bins, covariate, dahl, direction, drift, intercept, memory, play, poly, seek, table,
+    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly, seek,
+    table,
 };
 use super::{ModelError, SpecError};
 use std::sync::Arc;
@@ -100,6 +101,18 @@ pub static BUILTINS: &[BuiltinTerm] = &[
         restore_as::<covariate::ColTerm>,
     ),
     row(
+        "lag",
+        Some("lag:NAME"),
+        lag::parse,
+        restore_as::<lag::LagTerm>,
+    ),
+    row(
+        "memsum",
+        Some("memsum"),
+        memsum::parse,
+        restore_as::<memsum::MemsumTerm>,
+    ),
+    row(
         "bins",
         Some("bins:FEATURE[:KNOTS]"),
         bins::parse,
@@ -111,6 +124,7 @@ pub static BUILTINS: &[BuiltinTerm] = &[
         bins::parse,
         bins::restore,
     ),
+    row("by", Some("by:A:B"), by::parse, restore_as::<by::ByTerm>),
     row("intercept", None, intercept::parse, intercept::restore),
 ];
 

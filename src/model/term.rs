@@ -215,6 +215,13 @@ pub trait Term: Debug + Send + Sync {
     fn settings(&self) -> serde_json::Value {
         serde_json::Value::Null
     }
+    /// The term as C code for the firmware export (`biasctl export c`, [`crate::export`]);
+    /// `None`: not exportable (the export then refuses, naming the term). The default knows the
+    /// built-in terms by name and [`Term::settings`] ([`crate::export::builtin::builtin_term`]);
+    /// a user's term overrides it to export itself.
+    fn export_c(&self, ctx: &crate::export::CContext) -> Option<crate::export::CTerm> {
+        crate::export::builtin::builtin_term(&self.name(), &self.settings(), ctx)
+    }
 }
 
 /// A term's state while a log is replayed.

@@ -20,7 +20,7 @@
 
 use super::svg::{AxisRange, Chart, ErrorPoint, Panel, Series, SeriesData, fmt_num};
 use crate::log::Units;
-use crate::stats;
+use crate::numeric::stats;
 
 /// Axis label for bias in counts (the simulator's unit; see [`bias_label`]).
 pub const BIAS: &str = "bias (counts)";
@@ -342,7 +342,7 @@ fn bin_counts(x: &[f64], edges: &[f64]) -> Vec<f64> {
     counts
 }
 
-/// Data of Figs. 13/14: a hysteresis loop, measured and as the Dahl model predicts it.
+/// Data of Figs. 13/14: a hysteresis loop, measured and as a model predicts it.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DahlLoop {
     /// Measured `(position, bias)` in seek order.
@@ -351,16 +351,22 @@ pub struct DahlLoop {
     pub predicted: Vec<(f64, f64)>,
     /// Units of bias and position (axis labels).
     pub units: Units,
+    /// The model's name for the title and legend (a preset such as `dahl`, a term list or a
+    /// model file's name).
+    pub model: String,
 }
 
-/// Figs. 13/14: the Dahl loop, measured points and the predicted loop.
+/// Figs. 13/14: a hysteresis loop, measured points and the loop the named model predicts.
 pub fn dahl_loop(d: &DahlLoop) -> String {
-    Chart::new("Figs. 13/14 — hysteresis loop: measured and Dahl model")
-        .x_label(position_label(&d.units))
-        .y_label(bias_label(&d.units))
-        .series(Series::new("measured", SeriesData::Scatter(d.measured.clone())).color(0))
-        .series(Series::new("Dahl model", SeriesData::Line(d.predicted.clone())).color(1))
-        .to_svg()
+    let model = format!("model `{}`", d.model);
+    Chart::new(format!(
+        "Figs. 13/14 — hysteresis loop: measured and {model}"
+    ))
+    .x_label(position_label(&d.units))
+    .y_label(bias_label(&d.units))
+    .series(Series::new("measured", SeriesData::Scatter(d.measured.clone())).color(0))
+    .series(Series::new(model, SeriesData::Line(d.predicted.clone())).color(1))
+    .to_svg()
 }
 
 /// One bin of residuals against a feature.

@@ -10,14 +10,17 @@
 //!
 //! Rules that hold for any input:
 //! - non-finite values (NaN, ±∞) are skipped and counted ([`Chart::non_finite_count`]); the
-//!   count is shown in the chart, and the SVG never contains `NaN` or `inf`;
+//!   count is kept in an undrawn `<desc class="skipped">`, and the SVG never contains `NaN` or
+//!   `inf`;
+//! - a scatter series of more than [`SCATTER_FULL_LIMIT`] points is density-drawn (one mark per
+//!   [`SCATTER_CELL_PX`]-pixel cell), `data-points` still counting every point;
 //! - a chart with no finite data shows "no data" in its plot area, one with a single point says
 //!   so; nothing panics;
 //! - the same chart always gives the same bytes.
 //!
-//! Automatic ranges run exactly from the smallest to the largest value (reference lines and bands
-//! included), so the extreme points lie on the plot-area edges; ticks are "nice" (1-2-5 steps)
-//! inside the range.
+//! Automatic ranges run from the smallest to the largest value (reference lines and bands
+//! included) widened by [`AXIS_PADDING`] of the span on each side, so extreme points are drawn
+//! whole inside the frame; ticks are "nice" (1-2-5 steps) inside the range.
 //!
 //! ```
 //! use biasctl::plot::svg::{Chart, AxisRange};
@@ -49,7 +52,8 @@ const CHAR_W: f64 = 0.6 * FONT;
 /// The range of one axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum AxisRange {
-    /// From the smallest to the largest value drawn on this axis.
+    /// From the smallest to the largest value drawn on this axis, widened by
+    /// [`AXIS_PADDING`] of the span on each side so extreme marks are not clipped by the frame.
     Auto,
     /// A fixed range; data outside it is clipped. A non-finite or empty range falls back to
     /// [`AxisRange::Auto`].
@@ -696,12 +700,12 @@ impl Chart {
                 m
             );
         }
+        // The count of skipped values is for tools and tests, not the reader: a `<desc>` is
+        // not drawn.
         if lay.skipped > 0 {
             let _ = writeln!(
                 out,
-                r##"<text class="skipped" x="{}" y="{}" text-anchor="end" font-size="10" fill="#555555">{} non-finite value{} skipped</text>"##,
-                n(lay.right - 4.0),
-                n(lay.top + 12.0),
+                r##"<desc class="skipped">{} non-finite value{} skipped</desc>"##,
                 lay.skipped,
                 if lay.skipped == 1 { "" } else { "s" }
             );
@@ -834,10 +838,16 @@ impl Chart {
             }
             SeriesData::Scatter(p) => {
                 let r = if s.faint { 2.0 } else { 3.0 };
+                let dense = p.len() > SCATTER_FULL_LIMIT;
+                let mut cells = std::collections::HashSet::new();
                 for &(x, y) in p {
                     if x.is_finite() && y.is_finite() {
                         count += 1;
-                        if lay.inside(x, y) {
+                        let cell = (
+                            (lay.px(x) / SCATTER_CELL_PX).floor() as i64,
+                            (lay.py(y) / SCATTER_CELL_PX).floor() as i64,
+                        );
+                        if lay.inside(x, y) && (!dense || cells.insert(cell)) {
                             point(&mut body, lay, (x, y), r, color);
                         }
                     }
@@ -1320,7 +1330,10 @@ fn resolve(range: AxisRange, ext: Extent) -> (f64, f64) {
         return (lo, hi);
     }
     match (ext.lo, ext.hi) {
-        (Some(lo), Some(hi)) if hi - lo > 1e-12 * lo.abs().max(hi.abs()) => (lo, hi),
+        (Some(lo), Some(hi)) if hi - lo > 1e-12 * lo.abs().max(hi.abs()) => {
+            let pad = AXIS_PADDING * (hi - lo);
+            (lo - pad, hi + pad)
+        }
         (Some(v), Some(_)) => {
             let d = if v.abs() > 0.0 { v.abs() * 0.1 } else { 1.0 };
             (v - d, v + d)
@@ -1328,6 +1341,17 @@ fn resolve(range: AxisRange, ext: Extent) -> (f64, f64) {
         _ => (0.0, 1.0),
     }
 }
+
+/// The fraction of the data span added on each side of an automatic axis range.
+pub const AXIS_PADDING: f64 = 0.03;
+
+/// A scatter series with more finite points than this is density-drawn: at most one mark per
+/// [`SCATTER_CELL_PX`]-pixel cell (the first point that falls in it), so a 35,000-row log draws
+/// as many marks as the plot has occupied cells, not one per row.
+pub const SCATTER_FULL_LIMIT: usize = 4000;
+
+/// Cell size in pixels of a density-drawn scatter series ([`SCATTER_FULL_LIMIT`]).
+pub const SCATTER_CELL_PX: f64 = 2.0;
 
 fn ticks_for(length_px: f64, per_tick_px: f64) -> usize {
     ((length_px / per_tick_px).round() as usize).clamp(3, 10)
@@ -1488,7 +1512,9 @@ mod tests {
     fn clipping_cuts_segments_at_the_range() {
         let lay = Chart::new("").line("", &[(0.0, 0.0), (1.0, 1.0)]).layout();
         let (a, b) = clip(&lay, (-1.0, 0.5), (2.0, 0.5)).unwrap();
-        assert!((a.0 - 0.0).abs() < 1e-12 && (b.0 - 1.0).abs() < 1e-12);
+        // The automatic range is padded: the segment is cut at the padded ends.
+        assert!((a.0 - lay.x_lo).abs() < 1e-12 && (b.0 - lay.x_hi).abs() < 1e-12);
+        assert!((lay.x_lo + AXIS_PADDING).abs() < 1e-12);
         assert!(clip(&lay, (-1.0, 2.0), (2.0, 2.0)).is_none());
     }
 }

@@ -7,30 +7,30 @@
 //! use biasctl::diagnose::{Ladder, LadderStep};
 //! use biasctl::plot::views;
 //! let l = Ladder { steps: vec![
-//!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0 },
-//!     LadderStep { terms: vec!["poly2".into(), "direction".into()], std: 10.0, reduction: 0.5 },
+//!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0,
+//!         free_run_std: None, warnings: vec![] },
+//!     LadderStep { terms: vec!["poly2".into(), "direction".into()], std: 10.0, reduction: 0.5,
+//!         free_run_std: None, warnings: vec![] },
 //! ] };
 //! let svg = views::ladder(&l, &biasctl::log::Units::default());
 //! assert!(svg.contains("+ direction") && svg.contains("error std (counts)"));
 //! ```
 
-use std::fmt::Write;
-
 use super::figures::{
     self, DahlLoop, FeatureResiduals, ModelErrors, ResidualBin, SettleBounds, SettleResponses,
 };
 use super::from_log;
+use crate::control::settle::SettleReport;
 use crate::diagnose::{Diagnosis, FeatureTable, Ladder};
-use crate::log::{ColumnMap, Log, LogError, Units};
-use crate::model::{FittedModel, ModelError, Prediction};
-use crate::settle::SettleReport;
+use crate::log::{Log, LogError, Units};
+use crate::model::{FittedModel, ModelError, Prediction, Predictor};
 
 /// Why a view of a fitted model could not be drawn.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ViewError {
-    /// The synthetic Table I log of the curves could not be built (bad column names).
-    #[error("building the model-curve log")]
+    /// A log could not be read.
+    #[error("reading the log")]
     Log(#[from] LogError),
     /// The model could not be replayed (for example a covariate it needs is missing).
     #[error("replaying the model")]
@@ -44,16 +44,21 @@ pub type Curve = Vec<(f64, f64)>;
 pub const CURVE_POINTS: usize = 41;
 
 /// The model's inbound and outbound curves over the log's measured track range, the way
-/// Table I measures them: for each of [`CURVE_POINTS`] targets, a seek from one full data span
-/// below the lowest measured track (inbound), then from one span above the highest (outbound).
-/// Covariate columns the model uses are held at their mean over the log; time advances 0.2 s per
-/// row from the log's first time. Returns `(inbound, outbound)` as `(track, bias)` in track
-/// order; both empty when the log has no measured row.
+/// Table I measures them, from the model's own state at the end of the log: the log is replayed
+/// causally with its measurements (so adaptive terms such as `drift` reach the level the data
+/// hold them at), then, for each of [`CURVE_POINTS`] targets and from a copy of that state, an
+/// unmeasured seek one full data span above the highest measured track, one a span below the
+/// lowest (crossing every earlier rest position), and the target (inbound curve; the outbound one
+/// visits the far ends in the other order). Unmeasured seeks leave adaptive terms frozen.
+/// Covariate columns are held at their mean over the log; each seek takes 0.2 s after the log's
+/// last time. Returns `(inbound, outbound)` as `(position, bias)` in position order, in the log's
+/// units; both empty when the log has no measured row.
 pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), ViewError> {
-    let Some([lo, hi]) = crate::stats::range(&log.measured_positions()) else {
+    let Some([lo, hi]) = crate::numeric::stats::range(&log.measured_positions()) else {
         return Ok((Vec::new(), Vec::new()));
     };
-    let span = (hi - lo).max(1.0);
+    model.check_log(log)?;
+    let span = (hi - lo).max(f64::EPSILON);
     let s = &log.schema;
     let means: Vec<f64> = (0..s.covariates.len())
         .map(|k| {
@@ -63,56 +68,36 @@ pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), Vi
                 .filter_map(|r| r.covariates.get(k).copied())
                 .filter(|v| v.is_finite())
                 .collect();
-            crate::stats::mean(&v).unwrap_or(0.0)
+            crate::numeric::stats::mean(&v).unwrap_or(0.0)
         })
         .collect();
-    let mut text = format!("{},{},{}", s.map.time, s.map.track, s.map.bias);
-    for c in &s.covariates {
-        let _ = write!(text, ",{c}");
+    let mut replayed = Predictor::new(model, &s.covariates)?;
+    for r in &log.rows {
+        replayed.step(r.time_s, r.track, &r.covariates, r.bias);
     }
-    text.push('\n');
-    let t0 = log.rows.first().map_or(0.0, |r| r.time_s);
-    let mut row = 0usize;
-    let mut push = |text: &mut String, track: f64, measured: bool| {
-        let _ = write!(
-            text,
-            "{},{},{}",
-            t0 + 0.2 * row as f64,
-            track,
-            if measured { "0" } else { "" }
-        );
-        for m in &means {
-            let _ = write!(text, ",{m}");
-        }
-        text.push('\n');
-        row += 1;
+    let t_end = log.rows.last().map_or(0.0, |r| r.time_s);
+    let curve_point = |first: f64, second: f64, x: f64| {
+        let mut p = replayed.clone();
+        p.step(t_end + CURVE_DWELL_S, first, &means, None);
+        p.step(t_end + 2.0 * CURVE_DWELL_S, second, &means, None);
+        p.peek(t_end + 3.0 * CURVE_DWELL_S, x, &means)
     };
-    let targets: Vec<f64> = (0..CURVE_POINTS)
-        .map(|i| lo + (hi - lo) * i as f64 / (CURVE_POINTS - 1) as f64)
-        .collect();
-    for &x in &targets {
-        push(&mut text, lo - span, false);
-        push(&mut text, x, true);
-        push(&mut text, hi + span, false);
-        push(&mut text, x, true);
-    }
-    let map = ColumnMap {
-        time: s.map.time.clone(),
-        track: s.map.track.clone(),
-        bias: s.map.bias.clone(),
-    };
-    let synthetic = Log::from_reader("model curves", text.as_bytes(), &map)?;
-    let p = model.predict_log(&synthetic)?;
-    let mut inbound = Vec::with_capacity(targets.len());
-    let mut outbound = Vec::with_capacity(targets.len());
-    for (i, &x) in targets.iter().enumerate() {
-        if let (Some(&a), Some(&b)) = (p.predicted.get(2 * i), p.predicted.get(2 * i + 1)) {
+    let (below, above) = (lo - span, hi + span);
+    let mut inbound = Vec::with_capacity(CURVE_POINTS);
+    let mut outbound = Vec::with_capacity(CURVE_POINTS);
+    for i in 0..CURVE_POINTS {
+        let x = lo + (hi - lo) * i as f64 / (CURVE_POINTS - 1) as f64;
+        let (a, b) = (curve_point(above, below, x), curve_point(below, above, x));
+        if a.is_finite() && b.is_finite() {
             inbound.push((x, a));
             outbound.push((x, b));
         }
     }
     Ok((inbound, outbound))
 }
+
+/// Time at each track of the seeks that draw [`model_curves`], s.
+pub const CURVE_DWELL_S: f64 = 0.2;
 
 /// Fig. 3 of a log with the model's curves ([`model_curves`]) when a model is given.
 pub fn position(log: &Log, model: Option<&FittedModel>) -> Result<String, ViewError> {
@@ -137,9 +122,9 @@ pub fn errors(predictions: &[(&str, &Prediction)], units: &Units) -> String {
     figures::prediction_errors(&models, units)
 }
 
-/// Figs. 13/14: measured `(position, bias)` in seek order and the prediction as a line, in the
-/// replayed log's `units`.
-pub fn dahl_loop(p: &Prediction, units: &Units) -> String {
+/// Figs. 13/14: measured `(position, bias)` in seek order and the prediction of the model named
+/// `model` as a line, in the replayed log's `units`.
+pub fn dahl_loop(p: &Prediction, units: &Units, model: &str) -> String {
     figures::dahl_loop(&DahlLoop {
         measured: p
             .positions
@@ -154,6 +139,7 @@ pub fn dahl_loop(p: &Prediction, units: &Units) -> String {
             .zip(p.predicted.iter().copied())
             .collect(),
         units: units.clone(),
+        model: model.to_string(),
     })
 }
 
@@ -310,7 +296,7 @@ pub fn settle_bounds(r: &SettleReport) -> String {
 
 /// Fig. 16 of a settle analysis: the position error of every start-value choice.
 pub fn settle_responses(r: &SettleReport) -> String {
-    let window = crate::settle::Window::new(r.window_um, r.hold).ok();
+    let window = crate::control::settle::Window::new(r.window_um, r.hold).ok();
     figures::fig16_responses(&SettleResponses {
         sample_period_ms: r.ts_s * 1000.0,
         delta_um: r.window_um,
@@ -322,9 +308,84 @@ pub fn settle_responses(r: &SettleReport) -> String {
                 error_um: x.e_um.clone(),
                 settle_ms: window
                     .as_ref()
-                    .and_then(|w| crate::settle::settle_index(&x.e_um, w))
-                    .map(|k| crate::settle::settle_ms(k, r.ts_s)),
+                    .and_then(|w| crate::control::settle::settle_index(&x.e_um, w))
+                    .map(|k| crate::control::settle::settle_ms(k, r.ts_s)),
             })
             .collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::{CheckedFitOptions, fit};
+    use crate::log::ColumnMap;
+    use crate::model::ModelSpec;
+    use std::fmt::Write;
+
+    /// A log whose bias sits at 60–110 (85 + 0.2·(x − 50) ± 12 by the seek direction, plus a
+    /// deterministic ±2 scatter), 300 seeks over tracks 0..100.
+    fn offset_log() -> String {
+        let mut text = String::from("time_s,track,bias\n");
+        let mut prev = 50.0;
+        let mut state = 12345u64;
+        for i in 0..300 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let x = ((state >> 33) % 101) as f64;
+            let u = ((state >> 20) % 1000) as f64 / 1000.0 - 0.5;
+            let dir = if x >= prev { 1.0 } else { -1.0 };
+            let b = 85.0 + 0.2 * (x - 50.0) + 12.0 * dir + 4.0 * u;
+            let _ = writeln!(text, "{},{x},{b:.4}", 0.3 * i as f64);
+            prev = x;
+        }
+        text
+    }
+
+    /// The curves of a model with `drift` lie where the data are (the old synthetic replay with
+    /// bias-0 rows pulled them towards 0), and each point equals a plain replay of the real rows
+    /// followed by the curve's unmeasured seeks through the batch path (`predict_log` on the
+    /// extended log: the reference).
+    #[test]
+    fn drift_model_curves_sit_on_the_data_and_match_a_replay_of_the_real_rows() {
+        let text = offset_log();
+        let log = Log::from_reader("o.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+        let spec = ModelSpec::parse("poly2,direction,drift").unwrap();
+        let model = fit(&spec, &log, &CheckedFitOptions::default()).unwrap();
+        let (inbound, outbound) = model_curves(&model, &log).unwrap();
+        assert_eq!(
+            (inbound.len(), outbound.len()),
+            (CURVE_POINTS, CURVE_POINTS)
+        );
+        // The data's far curves: 85 + 0.2(x − 50) ± 12; the model's must be within 3 counts.
+        for (&(x, a), &(_, b)) in inbound.iter().zip(&outbound) {
+            let mid = 85.0 + 0.2 * (x - 50.0);
+            assert!((a - (mid + 12.0)).abs() < 3.0, "inbound at {x}: {a}");
+            assert!((b - (mid - 12.0)).abs() < 3.0, "outbound at {x}: {b}");
+        }
+        let t_end = log.rows.last().unwrap().time_s;
+        for (i, &(x, a)) in inbound.iter().enumerate().step_by(10) {
+            let mut ext = text.clone();
+            // The last row is measured (any value: a prediction never sees its own row's
+            // measurement) so that `predict_log` reports it.
+            for (k, (track, bias)) in [(200.0, ""), (-100.0, ""), (x, "0")]
+                .into_iter()
+                .enumerate()
+            {
+                let _ = writeln!(
+                    ext,
+                    "{},{track},{bias}",
+                    t_end + CURVE_DWELL_S * (k + 1) as f64
+                );
+            }
+            let ext = Log::from_reader("e.csv", ext.as_bytes(), &ColumnMap::default()).unwrap();
+            let p = model.predict_log(&ext).unwrap();
+            let want = *p.predicted.last().unwrap();
+            assert!(
+                (a - want).abs() < 1e-9 * want.abs().max(1.0),
+                "point {i}: {a} vs {want}"
+            );
+        }
+    }
 }

@@ -25,8 +25,8 @@ pub mod story;
 use std::fmt::Write;
 use std::path::Path;
 
-use crate::output::{OutputError, write_string_atomic};
 use crate::plot::svg::{esc, fmt_num};
+use crate::render::{OutputError, write_string_atomic};
 
 /// A table cell: text (left-aligned) or a number (right-aligned, compact format).
 #[derive(Debug, Clone, PartialEq)]

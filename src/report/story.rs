@@ -9,6 +9,10 @@
 use std::path::{Path, PathBuf};
 
 use super::{Cell, Report, Table};
+use crate::control::settle::{
+    AnalyseError, HandoffTable, SettleError, SettleSpec, analyse, worst_case_settle,
+};
+use crate::control::{Controller, ServoError};
 use crate::diagnose::{
     CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, FeatureTable, Ladder, ModelDiagnosisError,
     diagnose_residual, ladder_fit, replay_model,
@@ -17,15 +21,11 @@ use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::{Log, LogError, Units};
 use crate::model::preset;
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
-use crate::output::{OutputError, write_string_atomic};
 use crate::plot::figures::{Sweep, SweepFigure, SweepSeries, calibration_sweep};
 use crate::plot::svg::fmt_num;
 use crate::plot::{from_log, views};
+use crate::render::{OutputError, StagedDir, write_string_atomic};
 use crate::score::{Score, ScoreError, score_with_units};
-use crate::servo::{Controller, ServoError};
-use crate::settle::{
-    AnalyseError, HandoffTable, SettleError, SettleSpec, analyse, worst_case_settle,
-};
 use crate::sim::{Drive, SequenceOptions, SimConfig, SimError, Truth, simulate, simulate_to_files};
 
 /// Settings of a story run.
@@ -113,7 +113,7 @@ pub enum StoryError {
     Diagnose(#[from] ModelDiagnosisError),
     /// The settle preset is not valid.
     #[error("settle preset")]
-    SettleConfig(#[from] crate::settle::ConfigError),
+    SettleConfig(#[from] crate::control::settle::ConfigError),
     /// The settle analysis failed.
     #[error("settle analysis")]
     Analyse(#[from] AnalyseError),
@@ -158,8 +158,8 @@ pub const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;
 /// when `Out` is dropped uncommitted).
 struct Out<'a> {
     dir: &'a Path,
-    stage: PathBuf,
-    committed: bool,
+    /// The staging folder; `None` once committed.
+    staged: Option<StagedDir>,
     /// Final paths (in `dir`) and what each holds, in the order written.
     files: Vec<(PathBuf, String)>,
 }
@@ -167,7 +167,10 @@ struct Out<'a> {
 impl Out<'_> {
     /// Where a file of the run is written now (inside the staging folder).
     fn path(&self, name: &str) -> PathBuf {
-        self.stage.join(name)
+        match &self.staged {
+            Some(s) => s.path(name),
+            None => self.dir.join(name),
+        }
     }
     fn text(&mut self, name: &str, text: &str, what: &str) -> Result<(), StoryError> {
         write_string_atomic(&self.path(name), text)?;
@@ -178,48 +181,12 @@ impl Out<'_> {
     fn note(&mut self, name: &str, what: &str) {
         self.files.push((self.dir.join(name), what.to_string()));
     }
-    /// Moves every staged file into `dir` (created if missing; files of the same name are
-    /// replaced, others left alone) and removes the staging folder.
+    /// Moves every staged file into `dir` ([`StagedDir::commit`]).
     fn commit(&mut self) -> Result<(), StoryError> {
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| OutputError::Io { path, source }
-        };
-        std::fs::create_dir_all(self.dir).map_err(io(self.dir))?;
-        let mut moves = Vec::new();
-        for entry in std::fs::read_dir(&self.stage).map_err(io(&self.stage))? {
-            let from = entry.map_err(io(&self.stage))?.path();
-            if let Some(name) = from.file_name() {
-                moves.push((from.clone(), self.dir.join(name)));
-            }
+        if let Some(s) = self.staged.take() {
+            s.commit()?;
         }
-        // Check every destination before moving anything, so that a blocked one cannot leave
-        // half of the run in `dir`.
-        if let Some((_, to)) = moves.iter().find(|(_, to)| to.is_dir()) {
-            return Err(OutputError::Io {
-                path: to.clone(),
-                source: std::io::Error::new(
-                    std::io::ErrorKind::AlreadyExists,
-                    "a folder of that name is in the way; nothing was written",
-                ),
-            }
-            .into());
-        }
-        for (from, to) in &moves {
-            std::fs::rename(from, to).map_err(io(to))?;
-        }
-        std::fs::remove_dir(&self.stage).map_err(io(&self.stage))?;
-        self.committed = true;
         Ok(())
-    }
-}
-
-impl Drop for Out<'_> {
-    fn drop(&mut self) {
-        if !self.committed {
-            // Best effort: a failed run must not leave its partial files anywhere.
-            let _ = std::fs::remove_dir_all(&self.stage);
-        }
     }
 }
 
@@ -253,34 +220,12 @@ fn start<'a>(
     total: usize,
     cb: &'a mut dyn FnMut(Progress<'_>),
 ) -> Result<(Steps<'a>, Out<'a>), StoryError> {
-    if dir.exists() && !dir.is_dir() {
-        return Err(OutputError::Io {
-            path: dir.to_path_buf(),
-            source: std::io::Error::new(
-                std::io::ErrorKind::AlreadyExists,
-                "is a file; the report needs a folder",
-            ),
-        }
-        .into());
-    }
-    let parent = match dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = dir
-        .file_name()
-        .map_or("report".into(), |n| n.to_string_lossy().into_owned());
-    let stage = parent.join(format!(".{name}.biasctl-partial-{}", std::process::id()));
-    std::fs::create_dir_all(&stage).map_err(|source| OutputError::Io {
-        path: stage.clone(),
-        source,
-    })?;
+    let staged = StagedDir::create(dir)?;
     Ok((
         Steps { done: 0, total, cb },
         Out {
             dir,
-            stage,
-            committed: false,
+            staged: Some(staged),
             files: Vec::new(),
         },
     ))
@@ -514,11 +459,11 @@ fn truth_table(truth: &[Truth]) -> Table {
     );
     for (name, source, get) in effects {
         let v: Vec<f64> = truth.iter().map(get).collect();
-        let spread = crate::stats::range(&v).map_or(f64::NAN, |[lo, hi]| hi - lo);
+        let spread = crate::numeric::stats::range(&v).map_or(f64::NAN, |[lo, hi]| hi - lo);
         table = table.row(vec![
             name.into(),
             source.into(),
-            Cell::Fixed(crate::stats::std_dev(&v).unwrap_or(f64::NAN), 2),
+            Cell::Fixed(crate::numeric::stats::std_dev(&v).unwrap_or(f64::NAN), 2),
             Cell::Fixed(spread, 2),
         ]);
     }
@@ -531,6 +476,15 @@ struct Scored {
     model: FittedModel,
     prediction: Prediction,
     score: Score,
+}
+
+/// A p-value in a table cell: `p < 0.0001` below 1e-4 (never `p = 0`), else `p = …`.
+fn p_cell(p: f64) -> String {
+    if p < 1e-4 {
+        "p < 0.0001".into()
+    } else {
+        format!("p = {}", fmt_num(p))
+    }
 }
 
 fn score_table<'a>(
@@ -560,7 +514,7 @@ fn score_table<'a>(
             .as_ref()
             .map(|t| {
                 let verdict = if t.p_value < 0.01 { "yes" } else { "no" };
-                format!("{verdict} (p = {})", fmt_num(t.p_value))
+                format!("{verdict} ({})", p_cell(t.p_value))
             })
             .unwrap_or_else(|| "n/a".into());
         let humps = s
@@ -569,7 +523,7 @@ fn score_table<'a>(
             .as_ref()
             .map(|d| {
                 let verdict = if s.score.bimodal { "yes" } else { "no" };
-                format!("{verdict} (p = {})", fmt_num(d.p_value))
+                format!("{verdict} ({})", p_cell(d.p_value))
             })
             .unwrap_or_else(|| "n/a".into());
         t = t.row(vec![
@@ -938,16 +892,26 @@ pub fn demo_report(
                 &random.schema.units,
             ),
             "The two friction-state models on the same random run, on the same axes as above.",
-        )
-        .figure(
-            views::position(&random, Some(&cal.model)).unwrap_or_default(),
-            "The random run's measurements by approach direction with the calibration model's \
-             asymptotic inbound and outbound curves.",
         );
+        match views::position(&random, Some(&cal.model)) {
+            Ok(svg) => {
+                s.figure(
+                    svg,
+                    "The random run's measurements by approach direction with the calibration \
+                     model's asymptotic inbound and outbound curves.",
+                );
+            }
+            Err(e) => {
+                s.paragraph(format!(
+                    "The calibration model's curves could not be drawn: {}.",
+                    error_chain(&e)
+                ));
+            }
+        }
         match dahl.model.predict_log(&tables[1]) {
             Ok(p) => {
                 s.figure(
-                    views::dahl_loop(&p, &tables[1].schema.units),
+                    views::dahl_loop(&p, &tables[1].schema.units, "dahl"),
                     "Figs. 13/14: the Table II hysteresis loop, measured and as the fitted Dahl \
                      model replays it. The model captures the loop's shape from two parameters \
                      (its friction level and initial slope).",
@@ -1135,6 +1099,56 @@ pub const DATA_MODELS: [(&str, &str); 4] = [
 ];
 
 /// A log holding rows `range` of `log` (its seek history starts afresh at the first row).
+/// `file` as seen from the current directory: relative to it (with `..` where needed) when the
+/// path is absolute, unchanged when it is already relative (titles and captions then name the
+/// file as the user typed it from where the command ran, never a machine's absolute path).
+pub fn relative_to_cwd(file: &str) -> String {
+    let p = Path::new(file);
+    let Ok(cwd) = std::env::current_dir() else {
+        return file.to_string();
+    };
+    if !p.is_absolute() {
+        return file.to_string();
+    }
+    let (a, b): (Vec<_>, Vec<_>) = (p.components().collect(), cwd.components().collect());
+    let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    if common == 0 {
+        return file.to_string();
+    }
+    let mut rel = PathBuf::new();
+    for _ in common..b.len() {
+        rel.push("..");
+    }
+    for c in &a[common..] {
+        rel.push(c);
+    }
+    rel.display().to_string()
+}
+
+/// Whether a log's positions are seeks to tracks, as a disk drive's are: repeated visits to a
+/// set of positions (at most one distinct measured position per four measured rows), or moves
+/// whose median length is at least 1 % of the position range. A continuous trajectory (a
+/// positioning axis sampled at 1 kHz moves a tiny step per row, each position new) is neither,
+/// and the views of one track over time and of bias against seek length (Figs. 4–9) mean
+/// nothing for it.
+pub fn positions_are_tracks(log: &Log) -> bool {
+    let p = log.measured_positions();
+    let n = p.len();
+    if n < 2 {
+        return n > 0;
+    }
+    let mut moves: Vec<f64> = p.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    let Some([lo, hi]) = crate::numeric::stats::range(&p) else {
+        return false;
+    };
+    let mut distinct = p.clone();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup_by(|a, b| a.total_cmp(b).is_eq());
+    moves.sort_by(f64::total_cmp);
+    let median = moves[moves.len() / 2];
+    4 * distinct.len() <= n || median >= 0.01 * (hi - lo)
+}
+
 fn sub_log(log: &Log, range: std::ops::Range<usize>, part: &str) -> Log {
     let mut schema = log.schema.clone();
     schema.file = format!("{} ({part})", log.schema.file);
@@ -1159,8 +1173,12 @@ pub fn data_report(
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<StoryOutcome, StoryError> {
     let (mut steps, mut out) = start(dir, 4 + DATA_MODELS.len(), progress)?;
-    let file = log.schema.file.clone();
+    let file = relative_to_cwd(&log.schema.file);
+    let mut named = log.clone();
+    named.schema.file = file.clone();
+    let log = &named;
     let units = &log.schema.units;
+    let tracks_like = positions_are_tracks(log);
     let measured_idx: Vec<usize> = log
         .rows
         .iter()
@@ -1186,53 +1204,61 @@ pub fn data_report(
     ));
     steps.start("bias plots");
     let tracks: Vec<f64> = log.rows.iter().map(|x| x.track).collect();
-    let [lo, hi] = crate::stats::range(&tracks).unwrap_or([f64::NAN; 2]);
-    r.section("Your data")
-        .table(
-            Table::new(&["quantity", "value"])
-                .row(vec!["rows".into(), log.rows.len().into()])
-                .row(vec!["measured rows".into(), log.measured_count().into()])
-                .row(vec![
-                    "columns (time, position, bias)".into(),
-                    format!(
-                        "{}, {}, {}",
-                        log.schema.map.time, log.schema.map.track, log.schema.map.bias
-                    )
-                    .into(),
-                ])
-                .row(vec![
-                    "units (bias, position)".into(),
-                    format!("{}, {}", units.bias, units.position).into(),
-                ])
-                .row(vec![
-                    "covariates".into(),
-                    log.schema.covariates.join(", ").into(),
-                ])
-                .row(vec![
-                    "position range".into(),
-                    format!("{} … {} {}", fmt_num(lo), fmt_num(hi), units.position).into(),
-                ])
-                .row(vec![
-                    "time span (s)".into(),
-                    Cell::Number(
-                        log.rows.last().map_or(0.0, |x| x.time_s)
-                            - log.rows.first().map_or(0.0, |x| x.time_s),
-                    ),
-                ]),
-        )
-        .figure(
-            from_log::bias_vs_position(log),
-            "Bias vs position, split by the direction of the move into each row (Fig. 3 view).",
-        )
-        .figure(
+    let [lo, hi] = crate::numeric::stats::range(&tracks).unwrap_or([f64::NAN; 2]);
+    let sec = r.section("Your data");
+    sec.table(
+        Table::new(&["quantity", "value"])
+            .row(vec!["rows".into(), log.rows.len().into()])
+            .row(vec!["measured rows".into(), log.measured_count().into()])
+            .row(vec![
+                "columns (time, position, bias)".into(),
+                format!(
+                    "{}, {}, {}",
+                    log.schema.map.time, log.schema.map.track, log.schema.map.bias
+                )
+                .into(),
+            ])
+            .row(vec![
+                "units (bias, position)".into(),
+                format!("{}, {}", units.bias, units.position).into(),
+            ])
+            .row(vec![
+                "covariates".into(),
+                log.schema.covariates.join(", ").into(),
+            ])
+            .row(vec![
+                "position range".into(),
+                format!("{} … {} {}", fmt_num(lo), fmt_num(hi), units.position).into(),
+            ])
+            .row(vec![
+                "time span (s)".into(),
+                Cell::Number(
+                    log.rows.last().map_or(0.0, |x| x.time_s)
+                        - log.rows.first().map_or(0.0, |x| x.time_s),
+                ),
+            ]),
+    )
+    .figure(
+        from_log::bias_vs_position(log),
+        "Bias vs position, split by the direction of the move into each row (Fig. 3 view).",
+    );
+    if tracks_like {
+        sec.figure(
             from_log::bias_vs_time(log, None),
             "Bias vs time at the position measured most often (Fig. 4 view).",
         )
         .figure(
             from_log::bias_vs_seek_length(log),
             "Bias vs signed seek length, split by whether the seek reversed direction \
-             (Figs. 5–9 view).",
+                 (Figs. 5–9 view).",
         );
+    } else {
+        sec.paragraph(
+            "The views of one track over time (Fig. 4) and of bias against seek length \
+             (Figs. 5–9) are left out: this log's positions form a continuous trajectory, not \
+             repeated visits to a set of tracks.",
+        );
+    }
 
     let mut scored = Vec::new();
     let mut failures = Vec::new();
@@ -1268,6 +1294,7 @@ pub fn data_report(
         }
     }
     let mut user = None;
+    let mut user_failure = None;
     if let Some(m) = model {
         match m.predict_log(log).map_err(StoryError::from).and_then(|p| {
             let sc = score_with_units(&p.residual, &p.positions, units)?;
@@ -1286,14 +1313,16 @@ pub fn data_report(
                     score: sc,
                 });
             }
-            Err(e) => failures.push(format!("your model: {}", error_chain(&e))),
+            Err(e) => user_failure = Some(error_chain(&e)),
         }
     }
     {
         let s = r.section("Models fitted on the first half, scored on the second");
         s.paragraph(
-            "Each preset is fitted on the first half of the measured rows and replayed causally \
-             over the second half. Your own model, if given, is scored on the whole log.",
+            "Out of sample: each preset is fitted on the first half of the measured rows and \
+             replayed causally over the second half. Your own model, if given, is scored on the \
+             whole log in a separate table: in sample if it was fitted on this log, so its \
+             numbers are not comparable with the presets'.",
         );
         if let Some(w) = user
             .as_ref()
@@ -1301,35 +1330,55 @@ pub fn data_report(
         {
             s.paragraph(format!("Warning about your model: {w}."));
         }
-        let all: Vec<&Scored> = scored.iter().chain(user.iter()).collect();
-        if all.is_empty() {
-            s.paragraph("No model could be fitted and scored on this log.");
+        if scored.is_empty() {
+            s.paragraph("No preset could be fitted and scored on this log.");
         } else {
             s.table(score_table(
-                all.iter().copied(),
-                "Prediction error on the test rows",
+                scored.iter(),
+                "Out of sample: presets fitted on the first half, scored on the second half",
                 units,
             ));
-            let preds: Vec<(&str, &Prediction)> = all
+            let preds: Vec<(&str, &Prediction)> = scored
                 .iter()
                 .take(4)
                 .map(|x| (x.label.as_str(), &x.prediction))
                 .collect();
             s.figure(
                 views::errors(&preds, units),
-                "Prediction error vs position and its histogram (Figs. 10/11 view).",
+                "Out-of-sample prediction error vs position and its histogram (Figs. 10/11 \
+                 view).",
             );
-            if let Some(first) = all.first() {
-                if let Ok(svg) = views::position(log, Some(&first.model)) {
-                    s.figure(
-                        svg,
-                        format!("Bias vs position with the {} model's curves.", first.label),
-                    );
-                }
-            }
         }
         for f in &failures {
             s.paragraph(format!("Not fitted — {f}."));
+        }
+        if let Some(u) = &user {
+            s.table(score_table(
+                [u],
+                "Your model on the whole log (in sample if it was fitted on this log)",
+                units,
+            ));
+        }
+        if let Some(f) = &user_failure {
+            s.paragraph(format!("Your model could not be scored — {f}."));
+        }
+        let curves = user.as_ref().or(scored.first());
+        if let Some(c) = curves {
+            match views::position(log, Some(&c.model)) {
+                Ok(svg) => {
+                    s.figure(
+                        svg,
+                        format!("Bias vs position with the {} model's curves.", c.label),
+                    );
+                }
+                Err(e) => {
+                    s.paragraph(format!(
+                        "The {} model's curves could not be drawn: {}.",
+                        c.label,
+                        error_chain(&e)
+                    ));
+                }
+            }
         }
     }
 
@@ -1424,7 +1473,11 @@ pub fn data_report(
         .min_by(|a, b| a.score.std.total_cmp(&b.score.std));
     let summary = vec![
         format!("{file}: {} measured rows", log.measured_count()),
-        format!("models fitted: {} of {}", scored.len(), DATA_MODELS.len()),
+        format!(
+            "presets fitted: {} of {} (out of sample: first half → second half)",
+            scored.len(),
+            DATA_MODELS.len()
+        ),
         match best {
             Some(b) => format!(
                 "lowest test error std: {} {} (`{}`, fitted on the first half, scored on the second)",
@@ -1436,7 +1489,7 @@ pub fn data_report(
         },
         match (&user, model) {
             (Some(u), _) => format!(
-                "your model: error std {} {}",
+                "your model: error std {} {} on the whole log (in sample if fitted on it)",
                 fmt_num(u.score.std),
                 units.bias
             ),
@@ -1446,10 +1499,10 @@ pub fn data_report(
             (None, None) => "no model of yours given (--model)".into(),
         },
         if failures.is_empty() {
-            "every model could be fitted".into()
+            "every preset could be fitted".into()
         } else {
             format!(
-                "{} model(s) could not be fitted on this log (see the report)",
+                "{} preset(s) could not be fitted on this log (see the report)",
                 failures.len()
             )
         },

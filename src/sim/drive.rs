@@ -358,7 +358,7 @@ impl Drive {
     /// Reads and validates a drive file.
     pub fn from_toml_file(path: &Path) -> Result<Drive, DriveError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| DriveError::Io {
+        let text = crate::log::limits::read_text(path).map_err(|source| DriveError::Io {
             file: file.clone(),
             source,
         })?;
@@ -367,6 +367,10 @@ impl Drive {
 
     /// Parses and validates a drive description; `file` names it in messages.
     pub fn from_toml_str(file: &str, text: &str) -> Result<Drive, DriveError> {
+        crate::log::limits::check_toml_numbers(text).map_err(|message| DriveError::Parse {
+            file: file.into(),
+            message,
+        })?;
         let drive: Drive = toml::from_str(text).map_err(|e| DriveError::Parse {
             file: file.into(),
             message: e.to_string().trim_end().to_string(),

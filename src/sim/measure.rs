@@ -31,7 +31,7 @@
 //! the fast path equals the loop to rounding; with noise on it has the same distribution.
 
 use super::drive::{Harmonic, ServoParams};
-use crate::rng::SimRng;
+use crate::numeric::rng::SimRng;
 use std::f64::consts::TAU;
 
 /// Normalised proportional gain, counts per track (fixes the plant gain `G = 3ω²/Kp`).
@@ -453,7 +453,7 @@ mod tests {
         };
         let (fa, fz) = collect(true);
         let (sa, sz) = collect(false);
-        let sd = |x: &[f64]| crate::stats::std_dev(x).unwrap();
+        let sd = |x: &[f64]| crate::numeric::stats::std_dev(x).unwrap();
         for (f, sl) in [(sd(&fa), sd(&sa)), (sd(&fz), sd(&sz))] {
             assert!((f / sl - 1.0).abs() < 0.06, "fast {f} slow {sl}");
         }

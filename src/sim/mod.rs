@@ -31,6 +31,7 @@
 //! ```
 
 pub mod drive;
+pub mod family;
 pub mod measure;
 pub mod sequence;
 
@@ -40,8 +41,8 @@ pub use sequence::{ScriptError, Step};
 
 use crate::history::{History, sign};
 use crate::log::{Log, LogError, LogWriter, fmt_fixed};
-use crate::output::{OutputError, write_atomic};
-use crate::rng::SimRng;
+use crate::numeric::rng::SimRng;
+use crate::render::{OutputError, write_atomic};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -768,14 +769,12 @@ fn write_log_row<W: Write>(w: &mut LogWriter<W>, row: &SimRow) -> std::io::Resul
     }
 }
 
-fn write_truth_row<W: Write>(w: &mut W, row: &SimRow) -> std::io::Result<()> {
+fn write_truth_row<W: Write>(w: &mut csv::Writer<W>, row: &SimRow) -> std::io::Result<()> {
     let t = &row.truth;
-    writeln!(
-        w,
-        "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+    w.write_record([
         fmt_fixed(row.time_s, 6),
         crate::log::fmt_trimmed(row.track, 6),
-        u8::from(row.bias.is_some()),
+        u8::from(row.bias.is_some()).to_string(),
         fmt_fixed(t.position, 4),
         fmt_fixed(t.direction, 4),
         fmt_fixed(t.overshoot, 4),
@@ -786,7 +785,8 @@ fn write_truth_row<W: Write>(w: &mut W, row: &SimRow) -> std::io::Result<()> {
         fmt_fixed(t.scatter, 4),
         fmt_fixed(t.runout, 4),
         fmt_fixed(t.total, 4),
-    )
+    ])?;
+    Ok(())
 }
 
 /// Simulates into an in-memory [`Log`] (quick for a few thousand seeks: for other modules' tests).
@@ -795,6 +795,7 @@ pub fn simulate_log(config: &SimConfig) -> Result<Log, SimError> {
     {
         let mut w = LogWriter::new(&mut buf, &config.metadata(), &config.covariates())?;
         simulate(config, |row| write_log_row(&mut w, row))?;
+        w.into_inner()?;
     }
     Ok(Log::from_reader(
         &format!("simulated {}", config.sequence.name()),
@@ -824,17 +825,20 @@ pub fn simulate_to_files(
                     for m in config.metadata() {
                         writeln!(tw, "# {m}")?;
                     }
-                    writeln!(tw, "{TRUTH_COLUMNS}")?;
+                    let mut tw = crate::log::csv_writer(tw);
+                    tw.write_record(TRUTH_COLUMNS.split(','))?;
                     inner = Some(simulate(config, |row| {
                         write_log_row(&mut log, row)?;
-                        write_truth_row(tw, row)
+                        write_truth_row(&mut tw, row)
                     })?);
+                    tw.flush()?;
                     Ok(())
                 })
                 .map_err(|e| e.to_string())?;
                 inner.ok_or("no summary")?
             }
         };
+        log.into_inner().map_err(|e| e.to_string())?;
         summary = Some(s);
         Ok(())
     })?;

@@ -17,7 +17,7 @@
 //! | `table6` | reference from far OD; for p = center±5..±100: clear at far ID, rest 2 s at p, seek far OD, seek `center`, measure |
 //! | `table7` | for N = 1..60: from far OD to `center`, one seek of N tracks outbound, measure |
 
-use crate::rng::SimRng;
+use crate::numeric::rng::SimRng;
 use std::path::Path;
 
 /// One step of a sequence.
@@ -264,7 +264,7 @@ pub enum ScriptError {
 /// times must be finite and ≥ 0.
 pub fn read_script(path: &Path, max_track: f64) -> Result<Vec<Step>, ScriptError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| ScriptError::Io {
+    let text = crate::log::limits::read_text(path).map_err(|source| ScriptError::Io {
         file: file.clone(),
         source,
     })?;
@@ -319,8 +319,8 @@ pub fn parse_script(file: &str, text: &str, max_track: f64) -> Result<Vec<Step>,
             return Err(bad(ti, format!("track outside the stroke 0..={max_track}")));
         }
         let dwell_s = num(di)?;
-        if dwell_s < 0.0 {
-            return Err(bad(di, "dwell must be ≥ 0 s".into()));
+        if !(0.0..=crate::log::limits::MAX_DWELL_S).contains(&dwell_s) {
+            return Err(bad(di, "dwell must be within 0 … 1e6 s".into()));
         }
         let measure = match mi {
             None => true,

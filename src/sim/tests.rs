@@ -6,7 +6,7 @@
 #![allow(clippy::float_cmp)] // whole-track positions and exact zeros of switched-off effects; equality is meant
 
 use super::*;
-use crate::stats::{mean, std_dev};
+use crate::numeric::stats::{mean, std_dev};
 use nalgebra::{DMatrix, DVector};
 
 const QUIET: [&str; 2] = ["drift", "scatter"];
@@ -367,12 +367,12 @@ fn headline_numbers_of_the_built_in_drive() {
     let (err, pts) = pd_from_table1(&[]);
     let sd_pd = std_dev(&err).unwrap();
     assert!((17.0..21.0).contains(&sd_pd), "pd(Table I) std {sd_pd}");
-    let dip = crate::stats::dip_test(&err).unwrap();
+    let dip = crate::numeric::stats::dip_test(&err).unwrap();
     assert!(dip.p_value < 0.01, "pd(Table I) error not bimodal: {dip:?}");
     // The two humps come from the ridge memory (P6) that random seeks meet and Table I's far
     // approaches do not: without it the error is one hump (and smaller).
     let (err_off, _) = pd_from_table1(&["memory"]);
-    let dip_off = crate::stats::dip_test(&err_off).unwrap();
+    let dip_off = crate::numeric::stats::dip_test(&err_off).unwrap();
     assert!(dip_off.p_value > 0.05, "without memory: {dip_off:?}");
     assert!(std_dev(&err_off).unwrap() < 0.8 * sd_pd);
     let (_, res) = fit_pd(&pts);
@@ -441,7 +441,7 @@ fn temperature_covariate_only_when_on() {
         Ok::<(), ()>(())
     })
     .unwrap();
-    let t = crate::stats::linear_trend(&xs, &ys).unwrap();
+    let t = crate::numeric::stats::linear_trend(&xs, &ys).unwrap();
     assert!((t.slope - 1.5).abs() < 0.01, "{t:?}");
     let off = SimConfig::new(drive, "random", &opts, 1, &["temperature"]).unwrap();
     assert!(off.covariates().is_empty());

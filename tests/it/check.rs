@@ -74,3 +74,136 @@ fn closed_stdout_pipe_ends_quietly() {
     child.wait().unwrap();
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// Every CSV biasctl writes reads back with its own `check`: the simulated log and its truth,
+/// `predict`'s output (with a covariate named `temp,C`, which must be quoted), and the settle
+/// responses. Reference: the covariate names `check` lists equal the ones written.
+#[test]
+fn every_written_csv_reads_back_with_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "120",
+        "--seed",
+        "3",
+        "--out",
+        &p("sim.csv"),
+        "--truth",
+        &p("truth.csv"),
+    ]);
+    ok(&["check", "--data", &p("sim.csv")]);
+    ok(&[
+        "check",
+        "--data",
+        &p("truth.csv"),
+        "--bias-col",
+        "bias_true",
+    ]);
+    // A log with a covariate whose name holds a comma (quoted in the input).
+    let mut text = String::from("time_s,track,bias,\"temp,C\"\n");
+    for i in 0..60 {
+        let x = (i * 37 % 200) as f64;
+        text.push_str(&format!(
+            "{},{x},{},{}\n",
+            i as f64 * 0.2,
+            10.0 + 0.1 * x,
+            20 + i % 7
+        ));
+    }
+    let log = write(dir.path(), "c.csv", &text);
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--terms",
+        "poly2",
+        "--out",
+        &p("m.json"),
+    ]);
+    ok(&[
+        "predict",
+        "--model",
+        &p("m.json"),
+        "--data",
+        &log,
+        "--out",
+        &p("pred.csv"),
+    ]);
+    let pred = std::fs::read_to_string(p("pred.csv")).unwrap();
+    assert!(
+        pred.starts_with("time_s,track,bias,\"temp,C\",predicted,residual"),
+        "{pred}"
+    );
+    let out = ok(&["check", "--data", &p("pred.csv")]);
+    assert!(
+        out.contains("covariates: temp,C, predicted, residual"),
+        "{out}"
+    );
+    ok(&[
+        "settle",
+        "--bounds-out",
+        &p("b.csv"),
+        "--response-out",
+        &p("r.csv"),
+    ]);
+    // The bounds file has empty cells where no bound exists (k = 0), which `check` refuses in
+    // a covariate column; its quoting is the same writer's, tested here through its header.
+    let b = std::fs::read_to_string(p("b.csv")).unwrap();
+    assert!(
+        b.starts_with("k,time_s,upper,lower,upper_min,lower_max\n0,0.0000000,,,,\n"),
+        "{b}"
+    );
+    ok(&[
+        "check",
+        "--data",
+        &p("r.csv"),
+        "--track-col",
+        "k",
+        "--bias-col",
+        "e_zero_ff_um",
+    ]);
+}
+
+/// The dialects a spreadsheet or a European rig writes: `;` with decimal commas, tabs, header
+/// case and spaces, a notes column, Excel's trailing comma; `--delimiter` forces one.
+#[test]
+fn check_reads_spreadsheet_dialects_with_notes() {
+    let dir = tempfile::tempdir().unwrap();
+    let semi = write(
+        dir.path(),
+        "s.csv",
+        "time_s;track;bias\n0;1;2,5\n0,5;3;4,25\n",
+    );
+    let out = ok(&["check", "--data", &semi]);
+    assert!(
+        out.contains("2 rows, 2 measured") && out.contains("semicolon"),
+        "{out}"
+    );
+    let messy = write(
+        dir.path(),
+        "m.csv",
+        " Time_S ,TRACK,Bias,notes,\n0,1,2,start,\n1,2,3,,\n",
+    );
+    let out = ok(&["check", "--data", &messy]);
+    assert!(
+        out.contains("`notes`) is not numeric (line 2: `start`); skipped"),
+        "{out}"
+    );
+    assert!(!out.contains("covariates"), "{out}");
+    fails_with(
+        &["check", "--data", &semi, "--delimiter", ","],
+        &["missing required column `time_s`"],
+    );
+    fails_with(
+        &["check", "--data", &semi, "--delimiter", "|"],
+        &["--delimiter"],
+    );
+    fails_with(
+        &["check", "--data", &semi, "--bias-col", "bais"],
+        &["did you mean `bias`?"],
+    );
+}

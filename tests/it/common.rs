@@ -75,10 +75,10 @@ pub fn data(name: &str) -> String {
         .to_string()
 }
 
-/// Path of a file under the shared real-data folder (`../shared/data/real/`), if present.
+/// Path of a file under the project's real-data folder (`data/real/`, see its README), if present.
 pub fn real_data(rel: &str) -> Option<String> {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/real")
+        .join("data/real")
         .join(rel);
     p.exists().then(|| p.display().to_string())
 }

@@ -4,10 +4,14 @@
 mod check;
 mod common;
 mod diagnose;
+mod export;
 mod extend;
+mod family;
+mod fuzz;
 mod invariance;
 mod model;
 mod plot;
+mod predict_plan;
 mod real;
 mod report;
 mod review;

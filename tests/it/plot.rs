@@ -7,7 +7,9 @@
 use biasctl::log::{ColumnMap, Log, Units};
 use biasctl::plot::figures::*;
 use biasctl::plot::from_log;
-use biasctl::plot::svg::{AxisRange, Chart, ErrorPoint, Panel, Series, SeriesData};
+use biasctl::plot::svg::{
+    AXIS_PADDING, AxisRange, Chart, ErrorPoint, Panel, SCATTER_CELL_PX, Series, SeriesData,
+};
 use biasctl::report::{Cell, Report, Table};
 use roxmltree::{Document, Node};
 
@@ -35,7 +37,7 @@ fn count(n: &Node, tag: &str, class: &str) -> usize {
 
 fn texts_of_class(doc: &Document, class: &str) -> Vec<String> {
     doc.descendants()
-        .filter(|n| n.has_tag_name("text") && has_class(n, class))
+        .filter(|n| (n.has_tag_name("text") || n.has_tag_name("desc")) && has_class(n, class))
         .map(|n| n.text().unwrap_or("").to_string())
         .collect()
 }
@@ -156,11 +158,14 @@ fn known_points_land_where_the_axis_transform_says() {
         assert!((f(c, "cx") - lay.px(x)).abs() < 0.006, "x {x}");
         assert!((f(c, "cy") - lay.py(y)).abs() < 0.006, "y {y}");
     }
-    // Auto ranges: the extreme points lie on the plot-area edges.
-    assert!((f(&circles[0], "cx") - lay.left).abs() < 0.006);
-    assert!((f(&circles[1], "cx") - lay.right).abs() < 0.006);
-    assert!((f(&circles[0], "cy") - lay.bottom).abs() < 0.006);
-    assert!((f(&circles[1], "cy") - lay.top).abs() < 0.006);
+    // Auto ranges are padded: the extreme points lie AXIS_PADDING / (1 + 2·AXIS_PADDING) of the
+    // plot area inside its edges (closed form: the span grows by the padding on both sides).
+    let inset = AXIS_PADDING / (1.0 + 2.0 * AXIS_PADDING);
+    let (w, h) = (lay.right - lay.left, lay.bottom - lay.top);
+    assert!((f(&circles[0], "cx") - (lay.left + inset * w)).abs() < 0.006);
+    assert!((f(&circles[1], "cx") - (lay.right - inset * w)).abs() < 0.006);
+    assert!((f(&circles[0], "cy") - (lay.bottom - inset * h)).abs() < 0.006);
+    assert!((f(&circles[1], "cy") - (lay.top + inset * h)).abs() < 0.006);
     // The frame is the plot area.
     let frame = doc.descendants().find(|n| has_class(n, "frame")).unwrap();
     assert!((f(&frame, "x") - lay.left).abs() < 0.006);
@@ -514,6 +519,7 @@ fn all_figures() -> Vec<(&'static str, String, usize)> {
             .collect(),
         predicted: loop_up.clone(),
         units: Units::default(),
+        model: "dahl".into(),
     };
     let diag = vec![
         FeatureResiduals {
@@ -658,7 +664,7 @@ fn prediction_errors_has_a_column_per_model_with_std_in_titles() {
         .collect();
     assert_eq!(charts.len(), 6);
     let titles = texts_of_class(&doc, "title");
-    let want_std = biasctl::stats::std_dev(&m[1].error).unwrap();
+    let want_std = biasctl::numeric::stats::std_dev(&m[1].error).unwrap();
     let want = format!(
         "calibration: error std {} counts",
         biasctl::plot::svg::fmt_num(want_std)
@@ -935,4 +941,41 @@ fn series_colours_follow_the_palette_and_overrides() {
     assert_eq!(fill(&s[1].1), biasctl::plot::svg::PALETTE[0]);
     assert_eq!(fill(&s[2].1), biasctl::plot::svg::PALETTE[1]);
     assert!(svg.contains("stroke-dasharray"));
+}
+
+/// A scatter of more than SCATTER_FULL_LIMIT points is density-drawn: no two marks share a
+/// SCATTER_CELL_PX cell, every occupied cell keeps a mark (reference: the set of cells of all
+/// points, computed here from the layout), and `data-points` still counts every point.
+#[test]
+fn large_scatters_draw_one_mark_per_occupied_cell() {
+    let pts: Vec<(f64, f64)> = (0..35_000)
+        .map(|i| {
+            let t = i as f64 / 1000.0;
+            (t.sin() * 10.0, (1.7 * t).cos() * 5.0 + 0.001 * i as f64)
+        })
+        .collect();
+    let chart = Chart::new("dense").scatter("p", &pts);
+    let lay = chart.layout();
+    let svg = chart.to_svg();
+    let doc = parse(&svg);
+    let cell = |x: f64, y: f64| {
+        (
+            (x / SCATTER_CELL_PX).floor() as i64,
+            (y / SCATTER_CELL_PX).floor() as i64,
+        )
+    };
+    let want: std::collections::HashSet<_> = pts
+        .iter()
+        .map(|&(x, y)| cell(lay.px(x), lay.py(y)))
+        .collect();
+    let marks: Vec<(f64, f64)> = doc
+        .descendants()
+        .filter(|n| has_class(n, "point"))
+        .map(|c| (f(&c, "cx"), f(&c, "cy")))
+        .collect();
+    assert_eq!(marks.len(), want.len());
+    assert!(marks.len() < pts.len() / 2, "{} marks", marks.len());
+    let s = series(&doc);
+    assert_eq!(s[0].1.attribute("data-points"), Some("35000"));
+    assert!(svg.len() < 2_000_000, "{} bytes", svg.len());
 }

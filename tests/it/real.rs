@@ -1,10 +1,10 @@
-//! Real measurements nobody on this project wrote (`../shared/data/real/`, see its README).
-//! The data must be present: a missing file fails the test (CI has `../shared/` beside the clone).
+//! Real measurements nobody on this project wrote (`data/real/`, see its README and licences).
+//! The data are part of the repository: a missing file fails the test.
 
 use crate::common::{ok, real_data};
 
 fn need(rel: &str) -> String {
-    real_data(rel).unwrap_or_else(|| panic!("real data `{rel}` missing under ../shared/data/real"))
+    real_data(rel).unwrap_or_else(|| panic!("real data `{rel}` missing under data/real"))
 }
 
 /// `fit` of `data` (track column `track`, bias column `force_N`) with the model chosen by

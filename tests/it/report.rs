@@ -279,7 +279,7 @@ fn every_plot_kind_works_from_the_command_line() {
         (
             "loop",
             vec!["--data", &log, "--model", "dahl"],
-            vec!["measured", "Dahl model"],
+            vec!["measured", "model `dahl`"],
         ),
         (
             "diagnose",
@@ -594,4 +594,81 @@ fn readme_figures_are_current() {
             "docs/figures/{name} is stale: run scripts/figures.sh and commit the result"
         );
     }
+}
+
+/// A report on a 35,000-row continuous log (a positioning axis: a sine trajectory with Coulomb
+/// friction, sampled at 1 kHz): under 2 MB, titles naming the file relative to where the command
+/// ran (the file is given by its absolute path), no track-only views, the presets' out-of-sample
+/// scores and the user's model's whole-log scores in separate tables, one consistent summary.
+#[test]
+fn report_on_a_long_continuous_log_is_small_relative_and_separated() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("time_s,position_m,force_N,velocity_m_s\n");
+    for i in 0..35_000 {
+        let t = i as f64 * 1e-3;
+        let x = 0.1 * (0.5 * t).sin();
+        let v = 0.05 * (0.5 * t).cos();
+        let f = 20.0 * v.signum() + 200.0 * v + 2.0 * (7.0 * t).sin();
+        text.push_str(&format!("{t:.3},{x:.6},{f:.4},{v:.6}\n"));
+    }
+    std::fs::create_dir(dir.path().join("logs")).unwrap();
+    let log = write(&dir.path().join("logs"), "axis.csv", &text);
+    assert!(Path::new(&log).is_absolute());
+    let cols = ["--track-col", "position_m", "--bias-col", "force_N"];
+    let run = crate::common::biasctl_in(
+        dir.path(),
+        &[
+            &[
+                "fit",
+                "--data",
+                &log,
+                "--terms",
+                "direction,col:velocity_m_s",
+                "--out",
+                "m.json",
+            ][..],
+            &cols,
+        ]
+        .concat(),
+    );
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    let run = crate::common::biasctl_in(
+        dir.path(),
+        &[
+            &[
+                "report", "--data", &log, "--model", "m.json", "--out", "rep",
+            ][..],
+            &cols,
+        ]
+        .concat(),
+    );
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    let html = std::fs::read_to_string(dir.path().join("rep/report.html")).unwrap();
+    assert!(html.len() < 2_000_000, "report is {} bytes", html.len());
+    let root = dir.path().display().to_string();
+    assert!(!html.contains(&root), "an absolute path in the report");
+    assert!(
+        html.contains("<title>biasctl report — logs/axis.csv</title>"),
+        "title"
+    );
+    assert!(
+        html.contains("left out") && !html.contains("Fig. 4 view"),
+        "track-only views"
+    );
+    assert!(html.contains("Out of sample: presets fitted on the first half"));
+    assert!(html.contains("Your model on the whole log (in sample"));
+    assert!(
+        run.stdout.contains("presets fitted: 4 of 4"),
+        "{}",
+        run.stdout
+    );
+    assert!(
+        run.stdout.contains("every preset could be fitted"),
+        "{}",
+        run.stdout
+    );
+    assert!(
+        !html.contains("NaN") && !html.contains("inf<"),
+        "non-finite text"
+    );
 }

@@ -97,7 +97,9 @@ fn fit_that_overflows_fails_instead_of_writing_nan() {
             "--out",
             &out.display().to_string(),
         ],
-        &["huge.csv", "overflows", "rescale"],
+        // The reader now refuses such values (issue #17: finite in, finite out) before the
+        // fit could overflow.
+        &["huge.csv", "line 2", "outside ±1e15"],
     );
     assert!(!err.contains("NaN"), "{err}");
     assert!(!out.exists(), "a model file was written");

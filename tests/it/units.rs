@@ -1,7 +1,7 @@
 //! Units of bias and position: they travel with the log (`# bias_unit`, `# position_unit`
 //! metadata, or the renamed column's own name), `--bias-unit` / `--track-unit` override them, and
 //! every text, JSON and axis that shows log data carries them. The real-data tests need
-//! `../shared/data/real/` (a missing file fails the test, as in `real`).
+//! `data/real/` (a missing file fails the test, as in `real`).
 
 use crate::common::{fails_with, ok, real_data};
 use std::path::Path;
@@ -9,7 +9,7 @@ use std::path::Path;
 const EMPS: &str = "emps/emps_estimation.csv";
 
 fn need(rel: &str) -> String {
-    real_data(rel).unwrap_or_else(|| panic!("real data `{rel}` missing under ../shared/data/real"))
+    real_data(rel).unwrap_or_else(|| panic!("real data `{rel}` missing under data/real"))
 }
 
 /// `args` followed by the EMPS column flags and `units`.
@@ -386,4 +386,72 @@ fn bad_unit_labels_exit_2_naming_the_flag() {
         &["check", "--data", &bad],
         &["bad.csv", "metadata `position_unit`", "must not be empty"],
     );
+}
+
+/// `settle --model` on a log in N and m refuses (the settle plant is a disk drive driven in
+/// counts) with a message naming the unit, and never prints counts or tracks for it; on a
+/// simulator log the absolute start values are the relative ones plus the converged value.
+/// Reference for the absolute values: z̄ = ∂z/∂d·d (the report's own `dz_dbias` and `bias`).
+#[test]
+fn settle_from_a_model_speaks_its_units_or_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, _) = fit_emps(dir.path(), &["--bias-unit", "N", "--track-unit", "m"]);
+    let data = need(EMPS);
+    let err = fails_with(
+        &with_cols(
+            &["settle", "--model", &model, "--data", &data],
+            &["--bias-unit", "N", "--track-unit", "m"],
+        ),
+        &["measures bias in `N`", "disk drive", "--bias-unit counts"],
+    );
+    assert!(!err.contains("track"), "{err}");
+
+    let log = dir.path().join("sim.csv").display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "150",
+        "--seed",
+        "5",
+        "--out",
+        &log,
+    ]);
+    let m = dir.path().join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &m,
+    ]);
+    let v: serde_json::Value =
+        serde_json::from_str(&ok(&["settle", "--model", &m, "--data", &log, "--json"])).unwrap();
+    let z = v["dz_dbias"].as_f64().unwrap() * v["bias"].as_f64().unwrap();
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1.0);
+    assert!(close(v["z_converged"].as_f64().unwrap(), z));
+    assert!(close(v["absolute"]["zero_ff"].as_f64().unwrap(), z));
+    let rel = v["robust"]["ff"].as_f64().unwrap();
+    assert!(close(v["absolute"]["robust"].as_f64().unwrap(), z + rel));
+    assert_eq!(v["prediction"]["units"]["bias"], "counts");
+    let text = ok(&["settle", "--model", &m, "--data", &log]);
+    assert!(
+        text.contains("counts at ") && text.contains(" tracks (after"),
+        "{text}"
+    );
+    assert!(text.contains(&format!("[{:.4}]", z + rel)), "{text}");
+    // Δb is printed with three decimals, not every digit of the float.
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("robust for ±"))
+        .unwrap();
+    let db = line
+        .trim_start_matches("robust for ±")
+        .split(' ')
+        .next()
+        .unwrap();
+    assert!(db.split('.').nth(1).is_some_and(|d| d.len() == 3), "{line}");
 }

@@ -72,8 +72,8 @@ impl TermSpec for BinsSpec {
             data.measured_map(|s| s.features.value(f))
         };
         let defined: Vec<f64> = values.iter().flatten().copied().collect();
-        let centre = crate::stats::mean(&defined).unwrap_or(0.0);
-        let sd = crate::stats::std_dev(&defined).unwrap_or(0.0);
+        let centre = crate::numeric::stats::mean(&defined).unwrap_or(0.0);
+        let sd = crate::numeric::stats::std_dev(&defined).unwrap_or(0.0);
         Ok(Arc::new(BinsTerm {
             name: self.name(),
             source: self.source.clone(),

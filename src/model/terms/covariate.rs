@@ -23,8 +23,8 @@ impl TermSpec for ColSpec {
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let idx = data.covariate(&self.column, &self.name())?;
         let v = data.measured_values(|s| Some(s.covariates[idx]));
-        let centre = crate::stats::mean(&v).unwrap_or(0.0);
-        let sd = crate::stats::std_dev(&v).unwrap_or(0.0);
+        let centre = crate::numeric::stats::mean(&v).unwrap_or(0.0);
+        let sd = crate::numeric::stats::std_dev(&v).unwrap_or(0.0);
         Ok(Arc::new(ColTerm {
             column: self.column.clone(),
             centre,

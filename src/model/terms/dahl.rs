@@ -141,13 +141,15 @@ impl TermSpec for DahlSpec {
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let steps = crate::stats::sorted(
+        let steps = crate::numeric::stats::sorted(
             &data.measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0)),
         );
-        let amps = crate::stats::sorted(&crate::history::reversal_amplitudes(data.features()));
-        let q = |v: &[f64], p: f64| crate::stats::percentile_sorted(v, p).unwrap_or(0.0);
-        let travel = crate::stats::range(&data.measured_values(|s| Some(s.features.target)))
-            .map_or(0.0, |[a, b]| b - a);
+        let amps =
+            crate::numeric::stats::sorted(&crate::history::reversal_amplitudes(data.features()));
+        let q = |v: &[f64], p: f64| crate::numeric::stats::percentile_sorted(v, p).unwrap_or(0.0);
+        let travel =
+            crate::numeric::stats::range(&data.measured_values(|s| Some(s.features.target)))
+                .map_or(0.0, |[a, b]| b - a);
         // Search range of ln L; a log without moves gets a unit range (the element stays 0).
         let step_lo = q(&steps, 5.0);
         let range = if step_lo > 0.0 && travel > 0.0 {
@@ -192,7 +194,9 @@ impl TermSpec for DahlSpec {
 pub struct DahlTerm {
     /// Spec string.
     pub name: String,
-    /// Rates r of the elements, each in (0, 1) (for reading; [`DahlTerm::lengths`] is exact).
+    /// Rates r of the elements, each in [0, 1) (for reading; [`DahlTerm::lengths`] is exact; a
+    /// model file with another is refused).
+    #[serde(deserialize_with = "super::unit_rates")]
     pub rates: Vec<f64>,
     /// Characteristic lengths `L = −1/ln r` of the elements, position unit; empty in model
     /// files written before they were recorded (then taken from `rates`).

@@ -2,13 +2,16 @@
 //! and restorer of term spec strings derived from that registry.
 
 pub mod bins;
+pub mod by;
 pub mod covariate;
 pub mod dahl;
 pub mod direction;
 pub mod drift;
 pub mod intercept;
 pub mod knots;
+pub mod lag;
 pub mod memory;
+pub mod memsum;
 pub mod play;
 pub mod poly;
 pub mod seek;
@@ -28,6 +31,31 @@ pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
         None => Err(SpecError::UnknownTerm {
             term: t.text.to_string(),
         }),
+    }
+}
+
+/// Reads a setting that must be finite and > 0 (a scale): a model file with 0, a negative or an
+/// overflowing value is refused at load instead of predicting `NaN`.
+pub(crate) fn positive_finite<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    let v = <f64 as serde::Deserialize>::deserialize(d)?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(serde::de::Error::custom(format!(
+            "{v} must be finite and > 0"
+        )))
+    }
+}
+
+/// Reads rates that must each lie in [0, 1) (Dahl / Maxwell-slip elements; 0 is an element
+/// whose characteristic length is below the float resolution of `exp(−1/L)`).
+pub(crate) fn unit_rates<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+    let v = <Vec<f64> as serde::Deserialize>::deserialize(d)?;
+    match v.iter().find(|r| !(**r >= 0.0 && **r < 1.0)) {
+        None => Ok(v),
+        Some(r) => Err(serde::de::Error::custom(format!(
+            "rate {r} must lie in [0, 1)"
+        ))),
     }
 }
 

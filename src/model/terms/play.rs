@@ -155,11 +155,11 @@ pub struct PlaySpec {
 /// Thresholds for `n` elements from reversal amplitudes `amps` (position unit): geometric from
 /// a quarter of the 5 % quantile to half the 95 % quantile; `None` with fewer than two amplitudes.
 pub fn thresholds(amps: &[f64], n: usize) -> Option<Vec<f64>> {
-    let sorted = crate::stats::sorted(amps);
+    let sorted = crate::numeric::stats::sorted(amps);
     if sorted.len() < 2 || n == 0 {
         return None;
     }
-    let q = |p: f64| crate::stats::percentile_sorted(&sorted, p);
+    let q = |p: f64| crate::numeric::stats::percentile_sorted(&sorted, p);
     let hi = 0.5 * q(95.0)?;
     let lo = (0.25 * q(5.0)?).min(0.5 * hi);
     if !(lo > 0.0 && hi.is_finite()) {
@@ -281,7 +281,7 @@ mod tests {
 
     #[test]
     fn operator_matches_the_textbook_stop_operator_and_peek_matches_step() {
-        let mut rng = crate::rng::SimRng::new(3);
+        let mut rng = crate::numeric::rng::SimRng::new(3);
         let xs: Vec<f64> = (0..500).map(|_| 10.0 * rng.normal()).collect();
         let r = [0.3, 2.0, 7.5];
         let refs: Vec<Vec<f64>> = r.iter().map(|&ri| reference_stop(&xs, ri)).collect();

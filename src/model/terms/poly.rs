@@ -21,8 +21,8 @@ impl TermSpec for Poly2Spec {
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let x = data.measured_values(|s| Some(s.features.target));
-        let centre = crate::stats::mean(&x).unwrap_or(0.0);
-        let half = crate::stats::range(&x).map_or(0.0, |[lo, hi]| 0.5 * (hi - lo));
+        let centre = crate::numeric::stats::mean(&x).unwrap_or(0.0);
+        let half = crate::numeric::stats::range(&x).map_or(0.0, |[lo, hi]| 0.5 * (hi - lo));
         let scale = if half > 0.0 { half } else { 1.0 };
         Ok(Arc::new(Poly2Term { centre, scale }))
     }
@@ -33,7 +33,8 @@ impl TermSpec for Poly2Spec {
 pub struct Poly2Term {
     /// Centre of the scaled position, tracks.
     pub centre: f64,
-    /// Scale of the scaled position, tracks.
+    /// Scale of the scaled position, tracks (> 0; a model file with another is refused).
+    #[serde(deserialize_with = "super::positive_finite")]
     pub scale: f64,
 }
 

@@ -385,7 +385,7 @@ pub fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
 /// p-value of "unimodal" ([`dip_p_value`]). `None` where the dip is.
 ///
 /// ```
-/// use biasctl::stats::dip_test;
+/// use biasctl::numeric::stats::dip_test;
 /// // Two clusters of 100 values each: two humps.
 /// let two: Vec<f64> = (0..200).map(|i| (i % 2) as f64 * 10.0 + (i % 13) as f64 * 0.3).collect();
 /// let t = dip_test(&two).unwrap();
@@ -496,19 +496,16 @@ pub fn linear_trend(x: &[f64], y: &[f64]) -> Option<Trend> {
     let slope = sxy / sxx;
     let sse = (syy - slope * sxy).max(0.0);
     let dof = (n - 2) as f64;
-    let slope_se = (sse / dof / sxx).sqrt();
+    // A slope is known to no better than its own rounding (ε·|slope|): an exact line gives that
+    // standard error, not 0, so t stays finite (at most 1/ε ≈ 4.5e15) and the JSON never
+    // carries a `null` for it.
+    let slope_se = (sse / dof / sxx).sqrt().max(f64::EPSILON * slope.abs());
     let t = if slope_se > 0.0 {
         slope / slope_se
-    } else if slope.abs() > 0.0 {
-        f64::INFINITY
     } else {
         0.0
     };
-    let p_value = if t.is_finite() {
-        student_t_two_sided_p(t, dof)
-    } else {
-        0.0
-    };
+    let p_value = student_t_two_sided_p(t, dof);
     let r2 = if syy > 0.0 { 1.0 - sse / syy } else { 0.0 };
     Some(Trend {
         slope,
@@ -805,11 +802,20 @@ mod tests {
         let t0 = linear_trend(&x, &flat).unwrap();
         assert!(t0.p_value > 0.5, "{t0:?}");
         assert!(linear_trend(&[1.0, 1.0, 1.0], &[1.0, 2.0, 3.0]).is_none());
+        // Reference: an exact line at positions 1e11…1e15 (the fuzz finding that printed
+        // `"t": null`): t is finite, |t| = 1/ε, p = 0.
+        let big: Vec<f64> = (0..20).map(|i| 1e11 + 5e13 * f64::from(i)).collect();
+        let line: Vec<f64> = big.iter().map(|v| 3.0 + 1e-12 * v).collect();
+        let tb = linear_trend(&big, &line).unwrap();
+        assert!(
+            tb.t.is_finite() && tb.slope_se > 0.0 && tb.p_value < 1e-12,
+            "{tb:?}"
+        );
     }
 
     #[test]
     fn ljung_box_flags_a_random_walk_not_white_noise() {
-        let mut r = crate::rng::SimRng::new(9);
+        let mut r = crate::numeric::rng::SimRng::new(9);
         let white: Vec<f64> = (0..2000).map(|_| r.normal()).collect();
         let walk: Vec<f64> = white
             .iter()

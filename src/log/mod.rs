@@ -21,8 +21,14 @@
 //! own name is its label (`force_N`). [`Units::resolve`] puts explicit labels (the CLI's
 //! `--bias-unit` and `--track-unit`) first.
 //!
-//! Reading is streaming ([`LogReader`]) and strict: every bad value is an error that names the
-//! file, line and column; nothing is skipped silently.
+//! Reading is streaming ([`LogReader`]) and strict about the data: every bad value in a column
+//! with a role is an error that names the file, line and column. It is tolerant about the dialect:
+//! the delimiter (`,` `;` or tab) is sniffed from the header unless [`ColumnMap::delimiter`]
+//! names it; a `;`- or tab-separated file may use a decimal comma (`0,25`); header names match
+//! ignoring case and surrounding spaces (an unknown name gets a "did you mean"); a column with no
+//! name and no values (a spreadsheet's trailing comma) is ignored; a covariate column that is
+//! not numeric in the first rows (notes, labels) is skipped. Every skip is told in
+//! [`LogSchema::notes`]; nothing is skipped silently.
 //!
 //! ```
 //! use biasctl::log::{ColumnMap, LogReader};
@@ -35,13 +41,17 @@
 //! assert_eq!(reader.schema().units.bias, "counts");
 //! ```
 
+pub mod limits;
+
+use crate::log::limits::{LineLimit, MAX_COLUMNS};
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-/// Names of the three required columns (defaults `time_s`, `track`, `bias`).
+/// Names of the three required columns (defaults `time_s`, `track`, `bias`) and the field
+/// delimiter (default: sniffed).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ColumnMap {
     /// Column holding the time of each seek in seconds.
@@ -50,6 +60,9 @@ pub struct ColumnMap {
     pub track: String,
     /// Column holding the measured bias (counts, or any force/current unit).
     pub bias: String,
+    /// Field delimiter (the CLI's `--delimiter`); `None` sniffs it from the header line: the most
+    /// frequent of `,` `;` and tab outside quotes (a comma on a tie or when none occurs).
+    pub delimiter: Option<u8>,
 }
 
 /// Default name of the time column (s).
@@ -65,8 +78,89 @@ impl Default for ColumnMap {
             time: DEFAULT_TIME_COL.into(),
             track: DEFAULT_TRACK_COL.into(),
             bias: DEFAULT_BIAS_COL.into(),
+            delimiter: None,
         }
     }
+}
+
+/// The delimiters the reader sniffs and `--delimiter` accepts, with their names.
+pub const DELIMITERS: [(u8, &str); 3] = [(b',', "comma"), (b';', "semicolon"), (b'\t', "tab")];
+
+/// Rows the reader looks at, after the header, to find covariate columns that are not numeric.
+pub const LOOKAHEAD_ROWS: usize = 64;
+
+/// The delimiter of a header line: the most frequent of `,` `;` and tab outside double quotes;
+/// a comma when none occurs or on a tie.
+pub fn sniff_delimiter(header: &str) -> u8 {
+    let mut counts = [0usize; DELIMITERS.len()];
+    let mut quoted = false;
+    for b in header.bytes() {
+        if b == b'"' {
+            quoted = !quoted;
+        } else if !quoted && let Some(i) = DELIMITERS.iter().position(|d| d.0 == b) {
+            counts[i] += 1;
+        }
+    }
+    let mut best = 0;
+    for i in 1..counts.len() {
+        if counts[i] > counts[best] {
+            best = i;
+        }
+    }
+    DELIMITERS[best].0
+}
+
+/// Parses a cell as a number; with `decimal_comma` a cell holding a comma and no point is read
+/// with the comma as the decimal separator (`0,25` = 0.25).
+fn parse_cell(text: &str, decimal_comma: bool) -> Option<f64> {
+    if decimal_comma && text.contains(',') && !text.contains('.') {
+        text.replacen(',', ".", 1).parse().ok()
+    } else {
+        text.parse().ok()
+    }
+}
+
+/// Case-insensitive edit distance between two column names (for "did you mean").
+fn name_distance(a: &str, b: &str) -> usize {
+    let a: Vec<char> = a.to_lowercase().chars().collect();
+    let b: Vec<char> = b.to_lowercase().chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.iter().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, cb) in b.iter().enumerate() {
+            cur[j + 1] = (prev[j] + usize::from(ca != cb))
+                .min(prev[j + 1] + 1)
+                .min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}
+
+/// The column most like `name` (edit distance at most a third of its length, at least 2, or one
+/// name containing the other), for a "did you mean".
+fn closest_column<'a>(name: &str, columns: &'a [String]) -> Option<&'a str> {
+    let lower = name.to_lowercase();
+    columns
+        .iter()
+        .filter(|c| !c.is_empty())
+        .map(|c| (name_distance(name, c), c))
+        .filter(|(d, c)| {
+            *d <= (name.chars().count() / 3).max(2) || {
+                let cl = c.to_lowercase();
+                cl.contains(&lower) || lower.contains(&cl)
+            }
+        })
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, c)| c.as_str())
+}
+
+/// `; did you mean `x`?` or nothing (for [`LogError::MissingColumn`]).
+fn did_you_mean(suggestion: &Option<String>) -> String {
+    suggestion
+        .as_ref()
+        .map(|s| format!("; did you mean `{s}`?"))
+        .unwrap_or_default()
 }
 
 /// Bias unit of a log whose bias column is the default `bias` and whose metadata names none.
@@ -228,7 +322,8 @@ pub enum LogError {
     },
     /// A required column is not in the header.
     #[error(
-        "{file}: line {line}: missing required column `{column}` (columns found: {found}); name it with {flag}"
+        "{file}: line {line}: missing required column `{column}` (columns found: {found}){}; name it with {flag}",
+        did_you_mean(.suggestion)
     )]
     MissingColumn {
         /// The log file.
@@ -241,6 +336,8 @@ pub enum LogError {
         found: String,
         /// The flag that renames it.
         flag: &'static str,
+        /// The header's column most like the one looked for, if any.
+        suggestion: Option<String>,
     },
     /// Two columns share a name.
     #[error("{file}: line {line}: column `{column}` appears twice in the header")]
@@ -320,19 +417,31 @@ pub struct LogSchema {
     pub columns: Vec<String>,
     /// The column map the log was read with.
     pub map: ColumnMap,
-    /// Names of the covariate columns (all but the three required), in file order.
+    /// Names of the covariate columns (the numeric columns other than the three required), in
+    /// file order.
     pub covariates: Vec<String>,
+    /// The field delimiter read with (sniffed or given).
+    pub delimiter: u8,
+    /// What the reader did that the user should know: columns skipped (no name with values, not
+    /// numeric, empty in the first rows), a delimiter other than a comma, a column matched
+    /// ignoring case. The CLI prints them on stderr.
+    pub notes: Vec<String>,
     /// The units of bias and position: from the metadata or the columns when read
     /// ([`Units::resolve`] without explicit labels); [`LogSchema::set_units`] applies explicit
     /// ones.
     pub units: Units,
     time_idx: usize,
     track_idx: usize,
-    bias_idx: usize,
+    bias_idx: Option<usize>,
     covariate_idx: Vec<usize>,
 }
 
 impl LogSchema {
+    /// Whether the log has a bias column (a plan read with [`BiasColumn::Optional`] may not).
+    pub fn has_bias(&self) -> bool {
+        self.bias_idx.is_some()
+    }
+
     /// Index of covariate `name` in [`Row::covariates`], if the log has it.
     pub fn covariate_index(&self, name: &str) -> Option<usize> {
         self.covariates.iter().position(|c| c == name)
@@ -386,29 +495,73 @@ impl Row {
     }
 }
 
+/// Whether a log must hold measurements.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum BiasColumn {
+    /// The bias column must exist and at least one row must be measured (fitting, scoring,
+    /// diagnosing): a missing column or a log without a measured row is an error.
+    #[default]
+    Required,
+    /// A plan (`predict`): the bias column may be missing or empty; every row is then read as
+    /// "moved, not measured".
+    Optional,
+}
+
+/// The path that means standard input (`--data -`).
+pub const STDIN_PATH: &str = "-";
+/// The name standard input has in messages.
+pub const STDIN_NAME: &str = "<stdin>";
+
 /// A streaming reader of a measurement log: constant memory in the number of rows.
 ///
 /// It yields `Result<Row, LogError>`; after the last row it yields one
-/// [`LogError::NoMeasuredRows`] if no row held a bias, then ends.
+/// [`LogError::NoMeasuredRows`] if no row held a bias (unless read with
+/// What the CSV parser of a [`LogReader`] reads: the header line already read, then the rest.
+type CsvSource<R> = io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>;
+
+/// [`BiasColumn::Optional`]), then ends.
 pub struct LogReader<R: Read> {
     schema: LogSchema,
-    csv: csv::Reader<BufReader<R>>,
+    csv: csv::Reader<CsvSource<R>>,
     record: csv::StringRecord,
+    /// Records read ahead to classify the columns, yielded before the rest of the file.
+    lookahead: std::collections::VecDeque<csv::StringRecord>,
+    /// A parse error met while reading ahead, returned after the records before it.
+    pending: Option<csv::Error>,
     line_offset: u64,
     prev_time: Option<f64>,
     measured: u64,
+    bias_column: BiasColumn,
     done: bool,
 }
 
-impl LogReader<File> {
-    /// Opens `path` and reads its metadata and header.
+impl LogReader<Box<dyn Read>> {
+    /// Opens `path` (or standard input when `path` is `-`, named `<stdin>` in messages) and
+    /// reads its metadata and header.
     pub fn open(path: &Path, map: &ColumnMap) -> Result<Self, LogError> {
+        Self::open_with(path, map, BiasColumn::Required)
+    }
+
+    /// As [`LogReader::open`], with the bias column required or optional.
+    pub fn open_with(path: &Path, map: &ColumnMap, bias: BiasColumn) -> Result<Self, LogError> {
+        if path.as_os_str() == STDIN_PATH {
+            // A stream is answered row by row: no look-ahead, the header alone classifies the
+            // columns (a text column without a role then fails at its first row).
+            return Self::from_reader_lookahead(
+                STDIN_NAME,
+                Box::new(io::stdin().lock()),
+                map,
+                bias,
+                0,
+            );
+        }
         let file_name = path.display().to_string();
         let file = File::open(path).map_err(|source| LogError::Io {
             file: file_name.clone(),
             source,
         })?;
-        Self::from_reader(&file_name, file, map)
+        Self::from_reader_with(&file_name, Box::new(file), map, bias)
     }
 }
 
@@ -428,7 +581,29 @@ pub struct LogSummary {
 impl<R: Read> LogReader<R> {
     /// Reads metadata and header from any reader; `file` names the source in messages.
     pub fn from_reader(file: &str, reader: R, map: &ColumnMap) -> Result<Self, LogError> {
-        let mut buf = BufReader::new(reader);
+        Self::from_reader_with(file, reader, map, BiasColumn::Required)
+    }
+
+    /// As [`LogReader::from_reader`], with the bias column required or optional.
+    pub fn from_reader_with(
+        file: &str,
+        reader: R,
+        map: &ColumnMap,
+        bias_column: BiasColumn,
+    ) -> Result<Self, LogError> {
+        Self::from_reader_lookahead(file, reader, map, bias_column, LOOKAHEAD_ROWS)
+    }
+
+    /// As [`LogReader::from_reader_with`], reading `lookahead_rows` rows ahead to find the
+    /// covariate columns that are not numeric.
+    fn from_reader_lookahead(
+        file: &str,
+        reader: R,
+        map: &ColumnMap,
+        bias_column: BiasColumn,
+        lookahead_rows: usize,
+    ) -> Result<Self, LogError> {
+        let mut buf = BufReader::new(LineLimit::new(reader));
         let io_err = |source| LogError::Io {
             file: file.to_string(),
             source,
@@ -461,10 +636,31 @@ impl<R: Read> LogReader<R> {
                 break;
             }
         }
+        let mut header = String::new();
+        buf.read_line(&mut header).map_err(io_err)?;
+        let delimiter = map.delimiter.unwrap_or_else(|| sniff_delimiter(&header));
+        let decimal_comma = delimiter != b',';
+        let mut notes = Vec::new();
+        if delimiter != b',' {
+            let name = DELIMITERS
+                .iter()
+                .find(|d| d.0 == delimiter)
+                .map_or("other", |d| d.1);
+            notes.push(format!(
+                "{file}: fields separated by {name} (`{}`){}",
+                (delimiter as char).escape_default(),
+                if map.delimiter.is_some() {
+                    ""
+                } else {
+                    ", sniffed from the header; a comma in a number is its decimal separator"
+                }
+            ));
+        }
         let mut csv = csv::ReaderBuilder::new()
             .has_headers(true)
+            .delimiter(delimiter)
             .trim(csv::Trim::All)
-            .from_reader(buf);
+            .from_reader(io::Cursor::new(header.into_bytes()).chain(buf));
         let header_line = line_no + 1;
         let headers = csv
             .headers()
@@ -473,9 +669,18 @@ impl<R: Read> LogReader<R> {
         if headers.is_empty() || headers.iter().all(str::is_empty) {
             return Err(LogError::Empty { file: file.into() });
         }
+        if headers.len() > MAX_COLUMNS {
+            return Err(io_err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "line {header_line}: the header has {} columns; biasctl reads at most {MAX_COLUMNS}",
+                    headers.len()
+                ),
+            )));
+        }
         let columns: Vec<String> = headers.iter().map(str::to_string).collect();
         for (i, c) in columns.iter().enumerate() {
-            if columns[..i].contains(c) {
+            if !c.is_empty() && columns[..i].contains(c) {
                 return Err(LogError::DuplicateColumn {
                     file: file.into(),
                     line: header_line,
@@ -483,24 +688,88 @@ impl<R: Read> LogReader<R> {
                 });
             }
         }
-        let find = |name: &str, flag: &'static str| {
-            columns
-                .iter()
-                .position(|c| c == name)
-                .ok_or_else(|| LogError::MissingColumn {
-                    file: file.into(),
-                    line: header_line,
-                    column: name.into(),
-                    found: columns.join(", "),
-                    flag,
-                })
+        // A required column: its exact name, else the one name equal to it ignoring case and
+        // surrounding spaces.
+        let mut find = |name: &str, flag: &'static str| {
+            let wanted = name.trim();
+            if let Some(i) = columns.iter().position(|c| c == wanted) {
+                return Ok(i);
+            }
+            let same: Vec<usize> = (0..columns.len())
+                .filter(|&i| columns[i].to_lowercase() == wanted.to_lowercase())
+                .collect();
+            if let [i] = same[..] {
+                notes.push(format!(
+                    "{file}: column `{}` used as `{wanted}` (matched ignoring case)",
+                    columns[i]
+                ));
+                return Ok(i);
+            }
+            Err(LogError::MissingColumn {
+                file: file.into(),
+                line: header_line,
+                column: wanted.into(),
+                found: columns.join(", "),
+                flag,
+                suggestion: closest_column(wanted, &columns).map(str::to_string),
+            })
         };
         let time_idx = find(&map.time, "--time-col")?;
         let track_idx = find(&map.track, "--track-col")?;
-        let bias_idx = find(&map.bias, "--bias-col")?;
-        let covariate_idx: Vec<usize> = (0..columns.len())
-            .filter(|i| ![time_idx, track_idx, bias_idx].contains(i))
-            .collect();
+        let bias_idx = match bias_column {
+            BiasColumn::Optional => find(&map.bias, "--bias-col").ok(),
+            _ => Some(find(&map.bias, "--bias-col")?),
+        };
+        // Read ahead to classify the other columns: a column is a numeric covariate unless it has
+        // no name and no values, or no values, or a value that is not a number in these rows.
+        let mut lookahead = std::collections::VecDeque::with_capacity(lookahead_rows);
+        let mut pending = None;
+        while lookahead.len() < lookahead_rows {
+            let mut rec = csv::StringRecord::new();
+            match csv.read_record(&mut rec) {
+                Ok(true) => lookahead.push_back(rec),
+                Ok(false) => break,
+                Err(e) => {
+                    pending = Some(e);
+                    break;
+                }
+            }
+        }
+        let mut covariate_idx = Vec::new();
+        for (i, name) in columns.iter().enumerate() {
+            if [time_idx, track_idx].contains(&i) || Some(i) == bias_idx {
+                continue;
+            }
+            let cells = || lookahead.iter().filter_map(|r| r.get(i));
+            let text = lookahead.iter().find_map(|r| {
+                let v = r.get(i)?;
+                (!v.is_empty() && parse_cell(v, decimal_comma).is_none()).then(|| {
+                    let line = r.position().map_or(0, |p| p.line() + line_no);
+                    (line, v)
+                })
+            });
+            let has_values = cells().any(|v| !v.is_empty());
+            let why = if name.is_empty() {
+                has_values.then(|| format!("column {} has no name", i + 1))
+            } else if let Some((line, v)) = text {
+                Some(format!(
+                    "column {} (`{name}`) is not numeric (line {line}: `{v}`)",
+                    i + 1
+                ))
+            } else if !has_values && !lookahead.is_empty() {
+                Some(format!(
+                    "column {} (`{name}`) is empty in the first {} rows",
+                    i + 1,
+                    lookahead.len()
+                ))
+            } else {
+                covariate_idx.push(i);
+                continue;
+            };
+            if let Some(why) = why {
+                notes.push(format!("{file}: {why}; skipped"));
+            }
+        }
         let covariates = covariate_idx.iter().map(|&i| columns[i].clone()).collect();
         let mut schema = LogSchema {
             file: file.into(),
@@ -508,6 +777,8 @@ impl<R: Read> LogReader<R> {
             columns,
             map: map.clone(),
             covariates,
+            delimiter,
+            notes,
             units: Units::default(),
             time_idx,
             track_idx,
@@ -519,9 +790,12 @@ impl<R: Read> LogReader<R> {
             schema,
             csv,
             record: csv::StringRecord::new(),
+            lookahead,
+            pending,
             line_offset: line_no,
             prev_time: None,
             measured: 0,
+            bias_column,
             done: false,
         })
     }
@@ -534,6 +808,12 @@ impl<R: Read> LogReader<R> {
     /// Streams the rest of the log (constant memory) and summarises it: row counts, position
     /// and time ranges. Every row is validated as [`LogReader::read_into`] does.
     pub fn summarise(&mut self) -> Result<LogSummary, LogError> {
+        self.summarise_each(|_| {})
+    }
+
+    /// [`LogReader::summarise`], handing every row to `each` as it is read (one pass, so a
+    /// log on standard input is read once).
+    pub fn summarise_each(&mut self, mut each: impl FnMut(&Row)) -> Result<LogSummary, LogError> {
         let mut row = Row::empty(self.schema.covariates.len());
         let mut s = LogSummary {
             rows: 0,
@@ -549,23 +829,33 @@ impl<R: Read> LogReader<R> {
             s.rows += 1;
             s.measured += u64::from(row.bias.is_some());
             s.positions = [s.positions[0].min(row.track), s.positions[1].max(row.track)];
+            each(&row);
         }
         Ok(s)
     }
 
     /// Reads the next row into `row` (reusing its allocation). Returns `Ok(false)` at the end of
-    /// the file; errors with [`LogError::NoMeasuredRows`] at the end if no row was measured.
+    /// the file; errors with [`LogError::NoMeasuredRows`] at the end if no row was measured
+    /// (unless the bias column is [`BiasColumn::Optional`]).
     pub fn read_into(&mut self, row: &mut Row) -> Result<bool, LogError> {
         let file = &self.schema.file;
-        let more = self.csv.read_record(&mut self.record).map_err(|e| {
-            let line = e
-                .position()
+        let line_of = |e: &csv::Error| {
+            e.position()
                 .map(|p| p.line() + self.line_offset)
-                .unwrap_or(0);
-            malformed(file, line, &e)
-        })?;
+                .unwrap_or(0)
+        };
+        let more = if let Some(rec) = self.lookahead.pop_front() {
+            self.record = rec;
+            true
+        } else if let Some(e) = self.pending.take() {
+            return Err(malformed(file, line_of(&e), &e));
+        } else {
+            self.csv
+                .read_record(&mut self.record)
+                .map_err(|e| malformed(file, line_of(&e), &e))?
+        };
         if !more {
-            if self.measured == 0 {
+            if self.measured == 0 && self.bias_column == BiasColumn::Required {
                 return Err(LogError::NoMeasuredRows {
                     file: file.clone(),
                     column: self.schema.map.bias.clone(),
@@ -579,6 +869,7 @@ impl<R: Read> LogReader<R> {
             .map(|p| p.line() + self.line_offset)
             .unwrap_or(0);
         let s = &self.schema;
+        let decimal_comma = s.delimiter != b',';
         let cell = |idx: usize| self.record.get(idx).unwrap_or("");
         let number = |idx: usize| -> Result<Option<f64>, LogError> {
             let text = cell(idx);
@@ -593,11 +884,15 @@ impl<R: Read> LogReader<R> {
                 value: text.to_string(),
                 problem,
             };
-            let v: f64 = text.parse().map_err(|_| bad("not a number"))?;
-            if v.is_finite() {
-                Ok(Some(v))
-            } else {
+            let v = parse_cell(text, decimal_comma).ok_or_else(|| bad("not a number"))?;
+            if !v.is_finite() {
                 Err(bad("not a finite number"))
+            } else if v.abs() > MAX_ABS_VALUE {
+                Err(bad(
+                    "outside ±1e15, the range whose squares and sums stay exact enough",
+                ))
+            } else {
+                Ok(Some(v))
             }
         };
         let required = |idx: usize| -> Result<f64, LogError> {
@@ -624,7 +919,10 @@ impl<R: Read> LogReader<R> {
             });
         }
         let track = required(s.track_idx)?;
-        let bias = number(s.bias_idx)?;
+        let bias = match s.bias_idx {
+            Some(idx) => number(idx)?,
+            None => None,
+        };
         row.covariates.clear();
         for &idx in &s.covariate_idx {
             row.covariates.push(required(idx)?);
@@ -687,9 +985,14 @@ pub struct Log {
 }
 
 impl Log {
-    /// Reads a whole log file.
+    /// Reads a whole log file (`-`: standard input).
     pub fn read(path: &Path, map: &ColumnMap) -> Result<Self, LogError> {
-        let mut reader = LogReader::open(path, map)?;
+        Self::read_with(path, map, BiasColumn::Required)
+    }
+
+    /// Reads a whole log file (`-`: standard input) with the bias column required or optional.
+    pub fn read_with(path: &Path, map: &ColumnMap, bias: BiasColumn) -> Result<Self, LogError> {
+        let mut reader = LogReader::open_with(path, map, bias)?;
         let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             schema: reader.schema,
@@ -699,7 +1002,17 @@ impl Log {
 
     /// Reads a whole log from a reader; `file` names it in messages.
     pub fn from_reader<R: Read>(file: &str, reader: R, map: &ColumnMap) -> Result<Self, LogError> {
-        let mut reader = LogReader::from_reader(file, reader, map)?;
+        Self::from_reader_with(file, reader, map, BiasColumn::Required)
+    }
+
+    /// As [`Log::from_reader`], with the bias column required or optional.
+    pub fn from_reader_with<R: Read>(
+        file: &str,
+        reader: R,
+        map: &ColumnMap,
+        bias: BiasColumn,
+    ) -> Result<Self, LogError> {
+        let mut reader = LogReader::from_reader_with(file, reader, map, bias)?;
         let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             schema: reader.schema,
@@ -722,11 +1035,22 @@ impl Log {
     }
 }
 
-/// Writes a log: metadata lines, the header, then rows. Numbers are written with fixed decimals
-/// (time 6, track as given with up to 6, bias 4, covariates 6) so output is byte-identical for
-/// identical values.
+/// A CSV writer in the dialect every file biasctl writes uses: comma-separated, a field quoted
+/// only when it holds a comma, a quote or a line break (a covariate named `temp,C` is written
+/// `"temp,C"`), `\n` line ends. Metadata lines (`# …`) go to the underlying writer before it is
+/// wrapped. Call `flush` (or `into_inner`) before the writer is dropped: a drop cannot report an
+/// error.
+pub fn csv_writer<W: Write>(out: W) -> csv::Writer<W> {
+    csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(out)
+}
+
+/// Writes a log: metadata lines, the header, then rows, through [`csv_writer`]. Numbers are
+/// written with fixed decimals (time 6, track as given with up to 6, bias 4, covariates 6) so
+/// output is byte-identical for identical values.
 pub struct LogWriter<W: Write> {
-    out: W,
+    out: csv::Writer<W>,
     n_covariates: usize,
 }
 
@@ -736,11 +1060,12 @@ impl<W: Write> LogWriter<W> {
         for m in metadata {
             writeln!(out, "# {m}")?;
         }
-        write!(out, "time_s,track,bias")?;
-        for c in covariates {
-            write!(out, ",{c}")?;
-        }
-        writeln!(out)?;
+        let mut out = csv_writer(out);
+        out.write_record(
+            [DEFAULT_TIME_COL, DEFAULT_TRACK_COL, DEFAULT_BIAS_COL]
+                .into_iter()
+                .chain(covariates.iter().map(String::as_str)),
+        )?;
         Ok(Self {
             out,
             n_covariates: covariates.len(),
@@ -756,25 +1081,20 @@ impl<W: Write> LogWriter<W> {
         covariates: &[f64],
     ) -> io::Result<()> {
         debug_assert_eq!(covariates.len(), self.n_covariates);
-        write!(
-            self.out,
-            "{},{}",
-            fmt_fixed(time_s, 6),
-            fmt_trimmed(track, 6)
-        )?;
-        match bias {
-            Some(b) => write!(self.out, ",{}", fmt_fixed(b, 4))?,
-            None => write!(self.out, ",")?,
-        }
+        self.out.write_field(fmt_fixed(time_s, 6))?;
+        self.out.write_field(fmt_trimmed(track, 6))?;
+        self.out
+            .write_field(bias.map(|b| fmt_fixed(b, 4)).unwrap_or_default())?;
         for &c in covariates {
-            write!(self.out, ",{}", fmt_trimmed(c, 6))?;
+            self.out.write_field(fmt_trimmed(c, 6))?;
         }
-        writeln!(self.out)
+        self.out.write_record(None::<&[u8]>)?;
+        Ok(())
     }
 
-    /// Returns the underlying writer.
-    pub fn into_inner(self) -> W {
-        self.out
+    /// Flushes the rows written so far and returns the underlying writer.
+    pub fn into_inner(self) -> io::Result<W> {
+        self.out.into_inner().map_err(|e| e.into_error())
     }
 }
 
@@ -787,6 +1107,12 @@ pub fn fmt_fixed(x: f64, decimals: usize) -> String {
         s
     }
 }
+
+/// Largest |value| a log cell may hold (every column: time, position, bias, covariates). Models
+/// square positions and sum squares over up to millions of rows; below 1e15 those stay finite
+/// and keep more than one unit of resolution (f64 carries 15–16 significant digits). No rig
+/// logs a larger number; a larger one is a unit mistake or a corrupted cell.
+pub const MAX_ABS_VALUE: f64 = 1e15;
 
 /// `x` with at most `decimals` decimals and trailing zeros removed (`120`, `0.25`).
 pub fn fmt_trimmed(x: f64, decimals: usize) -> String {
@@ -843,6 +1169,7 @@ mod tests {
             time: "t".into(),
             track: "position_m".into(),
             bias: "force_N".into(),
+            delimiter: None,
         };
         let log = Log::from_reader(
             "r.csv",
@@ -894,6 +1221,34 @@ mod tests {
     }
 
     #[test]
+    fn a_plan_may_lack_the_bias_column_or_every_measurement() {
+        // Reference: the rows as written; with BiasColumn::Optional nothing is measured and
+        // no error is raised, and a covariate keeps its place.
+        let read_plan = |text: &str| {
+            Log::from_reader_with(
+                "p.csv",
+                text.as_bytes(),
+                &ColumnMap::default(),
+                BiasColumn::Optional,
+            )
+        };
+        let plan = read_plan("time_s,track,temp_c\n0,100,25\n0.5,120,26\n").unwrap();
+        assert!(!plan.schema.has_bias());
+        assert_eq!(plan.schema.covariates, vec!["temp_c".to_string()]);
+        assert_eq!(plan.rows[1].covariates, vec![26.0]);
+        assert_eq!(plan.measured_count(), 0);
+        let empty = read_plan("time_s,track,bias\n0,100,\n0.5,120,\n").unwrap();
+        assert!(empty.schema.has_bias() && empty.measured_count() == 0);
+        // Other bad input is still an error naming line and column.
+        let e = read_plan("time_s,track\n0,100\n0.5,x\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("p.csv: line 3, column 2 (`track`)"), "{e}");
+        // Required (the default) keeps both errors.
+        assert!(read("time_s,track\n0,1\n").is_err());
+    }
+
+    #[test]
     fn byte_order_mark_before_metadata_or_header_is_skipped() {
         for text in [
             "\u{feff}# seed = 1\ntime_s,track,bias\n0,1,2\n",
@@ -929,6 +1284,7 @@ mod tests {
             time: "t".into(),
             track: "position_m".into(),
             bias: "force_N".into(),
+            delimiter: None,
         };
         let mut renamed =
             Log::from_reader("r.csv", "t,position_m,force_N\n0,0.1,2\n".as_bytes(), &map).unwrap();
@@ -971,16 +1327,99 @@ mod tests {
     }
 
     #[test]
+    fn dialects_read_to_the_same_rows() {
+        // Reference: the plain comma file; every dialect below holds the same numbers.
+        let plain = read("time_s,track,bias,temp_c\n0,100,12.5,40\n0.5,120,-3.25,41\n").unwrap();
+        let dialects = [
+            "time_s;track;bias;temp_c\n0;100;12,5;40\n0,5;120;-3,25;41\n",
+            "time_s\ttrack\tbias\ttemp_c\n0\t100\t12.5\t40\n0.5\t120\t-3.25\t41\n",
+            " Time_S , TRACK ,Bias,temp_c\n0,100,12.5,40\n0.5,120,-3.25,41\n",
+            "time_s,track,bias,temp_c,\n0,100,12.5,40,\n0.5,120,-3.25,41,\n",
+            "time_s,track,notes,bias,temp_c\n0,100,start,12.5,40\n0.5,120,,-3.25,41\n",
+        ];
+        for text in dialects {
+            let log = read(text).expect(text);
+            assert_eq!(log.rows, plain.rows, "{text:?}");
+            assert_eq!(log.schema.covariates, ["temp_c"], "{text:?}");
+        }
+        let notes = read(dialects[0]).unwrap().schema.notes;
+        assert!(notes[0].contains("semicolon"), "{notes:?}");
+        let notes = read(dialects[4]).unwrap().schema.notes;
+        assert!(
+            notes[0].contains("column 3 (`notes`) is not numeric (line 2: `start`); skipped"),
+            "{notes:?}"
+        );
+        // A trailing empty column is ignored without a note; a case match is told.
+        assert!(read(dialects[3]).unwrap().schema.notes.is_empty());
+        assert!(read(dialects[2]).unwrap().schema.notes[0].contains("ignoring case"));
+        // An explicit delimiter wins over sniffing: read as commas, `;` text is one column.
+        let map = ColumnMap {
+            delimiter: Some(b','),
+            ..ColumnMap::default()
+        };
+        let e = Log::from_reader("t.csv", dialects[0].as_bytes(), &map).unwrap_err();
+        assert!(
+            e.to_string().contains("missing required column `time_s`"),
+            "{e}"
+        );
+        // A numeric covariate that turns to text after the look-ahead is still an error.
+        let mut late = String::from("time_s,track,bias,v\n");
+        for i in 0..LOOKAHEAD_ROWS {
+            late.push_str(&format!("{i},1,2,3\n"));
+        }
+        late.push_str("100,1,2,x\n");
+        let e = read(&late).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "line {}, column 4 (`v`): not a number",
+                LOOKAHEAD_ROWS + 2
+            )),
+            "{e}"
+        );
+        // A comma file keeps the point as the only decimal separator.
+        assert!(read("time_s,track,bias\n0,\"1,5\",2\n").is_err());
+    }
+
+    #[test]
+    fn missing_column_suggests_the_closest_name() {
+        let e = read("time,trk,bais\n0,1,2\n").unwrap_err().to_string();
+        assert!(e.contains("did you mean `time`?"), "{e}");
+        let e = read("time_s,trk,bais\n0,1,2\n").unwrap_err().to_string();
+        assert!(
+            e.contains("missing required column `track`") && e.contains("did you mean `trk`?"),
+            "{e}"
+        );
+        let e = read("time_s,track,force\n0,1,2\n").unwrap_err().to_string();
+        assert!(!e.contains("did you mean"), "{e}");
+        assert_eq!(sniff_delimiter("a;b,c;d"), b';');
+        assert_eq!(sniff_delimiter("\"a;b\",c"), b',');
+        assert_eq!(sniff_delimiter("abc"), b',');
+    }
+
+    #[test]
     fn writer_output_reads_back() {
         let mut buf = Vec::new();
         let mut w = LogWriter::new(&mut buf, &["seed = 3".into()], &["temp_c".into()]).unwrap();
         w.write_row(0.0, 100.0, Some(-0.0), &[25.5]).unwrap();
         w.write_row(0.5, 101.25, None, &[25.0]).unwrap();
+        w.into_inner().unwrap();
         let text = String::from_utf8(buf).unwrap();
         assert_eq!(
             text,
             "# seed = 3\ntime_s,track,bias,temp_c\n0.000000,100,0.0000,25.5\n0.500000,101.25,,25\n"
         );
+        // A covariate name with a comma or a quote is quoted, and reads back as it was.
+        let mut buf = Vec::new();
+        let names = ["temp,C".to_string(), "say \"hi\"".to_string()];
+        let mut w = LogWriter::new(&mut buf, &[], &names).unwrap();
+        w.write_row(1.0, 2.0, Some(3.0), &[4.0, 5.0]).unwrap();
+        w.into_inner().unwrap();
+        let quoted = String::from_utf8(buf).unwrap();
+        assert!(
+            quoted.starts_with("time_s,track,bias,\"temp,C\",\"say \"\"hi\"\"\"\n"),
+            "{quoted}"
+        );
+        assert_eq!(read(&quoted).unwrap().schema.covariates, names);
         let log = read(&text).unwrap();
         assert_eq!(log.rows[1].track, 101.25);
     }

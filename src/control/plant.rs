@@ -74,6 +74,16 @@ pub enum PlantError {
         /// The value given.
         value: f64,
     },
+    /// A parameter lies outside the range the discretisation and the settle horizon can carry.
+    #[error("{field} must be within {range}, got {value}")]
+    OutOfRange {
+        /// The field name.
+        field: String,
+        /// The value given.
+        value: f64,
+        /// The accepted range, as text.
+        range: &'static str,
+    },
     /// The delay is not within [0, Ts).
     #[error("tau_s must satisfy 0 ≤ tau_s < ts_s, got tau_s = {tau_s} s with ts_s = {ts_s} s")]
     DelayOutOfRange {
@@ -130,19 +140,54 @@ fn positive(field: &str, v: f64) -> Result<f64, PlantError> {
     }
 }
 
+/// `v` if it lies in `[lo, hi]`, else [`PlantError::OutOfRange`] quoting `range`.
+fn within(field: &str, v: f64, lo: f64, hi: f64, range: &'static str) -> Result<f64, PlantError> {
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(PlantError::OutOfRange {
+            field: field.to_string(),
+            value: v,
+            range,
+        })
+    }
+}
+
+/// Longest sample period, s: a servo sampled more slowly than once a second is not a servo, and
+/// a longer period makes a settle horizon of samples span an absurd time.
+pub const MAX_TS_S: f64 = 1.0;
+/// Largest |modal gain|, largest damping ratio and largest Kp·Ts² the plant accepts: beyond them
+/// the discretised matrices and the Riccati solution leave the range of f64 arithmetic.
+pub const MAX_MODE_GAIN: f64 = 1e6;
+/// See [`MAX_MODE_GAIN`].
+pub const MAX_DAMPING: f64 = 1e3;
+/// See [`MAX_MODE_GAIN`].
+pub const MAX_KP_TS2: f64 = 1e9;
+
 impl Plant {
-    /// Validates a plant description: Ts > 0, 0 ≤ τ < Ts, Kp > 0, every mode with f > 0, ζ ≥ 0
-    /// and a finite gain.
+    /// Validates a plant description: 0 < Ts ≤ [`MAX_TS_S`], 0 ≤ τ < Ts, 0 < Kp with
+    /// Kp·Ts² ≤ [`MAX_KP_TS2`], every mode with 0 < f < the Nyquist frequency × 10⁶,
+    /// 0 ≤ ζ ≤ [`MAX_DAMPING`] and |gain| ≤ [`MAX_MODE_GAIN`].
     pub fn new(spec: &PlantSpec) -> Result<Self, PlantError> {
         let ts_s = positive("ts_s", spec.ts_s)?;
+        within("ts_s", ts_s, 0.0, MAX_TS_S, "(0, 1] s")?;
         let tau_s = finite("tau_s", spec.tau_s)?;
         if !(0.0..ts_s).contains(&tau_s) {
             return Err(PlantError::DelayOutOfRange { tau_s, ts_s });
         }
         let kp = positive("kp", spec.kp)?;
+        within("kp·ts_s²", kp * ts_s * ts_s, 0.0, MAX_KP_TS2, "(0, 1e9]")?;
         let mut modes = Vec::with_capacity(spec.modes.len());
         for (i, m) in spec.modes.iter().enumerate() {
             let freq_hz = positive(&format!("modes[{i}].freq_hz"), m.freq_hz)?;
+            let f_ts = freq_hz * ts_s;
+            within(
+                &format!("modes[{i}].freq_hz·ts_s"),
+                f_ts,
+                0.0,
+                5e5,
+                "(0, 5e5]",
+            )?;
             let field = format!("modes[{i}].damping");
             let damping = finite(&field, m.damping)?;
             if damping < 0.0 {
@@ -151,7 +196,16 @@ impl Plant {
                     value: damping,
                 });
             }
+            within(&field, damping, 0.0, MAX_DAMPING, "[0, 1e3]")?;
             let gain = finite(&format!("modes[{i}].gain"), m.gain)?;
+            let gain_field = format!("modes[{i}].gain");
+            within(
+                &gain_field,
+                gain,
+                -MAX_MODE_GAIN,
+                MAX_MODE_GAIN,
+                "[-1e6, 1e6]",
+            )?;
             modes.push(Mode {
                 freq_hz,
                 damping,

@@ -3,7 +3,7 @@
 //! `diptest`, the calibration of its p-value table, and its behaviour on normal mixtures.
 
 use super::*;
-use crate::rng::SimRng;
+use crate::numeric::rng::SimRng;
 
 // ----------------------------------------------------------------------------------------------
 // Reference: the dip from its definition, D = inf over unimodal distribution functions G of

@@ -1,10 +1,12 @@
-//! Plant → controller: the sampled track-following loop of the paper's Section IV.
+//! Plant → controller → settle: the sampled track-following loop of the paper's Section IV and
+//! the settle-optimal integrator start value built on it.
 //!
 //! - [`plant`]: continuous rigid body (plus optional flexible modes) and its exact ZOH
 //!   discretisation with a fractional computation delay τ.
 //! - [`expm`]: the matrix exponential (scaling and squaring with a Padé approximant).
 //! - [`lqr`]: the DARE solver (structured doubling) and the LQR gain.
 //! - [`Controller`]: the loop state, the LQR design and the closed loop.
+//! - [`settle`]: the settle-time analysis (eq. 14–16) and the allocation-free handoff table.
 //!
 //! Loop state (deviation from nothing; units in brackets):
 //! x = [z (µm·samples), e (µm), v (µm/s), q_1, q̇_1, …, u_prev (counts)] with
@@ -14,7 +16,7 @@
 //! - u(k) = −K x(k), and the bias d entering as ë = Kp·(u − d).
 //!
 //! ```
-//! use biasctl::servo::{Controller, LqrWeights, plant::{Plant, PlantSpec}};
+//! use biasctl::control::{Controller, LqrWeights, plant::{Plant, PlantSpec}};
 //! let plant = Plant::new(&PlantSpec { ts_s: 1e-4, tau_s: 4e-5, kp: 1e6, modes: vec![] }).unwrap();
 //! let w = LqrWeights::new(&[1e-4, 1.78e-3, 1e-9, 0.0], 1e-6, plant.order()).unwrap();
 //! let c = Controller::design(&plant, &w).unwrap();
@@ -24,6 +26,7 @@
 pub mod expm;
 pub mod lqr;
 pub mod plant;
+pub mod settle;
 
 use lqr::{DareError, DareOptions, dare};
 use nalgebra::{DMatrix, DVector};

@@ -1,0 +1,355 @@
+#!/usr/bin/env python3
+"""The peer harness of issue #16: biasctl's hot paths against numba / numpy / polars / pandas
+doing the same work, both sides in the same run, printed as the ratio table of README's
+Benchmarks section. Run it through `benches/peers/run.sh` (it makes the venv and builds biasctl).
+
+Every peer is first checked against biasctl's own output on a small input (the check says what
+it compares); a failed check stops the run. Timings: biasctl from criterion (median of the
+`--warm-up-time 1 --measurement-time 3` run, read from target/criterion) or, where the work is
+a command, the median of 3 wall-clock CLI runs; peers by the median of several repeats. On a shared
+machine only the ratios mean something.
+"""
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+
+os.environ.setdefault("POLARS_MAX_THREADS", "1")  # polars on 1 thread, as biasctl reads
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+import polars as pl  # noqa: E402
+
+N = 1_000_000
+
+
+def sh(*args, **kw):
+    return subprocess.run(args, check=True, capture_output=True, text=True, **kw)
+
+
+def median_of(f, repeats):
+    """Median wall time of `repeats` calls of f (s), as criterion reports its median, and f's
+    last result."""
+    times, out = [], None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = f()
+        times.append(time.perf_counter() - t)
+    return float(np.median(times)), out
+
+
+def criterion_median(root, bench_id):
+    """Median time (s) of one criterion benchmark, from its last run's estimates."""
+    path = os.path.join(root, "target", "criterion", *bench_id.split("/"), "new", "estimates.json")
+    with open(path) as f:
+        return json.load(f)["median"]["point_estimate"] * 1e-9
+
+
+def check(ok, what):
+    if not ok:
+        sys.exit(f"peer check FAILED: {what}")
+    print(f"  check ok: {what}")
+
+
+# ---------------------------------------------------------------- Dahl predictor (eq. 8-9)
+TABLE = 256  # biasctl tabulates r^n for integer seek lengths below this
+
+
+@numba.njit(cache=True)
+def dahl_pow_table(r):
+    ln_r = math.log(r)
+    t = np.empty(TABLE)
+    for n in range(TABLE):
+        t[n] = math.exp(ln_r * n)
+    return t
+
+
+@numba.njit(cache=True)
+def dahl_predict(xs, c0, c1, c2, fc, r, pow_table, out):
+    """bias_k = c0 + c1 x + c2 x^2 + Fc G_k, G_k = s + (G_{k-1} - s) r^|dx| (eq. 8-9), the
+    arithmetic of biasctl's DahlPredictor (integer |dx| < 256 from the table). Returns the sum."""
+    ln_r = math.log(r)
+    g = 0.0
+    acc = 0.0
+    prev = math.nan
+    for i in range(xs.shape[0]):
+        x = xs[i]
+        dx = 0.0 if i == 0 else x - prev
+        prev = x
+        a = abs(dx)
+        n = int(a)
+        d = pow_table[n] if (n < TABLE and n == a) else math.exp(ln_r * a)
+        if dx > 0.0:
+            g = 1.0 + (g - 1.0) * d
+        elif dx < 0.0:
+            g = -1.0 + (g + 1.0) * d
+        b = c0 + x * (c1 + x * c2) + fc * g
+        out[i] = fc * g
+        acc += b
+    return acc
+
+
+def find_param(model, name):
+    """The value of the parameter `name` anywhere in a model file."""
+    stack = [model]
+    while stack:
+        v = stack.pop()
+        if isinstance(v, dict):
+            if v.get("name") == name and "value" in v:
+                return float(v["value"])
+            stack.extend(v.values())
+        elif isinstance(v, list):
+            stack.extend(v)
+    raise KeyError(name)
+
+
+def dahl(exe, work, root):
+    print("Dahl predictor, 1M seeks")
+    train, test = os.path.join(work, "dahl_train.csv"), os.path.join(work, "dahl_test.csv")
+    model, pred = os.path.join(work, "dahl.json"), os.path.join(work, "dahl_pred.csv")
+    sh(exe, "simulate", "--sequence", "random", "--n", "3000", "--seed", "3", "--out", train)
+    sh(exe, "simulate", "--sequence", "random", "--n", "500", "--seed", "4", "--out", test)
+    sh(exe, "fit", "--data", train, "--terms", "poly2,dahl", "--out", model)
+    sh(exe, "predict", "--model", model, "--data", test, "--out", pred)
+    with open(model) as f:
+        m = json.load(f)
+    fc, r = find_param(m, "dahl.Fc"), find_param(m, "dahl.r")
+    p = pd.read_csv(pred, comment="#")
+    xs = p["track"].to_numpy(dtype=float)
+    out = np.empty_like(xs)
+    dahl_predict(xs, 0.0, 0.0, 0.0, fc, r, dahl_pow_table(r), out)
+    err = np.max(np.abs(out - p["dahl"].to_numpy()))
+    # the CSV has 4 decimals and Fc, r are printed in the model file with their own rounding
+    check(err < 2e-3 * max(1.0, abs(fc)), f"numba Fc*G equals biasctl predict's `dahl` column (max diff {err:.1e}, Fc {fc:.3f}, r {r:.5f})")
+    rng = np.random.default_rng(1)
+    xs = 1000.0 + rng.integers(0, 250, N).astype(float)  # the criterion bench's workload
+    out = np.empty(N)
+    table = dahl_pow_table(1.0 - 1.2 / 15.0)
+    run = lambda: dahl_predict(xs, 5.0, 0.01, -1e-6, 15.0, 1.0 - 1.2 / 15.0, table, out)
+    run()
+    t_peer, _ = median_of(run, 30)
+    t_ours = criterion_median(root, "dahl/predictor_1M_seeks")
+    return [("Dahl predictor, 1M seeks (criterion `dahl`)", t_ours, "numba loop, same eq. 8-9 arithmetic", t_peer)]
+
+
+# ---------------------------------------------------------------- handoff (eq. 14-16)
+@numba.njit(cache=True)
+def bounds_into(pe, pv, pu, w, zk, zce, zcv, zcu, e0, v0, du, delta, upper, lower, umin_out, lmax_out):
+    """biasctl's bounds_into on four plain arrays: eq. 14 per sample, zero-gain samples, the
+    backward running min/max of eq. 15."""
+    n = pe.shape[0]
+    for k in range(n):
+        mid = pe[k] * e0 + pv[k] * v0 + pu[k] * du
+        half = w[k] * delta
+        upper[k] = mid + half
+        lower[k] = mid - half
+    for j in range(zk.shape[0]):
+        c = zce[j] * e0 + zcv[j] * v0 + zcu[j] * du
+        if c != c or abs(c) > delta:
+            upper[zk[j]] = -np.inf
+            lower[zk[j]] = np.inf
+    umin, lmax = np.inf, -np.inf
+    for k in range(n - 1, -1, -1):
+        umin = min(umin, upper[k])
+        lmax = max(lmax, lower[k])
+        umin_out[k] = umin
+        lmax_out[k] = lmax
+
+
+@numba.njit(cache=True)
+def bounds_repeat(reps, pe, pv, pu, w, zk, zce, zcv, zcu, e0, v0, du, delta, upper, lower, umin_out, lmax_out):
+    """`reps` calls inside compiled code, so Python's call overhead is not timed."""
+    acc = 0.0
+    for _ in range(reps):
+        bounds_into(pe, pv, pu, w, zk, zce, zcv, zcu, e0, v0, du, delta, upper, lower, umin_out, lmax_out)
+        acc += umin_out[0]
+    return acc
+
+
+def solve_numpy(pe, pv, pu, w, zk, zce, zcv, zcu, e0, v0, du, delta, hold, shift):
+    """The same answers as HandoffTable::solve, vectorised: all bounds, reversed cumulative
+    min/max, first index meeting each condition."""
+    mid = pe * e0 + pv * v0 + pu * du
+    half = w * delta
+    upper, lower = mid + half, mid - half
+    c = zce * e0 + zcv * v0 + zcu * du
+    bad = np.isnan(c) | (np.abs(c) > delta)
+    upper[zk[bad]], lower[zk[bad]] = -np.inf, np.inf
+    um = np.fmin.accumulate(upper[::-1])[::-1]
+    lm = np.fmax.accumulate(lower[::-1])[::-1]
+    top = len(pe) - hold
+    um, lm = um[: top + 1], lm[: top + 1]
+
+    def first(ok):
+        i = int(np.argmax(ok))
+        return i if ok[i] else None
+
+    k_opt = first(um - lm >= 0.0)
+    interval = None if k_opt is None else (lm[k_opt], um[k_opt])
+    return k_opt, interval, first(um - lm >= 2.0 * shift), first((lm <= -shift) & (um >= shift))
+
+
+def read_bounds(path):
+    b = pd.read_csv(path)
+    return b["upper"].to_numpy(dtype=float), b["lower"].to_numpy(dtype=float), b
+
+
+def handoff(exe, work, root):
+    print("Handoff at horizon 64 (paper1997)")
+    n, delta = 64, 0.5
+    res = {}
+    for step in (15.0, 5.0):
+        path = os.path.join(work, f"bounds_{step:g}.csv")
+        out = sh(exe, "settle", "--preset", "paper1997", "--horizon", str(n), "--step-um", str(step), "--bounds-out", path, "--json").stdout
+        res[step] = (json.loads(out), *read_bounds(path))
+    # The table's coefficients, recovered from the 15 µm run: w = (U - L)/2δ, pe = mid/e0.
+    # Sample 0 has a_0 = 0 (no bound at k = 0: empty cells), the zero-gain sample.
+    _, u15, l15, _ = res[15.0]
+    e0 = -15.0
+    zero = ~np.isfinite(u15)
+    w = np.where(zero, np.inf, (u15 - l15) / (2 * delta))
+    pe = np.where(zero, 0.0, 0.5 * (u15 + l15) / e0)
+    pv, pu = np.zeros(n), np.zeros(n)  # v0 = 0 and u_prev = bias in these handoffs
+    zk = np.flatnonzero(zero).astype(np.int64)
+    zce, zcv, zcu = np.ones(len(zk)), np.zeros(len(zk)), np.zeros(len(zk))  # c_0 = e0
+    bufs = [np.empty(n) for _ in range(4)]
+    # Check on the other step length: same bounds, running bounds and answers as biasctl.
+    j5, u5, l5, b5 = res[5.0]
+    bounds_into(pe, pv, pu, w, zk, zce, zcv, zcu, -5.0, 0.0, 0.0, delta, *bufs)
+    for got, col in zip(bufs, ["upper", "lower", "upper_min", "lower_max"]):
+        want = b5[col].to_numpy(dtype=float)
+        fin = np.isfinite(want)
+        check(np.array_equal(fin, np.isfinite(got)) and np.allclose(got[fin], want[fin], rtol=1e-9, atol=1e-9), f"numba {col} equals `biasctl settle --step-um 5 --bounds-out`")
+    shift = abs(j5["dz_dbias"]) * 8.0
+    k, interval, k_rob, k_zero = solve_numpy(pe, pv, pu, w, zk, zce, zcv, zcu, -5.0, 0.0, 0.0, delta, 1, shift)
+    check(k == j5["k_star"] and np.allclose(interval, j5["ff_interval"], rtol=1e-9), f"numpy solve: k* {k} and the optimal interval equal settle --json")
+    check(k_rob == j5["worst_case"]["robust_k"] and k_zero == j5["worst_case"]["zero_ff_k"], f"numpy solve: robust k {k_rob}, zero-ff worst k {k_zero} equal settle --json")
+    # Timing: the bench's handoff (e0 = -15 µm, v0 = 0, u_prev = bias, Δb = 8 counts).
+    reps = 20_000
+    args = (pe, pv, pu, w, zk, zce, zcv, zcu, -15.0, 0.0, 0.0, delta, *bufs)
+    bounds_repeat(10, *args)
+    t_b, _ = median_of(lambda: bounds_repeat(reps, *args), 30)
+    shift15 = abs(res[15.0][0]["dz_dbias"]) * 8.0
+    solve = lambda: [solve_numpy(pe, pv, pu, w, zk, zce, zcv, zcu, -15.0, 0.0, 0.0, delta, 1, shift15) for _ in range(200)]
+    t_s, _ = median_of(solve, 15)
+    return [
+        ("handoff bounds, horizon 64 (`bounds_into`)", criterion_median(root, "handoff/bounds_into/64"), "numba, same arithmetic on four plain arrays", t_b / reps),
+        ("handoff solve, horizon 64", criterion_median(root, "handoff/solve/64"), "numpy vectorised", t_s / 200),
+    ]
+
+
+# ---------------------------------------------------------------- reading a 1M-row log
+def read(exe, work, root, log, cli):
+    print("Reading a 1M-row log")
+    out = sh(exe, "check", "--data", log).stdout
+    first = out.splitlines()[0]  # "<file>: R rows, M measured"
+    rows, measured = int(first.split(": ")[1].split()[0]), int(first.split(", ")[1].split()[0])
+    pol = lambda: pl.read_csv(log, comment_prefix="#")
+    pan = lambda: pd.read_csv(log, comment="#")
+    t_pl, df = median_of(pol, 3)
+    t_pd, dp = median_of(pan, 3)
+    check(df.height == rows and df["bias"].null_count() == rows - measured, f"polars reads {rows} rows, {measured} measured, as `biasctl check`")
+    check(len(dp) == rows and int(dp["bias"].notna().sum()) == measured, "pandas reads the same rows")
+    mb = os.path.getsize(log) / 1e6
+    return [
+        (f"reading a 1M-row, {mb:.0f} MB log (`check`, CLI)", cli["check"], "polars `read_csv` (1 thread)", t_pl),
+        (f"reading the same log (criterion `read/check_summarise_1M_rows`)", criterion_median(root, "read/check_summarise_1M_rows"), "pandas `read_csv`", t_pd),
+    ]
+
+
+# ---------------------------------------------------------------- fit
+def fit(exe, work, root, cli):
+    print("Fit: normal equations")
+    train, test = os.path.join(work, "pd_train.csv"), os.path.join(work, "pd_test.csv")
+    model, pred = os.path.join(work, "pd.json"), os.path.join(work, "pd_pred.csv")
+    sh(exe, "simulate", "--sequence", "random", "--n", "2000", "--seed", "5", "--out", train)
+    sh(exe, "fit", "--data", train, "--terms", "poly2,direction", "--out", model)
+    sh(exe, "predict", "--model", model, "--data", train, "--out", pred)
+    p = pd.read_csv(pred, comment="#")
+    x = p["track"].to_numpy(dtype=float)
+    d = np.sign(np.diff(x, prepend=np.nan))
+    d = pd.Series(d).replace(0.0, np.nan).ffill().fillna(0.0).to_numpy()  # last non-zero seek
+    xs = (x - x.mean()) / x.std()
+    design = np.column_stack([np.ones_like(x), xs, xs * xs, d])
+    y = p["bias"].to_numpy(dtype=float)
+    beta = np.linalg.solve(design.T @ design, design.T @ y)
+    err = np.max(np.abs(design @ beta - p["predicted"].to_numpy()))
+    check(err < 2e-3, f"numpy normal equations on [1, x, x², direction] reproduce `biasctl fit --terms poly2,direction` predictions (max diff {err:.1e})")
+    rng = np.random.default_rng(2)
+    a = rng.standard_normal((N, 30))
+    y = a @ rng.standard_normal(30) + rng.standard_normal(N)
+    t_np, _ = median_of(lambda: np.linalg.solve(a.T @ a, a.T @ y), 3)
+    return [
+        ("`fit --model calibration` (29 parameters), 1M rows, CLI", cli["fit"], "numpy normal equations, 1M × 30 design", t_np),
+        ("the same fit in-process (criterion `fit`)", criterion_median(root, "fit/calibration_1M_rows"), "numpy normal equations, 1M × 30 design", t_np),
+    ]
+
+
+# ---------------------------------------------------------------- writing the predict CSV
+def write(exe, work, root, cli, pred_csv):
+    print("Writing a 1M-row predict CSV")
+    frame = pl.read_csv(pred_csv, comment_prefix="#")
+    out = os.path.join(work, "polars_written.csv")
+    t_pl, _ = median_of(lambda: frame.write_csv(out), 3)
+    small = frame.head(1000)
+    small.write_csv(out)
+    again = pl.read_csv(out)
+    same = all(np.allclose(again[c].to_numpy(), small[c].to_numpy(), equal_nan=True) for c in small.columns)
+    check(same and again.columns == small.columns, "polars writes the same columns and values as `biasctl predict` (first 1000 rows read back)")
+    mb = os.path.getsize(pred_csv) / 1e6
+    return [
+        (f"`predict` 1M rows → {mb:.0f} MB CSV (CLI)", cli["predict"], "polars `write_csv` of the same frame", t_pl),
+        ("replay + CSV into memory (criterion `predict/replay_and_write_1M_rows`)", criterion_median(root, "predict/replay_and_write_1M_rows"), "polars `write_csv` of the same frame", t_pl),
+    ]
+
+
+def fmt_t(s):
+    if s < 1e-6:
+        return f"{s * 1e9:.1f} ns"
+    if s < 1e-3:
+        return f"{s * 1e6:.2f} µs"
+    if s < 1:
+        return f"{s * 1e3:.2f} ms"
+    return f"{s:.2f} s"
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--root", required=True)
+    ap.add_argument("--exe", required=True)
+    ap.add_argument("--work", required=True)
+    ap.add_argument("--cli-repeats", type=int, default=3)
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    log = os.path.join(a.work, "random_1M.csv")
+    cal, model, pred = (os.path.join(a.work, f) for f in ("cal.csv", "cal.json", "pred_1M.csv"))
+    sh(a.exe, "simulate", "--sequence", "random", "--n", str(N), "--seed", "1", "--out", log)
+    sh(a.exe, "simulate", "--sequence", "calibration", "--seed", "1", "--out", cal)
+    sh(a.exe, "fit", "--data", cal, "--model", "calibration", "--out", model)
+    cli = {
+        "check": median_of(lambda: sh(a.exe, "check", "--data", log), a.cli_repeats)[0],
+        "fit": median_of(lambda: sh(a.exe, "fit", "--data", log, "--model", "calibration", "--out", os.path.join(a.work, "fit_1M.json")), a.cli_repeats)[0],
+        "predict": median_of(lambda: sh(a.exe, "predict", "--model", model, "--data", log, "--out", pred), a.cli_repeats)[0],
+    }
+    rows = []
+    rows += dahl(a.exe, a.work, a.root)
+    rows += handoff(a.exe, a.work, a.root)
+    rows += read(a.exe, a.work, a.root, log, cli)
+    rows += fit(a.exe, a.work, a.root, cli)
+    rows += write(a.exe, a.work, a.root, cli, pred)
+    print()
+    print(f"numba {numba.__version__}, numpy {np.__version__}, polars {pl.__version__}, pandas {pd.__version__}; {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}")
+    print()
+    print("| work | biasctl | peer, same run | peer | biasctl / peer |")
+    print("|---|---|---|---|---|")
+    for what, ours, peer_name, peer in rows:
+        print(f"| {what} | {fmt_t(ours)} | {peer_name} | {fmt_t(peer)} | **{ours / peer:.2f}** |")
+
+
+if __name__ == "__main__":
+    main()

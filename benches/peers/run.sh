@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# The peer harness of issue #16, one command: makes its own venv (pip only) with numpy, numba,
+# polars and pandas, builds biasctl, runs biasctl's criterion benches and the peers in the same
+# run, checks every peer against biasctl's output on a small input, and prints the ratio table
+# of README's Benchmarks section. Optional; not part of `cargo test`. Takes ~10 min.
+#   benches/peers/run.sh            (PEERS_VENV=dir to put the venv elsewhere)
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/../.." && pwd)
+venv=${PEERS_VENV:-$root/target/peers-venv}
+work=$root/target/peers-work
+cd "$root"
+if [ ! -x "$venv/bin/python" ]; then
+    python3 -m venv "$venv"
+fi
+"$venv/bin/pip" install -q -r "$here/requirements.txt"
+cargo build --release --quiet
+crit=(-- --warm-up-time 1 --measurement-time 3 --sample-size 10)
+cargo bench --quiet --bench dahl "${crit[@]}" 'dahl/predictor_1M_seeks'
+cargo bench --quiet --bench handoff "${crit[@]}" 'handoff/(solve|bounds_into)/64$'
+cargo bench --quiet --bench read "${crit[@]}" 'read/check_summarise_1M_rows'
+cargo bench --quiet --bench fit "${crit[@]}"
+cargo bench --quiet --bench predict "${crit[@]}" 'predict/replay_and_write_1M_rows'
+"$venv/bin/python" "$here/peers.py" --root "$root" --exe "$root/target/release/biasctl" --work "$work"

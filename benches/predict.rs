@@ -1,0 +1,148 @@
+//! `biasctl predict` on 1,000,000 rows: streaming a 1M-seek random log (held in memory as CSV
+//! text) through the `calibration` model (eq. 1, fitted on the calibration run of the built-in
+//! drive) with `replay_stream`, and writing the predict CSV (input columns, `predicted`,
+//! `residual`, one column per term) into a `Vec<u8>`; and the same replay into a sink that
+//! drops the rows, to separate the writer's share. The writer below is the row format of
+//! `src/cli/predict.rs` (without --handoff); the set-up checks it byte for byte against the real
+//! `biasctl predict` on a small log, so it cannot drift from the CLI unnoticed. This bench only
+//! measures: the reader and writers are being changed elsewhere.
+
+use biasctl::fit::{FitOptions, fit};
+use biasctl::log::{BiasColumn, ColumnMap, LogReader};
+use biasctl::model::{FittedModel, ModelSpec, RowPrediction, replay_stream};
+use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use std::hint::black_box;
+
+const N: u64 = 1_000_000;
+
+/// A finite number with every digit it needs, or an empty cell (the CLI's `cell`).
+fn cell(x: Option<f64>) -> String {
+    x.filter(|v| v.is_finite())
+        .map(|v| v.to_string())
+        .unwrap_or_default()
+}
+
+/// `biasctl predict`'s CSV of the log in `text`, into `out` (or only the replay when `out` is
+/// `None`). Returns the rows replayed.
+fn predict_csv(model: &FittedModel, text: &[u8], out: Option<&mut Vec<u8>>) -> u64 {
+    let map = ColumnMap::default();
+    let mut reader =
+        LogReader::from_reader_with("bench.csv", text, &map, BiasColumn::Optional).expect("log");
+    let Some(out) = out else {
+        let s = replay_stream(model, &mut reader, None, |_, p: &RowPrediction, c| {
+            black_box((p, c));
+            Ok(())
+        })
+        .expect("replay");
+        return s.rows;
+    };
+    let s = reader.schema().clone();
+    let mut w = csv::WriterBuilder::new().from_writer(out);
+    let mut header: Vec<String> = vec![s.map.time.clone(), s.map.track.clone(), s.map.bias.clone()];
+    header.extend(s.covariates.iter().cloned());
+    header.extend(["predicted".to_string(), "residual".to_string()]);
+    header.extend(model.terms.iter().map(|t| t.term.name()));
+    w.write_record(&header).expect("in memory");
+    let mut record: Vec<String> = Vec::with_capacity(header.len());
+    let summary = replay_stream(
+        model,
+        &mut reader,
+        None,
+        |row, p: &RowPrediction, contrib| {
+            record.clear();
+            record.push(cell(Some(row.time_s)));
+            record.push(cell(Some(row.track)));
+            record.push(cell(row.bias));
+            record.extend(row.covariates.iter().map(|c| cell(Some(*c))));
+            record.push(cell(Some(p.predicted)));
+            record.push(cell(p.residual));
+            record.extend(contrib.iter().map(|c| cell(Some(*c))));
+            w.write_record(&record).map_err(std::io::Error::other)
+        },
+    )
+    .expect("replay");
+    w.flush().expect("in memory");
+    summary.rows
+}
+
+fn log_text(n: u64, seed: u64) -> Vec<u8> {
+    let opts = SequenceOptions {
+        n: Some(n),
+        ..SequenceOptions::default()
+    };
+    let cfg = SimConfig::new(Drive::paper1997(), "random", &opts, seed, &[]).expect("config");
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let path = dir.path().join("log.csv");
+    simulate_to_files(&cfg, &path, None).expect("log written");
+    std::fs::read(&path).expect("log read")
+}
+
+/// The bench's writer against the real CLI on a small log (byte for byte).
+fn check_against_cli(model: &FittedModel) {
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let (model_path, log_path, out) = (
+        dir.path().join("cal.json"),
+        dir.path().join("test.csv"),
+        dir.path().join("pred.csv"),
+    );
+    model.save(&model_path).expect("model saved");
+    std::fs::write(&log_path, log_text(300, 2)).expect("log written");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_biasctl"))
+        .args(["predict", "--model"])
+        .arg(&model_path)
+        .arg("--data")
+        .arg(&log_path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("biasctl runs");
+    assert!(
+        status.status.success(),
+        "biasctl predict failed: {status:?}"
+    );
+    // The CLI replays the model as read back from its file.
+    let loaded = FittedModel::load(&model_path).expect("model loads");
+    let mut mine = Vec::new();
+    predict_csv(
+        &loaded,
+        &std::fs::read(&log_path).expect("log"),
+        Some(&mut mine),
+    );
+    let cli = std::fs::read(&out).expect("CLI output");
+    assert!(
+        mine == cli,
+        "the bench's predict writer no longer matches `biasctl predict`: update benches/predict.rs"
+    );
+}
+
+fn bench(c: &mut Criterion) {
+    let opts = SequenceOptions::default();
+    let cal = SimConfig::new(Drive::paper1997(), "calibration", &opts, 1, &[]).expect("config");
+    let train = simulate_log(&cal).expect("calibration run");
+    let spec = ModelSpec::preset("calibration").expect("preset");
+    let checked = FitOptions::default().check().expect("default options");
+    let model = fit(&spec, &train, &checked).expect("fit");
+    check_against_cli(&model);
+    let text = log_text(N, 2);
+    let mut out = Vec::new();
+    let rows = predict_csv(&model, &text, Some(&mut out));
+    assert!(rows >= N, "{rows} rows");
+    let mut g = c.benchmark_group("predict");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(rows));
+    g.bench_function("replay_1M_rows", |b| {
+        b.iter(|| black_box(predict_csv(&model, black_box(&text), None)))
+    });
+    g.throughput(Throughput::Bytes(out.len() as u64));
+    g.bench_function("replay_and_write_1M_rows", |b| {
+        b.iter(|| {
+            out.clear();
+            black_box(predict_csv(&model, black_box(&text), Some(&mut out)))
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

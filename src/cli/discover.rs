@@ -1,0 +1,109 @@
+//! `biasctl discover`: fit, diagnose, apply the best verified edit, repeat.
+
+use super::common::ColumnArgs;
+use anyhow::Context;
+use biasctl::diagnose::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
+use biasctl::model::{FittedModel, ModelSpec};
+use biasctl::render::write_atomic;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Flags of `biasctl discover`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The training log: every model is fitted, diagnosed and verified on it.
+    #[arg(long, value_name = "TRAIN.csv")]
+    data: PathBuf,
+    /// A test log: every rung's error std is measured on it (else on held-out folds of --data).
+    #[arg(long, value_name = "TEST.csv")]
+    test: Option<PathBuf>,
+    /// Where to start: a preset (position-direction, calibration, dahl), a model file (its
+    /// terms), or a term list such as `poly2,direction`.
+    #[arg(long, value_name = "MODEL|TERMS", default_value = "poly2")]
+    start: String,
+    #[command(flatten)]
+    columns: ColumnArgs,
+    /// Print the ladder as JSON: {"steps": [{"edit", "feature", "reason", "std_before",
+    /// "std_after", "terms"}, ...], "final_terms", "stopped_because", "basis", "unit", "start_std"}.
+    #[arg(long)]
+    json: bool,
+    /// Write discover.json, discover.txt and the final model.json into this directory.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Most edits applied, 1..=30.
+    #[arg(long, default_value_t = 8)]
+    max_steps: usize,
+    /// Family-wise significance level for flagging a feature, in (0, 0.5].
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// Seed of the folds and permutations.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Folds of consecutive seeks of the verification refits, 2..=20.
+    #[arg(long, default_value_t = 3)]
+    verify_folds: usize,
+}
+
+/// The starting spec: a preset, a model file's terms, or a term list.
+fn start_spec(start: &str) -> anyhow::Result<ModelSpec> {
+    if let Ok(s) = ModelSpec::preset(start) {
+        return Ok(s);
+    }
+    if start.ends_with(".json") || Path::new(start).is_file() {
+        let m = FittedModel::load(Path::new(start)).context("--start")?;
+        return model_spec(&m).context("--start");
+    }
+    ModelSpec::parse(start).context("--start")
+}
+
+/// Validates the settings, reads the logs, runs the loop, prints and writes.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let config = DiscoverConfig {
+        diagnose: DiagnoseConfig {
+            alpha: args.alpha,
+            seed: args.seed,
+            ..DiagnoseConfig::default()
+        }
+        .check()
+        .context("--alpha")?,
+        verify: VerifyConfig {
+            folds: args.verify_folds,
+            ..VerifyConfig::default()
+        },
+        max_steps: args.max_steps,
+    };
+    config.verify.validate().context("--verify-folds")?;
+    if let Some(dir) = &args.out
+        && dir.exists()
+        && !dir.is_dir()
+    {
+        anyhow::bail!(
+            "--out {}: is a file; --out takes a directory",
+            dir.display()
+        );
+    }
+    let start = start_spec(&args.start)?;
+    let train = args.columns.read_log(&args.data).context("--data")?;
+    let test = match &args.test {
+        Some(p) => Some(args.columns.read_log(p).context("--test")?),
+        None => None,
+    };
+    let (d, model) = discover(&start, &train, test.as_ref(), &config)?;
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let json = d.to_json();
+        write_atomic(&dir.join("discover.json"), |w| writeln!(w, "{json}"))?;
+        let text = d.to_string();
+        write_atomic(&dir.join("discover.txt"), |w| write!(w, "{text}"))?;
+        model.save(&dir.join("model.json"))?;
+    }
+    if args.json {
+        outln!("{}", d.to_json())?;
+    } else {
+        out!("{d}")?;
+        if let Some(dir) = &args.out {
+            outln!("wrote {}", dir.display())?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,6 @@
+//! Shared numerics below everything else: statistics and special functions ([`stats`], with
+//! Hartigan's dip test), and the seeded random-number generator ([`rng`]) that makes every
+//! simulation byte-identical for a given seed.
+
+pub mod rng;
+pub mod stats;
