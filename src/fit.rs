@@ -46,6 +46,10 @@ pub struct FitOptions {
     pub grid: usize,
     /// Golden-section iterations, 0..=1000 (default 40).
     pub refine: usize,
+    /// How the direction of motion is read (`--deadband X`, `--velocity-col NAME`; default:
+    /// a deadband estimated from the position noise on a dense time series, raw steps on a
+    /// log of seeks). The fitted model records what it resolved to.
+    pub direction: crate::history::DirectionSetting,
 }
 
 impl FitOptions {
@@ -64,6 +68,7 @@ impl FitOptions {
         if self.refine > 1000 {
             return bad(Field::Refine, format!("{} is not in 0..=1000", self.refine));
         }
+        self.direction.validate()?;
         Ok(CheckedFitOptions(self))
     }
 }
@@ -86,6 +91,7 @@ impl Default for FitOptions {
             rank_tolerance: 1e-9,
             grid: 24,
             refine: 40,
+            direction: crate::history::DirectionSetting::Auto,
         }
     }
 }
@@ -268,6 +274,11 @@ struct Solution {
     dropped: Vec<usize>,
     rank: usize,
     n: usize,
+    /// Per design column (original order): its spread about its mean over the rows
+    /// (√(Σ(x − x̄)²/n), the column's unit) and, for kept columns, `|R_qq| / ‖x − x̄‖`, the sine
+    /// of its angle to the columns before it (1 − R² of regressing it on them is its square).
+    spread: Vec<f64>,
+    independence: Vec<Option<f64>>,
 }
 
 fn offsets(terms: &[Arc<dyn Term>]) -> (Vec<usize>, usize) {
@@ -327,6 +338,19 @@ fn param_label(terms: &[Arc<dyn Term>], col: usize) -> (String, bool) {
     (format!("column {col}"), false)
 }
 
+/// The ridge penalty of design column `col` (its term's [`Term::ridge`]).
+fn ridge_of(terms: &[Arc<dyn Term>], col: usize) -> f64 {
+    let mut start = 0;
+    for t in terms {
+        let w = t.param_names().len();
+        if col < start + w {
+            return t.ridge();
+        }
+        start += w;
+    }
+    0.0
+}
+
 fn solve(
     terms: &[Arc<dyn Term>],
     data: &FitData<'_>,
@@ -339,13 +363,36 @@ fn solve(
     order.extend((0..p).filter(|&c| droppable[c]));
     let mut qr = StreamingQr::new(p);
     let mut xp = vec![0.0; p];
+    let mut sums = vec![0.0; p];
     design_pass(terms, data, |x, y| {
         for (q, &c) in order.iter().enumerate() {
             xp[q] = x[c];
+            sums[c] += x[c];
         }
         qr.push(&xp, y);
     })?;
     let n = qr.rows();
+    // Σ(x − x̄)² = Σx² − (Σx)²/n, from the data rows' sums of squares (before any ridge row).
+    let centred_sq: Vec<f64> = {
+        let mut v = vec![0.0; p];
+        for (q, &c) in order.iter().enumerate() {
+            let nf = n.max(1) as f64;
+            v[c] = (qr.colsq[q] - sums[c] * sums[c] / nf).max(0.0);
+        }
+        v
+    };
+    // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column.
+    let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
+    if ridge.iter().any(|&l| l > 0.0) {
+        let colsq = qr.colsq.clone();
+        for (q, &c) in order.iter().enumerate() {
+            if ridge[c] > 0.0 && colsq[q] > 0.0 {
+                xp.fill(0.0);
+                xp[q] = (ridge[c] * colsq[q]).sqrt();
+                qr.push(&xp, 0.0);
+            }
+        }
+    }
     let (r, colsq) = qr.finish();
     let mut keep = Vec::new();
     let mut dropped = Vec::new();
@@ -365,6 +412,20 @@ fn solve(
             keep.push(q);
         }
     }
+    let independence: Vec<Option<f64>> = {
+        let mut v = vec![None; p];
+        for &q in &keep {
+            let c = order[q];
+            if centred_sq[c] > 0.0 {
+                v[c] = Some(r[(q, q)].abs() / centred_sq[c].sqrt());
+            }
+        }
+        v
+    };
+    let spread: Vec<f64> = centred_sq
+        .iter()
+        .map(|s| (s / n.max(1) as f64).sqrt())
+        .collect();
     let k = keep.len();
     // Re-factorise the kept columns of R (and y) when columns were dropped.
     let r = if dropped.is_empty() {
@@ -397,6 +458,8 @@ fn solve(
     }
     dropped.sort_unstable();
     Ok(Solution {
+        spread,
+        independence,
         coef,
         cov,
         rss,
@@ -406,9 +469,58 @@ fn solve(
     })
 }
 
+/// A coefficient whose share of the prediction swings more than this many times the spread of
+/// the measured bias is "blowing up": neighbouring columns cancel each other.
+pub const BLOW_UP_RATIO: f64 = 100.0;
+
+/// A design column whose sine of angle to the columns before it is below this (1 − R² below its
+/// square, a variance inflation above 10¹⁰) makes the fit ill-conditioned.
+pub const ILL_CONDITIONED: f64 = 1e-5;
+
+/// The fit's self-check (issue #11): coefficients whose contribution swings far beyond the
+/// measured bias (`|coef| × column spread > BLOW_UP_RATIO × bias std`, unit-free: both sides
+/// are in the bias unit), and columns nearly a combination of the others. Dropped columns are
+/// reported elsewhere.
+fn self_check(terms: &[Arc<dyn Term>], sol: &Solution, bias_std: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    for c in 0..sol.coef.len() {
+        if sol.dropped.contains(&c) {
+            continue;
+        }
+        let name = param_label(terms, c).0;
+        let swing = sol.coef[c].abs() * sol.spread[c];
+        if bias_std > 0.0 && swing > BLOW_UP_RATIO * bias_std {
+            out.push(format!(
+                "{name}: its contribution swings ±{:.3e} (coefficient × the column's spread), \
+                 {:.0}× the spread of the measured bias ({:.3e}): neighbouring columns cancel \
+                 each other (weights blowing up); drop or merge a term",
+                swing,
+                swing / bias_std,
+                bias_std
+            ));
+        }
+        if let Some(sin) = sol.independence[c].filter(|&s| s < ILL_CONDITIONED) {
+            out.push(format!(
+                "{name}: ill-conditioned: the column is all but a combination of the columns \
+                 before it (1 − R² = {:.1e}); its coefficient and standard error are unreliable",
+                sin * sin
+            ));
+        }
+    }
+    out
+}
+
 /// Fits `spec` to the measured rows of `log`.
 pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
-    let data = FitData::new(log);
+    let sampling = crate::history::log_sampling(log);
+    let direction = opts.direction.resolve_with(log, &sampling)?;
+    let data = FitData::with_direction(log, &direction)?;
+    let reversals = data
+        .features()
+        .iter()
+        .filter(|f| f.direction_change)
+        .count();
+    let reversal_warning = direction.reversal_warning(reversals, log.rows.len(), &sampling);
     let mut terms = spec
         .terms
         .iter()
@@ -538,6 +650,8 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
     if !converged {
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
+    warnings.extend(self_check(&terms, &sol, data.measured_bias_std()));
+    warnings.extend(reversal_warning);
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
     let map = &log.schema.map;
@@ -563,6 +677,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             position_range: None,
         },
         warnings,
+        direction,
     };
     if let Some(p) = model.params().find(|p| !p.value.is_finite()) {
         let (lo, hi) = log.rows.iter().fold((f64::MAX, f64::MIN), |(lo, hi), r| {

@@ -45,7 +45,9 @@ pub struct SeekFeatures {
     /// Whether this seek reverses the direction of the move into its source (`direction_change`).
     /// False for zero-length seeks and for the first move.
     pub direction_change: bool,
-    /// Tracks travelled since the last direction change, this seek included (`since_reversal`).
+    /// Distance from the last turning point (where the last direction change began) to the
+    /// target (`since_reversal`); with deadband 0, the tracks travelled since the last direction
+    /// change, this seek included.
     pub since_reversal: f64,
     /// Distance from the target to the nearest uncrossed earlier rest position on the OD side
     /// (smaller track numbers), not counting the source (`rest_distance_od`); `None` if there is none.
@@ -239,15 +241,142 @@ pub struct History {
     start_time: f64,
     last_time: f64,
     seeks: u64,
-    direction: i8,
-    since_reversal: f64,
+    turns: DirectionTracker,
     memory: RestMemory,
 }
 
+/// The direction of motion with a deadband, a hysteretic detector: the direction reverses only
+/// once the position has come back more than `deadband` (position unit) from the furthest point
+/// reached in the current direction, so sensor noise on a densely sampled log does not fake
+/// reversals. With deadband 0 (the default, for seek logs) every move against the direction is a
+/// reversal. The *turning point* is that furthest point; `since_reversal` is the distance from it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DirectionTracker {
+    deadband: f64,
+    direction: i8,
+    anchor: Option<f64>,
+    extreme: f64,
+    turn: f64,
+}
+
+/// What [`DirectionTracker::peek`] says about one move.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DirectionStep {
+    /// Direction after the move: +1 inbound, −1 outbound, 0 before the first move out of the band.
+    pub direction: i8,
+    /// Whether the move reversed the direction.
+    pub reversal: bool,
+    /// Distance from the last turning point (or the first position) to the target.
+    pub since_reversal: f64,
+    extreme: f64,
+    turn: f64,
+}
+
+impl DirectionTracker {
+    /// A tracker with `deadband` ≥ 0 in the log's position unit (negative or non-finite counts as 0).
+    pub fn new(deadband: f64) -> Self {
+        Self {
+            deadband: if deadband.is_finite() {
+                deadband.max(0.0)
+            } else {
+                0.0
+            },
+            ..Self::default()
+        }
+    }
+
+    /// The deadband, position unit.
+    pub fn deadband(&self) -> f64 {
+        self.deadband
+    }
+
+    /// The direction so far.
+    pub fn direction(&self) -> i8 {
+        self.direction
+    }
+
+    /// The outcome of a move to `target` without changing the tracker; `moved` is the signed
+    /// direction the move's own sign suggests when the caller has a better source of it (a
+    /// velocity column), `None` to use positions.
+    pub fn peek(&self, target: f64, moved: Option<i8>) -> DirectionStep {
+        let d = self.deadband;
+        let Some(anchor) = self.anchor else {
+            return DirectionStep {
+                direction: 0,
+                reversal: false,
+                since_reversal: 0.0,
+                extreme: target,
+                turn: target,
+            };
+        };
+        let dir = self.direction;
+        let step = |direction: i8, reversal: bool, extreme: f64, turn: f64| DirectionStep {
+            direction,
+            reversal,
+            since_reversal: (target - turn).abs(),
+            extreme,
+            turn,
+        };
+        if let Some(m) = moved {
+            // Direction from a velocity sign: a reversal wherever the sign flips.
+            let extreme = if dir == 0 || (target - self.extreme) * f64::from(dir) > 0.0 {
+                target
+            } else {
+                self.extreme
+            };
+            return if m == 0 || m == dir {
+                step(
+                    dir,
+                    false,
+                    extreme,
+                    if dir == 0 { anchor } else { self.turn },
+                )
+            } else if dir == 0 {
+                step(m, false, target, anchor)
+            } else {
+                step(m, true, target, self.extreme)
+            };
+        }
+        if dir == 0 {
+            return if (target - anchor).abs() > d {
+                step(sign(target - anchor), false, target, anchor)
+            } else {
+                step(0, false, anchor, anchor)
+            };
+        }
+        let ahead = (target - self.extreme) * f64::from(dir);
+        if ahead > 0.0 {
+            step(dir, false, target, self.turn)
+        } else if -ahead > d {
+            step(-dir, true, target, self.extreme)
+        } else {
+            step(dir, false, self.extreme, self.turn)
+        }
+    }
+
+    /// Records the move `s` returned by [`DirectionTracker::peek`] for `target`.
+    pub fn commit(&mut self, target: f64, s: &DirectionStep) {
+        if self.anchor.is_none() {
+            self.anchor = Some(target);
+        }
+        self.direction = s.direction;
+        self.extreme = s.extreme;
+        self.turn = s.turn;
+    }
+}
+
 impl History {
-    /// A history before the first row.
+    /// A history before the first row, direction from raw position steps (deadband 0).
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A history whose direction has a deadband (position unit; see [`DirectionTracker`]).
+    pub fn with_deadband(deadband: f64) -> Self {
+        Self {
+            turns: DirectionTracker::new(deadband),
+            ..Self::default()
+        }
     }
 
     /// Reserves room for `per_side` uncrossed rest positions on each side ([`RestMemory::reserve`]).
@@ -262,7 +391,7 @@ impl History {
 
     /// Direction of the last non-zero move (+1, −1, or 0 before any move).
     pub fn direction(&self) -> i8 {
-        self.direction
+        self.turns.direction()
     }
 
     /// Number of seeks seen so far.
@@ -277,20 +406,15 @@ impl History {
 
     /// The features a seek to `target` at `time_s` would have, without changing the history.
     pub fn peek(&self, time_s: f64, target: f64) -> SeekFeatures {
+        self.peek_moved(time_s, target, None)
+    }
+
+    /// As [`History::peek`], with the direction of the move from `moved` (the sign of a velocity
+    /// column: +1, −1, 0 for "no new information") instead of the position steps when `Some`.
+    pub fn peek_moved(&self, time_s: f64, target: f64, moved: Option<i8>) -> SeekFeatures {
         let source = self.position.unwrap_or(target);
         let seek_length = target - source;
-        let move_dir = sign(seek_length);
-        let direction_change = move_dir != 0 && self.direction != 0 && move_dir != self.direction;
-        let direction = if move_dir == 0 {
-            self.direction
-        } else {
-            move_dir
-        };
-        let since_reversal = if direction_change || self.direction == 0 {
-            seek_length.abs()
-        } else {
-            self.since_reversal + seek_length.abs()
-        };
+        let turn = self.turns.peek(target, moved);
         let (od, id) = self.memory.nearest_after_move(source, target);
         let first = self.position.is_none();
         SeekFeatures {
@@ -301,9 +425,9 @@ impl History {
             source,
             target,
             seek_length,
-            direction,
-            direction_change,
-            since_reversal,
+            direction: turn.direction,
+            direction_change: turn.reversal,
+            since_reversal: turn.since_reversal,
             rest_distance_od: od.map(|p| target - p),
             rest_distance_id: id.map(|p| p - target),
         }
@@ -311,7 +435,13 @@ impl History {
 
     /// Records a seek to `target` at `time_s` and returns its features.
     pub fn step(&mut self, time_s: f64, target: f64) -> SeekFeatures {
-        let f = self.peek(time_s, target);
+        self.step_moved(time_s, target, None)
+    }
+
+    /// As [`History::step`], with the direction of the move from `moved` when `Some` (see
+    /// [`History::peek_moved`]).
+    pub fn step_moved(&mut self, time_s: f64, target: f64, moved: Option<i8>) -> SeekFeatures {
+        let f = self.peek_moved(time_s, target, moved);
         if self.position.is_none() {
             self.start_time = time_s;
         }
@@ -319,9 +449,373 @@ impl History {
         self.position = Some(target);
         self.last_time = time_s;
         self.seeks += 1;
-        self.direction = f.direction;
-        self.since_reversal = f.since_reversal;
+        let turn = self.turns.peek(target, moved);
+        self.turns.commit(target, &turn);
         f
+    }
+}
+
+/// How the direction of motion is read from a log (issue #11), as a model file records it so
+/// that `predict` replays direction the way `fit` did.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "mode", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum DirectionSource {
+    /// From the raw sign of each position step (deadband 0): a log of seeks.
+    #[default]
+    Steps,
+    /// From position steps with a deadband ([`DirectionTracker`]), position unit, > 0.
+    Deadband {
+        /// The deadband, position unit.
+        deadband: f64,
+    },
+    /// From the sign of a velocity column (a reversal wherever its sign flips; 0 keeps the
+    /// direction).
+    Velocity {
+        /// The column's name.
+        column: String,
+    },
+}
+
+/// How the user asked the direction to be read (`--deadband X`, `--velocity-col NAME`, or
+/// neither); resolved against a training log into a [`DirectionSource`] by
+/// [`DirectionSetting::resolve`].
+#[derive(Debug, Clone, PartialEq, Default)]
+#[non_exhaustive]
+pub enum DirectionSetting {
+    /// The deadband [`estimate_deadband`] picks: 2·√(2 ln n) × the position noise on a dense time
+    /// series, 0 (raw steps) on a log of seeks.
+    #[default]
+    Auto,
+    /// A deadband in the log's position unit (0: raw steps).
+    Deadband(f64),
+    /// The sign of the named velocity column.
+    Velocity(String),
+}
+
+/// A direction setting that cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum DirectionError {
+    /// A deadband that is negative or not finite.
+    #[error("--deadband {0}: the deadband must be a finite number ≥ 0 in the log's position unit")]
+    BadDeadband(f64),
+    /// The velocity column is not in the log.
+    #[error("{file}: --velocity-col {column}: no such column (covariate columns: {available})")]
+    NoVelocityColumn {
+        /// The log.
+        file: String,
+        /// The column asked for.
+        column: String,
+        /// The log's covariate columns.
+        available: String,
+    },
+}
+
+impl DirectionSetting {
+    /// Checks the setting alone (the deadband's range).
+    pub fn validate(&self) -> Result<(), DirectionError> {
+        match self {
+            DirectionSetting::Deadband(d) if !(d.is_finite() && *d >= 0.0) => {
+                Err(DirectionError::BadDeadband(*d))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The source an explicit setting names without looking at a log (`None` for `Auto`);
+    /// a velocity column is checked when a log is replayed.
+    pub fn explicit(&self) -> Result<Option<DirectionSource>, DirectionError> {
+        self.validate()?;
+        Ok(match self {
+            DirectionSetting::Auto => None,
+            DirectionSetting::Deadband(d) if *d > 0.0 => {
+                Some(DirectionSource::Deadband { deadband: *d })
+            }
+            DirectionSetting::Deadband(_) => Some(DirectionSource::Steps),
+            DirectionSetting::Velocity(c) => Some(DirectionSource::Velocity { column: c.clone() }),
+        })
+    }
+
+    /// The direction source for the training `log`: `Auto` estimates the deadband from its
+    /// positions ([`estimate_deadband`]); a velocity column must be one of its covariates.
+    pub fn resolve(&self, log: &crate::log::Log) -> Result<DirectionSource, DirectionError> {
+        self.resolve_with(log, &log_sampling(log))
+    }
+
+    /// [`DirectionSetting::resolve`] with the log's [`Sampling`] already computed.
+    pub fn resolve_with(
+        &self,
+        log: &crate::log::Log,
+        sampling: &Sampling,
+    ) -> Result<DirectionSource, DirectionError> {
+        let source = match self.explicit()? {
+            Some(s) => s,
+            None => DirectionSetting::Deadband(sampling.deadband)
+                .explicit()?
+                .unwrap_or_default(),
+        };
+        source.column_index(&log.schema.file, &log.schema.covariates)?;
+        Ok(source)
+    }
+}
+
+/// [`sampling`] of every row of `log`.
+pub fn log_sampling(log: &crate::log::Log) -> Sampling {
+    let times: Vec<f64> = log.rows.iter().map(|r| r.time_s).collect();
+    let positions: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+    sampling(&times, &positions)
+}
+
+impl DirectionSource {
+    /// The explicit setting that resolves to this source on any log (re-fits of a model, as
+    /// `diagnose` makes them, read direction the way the model was fitted).
+    pub fn setting(&self) -> DirectionSetting {
+        match self {
+            DirectionSource::Steps => DirectionSetting::Deadband(0.0),
+            DirectionSource::Deadband { deadband } => DirectionSetting::Deadband(*deadband),
+            DirectionSource::Velocity { column } => DirectionSetting::Velocity(column.clone()),
+        }
+    }
+
+    /// A fresh history reading direction this way (its deadband; a velocity source starts with
+    /// deadband 0 and is fed signs by [`History::step_moved`]).
+    pub fn history(&self) -> History {
+        match self {
+            DirectionSource::Deadband { deadband } => History::with_deadband(*deadband),
+            _ => History::new(),
+        }
+    }
+
+    /// The index of the velocity column among `covariates` (`None` for a position source);
+    /// an error naming `file` when the column is missing.
+    pub fn column_index(
+        &self,
+        file: &str,
+        covariates: &[String],
+    ) -> Result<Option<usize>, DirectionError> {
+        match self {
+            DirectionSource::Velocity { column } => covariates
+                .iter()
+                .position(|c| c == column)
+                .map(Some)
+                .ok_or_else(|| DirectionError::NoVelocityColumn {
+                    file: file.to_string(),
+                    column: column.clone(),
+                    available: if covariates.is_empty() {
+                        "none".into()
+                    } else {
+                        covariates.join(", ")
+                    },
+                }),
+            _ => Ok(None),
+        }
+    }
+
+    /// The direction a velocity value gives: its sign, 0 for 0 or a missing (non-finite) value.
+    pub fn moved(velocity: Option<f64>) -> i8 {
+        velocity.filter(|v| v.is_finite()).map_or(0, sign)
+    }
+
+    /// A warning when the number of direction `reversals` in `rows` rows is implausible for the
+    /// motion ([`Sampling`]): more than the raw position steps show, or (on a dense time series)
+    /// more than one reversal per 20 rows, which sensor noise makes and real motion rarely does.
+    pub fn reversal_warning(&self, reversals: usize, rows: usize, s: &Sampling) -> Option<String> {
+        let how = match self {
+            DirectionSource::Steps => "the raw sign of each position step".to_string(),
+            DirectionSource::Deadband { deadband } => format!("a deadband of {deadband:.4e}"),
+            DirectionSource::Velocity { column } => format!("the sign of column `{column}`"),
+        };
+        let too_many = s.dense && reversals * 20 > rows;
+        too_many.then(|| {
+            format!(
+                "direction read from {how} reverses {reversals} times in {rows} rows of a densely \
+                 sampled log (one reversal per {:.1} rows; the deadband-filtered count is {}): \
+                 noise is likely faking reversals; set --deadband X (position unit) or \
+                 --velocity-col NAME",
+                rows as f64 / reversals.max(1) as f64,
+                s.reversals
+            )
+        })
+    }
+}
+
+/// Replays a log's seek history with direction read as `source` says; `Err` when a velocity
+/// column is missing.
+pub fn replay_with<'a>(
+    log: &'a crate::log::Log,
+    source: &DirectionSource,
+) -> Result<Replay<'a>, DirectionError> {
+    let velocity = source.column_index(&log.schema.file, &log.schema.covariates)?;
+    Ok(Replay {
+        rows: log.rows.iter().enumerate(),
+        history: source.history(),
+        velocity,
+    })
+}
+
+/// The turning points of a replayed log, in order: where each direction change began
+/// (`target − direction·since_reversal` of every seek with `direction_change`), position unit.
+pub fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
+    features
+        .iter()
+        .filter(|f| f.direction_change)
+        .map(|f| f.target - f64::from(f.direction) * f.since_reversal)
+        .collect()
+}
+
+/// The reversal amplitudes of a replayed log: distances between consecutive turning points
+/// ([`turning_points`]), position unit; the travel a hysteresis loop of the log spans. Empty
+/// with fewer than two reversals.
+pub fn reversal_amplitudes(features: &[SeekFeatures]) -> Vec<f64> {
+    turning_points(features)
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|a| *a > 0.0)
+        .collect()
+}
+
+/// How a log samples the motion, and how its direction of motion is read (`biasctl check`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sampling {
+    /// Rows per second (rows − 1 over the time span); `None` for a log without a time span.
+    pub rows_per_s: Option<f64>,
+    /// Median |position step| between consecutive rows, position unit.
+    pub median_step: f64,
+    /// The travel: 5–95 % quantile range of the positions, position unit.
+    pub travel: f64,
+    /// Position noise estimate, position unit: 1.4826·MAD(Δ²x)/√6 (the spread of the second
+    /// difference, which removes a smooth motion; white noise of std σ gives σ).
+    pub noise: f64,
+    /// Whether the rows come on a regular clock: the median |Δt − median Δt| is at most 1 % of
+    /// the median Δt (a sampled signal; a seek log's dwells vary).
+    pub regular_clock: bool,
+    /// Whether the log is a dense time series (on a regular clock, with the median step below
+    /// 1 % of the travel) rather than a log of seeks.
+    pub dense: bool,
+    /// The deadband [`estimate_deadband`] chooses: 2·√(2 ln n) × the noise for a dense log of n rows, else 0.
+    pub deadband: f64,
+    /// Direction reversals from the raw sign of each step.
+    pub raw_reversals: usize,
+    /// Direction reversals with the deadband.
+    pub reversals: usize,
+}
+
+/// Describes how `positions` (in row order, position unit) sample the motion; `times_s` are the
+/// rows' times. A seek log (each row a seek: irregular times, or a median step ≥ 1 % of the
+/// travel) keeps deadband 0.
+pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
+    let median = |v: &[f64]| {
+        crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(v), 50.0)
+            .unwrap_or(0.0)
+    };
+    let dts: Vec<f64> = times_s.windows(2).map(|w| w[1] - w[0]).collect();
+    let dt = median(&dts);
+    let dt_dev: Vec<f64> = dts.iter().map(|d| (d - dt).abs()).collect();
+    let regular_clock = dt > 0.0 && median(&dt_dev) <= 0.01 * dt;
+    let steps: Vec<f64> = positions.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    let median_step =
+        crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(&steps), 50.0)
+            .unwrap_or(0.0);
+    let sorted_x = crate::numeric::stats::sorted(positions);
+    let q = |p: f64| crate::numeric::stats::percentile_sorted(&sorted_x, p).unwrap_or(0.0);
+    let travel = q(95.0) - q(5.0);
+    let d2: Vec<f64> = positions
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    let mad = crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(&d2), 50.0)
+        .unwrap_or(0.0);
+    let noise = 1.4826 * mad / 6f64.sqrt();
+    let dense = regular_clock && travel > 0.0 && median_step < 0.01 * travel;
+    // The range i.i.d. noise spans over n samples (twice its expected maximum, √(2 ln n)·σ): a
+    // smaller band lets two opposite noise extremes fake a reversal somewhere in a long log.
+    let n = positions.len().max(2) as f64;
+    let deadband = if dense {
+        2.0 * (2.0 * n.ln()).sqrt() * noise
+    } else {
+        0.0
+    };
+    let count = |d: f64| {
+        let mut t = DirectionTracker::new(d);
+        positions
+            .iter()
+            .filter(|&&x| {
+                let s = t.peek(x, None);
+                t.commit(x, &s);
+                s.reversal
+            })
+            .count()
+    };
+    let span = match (times_s.first(), times_s.last()) {
+        (Some(a), Some(b)) if b > a => Some(b - a),
+        _ => None,
+    };
+    Sampling {
+        rows_per_s: span.map(|s| (positions.len().saturating_sub(1)) as f64 / s),
+        median_step,
+        travel,
+        noise,
+        regular_clock,
+        dense,
+        deadband,
+        raw_reversals: count(0.0),
+        reversals: count(deadband),
+    }
+}
+
+/// The deadband [`sampling`] estimates for a log: 2·√(2 ln n) × the position noise on a dense time
+/// series, 0 on a log of seeks.
+pub fn estimate_deadband(times_s: &[f64], positions: &[f64]) -> f64 {
+    sampling(times_s, positions).deadband
+}
+
+impl Sampling {
+    /// Plain-language lines for `check`, positions in `unit`.
+    pub fn describe(&self, unit: &str) -> Vec<String> {
+        let g = |v: f64| format!("{v:.4e}");
+        let mut out = vec![match self.rows_per_s {
+            Some(r) => format!("sampling: {} rows/s", crate::log::fmt_trimmed(r, 3)),
+            None => "sampling: no time span".into(),
+        }];
+        if self.dense {
+            out.push(format!(
+                "mode: dense time series (rows on a regular clock; the median step, {} {unit}, is below 1 % of the travel, {} {unit}); \
+                 each row is one sample of a continuous motion, and the direction reverses only once the \
+                 position has come back more than a deadband of {} {unit} (2·√(2 ln n) × the estimated position noise, {} {unit}) \
+                 from its furthest point",
+                g(self.median_step), g(self.travel), g(self.deadband), g(self.noise)
+            ));
+            out.push(format!(
+                "reversals: {} with the deadband ({} from the raw sign of each step)",
+                self.reversals, self.raw_reversals
+            ));
+            if self.raw_reversals > 3 * self.reversals.max(1) {
+                out.push(format!(
+                    "warning: the raw steps reverse {} times, {}× the {} reversals with the deadband: \
+                     sensor noise fakes reversals when direction is read from raw steps",
+                    self.raw_reversals,
+                    self.raw_reversals / self.reversals.max(1),
+                    self.reversals
+                ));
+            }
+        } else {
+            let why = if self.regular_clock {
+                format!(
+                    "the median step, {} {unit}, is at least 1 % of the travel, {} {unit}",
+                    g(self.median_step),
+                    g(self.travel)
+                )
+            } else {
+                "the rows come at irregular times".to_string()
+            };
+            out.push(format!(
+                "mode: seek log ({why}); each row is one seek and its direction is the sign of \
+                 the move (no deadband)"
+            ));
+            out.push(format!("reversals: {}", self.raw_reversals));
+        }
+        out
     }
 }
 
@@ -344,6 +838,7 @@ pub fn replay(log: &crate::log::Log) -> Replay<'_> {
     Replay {
         rows: log.rows.iter().enumerate(),
         history: History::new(),
+        velocity: None,
     }
 }
 
@@ -352,6 +847,7 @@ pub fn replay(log: &crate::log::Log) -> Replay<'_> {
 pub struct Replay<'a> {
     rows: std::iter::Enumerate<std::slice::Iter<'a, crate::log::Row>>,
     history: History,
+    velocity: Option<usize>,
 }
 
 impl<'a> Iterator for Replay<'a> {
@@ -359,7 +855,14 @@ impl<'a> Iterator for Replay<'a> {
 
     fn next(&mut self) -> Option<Self::Item> {
         let (i, row) = self.rows.next()?;
-        Some((i, row, self.history.step(row.time_s, row.track)))
+        let moved = self
+            .velocity
+            .map(|k| DirectionSource::moved(row.covariates.get(k).copied()));
+        Some((
+            i,
+            row,
+            self.history.step_moved(row.time_s, row.track, moved),
+        ))
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {

@@ -13,7 +13,8 @@
 //! assert!((s.mean - 0.041666).abs() < 1e-5);
 //! ```
 
-use crate::log::Units;
+use crate::log::{Log, Units};
+use crate::model::{Feedback, FittedModel, ModelError};
 use crate::numeric::stats::{self, DipTest, Histogram, Trend};
 use serde::{Deserialize, Serialize};
 
@@ -362,4 +363,109 @@ mod tests {
         let back: Score = serde_json::from_value(v).unwrap();
         assert_eq!(back, s);
     }
+}
+
+/// A mean error larger than this fraction of the error std is warned about: the model is
+/// biased on the log (an offset it did not learn, a column or unit mix-up, parameters that blew up).
+pub const MEAN_WARNING_RATIO: f64 = 0.5;
+
+/// The warning for a score whose |mean| is large against its std ([`MEAN_WARNING_RATIO`]),
+/// naming the figure (`one-step`, `free run`); `None` otherwise.
+pub fn mean_warning(s: &Score, figure: &str) -> Option<String> {
+    (s.mean.abs() > MEAN_WARNING_RATIO * s.std && s.n >= 2).then(|| {
+        format!(
+            "{figure} mean error {} {} is {:.2}× the error std {}: the model is offset on this \
+             log (an offset it did not learn, a column or unit mix-up, or parameters that blew up)",
+            crate::log::fmt_trimmed(s.mean, 4),
+            s.units.bias,
+            s.mean.abs() / s.std.max(f64::MIN_POSITIVE),
+            crate::log::fmt_trimmed(s.std, 4),
+        )
+    })
+}
+
+/// A model's score on a log, honest about adaptive terms: the one-step figure (adaptive terms such
+/// as `drift` see every measured bias) flattened into the top level as before, and, for a model
+/// with an adaptive term, the free-run figure beside it. JSON: the [`Score`] keys, plus
+/// `figure` (`"one-step"`), `free_run` (a [`Score`] or `null`), `free_run_feedback` (its label)
+/// and `warnings`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelScore {
+    /// The one-step score (every measured bias shown to the adaptive terms).
+    #[serde(flatten)]
+    pub one_step: Score,
+    /// Which figure the top-level keys are: always `one-step`.
+    pub figure: String,
+    /// The free-run score (adaptive terms see the measured bias as `free_run_feedback` says);
+    /// `null` when the model has no adaptive term (then both figures are the same).
+    pub free_run: Option<Score>,
+    /// Label of the free run's feedback (`free run`, `free run, measured bias every N rows`).
+    pub free_run_feedback: Option<String>,
+    /// Warnings: a mean error large against the std, a one-step figure much better than the
+    /// free run, and the model's own fit warnings (prefixed `fit: `).
+    pub warnings: Vec<String>,
+}
+
+impl ModelScore {
+    /// The figure to rank models by: the free run where there is one, else the one-step score.
+    pub fn honest(&self) -> &Score {
+        self.free_run.as_ref().unwrap_or(&self.one_step)
+    }
+}
+
+/// An error scoring a model on a log.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelScoreError {
+    /// The model cannot be replayed on the log.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The residuals cannot be scored.
+    #[error(transparent)]
+    Score(#[from] ScoreError),
+}
+
+/// Scores `model` on `log` (residuals in the log's bias unit): one-step, and for a model with an
+/// adaptive term also in free run with `free_run` feedback ([`Feedback::Never`] by default).
+pub fn score_model(
+    model: &FittedModel,
+    log: &Log,
+    free_run: Feedback,
+) -> Result<ModelScore, ModelScoreError> {
+    let units = &log.schema.units;
+    let p = model.predict_log(log)?;
+    let one_step = score_with_units(&p.residual, &p.positions, units)?;
+    let mut warnings: Vec<String> = Vec::new();
+    let (free, label) = if model.adaptive() && free_run != Feedback::EveryRow {
+        let q = model.predict_log_with(log, free_run)?;
+        let f = score_with_units(&q.residual, &q.positions, units)?;
+        if f.rms > 1.5 * one_step.rms {
+            warnings.push(format!(
+                "the one-step error ({} {} rms) lets the adaptive terms re-learn the offset from \
+                 the measured bias of earlier rows; from the positions alone ({}) the model \
+                 leaves {} {} rms: judge it by that",
+                crate::log::fmt_trimmed(one_step.rms, 4),
+                units.bias,
+                free_run.label(),
+                crate::log::fmt_trimmed(f.rms, 4),
+                units.bias,
+            ));
+        }
+        (Some(f), Some(free_run.label()))
+    } else {
+        (None, None)
+    };
+    warnings.extend(mean_warning(&one_step, "one-step"));
+    if let Some(f) = &free {
+        warnings.extend(mean_warning(f, "free-run"));
+    }
+    // The fit's own self-check travels with the model (issue #11).
+    warnings.extend(model.warnings.iter().map(|w| format!("fit: {w}")));
+    Ok(ModelScore {
+        one_step,
+        figure: Feedback::EveryRow.label(),
+        free_run: free,
+        free_run_feedback: label,
+        warnings,
+    })
 }

@@ -10,11 +10,16 @@ pub struct Args {
     log: LogArgs,
 }
 
-/// Streams the log once and prints rows, measured rows, span, units and covariates.
+/// Streams the log and prints rows, measured rows, span, units, the sampling (rows/s, how the
+/// direction of motion is read, reversals, the position-noise estimate) and covariates.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut reader = LogReader::open(&args.log.data, &args.log.columns.map())?;
     let units = args.log.columns.units(reader.schema())?;
-    let sum = reader.summarise()?;
+    let (mut times, mut positions) = (Vec::new(), Vec::new());
+    let sum = reader.summarise_each(|r| {
+        times.push(r.time_s);
+        positions.push(r.track);
+    })?;
     let s = reader.schema();
     outln!("{}: {} rows, {} measured", s.file, sum.rows, sum.measured)?;
     outln!(
@@ -31,6 +36,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sum.times_s[1],
         s.map.time
     )?;
+    for line in biasctl::history::sampling(&times, &positions).describe(&units.position) {
+        outln!("  {line}")?;
+    }
     if !s.covariates.is_empty() {
         outln!("  covariates: {}", s.covariates.join(", "))?;
     }

@@ -193,6 +193,50 @@ pub struct LogArgs {
     pub columns: ColumnArgs,
 }
 
+/// How the direction of motion is read (issue #11): `--deadband X` or `--velocity-col NAME`;
+/// neither: a deadband estimated from the position noise on a dense time series, raw position
+/// steps on a log of seeks.
+#[derive(Debug, Clone, Default, Args)]
+pub struct DirectionArgs {
+    /// Direction reverses only once the position has come back more than X (the log's position
+    /// unit, ≥ 0; 0: every step against the direction) from its furthest point. Default: the
+    /// range the position noise spans over the log (2·√(2 ln n) × its std) on a densely sampled
+    /// log, 0 on a log of seeks.
+    #[arg(
+        long,
+        value_name = "X",
+        conflicts_with = "velocity_col",
+        allow_negative_numbers = true
+    )]
+    pub deadband: Option<f64>,
+    /// Read the direction from the sign of this (velocity) column instead of position steps.
+    #[arg(long, value_name = "NAME")]
+    pub velocity_col: Option<String>,
+}
+
+impl DirectionArgs {
+    /// The library setting these flags ask for (checked: a bad deadband names the flag).
+    pub fn setting(&self) -> anyhow::Result<biasctl::history::DirectionSetting> {
+        use biasctl::history::DirectionSetting;
+        let s = match (&self.deadband, &self.velocity_col) {
+            (Some(d), _) => DirectionSetting::Deadband(*d),
+            (None, Some(c)) => DirectionSetting::Velocity(c.clone()),
+            (None, None) => DirectionSetting::Auto,
+        };
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// The checked default fit settings with this direction setting.
+    pub fn fit_options(&self) -> anyhow::Result<biasctl::fit::CheckedFitOptions> {
+        Ok(biasctl::fit::FitOptions {
+            direction: self.setting()?,
+            ..biasctl::fit::FitOptions::default()
+        }
+        .check()?)
+    }
+}
+
 /// The plant and scenario flags of the settle analysis (`settle`, `plot bounds|responses`).
 #[derive(Debug, Clone, Default, Args)]
 pub struct SettleArgs {

@@ -5,7 +5,6 @@ use biasctl::diagnose::{
     DiagnoseConfig, PathStep, VerifyConfig, diagnose_model, diagnose_verified, suggestion_path_from,
 };
 use biasctl::fit::FitOptions;
-use biasctl::model::FittedModel;
 use biasctl::render::write_atomic;
 use std::io::Write;
 use std::path::PathBuf;
@@ -57,8 +56,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..DiagnoseConfig::default()
     }
     .check()?;
+    let model = args.input.load_model()?;
+    // Re-fits read direction the way the model does.
+    let fit_opts = FitOptions {
+        direction: model.direction.setting(),
+        ..FitOptions::default()
+    }
+    .check()?;
     let verify = VerifyConfig {
         folds: args.verify_folds,
+        fit: fit_opts.clone(),
         ..VerifyConfig::default()
     }
     .check()?;
@@ -72,7 +79,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ],
         &[("--out diagnosis.json", json_out.as_deref())],
     )?;
-    let model = FittedModel::load(&args.input.model)?;
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());
     let d = if args.no_verify {
@@ -82,14 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let path = if args.path > 0 {
         let first = d.clone();
-        suggestion_path_from(
-            &model,
-            &log,
-            first,
-            &config,
-            args.path,
-            &FitOptions::default().check()?,
-        )?
+        suggestion_path_from(&model, &log, first, &config, args.path, &fit_opts)?
     } else {
         Vec::new()
     };

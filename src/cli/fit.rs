@@ -1,8 +1,8 @@
 //! `biasctl fit`: fit a model (a preset or a term list) to a log and write the model file.
 
-use super::common::LogArgs;
+use super::common::{DirectionArgs, LogArgs};
 use anyhow::Context;
-use biasctl::fit::{FitOptions, fit};
+use biasctl::fit::fit;
 use biasctl::model::ModelSpec;
 use std::path::PathBuf;
 
@@ -11,6 +11,8 @@ use std::path::PathBuf;
 pub struct Args {
     #[command(flatten)]
     log: LogArgs,
+    #[command(flatten)]
+    direction: DirectionArgs,
     /// A preset: position-direction, calibration or dahl.
     #[arg(long, value_name = "PRESET", conflicts_with = "terms")]
     model: Option<String>,
@@ -36,8 +38,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, Some(t)) => ModelSpec::parse(t).context("--terms")?,
         _ => anyhow::bail!("give a model: --model PRESET or --terms T1,T2,..."),
     };
+    let opts = args.direction.fit_options()?;
     let log = args.log.columns.read_log(&args.log.data)?;
-    let model = fit(&spec, &log, &FitOptions::default().check()?)?;
+    let model = fit(&spec, &log, &opts)?;
     model.save(&args.out)?;
     let f = &model.fit;
     outln!(

@@ -1,9 +1,8 @@
 //! `biasctl ladder`: add terms one at a time, refit on a training log, score on a test log.
 
-use super::common::ColumnArgs;
+use super::common::{ColumnArgs, DirectionArgs};
 use anyhow::Context;
 use biasctl::diagnose::{ladder_fit, ladder_terms};
-use biasctl::fit::FitOptions;
 use std::path::PathBuf;
 
 /// Flags of `biasctl ladder`.
@@ -20,6 +19,8 @@ pub struct Args {
     terms: String,
     #[command(flatten)]
     columns: ColumnArgs,
+    #[command(flatten)]
+    direction: DirectionArgs,
     /// Print JSON: {"steps": [{"terms", "std", "reduction"}, ...]}.
     #[arg(long)]
     json: bool,
@@ -28,9 +29,10 @@ pub struct Args {
 /// Reads both logs, fits every prefix of the term list and prints the table.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let terms = ladder_terms(&args.terms).context("--terms")?;
+    let opts = args.direction.fit_options()?;
     let train = args.columns.read_log(&args.data).context("--data")?;
     let test = args.columns.read_log(&args.test).context("--test")?;
-    let l = ladder_fit(&train, &test, &terms, &FitOptions::default().check()?)?;
+    let l = ladder_fit(&train, &test, &terms, &opts)?;
     if args.json {
         outln!("{}", l.to_json()?)?;
     } else {

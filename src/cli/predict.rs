@@ -1,7 +1,7 @@
 //! `biasctl predict`: replay a model over a log or a plan causally and write per-row predictions
 //! (and, with `--handoff`, the integrator start value of every seek).
 
-use super::common::{LogArgs, SettleArgs};
+use super::common::{DirectionArgs, LogArgs, SettleArgs};
 use biasctl::log::{BiasColumn, Log, LogReader, STDIN_PATH};
 use biasctl::model::{FittedModel, Prediction, ReplaySummary, StartValues, write_predictions_csv};
 use biasctl::render::write_atomic;
@@ -16,12 +16,26 @@ pub struct ModelLogArgs {
     pub model: PathBuf,
     #[command(flatten)]
     pub log: LogArgs,
+    /// Without these flags the model replays direction as it was fitted (its file records
+    /// how); with them, as they say.
+    #[command(flatten)]
+    pub direction: DirectionArgs,
 }
 
 impl ModelLogArgs {
+    /// Loads the model (its direction source replaced when `--deadband`/`--velocity-col` is
+    /// given).
+    pub fn load_model(&self) -> anyhow::Result<FittedModel> {
+        let mut model = FittedModel::load(&self.model)?;
+        if let Some(d) = self.direction.setting()?.explicit()? {
+            model.direction = d;
+        }
+        Ok(model)
+    }
+
     /// Loads the model and the log and replays the model causally over the log.
     pub fn replay(&self) -> anyhow::Result<(FittedModel, Log, Prediction)> {
-        let model = FittedModel::load(&self.model)?;
+        let model = self.load_model()?;
         let log = self.log.columns.read_log(&self.log.data)?;
         let pred = model.predict_log(&log)?;
         biasctl::render::check_prediction(&pred, &log)?;
@@ -85,7 +99,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ],
         &[("--out", Some(args.out.as_path()))],
     )?;
-    let model = FittedModel::load(&args.input.model)?;
+    let model = args.input.load_model()?;
     let start = match &args.handoff {
         Some(h) => Some(handoff_plan(&model, h, args.bias_uncertainty)?),
         None => None,

@@ -1,7 +1,8 @@
 //! `biasctl score`: error statistics of a model on a log.
 
 use super::predict::ModelLogArgs;
-use biasctl::score::score_with_units;
+use biasctl::model::Feedback;
+use biasctl::score::score_model;
 
 /// Flags of `biasctl score`.
 #[derive(Debug, clap::Args)]
@@ -10,20 +11,40 @@ pub struct Args {
     input: ModelLogArgs,
     /// Print JSON (keys n, mean, std, rms, median_abs, percentiles, histogram, bimodality, dip
     /// {statistic, p_value, modal_interval, n}, bimodal (the dip test's p < 0.05), trend, units
-    /// {bias, position}).
+    /// {bias, position}: the one-step figure; plus figure, free_run (the same keys, or null
+    /// without an adaptive term), free_run_feedback and warnings).
     #[arg(long)]
     json: bool,
+    /// In the free-run figure of a model with an adaptive term (`drift`), show it the measured
+    /// bias every N measured rows (0: never, the default).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    feedback_every: u64,
 }
 
 /// Replays the model and prints the score.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, log, pred) = args.input.replay()?;
-    let s = score_with_units(&pred.residual, &pred.positions, &log.schema.units)?;
+    let (model, log, _) = args.input.replay()?;
+    let s = score_model(&model, &log, Feedback::every(args.feedback_every))?;
+    for w in &s.warnings {
+        eprintln!("warning: {}: {w}", log.schema.file);
+    }
     if args.json {
         outln!("{}", biasctl::render::json::to_string_pretty(&s)?)?;
     } else {
         outln!("{}: model `{}`", log.schema.file, model.spec)?;
-        out!("{}", s.to_text())?;
+        if let (Some(f), Some(label)) = (&s.free_run, &s.free_run_feedback) {
+            let u = &f.units.bias;
+            outln!(
+                "{label} (from the positions; adaptive terms see no measured bias or only as stated): mean {:.4} {u}, std {:.4} {u}, rms {:.4} {u}",
+                f.mean,
+                f.std,
+                f.rms
+            )?;
+            outln!(
+                "one-step (adaptive terms see every earlier measured bias), the statistics below:"
+            )?;
+        }
+        out!("{}", s.one_step.to_text())?;
     }
     Ok(())
 }

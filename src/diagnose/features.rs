@@ -164,6 +164,12 @@ impl FeatureTable {
     /// (`<COL>@lag<τ>s`), and every covariate column under its header name. Non-finite covariate values are kept as missing. The log's units
     /// ([`crate::log::LogSchema::units`]) come along and label the diagnosis.
     pub fn from_log(log: &Log) -> FeatureTable {
+        Self::from_replay(log, replay(log))
+    }
+
+    /// [`FeatureTable::from_log`] with the seek history of `log` replayed by `history` (for
+    /// direction read another way: [`crate::history::replay_with`]).
+    pub fn from_replay(log: &Log, history: crate::history::Replay<'_>) -> FeatureTable {
         let measured = log.measured_count();
         let mut builtin: Vec<Vec<Option<f64>>> = Feature::ALL
             .iter()
@@ -176,7 +182,7 @@ impl FeatureTable {
             .map(|_| Vec::with_capacity(measured))
             .collect();
         let mut lines = Vec::with_capacity(measured);
-        for (_, row, f) in replay(log) {
+        for (_, row, f) in history {
             if row.bias.is_none() {
                 continue;
             }

@@ -14,6 +14,11 @@ pub struct LadderInput {
     pub terms: Vec<String>,
     /// Test-set error std, in the test log's bias unit.
     pub std: f64,
+    /// Free-run test-set error std (adaptive terms such as `drift` see no measured bias),
+    /// for a model with an adaptive term; `None` otherwise.
+    pub free_run_std: Option<f64>,
+    /// The step's warnings: its fit's self-check and a test mean error large against the std.
+    pub warnings: Vec<String>,
 }
 
 /// One rung of the ladder.
@@ -21,8 +26,17 @@ pub struct LadderInput {
 pub struct LadderStep {
     /// The model's terms at this step.
     pub terms: Vec<String>,
-    /// Test-set error std, in the test log's bias unit.
+    /// Test-set error std, in the test log's bias unit (one-step: adaptive terms see every
+    /// earlier measured bias).
     pub std: f64,
+    /// Free-run test-set error std of a model with an adaptive term (`drift`), which then sees
+    /// no measured bias; absent from the JSON when the model has none (both figures agree).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub free_run_std: Option<f64>,
+    /// The step's warnings (fit self-check, test mean error large against the std); absent
+    /// from the JSON when there are none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     /// Reduction of the std relative to the first step, as a fraction (0.36 = 36 % lower;
     /// negative if worse; 0 when the first std is 0).
     pub reduction: f64,
@@ -38,11 +52,10 @@ pub struct Ladder {
 /// Builds the ladder: each step's reduction relative to the first step. Errors on a std that is
 /// negative or not finite (it would put NaN or infinity in the JSON).
 pub fn ladder(steps: &[LadderInput]) -> Result<Ladder, DiagnoseError> {
-    if let Some((step, s)) = steps
-        .iter()
-        .enumerate()
-        .find(|(_, s)| !(s.std.is_finite() && s.std >= 0.0))
-    {
+    if let Some((step, s)) = steps.iter().enumerate().find(|(_, s)| {
+        !(s.std.is_finite() && s.std >= 0.0)
+            || s.free_run_std.is_some_and(|f| !(f.is_finite() && f >= 0.0))
+    }) {
         return Err(DiagnoseError::BadLadderStd {
             step,
             terms: s.terms.join(", "),
@@ -55,6 +68,8 @@ pub fn ladder(steps: &[LadderInput]) -> Result<Ladder, DiagnoseError> {
         .map(|s| LadderStep {
             terms: s.terms.clone(),
             std: s.std,
+            free_run_std: s.free_run_std,
+            warnings: s.warnings.clone(),
             reduction: if first > 0.0 {
                 1.0 - s.std / first
             } else {
@@ -83,10 +98,12 @@ impl Ladder {
     pub fn to_text(&self, units: &Units) -> String {
         let std_header = format!("std ({})", units.bias);
         let w = std_header.chars().count().max(10);
+        let free = self.steps.iter().any(|s| s.free_run_std.is_some());
         let mut out = format!(
-            "{:<4} {:<40} {:>w$} {:>10}\n",
+            "{:<4} {:<40} {:>w$} {:>10}",
             "step", "terms", std_header, "reduction"
         );
+        out.push_str(if free { "   free-run std\n" } else { "\n" });
         let mut previous: Option<&LadderStep> = None;
         for (i, s) in self.steps.iter().enumerate() {
             let terms = match previous {
@@ -104,13 +121,32 @@ impl Ladder {
                 }
             };
             out.push_str(&format!(
-                "{:<4} {:<40} {:>w$} {:>9.1}%\n",
+                "{:<4} {:<40} {:>w$} {:>9.1}%",
                 i,
                 terms,
                 short(s.std),
                 100.0 * s.reduction
             ));
+            if free {
+                out.push_str(&format!(
+                    " {:>14}",
+                    s.free_run_std.map_or("=".to_string(), short)
+                ));
+            }
+            out.push('\n');
             previous = Some(s);
+        }
+        for (i, s) in self.steps.iter().enumerate() {
+            for w in &s.warnings {
+                out.push_str(&format!("warning: step {i}: {w}\n"));
+            }
+        }
+        if free {
+            out.push_str(
+                "std is one-step: adaptive terms (drift) see every earlier measured bias; the \
+                 free-run std is the error from the positions alone (= where both agree). Judge \
+                 a model with an adaptive term by its free-run std.\n",
+            );
         }
         out
     }
@@ -130,6 +166,8 @@ mod tests {
         LadderInput {
             terms: terms.iter().map(|t| t.to_string()).collect(),
             std,
+            free_run_std: None,
+            warnings: Vec::new(),
         }
     }
 
@@ -171,6 +209,24 @@ mod tests {
         let keys: Vec<&String> = v["steps"][0].as_object().unwrap().keys().collect();
         assert_eq!(keys, ["reduction", "std", "terms"]);
         assert_eq!(v.as_object().unwrap().len(), 1);
+    }
+
+    #[test]
+    fn free_run_std_is_shown_only_when_a_step_has_one() {
+        let mut with = step(&["poly2"], 2.0);
+        let mut drift = step(&["poly2", "drift"], 1.0);
+        drift.free_run_std = Some(1.9);
+        let l = ladder(&[with.clone(), drift]).unwrap();
+        let text = l.to_text(&Units::default());
+        assert!(
+            text.contains("free-run std") && text.contains("1.9"),
+            "{text}"
+        );
+        let v: serde_json::Value = serde_json::from_str(&l.to_json().unwrap()).unwrap();
+        assert!(v["steps"][0].get("free_run_std").is_none());
+        assert!((v["steps"][1]["free_run_std"].as_f64().unwrap() - 1.9).abs() < 1e-12);
+        with.free_run_std = Some(f64::NAN);
+        assert!(ladder(&[with]).is_err());
     }
 
     #[test]

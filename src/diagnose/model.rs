@@ -87,7 +87,7 @@ pub fn diagnose_model(
     config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
     let prediction = replay_model(model, log)?;
-    let table = FeatureTable::from_log(log);
+    let table = model_table(model, log);
     let mut d = diagnose_residual(model, &table, &prediction.residual, config)?;
     let mut config = config.clone();
     for t in model_terms(model) {
@@ -97,6 +97,16 @@ pub fn diagnose_model(
     d.warnings = super::rate_warnings(model);
     d.summary = super::report::extend_summary(&d);
     Ok(d)
+}
+
+/// The feature table of `log` with direction read as `model` reads it
+/// ([`FittedModel::direction`]); a velocity column the log lacks (which the model's replay has
+/// already refused) falls back to raw steps.
+fn model_table(model: &FittedModel, log: &Log) -> FeatureTable {
+    crate::history::replay_with(log, &model.direction).map_or_else(
+        |_| FeatureTable::from_log(log),
+        |r| FeatureTable::from_replay(log, r),
+    )
 }
 
 /// The model's spec as typed terms (a user's own `TermSpec` included), the base every
@@ -208,9 +218,29 @@ pub fn ladder_fit(
                     file: test.schema.file.clone(),
                 }
             })?;
+            let free_run_std = if model.adaptive() {
+                model
+                    .predict_log_with(test, crate::model::Feedback::Never)
+                    .ok()
+                    .and_then(|p| crate::numeric::stats::std_dev(&p.residual))
+            } else {
+                None
+            };
+            let mut warnings: Vec<String> =
+                model.warnings.iter().map(|w| format!("fit: {w}")).collect();
+            let mean = crate::numeric::stats::mean(&prediction.residual).unwrap_or(0.0);
+            if mean.abs() > crate::score::MEAN_WARNING_RATIO * std {
+                warnings.push(format!(
+                    "test mean error {mean:.4e} is {:.2}× the error std {std:.4e}: the model is \
+                     offset on the test log",
+                    mean.abs() / std.max(f64::MIN_POSITIVE)
+                ));
+            }
             Ok(LadderInput {
                 terms: terms[..k].to_vec(),
                 std,
+                free_run_std,
+                warnings,
             })
         })
         .collect();
@@ -305,7 +335,7 @@ pub fn suggestion_path_from(
             std_after: crate::numeric::stats::std_dev(&after.residual).unwrap_or(0.0),
         });
         if step < steps {
-            let table = table.get_or_insert_with(|| FeatureTable::from_log(log));
+            let table = table.get_or_insert_with(|| model_table(&next, log));
             d = diagnose_residual(&next, table, &after.residual, config)?;
         }
     }

@@ -836,6 +836,12 @@ impl<R: Read> LogReader<R> {
     /// Streams the rest of the log (constant memory) and summarises it: row counts, position
     /// and time ranges. Every row is validated as [`LogReader::read_into`] does.
     pub fn summarise(&mut self) -> Result<LogSummary, LogError> {
+        self.summarise_each(|_| {})
+    }
+
+    /// [`LogReader::summarise`], handing every row to `each` as it is read (one pass, so a
+    /// log on standard input is read once).
+    pub fn summarise_each(&mut self, mut each: impl FnMut(&Row)) -> Result<LogSummary, LogError> {
         let mut row = Row::empty(self.schema.covariates.len());
         let mut s = LogSummary {
             rows: 0,
@@ -851,6 +857,7 @@ impl<R: Read> LogReader<R> {
             s.rows += 1;
             s.measured += u64::from(row.bias.is_some());
             s.positions = [s.positions[0].min(row.track), s.positions[1].max(row.track)];
+            each(&row);
         }
         Ok(s)
     }

@@ -16,6 +16,9 @@ pub enum FitError {
     /// The spec string is invalid.
     #[error(transparent)]
     Spec(#[from] SpecError),
+    /// The direction setting cannot be used with the log.
+    #[error(transparent)]
+    Direction(#[from] crate::history::DirectionError),
     /// Fewer measured rows than the model needs.
     #[error(
         "{file}: {measured} measured rows, but the model `{spec}` has {params} linear parameters and needs at least {needed} measured rows"
@@ -160,15 +163,34 @@ pub struct FitData<'a> {
 }
 
 impl<'a> FitData<'a> {
-    /// Replays the log's seek history once ([`crate::history::replay`]).
+    /// Replays the log's seek history once ([`crate::history::replay`]), direction from raw
+    /// position steps.
     pub fn new(log: &'a Log) -> Self {
         let features = crate::history::replay(log).map(|(_, _, f)| f).collect();
         Self { log, features }
     }
 
+    /// Replays the log's seek history once with direction read as `direction` says
+    /// ([`crate::history::replay_with`]).
+    pub fn with_direction(
+        log: &'a Log,
+        direction: &crate::history::DirectionSource,
+    ) -> Result<Self, FitError> {
+        let features = crate::history::replay_with(log, direction)?
+            .map(|(_, _, f)| f)
+            .collect();
+        Ok(Self { log, features })
+    }
+
     /// The log.
     pub fn log(&self) -> &Log {
         self.log
+    }
+
+    /// Standard deviation of the measured bias (the log's bias unit; 0 with fewer than two).
+    pub fn measured_bias_std(&self) -> f64 {
+        let b: Vec<f64> = self.log.rows.iter().filter_map(|r| r.bias).collect();
+        crate::numeric::stats::std_dev(&b).unwrap_or(0.0)
     }
 
     /// Seek features of every row, in log order.

@@ -342,6 +342,9 @@ pub struct FittedModel {
     pub fit: FitReport,
     /// Warnings (parameters the log cannot determine, …).
     pub warnings: Vec<String>,
+    /// How the direction of motion was read from the training log; every replay of the model
+    /// (predict, score, diagnose) reads it the same way. Model files without it: raw steps.
+    pub direction: crate::history::DirectionSource,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -353,6 +356,8 @@ struct ModelFile {
     terms: Vec<TermFile>,
     fit: FitReport,
     warnings: Vec<String>,
+    #[serde(default)]
+    direction: crate::history::DirectionSource,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -438,6 +443,7 @@ impl FittedModel {
             version: FORMAT_VERSION,
             spec: self.spec.to_string(),
             columns: self.columns.clone(),
+            direction: self.direction.clone(),
             terms: self
                 .terms
                 .iter()
@@ -521,12 +527,20 @@ impl FittedModel {
             return Err(corrupt("no terms".into()));
         }
         let spec = Self::spec_from_file(&file.spec, &terms).map_err(corrupt)?;
+        if let crate::history::DirectionSource::Deadband { deadband } = file.direction
+            && !(deadband.is_finite() && deadband > 0.0)
+        {
+            return Err(corrupt(format!(
+                "direction deadband {deadband} must be finite and > 0"
+            )));
+        }
         Ok(FittedModel {
             spec,
             columns: file.columns,
             terms,
             fit: file.fit,
             warnings: file.warnings,
+            direction: file.direction,
         })
     }
 
@@ -610,8 +624,25 @@ impl FittedModel {
     }
 
     /// Replays the model over `log` from its first row (causal: each row's prediction uses only
-    /// earlier rows and the row's own seek, time and covariates).
+    /// earlier rows and the row's own seek, time and covariates). Adaptive terms (`drift`) see
+    /// every measured bias after its row's prediction: the one-step figure ([`Feedback::EveryRow`]).
     pub fn predict_log(&self, log: &Log) -> Result<Prediction, ModelError> {
+        self.predict_log_with(log, Feedback::EveryRow)
+    }
+
+    /// Whether a term adapts to the measured bias while replaying ([`Term::adaptive`]): then the
+    /// one-step error ([`Feedback::EveryRow`]) and the free-run error differ.
+    pub fn adaptive(&self) -> bool {
+        self.terms.iter().any(|t| t.term.adaptive())
+    }
+
+    /// As [`FittedModel::predict_log`], with the measured bias passed to the adaptive terms as
+    /// `feedback` says (the residuals are always measured − predicted of every measured row).
+    pub fn predict_log_with(
+        &self,
+        log: &Log,
+        feedback: Feedback,
+    ) -> Result<Prediction, ModelError> {
         self.check_log(log)?;
         let mut p = Predictor::new(self, &log.schema.covariates)?;
         let nt = self.terms.len();
@@ -622,14 +653,13 @@ impl FittedModel {
             ..Default::default()
         };
         let mut contrib = vec![0.0; nt];
+        let mut seen = 0u64;
         for (i, row) in log.rows.iter().enumerate() {
-            let pred = p.step_detailed(
-                row.time_s,
-                row.track,
-                &row.covariates,
-                row.bias,
-                &mut contrib,
-            );
+            let shown = row.bias.filter(|_| {
+                seen += 1;
+                feedback.shows(seen - 1)
+            });
+            let pred = p.step_detailed(row.time_s, row.track, &row.covariates, shown, &mut contrib);
             if let Some(y) = row.bias {
                 out.rows.push(i);
                 out.positions.push(row.track);
@@ -642,5 +672,48 @@ impl FittedModel {
             }
         }
         Ok(out)
+    }
+}
+
+/// How often a replay shows the measured bias to the model's adaptive terms (`drift`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum Feedback {
+    /// After every measured row: the one-step-ahead error. On a densely sampled log an adaptive
+    /// term then re-learns the offset from the previous sample, which flatters the model.
+    #[default]
+    EveryRow,
+    /// After every N-th measured row only (N ≥ 1; the first measured row is shown).
+    Every(u64),
+    /// Never: the free-run error, what the model predicts from the positions alone.
+    Never,
+}
+
+impl Feedback {
+    /// From a row count: 0 = never (free run), 1 = every row, N = every N-th measured row.
+    pub fn every(n: u64) -> Self {
+        match n {
+            0 => Feedback::Never,
+            1 => Feedback::EveryRow,
+            n => Feedback::Every(n),
+        }
+    }
+
+    /// Whether the `k`-th measured row (0-based) is shown.
+    pub fn shows(self, k: u64) -> bool {
+        match self {
+            Feedback::EveryRow => true,
+            Feedback::Every(n) => k.is_multiple_of(n.max(1)),
+            Feedback::Never => false,
+        }
+    }
+
+    /// A label for texts: `one-step`, `free run`, `free run, measured bias every N rows`.
+    pub fn label(self) -> String {
+        match self {
+            Feedback::EveryRow => "one-step".into(),
+            Feedback::Every(n) => format!("free run, measured bias every {n} rows"),
+            Feedback::Never => "free run".into(),
+        }
     }
 }

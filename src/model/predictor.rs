@@ -32,6 +32,8 @@ pub const REST_CAPACITY: usize = 1024;
 #[derive(Debug, Clone)]
 pub struct Predictor {
     history: History,
+    /// Index of the velocity column among the covariates when direction comes from it.
+    velocity: Option<usize>,
     states: Vec<Box<dyn TermState>>,
     coefficients: Vec<Vec<f64>>,
     /// Scratch: one term's basis values, then the row's covariates (padded with 0).
@@ -54,14 +56,27 @@ impl Predictor {
             .map(|t| t.coefficients.len())
             .max()
             .unwrap_or(0);
-        let mut history = History::new();
+        let velocity = match &model.direction {
+            crate::history::DirectionSource::Velocity { column } => Some(
+                super::terms::covariate_position(covariates, column, "direction (--velocity-col)")?,
+            ),
+            _ => None,
+        };
+        let mut history = model.direction.history();
         history.reserve(REST_CAPACITY);
         Ok(Self {
             history,
+            velocity,
             states,
             coefficients: model.terms.iter().map(|t| t.coefficients.clone()).collect(),
             scratch: RefCell::new((vec![0.0; widest], vec![0.0; covariates.len()])),
         })
+    }
+
+    /// The direction a row's velocity column gives, when direction comes from one.
+    fn moved(&self, covariates: &[f64]) -> Option<i8> {
+        self.velocity
+            .map(|k| crate::history::DirectionSource::moved(covariates.get(k).copied()))
     }
 
     /// The seek history so far.
@@ -98,7 +113,9 @@ impl Predictor {
     /// (tracks) at `time_s` (s) with these covariate values; the state is unchanged. Missing
     /// covariate values count as 0.
     pub fn peek(&self, time_s: f64, target: f64, covariates: &[f64]) -> f64 {
-        let f = self.history.peek(time_s, target);
+        let f = self
+            .history
+            .peek_moved(time_s, target, self.moved(covariates));
         self.evaluate(&f, covariates, &mut [])
     }
 
@@ -119,7 +136,9 @@ impl Predictor {
         bias: Option<f64>,
         contrib: &mut [f64],
     ) -> f64 {
-        let f = self.history.step(time_s, target);
+        let f = self
+            .history
+            .step_moved(time_s, target, self.moved(covariates));
         let pred = self.evaluate(&f, covariates, contrib);
         let residual = bias.map(|y| y - pred);
         let scratch = self.scratch.borrow();

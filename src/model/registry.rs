@@ -19,7 +19,7 @@
 
 use super::term::{Term, TermSpec};
 use super::terms::{
-    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, poly, seek,
+    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly, seek,
     stribeck, table, viscous,
 };
 use super::{ModelError, SpecError};
@@ -87,6 +87,12 @@ pub static BUILTINS: &[BuiltinTerm] = &[
         Some("dahl, dahl:N"),
         dahl::parse,
         restore_as::<dahl::DahlTerm>,
+    ),
+    row(
+        "play",
+        Some("play[:N]"),
+        play::parse,
+        restore_as::<play::PlayTerm>,
     ),
     row(
         "col",

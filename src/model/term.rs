@@ -124,6 +124,19 @@ pub trait Term: Debug + Send + Sync {
     fn droppable(&self) -> bool {
         false
     }
+    /// Relative ridge penalty on this term's coefficients (default 0: plain least squares):
+    /// each of its columns `j` adds `λ·‖x_j‖²·β_j²` to the least-squares objective, pulling
+    /// the coefficient towards 0. Scale free (the same for any bias or position unit); for
+    /// families of strongly collinear elements such as `play`.
+    fn ridge(&self) -> f64 {
+        0.0
+    }
+    /// Whether the term's contribution adapts to the measured bias while a log is replayed
+    /// (its state uses the `residual` of [`TermState::update`], like `drift`): then its
+    /// one-step error and its free-run error differ and both are reported.
+    fn adaptive(&self) -> bool {
+        false
+    }
     /// Number of linear parameters (basis values); the solver sizes the design by it.
     /// Default: the length of [`Term::param_names`].
     fn param_count(&self) -> usize {

@@ -7,8 +7,10 @@
 //! use biasctl::diagnose::{Ladder, LadderStep};
 //! use biasctl::plot::views;
 //! let l = Ladder { steps: vec![
-//!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0 },
-//!     LadderStep { terms: vec!["poly2".into(), "direction".into()], std: 10.0, reduction: 0.5 },
+//!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0,
+//!         free_run_std: None, warnings: vec![] },
+//!     LadderStep { terms: vec!["poly2".into(), "direction".into()], std: 10.0, reduction: 0.5,
+//!         free_run_std: None, warnings: vec![] },
 //! ] };
 //! let svg = views::ladder(&l, &biasctl::log::Units::default());
 //! assert!(svg.contains("+ direction") && svg.contains("error std (counts)"));

@@ -8,6 +8,7 @@ mod export;
 mod extend;
 mod family;
 mod fuzz;
+mod invariance;
 mod model;
 mod outputs;
 mod plot;

@@ -67,7 +67,7 @@ fn synth(
     }
     for t in &mut terms {
         if let (Some(v), Some(_)) = (nonlinear, t.nonlinear()) {
-            *t = t.with_nonlinear(v).unwrap();
+            *t = with_rate(t, 1.0 - v.exp());
         }
     }
     let truth = FittedModel {
@@ -96,6 +96,7 @@ fn synth(
         .unwrap()
         .fit,
         warnings: vec![],
+        direction: Default::default(),
     };
     let mut p = Predictor::new(&truth, &["temp_c".to_string()]).unwrap();
     let mut rng = SimRng::new(seed);
@@ -108,6 +109,34 @@ fn synth(
         })
         .collect();
     (parse(&csv(rows, &bias)), truth)
+}
+
+/// The Dahl rate `r` a term with a searched rate reports (its `.r` parameter).
+fn reported_rate(t: &Arc<dyn biasctl::model::term::Term>) -> f64 {
+    let n = t.param_names().len();
+    t.report(&vec![1.0; n], &vec![0.0; n * n], None)
+        .iter()
+        .find(|p| p.name.ends_with(".r"))
+        .map_or(f64::NAN, |p| p.value)
+}
+
+/// The term with its searched coordinate set so that its rate is `r` (to the coordinate's
+/// quantisation): the search coordinate is ln L scaled to the log's range, not `ln(1 − r)`, so
+/// the truth is placed by bisection (the rate rises with the coordinate).
+fn with_rate(
+    t: &Arc<dyn biasctl::model::term::Term>,
+    r: f64,
+) -> Arc<dyn biasctl::model::term::Term> {
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if reported_rate(&t.with_nonlinear(mid).unwrap()) < r {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    t.with_nonlinear(hi).unwrap()
 }
 
 fn coef_table(term: &str, i: usize) -> f64 {
@@ -154,9 +183,16 @@ fn exact_recovery_of_every_term_from_noise_free_data() {
                 );
             }
         }
-        if let Some(t) = nl {
+        if nl.is_some() {
+            // Reference: the rate the generating term reports.
             let r = model.param("dahl.r").unwrap().value;
-            assert!((r - (1.0 - t.exp())).abs() < 1e-6, "{spec}: r {r}");
+            let r_true = truth
+                .terms
+                .iter()
+                .find(|t| t.term.name() == "dahl")
+                .map(|t| reported_rate(&t.term))
+                .unwrap();
+            assert!((r - r_true).abs() < 1e-6, "{spec}: r {r} vs {r_true}");
         }
         assert!(
             model.fit.residual_std < 1e-6,

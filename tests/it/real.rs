@@ -246,3 +246,68 @@ fn boucwen_presets_and_friction_terms_fit_without_bias() {
     let (_, std) = test_error(&model, &val, "position_m");
     assert!(std < 14.0, "test error std {std}");
 }
+
+/// Fits `terms` (a preset name or a term list) on `train` and scores it on `test` with
+/// `score --json`; returns the parsed score.
+fn fit_and_score(train: &str, test: &str, track: &str, terms: &str) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json").display().to_string();
+    let flag = if terms.contains(',') || terms.contains(':') {
+        "--terms"
+    } else {
+        "--model"
+    };
+    fit(train, track, &[flag, terms], &model);
+    let args = [
+        "score",
+        "--model",
+        &model,
+        "--data",
+        test,
+        "--track-col",
+        track,
+        "--bias-col",
+        "force_N",
+        "--json",
+    ];
+    serde_json::from_str(&ok(&args)).unwrap()
+}
+
+/// Issue #11: every preset and `play:N` fits the real logs without an offset on the test log:
+/// |mean error| well under the error std (one-step and, with `drift`, free run). Reference:
+/// an unbiased model's mean error is zero up to noise, far below its std. EMPS: fitted on the
+/// estimation run, scored on the validation run; pneumatic: fitted and scored on its one log.
+#[test]
+fn every_preset_and_play_fits_the_real_logs_without_an_offset() {
+    let emps = (
+        need("emps/emps_estimation.csv"),
+        need("emps/emps_validation.csv"),
+    );
+    let pneu = need("pneumatic/oring257_1-7bar.csv");
+    let cases = [
+        (&emps.0, &emps.1, "position_m"),
+        (&pneu, &pneu, "position_mm"),
+    ];
+    for (train, test, track) in cases {
+        for terms in [
+            "position-direction",
+            "calibration",
+            "dahl",
+            "poly2,dahl:4",
+            "poly2,play:16",
+        ] {
+            let s = fit_and_score(train, test, track, terms);
+            let mut figures = vec![("one-step", &s)];
+            if !s["free_run"].is_null() {
+                figures.push(("free run", &s["free_run"]));
+            }
+            for (what, f) in figures {
+                let (mean, std) = (f["mean"].as_f64().unwrap(), f["std"].as_f64().unwrap());
+                assert!(
+                    mean.abs() < 0.25 * std,
+                    "{terms} on {test} ({what}): mean {mean} against std {std}"
+                );
+            }
+        }
+    }
+}

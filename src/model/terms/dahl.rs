@@ -3,14 +3,18 @@
 //! One Dahl element with unit amplitude has the state `G` (dimensionless, in [−1, 1]):
 //! `G_k = s_k + (G_{k−1} − s_k)·r^{|Δx_k|}`, `s_k = sgn(Δx_k)`, `G_0 = 0` (eq. 8 divided by Fc);
 //! a zero-length seek leaves it unchanged. The friction force is `F = Fc·G`, so for a fixed
-//! `r = 1 − σ/Fc` the bias is linear in Fc: `dahl` searches `t = ln(1 − r)` (golden section after
-//! a grid, variable projection: the linear parameters are refitted at every candidate) and
-//! reports `Fc` (counts), `sigma = Fc·(1 − r)` (counts per track) and `r`.
+//! `r = 1 − σ/Fc` the bias is linear in Fc: `dahl` searches the element's characteristic
+//! length `L = −1/ln r` (position unit; `ln L` by golden section after a grid, variable
+//! projection: the linear parameters are refitted at every candidate) over a range taken from
+//! the log — from a tenth of the 5 % quantile of the non-zero |seek lengths| to ten times the
+//! travel — and reports `Fc` (counts), `sigma = Fc·(1 − r)` (counts per position unit) and `r`.
 //!
-//! `dahl:N` has N elements with fixed rates whose characteristic lengths `L = −1/ln r` are
-//! spaced geometrically between the 5 % and 95 % quantiles of the measured |seek lengths|
-//! (at least 1 track apart), with signed weights (counts) fitted by least squares: fast and slow
-//! elements of opposite sign reproduce the overshoot/undershoot eq. 8 cannot. O(N) state.
+//! `dahl:N` has N elements with fixed rates whose characteristic lengths are spaced
+//! geometrically between `max(q05 |seek|, q05 A/3)` and `max(q95 |seek|, q95 A)`, where `A` are
+//! the reversal amplitudes ([`crate::history::reversal_amplitudes`]), with signed weights
+//! (counts) fitted by least squares: fast and slow elements of opposite sign reproduce the
+//! overshoot/undershoot eq. 8 cannot. O(N) state. Both ranges come from the data, so a log in
+//! metres and the same log in micrometres give the same predictions.
 
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
@@ -32,7 +36,16 @@ pub struct DahlState {
 impl DahlState {
     /// An element with rate `r` in (0, 1) and state 0.
     pub fn new(r: f64) -> Self {
-        let ln_r = r.ln();
+        Self::with_ln_rate(r.ln())
+    }
+
+    /// An element with characteristic length `l = −1/ln r` > 0 (position unit) and state 0;
+    /// exact for lengths whose rate would underflow or round to 1.
+    pub fn with_length(l: f64) -> Self {
+        Self::with_ln_rate(-1.0 / l)
+    }
+
+    fn with_ln_rate(ln_r: f64) -> Self {
         let pow = (0..TABLE).map(|n| (ln_r * n as f64).exp()).collect();
         Self { ln_r, pow, g: 0.0 }
     }
@@ -205,21 +218,33 @@ impl TermSpec for DahlSpec {
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let rates = match self.elements {
-            None => vec![0.9],
+        let steps = crate::numeric::stats::sorted(
+            &data.measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0)),
+        );
+        let amps =
+            crate::numeric::stats::sorted(&crate::history::reversal_amplitudes(data.features()));
+        let q = |v: &[f64], p: f64| crate::numeric::stats::percentile_sorted(v, p).unwrap_or(0.0);
+        let travel =
+            crate::numeric::stats::range(&data.measured_values(|s| Some(s.features.target)))
+                .map_or(0.0, |[a, b]| b - a);
+        // Search range of ln L; a log without moves gets a unit range (the element stays 0).
+        let step_lo = q(&steps, 5.0);
+        let range = if step_lo > 0.0 && travel > 0.0 {
+            [(0.1 * step_lo).ln(), (10.0 * travel).max(step_lo).ln()]
+        } else {
+            [T_LO, T_HI]
+        };
+        let lengths: Vec<f64> = match self.elements {
+            None => vec![(0.5 * (range[0] + range[1])).exp()],
             Some(n) => {
-                let a = data
-                    .measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
-                let mut sorted = crate::numeric::stats::sorted(&a);
-                if sorted.is_empty() {
-                    sorted.push(1.0);
+                let mut lo = q(&steps, 5.0);
+                let mut hi = q(&steps, 95.0).max(q(&amps, 95.0));
+                if lo.is_nan() || lo <= 0.0 {
+                    lo = 1.0;
                 }
-                let lo = crate::numeric::stats::percentile_sorted(&sorted, 5.0)
-                    .unwrap_or(1.0)
-                    .max(1.0);
-                let hi = crate::numeric::stats::percentile_sorted(&sorted, 95.0)
-                    .unwrap_or(1.0)
-                    .max(lo + 1.0);
+                if hi.is_nan() || hi <= lo {
+                    hi = 10.0 * lo;
+                }
                 (0..n)
                     .map(|i| {
                         let f = if n == 1 {
@@ -227,17 +252,17 @@ impl TermSpec for DahlSpec {
                         } else {
                             i as f64 / (n - 1) as f64
                         };
-                        let l = lo * (hi / lo).powf(f);
-                        (-1.0 / l).exp()
+                        lo * (hi / lo).powf(f)
                     })
                     .collect()
             }
         };
-        Ok(Arc::new(DahlTerm {
-            name: self.name(),
-            rates,
-            search: self.elements.is_none(),
-        }))
+        Ok(Arc::new(DahlTerm::new(
+            self.name(),
+            lengths,
+            self.elements.is_none(),
+            Some(range),
+        )))
     }
 }
 
@@ -246,16 +271,63 @@ impl TermSpec for DahlSpec {
 pub struct DahlTerm {
     /// Spec string.
     pub name: String,
-    /// Rates r of the elements, each in (0, 1) (a model file with another is refused).
+    /// Rates r of the elements, each in [0, 1) (for reading; [`DahlTerm::lengths`] is exact; a
+    /// model file with another is refused).
     #[serde(deserialize_with = "super::unit_rates")]
     pub rates: Vec<f64>,
+    /// Characteristic lengths `L = −1/ln r` of the elements, position unit; empty in model
+    /// files written before they were recorded (then taken from `rates`).
+    #[serde(default)]
+    pub lengths: Vec<f64>,
     /// Whether the (single) rate is searched.
     pub search: bool,
+    /// Search interval of `ln L`, `L = −1/ln r` the characteristic length (position unit),
+    /// taken from the training log; `null` in model files written before it was recorded.
+    #[serde(default)]
+    pub ln_length_range: Option<[f64; 2]>,
 }
 
-/// Search interval of `t = ln(1 − r)`: σ/Fc from 1e-4 to 0.9999.
-const T_LO: f64 = -9.210_340_371_976_182;
-const T_HI: f64 = -1.000_050_003_333_5e-4;
+/// Fallback search interval of `ln L` (a log without moves): L from 0.1 to 10⁴.
+const T_LO: f64 = -std::f64::consts::LN_10;
+const T_HI: f64 = 9.210_340_371_976_184;
+
+/// The searched coordinate rounded to 2⁻²⁰ of the search range: finer than that the RSS is flat
+/// to rounding, and the rounding makes the fitted length the same in any position unit.
+fn quantise(s: f64) -> f64 {
+    const Q: f64 = 1_048_576.0;
+    (s.clamp(0.0, 1.0) * Q).round() / Q
+}
+
+impl DahlTerm {
+    /// A term with elements of characteristic lengths `lengths` (position unit).
+    pub fn new(
+        name: String,
+        lengths: Vec<f64>,
+        search: bool,
+        ln_length_range: Option<[f64; 2]>,
+    ) -> Self {
+        Self {
+            name,
+            rates: lengths.iter().map(|l| (-1.0 / l).exp()).collect(),
+            lengths,
+            search,
+            ln_length_range,
+        }
+    }
+
+    /// The characteristic lengths of the elements, position unit.
+    pub fn lengths(&self) -> Vec<f64> {
+        if self.lengths.is_empty() {
+            self.rates.iter().map(|r| -1.0 / r.ln()).collect()
+        } else {
+            self.lengths.clone()
+        }
+    }
+
+    fn range(&self) -> [f64; 2] {
+        self.ln_length_range.unwrap_or([T_LO, T_HI])
+    }
+}
 
 impl Term for DahlTerm {
     fn name(&self) -> String {
@@ -268,32 +340,42 @@ impl Term for DahlTerm {
         if self.search {
             vec!["Fc".into()]
         } else {
-            self.rates
+            self.lengths()
                 .iter()
-                .map(|r| format!("w@L={}", crate::log::fmt_trimmed(-1.0 / r.ln(), 2)))
+                .map(|l| format!("w@L={}", crate::log::fmt_trimmed(*l, 2)))
                 .collect()
         }
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(DahlTermState {
-            elements: self.rates.iter().map(|&r| DahlState::new(r)).collect(),
+            elements: self
+                .lengths()
+                .iter()
+                .map(|&l| DahlState::with_length(l))
+                .collect(),
         }))
     }
     fn nonlinear(&self) -> Option<Nonlinear> {
+        // Searched in s = (ln L − lo)/(hi − lo) ∈ [0, 1], so the search visits the same points
+        // in any position unit.
+        let [lo, hi] = self.range();
+        let t = self.lengths().first().map_or(lo, |l| l.ln());
         self.search.then(|| Nonlinear {
-            name: format!("{}.ln(1-r)", self.name),
-            value: (1.0 - self.rates[0]).ln(),
-            lo: T_LO,
-            hi: T_HI,
+            name: format!("{}.ln(L) scaled to [0, 1] over the search range", self.name),
+            value: ((t - lo) / (hi - lo)).clamp(0.0, 1.0),
+            lo: 0.0,
+            hi: 1.0,
         })
     }
     fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
+        let [lo, hi] = self.range();
         self.search.then(|| {
-            Arc::new(DahlTerm {
-                name: self.name.clone(),
-                rates: vec![1.0 - t.clamp(T_LO, T_HI).exp()],
-                search: true,
-            }) as Arc<dyn Term>
+            Arc::new(DahlTerm::new(
+                self.name.clone(),
+                vec![(lo + quantise(t) * (hi - lo)).exp()],
+                true,
+                self.ln_length_range,
+            )) as Arc<dyn Term>
         })
     }
     fn report(&self, coef: &[f64], cov: &[f64], nl_se: Option<f64>) -> Vec<Param> {
@@ -310,15 +392,19 @@ impl Term for DahlTerm {
                 })
                 .collect();
         }
-        let r = self.rates[0];
+        let l = self.lengths().first().copied().unwrap_or(1.0);
+        let one_minus_r = -(-1.0 / l).exp_m1();
+        let r = 1.0 - one_minus_r;
         let fc = coef[0];
         let fc_se = se_from_cov(cov, 1, 0);
-        // dr/dt = −(1 − r); sigma = Fc (1 − r): delta method, Fc and t taken as independent.
-        let r_se = nl_se.map(|s| s * (1.0 - r));
-        let sigma = fc * (1.0 - r);
+        // r = exp(−e^(−t)), t = ln L = lo + s·(hi − lo): dr/ds = (hi − lo)·r/L; sigma = Fc (1 − r): delta
+        // method, Fc and t taken as independent.
+        let [lo, hi] = self.range();
+        let r_se = nl_se.map(|s| s * (hi - lo) * r / l);
+        let sigma = fc * one_minus_r;
         let sigma_se = match (fc_se, r_se) {
-            (Some(a), Some(b)) => Some(((1.0 - r) * a).hypot(fc * b)),
-            (Some(a), None) => Some((1.0 - r) * a),
+            (Some(a), Some(b)) => Some((one_minus_r * a).hypot(fc * b)),
+            (Some(a), None) => Some(one_minus_r * a),
             _ => None,
         };
         vec![

@@ -108,6 +108,9 @@ impl Term for DriftTerm {
             m: 0.0,
         }))
     }
+    fn adaptive(&self) -> bool {
+        true
+    }
     fn tune_on_residuals(&self, residuals: &[f64]) -> Option<Arc<dyn Term>> {
         if self.fixed || residuals.is_empty() {
             return None;

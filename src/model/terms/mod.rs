@@ -12,6 +12,7 @@ pub mod knots;
 pub mod lag;
 pub mod memory;
 pub mod memsum;
+pub mod play;
 pub mod poly;
 pub mod seek;
 pub mod stribeck;
@@ -48,13 +49,14 @@ pub(crate) fn positive_finite<'de, D: serde::Deserializer<'de>>(d: D) -> Result<
     }
 }
 
-/// Reads rates that must each lie in (0, 1) (Dahl / Maxwell-slip elements).
+/// Reads rates that must each lie in [0, 1) (Dahl / Maxwell-slip elements; 0 is an element
+/// whose characteristic length is below the float resolution of `exp(−1/L)`).
 pub(crate) fn unit_rates<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
     let v = <Vec<f64> as serde::Deserialize>::deserialize(d)?;
-    match v.iter().find(|r| !(**r > 0.0 && **r < 1.0)) {
+    match v.iter().find(|r| !(**r >= 0.0 && **r < 1.0)) {
         None => Ok(v),
         Some(r) => Err(serde::de::Error::custom(format!(
-            "rate {r} must lie in (0, 1)"
+            "rate {r} must lie in [0, 1)"
         ))),
     }
 }

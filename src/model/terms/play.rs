@@ -1,0 +1,322 @@
+//! `play:N`: a Prandtl–Ishlinskii / Maxwell-slip hysteresis model with N elements whose
+//! thresholds span the log's reversal amplitudes — the generalised Dahl/Preisach family for
+//! actuators whose loops are not one exponential (piezo stacks, magnetic reversal curves, ball
+//! screws, seals).
+//!
+//! Element `i` is a stop operator (an elastic spring in series with a Coulomb slider) with
+//! threshold `r_i` (the log's position unit): its play state follows
+//! `z_k = clamp(z_{k−1}, x_k − r_i, x_k + r_i)` (`z_0 = x_0`, the log's first position), and its
+//! basis value is the normalised spring deflection `(x_k − z_k)/r_i ∈ [−1, 1]`: +1 after a move
+//! of at least `2·r_i` in the positive direction, −1 after one in the negative, linear in
+//! between. The term's contribution is `Σ w_i·(x − z_i)/r_i` with signed weights `w_i` (the
+//! slip force of element `i`, in the bias unit) fitted by the one least-squares solve. One element
+//! with threshold r is a Dahl element whose exponential is replaced by a ramp of length 2r.
+//!
+//! Thresholds: geometric from a quarter of the 5 % quantile to half of the 95 % quantile of the
+//! training log's reversal amplitudes ([`crate::history::reversal_amplitudes`]: the distances
+//! between consecutive turning points), so the elements cover the loops the log actually makes
+//! whatever its position unit. Neighbouring elements are strongly collinear, so the weights are
+//! ridge-regularised ([`Term::ridge`], penalty [`RIDGE`] × each column's sum of squares): the
+//! fit stays within a fraction of a per cent of plain least squares while weights that would
+//! cancel each other stay bounded. State O(N) per step, no allocation.
+
+use crate::fit::{FitData, FitError};
+use crate::model::ModelError;
+use crate::model::term::{Seek, Term, TermSpec, TermState};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Relative ridge penalty of the play weights: each weight is pulled towards 0 with a penalty of
+/// `RIDGE·‖column‖²·w²` (scale free in both bias and position units).
+pub const RIDGE: f64 = 1e-4;
+
+/// Default number of elements of `play`.
+pub const DEFAULT_ELEMENTS: usize = 8;
+
+/// N stop operators with fixed thresholds: the allocation-free state of `play:N`.
+#[derive(Debug, Clone)]
+pub struct PlayOperator {
+    r: Box<[f64]>,
+    inv_r: Box<[f64]>,
+    z: Box<[f64]>,
+    started: bool,
+}
+
+impl PlayOperator {
+    /// Operators with thresholds `r` (each > 0, position unit), relaxed at the first position.
+    pub fn new(r: &[f64]) -> Self {
+        Self {
+            r: r.into(),
+            inv_r: r.iter().map(|v| 1.0 / v).collect(),
+            z: vec![0.0; r.len()].into(),
+            started: false,
+        }
+    }
+
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.r.len()
+    }
+
+    /// Whether there are no elements.
+    pub fn is_empty(&self) -> bool {
+        self.r.is_empty()
+    }
+
+    /// Writes the normalised deflections `(x − z_i)/r_i ∈ [−1, 1]` the operators would have at
+    /// position `x` into `out`, without changing them.
+    #[inline]
+    pub fn peek_into(&self, x: f64, out: &mut [f64]) {
+        if !self.started {
+            out.fill(0.0);
+            return;
+        }
+        for (((o, &z), &r), &ir) in out
+            .iter_mut()
+            .zip(&self.z[..])
+            .zip(&self.r[..])
+            .zip(&self.inv_r[..])
+        {
+            *o = (x - z.clamp(x - r, x + r)) * ir;
+        }
+    }
+
+    /// Moves the operators to position `x`.
+    #[inline]
+    pub fn step(&mut self, x: f64) {
+        if !self.started {
+            self.z.fill(x);
+            self.started = true;
+            return;
+        }
+        for (z, &r) in self.z.iter_mut().zip(&self.r[..]) {
+            *z = z.clamp(x - r, x + r);
+        }
+    }
+
+    /// Moves to `x` and returns `Σ w_i·(x − z_i)/r_i` (fused: one pass, no buffer).
+    #[inline]
+    pub fn step_weighted(&mut self, x: f64, w: &[f64]) -> f64 {
+        if !self.started {
+            self.step(x);
+            return 0.0;
+        }
+        let mut acc = 0.0;
+        for (((z, &r), &ir), &wi) in self
+            .z
+            .iter_mut()
+            .zip(&self.r[..])
+            .zip(&self.inv_r[..])
+            .zip(w)
+        {
+            *z = z.clamp(x - r, x + r);
+            acc += wi * (x - *z) * ir;
+        }
+        acc
+    }
+}
+
+/// A fitted `play:N` model as a concrete, allocation-free predictor: `bias = offset + Σ w_i·
+/// (x − z_i)/r_i` (bias unit; `x` in the position unit). What firmware would run; the bench
+/// `play` measures it.
+#[derive(Debug, Clone)]
+pub struct PlayPredictor {
+    offset: f64,
+    weights: Box<[f64]>,
+    op: PlayOperator,
+}
+
+impl PlayPredictor {
+    /// A predictor with thresholds `r` (position unit, each > 0), weights `w` (bias unit, same
+    /// length) and a constant `offset` (bias unit); `None` if the lengths differ or a threshold
+    /// is not a positive finite number.
+    pub fn new(r: &[f64], w: &[f64], offset: f64) -> Option<Self> {
+        (r.len() == w.len() && r.iter().all(|v| v.is_finite() && *v > 0.0)).then(|| Self {
+            offset,
+            weights: w.into(),
+            op: PlayOperator::new(r),
+        })
+    }
+
+    /// Moves to `x` and returns the predicted bias there.
+    #[inline]
+    pub fn step(&mut self, x: f64) -> f64 {
+        self.offset + self.op.step_weighted(x, &self.weights)
+    }
+}
+
+/// Spec of the `play:N` term.
+#[derive(Debug, Clone, Copy)]
+pub struct PlaySpec {
+    /// Number of elements.
+    pub elements: usize,
+}
+
+/// Thresholds for `n` elements from reversal amplitudes `amps` (position unit): geometric from
+/// a quarter of the 5 % quantile to half the 95 % quantile; `None` with fewer than two amplitudes.
+pub fn thresholds(amps: &[f64], n: usize) -> Option<Vec<f64>> {
+    let sorted = crate::numeric::stats::sorted(amps);
+    if sorted.len() < 2 || n == 0 {
+        return None;
+    }
+    let q = |p: f64| crate::numeric::stats::percentile_sorted(&sorted, p);
+    let hi = 0.5 * q(95.0)?;
+    let lo = (0.25 * q(5.0)?).min(0.5 * hi);
+    if !(lo > 0.0 && hi.is_finite()) {
+        return None;
+    }
+    Some(if n == 1 {
+        vec![0.5 * q(50.0)?]
+    } else {
+        (0..n)
+            .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64))
+            .collect()
+    })
+}
+
+impl TermSpec for PlaySpec {
+    fn name(&self) -> String {
+        format!("play:{}", self.elements)
+    }
+    fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
+        let amps = crate::history::reversal_amplitudes(data.features());
+        let thresholds = thresholds(&amps, self.elements).ok_or_else(|| FitError::BadSetting {
+            term: self.name(),
+            why: format!(
+                "the log has {} direction reversals with a non-zero amplitude; play elements are \
+                 placed on the reversal amplitudes and need at least two",
+                amps.len()
+            ),
+        })?;
+        Ok(Arc::new(PlayTerm {
+            name: self.name(),
+            thresholds,
+        }))
+    }
+}
+
+/// The fitted `play:N` term.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PlayTerm {
+    /// Spec string.
+    pub name: String,
+    /// Thresholds r_i of the elements, increasing, in the log's position unit.
+    pub thresholds: Vec<f64>,
+}
+
+impl Term for PlayTerm {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn param_names(&self) -> Vec<String> {
+        self.thresholds
+            .iter()
+            .map(|&r| format!("w@r={}", crate::log::fmt_trimmed(r, 4)))
+            .collect()
+    }
+    fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        if !self.thresholds.iter().all(|r| r.is_finite() && *r > 0.0) {
+            return Err(ModelError::BadTerm {
+                term: self.name.clone(),
+                why: "thresholds must be positive finite numbers".into(),
+            });
+        }
+        Ok(Box::new(PlayState(PlayOperator::new(&self.thresholds))))
+    }
+    fn ridge(&self) -> f64 {
+        RIDGE
+    }
+    fn settings(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
+
+#[derive(Debug, Clone)]
+struct PlayState(PlayOperator);
+
+impl TermState for PlayState {
+    fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
+        self.0.peek_into(seek.features.target, out);
+    }
+    fn update(&mut self, seek: &Seek<'_>, _residual: Option<f64>) {
+        self.0.step(seek.features.target);
+    }
+    fn clone_box(&self) -> Box<dyn TermState> {
+        Box::new(self.clone())
+    }
+}
+
+/// Parses `play` / `play:N` (N from 1 to 256; default [`DEFAULT_ELEMENTS`]).
+pub fn parse(
+    t: &crate::model::registry::TermText<'_>,
+) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+    Ok(Arc::new(PlaySpec {
+        elements: t
+            .arg
+            .map(|a| t.count(a, "the number of play elements", 256))
+            .transpose()?
+            .unwrap_or(DEFAULT_ELEMENTS),
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Slow, obvious reference of one stop operator: the play output follows the input only
+    /// once the input has moved more than r away from it.
+    fn reference_stop(xs: &[f64], r: f64) -> Vec<f64> {
+        let mut out = Vec::new();
+        let mut z = xs[0];
+        for &x in xs {
+            if x - z > r {
+                z = x - r;
+            } else if z - x > r {
+                z = x + r;
+            }
+            out.push((x - z) / r);
+        }
+        out
+    }
+
+    #[test]
+    fn operator_matches_the_textbook_stop_operator_and_peek_matches_step() {
+        let mut rng = crate::numeric::rng::SimRng::new(3);
+        let xs: Vec<f64> = (0..500).map(|_| 10.0 * rng.normal()).collect();
+        let r = [0.3, 2.0, 7.5];
+        let refs: Vec<Vec<f64>> = r.iter().map(|&ri| reference_stop(&xs, ri)).collect();
+        let mut op = PlayOperator::new(&r);
+        let mut fused = PlayOperator::new(&r);
+        let w = [1.0, -2.0, 0.5];
+        let mut out = [0.0; 3];
+        for (k, &x) in xs.iter().enumerate() {
+            op.peek_into(x, &mut out);
+            op.step(x);
+            let mut after = [0.0; 3];
+            op.peek_into(x, &mut after);
+            let f = fused.step_weighted(x, &w);
+            for i in 0..3 {
+                assert!((after[i] - refs[i][k]).abs() < 1e-12, "k {k} i {i}");
+                if k > 0 {
+                    assert!((out[i] - refs[i][k]).abs() < 1e-12);
+                }
+            }
+            let want: f64 = (0..3).map(|i| w[i] * refs[i][k]).sum();
+            assert!((f - want).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn thresholds_scale_with_the_position_unit() {
+        // Reference: quantiles are equivariant, so thresholds scale exactly with the amplitudes.
+        let amps: Vec<f64> = (1..=100).map(f64::from).collect();
+        let a = thresholds(&amps, 6).unwrap();
+        let scaled: Vec<f64> = amps.iter().map(|v| v * 1e-6).collect();
+        let b = thresholds(&scaled, 6).unwrap();
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x * 1e-6 - y).abs() <= 1e-12 * y.abs());
+        }
+        assert!(a.windows(2).all(|w| w[0] < w[1]));
+        assert!(thresholds(&[5.0], 4).is_none());
+    }
+}
