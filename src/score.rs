@@ -387,8 +387,8 @@ pub fn mean_warning(s: &Score, figure: &str) -> Option<String> {
 /// A model's score on a log, honest about adaptive terms: the one-step figure (adaptive terms such
 /// as `drift` see every measured bias) flattened into the top level as before, and, for a model
 /// with an adaptive term, the free-run figure beside it. JSON: the [`Score`] keys, plus
-/// `figure` (`"one-step"`), `free_run` (a [`Score`] or `null`), `free_run_feedback` (its label)
-/// and `warnings`.
+/// `figure` (`"one-step"`), `free_run` (a [`Score`]) and `free_run_feedback` (its label), both left
+/// out for a model with no adaptive term (the JSON never holds `null`), and `warnings`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ModelScore {
     /// The one-step score (every measured bias shown to the adaptive terms).
@@ -397,9 +397,13 @@ pub struct ModelScore {
     /// Which figure the top-level keys are: always `one-step`.
     pub figure: String,
     /// The free-run score (adaptive terms see the measured bias as `free_run_feedback` says);
-    /// `null` when the model has no adaptive term (then both figures are the same).
+    /// `None` (left out of the JSON) when the model has no adaptive term (then both figures
+    /// are the same).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub free_run: Option<Score>,
-    /// Label of the free run's feedback (`free run`, `free run, measured bias every N rows`).
+    /// Label of the free run's feedback (`free run`, `free run, measured bias every N rows`);
+    /// left out of the JSON with `free_run`.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub free_run_feedback: Option<String>,
     /// Warnings: a mean error large against the std, a one-step figure much better than the
     /// free run, and the model's own fit warnings (prefixed `fit: `).

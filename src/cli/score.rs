@@ -11,7 +11,7 @@ pub struct Args {
     input: ModelLogArgs,
     /// Print JSON (keys n, mean, std, rms, median_abs, percentiles, histogram, bimodality, dip
     /// {statistic, p_value, modal_interval, n}, bimodal (the dip test's p < 0.05), trend, units
-    /// {bias, position}: the one-step figure; plus figure, free_run (the same keys, or null
+    /// {bias, position}: the one-step figure; plus figure, free_run (the same keys; left out
     /// without an adaptive term), free_run_feedback and warnings).
     #[arg(long)]
     json: bool,

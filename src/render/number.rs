@@ -128,7 +128,7 @@ mod tests {
             2.5e-300,
             1e-5,
             1e-4,
-            9.999999999999999e15,
+            f64::from_bits(1e16_f64.to_bits() - 1), // the largest double below 1e16
         ];
         let mut rng = SimRng::new(16);
         for _ in 0..100_000 {
