@@ -776,7 +776,7 @@ fn coinciding(r: &SettleResponses) -> Vec<Option<usize>> {
 
 /// Fig. 16: e(k) for each start-value choice with the ±δ window as a band; left the whole
 /// response, right zoomed to ±5δ around the window. A response that lies on top of an earlier
-/// one ([`coinciding`]) is drawn with a dash pattern over it, and its legend entry says which
+/// one (see `coinciding`) is drawn with a dash pattern over it, and its legend entry says which
 /// one it coincides with.
 pub fn fig16_responses(r: &SettleResponses) -> String {
     let on_top = coinciding(r);
