@@ -139,10 +139,10 @@ fn emps_diagnose_points_at_acceleration_and_velocity() {
     assert!(stds[0] < 15.0 && stds[1] < 8.0, "{stds:?}");
 }
 
-/// `score --json` of `model` on the real log `data` (track column `track`, bias `force_N`):
-/// the test error's (mean, std).
-fn test_error(model: &str, data: &str, track: &str) -> (f64, f64) {
-    let v: serde_json::Value = serde_json::from_str(&ok(&[
+/// `score --json` of `model` on the real log `data` (track column `track`, bias `force_N`),
+/// parsed.
+fn score_json(model: &str, data: &str, track: &str) -> serde_json::Value {
+    serde_json::from_str(&ok(&[
         "score",
         "--model",
         model,
@@ -154,7 +154,12 @@ fn test_error(model: &str, data: &str, track: &str) -> (f64, f64) {
         "force_N",
         "--json",
     ]))
-    .unwrap();
+    .unwrap()
+}
+
+/// The test error's (mean, std) of `model` on the real log `data` (see [`score_json`]).
+fn test_error(model: &str, data: &str, track: &str) -> (f64, f64) {
+    let v = score_json(model, data, track);
     (v["mean"].as_f64().unwrap(), v["std"].as_f64().unwrap())
 }
 
@@ -258,19 +263,7 @@ fn fit_and_score(train: &str, test: &str, track: &str, terms: &str) -> serde_jso
         "--model"
     };
     fit(train, track, &[flag, terms], &model);
-    let args = [
-        "score",
-        "--model",
-        &model,
-        "--data",
-        test,
-        "--track-col",
-        track,
-        "--bias-col",
-        "force_N",
-        "--json",
-    ];
-    serde_json::from_str(&ok(&args)).unwrap()
+    score_json(&model, test, track)
 }
 
 /// Issue #11: every preset and `play:N` fits the real logs without an offset on the test log:
