@@ -83,18 +83,24 @@ impl<'a> Out<'a> {
     fn note(&mut self, name: &str, what: &str) {
         self.files.push((self.dir.join(name), what.to_string()));
     }
-    /// Writes the page, moves every staged file into `dir` ([`StagedDir::commit`]) and returns
-    /// the outcome.
+    /// The last step of both reports: builds the page with `page` (which records its notes),
+    /// adds the files section, writes the page, moves every staged file into `dir`
+    /// ([`StagedDir::commit`]) and returns the outcome.
     fn finish(
         mut self,
-        r: &Report,
+        steps: &mut Steps<'_>,
+        page: impl FnOnce(&mut Notes) -> Report,
         summary: Vec<String>,
-        notes: Notes,
     ) -> Result<StoryOutcome, StoryError> {
+        steps.start("assembling the report");
+        let mut notes = Notes::default();
+        let mut r = page(&mut notes);
+        files::files(&mut r, &self.files);
         r.write(&self.path("report.html"))?;
         if let Some(s) = self.staged.take() {
             s.commit()?;
         }
+        steps.finish();
         Ok(StoryOutcome {
             report: self.dir.join("report.html"),
             files: self.files.into_iter().map(|f| f.0).collect(),
@@ -201,14 +207,8 @@ pub fn demo_report(
         "worst-case settle with each model's test error std as Δb",
     )?;
 
-    steps.start("assembling the report");
-    let mut notes = Notes::default();
-    let mut r = demo_page(&run, &mut notes);
-    files::files(&mut r, &out.files);
     let summary = demo_summary(&run);
-    let outcome = out.finish(&r, summary, notes)?;
-    steps.finish();
-    Ok(outcome)
+    out.finish(&mut steps, |notes| demo_page(&run, notes), summary)
 }
 
 /// The demo's page (without the files section) from its run.
@@ -479,14 +479,8 @@ pub fn data_report(
             "discover's verified edits, first half → second half",
         )?;
     }
-    steps.start("assembling the report");
-    let mut notes = Notes::default();
-    let mut r = data_page(&run, &mut notes);
-    files::files(&mut r, &out.files);
     let summary = data_summary(&run);
-    let outcome = out.finish(&r, summary, notes)?;
-    steps.finish();
-    Ok(outcome)
+    out.finish(&mut steps, |notes| data_page(&run, notes), summary)
 }
 
 /// The data report's page (without the files section) from its run.
