@@ -1,6 +1,9 @@
 //! `play:32` (Prandtl–Ishlinskii / Maxwell-slip, 32 elements): fitting on 1,000,000 rows of a
 //! dense hysteretic log (goal < 2 s), and prediction throughput of the allocation-free
-//! `PlayPredictor` with the fitted thresholds and weights (goal ≥ 20 M steps/s).
+//! `PlayPredictor` with the fitted thresholds and weights (goal ≥ 20 M steps/s): one `step` per
+//! row, `step_many` over the whole log, and the arithmetic before the vectorisation
+//! (`reference_clamp_1M_steps`: `f64::clamp` per element, a left-to-right sum) for the ratio.
+//! `BIASCTL_BENCH_CPU=1` measures the thread's CPU time instead of wall time.
 //!
 //! The log: a smooth random trajectory (sum of slowly varying sinusoids with random reversal
 //! amplitudes, 1 kHz) through a 3-element stop-operator hysteresis plus a line and noise.
@@ -10,7 +13,11 @@ use biasctl::log::{ColumnMap, Log};
 use biasctl::model::ModelSpec;
 use biasctl::model::terms::play::{PlayPredictor, PlayTerm};
 use biasctl::numeric::rng::SimRng;
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+#[path = "common/cputime.rs"]
+mod cputime;
+
+use criterion::measurement::Measurement;
+use criterion::{Criterion, Throughput};
 use std::hint::black_box;
 
 const N: usize = 1_000_000;
@@ -48,7 +55,7 @@ fn log(xs: &[f64]) -> Log {
     Log::from_reader("bench.csv", text.as_bytes(), &ColumnMap::default()).expect("valid log")
 }
 
-fn bench(c: &mut Criterion) {
+fn bench<M: Measurement>(c: &mut Criterion<M>) {
     let xs = positions();
     let data = log(&xs);
     let spec = ModelSpec::parse("poly2,play:32").expect("valid spec");
@@ -64,7 +71,8 @@ fn bench(c: &mut Criterion) {
         .find(|t| t.term.name() == "play:32")
         .expect("play term");
     let settings: PlayTerm = serde_json::from_value(t.term.settings()).expect("play settings");
-    let mut p = PlayPredictor::new(&settings.thresholds, &t.coefficients, 0.0).expect("valid");
+    let (r, w) = (&settings.thresholds, &t.coefficients);
+    let mut p = PlayPredictor::new(r, w, 0.0).expect("valid");
     g.throughput(Throughput::Elements(N as u64));
     g.bench_function("predictor_play32_1M_steps", |b| {
         b.iter(|| {
@@ -75,8 +83,33 @@ fn bench(c: &mut Criterion) {
             black_box(acc)
         })
     });
+    let mut out = Vec::with_capacity(N);
+    g.bench_function("step_many_play32_1M_steps", |b| {
+        b.iter(|| {
+            let mut p = PlayPredictor::new(r, w, 0.0).expect("valid");
+            out.clear();
+            p.step_many(black_box(&xs), &mut out);
+            black_box(&out);
+        })
+    });
+    g.bench_function("reference_clamp_1M_steps", |b| {
+        // `PlayOperator::step_weighted` before the vectorisation.
+        let ir: Vec<f64> = r.iter().map(|v| 1.0 / v).collect();
+        let mut z = vec![xs[0]; r.len()];
+        b.iter(|| {
+            let mut acc = 0.0;
+            for &x in black_box(&xs) {
+                let mut s = 0.0;
+                for (((z, &r), &ir), &wi) in z.iter_mut().zip(r).zip(&ir).zip(w) {
+                    *z = z.clamp(x - r, x + r);
+                    s += wi * (x - *z) * ir;
+                }
+                acc += s;
+            }
+            black_box(acc)
+        })
+    });
     g.finish();
 }
 
-criterion_group!(benches, bench);
-criterion_main!(benches);
+bench_main!(bench);

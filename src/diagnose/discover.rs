@@ -7,6 +7,17 @@
 //! edit with the largest verified gain. The error reported before and after each step is the
 //! test log's causal error std when a test log is given, else the out-of-sample (fold) std of
 //! the verification.
+//!
+//! **Honest scores with adaptive terms** (issue #11): a model with an adaptive term (`drift`)
+//! re-learns its offset from the measured bias, so its one-step error flatters it on a dense log.
+//! For every rung where the model before or after has an adaptive term, discover also measures
+//! the **free-run** error std (the adaptive terms never see the measured bias) on the test log,
+//! or in sample on the training log without one, reports it beside the one-step figure
+//! (`free_run_std_before`/`free_run_std_after`, labelled by `figure` and `free_run_basis`), and
+//! applies an edit only if it does not make the free-run error worse: a verified edit whose gain
+//! is one-step only is passed over (named in the step's reason) for the next verified one, and
+//! when none is left the loop stops saying so. Why it stopped always quotes the final model's
+//! free-run figure beside its one-step one when the model is adaptive.
 
 use std::fmt;
 
@@ -16,7 +27,7 @@ use super::model::{ModelDiagnosisError, diagnose_model, replay_model};
 use super::{CheckedDiagnoseConfig, CheckedVerifyConfig, candidates, verify};
 use crate::fit::{FitError, fit};
 use crate::log::Log;
-use crate::model::{FittedModel, ModelSpec};
+use crate::model::{Feedback, FittedModel, ModelSpec};
 
 /// Settings of [`discover`].
 #[derive(Debug, Clone, PartialEq)]
@@ -109,11 +120,22 @@ pub struct DiscoverStep {
     pub std_after: f64,
     /// The model's terms after the edit.
     pub terms: String,
+    /// Free-run error std before the edit (bias unit; on [`Discovery::free_run_basis`]), when
+    /// the model before or after it has an adaptive term; left out of the JSON otherwise (then
+    /// the one-step figures are the free-run ones).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub free_run_std_before: Option<f64>,
+    /// Free-run error std after the edit (same basis), with `free_run_std_before`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub free_run_std_after: Option<f64>,
 }
 
 /// What [`discover`] did: the ladder, the final terms and why it stopped. Serialises to
-/// `{"steps": [{"edit", "feature", "reason", "std_before", "std_after", "terms"}, …],
-/// "final_terms": […], "stopped_because": "…", "basis": "…", "unit": "…"}`.
+/// `{"steps": [{"edit", "feature", "reason", "std_before", "std_after", "terms",
+/// "free_run_std_before"?, "free_run_std_after"?}, …], "final_terms": […], "stopped_because":
+/// "…", "basis": "…", "unit": "…", "start_std", "figure": "one-step", "free_run_basis"?,
+/// "start_free_run_std"?, "final_std"?, "final_free_run_std"?}` (`?`: only where an adaptive
+/// term makes the free run differ from the one-step figure; never `null`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Discovery {
     /// The edits applied, in order.
@@ -128,6 +150,22 @@ pub struct Discovery {
     pub unit: String,
     /// Error std of the starting model (same basis).
     pub start_std: f64,
+    /// Which figure `start_std`, `std_before` and `std_after` are: always `one-step` (adaptive
+    /// terms see every measured bias).
+    pub figure: String,
+    /// What the free-run figures are measured on (`test log …`, or `training log …, in
+    /// sample`), when any rung has an adaptive term.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub free_run_basis: Option<String>,
+    /// Free-run error std of the starting model, when it has an adaptive term.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_free_run_std: Option<f64>,
+    /// One-step error std of the final model on `free_run_basis`, when it has an adaptive term.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub final_std: Option<f64>,
+    /// Free-run error std of the final model on `free_run_basis`, when it has an adaptive term.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub final_free_run_std: Option<f64>,
 }
 
 impl Discovery {
@@ -142,25 +180,68 @@ impl fmt::Display for Discovery {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "discover: error std on {} ({}), starting at {:.4}",
-            self.basis, self.unit, self.start_std
+            "discover: {} error std on {} ({}), starting at {:.4}",
+            self.figure, self.basis, self.unit, self.start_std
         )?;
+        if let (Some(b), Some(v)) = (&self.free_run_basis, self.start_free_run_std) {
+            writeln!(f, "  free-run error std on {b}: starting at {v:.4}")?;
+        }
         for (i, s) in self.steps.iter().enumerate() {
-            writeln!(
+            write!(
                 f,
-                "  {}. {} ({}): {:.4} → {:.4} {}",
+                "  {}. {} ({}): {} {:.4} → {:.4} {}",
                 i + 1,
                 s.edit,
                 s.feature,
+                self.figure,
                 s.std_before,
                 s.std_after,
                 self.unit
             )?;
+            if let (Some(a), Some(b)) = (s.free_run_std_before, s.free_run_std_after) {
+                write!(f, "; free run {a:.4} → {b:.4} {}", self.unit)?;
+            }
+            writeln!(f)?;
             writeln!(f, "     why: {}", s.reason)?;
         }
         writeln!(f, "final terms: {}", self.final_terms.join(","))?;
         writeln!(f, "stopped because {}", self.stopped_because)
     }
+}
+
+/// The one-step and free-run error std of `m` on `log` (`None` for the free run of a model with
+/// no adaptive term: both figures are the same then).
+fn honest_stds(m: &FittedModel, log: &Log) -> Result<(f64, Option<f64>), ModelDiagnosisError> {
+    let replay = |feedback| {
+        m.predict_log_with(log, feedback)
+            .map_err(|source| ModelDiagnosisError::Replay {
+                file: log.schema.file.clone(),
+                source,
+            })
+            .map(|p| crate::numeric::stats::std_dev(&p.residual).unwrap_or(0.0))
+    };
+    let one = replay(Feedback::EveryRow)?;
+    Ok((
+        one,
+        if m.adaptive() {
+            Some(replay(Feedback::Never)?)
+        } else {
+            None
+        },
+    ))
+}
+
+/// The free-run std of a model whose [`honest_stds`] are `s` (its one-step std if it has no
+/// adaptive term).
+fn free_or_one(s: (f64, Option<f64>)) -> f64 {
+    s.1.unwrap_or(s.0)
+}
+
+/// Whether an edit from a model with one-step/free-run stds `before` to one with `after` gains on
+/// the one-step figure only: a model on either side has an adaptive term (`adaptive`) and the
+/// free-run error (the one-step one for a model with no adaptive term) grows.
+fn one_step_only(adaptive: bool, before: (f64, Option<f64>), after: (f64, Option<f64>)) -> bool {
+    adaptive && free_or_one(after) > free_or_one(before)
 }
 
 /// Runs the loop on `train` from `start` (see the module docs); `test`, if given, scores every
@@ -186,6 +267,12 @@ pub fn discover(
             None => Ok(None),
         }
     };
+    // Where the free-run figures are measured: the test log, else the training log in sample.
+    let honest_log = test.unwrap_or(train);
+    let free_run_basis = match test {
+        Some(t) => format!("test log {}", t.schema.file),
+        None => format!("training log {}, in sample", train.schema.file),
+    };
     let basis = match test {
         Some(t) => format!("test log {}", t.schema.file),
         None => format!(
@@ -200,8 +287,15 @@ pub fn discover(
         basis,
         unit: train.schema.units.bias.clone(),
         start_std: 0.0,
+        figure: Feedback::EveryRow.label(),
+        free_run_basis: None,
+        start_free_run_std: None,
+        final_std: None,
+        final_free_run_std: None,
     };
     let mut current_test = test_std(&model)?;
+    let mut current_honest = honest_stds(&model, honest_log)?;
+    out.start_free_run_std = current_honest.1;
     let mut first = true;
     for step in 0..=config.max_steps {
         let d = diagnose_model(&model, train, &config.diagnose)?;
@@ -253,22 +347,66 @@ pub fn discover(
             );
             break;
         }
-        let Some(edit) = best.model_edit.clone() else {
+        // The verified edits in order of gain; with an adaptive term on either side, the first
+        // whose free-run error is no worse than the current model's is taken.
+        let mut passed_over: Vec<String> = Vec::new();
+        let mut chosen = None;
+        for e in v.edits.iter().filter(|e| e.verified) {
+            let Some(edit) = e.model_edit.clone() else {
+                continue;
+            };
+            let next_spec = spec
+                .apply(&edit)
+                .map_err(|source| ModelDiagnosisError::Spec {
+                    step: step + 1,
+                    terms: e.terms.clone(),
+                    source,
+                })?;
+            let next = fit(&next_spec, train, opts).map_err(|source| ModelDiagnosisError::Fit {
+                step: step + 1,
+                terms: e.terms.clone(),
+                file: train.schema.file.clone(),
+                source: Box::new(source),
+            })?;
+            let next_honest = honest_stds(&next, honest_log)?;
+            let adaptive = model.adaptive() || next.adaptive();
+            let (before, after) = (free_or_one(current_honest), free_or_one(next_honest));
+            if one_step_only(adaptive, current_honest, next_honest) {
+                passed_over.push(format!(
+                    "`{}` ({} {} → {} {} one-step, but free run {} → {} {})",
+                    e.edit,
+                    crate::log::fmt_trimmed(current_honest.0, 4),
+                    out.unit,
+                    crate::log::fmt_trimmed(next_honest.0, 4),
+                    out.unit,
+                    crate::log::fmt_trimmed(before, 4),
+                    crate::log::fmt_trimmed(after, 4),
+                    out.unit
+                ));
+                continue;
+            }
+            chosen = Some((e.clone(), next_spec, next, next_honest, adaptive));
+            break;
+        }
+        let passed = if passed_over.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; passed over, their gain being one-step only (on {free_run_basis}): {}",
+                passed_over.join(", ")
+            )
+        };
+        let Some((best, next_spec, next, next_honest, adaptive)) = chosen else {
+            out.stopped_because = if passed_over.is_empty() {
+                "no verified edit could be applied".to_string()
+            } else {
+                format!(
+                    "every verified edit gains on the one-step figure only: in free run it \
+                     makes the error worse{passed}"
+                )
+            };
             break;
         };
-        let next_spec = spec
-            .apply(&edit)
-            .map_err(|source| ModelDiagnosisError::Spec {
-                step: step + 1,
-                terms: best.terms.clone(),
-                source,
-            })?;
-        let next = fit(&next_spec, train, opts).map_err(|source| ModelDiagnosisError::Fit {
-            step: step + 1,
-            terms: best.terms.clone(),
-            file: train.schema.file.clone(),
-            source: Box::new(source),
-        })?;
         let next_test = test_std(&next)?;
         let shape = d
             .feature(&best.feature)
@@ -281,23 +419,192 @@ pub fn discover(
                 )
             })
             .unwrap_or_default();
+        if adaptive {
+            out.free_run_basis = Some(free_run_basis.clone());
+        }
         out.steps.push(DiscoverStep {
             edit: best.edit.clone(),
             feature: best.feature.clone(),
             reason: format!(
                 "{shape}refitted, the edit gains {:.1} % of the error variance on held-out \
-                 seeks (z = {:.1})",
+                 seeks (z = {:.1}){passed}",
                 100.0 * best.gain,
                 best.z
             ),
             std_before: current_test.unwrap_or(best.std_before),
             std_after: next_test.unwrap_or(best.std_after),
             terms: next_spec.to_string(),
+            free_run_std_before: adaptive.then(|| free_or_one(current_honest)),
+            free_run_std_after: adaptive.then(|| free_or_one(next_honest)),
         });
         spec = next_spec;
         model = next;
         current_test = next_test;
+        current_honest = next_honest;
+    }
+    if let Some(free) = current_honest.1 {
+        out.free_run_basis = Some(free_run_basis.clone());
+        out.final_std = Some(current_honest.0);
+        out.final_free_run_std = Some(free);
+        out.stopped_because = format!(
+            "{}; the final model has an adaptive term: on {free_run_basis} its error std is {} {} \
+             one-step but {} {} in free run (from the positions alone)",
+            out.stopped_because,
+            crate::log::fmt_trimmed(current_honest.0, 4),
+            out.unit,
+            crate::log::fmt_trimmed(free, 4),
+            out.unit
+        );
+    }
+    if out.start_free_run_std.is_some() {
+        out.free_run_basis = Some(free_run_basis);
     }
     out.final_terms = spec.terms.iter().map(|t| t.name()).collect();
     Ok((out, model))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_edit_that_only_helps_one_step_is_passed_over() {
+        // Reference: the rule in words (module docs). Adaptive: the free run decides, never the
+        // one-step figure; no adaptive term: both figures are one and the edit is not judged.
+        // drift added: one-step 3 → 1, but free run 5 → 6: one-step only.
+        assert!(one_step_only(true, (5.0, None), (1.0, Some(6.0))));
+        // drift kept: one-step worse but free run better: taken.
+        assert!(!one_step_only(true, (1.0, Some(6.0)), (2.0, Some(4.0))));
+        // equal free run: not worse, taken.
+        assert!(!one_step_only(true, (1.0, Some(4.0)), (0.5, Some(4.0))));
+        // drift removed: free run 6 → one-step 5 of the new model (its free run): taken.
+        assert!(!one_step_only(true, (1.0, Some(6.0)), (5.0, None)));
+        assert!(one_step_only(true, (1.0, Some(4.0)), (5.0, None)));
+        // No adaptive term: never passed over here (verification already judged it).
+        assert!(!one_step_only(false, (1.0, None), (2.0, None)));
+    }
+
+    /// A seek log whose bias = 20 + 0.8·(temp − 40) + a slow random walk (steps of `walk` sd)
+    /// + noise.
+    fn walk_log(seed: u64, walk_sd: f64) -> Log {
+        let mut rng = crate::numeric::rng::SimRng::new(seed);
+        let mut text = String::from("time_s,track,bias,temp_c\n");
+        let mut walk = 0.0;
+        for i in 0..1500 {
+            let pos = rng.below(300) as f64;
+            let temp = 40.0 + 5.0 * rng.normal();
+            walk += walk_sd * rng.normal();
+            let bias = 20.0 + 0.8 * (temp - 40.0) + walk + rng.normal();
+            text.push_str(&format!("{},{pos},{bias:.4},{temp:.4}\n", 0.3 * i as f64));
+        }
+        Log::from_reader(
+            "walk.csv",
+            text.as_bytes(),
+            &crate::log::ColumnMap::default(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn discover_reports_the_free_run_beside_the_one_step_figure() {
+        // Reference: a direct replay of the final model on the test log, one-step and free run
+        // (`predict_log_with`), and each step's free-run figures chained (after of one = before
+        // of the next). The issue #10 keys stay; the free-run keys appear because `drift` is in.
+        let (train, test) = (walk_log(41, 0.05), walk_log(42, 0.05));
+        let (d, model) = discover(
+            &ModelSpec::parse("poly2,drift").unwrap(),
+            &train,
+            Some(&test),
+            &CheckedDiscoverConfig::default(),
+        )
+        .unwrap();
+        let text = d.to_string();
+        assert!(model.adaptive(), "{text}");
+        let std_of = |f| {
+            crate::numeric::stats::std_dev(&model.predict_log_with(&test, f).unwrap().residual)
+                .unwrap()
+        };
+        let (one, free) = (std_of(Feedback::EveryRow), std_of(Feedback::Never));
+        assert_eq!(d.final_std.map(f64::to_bits), Some(one.to_bits()), "{text}");
+        assert_eq!(
+            d.final_free_run_std.map(f64::to_bits),
+            Some(free.to_bits()),
+            "{text}"
+        );
+        assert_eq!(d.figure, "one-step");
+        assert!(
+            d.free_run_basis
+                .as_deref()
+                .is_some_and(|b| b.contains("walk.csv"))
+        );
+        assert!(d.stopped_because.contains("free run"), "{text}");
+        assert!(d.start_free_run_std.is_some());
+        let mut prev = d.start_free_run_std;
+        for s in &d.steps {
+            assert_eq!(
+                s.free_run_std_before.map(f64::to_bits),
+                prev.map(f64::to_bits),
+                "{text}"
+            );
+            // Never an edit that makes the free run worse.
+            assert!(s.free_run_std_after <= s.free_run_std_before, "{text}");
+            prev = s.free_run_std_after;
+        }
+        let v: serde_json::Value = serde_json::from_str(&d.to_json().unwrap()).unwrap();
+        for key in [
+            "steps",
+            "final_terms",
+            "stopped_because",
+            "figure",
+            "free_run_basis",
+            "start_free_run_std",
+            "final_std",
+            "final_free_run_std",
+        ] {
+            assert!(v.get(key).is_some(), "{key}");
+        }
+        assert!(
+            !d.steps.is_empty(),
+            "the temperature effect must be found: {text}"
+        );
+        for key in [
+            "edit",
+            "feature",
+            "reason",
+            "std_before",
+            "std_after",
+            "free_run_std_before",
+            "free_run_std_after",
+        ] {
+            assert!(v["steps"][0].get(key).is_some(), "{key}");
+        }
+        assert!(text.contains("free run"), "{text}");
+    }
+
+    #[test]
+    fn without_an_adaptive_term_no_free_run_keys_are_written() {
+        // Reference: with no adaptive term the free run is the one-step replay, so the JSON
+        // leaves the free-run keys out (never null) and the text does not mention a free run.
+        let (train, test) = (walk_log(43, 0.0), walk_log(44, 0.0));
+        let config = DiscoverConfig {
+            max_steps: 1,
+            ..DiscoverConfig::default()
+        }
+        .check()
+        .unwrap();
+        let (d, _) = discover(
+            &ModelSpec::parse("poly2").unwrap(),
+            &train,
+            Some(&test),
+            &config,
+        )
+        .unwrap();
+        let v: serde_json::Value = serde_json::from_str(&d.to_json().unwrap()).unwrap();
+        for key in ["free_run_basis", "start_free_run_std", "final_free_run_std"] {
+            assert!(v.get(key).is_none(), "{key}");
+        }
+        for s in v["steps"].as_array().unwrap() {
+            assert!(s.get("free_run_std_after").is_none());
+        }
+    }
 }
