@@ -60,7 +60,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     for w in &model.warnings {
-        outln!("warning: {w}")?;
+        eprintln!("warning: {w}");
     }
     outln!("wrote {}", args.out.display())?;
     Ok(())

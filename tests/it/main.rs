@@ -17,6 +17,7 @@ mod property;
 mod real;
 mod report;
 mod review;
+mod selfcheck;
 mod settle;
 mod sim;
 mod units;

@@ -288,6 +288,7 @@ fn every_preset_and_play_fits_the_real_logs_without_an_offset() {
             "dahl",
             "poly2,dahl:4",
             "poly2,play:16",
+            "poly2,play:32",
         ] {
             let s = fit_and_score(train, test, track, terms);
             let mut figures = vec![("one-step", &s)];
@@ -303,4 +304,43 @@ fn every_preset_and_play_fits_the_real_logs_without_an_offset() {
             }
         }
     }
+}
+
+/// The MR damper of Labcontrol (UTFPR; `data/real/mrdamper`, MIT; see its README): a real
+/// magnetorheological damper at 0 V on a shaking table, 100 Hz, position in mm. The published
+/// model (the repository's `matlab-code/maincode.m`) is a Dahl model, force = Kx·velocity +
+/// Kw·w, dw/dx = ρ·(sign(dx) − w), with Kx = 0.7682 N·s/mm, Kw = 57.42 N, ρ = 27.45 /mm; on the
+/// validation half it leaves a force error of mean −3.63 N, std 12.06 N (computed with the exact
+/// solution of its w equation per sample, README of the folder). biasctl's `viscous` + `dahl`
+/// terms are that model's form: fitted on the estimation half, Kx and Kw come within 10 % of the
+/// published values and the validation error std is below the published model's. The offset of
+/// the log moves between the halves (the published model's own mean error is −8.97 N on the
+/// estimation half and −3.63 N on the validation half, a 5.3 N shift), so a model fitted on the
+/// first half is offset by about that much on the second: |mean| under 5.34 + 1 N. The
+/// `calibration` preset, whose `drift` follows the offset, keeps |free-run mean| under 0.3 × std.
+#[test]
+fn mrdamper_dahl_terms_come_close_to_the_published_model() {
+    let (est, val, _dir, model) = split("mrdamper/mrdamper");
+    fit(
+        &est,
+        "position_mm",
+        &["--terms", "viscous:velocity_mm_s,dahl"],
+        &model,
+    );
+    let kx = param_value(&model, "viscous:velocity_mm_s.b");
+    let kw = param_value(&model, "dahl.Fc");
+    assert!((kx / 0.7682 - 1.0).abs() < 0.10, "Kx {kx}");
+    assert!((kw / 57.42 - 1.0).abs() < 0.10, "Kw {kw}");
+    let (mean, std) = test_error(&model, &val, "position_mm");
+    assert!(std < 12.06, "test error std {std} (published model 12.06)");
+    assert!(mean.abs() < 5.34 + 1.0, "test mean error {mean}");
+    let s = fit_and_score(&est, &val, "position_mm", "calibration");
+    let (m, sd) = (
+        s["free_run"]["mean"].as_f64().unwrap(),
+        s["free_run"]["std"].as_f64().unwrap(),
+    );
+    assert!(
+        m.abs() < 0.3 * sd && sd < 12.06,
+        "calibration free run: mean {m}, std {sd}"
+    );
 }
