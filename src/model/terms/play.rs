@@ -12,8 +12,8 @@
 //! slip force of element `i`, in the bias unit) fitted by the one least-squares solve. One element
 //! with threshold r is a Dahl element whose exponential is replaced by a ramp of length 2r.
 //!
-//! Thresholds: geometric from a quarter of the 5 % quantile to half of the 95 % quantile of the
-//! training log's reversal amplitudes ([`crate::history::reversal_amplitudes`]: the distances
+//! Thresholds: geometric from a quarter of the 5 % quantile (or less, so that they span at least
+//! [`MIN_SPAN`]) to half of the 95 % quantile of the training log's reversal amplitudes ([`crate::history::reversal_amplitudes`]: the distances
 //! between consecutive turning points), so the elements cover the loops the log actually makes
 //! whatever its position unit. Neighbouring elements are strongly collinear, so the weights are
 //! ridge-regularised ([`Term::ridge`], penalty [`RIDGE`] × each column's sum of squares): the
@@ -263,8 +263,14 @@ pub struct PlaySpec {
     pub elements: usize,
 }
 
+/// Least ratio of the largest to the smallest threshold: a log whose reversals all have about
+/// the same amplitude (a damper driven over its full stroke) still gets elements whose loops
+/// close within a small fraction of the stroke, as a Dahl or Bouc–Wen loop does.
+pub const MIN_SPAN: f64 = 100.0;
+
 /// Thresholds for `n` elements from reversal amplitudes `amps` (position unit): geometric from
-/// a quarter of the 5 % quantile to half the 95 % quantile; `None` with fewer than two amplitudes.
+/// a quarter of the 5 % quantile (at most the largest threshold / [`MIN_SPAN`]) to half the 95 %
+/// quantile; `None` with fewer than two amplitudes.
 pub fn thresholds(amps: &[f64], n: usize) -> Option<Vec<f64>> {
     let sorted = crate::numeric::stats::sorted(amps);
     if sorted.len() < 2 || n == 0 {
@@ -272,7 +278,7 @@ pub fn thresholds(amps: &[f64], n: usize) -> Option<Vec<f64>> {
     }
     let q = |p: f64| crate::numeric::stats::percentile_sorted(&sorted, p);
     let hi = 0.5 * q(95.0)?;
-    let lo = (0.25 * q(5.0)?).min(0.5 * hi);
+    let lo = (0.25 * q(5.0)?).min(hi / MIN_SPAN);
     if !(lo > 0.0 && hi.is_finite()) {
         return None;
     }
