@@ -31,7 +31,7 @@ pub use crate::model::data::{FitData, FitError, FitReport};
 /// [`CheckedFitOptions`] that [`fit`] accepts (linfa's `ParamGuard` pattern).
 ///
 /// ```
-/// use biasctl::fit::FitOptions;
+/// use biasctl::FitOptions;
 /// let opts = FitOptions { grid: 48, ..FitOptions::default() }.check().unwrap();
 /// assert_eq!(opts.grid, 48);
 /// assert!(FitOptions { rank_tolerance: f64::NAN, ..FitOptions::default() }.check().is_err());

@@ -11,7 +11,7 @@
 //! so an update costs amortised O(1) whatever the length of the history.
 //!
 //! ```
-//! use biasctl::history::History;
+//! use biasctl::History;
 //! let mut h = History::new();
 //! h.step(0.0, 100.0);          // first row: the head starts at track 100
 //! h.step(1.0, 150.0);          // rest at 100, move inbound to 150
@@ -285,11 +285,6 @@ impl DirectionTracker {
         }
     }
 
-    /// The deadband, position unit.
-    pub fn deadband(&self) -> f64 {
-        self.deadband
-    }
-
     /// The direction so far.
     pub fn direction(&self) -> i8 {
         self.direction
@@ -483,7 +478,7 @@ pub enum DirectionSource {
 #[derive(Debug, Clone, PartialEq, Default)]
 #[non_exhaustive]
 pub enum DirectionSetting {
-    /// The deadband [`estimate_deadband`] picks: 2·√(2 ln n) × the position noise on a dense time
+    /// The deadband [`sampling`] estimates: 2·√(2 ln n) × the position noise on a dense time
     /// series, 0 (raw steps) on a log of seeks.
     #[default]
     Auto,
@@ -538,7 +533,7 @@ impl DirectionSetting {
     }
 
     /// The direction source for the training `log`: `Auto` estimates the deadband from its
-    /// positions ([`estimate_deadband`]); a velocity column must be one of its covariates.
+    /// positions ([`sampling`]); a velocity column must be one of its covariates.
     pub fn resolve(&self, log: &crate::log::Log) -> Result<DirectionSource, DirectionError> {
         self.resolve_with(log, &log_sampling(log))
     }
@@ -693,7 +688,7 @@ pub struct Sampling {
     /// Whether the log is a dense time series (on a regular clock, with the median step below
     /// 1 % of the travel) rather than a log of seeks.
     pub dense: bool,
-    /// The deadband [`estimate_deadband`] chooses: 2·√(2 ln n) × the noise for a dense log of n rows, else 0.
+    /// The deadband [`sampling`] estimates: 2·√(2 ln n) × the noise for a dense log of n rows, else 0.
     pub deadband: f64,
     /// Direction reversals from the raw sign of each step.
     pub raw_reversals: usize,
@@ -764,12 +759,6 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
     }
 }
 
-/// The deadband [`sampling`] estimates for a log: 2·√(2 ln n) × the position noise on a dense time
-/// series, 0 on a log of seeks.
-pub fn estimate_deadband(times_s: &[f64], positions: &[f64]) -> f64 {
-    sampling(times_s, positions).deadband
-}
-
 impl Sampling {
     /// Plain-language lines for `check`, positions in `unit`.
     pub fn describe(&self, unit: &str) -> Vec<String> {
@@ -825,8 +814,8 @@ impl Sampling {
 /// ([`crate::model::data::FitData`]), diagnose, the plots and the report.
 ///
 /// ```
-/// use biasctl::history::replay;
-/// use biasctl::log::{ColumnMap, Log};
+/// use biasctl::replay;
+/// use biasctl::{ColumnMap, Log};
 /// let text = "time_s,track,bias\n0,100,5\n1,150,\n2,120,3\n";
 /// let log = Log::from_reader("t.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
 /// let seeks: Vec<f64> = replay(&log).map(|(_, _, f)| f.seek_length).collect();

@@ -8,7 +8,7 @@
 //! ```
 //! let e = [1.0, -1.0, 0.5, -0.5, 0.0, 0.25];
 //! let x = [10.0, 20.0, 30.0, 40.0, 50.0, 60.0];
-//! let s = biasctl::score::score(&e, &x).unwrap();
+//! let s = biasctl::score(&e, &x).unwrap();
 //! assert_eq!(s.n, 6);
 //! assert!((s.mean - 0.041666).abs() < 1e-5);
 //! ```

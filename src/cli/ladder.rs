@@ -2,7 +2,7 @@
 
 use super::common::{ColumnArgs, DirectionArgs};
 use anyhow::Context;
-use biasctl::diagnose::{ladder_fit, ladder_terms};
+use biasctl::{ladder_fit, ladder_terms};
 use std::path::PathBuf;
 
 /// Flags of `biasctl ladder`.

@@ -3,15 +3,15 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::{Context, bail};
-use biasctl::control::settle::analyse;
-use biasctl::diagnose::{
+use biasctl::Log;
+use biasctl::analyse;
+use biasctl::write_string_atomic;
+use biasctl::{
     DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, ladder_terms, replay_model,
 };
-use biasctl::fit::{FitOptions, fit};
-use biasctl::log::Log;
-use biasctl::model::{FittedModel, ModelSpec};
-use biasctl::plot::{from_log, views};
-use biasctl::render::write_string_atomic;
+use biasctl::{FitOptions, fit};
+use biasctl::{FittedModel, ModelSpec};
+use biasctl::{plot::from_log, plot::views};
 use clap::ValueEnum;
 use std::path::{Path, PathBuf};
 
@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(
         long,
         value_name = "T1,T2,...",
-        default_value = biasctl::model::preset::CALIBRATION
+        default_value = biasctl::CALIBRATION
     )]
     terms: String,
     /// Top features of the `diagnose` plot.
@@ -221,7 +221,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_flags(&args)?;
     let svg = draw(&args)?;
     // The last guard before the file: no `NaN`/`inf` coordinate leaves (exit 2, nothing written).
-    biasctl::render::check_text(&svg, &args.out.display().to_string())?;
+    biasctl::check_text(&svg, &args.out.display().to_string())?;
     write_string_atomic(&args.out, &svg)?;
     outln!("wrote {}", args.out.display())?;
     Ok(())

@@ -4,8 +4,8 @@
 use super::common::ColumnArgs;
 use super::progress::Bar;
 use anyhow::Context;
-use biasctl::model::FittedModel;
-use biasctl::report::story::{StoryOptions, StoryOutcome, data_report, demo_report};
+use biasctl::FittedModel;
+use biasctl::{StoryOptions, StoryOutcome, data_report, demo_report};
 use std::path::PathBuf;
 
 /// Largest `--seeks` of `report` and `demo`.
@@ -29,7 +29,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Random seeks of the built-in drive's test and calibration runs.
-    #[arg(long, default_value_t = biasctl::sim::DEFAULT_N, value_name = "N")]
+    #[arg(long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
     pub seeks: u64,
 }
 
@@ -37,7 +37,7 @@ pub struct Args {
 pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
     // The diagnosis of the test run needs its cross-validation's minimum of measured rows; the
     // upper limit keeps the in-memory logs (and the files beside the report) to a few hundred MB.
-    let min = biasctl::diagnose::DiagnoseConfig::default().min_rows() as u64;
+    let min = biasctl::DiagnoseConfig::default().min_rows() as u64;
     if !(min..=MAX_SEEKS).contains(&args.seeks) {
         anyhow::bail!(
             "--seeks {}: give {min} to {MAX_SEEKS} random seeks (the diagnosis of the test run \

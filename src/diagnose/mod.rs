@@ -8,8 +8,8 @@
 //! the model term that addresses it become plain-words advice.
 //!
 //! ```
-//! use biasctl::diagnose::{diagnose, DiagnoseConfig, FeatureTable};
-//! use biasctl::log::{ColumnMap, Log};
+//! use biasctl::{DiagnoseConfig, FeatureTable, diagnose};
+//! use biasctl::{ColumnMap, Log};
 //! // A log whose residual jumps whenever the seek reverses direction.
 //! let mut text = String::from("time_s,track,bias\n");
 //! let mut residuals = Vec::new();
@@ -112,27 +112,25 @@ mod report;
 mod smoother;
 mod verify;
 
-pub use absorbed::{Absorption, FAST_FORGETTING, absorbed, rate_warnings};
-pub use advice::{DAHL_TERM, Shape};
+pub use absorbed::{Absorption, absorbed, rate_warnings};
+pub use advice::Shape;
 pub use discover::{
     CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
 };
-pub use features::{
-    FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION, LAG_MIN_VARIANCE, LAG_POINTS,
-    MEMSUM_FRACTIONS, lagged_column,
-};
+pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
     ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, diagnose_verified,
-    ladder_fit, ladder_terms, model_spec, model_terms, replay_model, suggestion_path,
-    suggestion_path_from,
+    ladder_fit, ladder_terms, model_spec, replay_model, suggestion_path, suggestion_path_from,
 };
 pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 pub use verify::{
-    Candidate, CheckedVerifyConfig, RejectedEdit, Verification, VerifiedEdit, VerifyConfig,
-    candidates, cv_residuals, edit_for, measured_rows, table_spacing, verify,
+    CheckedVerifyConfig, RejectedEdit, Verification, VerifiedEdit, VerifyConfig, candidates,
+    edit_for, table_spacing, verify,
 };
+#[cfg(test)]
+use {absorbed::FAST_FORGETTING, advice::DAHL_TERM};
 
 use crate::history::Feature;
 use crate::numeric::rng::SimRng;

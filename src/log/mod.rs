@@ -31,7 +31,7 @@
 //! [`LogSchema::notes`]; nothing is skipped silently.
 //!
 //! ```
-//! use biasctl::log::{ColumnMap, LogReader};
+//! use biasctl::{ColumnMap, LogReader};
 //! let text = "# seed 1\ntime_s,track,bias,temp_c\n0.0,100,12.5,40\n0.5,120,,40\n1.0,90,-3.25,41\n";
 //! let mut reader = LogReader::from_reader("example.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
 //! assert_eq!(reader.schema().covariates, vec!["temp_c".to_string()]);
@@ -200,7 +200,7 @@ pub const POSITION_UNIT_KEY: &str = "position_unit";
 /// log data. JSON: `{"bias": "N", "position": "m"}`.
 ///
 /// ```
-/// use biasctl::log::{ColumnMap, Log, Units};
+/// use biasctl::{ColumnMap, Log, Units};
 /// let map = ColumnMap { track: "position_m".into(), bias: "force_N".into(), ..ColumnMap::default() };
 /// let log = Log::from_reader("r.csv", "time_s,position_m,force_N\n0,0.1,2\n".as_bytes(), &map).unwrap();
 /// assert_eq!(log.schema.units, Units { bias: "force_N".into(), position: "position_m".into() });

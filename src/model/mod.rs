@@ -2,7 +2,7 @@
 //! and the online [`Predictor`].
 //!
 //! ```
-//! use biasctl::model::ModelSpec;
+//! use biasctl::ModelSpec;
 //! let spec = ModelSpec::parse("poly2,dahl:4,col:temp_c").unwrap();
 //! assert_eq!(spec.to_string(), "poly2,dahl:4,col:temp_c");
 //! assert_eq!(ModelSpec::preset("calibration").unwrap().to_string(), "poly2,direction,seek,memory,drift");
@@ -17,8 +17,8 @@ pub mod term;
 pub mod terms;
 
 pub use predictor::{
-    NextPrediction, Predictor, REST_CAPACITY, ReplayError, ReplaySummary, RowPrediction,
-    StartValues, predict_next, replay_stream, write_predictions_csv,
+    NextPrediction, Predictor, ReplaySummary, RowPrediction, StartValues, predict_next,
+    replay_stream, write_predictions_csv,
 };
 
 use crate::log::Log;
@@ -212,7 +212,7 @@ impl ModelSpec {
 /// [`TermSpec`] objects, never as strings, so a user's own term survives every edit.
 ///
 /// ```
-/// use biasctl::model::{ModelEdit, ModelSpec, terms::parse_term};
+/// use biasctl::{ModelEdit, ModelSpec, terms::parse_term};
 /// let spec = ModelSpec::parse("poly2,direction").unwrap();
 /// let add = ModelEdit::Add(parse_term("col:temp_c").unwrap());
 /// assert_eq!(spec.apply(&add).unwrap().to_string(), "poly2,direction,col:temp_c");
@@ -598,7 +598,7 @@ impl FittedModel {
     /// be far off without any other sign.
     ///
     /// ```
-    /// # use biasctl::{fit::{fit, FitOptions}, log::{ColumnMap, Log}, model::ModelSpec};
+    /// # use biasctl::{ColumnMap, FitOptions, Log, ModelSpec, fit};
     /// let csv = "time_s,track,bias\n0,100,1\n1,200,2\n2,150,1.5\n3,120,1.2\n4,180,1.8\n";
     /// let log = Log::from_reader("a.csv", csv.as_bytes(), &ColumnMap::default()).unwrap();
     /// let model = fit(&ModelSpec::parse("poly2").unwrap(), &log, &FitOptions::default().check().unwrap()).unwrap();

@@ -2,8 +2,8 @@
 //! bias at any candidate next target without changing its state (what a seek scheduler asks).
 //!
 //! ```
-//! # use biasctl::model::{FittedModel, Predictor};
-//! # fn demo(model: &FittedModel) -> Result<(), biasctl::model::ModelError> {
+//! # use biasctl::{FittedModel, Predictor};
+//! # fn demo(model: &FittedModel) -> Result<(), biasctl::ModelError> {
 //! let mut p = Predictor::new(model, &[])?;
 //! p.step(0.0, 100.0, &[], Some(12.0));        // seek to 100, measured 12 counts
 //! let guess = p.peek(0.5, 180.0, &[]);         // what would the bias be at 180?
@@ -163,8 +163,8 @@ impl Predictor {
 /// `z_converged` and `robust.ff`. Allocation-free per call.
 ///
 /// ```
-/// use biasctl::model::StartValues;
-/// use biasctl::control::settle::{SettleSpec, analyse};
+/// use biasctl::StartValues;
+/// use biasctl::{SettleSpec, analyse};
 /// let mut spec = SettleSpec::preset("paper1997").unwrap();
 /// let starts = StartValues::new(&spec.check().unwrap(), 8.0).unwrap();
 /// let z = starts.integrator_start(30.0).unwrap();

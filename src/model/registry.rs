@@ -12,8 +12,7 @@
 //! undetermined columns ([`Term::droppable`]) and its own fit warnings ([`Term::fit_warnings`]).
 //!
 //! ```
-//! use biasctl::model::registry::{BUILTINS, builtin_names};
-//! assert!(BUILTINS.iter().any(|b| b.head == "poly2"));
+//! use biasctl::builtin_names;
 //! assert!(builtin_names().starts_with("poly2, table[:SPACING], direction"));
 //! ```
 

@@ -19,8 +19,8 @@
 //!
 //! ```
 //! use std::sync::Arc;
-//! use biasctl::model::{term::*, ModelSpec, ModelError};
-//! use biasctl::fit::{fit, FitData, FitError, FitOptions};
+//! use biasctl::{ModelError, ModelSpec, Seek, Term, TermSpec, TermState};
+//! use biasctl::{FitData, FitError, FitOptions, fit};
 //!
 //! /// Bias proportional to the square of the seek length (a made-up effect), per track².
 //! #[derive(Debug)]
@@ -53,7 +53,7 @@
 //!     text += &format!("{i},{t},{}\n", 3.0 + 0.01 * s * s);
 //!     prev = *t;
 //! }
-//! let log = biasctl::log::Log::from_reader("x.csv", text.as_bytes(), &Default::default()).unwrap();
+//! let log = biasctl::Log::from_reader("x.csv", text.as_bytes(), &Default::default()).unwrap();
 //! let spec = ModelSpec::parse("").unwrap().with_term(Arc::new(SeekSquared));
 //! let model = fit(&spec, &log, &FitOptions::default().check().unwrap()).unwrap();
 //! let k = model.param("seek_squared.k").unwrap();

@@ -8,7 +8,10 @@
 
 pub mod figures;
 pub mod from_log;
-pub mod svg;
+pub(crate) mod svg;
 pub mod views;
 
-pub use svg::{AxisRange, Chart, ErrorPoint, Panel, Reference, Series, SeriesData};
+pub use svg::{
+    AXIS_PADDING, AxisRange, Chart, ErrorPoint, Layout, PALETTE, Panel, Reference, SCATTER_CELL_PX,
+    Series, SeriesData, fmt_num,
+};

@@ -4,7 +4,7 @@
 //! diagnose and settle types; the `plot` command and the report both draw through it.
 //!
 //! ```
-//! use biasctl::diagnose::{Ladder, LadderStep};
+//! use biasctl::{Ladder, LadderStep};
 //! use biasctl::plot::views;
 //! let l = Ladder { steps: vec![
 //!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0,
@@ -12,7 +12,7 @@
 //!     LadderStep { terms: vec!["poly2".into(), "direction".into()], std: 10.0, reduction: 0.5,
 //!         free_run_std: None, warnings: vec![] },
 //! ] };
-//! let svg = views::ladder(&l, &biasctl::log::Units::default());
+//! let svg = views::ladder(&l, &biasctl::Units::default());
 //! assert!(svg.contains("+ direction") && svg.contains("error std (counts)"));
 //! ```
 

@@ -168,8 +168,9 @@ impl<W: Write> Write for Faulty<W> {
 
 /// Runs `f` with every output written on this thread (files and stdout) failing with the OS
 /// error `errno` (e.g. `libc::ENOSPC`, `libc::EIO`) once `at_byte` bytes have gone into it: the
-/// fault-injection hook of the test suite and `examples/fuzz.rs`.
-pub fn with_write_fault<R>(at_byte: u64, errno: i32, f: impl FnOnce() -> R) -> R {
+/// fault-injection hook of the unit tests.
+#[cfg(test)]
+pub(crate) fn with_write_fault<R>(at_byte: u64, errno: i32, f: impl FnOnce() -> R) -> R {
     let old = FAULT.with(|c| c.replace(Some((at_byte, errno))));
     let out = f();
     FAULT.with(|c| c.set(old));

@@ -23,11 +23,8 @@ pub mod json;
 pub mod number;
 pub mod stdout;
 
-pub use file::{
-    Sink, StagedDir, check_paths, protect_inputs, sweep_stale, with_write_fault, write_atomic,
-    write_string_atomic,
-};
-pub use finite::{NonFinite, check_finite, check_prediction, check_text};
+pub use file::{StagedDir, check_paths, write_atomic, write_string_atomic};
+pub use finite::{NonFinite, check_prediction, check_text};
 pub use stdout::{flush_stdout, is_broken_pipe, write_stdout};
 
 use std::io;

@@ -10,7 +10,7 @@
 //! [`sections`] the demo and the data report share.
 //!
 //! ```
-//! use biasctl::report::{Report, Table};
+//! use biasctl::{Report, Table};
 //! let mut r = Report::new("Bias report");
 //! r.intro("Random seeks over 250 tracks.");
 //! r.section("Headline")

@@ -20,10 +20,7 @@ use crate::plot::svg::fmt_num;
 use crate::plot::views;
 use crate::render::{StagedDir, write_string_atomic};
 
-pub use super::run::{
-    DATA_MODELS, LADDER_TERMS, Progress, STORY_MODELS, StoryError, StoryOptions,
-    positions_are_tracks, relative_to_cwd,
-};
+pub use super::run::{DATA_MODELS, Progress, StoryError, StoryOptions};
 
 /// What a story run wrote.
 #[derive(Debug, Clone, PartialEq)]

@@ -23,7 +23,7 @@
 //! are switched on, and switching an effect on changes only the bias column.
 //!
 //! ```
-//! use biasctl::sim::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
+//! use biasctl::{family::FamilyConfig, family::FamilyDrive, family::HiddenEffect, family::generate};
 //! let cfg = FamilyConfig::new(FamilyDrive::members()[0].clone(), &[HiddenEffect::Lag], 3, 500);
 //! let run = generate(&cfg).unwrap();
 //! assert_eq!(run.log.rows.len(), 500);

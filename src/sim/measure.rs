@@ -247,12 +247,14 @@ impl Servo {
     }
 
     /// The average's sensitivity to a constant bias `b` (1 when the integrator has converged).
-    pub fn bias_gain(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn bias_gain(&self) -> f64 {
         self.avg.b
     }
 
     /// The average's sensitivity to the handoff integrator `z0` (what settling leaves behind).
-    pub fn z0_gain(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn z0_gain(&self) -> f64 {
         self.avg.z0
     }
 

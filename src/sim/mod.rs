@@ -22,7 +22,7 @@
 //! off leaves the others' draws unchanged.
 //!
 //! ```
-//! use biasctl::sim::{simulate_log, SimConfig, SequenceOptions, Drive};
+//! use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
 //! let opts = SequenceOptions { n: Some(500), ..SequenceOptions::default() };
 //! let cfg = SimConfig::new(Drive::paper1997(), "random", &opts, 7, &[]).unwrap();
 //! let log = simulate_log(&cfg).unwrap();
@@ -35,8 +35,8 @@ pub mod family;
 pub mod measure;
 pub mod sequence;
 
-pub use drive::{Drive, DriveError};
-pub use measure::{Handoff, Measured, Servo};
+pub use drive::Drive;
+pub use measure::{Handoff, Servo};
 pub use sequence::{ScriptError, Step};
 
 use crate::field::Field;

@@ -8,11 +8,11 @@
 //! 10 % of the model holding every matching term.
 
 use crate::common::{biasctl, data, fails_with, ok, write};
-use biasctl::diagnose::{DiagnoseConfig, Diagnosis, diagnose_model, ladder_fit};
-use biasctl::fit::{FitOptions, fit};
-use biasctl::log::Log;
-use biasctl::model::ModelSpec;
-use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::Log;
+use biasctl::ModelSpec;
+use biasctl::{DiagnoseConfig, Diagnosis, diagnose_model, ladder_fit};
+use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::{FitOptions, fit};
 
 const OFF: [&str; 6] = [
     "overshoot",
@@ -68,7 +68,7 @@ fn ladder_is_identical_for_any_thread_count() {
         .collect();
     let opts = FitOptions::default().check().unwrap();
     let run = |threads| {
-        biasctl::numeric::parallel::with_threads(threads, || {
+        biasctl::with_threads(threads, || {
             ladder_fit(&train, &test, &terms, &opts).unwrap()
         })
         .unwrap()
@@ -79,8 +79,8 @@ fn ladder_is_identical_for_any_thread_count() {
         assert_eq!(run(threads), one, "{threads} threads");
     }
     assert!(matches!(
-        biasctl::numeric::parallel::with_threads(0, || ()),
-        Err(biasctl::numeric::parallel::ThreadsError::Zero)
+        biasctl::with_threads(0, || ()),
+        Err(biasctl::ThreadsError::Zero)
     ));
 }
 

@@ -4,7 +4,7 @@
 //! flags exit 2; empty or tiny data give a message in the plot.
 
 use crate::common::{biasctl, fails_with, ok, write};
-use biasctl::report::story::{StoryOptions, data_report, demo_report};
+use biasctl::{StoryOptions, data_report, demo_report};
 use roxmltree::{Document, Node};
 use std::path::Path;
 
@@ -216,7 +216,7 @@ fn data_report_covers_a_users_log_and_model_and_survives_tiny_data() {
         "tiny.csv",
         "time_s,track,bias\n0,10,1\n1,20,2\n2,15,1.5\n",
     );
-    let tiny_log = biasctl::log::Log::read(Path::new(&tiny), &Default::default()).unwrap();
+    let tiny_log = biasctl::Log::read(Path::new(&tiny), &Default::default()).unwrap();
     let o = data_report(
         &dir.path().join("tiny"),
         &tiny_log,

@@ -454,7 +454,7 @@ impl TermState for DahlTermState {
 }
 
 /// Parses `dahl` or `dahl:N` (N Dahl elements, 1 to 16); the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(DahlSpec {

@@ -247,7 +247,7 @@ impl TermState for PlayState {
 }
 
 /// Parses `play` / `play:N` (N from 1 to 256; default [`DEFAULT_ELEMENTS`]).
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(PlaySpec {

@@ -22,8 +22,6 @@ pub mod paper;
 pub mod scores;
 pub mod settle;
 
-pub use scores::score_table;
-
 use super::Section;
 use crate::plot::svg::fmt_num;
 
