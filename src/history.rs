@@ -251,7 +251,7 @@ pub struct History {
 /// reversals. With deadband 0 (the default, for seek logs) every move against the direction is a
 /// reversal. The *turning point* is that furthest point; `since_reversal` is the distance from it.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct DirectionTracker {
+pub(crate) struct DirectionTracker {
     deadband: f64,
     direction: i8,
     anchor: Option<f64>,
@@ -261,7 +261,7 @@ pub struct DirectionTracker {
 
 /// What [`DirectionTracker::peek`] says about one move.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DirectionStep {
+pub(crate) struct DirectionStep {
     /// Direction after the move: +1 inbound, −1 outbound, 0 before the first move out of the band.
     pub direction: i8,
     /// Whether the move reversed the direction.
@@ -274,7 +274,7 @@ pub struct DirectionStep {
 
 impl DirectionTracker {
     /// A tracker with `deadband` ≥ 0 in the log's position unit (negative or non-finite counts as 0).
-    pub fn new(deadband: f64) -> Self {
+    pub(crate) fn new(deadband: f64) -> Self {
         Self {
             deadband: if deadband.is_finite() {
                 deadband.max(0.0)
@@ -286,14 +286,14 @@ impl DirectionTracker {
     }
 
     /// The direction so far.
-    pub fn direction(&self) -> i8 {
+    pub(crate) fn direction(&self) -> i8 {
         self.direction
     }
 
     /// The outcome of a move to `target` without changing the tracker; `moved` is the signed
     /// direction the move's own sign suggests when the caller has a better source of it (a
     /// velocity column), `None` to use positions.
-    pub fn peek(&self, target: f64, moved: Option<i8>) -> DirectionStep {
+    pub(crate) fn peek(&self, target: f64, moved: Option<i8>) -> DirectionStep {
         let d = self.deadband;
         let Some(anchor) = self.anchor else {
             return DirectionStep {
@@ -350,7 +350,7 @@ impl DirectionTracker {
     }
 
     /// Records the move `s` returned by [`DirectionTracker::peek`] for `target`.
-    pub fn commit(&mut self, target: f64, s: &DirectionStep) {
+    pub(crate) fn commit(&mut self, target: f64, s: &DirectionStep) {
         if self.anchor.is_none() {
             self.anchor = Some(target);
         }
@@ -366,7 +366,7 @@ impl History {
         Self::default()
     }
 
-    /// A history whose direction has a deadband (position unit; see [`DirectionTracker`]).
+    /// A history whose direction has a deadband (position unit; see `DirectionTracker`).
     pub fn with_deadband(deadband: f64) -> Self {
         Self {
             turns: DirectionTracker::new(deadband),
@@ -459,7 +459,7 @@ pub enum DirectionSource {
     /// From the raw sign of each position step (deadband 0): a log of seeks.
     #[default]
     Steps,
-    /// From position steps with a deadband ([`DirectionTracker`]), position unit, > 0.
+    /// From position steps with a deadband (`DirectionTracker`), position unit, > 0.
     Deadband {
         /// The deadband, position unit.
         deadband: f64,
@@ -637,7 +637,7 @@ impl DirectionSource {
 
 /// Replays a log's seek history with direction read as `source` says; `Err` when a velocity
 /// column is missing.
-pub fn replay_with<'a>(
+pub(crate) fn replay_with<'a>(
     log: &'a crate::log::Log,
     source: &DirectionSource,
 ) -> Result<Replay<'a>, DirectionError> {
@@ -651,7 +651,7 @@ pub fn replay_with<'a>(
 
 /// The turning points of a replayed log, in order: where each direction change began
 /// (`target − direction·since_reversal` of every seek with `direction_change`), position unit.
-pub fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
+pub(crate) fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
     features
         .iter()
         .filter(|f| f.direction_change)
@@ -662,7 +662,7 @@ pub fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
 /// The reversal amplitudes of a replayed log: distances between consecutive turning points
 /// ([`turning_points`]), position unit; the travel a hysteresis loop of the log spans. Empty
 /// with fewer than two reversals.
-pub fn reversal_amplitudes(features: &[SeekFeatures]) -> Vec<f64> {
+pub(crate) fn reversal_amplitudes(features: &[SeekFeatures]) -> Vec<f64> {
     turning_points(features)
         .windows(2)
         .map(|w| (w[1] - w[0]).abs())
@@ -862,7 +862,7 @@ impl<'a> Iterator for Replay<'a> {
 impl ExactSizeIterator for Replay<'_> {}
 
 /// Sign of a seek length as a direction: +1 inbound, −1 outbound, 0 for no move.
-pub fn sign(x: f64) -> i8 {
+pub(crate) fn sign(x: f64) -> i8 {
     if x > 0.0 {
         1
     } else if x < 0.0 {

@@ -19,30 +19,31 @@
 //!
 //! ## The pipeline, one module per step
 //! log → seek history → simulated drive → model terms → fit → score/diagnose → plant/controller →
-//! settle → plots/report.
+//! settle → plots/report. The modules are crate-private (the source's layout, not the API); what
+//! each holds:
 //!
-//! - [`numeric`]: shared numerics below everything: statistics (moments, histogram, bimodality
+//! - `numeric`: shared numerics below everything: statistics (moments, histogram, bimodality
 //!   and dip tests, trend and whiteness tests) and the seeded, portable random generator.
-//! - [`log`]: the measurement log (CSV), streaming reader with column mapping, and the input
-//!   limits ([`log::limits`]) every reader enforces.
-//! - [`history`]: the seek-history state machine: direction, reversals, uncrossed rest positions.
-//! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
-//! - [`model`]: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl,
+//! - `log`: the measurement log (CSV), streaming reader with column mapping, and the input
+//!   limits (`log::limits`) every reader enforces.
+//! - `history`: the seek-history state machine: direction, reversals, uncrossed rest positions.
+//! - `sim`: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
+//! - `model`: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl,
 //!   col, bins), presets, the online predictor.
-//! - [`fit`](mod@fit): one least-squares solve (streaming QR) for all linear parameters, variable
+//! - `fit`: one least-squares solve (streaming QR) for all linear parameters, variable
 //!   projection for the Dahl rate.
-//! - [`score`](mod@score): error statistics of a model on a log: moments, percentiles, histogram,
+//! - `score`: error statistics of a model on a log: moments, percentiles, histogram,
 //!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
-//! - [`diagnose`](mod@diagnose): which missing effect the residual follows: cross-validated
+//! - `diagnose`: which missing effect the residual follows: cross-validated
 //!   smoother per feature, permutation test, advice, ladder.
-//! - [`control`]: plant → controller → settle: continuous plant with modes, ZOH with
-//!   fractional delay, DARE/LQR, and ([`control::settle`]) the settle-optimal integrator start
+//! - `control`: plant → controller → settle: continuous plant with modes, ZOH with
+//!   fractional delay, DARE/LQR, and (`control::settle`) the settle-optimal integrator start
 //!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table.
-//! - [`export`]: the fitted model and the handoff table as C99, checked against the predictor.
-//! - [`render`]: the one output layer: text, JSON and CSV, atomic and safe file writing,
+//! - `export`: the fitted model and the handoff table as C99, checked against the predictor.
+//! - `render`: the one output layer: text, JSON and CSV, atomic and safe file writing,
 //!   finite-only numbers.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
-//! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
+//! - `report`: one self-contained `report.html` (inline SVG and CSS, no script, no network).
 //!
 //! ## Settings: unchecked → checked (linfa's `ParamGuard`)
 //! Every settings type is written freely and checked once, before any numerics, into a checked
@@ -61,11 +62,19 @@
 //! flag: the `biasctl` binary holds the one table field → flag and prints `--step-um` there.
 //!
 //! ## The public API
-//! What a user needs is re-exported here at the top ([`Log`], [`replay`], [`simulate_log`],
-//! [`ModelSpec`], [`FittedModel`], [`Predictor`], [`Term`], [`fit()`], [`score()`],
-//! [`diagnose_model`], [`discover()`], [`analyse`], [`StartValues`], [`c_source`],
-//! [`write_atomic`], …); the modules hold the rest. Internal numerics (the golden-section
-//! search, incomplete beta and gamma functions, the matrix exponential) are crate-private.
+//! Everything a user needs is one `use biasctl::Name` away, re-exported here at the top ([`Log`],
+//! [`replay`], [`simulate_log`], [`ModelSpec`], [`FittedModel`], [`Predictor`], [`Term`],
+//! [`fit()`], [`score()`], [`diagnose_model`], [`discover()`], [`analyse`], [`StartValues`],
+//! [`c_source`], [`write_atomic`], …), together with the types their signatures use (errors,
+//! results, parameters). Three namespaces stay whole because a user needs them as namespaces:
+//! [`plot`] (one builder per figure, and the chart builder), [`terms`] (the built-in terms, for a
+//! user writing their own [`Term`]) and [`family`] (the drive family the diagnosis is measured
+//! on). The modules themselves are crate-private, and so are the internal numerics (statistics
+//! kernels, the golden-section search, incomplete beta and gamma functions, the matrix
+//! exponential, the smoother); the few numerics that are public ([`SimRng`], [`std_dev`],
+//! [`dip_test`], [`set_threads`]) say why. `#![warn(unreachable_pub)]` keeps every `pub` item
+//! reachable from here: a new public item is added to the re-export list at the end of this
+//! file, anything else is `pub(crate)`.
 //!
 //! ## The whole pipeline in one example
 //!
@@ -108,6 +117,7 @@
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
 #![warn(unnameable_types)]
+#![warn(unreachable_pub)]
 
 // Modules in the order a log travels through them; a module imports only modules above it.
 pub(crate) mod field;
@@ -160,7 +170,7 @@ pub use export::{
     C_FILES, CContext, CHandoff, COptions, CPrecision, CSource, CTerm, ExportError, c_source,
 };
 pub use field::Field;
-pub use fit::{CheckedFitOptions, FitData, FitError, FitOptions, fit};
+pub use fit::{CheckedFitOptions, FitData, FitError, FitOptions, FitReport, fit};
 pub use history::{
     DirectionSetting, DirectionSource, Feature, History, SeekFeatures, log_sampling, replay,
     sampling,
@@ -191,7 +201,7 @@ pub use numeric::rng::SimRng;
 pub use numeric::stats::{dip_test, dip_test_sorted, mean, sorted, std_dev};
 pub use render::json::to_string_pretty;
 pub use render::{
-    OutputError, StagedDir, check_paths, check_prediction, check_text, flush_stdout,
+    NonFinite, OutputError, StagedDir, check_paths, check_prediction, check_text, flush_stdout,
     is_broken_pipe, message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
 };
 pub use report::story::{Progress, StoryOptions, StoryOutcome, data_report, demo_report};
@@ -218,11 +228,9 @@ pub use diagnose::{
 pub use history::{DirectionError, Replay, RestMemory, Sampling};
 pub use log::{LogSummary, Row, UnitError};
 pub use model::RangeWarning;
-pub use model::data::FitReport;
 pub use model::predictor::ReplayError;
 pub use numeric::stats::{Dip, DipTest, Histogram, Trend};
 pub use render::file::Sink;
-pub use render::finite::NonFinite;
 pub use report::run::{
     DataRun, DemoRun, DiagnosedRun, PaperRobustWhy, ScoredModel, SettleRun, StoryError,
     compute_data, compute_demo,

@@ -26,9 +26,9 @@
 pub(crate) mod expm;
 /// The matrix exponential's error, part of [`plant::PlantError`].
 pub use expm::ExpmError;
-pub mod lqr;
-pub mod plant;
-pub mod settle;
+pub(crate) mod lqr;
+pub(crate) mod plant;
+pub(crate) mod settle;
 
 use lqr::{DareError, DareOptions, dare};
 use nalgebra::{DMatrix, DVector};

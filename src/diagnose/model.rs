@@ -70,7 +70,7 @@ pub enum ModelDiagnosisError {
 }
 
 /// The term names of a fitted model, as the diagnosis engine's `existing_terms` expects them.
-pub fn model_terms(model: &FittedModel) -> Vec<String> {
+pub(super) fn model_terms(model: &FittedModel) -> Vec<String> {
     model.terms.iter().map(|t| t.term.name()).collect()
 }
 
@@ -79,8 +79,8 @@ pub fn model_terms(model: &FittedModel) -> Vec<String> {
 /// added to `config.existing_terms`, so nothing the model already has is suggested.
 ///
 /// When the model has adaptive terms (`drift`), it also reports what they absorbed
-/// ([`super::absorbed`]) and warns about a forgetting factor much faster than a slow offset
-/// needs ([`super::rate_warnings`]).
+/// (`super::absorbed`) and warns about a forgetting factor much faster than a slow offset
+/// needs (`super::rate_warnings`).
 pub fn diagnose_model(
     model: &FittedModel,
     log: &Log,
@@ -117,7 +117,7 @@ pub fn model_spec(model: &FittedModel) -> Result<ModelSpec, ModelDiagnosisError>
 
 /// [`diagnose_model`], then the leading suggestions — the top flagged features' terms and
 /// what adaptive terms absorbed — applied as typed edits, refitted on `log` and scored out of
-/// sample on folds of consecutive seeks ([`super::verify`]); the result is in
+/// sample on folds of consecutive seeks (`super::verify`); the result is in
 /// [`Diagnosis::verification`], best verified gain first, and leads the summary.
 pub fn diagnose_verified(
     model: &FittedModel,
@@ -183,7 +183,7 @@ pub fn ladder_terms(list: &str) -> Result<Vec<String>, ModelDiagnosisError> {
 
 /// The ladder: for k = 1..=terms.len(), fits the first k terms on `train`, replays on `test`
 /// and records the test error std (counts); reductions are relative to the first step. The
-/// steps run in parallel ([`crate::numeric::parallel`]); the result does not depend on the
+/// steps run in parallel (`crate::numeric::parallel`); the result does not depend on the
 /// thread count.
 pub fn ladder_fit(
     train: &Log,

@@ -9,11 +9,11 @@
 //! assert!(ModelSpec::parse("poly2,frobnicate").is_err());
 //! ```
 
-pub mod data;
-pub mod predictor;
-pub mod preset;
-pub mod registry;
-pub mod term;
+pub(crate) mod data;
+pub(crate) mod predictor;
+pub(crate) mod preset;
+pub(crate) mod registry;
+pub(crate) mod term;
 pub mod terms;
 
 pub use predictor::{
@@ -31,9 +31,9 @@ use std::sync::Arc;
 use term::{Param, Term, TermSpec};
 
 /// Format name written into every model file.
-pub const FORMAT: &str = "biasctl-model";
+pub(crate) const FORMAT: &str = "biasctl-model";
 /// Version of the model file layout this build reads and writes.
-pub const FORMAT_VERSION: u32 = 1;
+pub(crate) const FORMAT_VERSION: u32 = 1;
 
 /// An error in a model spec string (`--terms`, `--model`); nothing has been read or fitted.
 #[derive(Debug, thiserror::Error)]
@@ -186,7 +186,7 @@ impl ModelSpec {
         Ok(spec)
     }
 
-    /// A named preset: `position-direction`, `calibration` or `dahl` (see [`preset`]).
+    /// A named preset: `position-direction`, `calibration` or `dahl` (see `preset`).
     pub fn preset(name: &str) -> Result<Self, SpecError> {
         preset::preset(name)
     }
@@ -317,7 +317,7 @@ pub struct FittedTerm {
 /// `restore` of [`FittedModel::load_with`]): preparing it returns the fitted term as saved, so
 /// a re-fit (`diagnose --path`) keeps it, with the data-dependent settings of the first fit.
 #[derive(Debug, Clone)]
-pub struct FittedSpec(pub Arc<dyn Term>);
+pub(crate) struct FittedSpec(pub Arc<dyn Term>);
 
 impl TermSpec for FittedSpec {
     fn name(&self) -> String {
@@ -370,7 +370,7 @@ struct TermFile {
 
 /// Rebuilds a user term from its name and saved settings ([`Term::settings`]); `None` for a
 /// name it does not know.
-pub type RestoreFn = dyn Fn(&str, &serde_json::Value) -> Option<Arc<dyn Term>>;
+pub(crate) type RestoreFn = dyn Fn(&str, &serde_json::Value) -> Option<Arc<dyn Term>>;
 
 /// Rows of a log that lie outside the position range a model was fitted on
 /// ([`FittedModel::outside_range`]); its `Display` is the warning a command prints.

@@ -215,9 +215,9 @@ pub trait Term: Debug + Send + Sync {
     fn settings(&self) -> serde_json::Value {
         serde_json::Value::Null
     }
-    /// The term as C code for the firmware export (`biasctl export c`, [`crate::export`]);
+    /// The term as C code for the firmware export (`biasctl export c`, `crate::export`);
     /// `None`: not exportable (the export then refuses, naming the term). The default knows the
-    /// built-in terms by name and [`Term::settings`] ([`crate::export::builtin::builtin_term`]);
+    /// built-in terms by name and [`Term::settings`] (`crate::export::builtin::builtin_term`);
     /// a user's term overrides it to export itself.
     fn export_c(&self, ctx: &crate::export::CContext) -> Option<crate::export::CTerm> {
         crate::export::builtin::builtin_term(&self.name(), &self.settings(), ctx)
@@ -248,7 +248,7 @@ impl Clone for Box<dyn TermState> {
 }
 
 /// Standard error of coefficient `i` from a row-major `n × n` covariance; `None` if not finite.
-pub fn se_from_cov(cov: &[f64], n: usize, i: usize) -> Option<f64> {
+pub(crate) fn se_from_cov(cov: &[f64], n: usize, i: usize) -> Option<f64> {
     cov.get(i * n + i)
         .map(|v| v.max(0.0).sqrt())
         .filter(|v| v.is_finite())

@@ -1,4 +1,4 @@
-//! Plots: hand-written SVG charts ([`svg`]), one builder per paper figure ([`figures`]), and
+//! Plots: hand-written SVG charts (`svg`), one builder per paper figure ([`figures`]), and
 //! quick-look plots of a measurement log with no model ([`from_log`]), and figures of library
 //! results — fitted models, diagnoses, ladders, settle analyses ([`views`]).
 //!

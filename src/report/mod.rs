@@ -22,9 +22,9 @@
 //! assert!(!html.contains("<script"));
 //! ```
 
-pub mod run;
-pub mod sections;
-pub mod story;
+pub(crate) mod run;
+pub(crate) mod sections;
+pub(crate) mod story;
 
 use std::fmt::Write;
 use std::path::Path;

@@ -131,7 +131,7 @@ pub enum StoryError {
 /// The four predictors of the demo: (label, term list, training run). position-direction is
 /// calibrated as the paper (and 1997 practice) calibrates it, on the two far curves of Table I;
 /// the others on the whole calibration run.
-pub const STORY_MODELS: [(&str, &str, &str); 4] = [
+pub(crate) const STORY_MODELS: [(&str, &str, &str); 4] = [
     (
         preset::PRESET_LIST[0].0,
         preset::POSITION_DIRECTION,
@@ -143,7 +143,7 @@ pub const STORY_MODELS: [(&str, &str, &str); 4] = [
 ];
 
 /// The presets fitted on a user's log: (label, term list).
-pub const DATA_MODELS: [(&str, &str); 4] = [
+pub(crate) const DATA_MODELS: [(&str, &str); 4] = [
     (preset::PRESET_LIST[0].0, preset::POSITION_DIRECTION),
     (preset::PRESET_LIST[2].0, preset::DAHL),
     (preset::PRESET_LIST[1].0, preset::CALIBRATION),
@@ -151,25 +151,25 @@ pub const DATA_MODELS: [(&str, &str); 4] = [
 ];
 
 /// The ladder's terms, added one at a time.
-pub const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;
+pub(crate) const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;
 
 /// The model [`discover`] starts from in a report: position-direction, the industry practice
 /// the report's diagnosis also starts from.
-pub const DISCOVER_START: &str = preset::POSITION_DIRECTION;
+pub(crate) const DISCOVER_START: &str = preset::POSITION_DIRECTION;
 
 /// Steps of a demo run as [`Progress`] counts them (the computation's steps and "assembling the
 /// report").
-pub const DEMO_STEPS: usize = 12 + STORY_MODELS.len();
+pub(crate) const DEMO_STEPS: usize = 12 + STORY_MODELS.len();
 
 /// Steps of a data run as [`Progress`] counts them.
-pub const DATA_STEPS: usize = 5 + DATA_MODELS.len();
+pub(crate) const DATA_STEPS: usize = 5 + DATA_MODELS.len();
 
 /// One fitted and scored predictor.
 ///
 /// `score` is the causal replay's score (each prediction from the rows before it, adaptive
 /// terms following the measurements as firmware would). A free-run score beside it (adaptive
 /// terms frozen) is the seam for a model scorer that computes both: add it here and to
-/// [`super::sections::score_table`].
+/// `super::sections::score_table`.
 #[derive(Debug, Clone)]
 pub struct ScoredModel {
     /// The label shown in tables and figures (a preset name, or "your model (whole log)").
@@ -201,7 +201,7 @@ pub struct DiagnosedRun {
 }
 
 /// A computed step, or why it could not be computed on this data (one line, with causes).
-pub type Step<T> = Result<T, String>;
+pub(crate) type Step<T> = Result<T, String>;
 
 /// Why the paper's robust start value settles when it does, from the numbers of one settle
 /// analysis (start values relative to the converged value, µm·samples; times in ms after
@@ -278,15 +278,15 @@ pub struct DemoRun {
     pub random: Log,
     /// The simulator's true decomposition of each measured bias of the random run.
     pub truth: Vec<Truth>,
-    /// The four predictors of [`STORY_MODELS`], in order, scored on the random run.
+    /// The four predictors of `STORY_MODELS`, in order, scored on the random run.
     pub scored: Vec<ScoredModel>,
     /// The Dahl model's replay of Table II (Figs. 13/14).
     pub dahl_loop: Step<Prediction>,
     /// The diagnosis of position-direction's residual on the random run.
     pub diagnosis: DiagnosedRun,
-    /// The ladder of [`LADDER_TERMS`]: calibration run → random run.
+    /// The ladder of `LADDER_TERMS`: calibration run → random run.
     pub ladder: Ladder,
-    /// [`discover`] from [`DISCOVER_START`]: calibration run → random run.
+    /// [`discover`] from `DISCOVER_START`: calibration run → random run.
     pub discovery: Step<Discovery>,
     /// The settle analysis and the link from prediction error to settle time.
     pub settle: SettleRun,
@@ -299,7 +299,7 @@ pub struct DemoRun {
 pub struct DataRun {
     /// The options it ran with.
     pub opts: StoryOptions,
-    /// The log, its file named relative to the current directory ([`relative_to_cwd`]).
+    /// The log, its file named relative to the current directory (`relative_to_cwd`).
     pub log: Log,
     /// That name.
     pub file: String,
@@ -307,9 +307,9 @@ pub struct DataRun {
     pub train: Log,
     /// The second half (test).
     pub test: Log,
-    /// Whether the positions are seeks to tracks ([`positions_are_tracks`]).
+    /// Whether the positions are seeks to tracks (`positions_are_tracks`).
     pub tracks_like: bool,
-    /// The presets of [`DATA_MODELS`] that could be fitted and scored, in order.
+    /// The presets of `DATA_MODELS` that could be fitted and scored, in order.
     pub scored: Vec<ScoredModel>,
     /// `label: why` of each preset that could not.
     pub failures: Vec<String>,
@@ -318,9 +318,9 @@ pub struct DataRun {
     /// The diagnosis of the user's model on the whole log, else of the first scored preset on
     /// the second half (`Err`: none possible).
     pub diagnosis: Step<DiagnosedRun>,
-    /// The ladder of [`LADDER_TERMS`]: first half → second half.
+    /// The ladder of `LADDER_TERMS`: first half → second half.
     pub ladder: Step<Ladder>,
-    /// [`discover`] from [`DISCOVER_START`]: first half → second half.
+    /// [`discover`] from `DISCOVER_START`: first half → second half.
     pub discovery: Step<Discovery>,
 }
 
@@ -700,7 +700,7 @@ fn sub_log(log: &Log, range: std::ops::Range<usize>, part: &str) -> Log {
 /// `file` as seen from the current directory: relative to it (with `..` where needed) when the
 /// path is absolute, unchanged when it is already relative (titles and captions then name the
 /// file as the user typed it from where the command ran, never a machine's absolute path).
-pub fn relative_to_cwd(file: &str) -> String {
+pub(crate) fn relative_to_cwd(file: &str) -> String {
     let p = Path::new(file);
     let Ok(cwd) = std::env::current_dir() else {
         return file.to_string();
@@ -729,7 +729,7 @@ pub fn relative_to_cwd(file: &str) -> String {
 /// positioning axis sampled at 1 kHz moves a tiny step per row, each position new) is neither,
 /// and the views of one track over time and of bias against seek length (Figs. 4–9) mean
 /// nothing for it.
-pub fn positions_are_tracks(log: &Log) -> bool {
+pub(crate) fn positions_are_tracks(log: &Log) -> bool {
     let p = log.measured_positions();
     let n = p.len();
     if n < 2 {
@@ -748,7 +748,7 @@ pub fn positions_are_tracks(log: &Log) -> bool {
 }
 
 /// The error and its causes on one line.
-pub fn error_chain(e: &dyn std::error::Error) -> String {
+pub(crate) fn error_chain(e: &dyn std::error::Error) -> String {
     let mut s = e.to_string();
     let mut cur = e.source();
     while let Some(c) = cur {

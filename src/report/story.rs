@@ -20,7 +20,8 @@ use crate::plot::svg::fmt_num;
 use crate::plot::views;
 use crate::render::{StagedDir, write_string_atomic};
 
-pub use super::run::{DATA_MODELS, Progress, StoryError, StoryOptions};
+pub(crate) use super::run::{DATA_MODELS, StoryError};
+pub use super::run::{Progress, StoryOptions};
 
 /// What a story run wrote.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,6 +1,6 @@
 //! Independent drives for testing diagnosis (issue #10).
 //!
-//! A small generator, written apart from the built-in drive ([`crate::sim::drive`] and
+//! A small generator, written apart from the built-in drive (`crate::sim::drive` and
 //! `data/paper1997.toml`) so that a diagnosis tuned on that drive is checked on physics it has
 //! never seen. Each [`FamilyDrive`] is a set of parameters:
 //! - the **pivot hysteresis** is not Dahl: a Bouc–Wen element (smooth loading curve
@@ -486,10 +486,10 @@ const LAG_S: f64 = 10.0;
 
 /// Substreams of the seed, one per random process.
 mod stream {
-    pub const SEEKS: u64 = 1;
-    pub const NOISE: u64 = 2;
-    pub const COVARIATE: u64 = 10; // + index in COVARIATES
-    pub const DEFECT: u64 = 30;
+    pub(super) const SEEKS: u64 = 1;
+    pub(super) const NOISE: u64 = 2;
+    pub(super) const COVARIATE: u64 = 10; // + index in COVARIATES
+    pub(super) const DEFECT: u64 = 30;
 }
 
 /// The pivot's state.

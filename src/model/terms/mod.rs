@@ -29,7 +29,7 @@ use super::{ModelError, SpecError};
 use std::sync::Arc;
 
 /// Parses one built-in term spec (`poly2`, `table:50`, `dahl:4`, `col:temp_c`, `bins:dwell_s`,
-/// `dbins:dwell_s:6`…) through the registry ([`super::registry::BUILTINS`]).
+/// `dbins:dwell_s:6`…) through the registry (`super::registry::BUILTINS`).
 pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
     let t = TermText::new(text);
     match registry::lookup(t.head) {

@@ -13,7 +13,7 @@
 //! with threshold r is a Dahl element whose exponential is replaced by a ramp of length 2r.
 //!
 //! Thresholds: geometric from a quarter of the 5 % quantile to half of the 95 % quantile of the
-//! training log's reversal amplitudes ([`crate::history::reversal_amplitudes`]: the distances
+//! training log's reversal amplitudes (`crate::history::reversal_amplitudes`: the distances
 //! between consecutive turning points), so the elements cover the loops the log actually makes
 //! whatever its position unit. Neighbouring elements are strongly collinear, so the weights are
 //! ridge-regularised ([`Term::ridge`], penalty [`RIDGE`] × each column's sum of squares): the
