@@ -162,9 +162,9 @@ pub use control::{
 };
 pub use diagnose::{
     CheckedDiagnoseConfig, CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis,
-    DiscoverConfig, FeatureReport, FeatureTable, Ladder, LadderStep, PathStep, VerifyConfig,
-    diagnose, diagnose_model, diagnose_residual, diagnose_verified, discover, ladder_fit,
-    ladder_terms, model_spec, replay_model, suggestion_path, suggestion_path_from,
+    DiscoverConfig, FeatureReport, FeatureTable, Ladder, LadderStep, LadderTerms, PathStep,
+    VerifyConfig, diagnose, diagnose_model, diagnose_residual, diagnose_verified, discover,
+    ladder_fit, ladder_terms, model_spec, replay_model, suggestion_path, suggestion_path_from,
 };
 pub use export::{
     C_FILES, CContext, CHandoff, COptions, CPrecision, CSource, CTerm, ExportError, c_source,
@@ -204,7 +204,9 @@ pub use render::{
     NonFinite, OutputError, StagedDir, check_paths, check_prediction, check_text, flush_stdout,
     is_broken_pipe, message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
 };
-pub use report::story::{Progress, StoryOptions, StoryOutcome, data_report, demo_report};
+pub use report::story::{
+    CheckedStoryOptions, Progress, StoryOptions, StoryOutcome, data_report, demo_report,
+};
 pub use report::{Cell, Report, Table};
 pub use score::{Score, score, score_model, score_with_units};
 pub use sim::family;
@@ -232,7 +234,7 @@ pub use model::predictor::ReplayError;
 pub use numeric::stats::{Dip, DipTest, Histogram, Trend};
 pub use render::file::Sink;
 pub use report::run::{
-    DataRun, DemoRun, DiagnosedRun, PaperRobustWhy, ScoredModel, SettleRun, StoryError,
+    DataRun, DemoRun, DiagnosedRun, MAX_SEEKS, PaperRobustWhy, ScoredModel, SettleRun, StoryError,
     compute_data, compute_demo,
 };
 pub use report::{Block, Section};

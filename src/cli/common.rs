@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// library's errors name settings ([`Field`]); [`with_flags`] renders each as its flag in every
 /// message the CLI prints. `None`: no command sets the field (a library-only setting such as
 /// `FitOptions::grid`), so its name stays. Every [`Field`] is listed once (a test checks).
-pub const FLAGS: [(Field, Option<&str>); 36] = [
+pub const FLAGS: [(Field, Option<&str>); 41] = [
     (Field::TimeColumn, Some("--time-col")),
     (Field::TrackColumn, Some("--track-col")),
     (Field::BiasColumn, Some("--bias-col")),
@@ -51,6 +51,11 @@ pub const FLAGS: [(Field, Option<&str>); 36] = [
     (Field::VerifyCandidates, None),
     (Field::MinZ, None),
     (Field::MaxSteps, Some("--max-steps")),
+    (Field::RandomSeeks, Some("--seeks")),
+    (Field::StoryPermutations, None),
+    (Field::SettlePreset, None),
+    (Field::LadderTerms, Some("--terms")),
+    (Field::PanelTop, Some("--top")),
 ];
 
 /// The flag that sets `field`, from [`FLAGS`]; `None` for a library-only setting.

@@ -70,7 +70,7 @@ pub struct Args {
     )]
     terms: String,
     /// Top features of the `diagnose` plot.
-    #[arg(long, default_value_t = 6, value_name = "N")]
+    #[arg(long, default_value_t = biasctl::plot::views::DEFAULT_TOP, value_name = "N")]
     top: usize,
     #[command(flatten)]
     settle: SettleArgs,
@@ -124,9 +124,6 @@ fn check_flags(a: &Args) -> anyhow::Result<()> {
     {
         bail!("plot {k} takes one --model");
     }
-    if a.top == 0 {
-        bail!("--top 0: give at least 1");
-    }
     Ok(())
 }
 
@@ -150,6 +147,7 @@ fn model(name: &str, log: &Log) -> anyhow::Result<(String, FittedModel)> {
 
 /// The SVG text of the figure.
 fn draw(a: &Args) -> anyhow::Result<String> {
+    let panel = views::PanelOptions { top: a.top }.check()?;
     if is_settle(a.kind) {
         let report = analyse(&a.settle.spec()?.check()?)?;
         return Ok(match a.kind {
@@ -193,12 +191,12 @@ fn draw(a: &Args) -> anyhow::Result<String> {
             let residual = replay_model(&m, &log)?.residual;
             let table = FeatureTable::from_log(&log);
             let d = diagnose_residual(&m, &table, &residual, &DiagnoseConfig::default().check()?)?;
-            views::diagnose_panel(&d, &table, &residual, a.top)
+            views::diagnose_panel(&d, &table, &residual, &panel)
         }
         Kind::Ladder => {
             let test_path = a.test.as_ref().context("--test")?;
             let test = a.columns.read_log(test_path)?;
-            let terms = ladder_terms(&a.terms).context("--terms")?;
+            let terms = ladder_terms(&a.terms)?;
             let l = ladder_fit(&log, &test, &terms, &FitOptions::default().check()?)?;
             views::ladder(&l, &test.schema.units)
         }

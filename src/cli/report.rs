@@ -8,9 +8,6 @@ use biasctl::FittedModel;
 use biasctl::{StoryOptions, StoryOutcome, data_report, demo_report};
 use std::path::PathBuf;
 
-/// Largest `--seeks` of `report` and `demo`.
-pub const MAX_SEEKS: u64 = 1_000_000;
-
 /// Flags of `biasctl report`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -35,21 +32,12 @@ pub struct Args {
 
 /// Runs the story with a progress bar; returns what was written.
 pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
-    // The diagnosis of the test run needs its cross-validation's minimum of measured rows; the
-    // upper limit keeps the in-memory logs (and the files beside the report) to a few hundred MB.
-    let min = biasctl::DiagnoseConfig::default().min_rows() as u64;
-    if !(min..=MAX_SEEKS).contains(&args.seeks) {
-        anyhow::bail!(
-            "--seeks {}: give {min} to {MAX_SEEKS} random seeks (the diagnosis of the test run \
-             needs at least {min} measured rows)",
-            args.seeks
-        );
-    }
     let opts = StoryOptions {
         seed: args.seed,
         random_seeks: args.seeks,
         ..StoryOptions::default()
-    };
+    }
+    .check()?;
     // The report's other files are named during the run (models, figures): the inputs this
     // registers are also refused when the staged folder is moved into place.
     let html = args.out.join("report.html");

@@ -122,8 +122,9 @@ pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderStep};
 pub(crate) use ladder::{LadderInput, ladder};
 pub use model::{
-    ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, diagnose_verified,
-    ladder_fit, ladder_terms, model_spec, replay_model, suggestion_path, suggestion_path_from,
+    LadderTerms, ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual,
+    diagnose_verified, ladder_fit, ladder_terms, model_spec, replay_model, suggestion_path,
+    suggestion_path_from,
 };
 pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};

@@ -5,6 +5,7 @@ use super::{
     CheckedDiagnoseConfig, DiagnoseError, Diagnosis, FeatureTable, Ladder, LadderInput, diagnose,
     ladder,
 };
+use crate::field::Field;
 use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::Log;
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
@@ -51,9 +52,11 @@ pub enum ModelDiagnosisError {
     Diagnose(#[from] DiagnoseError),
     /// A ladder's term list has an empty entry (`poly2,,seek`) or no entry at all.
     #[error(
-        "term list `{list}`: term {index} is empty; give a comma-separated list such as poly2,direction,seek"
+        "{field}: term list `{list}`: term {index} is empty; give a comma-separated list such as poly2,direction,seek"
     )]
     EmptyTerm {
+        /// The setting ([`Field::LadderTerms`]).
+        field: Field,
         /// The list as given.
         list: String,
         /// 1-based position of the empty entry.
@@ -168,16 +171,30 @@ pub fn replay_model(model: &FittedModel, log: &Log) -> Result<Prediction, ModelD
         })
 }
 
-/// Splits a ladder's comma-separated term list (`poly2,direction,seek`): trimmed, in order. An
-/// empty entry, or an empty list, is an error naming its position.
-pub fn ladder_terms(list: &str) -> Result<Vec<String>, ModelDiagnosisError> {
+/// Checks a ladder's comma-separated term list (`poly2,direction,seek`) into the
+/// [`LadderTerms`] that [`ladder_fit`] requires: trimmed, in order. An empty entry, or an empty
+/// list, is an error naming [`Field::LadderTerms`] and the entry's position.
+pub fn ladder_terms(list: &str) -> Result<LadderTerms, ModelDiagnosisError> {
     let terms: Vec<String> = list.split(',').map(|t| t.trim().to_string()).collect();
     match terms.iter().position(String::is_empty) {
         Some(i) => Err(ModelDiagnosisError::EmptyTerm {
+            field: Field::LadderTerms,
             list: list.to_string(),
             index: i + 1,
         }),
-        None => Ok(terms),
+        None => Ok(LadderTerms(terms)),
+    }
+}
+
+/// A ladder's term list that passed [`ladder_terms`] (no empty entry), in the order the terms are
+/// added; read it through `Deref`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LadderTerms(Vec<String>);
+
+impl std::ops::Deref for LadderTerms {
+    type Target = [String];
+    fn deref(&self) -> &[String] {
+        &self.0
     }
 }
 
@@ -188,7 +205,7 @@ pub fn ladder_terms(list: &str) -> Result<Vec<String>, ModelDiagnosisError> {
 pub fn ladder_fit(
     train: &Log,
     test: &Log,
-    terms: &[String],
+    terms: &LadderTerms,
     opts: &CheckedFitOptions,
 ) -> Result<Ladder, ModelDiagnosisError> {
     use rayon::prelude::*;

@@ -23,7 +23,7 @@
 //! whole inside the frame; ticks are "nice" (1-2-5 steps) inside the range.
 //!
 //! ```
-//! use biasctl::{plot::svg::AxisRange, plot::svg::Chart};
+//! use biasctl::plot::{AxisRange, Chart};
 //! let svg = Chart::new("bias vs position")
 //!     .x_label("position (tracks)")
 //!     .y_label("bias (counts)")

@@ -18,8 +18,9 @@ use crate::control::{Controller, ServoError};
 use crate::diagnose::{
     CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis, DiscoverConfig,
     Discovery, FeatureTable, Ladder, ModelDiagnosisError, diagnose_residual, discover, ladder_fit,
-    replay_model,
+    ladder_terms, replay_model,
 };
+use crate::field::Field;
 use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::{Log, LogError};
 use crate::model::preset;
@@ -52,7 +53,43 @@ impl Default for StoryOptions {
     }
 }
 
+/// Largest [`StoryOptions::random_seeks`]: keeps the in-memory logs (and the files beside the
+/// report) to a few hundred MB.
+pub const MAX_SEEKS: u64 = 1_000_000;
+
 impl StoryOptions {
+    /// Checks every setting once, before anything runs: `random_seeks` from the diagnosis' minimum
+    /// of measured rows ([`DiagnoseConfig::min_rows`]) to [`MAX_SEEKS`], `permutations` as
+    /// the diagnosis accepts them (with the default `alpha`), and `settle_preset` a known preset
+    /// ([`SettleSpec::preset`]). Any `seed` is valid.
+    pub fn check(self) -> Result<CheckedStoryOptions, StoryError> {
+        // The diagnosis of the test run needs its cross-validation's minimum of measured rows.
+        let min = DiagnoseConfig::default().min_rows() as u64;
+        if !(min..=MAX_SEEKS).contains(&self.random_seeks) {
+            return Err(StoryError::InvalidConfig {
+                field: Field::RandomSeeks,
+                message: format!(
+                    "{}: give {min} to {MAX_SEEKS} random seeks (the diagnosis of the test run \
+                     needs at least {min} measured rows)",
+                    self.random_seeks
+                ),
+            });
+        }
+        if let Err(e) = diagnose_config(&self) {
+            return Err(StoryError::InvalidConfig {
+                field: Field::StoryPermutations,
+                message: format!("{}: {}", self.permutations, crate::render::message(&e)),
+            });
+        }
+        if let Err(e) = SettleSpec::preset(&self.settle_preset) {
+            return Err(StoryError::InvalidConfig {
+                field: Field::SettlePreset,
+                message: crate::render::message(&e),
+            });
+        }
+        Ok(CheckedStoryOptions(self))
+    }
+
     /// A smaller, faster run (300 random seeks, 99 permutations) for tests and quick looks.
     pub fn quick(seed: u64) -> Self {
         StoryOptions {
@@ -61,6 +98,19 @@ impl StoryOptions {
             permutations: 99,
             ..Default::default()
         }
+    }
+}
+
+/// Settings that passed [`StoryOptions::check`]; read them through `Deref`. `Default` is the
+/// checked default. The story's entry points ([`crate::demo_report`], [`crate::data_report`],
+/// [`compute_demo`], [`compute_data`]) accept only these.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CheckedStoryOptions(StoryOptions);
+
+impl std::ops::Deref for CheckedStoryOptions {
+    type Target = StoryOptions;
+    fn deref(&self) -> &StoryOptions {
+        &self.0
     }
 }
 
@@ -79,6 +129,14 @@ pub struct Progress<'a> {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum StoryError {
+    /// A story setting is out of range ([`StoryOptions::check`]).
+    #[error("{field} {message}")]
+    InvalidConfig {
+        /// The setting.
+        field: Field,
+        /// The value, what is wrong and what is allowed.
+        message: String,
+    },
     /// A simulation setting was rejected.
     #[error("simulation setting")]
     SimConfig(#[from] crate::sim::ConfigError),
@@ -417,7 +475,7 @@ fn discover_run(train: &Log, test: &Log, opts: &StoryOptions) -> Step<Discovery>
 /// `_truth.csv`) into `logs_dir` (which must exist). `progress` is called before each step.
 pub fn compute_demo(
     logs_dir: &Path,
-    opts: &StoryOptions,
+    opts: &CheckedStoryOptions,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<DemoRun, StoryError> {
     let mut steps = Steps::new(DEMO_STEPS - 1, progress);
@@ -502,7 +560,7 @@ pub(crate) fn demo_run(
     };
 
     steps.start("building the ladder");
-    let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
+    let terms = ladder_terms(&LADDER_TERMS.join(","))?;
     let ladder = ladder_fit(&calibration, &random, &terms, &CheckedFitOptions::default())?;
 
     steps.start("discovering terms");
@@ -559,7 +617,7 @@ pub(crate) fn demo_run(
 pub fn compute_data(
     log: &Log,
     model: Option<&FittedModel>,
-    opts: &StoryOptions,
+    opts: &CheckedStoryOptions,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> DataRun {
     let mut steps = Steps::new(DATA_STEPS - 1, progress);
@@ -620,8 +678,8 @@ pub(crate) fn data_run(
     let diagnosis = data_diagnosis(&log, &test, model, user.as_ref(), &scored, opts);
 
     steps.start("building the ladder");
-    let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
-    let ladder = ladder_fit(&train, &test, &terms, &CheckedFitOptions::default())
+    let ladder = ladder_terms(&LADDER_TERMS.join(","))
+        .and_then(|terms| ladder_fit(&train, &test, &terms, &CheckedFitOptions::default()))
         .map_err(|e| error_chain(&e));
 
     steps.start("discovering terms");
@@ -768,7 +826,12 @@ mod tests {
     #[test]
     fn demo_run_computes_every_part_without_html() {
         let dir = tempfile::tempdir().unwrap();
-        let run = compute_demo(dir.path(), &StoryOptions::quick(5), &mut |_| {}).unwrap();
+        let run = compute_demo(
+            dir.path(),
+            &StoryOptions::quick(5).check().unwrap(),
+            &mut |_| {},
+        )
+        .unwrap();
         assert_eq!(run.tables.len(), 7);
         assert_eq!(run.scored.len(), STORY_MODELS.len());
         // Reference: every score is the std of measured − predicted of a fresh replay of the

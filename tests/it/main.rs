@@ -17,6 +17,7 @@ mod property;
 mod real;
 mod report;
 mod review;
+mod settings;
 mod settle;
 mod sim;
 mod units;

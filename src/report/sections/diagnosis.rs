@@ -7,7 +7,7 @@ use crate::report::run::DiagnosedRun;
 use crate::report::{Cell, Section, Table};
 
 /// Features shown in the table and the panel.
-pub(crate) const TOP: usize = 6;
+pub(crate) const TOP: usize = views::DEFAULT_TOP;
 
 /// The strongest `top` candidate features of `d`: share explained out of sample, family-wise
 /// p-value, shape, suggested term, the error std once it is added (bias unit of `d`).
@@ -44,7 +44,12 @@ pub(crate) fn diagnosis(s: &mut Section, d: &DiagnosedRun, caption: &str) {
     s.paragraph(d.diagnosis.summary.clone())
         .table(diagnosis_table(&d.diagnosis, TOP))
         .figure(
-            views::diagnose_panel(&d.diagnosis, &d.table, &d.residual, TOP),
+            views::diagnose_panel(
+                &d.diagnosis,
+                &d.table,
+                &d.residual,
+                &views::CheckedPanelOptions::default(),
+            ),
             caption,
         );
 }
