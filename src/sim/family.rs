@@ -1,5 +1,8 @@
 //! Independent drives for testing diagnosis (issue #10).
 //!
+//! Public as the namespace `biasctl::family` because a user needs it: the examples and tests
+//! that measure the diagnosis generate their logs from it (`family::generate`).
+//!
 //! A small generator, written apart from the built-in drive (`crate::sim::drive` and
 //! `data/paper1997.toml`) so that a diagnosis tuned on that drive is checked on physics it has
 //! never seen. Each [`FamilyDrive`] is a set of parameters:
