@@ -72,36 +72,33 @@ fn plot_refuses_top_zero_naming_the_flag() {
 #[test]
 fn library_checks_name_the_setting() {
     // Library-only settings (no flag): the error names the field as the library knows it.
-    let e = StoryOptions {
-        permutations: 0,
-        ..StoryOptions::default()
+    let cases = [
+        (
+            StoryOptions {
+                permutations: 0,
+                ..StoryOptions::default()
+            },
+            "StoryOptions::permutations 0: ",
+        ),
+        (
+            StoryOptions {
+                settle_preset: "nope".into(),
+                ..StoryOptions::default()
+            },
+            "StoryOptions::settle_preset ",
+        ),
+        (
+            StoryOptions {
+                random_seeks: 1,
+                ..StoryOptions::default()
+            },
+            "StoryOptions::random_seeks 1: ",
+        ),
+    ];
+    for (opts, want) in cases {
+        let e = opts.check().unwrap_err();
+        assert!(e.to_string().starts_with(want), "{e}");
     }
-    .check()
-    .unwrap_err();
-    assert!(
-        e.to_string().starts_with("StoryOptions::permutations 0: "),
-        "{e}"
-    );
-    let e = StoryOptions {
-        settle_preset: "nope".into(),
-        ..StoryOptions::default()
-    }
-    .check()
-    .unwrap_err();
-    assert!(
-        e.to_string().starts_with("StoryOptions::settle_preset "),
-        "{e}"
-    );
-    let e = StoryOptions {
-        random_seeks: 1,
-        ..StoryOptions::default()
-    }
-    .check()
-    .unwrap_err();
-    assert!(
-        e.to_string().starts_with("StoryOptions::random_seeks 1: "),
-        "{e}"
-    );
     assert!(StoryOptions::default().check().is_ok());
     assert!(StoryOptions::quick(3).check().is_ok());
 
