@@ -53,8 +53,12 @@
 //! [`diagnose_model`], [`VerifyConfig::check`] → [`CheckedVerifyConfig`] for
 //! [`diagnose_verified`], [`DiscoverConfig::check`] → [`CheckedDiscoverConfig`] for
 //! [`discover()`], [`SettleSpec::check`] → [`SettleConfig`] for [`analyse`] and
-//! [`StartValues::new`], [`SimConfig::new`] (a [`SimConfig`] exists only checked) for
-//! [`simulate_log`]. The `Default` of a checked type is the checked default.
+//! [`StartValues::new`], [`StoryOptions::check`] → [`CheckedStoryOptions`] for [`demo_report`],
+//! [`data_report`], [`compute_demo`] and [`compute_data`], [`ladder_terms`] → [`LadderTerms`]
+//! for [`ladder_fit`], [`plot::views::PanelOptions::check`] →
+//! [`plot::views::CheckedPanelOptions`] for [`plot::views::diagnose_panel`], [`SimConfig::new`]
+//! (a [`SimConfig`] exists only checked) for [`simulate_log`]. The `Default` of a checked type
+//! is the checked default. ([`COptions`] has no setting that can be out of range.)
 //!
 //! ## Errors name settings, not flags
 //! An error about a setting carries a [`Field`] (`SettleSpec::step_um`, `ColumnMap::bias`,
