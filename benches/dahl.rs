@@ -3,8 +3,8 @@
 //! one `step` per seek, and `step_many` over the whole sequence (the per-seek factors computed a
 //! block ahead of the loop-carried chain); and 1M candidate peeks.
 
-use biasctl::model::terms::dahl::{DahlPredictor, DahlState};
-use biasctl::numeric::rng::SimRng;
+use biasctl::SimRng;
+use biasctl::{terms::dahl::DahlPredictor, terms::dahl::DahlState};
 #[path = "common/cputime.rs"]
 mod cputime;
 

@@ -8,14 +8,14 @@
 
 use std::hint::black_box;
 
-use biasctl::diagnose::{
+use biasctl::ModelSpec;
+use biasctl::SimRng;
+use biasctl::{
     CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, FeatureTable, diagnose,
     diagnose_verified, discover,
 };
-use biasctl::fit::{CheckedFitOptions, fit};
-use biasctl::log::{ColumnMap, Log, LogWriter};
-use biasctl::model::ModelSpec;
-use biasctl::numeric::rng::SimRng;
+use biasctl::{CheckedFitOptions, fit};
+use biasctl::{ColumnMap, Log, LogWriter};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 const ROWS: usize = 100_000;

@@ -1,8 +1,8 @@
 //! Hartigans' dip test on 1,000,000 residuals (a two-hump normal mixture): the dip and p-value of
 //! already sorted values (linear time), and the whole `dip_test` including its sort.
 
-use biasctl::numeric::rng::SimRng;
-use biasctl::numeric::stats::{dip_test, dip_test_sorted, sorted};
+use biasctl::SimRng;
+use biasctl::{dip_test, dip_test_sorted, sorted};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 

@@ -1,11 +1,11 @@
 //! Fitting the `calibration` preset (poly2+direction+seek+memory+drift, eq. 1) on 1,000,000
 //! measured rows of a synthetic random-seek log. Target: under 1 s.
 
-use biasctl::fit::{FitOptions, fit};
-use biasctl::history::History;
-use biasctl::log::{ColumnMap, Log};
-use biasctl::model::ModelSpec;
-use biasctl::numeric::rng::SimRng;
+use biasctl::History;
+use biasctl::ModelSpec;
+use biasctl::SimRng;
+use biasctl::{ColumnMap, Log};
+use biasctl::{FitOptions, fit};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 

@@ -2,8 +2,8 @@
 //! and the start-value choices (optimal, robust for Δb = 8 counts, zero feedforward's worst case),
 //! for horizons 64, 128 and 256. The table is precomputed outside the timed loop, as in a drive.
 
-use biasctl::control::Controller;
-use biasctl::control::settle::{Bounds, Handoff, HandoffTable, SettleSpec};
+use biasctl::Controller;
+use biasctl::{Bounds, Handoff, HandoffTable, SettleSpec};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 

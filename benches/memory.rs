@@ -2,8 +2,8 @@
 //! amortised O(1) per seek. 1M and 10M seeks of a random walk whose rest memory keeps growing;
 //! the time per seek must be the same at both counts (linear total time).
 
-use biasctl::history::History;
-use biasctl::numeric::rng::SimRng;
+use biasctl::History;
+use biasctl::SimRng;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 

@@ -8,11 +8,11 @@
 //! The log: a smooth random trajectory (sum of slowly varying sinusoids with random reversal
 //! amplitudes, 1 kHz) through a 3-element stop-operator hysteresis plus a line and noise.
 
-use biasctl::fit::{CheckedFitOptions, fit};
-use biasctl::log::{ColumnMap, Log};
-use biasctl::model::ModelSpec;
-use biasctl::model::terms::play::{PlayPredictor, PlayTerm};
-use biasctl::numeric::rng::SimRng;
+use biasctl::ModelSpec;
+use biasctl::SimRng;
+use biasctl::{CheckedFitOptions, fit};
+use biasctl::{ColumnMap, Log};
+use biasctl::{terms::play::PlayPredictor, terms::play::PlayTerm};
 #[path = "common/cputime.rs"]
 mod cputime;
 

@@ -5,10 +5,10 @@
 //! sink that drops the rows (`replay_stream`), to separate the writer's share. The set-up checks
 //! the output byte for byte against the real `biasctl predict` on a small log.
 
-use biasctl::fit::{FitOptions, fit};
-use biasctl::log::{BiasColumn, ColumnMap, LogReader};
-use biasctl::model::{FittedModel, ModelSpec, RowPrediction, replay_stream, write_predictions_csv};
-use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};
+use biasctl::{BiasColumn, ColumnMap, LogReader};
+use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};
+use biasctl::{FitOptions, fit};
+use biasctl::{FittedModel, ModelSpec, RowPrediction, replay_stream, write_predictions_csv};
 #[path = "common/cputime.rs"]
 mod cputime;
 

@@ -5,8 +5,8 @@
 //! made once outside the timed loop. Throughput is in bytes of the file. This bench only
 //! measures: the reader is being changed elsewhere.
 
-use biasctl::log::{ColumnMap, Log, LogReader};
-use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_to_files};
+use biasctl::{ColumnMap, Log, LogReader};
+use biasctl::{Drive, SequenceOptions, SimConfig, simulate_to_files};
 #[path = "common/cputime.rs"]
 mod cputime;
 

@@ -1,4 +1,4 @@
-//! The scoreboard of issue #10: diagnose on independent drives (`biasctl::sim::family`).
+//! The scoreboard of issue #10: diagnose on independent drives (`biasctl::family`).
 //!
 //! ```sh
 //! cargo run --release --example diagnose_family            # 3 drives × every scenario × 10 seeds
@@ -19,20 +19,23 @@
 //! `tests/it/family.rs` includes this file, so the test and the README numbers come from the
 //! same code.
 
-use biasctl::diagnose::{
+use biasctl::Log;
+use biasctl::{
     CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis, diagnose_model,
     diagnose_verified, suggestion_path_from,
 };
-use biasctl::fit::{CheckedFitOptions, FitOptions, fit};
-use biasctl::log::Log;
-use biasctl::model::{FittedModel, ModelSpec};
-use biasctl::sim::family::{FamilyConfig, FamilyDrive, HiddenEffect, NO_EFFECT_COLUMNS, generate};
+use biasctl::{CheckedFitOptions, FitOptions, fit};
+use biasctl::{FittedModel, ModelSpec};
+use biasctl::{
+    family::FamilyConfig, family::FamilyDrive, family::HiddenEffect, family::NO_EFFECT_COLUMNS,
+    family::generate,
+};
 
 /// A held-out drive for checking that nothing was tuned to the three members: parameters
 /// none of them has (a Prandtl–Ishlinskii pivot with other thresholds, a wider sinusoidal
 /// trend, Student-t ν = 5 innovations with AR(1) ρ = 0.45, longer dwells, another span).
 pub fn fresh_drive() -> FamilyDrive {
-    use biasctl::sim::family::{Noise, Pivot, Trend};
+    use biasctl::{family::Noise, family::Pivot, family::Trend};
     FamilyDrive {
         name: "fresh-pi-sine".into(),
         pivot: Pivot::Prandtl {
@@ -73,7 +76,7 @@ pub fn scenarios() -> Vec<Vec<HiddenEffect>> {
 /// a residual that diagnose rightly flags against `since_reversal`).
 pub fn base_terms(drive: &FamilyDrive) -> Vec<String> {
     vec![
-        format!("table:{}", biasctl::log::fmt_trimmed(drive.span / 24.0, 3)),
+        format!("table:{}", biasctl::fmt_trimmed(drive.span / 24.0, 3)),
         "dahl:8".to_string(),
     ]
 }
@@ -104,7 +107,7 @@ pub fn fit_terms(terms: &[String], log: &Log) -> FittedModel {
 /// Residual std of `model`'s causal replay over `log`, counts.
 pub fn residual_std(model: &FittedModel, log: &Log) -> f64 {
     let p = model.predict_log(log).expect("replay");
-    biasctl::numeric::stats::std_dev(&p.residual).unwrap_or(0.0)
+    biasctl::std_dev(&p.residual).unwrap_or(0.0)
 }
 
 /// What one scenario on one seed gave.
@@ -171,7 +174,7 @@ pub fn config(seed: u64) -> CheckedDiagnoseConfig {
 }
 
 /// The first flagged feature of a diagnosis.
-pub fn first_flagged(d: &Diagnosis) -> Option<&biasctl::diagnose::FeatureReport> {
+pub fn first_flagged(d: &Diagnosis) -> Option<&biasctl::FeatureReport> {
     d.features.first().filter(|f| f.flagged)
 }
 

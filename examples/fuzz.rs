@@ -60,5 +60,5 @@ fn main() {
 }
 
 fn fuzz_quote(s: &str) -> String {
-    biasctl::render::quote(s)
+    biasctl::quote(s)
 }

@@ -15,12 +15,12 @@
 //!
 //! `tests/it/extend.rs` includes this file to reuse [`TimeAtTrack`] as its reference term.
 
-use biasctl::diagnose::{DiagnoseConfig, Diagnosis, diagnose_model};
-use biasctl::fit::{FitData, FitError, FitOptions, fit};
-use biasctl::log::Log;
-use biasctl::model::term::{Nonlinear, Seek, Term, TermSpec, TermState};
-use biasctl::model::{FittedModel, ModelError, ModelSpec};
-use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::Log;
+use biasctl::{DiagnoseConfig, Diagnosis, diagnose_model};
+use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::{FitData, FitError, FitOptions, fit};
+use biasctl::{FittedModel, ModelError, ModelSpec};
+use biasctl::{Nonlinear, Seek, Term, TermSpec, TermState};
 use std::sync::Arc;
 
 // ---------------------------------------------------------------------------------------------
@@ -121,8 +121,7 @@ pub fn fit_with(
 /// Standard deviation of the causal prediction error of `model` on `test`, counts.
 pub fn test_std(model: &FittedModel, test: &Log) -> anyhow::Result<f64> {
     let p = model.predict_log(test)?;
-    biasctl::numeric::stats::std_dev(&p.residual)
-        .ok_or_else(|| anyhow::anyhow!("too few test rows"))
+    biasctl::std_dev(&p.residual).ok_or_else(|| anyhow::anyhow!("too few test rows"))
 }
 
 fn print_top(d: &Diagnosis, k: usize) {

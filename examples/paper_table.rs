@@ -15,13 +15,13 @@
 //! calibration run for comparison. "Two humps" is Hartigans' dip test rejecting a unimodal error
 //! distribution at 1 % on that seed pair's test run.
 
-use biasctl::control::Controller;
-use biasctl::control::settle::{HandoffTable, SettleSpec, worst_case_settle};
-use biasctl::fit::{FitOptions, fit};
-use biasctl::model::ModelSpec;
-use biasctl::numeric::stats::{mean, std_dev};
-use biasctl::score::{Score, score};
-use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::Controller;
+use biasctl::ModelSpec;
+use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::{FitOptions, fit};
+use biasctl::{HandoffTable, SettleSpec, worst_case_settle};
+use biasctl::{Score, score};
+use biasctl::{mean, std_dev};
 
 /// (label, term list or preset, training sequence, the paper's error std in counts). The first
 /// row is the paper's baseline: position+direction calibrated the 1997 way, b_p and Fc from the
@@ -44,7 +44,7 @@ const MODELS: [(&str, &str, &str, Option<f64>); 5] = [
     ),
 ];
 
-fn spec(s: &str) -> Result<ModelSpec, biasctl::model::SpecError> {
+fn spec(s: &str) -> Result<ModelSpec, biasctl::SpecError> {
     ModelSpec::preset(s).or_else(|_| ModelSpec::parse(s))
 }
 

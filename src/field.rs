@@ -86,11 +86,21 @@ pub enum Field {
     MinZ,
     /// [`DiscoverConfig::max_steps`](crate::diagnose::DiscoverConfig::max_steps).
     MaxSteps,
+    /// [`StoryOptions::random_seeks`](crate::StoryOptions::random_seeks).
+    RandomSeeks,
+    /// [`StoryOptions::permutations`](crate::StoryOptions::permutations).
+    StoryPermutations,
+    /// [`StoryOptions::settle_preset`](crate::StoryOptions::settle_preset).
+    SettlePreset,
+    /// The term list given to [`ladder_terms`](crate::ladder_terms).
+    LadderTerms,
+    /// [`PanelOptions::top`](crate::plot::views::PanelOptions::top).
+    PanelTop,
 }
 
 impl Field {
     /// Every field, for tables that must cover them all (the CLI's field → flag table).
-    pub const ALL: [Field; 36] = [
+    pub const ALL: [Field; 41] = [
         Field::TimeColumn,
         Field::TrackColumn,
         Field::BiasColumn,
@@ -127,6 +137,11 @@ impl Field {
         Field::VerifyCandidates,
         Field::MinZ,
         Field::MaxSteps,
+        Field::RandomSeeks,
+        Field::StoryPermutations,
+        Field::SettlePreset,
+        Field::LadderTerms,
+        Field::PanelTop,
     ];
 
     /// The setting as `Type::field` (`Units::bias` and `SimConfig::…` for arguments of
@@ -172,6 +187,11 @@ impl Field {
             Field::VerifyCandidates => "VerifyConfig::candidates",
             Field::MinZ => "VerifyConfig::min_z",
             Field::MaxSteps => "DiscoverConfig::max_steps",
+            Field::RandomSeeks => "StoryOptions::random_seeks",
+            Field::StoryPermutations => "StoryOptions::permutations",
+            Field::SettlePreset => "StoryOptions::settle_preset",
+            Field::LadderTerms => "LadderTerms::terms",
+            Field::PanelTop => "PanelOptions::top",
         }
     }
 

@@ -31,7 +31,7 @@ pub use crate::model::data::{FitData, FitError, FitReport};
 /// [`CheckedFitOptions`] that [`fit`] accepts (linfa's `ParamGuard` pattern).
 ///
 /// ```
-/// use biasctl::fit::FitOptions;
+/// use biasctl::FitOptions;
 /// let opts = FitOptions { grid: 48, ..FitOptions::default() }.check().unwrap();
 /// assert_eq!(opts.grid, 48);
 /// assert!(FitOptions { rank_tolerance: f64::NAN, ..FitOptions::default() }.check().is_err());
@@ -158,7 +158,7 @@ pub(crate) struct StreamingQr {
 }
 
 /// Rows added between two re-factorisations.
-pub const CHUNK: usize = 1024;
+pub(crate) const CHUNK: usize = 1024;
 
 /// Dot product with four accumulators (vectorises).
 #[inline]
@@ -205,7 +205,7 @@ fn householder_r(a: &mut [f64], m: usize, n: usize) {
 
 impl StreamingQr {
     /// A problem with `p` regressors (plus the response column).
-    pub fn new(p: usize) -> Self {
+    pub(crate) fn new(p: usize) -> Self {
         let cols = p + 1;
         Self {
             cols,
@@ -217,7 +217,7 @@ impl StreamingQr {
     }
 
     /// Adds one row `x` (length p) with response `y`.
-    pub fn push(&mut self, x: &[f64], y: f64) {
+    pub(crate) fn push(&mut self, x: &[f64], y: f64) {
         let m = self.cols + CHUNK;
         let row = self.cols + self.fill;
         for (j, &v) in x.iter().chain(std::iter::once(&y)).enumerate() {
@@ -247,12 +247,12 @@ impl StreamingQr {
     }
 
     /// Rows pushed so far.
-    pub fn rows(&self) -> usize {
+    pub(crate) fn rows(&self) -> usize {
         self.rows
     }
 
     /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms².
-    pub fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
+    pub(crate) fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
         self.fold();
         let (n, m) = (self.cols, self.cols + CHUNK);
         let r = DMatrix::from_fn(
@@ -471,11 +471,11 @@ fn solve(
 
 /// A coefficient whose share of the prediction swings more than this many times the spread of
 /// the measured bias is "blowing up": neighbouring columns cancel each other.
-pub const BLOW_UP_RATIO: f64 = 100.0;
+pub(crate) const BLOW_UP_RATIO: f64 = 100.0;
 
 /// A design column whose sine of angle to the columns before it is below this (1 − R² below its
 /// square, a variance inflation above 10¹⁰) makes the fit ill-conditioned.
-pub const ILL_CONDITIONED: f64 = 1e-5;
+pub(crate) const ILL_CONDITIONED: f64 = 1e-5;
 
 /// The fit's self-check (issue #11): coefficients whose contribution swings far beyond the
 /// measured bias (`|coef| × column spread > BLOW_UP_RATIO × bias std`, unit-free: both sides

@@ -11,7 +11,7 @@
 //! so an update costs amortised O(1) whatever the length of the history.
 //!
 //! ```
-//! use biasctl::history::History;
+//! use biasctl::History;
 //! let mut h = History::new();
 //! h.step(0.0, 100.0);          // first row: the head starts at track 100
 //! h.step(1.0, 150.0);          // rest at 100, move inbound to 150
@@ -251,7 +251,7 @@ pub struct History {
 /// reversals. With deadband 0 (the default, for seek logs) every move against the direction is a
 /// reversal. The *turning point* is that furthest point; `since_reversal` is the distance from it.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct DirectionTracker {
+pub(crate) struct DirectionTracker {
     deadband: f64,
     direction: i8,
     anchor: Option<f64>,
@@ -261,7 +261,7 @@ pub struct DirectionTracker {
 
 /// What [`DirectionTracker::peek`] says about one move.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DirectionStep {
+pub(crate) struct DirectionStep {
     /// Direction after the move: +1 inbound, −1 outbound, 0 before the first move out of the band.
     pub direction: i8,
     /// Whether the move reversed the direction.
@@ -274,7 +274,7 @@ pub struct DirectionStep {
 
 impl DirectionTracker {
     /// A tracker with `deadband` ≥ 0 in the log's position unit (negative or non-finite counts as 0).
-    pub fn new(deadband: f64) -> Self {
+    pub(crate) fn new(deadband: f64) -> Self {
         Self {
             deadband: if deadband.is_finite() {
                 deadband.max(0.0)
@@ -285,20 +285,15 @@ impl DirectionTracker {
         }
     }
 
-    /// The deadband, position unit.
-    pub fn deadband(&self) -> f64 {
-        self.deadband
-    }
-
     /// The direction so far.
-    pub fn direction(&self) -> i8 {
+    pub(crate) fn direction(&self) -> i8 {
         self.direction
     }
 
     /// The outcome of a move to `target` without changing the tracker; `moved` is the signed
     /// direction the move's own sign suggests when the caller has a better source of it (a
     /// velocity column), `None` to use positions.
-    pub fn peek(&self, target: f64, moved: Option<i8>) -> DirectionStep {
+    pub(crate) fn peek(&self, target: f64, moved: Option<i8>) -> DirectionStep {
         let d = self.deadband;
         let Some(anchor) = self.anchor else {
             return DirectionStep {
@@ -355,7 +350,7 @@ impl DirectionTracker {
     }
 
     /// Records the move `s` returned by [`DirectionTracker::peek`] for `target`.
-    pub fn commit(&mut self, target: f64, s: &DirectionStep) {
+    pub(crate) fn commit(&mut self, target: f64, s: &DirectionStep) {
         if self.anchor.is_none() {
             self.anchor = Some(target);
         }
@@ -371,7 +366,7 @@ impl History {
         Self::default()
     }
 
-    /// A history whose direction has a deadband (position unit; see [`DirectionTracker`]).
+    /// A history whose direction has a deadband (position unit; see `DirectionTracker`).
     pub fn with_deadband(deadband: f64) -> Self {
         Self {
             turns: DirectionTracker::new(deadband),
@@ -464,7 +459,7 @@ pub enum DirectionSource {
     /// From the raw sign of each position step (deadband 0): a log of seeks.
     #[default]
     Steps,
-    /// From position steps with a deadband ([`DirectionTracker`]), position unit, > 0.
+    /// From position steps with a deadband (`DirectionTracker`), position unit, > 0.
     Deadband {
         /// The deadband, position unit.
         deadband: f64,
@@ -483,7 +478,7 @@ pub enum DirectionSource {
 #[derive(Debug, Clone, PartialEq, Default)]
 #[non_exhaustive]
 pub enum DirectionSetting {
-    /// The deadband [`estimate_deadband`] picks: 2·√(2 ln n) × the position noise on a dense time
+    /// The deadband [`sampling`] estimates: 2·√(2 ln n) × the position noise on a dense time
     /// series, 0 (raw steps) on a log of seeks.
     #[default]
     Auto,
@@ -538,7 +533,7 @@ impl DirectionSetting {
     }
 
     /// The direction source for the training `log`: `Auto` estimates the deadband from its
-    /// positions ([`estimate_deadband`]); a velocity column must be one of its covariates.
+    /// positions ([`sampling`]); a velocity column must be one of its covariates.
     pub fn resolve(&self, log: &crate::log::Log) -> Result<DirectionSource, DirectionError> {
         self.resolve_with(log, &log_sampling(log))
     }
@@ -642,7 +637,7 @@ impl DirectionSource {
 
 /// Replays a log's seek history with direction read as `source` says; `Err` when a velocity
 /// column is missing.
-pub fn replay_with<'a>(
+pub(crate) fn replay_with<'a>(
     log: &'a crate::log::Log,
     source: &DirectionSource,
 ) -> Result<Replay<'a>, DirectionError> {
@@ -656,7 +651,7 @@ pub fn replay_with<'a>(
 
 /// The turning points of a replayed log, in order: where each direction change began
 /// (`target − direction·since_reversal` of every seek with `direction_change`), position unit.
-pub fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
+pub(crate) fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
     features
         .iter()
         .filter(|f| f.direction_change)
@@ -667,7 +662,7 @@ pub fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
 /// The reversal amplitudes of a replayed log: distances between consecutive turning points
 /// ([`turning_points`]), position unit; the travel a hysteresis loop of the log spans. Empty
 /// with fewer than two reversals.
-pub fn reversal_amplitudes(features: &[SeekFeatures]) -> Vec<f64> {
+pub(crate) fn reversal_amplitudes(features: &[SeekFeatures]) -> Vec<f64> {
     turning_points(features)
         .windows(2)
         .map(|w| (w[1] - w[0]).abs())
@@ -693,7 +688,7 @@ pub struct Sampling {
     /// Whether the log is a dense time series (on a regular clock, with the median step below
     /// 1 % of the travel) rather than a log of seeks.
     pub dense: bool,
-    /// The deadband [`estimate_deadband`] chooses: 2·√(2 ln n) × the noise for a dense log of n rows, else 0.
+    /// The deadband [`sampling`] estimates: 2·√(2 ln n) × the noise for a dense log of n rows, else 0.
     pub deadband: f64,
     /// Direction reversals from the raw sign of each step.
     pub raw_reversals: usize,
@@ -764,12 +759,6 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
     }
 }
 
-/// The deadband [`sampling`] estimates for a log: 2·√(2 ln n) × the position noise on a dense time
-/// series, 0 on a log of seeks.
-pub fn estimate_deadband(times_s: &[f64], positions: &[f64]) -> f64 {
-    sampling(times_s, positions).deadband
-}
-
 impl Sampling {
     /// Plain-language lines for `check`, positions in `unit`.
     pub fn describe(&self, unit: &str) -> Vec<String> {
@@ -825,8 +814,8 @@ impl Sampling {
 /// ([`crate::model::data::FitData`]), diagnose, the plots and the report.
 ///
 /// ```
-/// use biasctl::history::replay;
-/// use biasctl::log::{ColumnMap, Log};
+/// use biasctl::replay;
+/// use biasctl::{ColumnMap, Log};
 /// let text = "time_s,track,bias\n0,100,5\n1,150,\n2,120,3\n";
 /// let log = Log::from_reader("t.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
 /// let seeks: Vec<f64> = replay(&log).map(|(_, _, f)| f.seek_length).collect();
@@ -873,7 +862,7 @@ impl<'a> Iterator for Replay<'a> {
 impl ExactSizeIterator for Replay<'_> {}
 
 /// Sign of a seek length as a direction: +1 inbound, −1 outbound, 0 for no move.
-pub fn sign(x: f64) -> i8 {
+pub(crate) fn sign(x: f64) -> i8 {
     if x > 0.0 {
         1
     } else if x < 0.0 {

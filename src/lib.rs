@@ -19,30 +19,31 @@
 //!
 //! ## The pipeline, one module per step
 //! log → seek history → simulated drive → model terms → fit → score/diagnose → plant/controller →
-//! settle → plots/report.
+//! settle → plots/report. The modules are crate-private (the source's layout, not the API); what
+//! each holds:
 //!
-//! - [`numeric`]: shared numerics below everything: statistics (moments, histogram, bimodality
+//! - `numeric`: shared numerics below everything: statistics (moments, histogram, bimodality
 //!   and dip tests, trend and whiteness tests) and the seeded, portable random generator.
-//! - [`log`]: the measurement log (CSV), streaming reader with column mapping, and the input
-//!   limits ([`log::limits`]) every reader enforces.
-//! - [`history`]: the seek-history state machine: direction, reversals, uncrossed rest positions.
-//! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
-//! - [`model`]: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl,
+//! - `log`: the measurement log (CSV), streaming reader with column mapping, and the input
+//!   limits (`log::limits`) every reader enforces.
+//! - `history`: the seek-history state machine: direction, reversals, uncrossed rest positions.
+//! - `sim`: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
+//! - `model`: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl,
 //!   col, bins), presets, the online predictor.
-//! - [`fit`](mod@fit): one least-squares solve (streaming QR) for all linear parameters, variable
+//! - `fit`: one least-squares solve (streaming QR) for all linear parameters, variable
 //!   projection for the Dahl rate.
-//! - [`score`](mod@score): error statistics of a model on a log: moments, percentiles, histogram,
+//! - `score`: error statistics of a model on a log: moments, percentiles, histogram,
 //!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
-//! - [`diagnose`](mod@diagnose): which missing effect the residual follows: cross-validated
+//! - `diagnose`: which missing effect the residual follows: cross-validated
 //!   smoother per feature, permutation test, advice, ladder.
-//! - [`control`]: plant → controller → settle: continuous plant with modes, ZOH with
-//!   fractional delay, DARE/LQR, and ([`control::settle`]) the settle-optimal integrator start
+//! - `control`: plant → controller → settle: continuous plant with modes, ZOH with
+//!   fractional delay, DARE/LQR, and (`control::settle`) the settle-optimal integrator start
 //!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table.
-//! - [`export`]: the fitted model and the handoff table as C99, checked against the predictor.
-//! - [`render`]: the one output layer: text, JSON and CSV, atomic and safe file writing,
+//! - `export`: the fitted model and the handoff table as C99, checked against the predictor.
+//! - `render`: the one output layer: text, JSON and CSV, atomic and safe file writing,
 //!   finite-only numbers.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
-//! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
+//! - `report`: one self-contained `report.html` (inline SVG and CSS, no script, no network).
 //!
 //! ## Settings: unchecked → checked (linfa's `ParamGuard`)
 //! Every settings type is written freely and checked once, before any numerics, into a checked
@@ -52,8 +53,12 @@
 //! [`diagnose_model`], [`VerifyConfig::check`] → [`CheckedVerifyConfig`] for
 //! [`diagnose_verified`], [`DiscoverConfig::check`] → [`CheckedDiscoverConfig`] for
 //! [`discover()`], [`SettleSpec::check`] → [`SettleConfig`] for [`analyse`] and
-//! [`StartValues::new`], [`SimConfig::new`] (a [`SimConfig`] exists only checked) for
-//! [`simulate_log`]. The `Default` of a checked type is the checked default.
+//! [`StartValues::new`], [`StoryOptions::check`] → [`CheckedStoryOptions`] for [`demo_report`],
+//! [`data_report`], [`compute_demo`] and [`compute_data`], [`ladder_terms`] → [`LadderTerms`]
+//! for [`ladder_fit`], [`plot::views::PanelOptions::check`] →
+//! [`plot::views::CheckedPanelOptions`] for [`plot::views::diagnose_panel`], [`SimConfig::new`]
+//! (a [`SimConfig`] exists only checked) for [`simulate_log`]. The `Default` of a checked type
+//! is the checked default. ([`COptions`] has no setting that can be out of range.)
 //!
 //! ## Errors name settings, not flags
 //! An error about a setting carries a [`Field`] (`SettleSpec::step_um`, `ColumnMap::bias`,
@@ -61,11 +66,19 @@
 //! flag: the `biasctl` binary holds the one table field → flag and prints `--step-um` there.
 //!
 //! ## The public API
-//! What a user needs is re-exported here at the top ([`Log`], [`replay`], [`simulate_log`],
-//! [`ModelSpec`], [`FittedModel`], [`Predictor`], [`Term`], [`fit()`], [`score()`],
-//! [`diagnose_model`], [`discover()`], [`analyse`], [`StartValues`], [`c_source`],
-//! [`write_atomic`], …); the modules hold the rest. Internal numerics (the golden-section
-//! search, incomplete beta and gamma functions, the matrix exponential) are crate-private.
+//! Everything a user needs is one `use biasctl::Name` away, re-exported here at the top ([`Log`],
+//! [`replay`], [`simulate_log`], [`ModelSpec`], [`FittedModel`], [`Predictor`], [`Term`],
+//! [`fit()`], [`score()`], [`diagnose_model`], [`discover()`], [`analyse`], [`StartValues`],
+//! [`c_source`], [`write_atomic`], …), together with the types their signatures use (errors,
+//! results, parameters). Three namespaces stay whole because a user needs them as namespaces:
+//! [`plot`] (one builder per figure, and the chart builder), [`terms`] (the built-in terms, for a
+//! user writing their own [`Term`]) and [`family`] (the drive family the diagnosis is measured
+//! on). The modules themselves are crate-private, and so are the internal numerics (statistics
+//! kernels, the golden-section search, incomplete beta and gamma functions, the matrix
+//! exponential, the smoother); the few numerics that are public ([`SimRng`], [`std_dev`],
+//! [`dip_test`], [`set_threads`]) say why. `#![warn(unreachable_pub)]` keeps every `pub` item
+//! reachable from here: a new public item is added to the re-export list at the end of this
+//! file, anything else is `pub(crate)`.
 //!
 //! ## The whole pipeline in one example
 //!
@@ -74,11 +87,11 @@
 //! settle-optimal integrator start value for the paper's test bed.
 //!
 //! ```
-//! use biasctl::diagnose::{DiagnoseConfig, diagnose_model};
-//! use biasctl::fit::{FitOptions, fit};
-//! use biasctl::model::ModelSpec;
-//! use biasctl::control::settle::{SettleSpec, analyse};
-//! use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+//! use biasctl::{DiagnoseConfig, diagnose_model};
+//! use biasctl::{FitOptions, fit};
+//! use biasctl::ModelSpec;
+//! use biasctl::{SettleSpec, analyse};
+//! use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
 //!
 //! // 1. Simulate: a training run and a test run with another seed (tracks, counts, s).
 //! let opts = SequenceOptions { n: Some(600), ..Default::default() };
@@ -92,8 +105,8 @@
 //! // 3. Score causally on the test run: the full model leaves a smaller error.
 //! let p_pd = pd.predict_log(&test)?;
 //! let p_cal = cal.predict_log(&test)?;
-//! let s_pd = biasctl::score::score(&p_pd.residual, &p_pd.positions)?;
-//! let s_cal = biasctl::score::score(&p_cal.residual, &p_cal.positions)?;
+//! let s_pd = biasctl::score(&p_pd.residual, &p_pd.positions)?;
+//! let s_cal = biasctl::score(&p_cal.residual, &p_cal.positions)?;
 //! assert!(s_cal.std < s_pd.std);
 //!
 //! // 4. Diagnose the poorer model: features ranked by out-of-sample explained variance.
@@ -107,50 +120,136 @@
 //! ```
 #![deny(clippy::float_cmp)]
 #![warn(missing_docs)]
+#![warn(unnameable_types)]
+#![warn(unreachable_pub)]
 
 // Modules in the order a log travels through them; a module imports only modules above it.
-pub mod field;
+pub(crate) mod field;
 
-pub mod numeric;
+pub(crate) mod numeric;
 
-pub mod log;
+pub(crate) mod log;
 
-pub mod history;
+pub(crate) mod history;
 
-pub mod sim;
+pub(crate) mod sim;
 
-pub mod model;
+pub(crate) mod model;
 
-pub mod fit;
+pub(crate) mod fit;
 
-pub mod score;
+pub(crate) mod score;
 
-pub mod diagnose;
+pub(crate) mod diagnose;
 
-pub mod control;
+pub(crate) mod control;
 
-pub mod export;
+pub(crate) mod export;
 
-pub mod render;
+pub(crate) mod render;
 
 pub mod plot;
 
-pub mod report;
+pub(crate) mod report;
 
-// The curated public API: what a user of the library needs, one `use biasctl::…` away.
-pub use control::settle::{SettleConfig, SettleReport, SettleSpec, analyse};
+// The curated public API: what a user of the library needs, one `use biasctl::…` away. The
+// modules above are crate-private; `plot` stays a namespace (one builder per figure), and two
+// namespaces are re-exported whole: `terms` (the built-in terms, for a user writing their own
+// `Term`) and `family` (the drive family the diagnosis is measured on).
+pub use control::settle::{
+    Bounds, Handoff, HandoffTable, SettleConfig, SettleReport, SettleSpec, Window, analyse,
+    handoff_state, settle_index, worst_case_settle,
+};
+pub use control::{
+    Controller, LqrWeights,
+    plant::{Plant, PlantSpec},
+};
 pub use diagnose::{
     CheckedDiagnoseConfig, CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis,
-    DiscoverConfig, VerifyConfig, diagnose, diagnose_model, diagnose_verified, discover,
+    DiscoverConfig, FeatureReport, FeatureTable, Ladder, LadderStep, LadderTerms, PathStep,
+    VerifyConfig, diagnose, diagnose_model, diagnose_residual, diagnose_verified, discover,
+    ladder_fit, ladder_terms, model_spec, replay_model, suggestion_path, suggestion_path_from,
 };
-pub use export::{COptions, CSource, c_source};
+pub use export::{
+    C_FILES, CContext, CHandoff, COptions, CPrecision, CSource, CTerm, ExportError, c_source,
+};
 pub use field::Field;
-pub use fit::{CheckedFitOptions, FitError, FitOptions, fit};
-pub use history::{Feature, SeekFeatures, replay};
-pub use log::{ColumnMap, Log, LogError, LogSchema, Units};
-pub use model::term::{Term, TermSpec, TermState};
-pub use model::{FittedModel, ModelEdit, ModelSpec, Prediction, Predictor, StartValues};
-pub use render::{OutputError, write_atomic, write_stdout, write_string_atomic};
-pub use report::story::{StoryOptions, data_report, demo_report};
-pub use score::{Score, score, score_with_units};
-pub use sim::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};
+pub use fit::{CheckedFitOptions, FitData, FitError, FitOptions, FitReport, fit};
+pub use history::{
+    DirectionSetting, DirectionSource, Feature, History, SeekFeatures, log_sampling, replay,
+    sampling,
+};
+pub use log::limits::{check_toml_numbers, read_text};
+pub use log::{
+    BiasColumn, ColumnMap, DEFAULT_BIAS_COL, DEFAULT_BIAS_UNIT, DEFAULT_TIME_COL,
+    DEFAULT_TRACK_COL, Log, LogError, LogReader, LogSchema, LogWriter, STDIN_PATH, Units,
+    check_unit_label, fmt_trimmed,
+};
+pub use model::preset::{CALIBRATION, preset_terms};
+pub use model::registry::builtin_names;
+pub use model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState};
+pub use model::terms;
+pub use model::{
+    ColumnsUsed, Feedback, FittedModel, FittedTerm, ModelEdit, ModelError, ModelSpec,
+    NextPrediction, Prediction, Predictor, ReplaySummary, RowPrediction, SpecError, StartValues,
+    predict_next, replay_stream, write_predictions_csv,
+};
+/// The worker-thread count of the parallel parts (diagnosis permutations, cross-validation):
+/// public for the binary's `--threads` and for tests that pin a thread count.
+pub use numeric::parallel::{ThreadsError, set_threads, with_threads};
+/// The seeded, portable random generator: public so that a user's simulation, bench or test
+/// draws the same numbers as the crate's own for the same seed.
+pub use numeric::rng::SimRng;
+/// Summary statistics public on purpose: the examples summarise residuals with them, and the
+/// dip test (Hartigans') is benched on its own against the peer implementation.
+pub use numeric::stats::{dip_test, dip_test_sorted, mean, sorted, std_dev};
+pub use render::json::to_string_pretty;
+pub use render::{
+    NonFinite, OutputError, StagedDir, check_paths, check_prediction, check_text, flush_stdout,
+    is_broken_pipe, message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
+};
+pub use report::story::{
+    CheckedStoryOptions, Progress, StoryOptions, StoryOutcome, data_report, demo_report,
+};
+pub use report::{Cell, Report, Table};
+pub use score::{Score, score, score_model, score_with_units};
+pub use sim::family;
+pub use sim::{
+    DEFAULT_N, Drive, MeasureMode, SequenceOptions, SimConfig, TRUTH_COLUMNS, simulate,
+    simulate_log, simulate_to_files,
+};
+// Types that appear in the public items above (errors, results, parameters), nameable here.
+pub use control::lqr::DareError;
+pub use control::plant::{DiscretePlant, Mode, ModeSpec, PlantError};
+pub use control::settle::{
+    AnalyseError, ConfigError as SettleConfigError, HandoffSolution, Interval, PaperRobust,
+    Response, RobustChoice, Scenario, SettleError, WorstCase,
+};
+pub use control::{ExpmError, ServoError};
+pub use diagnose::{
+    Absorption, CurveBin, DiagnoseError, DiscoverError, DiscoverStep, Discovery, FeatureColumn,
+    FeatureOrigin, GlobalCheck, Interaction, ModelDiagnosisError, RejectedEdit, Shape,
+    Verification, VerifiedEdit, Whiteness,
+};
+pub use history::{DirectionError, Replay, RestMemory, Sampling};
+pub use log::{LogSummary, Row, UnitError};
+pub use model::RangeWarning;
+pub use model::predictor::ReplayError;
+pub use numeric::stats::{Dip, DipTest, Histogram, Trend};
+pub use render::file::Sink;
+pub use report::run::{
+    DataRun, DemoRun, DiagnosedRun, MAX_SEEKS, PaperRobustWhy, ScoredModel, SettleRun, StoryError,
+    compute_data, compute_demo,
+};
+pub use report::{Block, Section};
+pub use score::{ModelScore, ModelScoreError, ScoreError};
+pub use sim::drive::{
+    DirectionParams, DriftParams, DriveError, Element, ElementKind, Harmonic, MemoryParams,
+    OvershootParams, PositionParams, RunoutParams, ScatterParams, ServoParams, TemperatureParams,
+    TimeParams,
+};
+pub use sim::sequence::{ScriptError, Step};
+pub use sim::{
+    ConfigError as SimConfigError, Effect, RandomSpec, Sequence, SimError, SimRow, SimSummary,
+    Truth,
+};

@@ -4,7 +4,6 @@
 
 mod cli;
 
-use biasctl::render;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
@@ -12,10 +11,10 @@ fn main() -> ExitCode {
         Ok(args) => args,
         Err(e) => e.exit(),
     };
-    let result = cli::run(args).and_then(|()| Ok(render::flush_stdout()?));
+    let result = cli::run(args).and_then(|()| Ok(biasctl::flush_stdout()?));
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(err) if render::is_broken_pipe(err.as_ref()) => ExitCode::SUCCESS,
+        Err(err) if biasctl::is_broken_pipe(err.as_ref()) => ExitCode::SUCCESS,
         Err(err) => {
             // stderr gone too: nothing left to tell, the exit code still says it.
             let _ = std::io::Write::write_all(

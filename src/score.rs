@@ -8,7 +8,7 @@
 //! ```
 //! let e = [1.0, -1.0, 0.5, -0.5, 0.0, 0.25];
 //! let x = [10.0, 20.0, 30.0, 40.0, 50.0, 60.0];
-//! let s = biasctl::score::score(&e, &x).unwrap();
+//! let s = biasctl::score(&e, &x).unwrap();
 //! assert_eq!(s.n, 6);
 //! assert!((s.mean - 0.041666).abs() < 1e-5);
 //! ```
@@ -75,7 +75,7 @@ pub struct Score {
     pub histogram: Histogram,
     /// Sarle's bimodality coefficient (absent for fewer than 4 values or no spread: `score`
     /// never writes `null`); above
-    /// [`stats::BIMODALITY_THRESHOLD`] (5/9) it suggests two modes. A heuristic: it misses
+    /// `stats::BIMODALITY_THRESHOLD` (5/9) it suggests two modes. A heuristic: it misses
     /// overlapping humps and flags skewed single ones; `bimodal` uses the dip test instead.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bimodality: Option<f64>,
@@ -85,7 +85,7 @@ pub struct Score {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dip: Option<DipTest>,
     /// Whether the error has two or more modes: the dip test rejects unimodality at the 5 %
-    /// level ([`stats::DIP_SIGNIFICANCE`], p-value below 0.05). `false` where `dip` is absent.
+    /// level (`stats::DIP_SIGNIFICANCE`, p-value below 0.05). `false` where `dip` is absent.
     /// Residuals that take few distinct values (quantised measurements and a model with few
     /// distinct predictions) are point masses to the test, which then rejects.
     pub bimodal: bool,
@@ -367,11 +367,11 @@ mod tests {
 
 /// A mean error larger than this fraction of the error std is warned about: the model is
 /// biased on the log (an offset it did not learn, a column or unit mix-up, parameters that blew up).
-pub const MEAN_WARNING_RATIO: f64 = 0.5;
+pub(crate) const MEAN_WARNING_RATIO: f64 = 0.5;
 
 /// The warning for a score whose |mean| is large against its std ([`MEAN_WARNING_RATIO`]),
 /// naming the figure (`one-step`, `free run`); `None` otherwise.
-pub fn mean_warning(s: &Score, figure: &str) -> Option<String> {
+pub(crate) fn mean_warning(s: &Score, figure: &str) -> Option<String> {
     (s.mean.abs() > MEAN_WARNING_RATIO * s.std && s.n >= 2).then(|| {
         format!(
             "{figure} mean error {} {} is {:.2}× the error std {}: the model is offset on this \

@@ -1,7 +1,7 @@
 //! `biasctl check`: validate a log and summarise it.
 
 use super::common::LogArgs;
-use biasctl::log::LogReader;
+use biasctl::LogReader;
 
 /// Flags of `biasctl check`.
 #[derive(Debug, clap::Args)]
@@ -36,7 +36,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sum.times_s[1],
         s.map.time
     )?;
-    for line in biasctl::history::sampling(&times, &positions).describe(&units.position) {
+    for line in biasctl::sampling(&times, &positions).describe(&units.position) {
         outln!("  {line}")?;
     }
     if !s.covariates.is_empty() {

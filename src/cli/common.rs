@@ -1,9 +1,9 @@
 //! Flags shared by several commands.
 
 use anyhow::Context;
-use biasctl::control::settle::SettleSpec;
-use biasctl::field::Field;
-use biasctl::log::{
+use biasctl::Field;
+use biasctl::SettleSpec;
+use biasctl::{
     ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL, Log, LogSchema, Units,
     check_unit_label,
 };
@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// library's errors name settings ([`Field`]); [`with_flags`] renders each as its flag in every
 /// message the CLI prints. `None`: no command sets the field (a library-only setting such as
 /// `FitOptions::grid`), so its name stays. Every [`Field`] is listed once (a test checks).
-pub const FLAGS: [(Field, Option<&str>); 36] = [
+pub const FLAGS: [(Field, Option<&str>); 41] = [
     (Field::TimeColumn, Some("--time-col")),
     (Field::TrackColumn, Some("--track-col")),
     (Field::BiasColumn, Some("--bias-col")),
@@ -51,6 +51,11 @@ pub const FLAGS: [(Field, Option<&str>); 36] = [
     (Field::VerifyCandidates, None),
     (Field::MinZ, None),
     (Field::MaxSteps, Some("--max-steps")),
+    (Field::RandomSeeks, Some("--seeks")),
+    (Field::StoryPermutations, None),
+    (Field::SettlePreset, None),
+    (Field::LadderTerms, Some("--terms")),
+    (Field::PanelTop, Some("--top")),
 ];
 
 /// The flag that sets `field`, from [`FLAGS`]; `None` for a library-only setting.
@@ -216,8 +221,8 @@ pub struct DirectionArgs {
 
 impl DirectionArgs {
     /// The library setting these flags ask for (checked: a bad deadband names the flag).
-    pub fn setting(&self) -> anyhow::Result<biasctl::history::DirectionSetting> {
-        use biasctl::history::DirectionSetting;
+    pub fn setting(&self) -> anyhow::Result<biasctl::DirectionSetting> {
+        use biasctl::DirectionSetting;
         let s = match (&self.deadband, &self.velocity_col) {
             (Some(d), _) => DirectionSetting::Deadband(*d),
             (None, Some(c)) => DirectionSetting::Velocity(c.clone()),
@@ -228,10 +233,10 @@ impl DirectionArgs {
     }
 
     /// The checked default fit settings with this direction setting.
-    pub fn fit_options(&self) -> anyhow::Result<biasctl::fit::CheckedFitOptions> {
-        Ok(biasctl::fit::FitOptions {
+    pub fn fit_options(&self) -> anyhow::Result<biasctl::CheckedFitOptions> {
+        Ok(biasctl::FitOptions {
             direction: self.setting()?,
-            ..biasctl::fit::FitOptions::default()
+            ..biasctl::FitOptions::default()
         }
         .check()?)
     }
@@ -284,9 +289,9 @@ impl SettleArgs {
     pub fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
             Some(path) => {
-                let text = biasctl::log::limits::read_text(path)
+                let text = biasctl::read_text(path)
                     .with_context(|| format!("cannot read plant file {}", path.display()))?;
-                biasctl::log::limits::check_toml_numbers(&text)
+                biasctl::check_toml_numbers(&text)
                     .map_err(anyhow::Error::msg)
                     .with_context(|| format!("invalid plant file {}", path.display()))?;
                 toml::from_str::<SettleSpec>(&text)
@@ -316,7 +321,7 @@ impl SettleArgs {
 }
 
 /// Refuses, before anything runs, an output flag naming the same file as an input flag or as
-/// another output flag ([`biasctl::render::check_paths`]); each path comes with its flag.
+/// another output flag ([`biasctl::check_paths`]); each path comes with its flag.
 pub fn refuse_clashes(
     inputs: &[(&str, Option<&Path>)],
     outputs: &[(&str, Option<&Path>)],
@@ -329,12 +334,12 @@ pub fn refuse_clashes(
         .iter()
         .filter_map(|&(f, p)| p.map(|p| (f, p)))
         .collect();
-    Ok(biasctl::render::check_paths(&ins, &outs)?)
+    Ok(biasctl::check_paths(&ins, &outs)?)
 }
 
 /// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was
 /// fitted on: its position terms are extrapolated there and nothing else would show it.
-pub fn warn_outside_range(model: &biasctl::model::FittedModel, file: &str, positions: &[f64]) {
+pub fn warn_outside_range(model: &biasctl::FittedModel, file: &str, positions: &[f64]) {
     if let Some(w) = model.outside_range(positions) {
         eprintln!("warning: {file}: {w}");
     }

@@ -16,7 +16,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Random seeks of the test and calibration runs.
-    #[arg(long, default_value_t = biasctl::sim::DEFAULT_N, value_name = "N")]
+    #[arg(long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
     seeks: u64,
 }
 

@@ -1,11 +1,11 @@
 //! `biasctl diagnose`: compare a fitted model with a log and name the missing effect.
 
 use super::predict::ModelLogArgs;
-use biasctl::diagnose::{
+use biasctl::FitOptions;
+use biasctl::write_atomic;
+use biasctl::{
     DiagnoseConfig, PathStep, VerifyConfig, diagnose_model, diagnose_verified, suggestion_path_from,
 };
-use biasctl::fit::FitOptions;
-use biasctl::render::write_atomic;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -100,7 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         // Built in a staging folder beside `dir` and moved in whole: no partial output.
-        let staged = biasctl::render::StagedDir::create(dir)?;
+        let staged = biasctl::StagedDir::create(dir)?;
         let json = d.to_json()?;
         write_atomic(&staged.path("diagnosis.json"), |w| writeln!(w, "{json}"))?;
         d.write_feature_csvs(&staged.path(""))?;
@@ -119,7 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 diagnosis: &d,
                 path: &path,
             };
-            outln!("{}", biasctl::render::json::to_string_pretty(&v)?)?;
+            outln!("{}", biasctl::to_string_pretty(&v)?)?;
         } else {
             outln!("{}", d.to_json()?)?;
         }

@@ -2,9 +2,9 @@
 
 use super::common::ColumnArgs;
 use anyhow::Context;
-use biasctl::diagnose::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
-use biasctl::model::{FittedModel, ModelSpec};
-use biasctl::render::{StagedDir, write_atomic};
+use biasctl::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
+use biasctl::{FittedModel, ModelSpec};
+use biasctl::{StagedDir, write_atomic};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -1,8 +1,8 @@
 //! `biasctl export c`: a fitted model as C99 source for the drive's firmware.
 
 use super::predict::handoff_plan;
-use biasctl::export::{C_FILES, CHandoff, COptions, CPrecision, c_source};
-use biasctl::model::FittedModel;
+use biasctl::FittedModel;
+use biasctl::{C_FILES, CHandoff, COptions, CPrecision, c_source};
 use std::path::PathBuf;
 
 /// Flags of `biasctl export`.

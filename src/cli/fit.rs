@@ -2,8 +2,8 @@
 
 use super::common::{DirectionArgs, LogArgs};
 use anyhow::Context;
-use biasctl::fit::fit;
-use biasctl::model::ModelSpec;
+use biasctl::ModelSpec;
+use biasctl::fit;
 use std::path::PathBuf;
 
 /// Flags of `biasctl fit`.

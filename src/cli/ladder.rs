@@ -2,7 +2,7 @@
 
 use super::common::{ColumnArgs, DirectionArgs};
 use anyhow::Context;
-use biasctl::diagnose::{ladder_fit, ladder_terms};
+use biasctl::{ladder_fit, ladder_terms};
 use std::path::PathBuf;
 
 /// Flags of `biasctl ladder`.
@@ -28,7 +28,7 @@ pub struct Args {
 
 /// Reads both logs, fits every prefix of the term list and prints the table.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let terms = ladder_terms(&args.terms).context("--terms")?;
+    let terms = ladder_terms(&args.terms)?;
     let opts = args.direction.fit_options()?;
     let train = args.columns.read_log(&args.data).context("--data")?;
     let test = args.columns.read_log(&args.test).context("--test")?;

@@ -1,21 +1,21 @@
 //! Command-line flag structs, one file per command. Each command's `run` turns its flags into the
 //! library's validated configuration and calls the library; no numerics live here.
 
-/// Prints a line to stdout through the one output path ([`biasctl::render::write_stdout`]):
+/// Prints a line to stdout through the one output path ([`biasctl::write_stdout`]):
 /// evaluates to `Result<(), OutputError>` (a closed pipe is `OutputError::BrokenPipe`).
 macro_rules! outln {
     () => {
-        biasctl::render::write_stdout("\n")
+        biasctl::write_stdout("\n")
     };
     ($($t:tt)*) => {
-        biasctl::render::write_stdout(&format!("{}\n", format_args!($($t)*)))
+        biasctl::write_stdout(&format!("{}\n", format_args!($($t)*)))
     };
 }
 
 /// Prints to stdout without a newline, as [`outln!`].
 macro_rules! out {
     ($($t:tt)*) => {
-        biasctl::render::write_stdout(&format!($($t)*))
+        biasctl::write_stdout(&format!($($t)*))
     };
 }
 
@@ -114,16 +114,16 @@ fn column_clash(m: &clap::ArgMatches) -> Option<String> {
     None
 }
 
-/// The text printed after `error: ` ([`biasctl::render::message_with`]), every library setting
+/// The text printed after `error: ` ([`biasctl::message_with`]), every library setting
 /// name rendered as its flag by the one table ([`common::FLAGS`]).
 pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
-    biasctl::render::message_with(err, &common::with_flags)
+    biasctl::message_with(err, &common::with_flags)
 }
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     if let Some(n) = cli.threads {
-        biasctl::numeric::parallel::set_threads(n.into())?;
+        biasctl::set_threads(n.into())?;
     }
     match cli.command {
         Command::Check(a) => check::run(a),

@@ -3,15 +3,15 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::{Context, bail};
-use biasctl::control::settle::analyse;
-use biasctl::diagnose::{
+use biasctl::Log;
+use biasctl::analyse;
+use biasctl::write_string_atomic;
+use biasctl::{
     DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, ladder_terms, replay_model,
 };
-use biasctl::fit::{FitOptions, fit};
-use biasctl::log::Log;
-use biasctl::model::{FittedModel, ModelSpec};
-use biasctl::plot::{from_log, views};
-use biasctl::render::write_string_atomic;
+use biasctl::{FitOptions, fit};
+use biasctl::{FittedModel, ModelSpec};
+use biasctl::{plot::from_log, plot::views};
 use clap::ValueEnum;
 use std::path::{Path, PathBuf};
 
@@ -66,11 +66,11 @@ pub struct Args {
     #[arg(
         long,
         value_name = "T1,T2,...",
-        default_value = biasctl::model::preset::CALIBRATION
+        default_value = biasctl::CALIBRATION
     )]
     terms: String,
     /// Top features of the `diagnose` plot.
-    #[arg(long, default_value_t = 6, value_name = "N")]
+    #[arg(long, default_value_t = biasctl::plot::views::DEFAULT_TOP, value_name = "N")]
     top: usize,
     #[command(flatten)]
     settle: SettleArgs,
@@ -124,9 +124,6 @@ fn check_flags(a: &Args) -> anyhow::Result<()> {
     {
         bail!("plot {k} takes one --model");
     }
-    if a.top == 0 {
-        bail!("--top 0: give at least 1");
-    }
     Ok(())
 }
 
@@ -150,6 +147,7 @@ fn model(name: &str, log: &Log) -> anyhow::Result<(String, FittedModel)> {
 
 /// The SVG text of the figure.
 fn draw(a: &Args) -> anyhow::Result<String> {
+    let panel = views::PanelOptions { top: a.top }.check()?;
     if is_settle(a.kind) {
         let report = analyse(&a.settle.spec()?.check()?)?;
         return Ok(match a.kind {
@@ -193,12 +191,12 @@ fn draw(a: &Args) -> anyhow::Result<String> {
             let residual = replay_model(&m, &log)?.residual;
             let table = FeatureTable::from_log(&log);
             let d = diagnose_residual(&m, &table, &residual, &DiagnoseConfig::default().check()?)?;
-            views::diagnose_panel(&d, &table, &residual, a.top)
+            views::diagnose_panel(&d, &table, &residual, &panel)
         }
         Kind::Ladder => {
             let test_path = a.test.as_ref().context("--test")?;
             let test = a.columns.read_log(test_path)?;
-            let terms = ladder_terms(&a.terms).context("--terms")?;
+            let terms = ladder_terms(&a.terms)?;
             let l = ladder_fit(&log, &test, &terms, &FitOptions::default().check()?)?;
             views::ladder(&l, &test.schema.units)
         }
@@ -221,7 +219,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_flags(&args)?;
     let svg = draw(&args)?;
     // The last guard before the file: no `NaN`/`inf` coordinate leaves (exit 2, nothing written).
-    biasctl::render::check_text(&svg, &args.out.display().to_string())?;
+    biasctl::check_text(&svg, &args.out.display().to_string())?;
     write_string_atomic(&args.out, &svg)?;
     outln!("wrote {}", args.out.display())?;
     Ok(())

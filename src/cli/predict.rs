@@ -2,9 +2,9 @@
 //! (and, with `--handoff`, the integrator start value of every seek).
 
 use super::common::{DirectionArgs, LogArgs, SettleArgs};
-use biasctl::log::{BiasColumn, Log, LogReader, STDIN_PATH};
-use biasctl::model::{FittedModel, Prediction, ReplaySummary, StartValues, write_predictions_csv};
-use biasctl::render::write_atomic;
+use biasctl::write_atomic;
+use biasctl::{BiasColumn, Log, LogReader, STDIN_PATH};
+use biasctl::{FittedModel, Prediction, ReplaySummary, StartValues, write_predictions_csv};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -38,7 +38,7 @@ impl ModelLogArgs {
         let model = self.load_model()?;
         let log = self.log.columns.read_log(&self.log.data)?;
         let pred = model.predict_log(&log)?;
-        biasctl::render::check_prediction(&pred, &log)?;
+        biasctl::check_prediction(&pred, &log)?;
         super::common::warn_outside_range(&model, &log.schema.file, &pred.positions);
         Ok((model, log, pred))
     }

@@ -4,12 +4,9 @@
 use super::common::ColumnArgs;
 use super::progress::Bar;
 use anyhow::Context;
-use biasctl::model::FittedModel;
-use biasctl::report::story::{StoryOptions, StoryOutcome, data_report, demo_report};
+use biasctl::FittedModel;
+use biasctl::{StoryOptions, StoryOutcome, data_report, demo_report};
 use std::path::PathBuf;
-
-/// Largest `--seeks` of `report` and `demo`.
-pub const MAX_SEEKS: u64 = 1_000_000;
 
 /// Flags of `biasctl report`.
 #[derive(Debug, clap::Args)]
@@ -29,27 +26,18 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Random seeks of the built-in drive's test and calibration runs.
-    #[arg(long, default_value_t = biasctl::sim::DEFAULT_N, value_name = "N")]
+    #[arg(long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
     pub seeks: u64,
 }
 
 /// Runs the story with a progress bar; returns what was written.
 pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
-    // The diagnosis of the test run needs its cross-validation's minimum of measured rows; the
-    // upper limit keeps the in-memory logs (and the files beside the report) to a few hundred MB.
-    let min = biasctl::diagnose::DiagnoseConfig::default().min_rows() as u64;
-    if !(min..=MAX_SEEKS).contains(&args.seeks) {
-        anyhow::bail!(
-            "--seeks {}: give {min} to {MAX_SEEKS} random seeks (the diagnosis of the test run \
-             needs at least {min} measured rows)",
-            args.seeks
-        );
-    }
     let opts = StoryOptions {
         seed: args.seed,
         random_seeks: args.seeks,
         ..StoryOptions::default()
-    };
+    }
+    .check()?;
     // The report's other files are named during the run (models, figures): the inputs this
     // registers are also refused when the staged folder is moved into place.
     let html = args.out.join("report.html");

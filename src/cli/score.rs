@@ -1,8 +1,8 @@
 //! `biasctl score`: error statistics of a model on a log.
 
 use super::predict::ModelLogArgs;
-use biasctl::model::Feedback;
-use biasctl::score::score_model;
+use biasctl::Feedback;
+use biasctl::score_model;
 
 /// Flags of `biasctl score`.
 #[derive(Debug, clap::Args)]
@@ -29,7 +29,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {}: {w}", log.schema.file);
     }
     if args.json {
-        outln!("{}", biasctl::render::json::to_string_pretty(&s)?)?;
+        outln!("{}", biasctl::to_string_pretty(&s)?)?;
     } else {
         outln!("{}: model `{}`", log.schema.file, model.spec)?;
         if let (Some(f), Some(label)) = (&s.free_run, &s.free_run_feedback) {

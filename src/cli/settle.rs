@@ -2,10 +2,10 @@
 
 use super::common::{ColumnArgs, SettleArgs};
 use anyhow::Context;
-use biasctl::control::settle::{SettleReport, analyse};
-use biasctl::log::{DEFAULT_BIAS_UNIT, Units};
-use biasctl::model::{FittedModel, NextPrediction, predict_next};
-use biasctl::render::write_string_atomic;
+use biasctl::write_string_atomic;
+use biasctl::{DEFAULT_BIAS_UNIT, Units};
+use biasctl::{FittedModel, NextPrediction, predict_next};
+use biasctl::{SettleReport, analyse};
 use std::path::PathBuf;
 
 /// Flags of `biasctl settle`.
@@ -171,7 +171,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 zero_ff_worst_settle_ms: report.worst_case.zero_ff_worst_settle_ms,
             }),
         };
-        outln!("{}", biasctl::render::json::to_string_pretty(&value)?)?;
+        outln!("{}", biasctl::to_string_pretty(&value)?)?;
     } else {
         if let Some(l) = &link {
             outln!(

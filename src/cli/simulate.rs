@@ -1,6 +1,6 @@
 //! `biasctl simulate`: run the simulated drive through a sequence and write the log.
 
-use biasctl::sim::{Drive, MeasureMode, SequenceOptions, SimConfig, simulate_to_files};
+use biasctl::{Drive, MeasureMode, SequenceOptions, SimConfig, simulate_to_files};
 use std::path::PathBuf;
 
 /// Flags of `biasctl simulate`.

@@ -34,7 +34,7 @@ pub enum ExpmError {
 /// (Parlett & Reinsch 1969, as in LAPACK `dgebal`; `e^A = D e^{A'} D⁻¹`), which keeps badly
 /// scaled physical units (µm, µm/s, ω²) from forcing many squarings. Then scales `A'` by 2^−s so
 /// that its 1-norm is at most 1/2, evaluates the [6/6] Padé approximant and squares `s` times.
-pub fn expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, ExpmError> {
+pub(crate) fn expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, ExpmError> {
     let (n, m) = a.shape();
     if n != m {
         return Err(ExpmError::NotSquare { rows: n, cols: m });

@@ -70,7 +70,7 @@ pub enum DareError {
 
 /// Settings of the DARE solver.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DareOptions {
+pub(crate) struct DareOptions {
     /// Maximum number of doubling steps.
     pub max_iterations: usize,
     /// Stop when ‖H_{k+1} − H_k‖_F ≤ tol·‖H_{k+1}‖_F.
@@ -91,7 +91,7 @@ impl Default for DareOptions {
 
 /// A solved DARE with the LQR gain and how the solve ended.
 #[derive(Debug, Clone, PartialEq)]
-pub struct DareSolution {
+pub(crate) struct DareSolution {
     /// The stabilising solution X (symmetric).
     pub x: DMatrix<f64>,
     /// The gain K = (R + BᵀXB)⁻¹ BᵀXA (u = −K x), m × n.
@@ -114,7 +114,7 @@ fn symmetric(m: &DMatrix<f64>) -> bool {
 }
 
 /// Spectral radius of a square real matrix (largest eigenvalue magnitude).
-pub fn spectral_radius(m: &DMatrix<f64>) -> f64 {
+pub(crate) fn spectral_radius(m: &DMatrix<f64>) -> f64 {
     m.complex_eigenvalues()
         .iter()
         .map(|l| l.norm())
@@ -165,7 +165,7 @@ fn check_stabilisable(a: &DMatrix<f64>, b: &DMatrix<f64>) -> Result<(), DareErro
 /// Solves the DARE for (A, B, Q, R) with the structured doubling algorithm and returns X, the
 /// LQR gain K and the solve's diagnostics. Errors are typed: bad shapes or values, an
 /// unstabilisable pair, no convergence, a residual above tolerance, or an unstable closed loop.
-pub fn dare(
+pub(crate) fn dare(
     a: &DMatrix<f64>,
     b: &DMatrix<f64>,
     q: &DMatrix<f64>,

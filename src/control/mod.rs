@@ -16,7 +16,7 @@
 //! - u(k) = −K x(k), and the bias d entering as ë = Kp·(u − d).
 //!
 //! ```
-//! use biasctl::control::{Controller, LqrWeights, plant::{Plant, PlantSpec}};
+//! use biasctl::{Controller, LqrWeights, Plant, PlantSpec};
 //! let plant = Plant::new(&PlantSpec { ts_s: 1e-4, tau_s: 4e-5, kp: 1e6, modes: vec![] }).unwrap();
 //! let w = LqrWeights::new(&[1e-4, 1.78e-3, 1e-9, 0.0], 1e-6, plant.order()).unwrap();
 //! let c = Controller::design(&plant, &w).unwrap();
@@ -26,9 +26,9 @@
 pub(crate) mod expm;
 /// The matrix exponential's error, part of [`plant::PlantError`].
 pub use expm::ExpmError;
-pub mod lqr;
-pub mod plant;
-pub mod settle;
+pub(crate) mod lqr;
+pub(crate) mod plant;
+pub(crate) mod settle;
 
 use lqr::{DareError, DareOptions, dare};
 use nalgebra::{DMatrix, DVector};

@@ -155,19 +155,19 @@ fn within(field: &str, v: f64, lo: f64, hi: f64, range: &'static str) -> Result<
 
 /// Longest sample period, s: a servo sampled more slowly than once a second is not a servo, and
 /// a longer period makes a settle horizon of samples span an absurd time.
-pub const MAX_TS_S: f64 = 1.0;
+pub(crate) const MAX_TS_S: f64 = 1.0;
 /// Largest |modal gain|, largest damping ratio and largest Kp·Ts² the plant accepts: beyond them
 /// the discretised matrices and the Riccati solution leave the range of f64 arithmetic.
-pub const MAX_MODE_GAIN: f64 = 1e6;
+pub(crate) const MAX_MODE_GAIN: f64 = 1e6;
 /// See [`MAX_MODE_GAIN`].
-pub const MAX_DAMPING: f64 = 1e3;
+pub(crate) const MAX_DAMPING: f64 = 1e3;
 /// See [`MAX_MODE_GAIN`].
-pub const MAX_KP_TS2: f64 = 1e9;
+pub(crate) const MAX_KP_TS2: f64 = 1e9;
 
 impl Plant {
-    /// Validates a plant description: 0 < Ts ≤ [`MAX_TS_S`], 0 ≤ τ < Ts, 0 < Kp with
-    /// Kp·Ts² ≤ [`MAX_KP_TS2`], every mode with 0 < f < the Nyquist frequency × 10⁶,
-    /// 0 ≤ ζ ≤ [`MAX_DAMPING`] and |gain| ≤ [`MAX_MODE_GAIN`].
+    /// Validates a plant description: 0 < Ts ≤ `MAX_TS_S`, 0 ≤ τ < Ts, 0 < Kp with
+    /// Kp·Ts² ≤ `MAX_KP_TS2`, every mode with 0 < f < the Nyquist frequency × 10⁶,
+    /// 0 ≤ ζ ≤ `MAX_DAMPING` and |gain| ≤ `MAX_MODE_GAIN`.
     pub fn new(spec: &PlantSpec) -> Result<Self, PlantError> {
         let ts_s = positive("ts_s", spec.ts_s)?;
         within("ts_s", ts_s, 0.0, MAX_TS_S, "(0, 1] s")?;

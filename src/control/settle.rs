@@ -88,7 +88,7 @@ pub enum ConfigError {
 }
 
 /// Names of the built-in presets.
-pub const PRESETS: [&str; 2] = ["paper1997", "modern"];
+pub(crate) const PRESETS: [&str; 2] = ["paper1997", "modern"];
 
 /// A settle problem as written in a plant TOML file or built from a preset (unvalidated).
 /// Units: s, µm, counts; `q` weights [z, e, v, u_prev] (or the full loop state), `r` weights u².
@@ -143,10 +143,10 @@ fn one() -> usize {
 }
 
 /// Largest accepted horizon (samples).
-pub const MAX_HORIZON: usize = 1_000_000;
+pub(crate) const MAX_HORIZON: usize = 1_000_000;
 
 impl SettleSpec {
-    /// A built-in preset by name (see [`PRESETS`]):
+    /// A built-in preset by name (see `PRESETS`):
     ///
     /// - `paper1997`: the paper's test bed. Ts = 100 µs, τ = 40 µs, Kp = 1e6 µm/s² per count,
     ///   Q = diag(1e-4, 1.78e-3, 1e-9, 0), R = 1e-6, 15 µm step from rest, ±0.5 µm window,
@@ -208,7 +208,7 @@ impl SettleSpec {
     }
 
     /// Validates everything before any numerics: the plant (Ts, τ, Kp, modes), the weights
-    /// (Q ≥ 0, R > 0), the window (> 0), horizon (1 ..= [`MAX_HORIZON`]), hold (1 ..= horizon),
+    /// (Q ≥ 0, R > 0), the window (> 0), horizon (1 ..= `MAX_HORIZON`), hold (1 ..= horizon),
     /// a finite step and bias, and Δb ≥ 0.
     pub fn check(&self) -> Result<SettleConfig, ConfigError> {
         let plant = Plant::new(&PlantSpec {
@@ -282,18 +282,18 @@ impl SettleSpec {
 
 /// Largest |step| of a settle scenario, µm (a metre: beyond any actuator's stroke; longer steps
 /// make the start-value bounds overflow).
-pub const MAX_STEP_UM: f64 = 1e6;
+pub(crate) const MAX_STEP_UM: f64 = 1e6;
 /// Largest |bias| and bias uncertainty of a settle scenario, counts.
-pub const MAX_BIAS: f64 = 1e9;
+pub(crate) const MAX_BIAS: f64 = 1e9;
 
 /// LQR state weights of the `modern` preset over [z, e, v, u_prev] (modal states weight 0):
 /// picked from a grid q_z ∈ {1e-4 … 1e-1}, q_e ∈ {0.1 … 100}, q_v ∈ {1e-9 … 1e-6} with R = 1e-6 as
 /// the design meeting the paper's own specification scaled to this drive (zero-feedforward
 /// one-track settle < 3 ms with < 30 % overshoot) with the shortest optimal settle. The modal
 /// states are not weighted, so the lightly damped 3 kHz mode (ζ = 0.005) sets the slowest pole.
-pub const MODERN_Q: [f64; 4] = [1e-2, 0.1, 1e-6, 0.0];
+pub(crate) const MODERN_Q: [f64; 4] = [1e-2, 0.1, 1e-6, 0.0];
 /// LQR control weight of the `modern` preset.
-pub const MODERN_R: f64 = 1e-6;
+pub(crate) const MODERN_R: f64 = 1e-6;
 
 /// A validated settle description: plant, weights and scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -341,7 +341,7 @@ pub struct Window {
 }
 
 impl Window {
-    /// A window |e| ≤ `half_width_um` (0 < half width ≤ [`MAX_STEP_UM`]) that must hold for
+    /// A window |e| ≤ `half_width_um` (0 < half width ≤ `MAX_STEP_UM`) that must hold for
     /// the last `hold` ≥ 1 samples of the horizon.
     pub fn new(half_width_um: f64, hold: usize) -> Result<Self, SettleError> {
         if !(half_width_um > 0.0 && half_width_um <= MAX_STEP_UM) {
@@ -387,7 +387,7 @@ pub struct Handoff {
 }
 
 /// Settle index → settle time in ms for sample period `ts_s`.
-pub fn settle_ms(k: usize, ts_s: f64) -> f64 {
+pub(crate) fn settle_ms(k: usize, ts_s: f64) -> f64 {
     k as f64 * ts_s * 1e3
 }
 
@@ -490,7 +490,7 @@ impl Point {
 }
 
 /// A sample k with a_k = 0 and its coefficients `[ce, cv, cu]` ([`HandoffTable::export_rows`]).
-pub type ZeroGainRow = (usize, [f64; 3]);
+pub(crate) type ZeroGainRow = (usize, [f64; 3]);
 
 /// The running bounds of one block: `su[j] = min(umin, min_{i ≥ j} u[i])` and `sl[j] =
 /// max(lmax, max_{i ≥ j} l[i])`, where `(umin, lmax)` are the bounds over the samples above the
@@ -1157,8 +1157,8 @@ fn csv_cell(x: f64) -> String {
 /// bias prediction and its error std), with the robust choice and with zero feedforward.
 ///
 /// ```
-/// use biasctl::control::Controller;
-/// use biasctl::control::settle::{SettleSpec, HandoffTable, worst_case_settle};
+/// use biasctl::Controller;
+/// use biasctl::{HandoffTable, SettleSpec, worst_case_settle};
 /// let cfg = SettleSpec::preset("paper1997").unwrap().check().unwrap();
 /// let ctl = Controller::design(&cfg.plant, &cfg.weights).unwrap();
 /// let table = HandoffTable::new(&ctl, cfg.scenario.horizon).unwrap();
@@ -1312,7 +1312,7 @@ pub fn handoff_state(ctl: &Controller, h: &Handoff, zeta: f64) -> DVector<f64> {
 }
 
 /// The settle analysis of a scenario for a designed controller.
-pub fn analyse_with(ctl: &Controller, sc: &Scenario) -> Result<SettleReport, SettleError> {
+pub(crate) fn analyse_with(ctl: &Controller, sc: &Scenario) -> Result<SettleReport, SettleError> {
     let n = sc.horizon;
     let ts = ctl.ts_s();
     let ms = |k: usize| settle_ms(k, ts);

@@ -14,7 +14,7 @@ use crate::model::{FittedModel, Prediction};
 /// A drift forgetting factor above this (memory shorter than about 10 measurements) is much
 /// faster than a slow offset of the driver electronics needs (minutes: a few hundredths at a
 /// few seeks per second) and is reported as suspicious.
-pub const FAST_FORGETTING: f64 = 0.1;
+pub(super) const FAST_FORGETTING: f64 = 0.1;
 
 /// An effect an adaptive term absorbed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -42,7 +42,7 @@ fn adaptive(contribution: &[f64], param_names: &[String]) -> bool {
 
 /// Warnings about the adaptive terms' fitted rates: a forgetting factor above
 /// [`FAST_FORGETTING`].
-pub fn rate_warnings(model: &FittedModel) -> Vec<String> {
+pub(crate) fn rate_warnings(model: &FittedModel) -> Vec<String> {
     model
         .params()
         .filter(|p| p.name.ends_with(".alpha") && p.value > FAST_FORGETTING)
@@ -63,7 +63,7 @@ pub fn rate_warnings(model: &FittedModel) -> Vec<String> {
 /// `prediction`, rows aligned with `table`) against every non-time candidate, and report the
 /// flagged ones that explain at least `config.min_effect` of it and clearly more than of the
 /// residual alone.
-pub fn absorbed(
+pub(crate) fn absorbed(
     model: &FittedModel,
     table: &FeatureTable,
     prediction: &Prediction,

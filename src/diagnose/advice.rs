@@ -10,7 +10,7 @@ use super::features::FeatureOrigin;
 /// grid. One element (`dahl:1`, eq. 8) only moves monotonically between the two curves, so it
 /// cannot make the overshoot/undershoot of P4/P5; fast and slow elements of opposite sign can,
 /// and four is what the P4/P5 acceptance test needs to reach the error of the full model.
-pub const DAHL_TERM: &str = "dahl:4";
+pub(super) const DAHL_TERM: &str = "dahl:4";
 
 /// Shape of the residual's binned curve against a feature.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

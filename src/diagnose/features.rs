@@ -26,23 +26,23 @@ pub enum FeatureOrigin {
 
 /// Length scales of the `memsum_L` features, as fractions of the log's travel (the range of
 /// positions it visits): short, medium and long memory.
-pub const MEMSUM_FRACTIONS: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 1.0 / 4.0];
+pub(super) const MEMSUM_FRACTIONS: [f64; 3] = [1.0 / 64.0, 1.0 / 16.0, 1.0 / 4.0];
 
 /// Time constants of the lagged covariates, as points on a log scale of `[median Δt, span/16]`
 /// (the log's sampling interval and a sixteenth of its duration): half-way and at the top. A
 /// longer lag would be a proxy for time itself (on a random-walk drift a lag of 2/3 of the
 /// span explained 38 % of it and smeared the drift onto the covariate).
-pub const LAG_POINTS: [f64; 2] = [0.5, 1.0];
+pub(super) const LAG_POINTS: [f64; 2] = [0.5, 1.0];
 
 /// Share of a column's variance a lagged copy must keep to become a feature (see [`LAG_POINTS`]):
 /// a lag of a fast or noisy column keeps little of it and is only a slow random series.
-pub const LAG_MIN_VARIANCE: f64 = 0.5;
+pub(super) const LAG_MIN_VARIANCE: f64 = 0.5;
 
 /// Fraction of the log's duration that is the longest lag of a lagged-covariate feature.
-pub const LAG_MAX_FRACTION: f64 = 1.0 / 16.0;
+pub(super) const LAG_MAX_FRACTION: f64 = 1.0 / 16.0;
 
 /// The covariate a lagged feature (`<COL>@lag<τ>s`) was made from.
-pub fn lagged_column(name: &str) -> Option<&str> {
+pub(super) fn lagged_column(name: &str) -> Option<&str> {
     name.rsplit_once("@lag").map(|(c, _)| c)
 }
 
@@ -160,7 +160,7 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
 impl FeatureTable {
     /// Replays the seek history over every row of `log` and collects, for every measured row,
     /// every built-in feature ([`Feature::ALL`]), the summed-memory features `memsum_L<L>` at
-    /// [`MEMSUM_FRACTIONS`] of the log's travel, every covariate through lags at [`LAG_POINTS`]
+    /// `MEMSUM_FRACTIONS` of the log's travel, every covariate through lags at `LAG_POINTS`
     /// (`<COL>@lag<τ>s`), and every covariate column under its header name. Non-finite covariate values are kept as missing. The log's units
     /// ([`crate::log::LogSchema::units`]) come along and label the diagnosis.
     pub fn from_log(log: &Log) -> FeatureTable {
@@ -168,7 +168,7 @@ impl FeatureTable {
     }
 
     /// [`FeatureTable::from_log`] with the seek history of `log` replayed by `history` (for
-    /// direction read another way: [`crate::history::replay_with`]).
+    /// direction read another way: `crate::history::replay_with`).
     pub fn from_replay(log: &Log, history: crate::history::Replay<'_>) -> FeatureTable {
         let measured = log.measured_count();
         let mut builtin: Vec<Vec<Option<f64>>> = Feature::ALL

@@ -9,7 +9,7 @@ use crate::log::Units;
 
 /// One rung as measured by the caller: the model's terms and its test-set error std.
 #[derive(Debug, Clone, PartialEq)]
-pub struct LadderInput {
+pub(crate) struct LadderInput {
     /// The model's terms at this step.
     pub terms: Vec<String>,
     /// Test-set error std, in the test log's bias unit.
@@ -51,7 +51,7 @@ pub struct Ladder {
 
 /// Builds the ladder: each step's reduction relative to the first step. Errors on a std that is
 /// negative or not finite (it would put NaN or infinity in the JSON).
-pub fn ladder(steps: &[LadderInput]) -> Result<Ladder, DiagnoseError> {
+pub(crate) fn ladder(steps: &[LadderInput]) -> Result<Ladder, DiagnoseError> {
     if let Some((step, s)) = steps.iter().enumerate().find(|(_, s)| {
         !(s.std.is_finite() && s.std >= 0.0)
             || s.free_run_std.is_some_and(|f| !(f.is_finite() && f >= 0.0))

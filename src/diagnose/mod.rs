@@ -8,8 +8,8 @@
 //! the model term that addresses it become plain-words advice.
 //!
 //! ```
-//! use biasctl::diagnose::{diagnose, DiagnoseConfig, FeatureTable};
-//! use biasctl::log::{ColumnMap, Log};
+//! use biasctl::{DiagnoseConfig, FeatureTable, diagnose};
+//! use biasctl::{ColumnMap, Log};
 //! // A log whose residual jumps whenever the seek reverses direction.
 //! let mut text = String::from("time_s,track,bias\n");
 //! let mut residuals = Vec::new();
@@ -112,27 +112,26 @@ mod report;
 mod smoother;
 mod verify;
 
-pub use absorbed::{Absorption, FAST_FORGETTING, absorbed, rate_warnings};
-pub use advice::{DAHL_TERM, Shape};
+pub use absorbed::Absorption;
+pub(crate) use absorbed::{absorbed, rate_warnings};
+pub use advice::Shape;
 pub use discover::{
     CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
 };
-pub use features::{
-    FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION, LAG_MIN_VARIANCE, LAG_POINTS,
-    MEMSUM_FRACTIONS, lagged_column,
-};
-pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
+pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
+pub use ladder::{Ladder, LadderStep};
+pub(crate) use ladder::{LadderInput, ladder};
 pub use model::{
-    ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual, diagnose_verified,
-    ladder_fit, ladder_terms, model_spec, model_terms, replay_model, suggestion_path,
+    LadderTerms, ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual,
+    diagnose_verified, ladder_fit, ladder_terms, model_spec, replay_model, suggestion_path,
     suggestion_path_from,
 };
 pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
-pub use verify::{
-    Candidate, CheckedVerifyConfig, RejectedEdit, Verification, VerifiedEdit, VerifyConfig,
-    candidates, cv_residuals, edit_for, measured_rows, table_spacing, verify,
-};
+pub use verify::{CheckedVerifyConfig, RejectedEdit, Verification, VerifiedEdit, VerifyConfig};
+pub(crate) use verify::{candidates, edit_for, table_spacing, verify};
+#[cfg(test)]
+use {absorbed::FAST_FORGETTING, advice::DAHL_TERM};
 
 use crate::history::Feature;
 use crate::numeric::rng::SimRng;
@@ -142,9 +141,9 @@ use rayon::prelude::*;
 use smoother::{Binned, FTest, Unusable};
 
 /// Smallest number of measured rows per cross-validation fold.
-pub const MIN_ROWS_PER_FOLD: usize = 10;
+pub(crate) const MIN_ROWS_PER_FOLD: usize = 10;
 /// Smallest number of measured rows for any diagnosis.
-pub const MIN_ROWS: usize = 30;
+pub(crate) const MIN_ROWS: usize = 30;
 
 /// An error of the diagnosis engine.
 #[derive(Debug, thiserror::Error)]
@@ -256,7 +255,7 @@ pub struct DiagnoseConfig {
     /// Terms the model already has (`seek`, `dahl:2`, `col:temp_c`, …): never suggested again.
     pub existing_terms: Vec<String>,
     /// Block length of the permutation null, in seeks; `None` = auto from the residual's
-    /// autocorrelation ([`null_block_len`]). 1 is the plain (exchangeable) row permutation.
+    /// autocorrelation (`null_block_len`). 1 is the plain (exchangeable) row permutation.
     pub null_block: Option<usize>,
     /// Smallest practical effect: a significant feature is flagged only when it explains at
     /// least this fraction of the residual variance out of sample, beyond the features ranked
@@ -676,12 +675,12 @@ pub fn diagnose(
 
 /// Two candidates are near-tied when the weaker explains at least `1 − NEAR_TIE` of what the
 /// stronger does; the direction-signed analysis must beat the plain one by this margin too.
-pub const NEAR_TIE: f64 = 0.05;
+pub(crate) const NEAR_TIE: f64 = 0.05;
 /// A candidate is explained away by another when what it adds beyond the other is at most this
 /// fraction of what it explains on its own.
-pub const EXPLAINED_AWAY: f64 = 0.2;
+pub(crate) const EXPLAINED_AWAY: f64 = 0.2;
 /// Most steps of the forward pass (features ranked by what they add beyond the earlier ones).
-pub const FORWARD_STEPS: usize = 6;
+pub(crate) const FORWARD_STEPS: usize = 6;
 /// Most near-tied candidates compared pairwise at one step.
 const MAX_TIED: usize = 4;
 
@@ -894,7 +893,7 @@ fn forward_pass(
 
 /// Residuals farther than this many robust standard deviations (1.4826·MAD) from the median
 /// are clipped to that distance before the analysis.
-pub const WINSOR_SIGMAS: f64 = 4.0;
+pub(crate) const WINSOR_SIGMAS: f64 = 4.0;
 
 /// The residuals with outliers clipped at the median ± [`WINSOR_SIGMAS`]·1.4826·MAD (unchanged
 /// when the MAD is 0). A handful of gross residuals — the start-up transient of a state-space
@@ -952,11 +951,11 @@ pub(crate) fn is_time(origin: FeatureOrigin) -> bool {
 }
 
 /// Longest block of the automatic permutation null, in seeks.
-pub const MAX_NULL_BLOCK: usize = 200;
+pub(crate) const MAX_NULL_BLOCK: usize = 200;
 /// The automatic null block is this many times the residual's decorrelation lag.
-pub const NULL_BLOCK_FACTOR: usize = 6;
+pub(crate) const NULL_BLOCK_FACTOR: usize = 6;
 /// The autocorrelation below which the residual counts as decorrelated (automatic null block).
-pub const NULL_ACF: f64 = 0.1;
+pub(crate) const NULL_ACF: f64 = 0.1;
 
 /// The block length of the permutation null for residual `y`: [`NULL_BLOCK_FACTOR`] times the
 /// first lag at which its autocorrelation falls below [`NULL_ACF`], at most [`MAX_NULL_BLOCK`]
@@ -966,7 +965,7 @@ pub const NULL_ACF: f64 = 0.1;
 /// not flagged for riding on it. Structure slower than the block is what the time features
 /// (`elapsed_s`, `seek_index` → `drift`) stand for, and a slow column must add to them to be
 /// flagged.
-pub fn null_block_len(y: &[f64]) -> usize {
+pub(crate) fn null_block_len(y: &[f64]) -> usize {
     let n = y.len();
     let cap = MAX_NULL_BLOCK.min(n / 8).max(1);
     let longest = cap.div_ceil(NULL_BLOCK_FACTOR);
@@ -980,7 +979,7 @@ pub fn null_block_len(y: &[f64]) -> usize {
 /// [`null_block_len`] of the feature's values in seek order (undefined rows at the mean),
 /// rounded up to a power of two, at most `residual_block`. A feature that is exchangeable in
 /// seek order (random targets) gets short blocks, a slow column the residual's.
-pub fn feature_null_block(values: &[Option<f64>], residual_block: usize) -> usize {
+pub(crate) fn feature_null_block(values: &[Option<f64>], residual_block: usize) -> usize {
     let defined: Vec<f64> = values.iter().flatten().copied().collect();
     let mean = stats::mean(&defined).unwrap_or(0.0);
     let filled: Vec<f64> = values.iter().map(|v| v.unwrap_or(mean) - mean).collect();

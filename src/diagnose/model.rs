@@ -5,6 +5,7 @@ use super::{
     CheckedDiagnoseConfig, DiagnoseError, Diagnosis, FeatureTable, Ladder, LadderInput, diagnose,
     ladder,
 };
+use crate::field::Field;
 use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::Log;
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
@@ -51,9 +52,11 @@ pub enum ModelDiagnosisError {
     Diagnose(#[from] DiagnoseError),
     /// A ladder's term list has an empty entry (`poly2,,seek`) or no entry at all.
     #[error(
-        "term list `{list}`: term {index} is empty; give a comma-separated list such as poly2,direction,seek"
+        "{field}: term list `{list}`: term {index} is empty; give a comma-separated list such as poly2,direction,seek"
     )]
     EmptyTerm {
+        /// The setting ([`Field::LadderTerms`]).
+        field: Field,
         /// The list as given.
         list: String,
         /// 1-based position of the empty entry.
@@ -70,7 +73,7 @@ pub enum ModelDiagnosisError {
 }
 
 /// The term names of a fitted model, as the diagnosis engine's `existing_terms` expects them.
-pub fn model_terms(model: &FittedModel) -> Vec<String> {
+pub(super) fn model_terms(model: &FittedModel) -> Vec<String> {
     model.terms.iter().map(|t| t.term.name()).collect()
 }
 
@@ -79,8 +82,8 @@ pub fn model_terms(model: &FittedModel) -> Vec<String> {
 /// added to `config.existing_terms`, so nothing the model already has is suggested.
 ///
 /// When the model has adaptive terms (`drift`), it also reports what they absorbed
-/// ([`super::absorbed`]) and warns about a forgetting factor much faster than a slow offset
-/// needs ([`super::rate_warnings`]).
+/// (`super::absorbed`) and warns about a forgetting factor much faster than a slow offset
+/// needs (`super::rate_warnings`).
 pub fn diagnose_model(
     model: &FittedModel,
     log: &Log,
@@ -117,7 +120,7 @@ pub fn model_spec(model: &FittedModel) -> Result<ModelSpec, ModelDiagnosisError>
 
 /// [`diagnose_model`], then the leading suggestions — the top flagged features' terms and
 /// what adaptive terms absorbed — applied as typed edits, refitted on `log` and scored out of
-/// sample on folds of consecutive seeks ([`super::verify`]); the result is in
+/// sample on folds of consecutive seeks (`super::verify`); the result is in
 /// [`Diagnosis::verification`], best verified gain first, and leads the summary.
 pub fn diagnose_verified(
     model: &FittedModel,
@@ -168,27 +171,41 @@ pub fn replay_model(model: &FittedModel, log: &Log) -> Result<Prediction, ModelD
         })
 }
 
-/// Splits a ladder's comma-separated term list (`poly2,direction,seek`): trimmed, in order. An
-/// empty entry, or an empty list, is an error naming its position.
-pub fn ladder_terms(list: &str) -> Result<Vec<String>, ModelDiagnosisError> {
+/// Checks a ladder's comma-separated term list (`poly2,direction,seek`) into the
+/// [`LadderTerms`] that [`ladder_fit`] requires: trimmed, in order. An empty entry, or an empty
+/// list, is an error naming [`Field::LadderTerms`] and the entry's position.
+pub fn ladder_terms(list: &str) -> Result<LadderTerms, ModelDiagnosisError> {
     let terms: Vec<String> = list.split(',').map(|t| t.trim().to_string()).collect();
     match terms.iter().position(String::is_empty) {
         Some(i) => Err(ModelDiagnosisError::EmptyTerm {
+            field: Field::LadderTerms,
             list: list.to_string(),
             index: i + 1,
         }),
-        None => Ok(terms),
+        None => Ok(LadderTerms(terms)),
+    }
+}
+
+/// A ladder's term list that passed [`ladder_terms`] (no empty entry), in the order the terms are
+/// added; read it through `Deref`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LadderTerms(Vec<String>);
+
+impl std::ops::Deref for LadderTerms {
+    type Target = [String];
+    fn deref(&self) -> &[String] {
+        &self.0
     }
 }
 
 /// The ladder: for k = 1..=terms.len(), fits the first k terms on `train`, replays on `test`
 /// and records the test error std (counts); reductions are relative to the first step. The
-/// steps run in parallel ([`crate::numeric::parallel`]); the result does not depend on the
+/// steps run in parallel (`crate::numeric::parallel`); the result does not depend on the
 /// thread count.
 pub fn ladder_fit(
     train: &Log,
     test: &Log,
-    terms: &[String],
+    terms: &LadderTerms,
     opts: &CheckedFitOptions,
 ) -> Result<Ladder, ModelDiagnosisError> {
     use rayon::prelude::*;

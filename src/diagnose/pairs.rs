@@ -18,11 +18,11 @@ use super::{Ctx, DiagnoseConfig, FeatureColumn, FeatureOrigin, FeatureTable, gai
 use crate::history::Feature;
 
 /// Levels per feature in a cell (quartiles).
-pub const LEVELS: usize = 4;
+pub(super) const LEVELS: usize = 4;
 /// Features in the global check's joint cells.
-pub const GLOBAL_FEATURES: usize = 3;
+pub(super) const GLOBAL_FEATURES: usize = 3;
 /// Most interactions reported.
-pub const MAX_INTERACTIONS: usize = 3;
+pub(super) const MAX_INTERACTIONS: usize = 3;
 
 /// A pair of candidates with an interaction.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -81,7 +81,7 @@ pub struct FeatureReport {
     /// Fraction of the residual variance the feature explains out of sample **beyond** the
     /// features ranked before it by the forward pass (for features the pass did not take:
     /// beyond all it took); `null` for a skipped feature. See the module docs of
-    /// [`crate::diagnose`](mod@crate::diagnose).
+    /// `crate::diagnose`.
     pub explained_beyond_previous: Option<f64>,
     /// The model term that addresses this feature and is not in the model yet; `null` if there
     /// is none (or the feature was skipped).

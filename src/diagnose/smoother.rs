@@ -60,7 +60,7 @@ impl Binned {
     /// Bins `values`: discrete if at most `max_discrete` distinct values, else `k_max` quantile
     /// bins, where `k_max` is the largest power of two ≤ `max_bins` leaving at least
     /// `min_bin_rows` defined values per bin.
-    pub fn new(
+    pub(super) fn new(
         values: &[Option<f64>],
         max_bins: usize,
         min_bin_rows: usize,
@@ -183,12 +183,12 @@ impl Binned {
     }
 
     /// Number of slots (non-missing bins, then the missing bin) at level `shift`.
-    pub fn slots(&self, shift: u32) -> usize {
+    pub(super) fn slots(&self, shift: u32) -> usize {
         self.defined_bins(shift) + 1
     }
 
     /// Number of non-missing bins at level `shift`.
-    pub fn defined_bins(&self, shift: u32) -> usize {
+    pub(super) fn defined_bins(&self, shift: u32) -> usize {
         if shift >= ONE_BIN {
             1
         } else {
@@ -198,7 +198,7 @@ impl Binned {
 
     /// Slot of fine bin `f` at level `shift`.
     #[inline]
-    pub fn slot(&self, f: u32, shift: u32) -> usize {
+    pub(super) fn slot(&self, f: u32, shift: u32) -> usize {
         if f == MISSING {
             self.defined_bins(shift)
         } else if shift >= ONE_BIN {
@@ -222,7 +222,7 @@ impl Binned {
 
     /// Fine slot of row `i` (missing → `n_fine`).
     #[inline]
-    pub fn fine_slot(&self, i: usize) -> usize {
+    pub(super) fn fine_slot(&self, i: usize) -> usize {
         let f = self.fine[i];
         if f == MISSING {
             self.n_fine
@@ -342,7 +342,7 @@ pub(crate) struct FTest {
 
 impl FTest {
     /// Prepares the counts of `b`.
-    pub fn new(b: &Binned) -> FTest {
+    pub(super) fn new(b: &Binned) -> FTest {
         let fine_cnt = fine_counts(b);
         let level_cnt = b
             .levels
@@ -367,7 +367,7 @@ impl FTest {
     /// the permutation test calibrates). In log space, so that strong effects on long,
     /// serially correlated logs do not all tie at p = 0 (see [`f_test_ln_p`]). 0 when no level
     /// has two non-empty bins.
-    pub fn min_p(&mut self, b: &Binned, y: &[f64], sst: f64) -> f64 {
+    pub(super) fn min_p(&mut self, b: &Binned, y: &[f64], sst: f64) -> f64 {
         self.fine_sum.iter_mut().for_each(|s| *s = 0.0);
         for (i, &v) in y.iter().enumerate() {
             self.fine_sum[b.fine_slot(i)] += v;

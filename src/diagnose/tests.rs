@@ -691,7 +691,7 @@ fn model_wiring_finds_a_missing_covariate_and_the_ladder_drops_to_noise() {
     let d = diagnose_model(&model, &test, &DiagnoseConfig::default().check().unwrap()).unwrap();
     assert_eq!(d.features[0].name, "temp_c", "{}", d.to_text());
     assert_eq!(d.features[0].suggested_term.as_deref(), Some("col:temp_c"));
-    let terms = vec!["poly2".to_string(), "col:temp_c".to_string()];
+    let terms = super::ladder_terms("poly2,col:temp_c").unwrap();
     let l = ladder_fit(
         &train,
         &test,

@@ -54,7 +54,7 @@ impl Default for VerifyConfig {
 
 impl VerifyConfig {
     /// Checks every setting's range once (the error names the setting) into the checked type
-    /// [`verify`] and [`super::diagnose_verified`] accept.
+    /// `verify` and [`super::diagnose_verified`] accept.
     pub fn check(self) -> Result<CheckedVerifyConfig, super::DiagnoseError> {
         self.validate()?;
         Ok(CheckedVerifyConfig(self))
@@ -178,7 +178,7 @@ impl Verification {
 /// (the first that applies and fits is scored; for a covariate every one is scored and the
 /// best kept, so a lagged term wins when the lag fits better).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Candidate {
+pub(crate) struct Candidate {
     /// The feature (or description) the suggestion comes from.
     pub feature: String,
     /// Terms to try, best first.
@@ -191,7 +191,7 @@ pub struct Candidate {
 
 /// The knot spacing a position smoother chose: the feature's range over its cross-validated
 /// number of bins, rounded to two significant digits.
-pub fn table_spacing(f: &FeatureReport) -> Option<f64> {
+pub(crate) fn table_spacing(f: &FeatureReport) -> Option<f64> {
     let lo = f.curve.iter().filter_map(|c| c.lower).reduce(f64::min)?;
     let hi = f.curve.iter().filter_map(|c| c.upper).reduce(f64::max)?;
     let bins = f.bins.max(2) as f64;
@@ -205,7 +205,7 @@ pub fn table_spacing(f: &FeatureReport) -> Option<f64> {
 /// The candidates of a diagnosis: its leading flagged features with their suggested term and
 /// the alternatives not in the model yet, the screened interactions (`by:A:B`) and what
 /// adaptive terms absorbed.
-pub fn candidates(d: &Diagnosis, max: usize) -> Vec<Candidate> {
+pub(crate) fn candidates(d: &Diagnosis, max: usize) -> Vec<Candidate> {
     let mut c = feature_candidates(d, max);
     c.extend(d.interactions.iter().map(|i| Candidate {
         feature: format!("{} × {}", i.a, i.b),
@@ -248,7 +248,7 @@ fn feature_candidates(d: &Diagnosis, max: usize) -> Vec<Candidate> {
 /// The typed edit for suggested `term` on `spec`: a `table` replaces `poly2` (or a coarser
 /// table) with the cross-validated spacing, since the two span the same position polynomial
 /// and cannot be fitted together; everything else is added.
-pub fn edit_for(
+pub(crate) fn edit_for(
     term: &str,
     spec: &ModelSpec,
     table_spacing: Option<f64>,
@@ -282,7 +282,7 @@ pub fn edit_for(
 
 /// Indices into `log.rows` of the rows with a measured bias, in log order (the rows every
 /// residual, fold and score of a diagnosis is counted over).
-pub fn measured_rows(log: &Log) -> Vec<usize> {
+pub(super) fn measured_rows(log: &Log) -> Vec<usize> {
     log.rows
         .iter()
         .enumerate()
@@ -294,7 +294,7 @@ pub fn measured_rows(log: &Log) -> Vec<usize> {
 /// Out-of-sample residuals of `spec` on `log`, one per measured row in log order: fitted with
 /// each of `folds` contiguous stretches of measured rows blanked, replayed over the whole log,
 /// scored on the blanked stretch (see the module docs).
-pub fn cv_residuals(
+pub(super) fn cv_residuals(
     spec: &ModelSpec,
     log: &Log,
     folds: usize,
@@ -335,12 +335,12 @@ pub fn cv_residuals(
 /// Knot counts the verification tries for a `bins:`/`dbins:` suggestion given without one
 /// (the term's default of 4 first): a threshold or a sharp bend needs more hinges than a
 /// smooth curve, and the out-of-sample refit, not the 1-D smoother, decides how many pay.
-pub const KNOT_CHOICES: [usize; 2] = [8, 16];
+pub(super) const KNOT_CHOICES: [usize; 2] = [8, 16];
 
 /// The terms the verification scores for suggestion `term`: the term itself, then for a
 /// `bins:F` or `dbins:F` without a knot count the same term with each of [`KNOT_CHOICES`]
 /// (the best verified gain among them is kept).
-pub fn knot_variants(term: &str) -> Vec<String> {
+pub(super) fn knot_variants(term: &str) -> Vec<String> {
     let mut out = vec![term.to_string()];
     let parts: Vec<&str> = term.split(':').collect();
     if let ["bins" | "dbins", _] = parts.as_slice() {
@@ -383,7 +383,7 @@ fn std_of(r: &[f64]) -> f64 {
 /// first term that applies and fits (every term for `try_all`, keeping the best) is scored;
 /// edits are sorted by verified gain, largest first. `block_len` is the z-score's block
 /// (use the diagnosis's `null_block_len`), `min_effect` the practical minimum gain.
-pub fn verify(
+pub(crate) fn verify(
     spec: &ModelSpec,
     log: &Log,
     cands: &[Candidate],

@@ -49,7 +49,11 @@ const SIDE: &str = "(f->direction == 1 ? 1 : (f->direction == -1 ? 0 : -1))";
 
 /// The C description of the built-in term `name` with saved `settings`; `None` for a name
 /// that is not a built-in term (or settings that do not parse).
-pub fn builtin_term(name: &str, settings: &serde_json::Value, ctx: &CContext) -> Option<CTerm> {
+pub(crate) fn builtin_term(
+    name: &str,
+    settings: &serde_json::Value,
+    ctx: &CContext,
+) -> Option<CTerm> {
     let head = name.split(':').next().unwrap_or("");
     let mut t = CTerm::default();
     match head {

@@ -29,7 +29,7 @@
 //! (`bias_real b[n]`); in [`CTerm::update`], `measured` (int) and `resid` (`bias_real`, the row's
 //! measured − predicted bias when `measured`).
 
-pub mod builtin;
+pub(crate) mod builtin;
 
 use crate::model::FittedModel;
 use crate::model::predictor::REST_CAPACITY;

@@ -7,24 +7,24 @@ use std::path::Path;
 
 /// Largest model file, drive or plant TOML or seek script read whole into memory: 64 MiB (a
 /// model of a million table cells is a few tens of MB).
-pub const MAX_TEXT_FILE_BYTES: u64 = 64 << 20;
+pub(crate) const MAX_TEXT_FILE_BYTES: u64 = 64 << 20;
 
 /// Longest line of a measurement log (header, metadata or row): 1 MiB.
-pub const MAX_LINE_BYTES: u64 = 1 << 20;
+pub(crate) const MAX_LINE_BYTES: u64 = 1 << 20;
 
 /// Most columns in a log's header.
-pub const MAX_COLUMNS: usize = 1000;
+pub(crate) const MAX_COLUMNS: usize = 1000;
 
 /// Largest |number| in a drive or plant TOML file: far beyond any physical parameter (the
 /// largest in the shipped files is Kp = 1e6), small enough that the simulator's and the
 /// discretisation's products stay finite.
-pub const MAX_TOML_NUMBER: f64 = 1e12;
+pub(crate) const MAX_TOML_NUMBER: f64 = 1e12;
 
 /// Longest dwell of a seek script row, s (11.6 days).
-pub const MAX_DWELL_S: f64 = 1e6;
+pub(crate) const MAX_DWELL_S: f64 = 1e6;
 
 /// Checks every number of a TOML text (integers and floats, at any depth) against
-/// [`MAX_TOML_NUMBER`]; the message names the first offending key path (`modes[1].gain`).
+/// `MAX_TOML_NUMBER`; the message names the first offending key path (`modes[1].gain`).
 /// A text that does not parse passes: the typed parse reports that with its line and column.
 pub fn check_toml_numbers(text: &str) -> Result<(), String> {
     fn walk(v: &toml::Value, path: &mut String) -> Result<(), String> {
@@ -69,7 +69,7 @@ pub fn check_toml_numbers(text: &str) -> Result<(), String> {
     }
 }
 
-/// Reads a whole text file of at most [`MAX_TEXT_FILE_BYTES`]; a larger one is an
+/// Reads a whole text file of at most `MAX_TEXT_FILE_BYTES`; a larger one is an
 /// `InvalidData` error saying so (nothing beyond the limit is read).
 pub fn read_text(path: &Path) -> io::Result<String> {
     let file = std::fs::File::open(path)?;
@@ -90,14 +90,14 @@ pub fn read_text(path: &Path) -> io::Result<String> {
 
 /// A reader that fails with `InvalidData` once a line (bytes since the last `\n`) grows beyond
 /// [`MAX_LINE_BYTES`], so that a log with one endless line cannot fill memory.
-pub struct LineLimit<R> {
+pub(crate) struct LineLimit<R> {
     inner: R,
     run: u64,
 }
 
 impl<R> LineLimit<R> {
     /// Wraps `inner`.
-    pub fn new(inner: R) -> Self {
+    pub(crate) fn new(inner: R) -> Self {
         LineLimit { inner, run: 0 }
     }
 }

@@ -31,7 +31,7 @@
 //! [`LogSchema::notes`]; nothing is skipped silently.
 //!
 //! ```
-//! use biasctl::log::{ColumnMap, LogReader};
+//! use biasctl::{ColumnMap, LogReader};
 //! let text = "# seed 1\ntime_s,track,bias,temp_c\n0.0,100,12.5,40\n0.5,120,,40\n1.0,90,-3.25,41\n";
 //! let mut reader = LogReader::from_reader("example.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
 //! assert_eq!(reader.schema().covariates, vec!["temp_c".to_string()]);
@@ -41,7 +41,7 @@
 //! assert_eq!(reader.schema().units.bias, "counts");
 //! ```
 
-pub mod limits;
+pub(crate) mod limits;
 
 use crate::log::limits::{LineLimit, MAX_COLUMNS};
 use std::fs::File;
@@ -84,14 +84,15 @@ impl Default for ColumnMap {
 }
 
 /// The delimiters the reader sniffs and `--delimiter` accepts, with their names.
-pub const DELIMITERS: [(u8, &str); 3] = [(b',', "comma"), (b';', "semicolon"), (b'\t', "tab")];
+pub(crate) const DELIMITERS: [(u8, &str); 3] =
+    [(b',', "comma"), (b';', "semicolon"), (b'\t', "tab")];
 
 /// Rows the reader looks at, after the header, to find covariate columns that are not numeric.
-pub const LOOKAHEAD_ROWS: usize = 64;
+pub(crate) const LOOKAHEAD_ROWS: usize = 64;
 
 /// The delimiter of a header line: the most frequent of `,` `;` and tab outside double quotes;
 /// a comma when none occurs or on a tie.
-pub fn sniff_delimiter(header: &str) -> u8 {
+pub(crate) fn sniff_delimiter(header: &str) -> u8 {
     let mut counts = [0usize; DELIMITERS.len()];
     let mut quoted = false;
     for b in header.bytes() {
@@ -190,17 +191,17 @@ fn did_you_mean(suggestion: &Option<String>) -> String {
 pub const DEFAULT_BIAS_UNIT: &str = "counts";
 /// Position unit of a log whose track column is the default `track` and whose metadata names
 /// none.
-pub const DEFAULT_POSITION_UNIT: &str = "tracks";
+pub(crate) const DEFAULT_POSITION_UNIT: &str = "tracks";
 /// Metadata key naming the bias unit (`# bias_unit = N`).
-pub const BIAS_UNIT_KEY: &str = "bias_unit";
+pub(crate) const BIAS_UNIT_KEY: &str = "bias_unit";
 /// Metadata key naming the position unit (`# position_unit = m`).
-pub const POSITION_UNIT_KEY: &str = "position_unit";
+pub(crate) const POSITION_UNIT_KEY: &str = "position_unit";
 
 /// The unit labels of a log's bias and position, for every text, table and axis that shows
 /// log data. JSON: `{"bias": "N", "position": "m"}`.
 ///
 /// ```
-/// use biasctl::log::{ColumnMap, Log, Units};
+/// use biasctl::{ColumnMap, Log, Units};
 /// let map = ColumnMap { track: "position_m".into(), bias: "force_N".into(), ..ColumnMap::default() };
 /// let log = Log::from_reader("r.csv", "time_s,position_m,force_N\n0,0.1,2\n".as_bytes(), &map).unwrap();
 /// assert_eq!(log.schema.units, Units { bias: "force_N".into(), position: "position_m".into() });
@@ -533,7 +534,7 @@ pub enum BiasColumn {
 /// The path that means standard input (`--data -`).
 pub const STDIN_PATH: &str = "-";
 /// The name standard input has in messages.
-pub const STDIN_NAME: &str = "<stdin>";
+pub(crate) const STDIN_NAME: &str = "<stdin>";
 
 /// A streaming reader of a measurement log: constant memory in the number of rows.
 ///
@@ -1093,13 +1094,13 @@ impl Log {
 /// `"temp,C"`), `\n` line ends. Metadata lines (`# …`) go to the underlying writer before it is
 /// wrapped. Call `flush` (or `into_inner`) before the writer is dropped: a drop cannot report an
 /// error.
-pub fn csv_writer<W: Write>(out: W) -> csv::Writer<W> {
+pub(crate) fn csv_writer<W: Write>(out: W) -> csv::Writer<W> {
     csv::WriterBuilder::new()
         .terminator(csv::Terminator::Any(b'\n'))
         .from_writer(out)
 }
 
-/// Writes a log: metadata lines, the header, then rows, through [`csv_writer`]. Numbers are
+/// Writes a log: metadata lines, the header, then rows, through `csv_writer`. Numbers are
 /// written with fixed decimals (time 6, track as given with up to 6, bias 4, covariates 6) so
 /// output is byte-identical for identical values.
 pub struct LogWriter<W: Write> {
@@ -1152,7 +1153,7 @@ impl<W: Write> LogWriter<W> {
 }
 
 /// `x` with exactly `decimals` decimals; negative zero is written as zero.
-pub fn fmt_fixed(x: f64, decimals: usize) -> String {
+pub(crate) fn fmt_fixed(x: f64, decimals: usize) -> String {
     let s = format!("{:.*}", decimals, x);
     if s.starts_with('-') && s[1..].bytes().all(|b| b == b'0' || b == b'.') {
         s[1..].to_string()
@@ -1165,7 +1166,7 @@ pub fn fmt_fixed(x: f64, decimals: usize) -> String {
 /// square positions and sum squares over up to millions of rows; below 1e15 those stay finite
 /// and keep more than one unit of resolution (f64 carries 15–16 significant digits). No rig
 /// logs a larger number; a larger one is a unit mistake or a corrupted cell.
-pub const MAX_ABS_VALUE: f64 = 1e15;
+pub(crate) const MAX_ABS_VALUE: f64 = 1e15;
 
 /// `x` with at most `decimals` decimals and trailing zeros removed (`120`, `0.25`).
 pub fn fmt_trimmed(x: f64, decimals: usize) -> String {

@@ -171,7 +171,7 @@ impl<'a> FitData<'a> {
     }
 
     /// Replays the log's seek history once with direction read as `direction` says
-    /// ([`crate::history::replay_with`]).
+    /// (`crate::history::replay_with`).
     pub fn with_direction(
         log: &'a Log,
         direction: &crate::history::DirectionSource,

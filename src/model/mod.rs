@@ -2,23 +2,23 @@
 //! and the online [`Predictor`].
 //!
 //! ```
-//! use biasctl::model::ModelSpec;
+//! use biasctl::ModelSpec;
 //! let spec = ModelSpec::parse("poly2,dahl:4,col:temp_c").unwrap();
 //! assert_eq!(spec.to_string(), "poly2,dahl:4,col:temp_c");
 //! assert_eq!(ModelSpec::preset("calibration").unwrap().to_string(), "poly2,direction,seek,memory,drift");
 //! assert!(ModelSpec::parse("poly2,frobnicate").is_err());
 //! ```
 
-pub mod data;
-pub mod predictor;
-pub mod preset;
-pub mod registry;
-pub mod term;
+pub(crate) mod data;
+pub(crate) mod predictor;
+pub(crate) mod preset;
+pub(crate) mod registry;
+pub(crate) mod term;
 pub mod terms;
 
 pub use predictor::{
-    NextPrediction, Predictor, REST_CAPACITY, ReplayError, ReplaySummary, RowPrediction,
-    StartValues, predict_next, replay_stream, write_predictions_csv,
+    NextPrediction, Predictor, ReplaySummary, RowPrediction, StartValues, predict_next,
+    replay_stream, write_predictions_csv,
 };
 
 use crate::log::Log;
@@ -31,9 +31,9 @@ use std::sync::Arc;
 use term::{Param, Term, TermSpec};
 
 /// Format name written into every model file.
-pub const FORMAT: &str = "biasctl-model";
+pub(crate) const FORMAT: &str = "biasctl-model";
 /// Version of the model file layout this build reads and writes.
-pub const FORMAT_VERSION: u32 = 1;
+pub(crate) const FORMAT_VERSION: u32 = 1;
 
 /// An error in a model spec string (`--terms`, `--model`); nothing has been read or fitted.
 #[derive(Debug, thiserror::Error)]
@@ -186,7 +186,7 @@ impl ModelSpec {
         Ok(spec)
     }
 
-    /// A named preset: `position-direction`, `calibration` or `dahl` (see [`preset`]).
+    /// A named preset: `position-direction`, `calibration` or `dahl` (see `preset`).
     pub fn preset(name: &str) -> Result<Self, SpecError> {
         preset::preset(name)
     }
@@ -212,7 +212,7 @@ impl ModelSpec {
 /// [`TermSpec`] objects, never as strings, so a user's own term survives every edit.
 ///
 /// ```
-/// use biasctl::model::{ModelEdit, ModelSpec, terms::parse_term};
+/// use biasctl::{ModelEdit, ModelSpec, terms::parse_term};
 /// let spec = ModelSpec::parse("poly2,direction").unwrap();
 /// let add = ModelEdit::Add(parse_term("col:temp_c").unwrap());
 /// assert_eq!(spec.apply(&add).unwrap().to_string(), "poly2,direction,col:temp_c");
@@ -317,7 +317,7 @@ pub struct FittedTerm {
 /// `restore` of [`FittedModel::load_with`]): preparing it returns the fitted term as saved, so
 /// a re-fit (`diagnose --path`) keeps it, with the data-dependent settings of the first fit.
 #[derive(Debug, Clone)]
-pub struct FittedSpec(pub Arc<dyn Term>);
+pub(crate) struct FittedSpec(pub Arc<dyn Term>);
 
 impl TermSpec for FittedSpec {
     fn name(&self) -> String {
@@ -370,7 +370,7 @@ struct TermFile {
 
 /// Rebuilds a user term from its name and saved settings ([`Term::settings`]); `None` for a
 /// name it does not know.
-pub type RestoreFn = dyn Fn(&str, &serde_json::Value) -> Option<Arc<dyn Term>>;
+pub(crate) type RestoreFn = dyn Fn(&str, &serde_json::Value) -> Option<Arc<dyn Term>>;
 
 /// Rows of a log that lie outside the position range a model was fitted on
 /// ([`FittedModel::outside_range`]); its `Display` is the warning a command prints.
@@ -598,7 +598,7 @@ impl FittedModel {
     /// be far off without any other sign.
     ///
     /// ```
-    /// # use biasctl::{fit::{fit, FitOptions}, log::{ColumnMap, Log}, model::ModelSpec};
+    /// # use biasctl::{ColumnMap, FitOptions, Log, ModelSpec, fit};
     /// let csv = "time_s,track,bias\n0,100,1\n1,200,2\n2,150,1.5\n3,120,1.2\n4,180,1.8\n";
     /// let log = Log::from_reader("a.csv", csv.as_bytes(), &ColumnMap::default()).unwrap();
     /// let model = fit(&ModelSpec::parse("poly2").unwrap(), &log, &FitOptions::default().check().unwrap()).unwrap();

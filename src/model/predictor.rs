@@ -2,8 +2,8 @@
 //! bias at any candidate next target without changing its state (what a seek scheduler asks).
 //!
 //! ```
-//! # use biasctl::model::{FittedModel, Predictor};
-//! # fn demo(model: &FittedModel) -> Result<(), biasctl::model::ModelError> {
+//! # use biasctl::{FittedModel, Predictor};
+//! # fn demo(model: &FittedModel) -> Result<(), biasctl::ModelError> {
 //! let mut p = Predictor::new(model, &[])?;
 //! p.step(0.0, 100.0, &[], Some(12.0));        // seek to 100, measured 12 counts
 //! let guess = p.peek(0.5, 180.0, &[]);         // what would the bias be at 180?
@@ -22,12 +22,12 @@ use std::io::Read;
 /// Uncrossed rest positions per side of the head the predictor holds without allocating
 /// ([`crate::history::RestMemory`]); beyond it the stack grows (Rust) or drops its farthest
 /// position (the C export, whose state struct holds this many).
-pub const REST_CAPACITY: usize = 1024;
+pub(crate) const REST_CAPACITY: usize = 1024;
 
 /// Replays a fitted model causally, one seek at a time.
 ///
 /// [`Predictor::step`] and [`Predictor::peek`] allocate nothing (their buffers are sized in
-/// [`Predictor::new`]) while at most [`REST_CAPACITY`] uncrossed rest positions per side are
+/// [`Predictor::new`]) while at most `REST_CAPACITY` uncrossed rest positions per side are
 /// remembered, so they can run in a real-time loop.
 #[derive(Debug, Clone)]
 pub struct Predictor {
@@ -163,8 +163,8 @@ impl Predictor {
 /// `z_converged` and `robust.ff`. Allocation-free per call.
 ///
 /// ```
-/// use biasctl::model::StartValues;
-/// use biasctl::control::settle::{SettleSpec, analyse};
+/// use biasctl::StartValues;
+/// use biasctl::{SettleSpec, analyse};
 /// let mut spec = SettleSpec::preset("paper1997").unwrap();
 /// let starts = StartValues::new(&spec.check().unwrap(), 8.0).unwrap();
 /// let z = starts.integrator_start(30.0).unwrap();
@@ -351,7 +351,7 @@ pub fn replay_stream<R: Read>(
 /// `out`: the header (time, track and bias columns as the log names them, its covariates,
 /// `predicted`, `residual`, with `start` also `integrator_start`, then one column per term),
 /// then one row per log row as soon as it is read. Numbers are written with every digit they
-/// need to read back exactly ([`crate::render::number::write_shortest`], the text of
+/// need to read back exactly (`crate::render::number::write_shortest`, the text of
 /// `to_string()`); an unmeasured bias, its residual, or a start value that does not exist is an
 /// empty cell. With `flush_each`, every row is flushed as written (a stream answered row by
 /// row). Nothing is allocated per row.

@@ -6,26 +6,26 @@
 use super::{ModelSpec, SpecError};
 
 /// Terms of `position-direction`.
-pub const POSITION_DIRECTION: &str = "poly2,direction";
+pub(crate) const POSITION_DIRECTION: &str = "poly2,direction";
 /// Terms of `calibration` (eq. 1), as one list.
 pub const CALIBRATION: &str = "poly2,direction,seek,memory,drift";
 /// Terms of `calibration`, one by one, in order (the ladder adds them one at a time).
-pub const CALIBRATION_TERMS: [&str; 5] = ["poly2", "direction", "seek", "memory", "drift"];
+pub(crate) const CALIBRATION_TERMS: [&str; 5] = ["poly2", "direction", "seek", "memory", "drift"];
 /// Terms of `dahl`.
-pub const DAHL: &str = "poly2,dahl";
+pub(crate) const DAHL: &str = "poly2,dahl";
 /// Not a preset: the richer state-space friction model (four Dahl elements) the report fits
 /// beside the presets.
-pub const RICH_DAHL: &str = "poly2,dahl:4";
+pub(crate) const RICH_DAHL: &str = "poly2,dahl:4";
 
 /// Every preset: (name, term list).
-pub const PRESET_LIST: [(&str, &str); 3] = [
+pub(crate) const PRESET_LIST: [(&str, &str); 3] = [
     ("position-direction", POSITION_DIRECTION),
     ("calibration", CALIBRATION),
     ("dahl", DAHL),
 ];
 
 /// Preset names.
-pub const PRESETS: [&str; 3] = [PRESET_LIST[0].0, PRESET_LIST[1].0, PRESET_LIST[2].0];
+pub(crate) const PRESETS: [&str; 3] = [PRESET_LIST[0].0, PRESET_LIST[1].0, PRESET_LIST[2].0];
 
 /// The term list of preset `name`.
 pub fn preset_terms(name: &str) -> Option<&'static str> {
@@ -36,7 +36,7 @@ pub fn preset_terms(name: &str) -> Option<&'static str> {
 }
 
 /// The spec of preset `name`.
-pub fn preset(name: &str) -> Result<ModelSpec, SpecError> {
+pub(crate) fn preset(name: &str) -> Result<ModelSpec, SpecError> {
     let list = preset_terms(name).ok_or_else(|| SpecError::UnknownPreset { name: name.into() })?;
     ModelSpec::parse(list)
 }

@@ -12,8 +12,7 @@
 //! undetermined columns ([`Term::droppable`]) and its own fit warnings ([`Term::fit_warnings`]).
 //!
 //! ```
-//! use biasctl::model::registry::{BUILTINS, builtin_names};
-//! assert!(BUILTINS.iter().any(|b| b.head == "poly2"));
+//! use biasctl::builtin_names;
 //! assert!(builtin_names().starts_with("poly2, table[:SPACING], direction"));
 //! ```
 
@@ -26,13 +25,14 @@ use super::{ModelError, SpecError};
 use std::sync::Arc;
 
 /// Parses the argument of a term (`None` for a bare head).
-pub type ParseFn = fn(&TermText<'_>) -> Result<Arc<dyn TermSpec>, SpecError>;
+pub(crate) type ParseFn = fn(&TermText<'_>) -> Result<Arc<dyn TermSpec>, SpecError>;
 /// Rebuilds a fitted term from its name and saved settings ([`Term::settings`]).
-pub type RestoreBuiltinFn = fn(&str, &serde_json::Value) -> Result<Arc<dyn Term>, ModelError>;
+pub(crate) type RestoreBuiltinFn =
+    fn(&str, &serde_json::Value) -> Result<Arc<dyn Term>, ModelError>;
 
 /// One built-in term of the registry.
 #[derive(Debug, Clone, Copy)]
-pub struct BuiltinTerm {
+pub(crate) struct BuiltinTerm {
     /// The head of its spec text (`poly2`, `dbins`, …).
     pub head: &'static str,
     /// Its syntax for messages (`table[:SPACING]`); `None` hides it from the list (`intercept`,
@@ -45,7 +45,7 @@ pub struct BuiltinTerm {
 }
 
 /// Every built-in term, in the order [`builtin_names`] lists them.
-pub static BUILTINS: &[BuiltinTerm] = &[
+pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     row(
         "poly2",
         Some("poly2"),
@@ -150,7 +150,7 @@ const fn row(
 }
 
 /// The built-in term of spec text or model-file name `text` (looked up by its head).
-pub fn lookup(text: &str) -> Option<&'static BuiltinTerm> {
+pub(crate) fn lookup(text: &str) -> Option<&'static BuiltinTerm> {
     let head = text.split(':').next().unwrap_or("");
     BUILTINS.iter().find(|b| b.head == head)
 }
@@ -165,7 +165,7 @@ pub fn builtin_names() -> String {
 }
 
 /// A fitted term rebuilt by deserialising its saved settings into `T`.
-pub fn restore_as<T: serde::de::DeserializeOwned + Term + 'static>(
+pub(crate) fn restore_as<T: serde::de::DeserializeOwned + Term + 'static>(
     name: &str,
     settings: &serde_json::Value,
 ) -> Result<Arc<dyn Term>, ModelError> {
@@ -179,7 +179,7 @@ pub fn restore_as<T: serde::de::DeserializeOwned + Term + 'static>(
 /// One term's spec text as a parser sees it: the whole text, its head and its argument (what
 /// follows the first `:`), with the checks the parsers share.
 #[derive(Debug, Clone, Copy)]
-pub struct TermText<'a> {
+pub(crate) struct TermText<'a> {
     /// The whole item, trimmed (`dbins:dwell_s:6`).
     pub text: &'a str,
     /// Before the first `:` (`dbins`).
@@ -190,7 +190,7 @@ pub struct TermText<'a> {
 
 impl<'a> TermText<'a> {
     /// Splits `text` (trimmed) at its first `:`.
-    pub fn new(text: &'a str) -> Self {
+    pub(crate) fn new(text: &'a str) -> Self {
         let text = text.trim();
         let (head, arg) = match text.split_once(':') {
             Some((h, a)) => (h, Some(a)),
@@ -200,7 +200,7 @@ impl<'a> TermText<'a> {
     }
 
     /// The error "term `TEXT`: `why`".
-    pub fn bad(&self, why: String) -> SpecError {
+    pub(crate) fn bad(&self, why: String) -> SpecError {
         SpecError::BadArgument {
             term: self.text.to_string(),
             why,
@@ -208,7 +208,7 @@ impl<'a> TermText<'a> {
     }
 
     /// `a` as an integer in `1..=max`, or the error naming `what`.
-    pub fn count(&self, a: &str, what: &str, max: usize) -> Result<usize, SpecError> {
+    pub(crate) fn count(&self, a: &str, what: &str, max: usize) -> Result<usize, SpecError> {
         match a.parse::<usize>() {
             Ok(n) if (1..=max).contains(&n) => Ok(n),
             _ => Err(self.bad(format!(
@@ -218,7 +218,7 @@ impl<'a> TermText<'a> {
     }
 
     /// The optional argument as a knot count in `1..=32`, `default` without one.
-    pub fn knots_or(&self, default: usize) -> Result<usize, SpecError> {
+    pub(crate) fn knots_or(&self, default: usize) -> Result<usize, SpecError> {
         Ok(self
             .arg
             .map(|a| self.count(a, "the number of knots", 32))
@@ -227,7 +227,7 @@ impl<'a> TermText<'a> {
     }
 
     /// `spec`, or an error if the term was given an argument.
-    pub fn no_arg(&self, spec: Arc<dyn TermSpec>) -> Result<Arc<dyn TermSpec>, SpecError> {
+    pub(crate) fn no_arg(&self, spec: Arc<dyn TermSpec>) -> Result<Arc<dyn TermSpec>, SpecError> {
         match self.arg {
             None => Ok(spec),
             Some(a) => Err(self.bad(format!("`{}` takes no argument, got `{a}`", self.head))),

@@ -19,8 +19,8 @@
 //!
 //! ```
 //! use std::sync::Arc;
-//! use biasctl::model::{term::*, ModelSpec, ModelError};
-//! use biasctl::fit::{fit, FitData, FitError, FitOptions};
+//! use biasctl::{ModelError, ModelSpec, Seek, Term, TermSpec, TermState};
+//! use biasctl::{FitData, FitError, FitOptions, fit};
 //!
 //! /// Bias proportional to the square of the seek length (a made-up effect), per track².
 //! #[derive(Debug)]
@@ -53,7 +53,7 @@
 //!     text += &format!("{i},{t},{}\n", 3.0 + 0.01 * s * s);
 //!     prev = *t;
 //! }
-//! let log = biasctl::log::Log::from_reader("x.csv", text.as_bytes(), &Default::default()).unwrap();
+//! let log = biasctl::Log::from_reader("x.csv", text.as_bytes(), &Default::default()).unwrap();
 //! let spec = ModelSpec::parse("").unwrap().with_term(Arc::new(SeekSquared));
 //! let model = fit(&spec, &log, &FitOptions::default().check().unwrap()).unwrap();
 //! let k = model.param("seek_squared.k").unwrap();
@@ -215,9 +215,9 @@ pub trait Term: Debug + Send + Sync {
     fn settings(&self) -> serde_json::Value {
         serde_json::Value::Null
     }
-    /// The term as C code for the firmware export (`biasctl export c`, [`crate::export`]);
+    /// The term as C code for the firmware export (`biasctl export c`, `crate::export`);
     /// `None`: not exportable (the export then refuses, naming the term). The default knows the
-    /// built-in terms by name and [`Term::settings`] ([`crate::export::builtin::builtin_term`]);
+    /// built-in terms by name and [`Term::settings`] (`crate::export::builtin::builtin_term`);
     /// a user's term overrides it to export itself.
     fn export_c(&self, ctx: &crate::export::CContext) -> Option<crate::export::CTerm> {
         crate::export::builtin::builtin_term(&self.name(), &self.settings(), ctx)
@@ -248,7 +248,7 @@ impl Clone for Box<dyn TermState> {
 }
 
 /// Standard error of coefficient `i` from a row-major `n × n` covariance; `None` if not finite.
-pub fn se_from_cov(cov: &[f64], n: usize, i: usize) -> Option<f64> {
+pub(crate) fn se_from_cov(cov: &[f64], n: usize, i: usize) -> Option<f64> {
     cov.get(i * n + i)
         .map(|v| v.max(0.0).sqrt())
         .filter(|v| v.is_finite())

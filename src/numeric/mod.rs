@@ -2,6 +2,6 @@
 //! Hartigan's dip test), and the seeded random-number generator ([`rng`]) that makes every
 //! simulation byte-identical for a given seed; the thread pool ([`parallel`]).
 
-pub mod parallel;
-pub mod rng;
-pub mod stats;
+pub(crate) mod parallel;
+pub(crate) mod rng;
+pub(crate) mod stats;

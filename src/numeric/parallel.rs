@@ -52,8 +52,3 @@ pub fn with_threads<T: Send>(
         })?;
     Ok(pool.install(f))
 }
-
-/// The workers parallel work runs on now (the current pool's size).
-pub fn current_threads() -> usize {
-    rayon::current_num_threads()
-}

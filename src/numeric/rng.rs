@@ -7,7 +7,7 @@
 //! byte-identical log on every machine.
 //!
 //! ```
-//! use biasctl::numeric::rng::SimRng;
+//! use biasctl::SimRng;
 //! let mut a = SimRng::new(7);
 //! let mut b = SimRng::new(7);
 //! assert_eq!(a.uniform().to_bits(), b.uniform().to_bits());

@@ -9,7 +9,7 @@
 //! inputs give a "no data" chart, non-finite values are skipped and counted on the chart.
 //!
 //! ```
-//! use biasctl::plot::figures::{fig3_bias_vs_position, BiasVsPosition};
+//! use biasctl::{plot::figures::BiasVsPosition, plot::figures::fig3_bias_vs_position};
 //! let svg = fig3_bias_vs_position(&BiasVsPosition {
 //!     inbound: vec![(0.0, 10.0), (500.0, 14.0), (1000.0, 12.0)],
 //!     outbound: vec![(0.0, 4.0), (500.0, 8.0), (1000.0, 6.0)],

@@ -4,7 +4,7 @@
 //! ([`crate::log::LogSchema::units`]).
 //!
 //! ```
-//! use biasctl::log::{ColumnMap, Log};
+//! use biasctl::{ColumnMap, Log};
 //! use biasctl::plot::from_log;
 //! let text = "time_s,track,bias\n0,100,5\n1,400,9\n2,200,3\n3,300,7\n";
 //! let log = Log::from_reader("t.csv", text.as_bytes(), &ColumnMap::default()).unwrap();

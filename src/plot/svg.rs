@@ -23,7 +23,7 @@
 //! whole inside the frame; ticks are "nice" (1-2-5 steps) inside the range.
 //!
 //! ```
-//! use biasctl::plot::svg::{Chart, AxisRange};
+//! use biasctl::plot::{AxisRange, Chart};
 //! let svg = Chart::new("bias vs position")
 //!     .x_label("position (tracks)")
 //!     .y_label("bias (counts)")
@@ -44,7 +44,7 @@ pub const PALETTE: [&str; 8] = [
 ];
 
 /// Colour of faint background points and reference lines.
-pub const GREY: &str = "#8c8c8c";
+pub(crate) const GREY: &str = "#8c8c8c";
 
 const FONT: f64 = 12.0;
 const CHAR_W: f64 = 0.6 * FONT;
@@ -245,7 +245,7 @@ pub enum Reference {
 
 /// A text placed at a data position (centred, just above it).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Annotation {
+pub(crate) struct Annotation {
     /// x, data units.
     pub x: f64,
     /// y, data units.
@@ -1379,9 +1379,9 @@ pub const AXIS_PADDING: f64 = 0.03;
 /// A scatter series with more finite points than this is density-drawn: at most one mark per
 /// [`SCATTER_CELL_PX`]-pixel cell (the first point that falls in it), so a 35,000-row log draws
 /// as many marks as the plot has occupied cells, not one per row.
-pub const SCATTER_FULL_LIMIT: usize = 4000;
+pub(crate) const SCATTER_FULL_LIMIT: usize = 4000;
 
-/// Cell size in pixels of a density-drawn scatter series ([`SCATTER_FULL_LIMIT`]). Markers are
+/// Cell size in pixels of a density-drawn scatter series (`SCATTER_FULL_LIMIT`). Markers are
 /// 6 px across, so 3-px cells still draw a dense cloud solid; 2-px cells made the four-column
 /// error figure of the 27,815-row pneumatic log 1.1 MB on its own.
 pub const SCATTER_CELL_PX: f64 = 3.0;
@@ -1391,7 +1391,7 @@ fn ticks_for(length_px: f64, per_tick_px: f64) -> usize {
 }
 
 /// A "nice" step (1, 2 or 5 times a power of ten) giving about `target` intervals over `span`.
-pub fn nice_step(span: f64, target: usize) -> f64 {
+pub(crate) fn nice_step(span: f64, target: usize) -> f64 {
     if !(span.is_finite() && span > 0.0) {
         return 1.0;
     }
@@ -1411,7 +1411,7 @@ pub fn nice_step(span: f64, target: usize) -> f64 {
 }
 
 /// Tick positions: multiples of a nice step inside `[lo, hi]`.
-pub fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
+pub(crate) fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
     let (lo, hi) = ordered(lo, hi);
     let step = nice_step(hi - lo, target);
     let first = (lo / step - 1e-9).ceil();
@@ -1476,7 +1476,7 @@ fn text_width(s: &str, size: f64) -> f64 {
 }
 
 /// Escapes text for XML/HTML content and attribute values.
-pub fn esc(s: &str) -> String {
+pub(crate) fn esc(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {

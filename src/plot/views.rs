@@ -4,7 +4,7 @@
 //! diagnose and settle types; the `plot` command and the report both draw through it.
 //!
 //! ```
-//! use biasctl::diagnose::{Ladder, LadderStep};
+//! use biasctl::{Ladder, LadderStep};
 //! use biasctl::plot::views;
 //! let l = Ladder { steps: vec![
 //!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0,
@@ -12,7 +12,7 @@
 //!     LadderStep { terms: vec!["poly2".into(), "direction".into()], std: 10.0, reduction: 0.5,
 //!         free_run_std: None, warnings: vec![] },
 //! ] };
-//! let svg = views::ladder(&l, &biasctl::log::Units::default());
+//! let svg = views::ladder(&l, &biasctl::Units::default());
 //! assert!(svg.contains("+ direction") && svg.contains("error std (counts)"));
 //! ```
 
@@ -35,6 +35,56 @@ pub enum ViewError {
     /// The model could not be replayed (for example a covariate it needs is missing).
     #[error("replaying the model")]
     Model(#[from] ModelError),
+    /// A plot setting is out of range ([`PanelOptions::check`]).
+    #[error("{field} {message}")]
+    InvalidConfig {
+        /// The setting.
+        field: crate::field::Field,
+        /// The value, what is wrong and what is allowed.
+        message: String,
+    },
+}
+
+/// Settings of [`diagnose_panel`], unchecked: [`PanelOptions::check`] makes the
+/// [`CheckedPanelOptions`] it requires.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PanelOptions {
+    /// How many of the strongest usable features get a panel (at least 1; default 6).
+    pub top: usize,
+}
+
+/// The default [`PanelOptions::top`] (also the report's diagnosis table and panel).
+pub const DEFAULT_TOP: usize = 6;
+
+impl Default for PanelOptions {
+    fn default() -> Self {
+        PanelOptions { top: DEFAULT_TOP }
+    }
+}
+
+impl PanelOptions {
+    /// Checks every setting: `top` at least 1 (a panel of no feature shows nothing).
+    pub fn check(self) -> Result<CheckedPanelOptions, ViewError> {
+        if self.top == 0 {
+            return Err(ViewError::InvalidConfig {
+                field: crate::field::Field::PanelTop,
+                message: "0: give at least 1".into(),
+            });
+        }
+        Ok(CheckedPanelOptions(self))
+    }
+}
+
+/// Settings that passed [`PanelOptions::check`]; read them through `Deref`. `Default` is the
+/// checked default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CheckedPanelOptions(PanelOptions);
+
+impl std::ops::Deref for CheckedPanelOptions {
+    type Target = PanelOptions;
+    fn deref(&self) -> &PanelOptions {
+        &self.0
+    }
 }
 
 /// A curve of `(position, bias)` points.
@@ -157,7 +207,7 @@ pub fn feature_unit(name: &str, units: &Units) -> String {
     }
 }
 
-/// The diagnose panel: the residual against each of the `top` strongest usable features of `d`
+/// The diagnose panel: the residual against each of the `opts.top` strongest usable features of `d`
 /// (binned mean ± standard error, marker size by bin count; raw residuals faint behind, taken
 /// from `table` and `residuals`, the ones `d` was computed from). The note gives the
 /// out-of-sample explained variance and the family-wise p-value. Axes are in the diagnosis'
@@ -166,13 +216,13 @@ pub fn diagnose_panel(
     d: &Diagnosis,
     table: &FeatureTable,
     residuals: &[f64],
-    top: usize,
+    opts: &CheckedPanelOptions,
 ) -> String {
     let features: Vec<FeatureResiduals> = d
         .features
         .iter()
         .filter(|f| f.curve.iter().any(|b| b.centre.is_some()))
-        .take(top)
+        .take(opts.top)
         .map(|f| {
             let raw = table
                 .column(&f.name)

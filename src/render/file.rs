@@ -50,7 +50,7 @@ impl Write for Dest {
 /// The writer a producer of [`write_atomic`] fills: buffered; refusing a non-finite number
 /// (a whole word `NaN` or `inf`, as Rust formats them, across write calls) with an
 /// `InvalidData` error; failing at the injected byte when a fault is armed
-/// ([`with_write_fault`]).
+/// (`with_write_fault`).
 pub struct Sink {
     inner: BufWriter<Faulty<Dest>>,
     words: WordGuard,
@@ -168,8 +168,9 @@ impl<W: Write> Write for Faulty<W> {
 
 /// Runs `f` with every output written on this thread (files and stdout) failing with the OS
 /// error `errno` (e.g. `libc::ENOSPC`, `libc::EIO`) once `at_byte` bytes have gone into it: the
-/// fault-injection hook of the test suite and `examples/fuzz.rs`.
-pub fn with_write_fault<R>(at_byte: u64, errno: i32, f: impl FnOnce() -> R) -> R {
+/// fault-injection hook of the unit tests.
+#[cfg(test)]
+pub(crate) fn with_write_fault<R>(at_byte: u64, errno: i32, f: impl FnOnce() -> R) -> R {
     let old = FAULT.with(|c| c.replace(Some((at_byte, errno))));
     let out = f();
     FAULT.with(|c| c.set(old));
@@ -471,7 +472,7 @@ fn stem_of(p: &Path) -> String {
 /// Removes, in `dir`, the temporary files and staging folders biasctl made
 /// (`.NAME.biasctl-PID-N.tmp`, `.NAME.biasctl-partial-PID-N`) whose process no longer runs:
 /// what a killed run left behind. Best effort; names of running processes are kept.
-pub fn sweep_stale(dir: &Path) {
+pub(crate) fn sweep_stale(dir: &Path) {
     let Ok(entries) = fs::read_dir(dir) else {
         return;
     };
@@ -640,7 +641,7 @@ static PROTECTED: std::sync::Mutex<Vec<(String, PathBuf)>> = std::sync::Mutex::n
 /// [`OutputError::SamePath`], nothing written. This covers outputs whose names are known only
 /// after the run (a report's or `diagnose --out`'s files inside a folder); outputs known before
 /// the run are compared up front by [`check_paths`], which registers its inputs too.
-pub fn protect_inputs(inputs: &[(&str, &Path)]) {
+pub(crate) fn protect_inputs(inputs: &[(&str, &Path)]) {
     if let Ok(mut list) = PROTECTED.lock() {
         list.extend(inputs.iter().map(|(r, p)| (r.to_string(), p.to_path_buf())));
     }
@@ -712,7 +713,7 @@ fn identity(path: &Path, is_output: bool) -> Option<Identity> {
 /// replaced before or while it is read) or as another output (the last would win). Each path
 /// comes with its role (the CLI passes the flag, e.g. `--out`), which the error names. Files are
 /// compared by device and inode, new paths by canonical directory and name; devices and FIFOs
-/// (`/dev/null` twice) are allowed. The inputs are also registered by [`protect_inputs`].
+/// (`/dev/null` twice) are allowed. The inputs are also registered by `protect_inputs`.
 pub fn check_paths(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<(), OutputError> {
     protect_inputs(inputs);
     let ins: Vec<_> = inputs

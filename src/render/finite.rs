@@ -15,7 +15,7 @@ pub struct NonFinite {
 }
 
 /// `Ok(value)` if it is finite, else a [`NonFinite`] naming it by `what()` (called only then).
-pub fn check_finite(value: f64, what: impl FnOnce() -> String) -> Result<f64, NonFinite> {
+pub(crate) fn check_finite(value: f64, what: impl FnOnce() -> String) -> Result<f64, NonFinite> {
     if value.is_finite() {
         Ok(value)
     } else {

@@ -26,7 +26,7 @@ pub fn to_string_pretty<T: Serialize + ?Sized>(value: &T) -> Result<String, Outp
 
 /// Checks that every number `value` serializes is finite; the error names the key path of the
 /// first one that is not (`$` is the top level).
-pub fn check<T: Serialize + ?Sized>(value: &T) -> Result<(), NonFinite> {
+pub(crate) fn check<T: Serialize + ?Sized>(value: &T) -> Result<(), NonFinite> {
     let mut walker = Walker { path: Vec::new() };
     match value.serialize(&mut walker) {
         Ok(()) => Ok(()),

@@ -17,24 +17,21 @@
 //! - [`finite`] refuses to emit a non-finite number; [`quote`] and [`message`] keep error
 //!   messages short whatever the user typed.
 
-pub mod file;
-pub mod finite;
-pub mod json;
-pub mod number;
-pub mod stdout;
+pub(crate) mod file;
+pub(crate) mod finite;
+pub(crate) mod json;
+pub(crate) mod number;
+pub(crate) mod stdout;
 
-pub use file::{
-    Sink, StagedDir, check_paths, protect_inputs, sweep_stale, with_write_fault, write_atomic,
-    write_string_atomic,
-};
-pub use finite::{NonFinite, check_finite, check_prediction, check_text};
+pub use file::{StagedDir, check_paths, write_atomic, write_string_atomic};
+pub use finite::{NonFinite, check_prediction, check_text};
 pub use stdout::{flush_stdout, is_broken_pipe, write_stdout};
 
 use std::io;
 use std::path::PathBuf;
 
 /// At most this many characters of a user's value are quoted in a message ([`quote`]).
-pub const QUOTE_CHARS: usize = 80;
+pub(crate) const QUOTE_CHARS: usize = 80;
 
 /// An error while writing output, naming the file (or stdout).
 #[derive(Debug, thiserror::Error)]
@@ -89,7 +86,7 @@ impl OutputError {
     }
 }
 
-/// `value` quoted for a message: the whole value if it has at most [`QUOTE_CHARS`] characters,
+/// `value` quoted for a message: the whole value if it has at most `QUOTE_CHARS` characters,
 /// else its first 60 and last 12 characters around `…` and the full length, so that a 300 kB
 /// value never floods the terminal.
 pub fn quote(value: &str) -> String {
@@ -104,7 +101,7 @@ pub fn quote(value: &str) -> String {
 
 /// The text of an error and its causes, one per line (a cause whose text the lines above
 /// already contain is not repeated), every whitespace-separated word longer than
-/// [`QUOTE_CHARS`] shortened by [`quote`] and every line cut to [`MESSAGE_LINE_CHARS`]: what
+/// `QUOTE_CHARS` shortened by [`quote`] and every line cut to `MESSAGE_LINE_CHARS`: what
 /// the CLI prints after `error: `.
 pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
     message_with(err, &|line| line.to_string())
@@ -137,10 +134,10 @@ pub fn message_with(
 }
 
 /// Most characters of a whole error message ([`message`]), its causes included.
-pub const MESSAGE_CHARS: usize = 280;
+pub(crate) const MESSAGE_CHARS: usize = 280;
 
 /// Most characters of one line of an error message ([`message`]).
-pub const MESSAGE_LINE_CHARS: usize = 240;
+pub(crate) const MESSAGE_LINE_CHARS: usize = 240;
 
 /// `text` through [`shorten_words`], then cut in the middle to [`MESSAGE_LINE_CHARS`].
 fn shorten_line(text: &str) -> String {
@@ -156,7 +153,7 @@ fn shorten_line(text: &str) -> String {
 
 /// `text` with every word (run of non-whitespace) longer than [`QUOTE_CHARS`] passed through
 /// [`quote`].
-pub fn shorten_words(text: &str) -> String {
+pub(crate) fn shorten_words(text: &str) -> String {
     let mut out = String::with_capacity(text.len().min(4096));
     let mut word = String::new();
     let flush = |word: &mut String, out: &mut String| {

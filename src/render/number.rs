@@ -14,7 +14,7 @@
 /// zero; no exponent), with ryu's shortest round-trip digits (see the module docs for the one
 /// rare difference from `Display`), allocating nothing beyond `out`'s growth. A non-finite `x`
 /// appends nothing (callers write an empty cell for it, as the CSV writers do).
-pub fn write_shortest(x: f64, out: &mut Vec<u8>) {
+pub(crate) fn write_shortest(x: f64, out: &mut Vec<u8>) {
     if !x.is_finite() {
         return;
     }

@@ -10,7 +10,7 @@
 //! [`sections`] the demo and the data report share.
 //!
 //! ```
-//! use biasctl::report::{Report, Table};
+//! use biasctl::{Report, Table};
 //! let mut r = Report::new("Bias report");
 //! r.intro("Random seeks over 250 tracks.");
 //! r.section("Headline")
@@ -22,9 +22,9 @@
 //! assert!(!html.contains("<script"));
 //! ```
 
-pub mod run;
-pub mod sections;
-pub mod story;
+pub(crate) mod run;
+pub(crate) mod sections;
+pub(crate) mod story;
 
 use std::fmt::Write;
 use std::path::Path;

@@ -18,8 +18,9 @@ use crate::control::{Controller, ServoError};
 use crate::diagnose::{
     CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis, DiscoverConfig,
     Discovery, FeatureTable, Ladder, ModelDiagnosisError, diagnose_residual, discover, ladder_fit,
-    replay_model,
+    ladder_terms, replay_model,
 };
+use crate::field::Field;
 use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::{Log, LogError};
 use crate::model::preset;
@@ -52,7 +53,43 @@ impl Default for StoryOptions {
     }
 }
 
+/// Largest [`StoryOptions::random_seeks`]: keeps the in-memory logs (and the files beside the
+/// report) to a few hundred MB.
+pub const MAX_SEEKS: u64 = 1_000_000;
+
 impl StoryOptions {
+    /// Checks every setting once, before anything runs: `random_seeks` from the diagnosis' minimum
+    /// of measured rows ([`DiagnoseConfig::min_rows`]) to [`MAX_SEEKS`], `permutations` as
+    /// the diagnosis accepts them (with the default `alpha`), and `settle_preset` a known preset
+    /// ([`SettleSpec::preset`]). Any `seed` is valid.
+    pub fn check(self) -> Result<CheckedStoryOptions, StoryError> {
+        // The diagnosis of the test run needs its cross-validation's minimum of measured rows.
+        let min = DiagnoseConfig::default().min_rows() as u64;
+        if !(min..=MAX_SEEKS).contains(&self.random_seeks) {
+            return Err(StoryError::InvalidConfig {
+                field: Field::RandomSeeks,
+                message: format!(
+                    "{}: give {min} to {MAX_SEEKS} random seeks (the diagnosis of the test run \
+                     needs at least {min} measured rows)",
+                    self.random_seeks
+                ),
+            });
+        }
+        if let Err(e) = diagnose_config(&self) {
+            return Err(StoryError::InvalidConfig {
+                field: Field::StoryPermutations,
+                message: format!("{}: {}", self.permutations, crate::render::message(&e)),
+            });
+        }
+        if let Err(e) = SettleSpec::preset(&self.settle_preset) {
+            return Err(StoryError::InvalidConfig {
+                field: Field::SettlePreset,
+                message: crate::render::message(&e),
+            });
+        }
+        Ok(CheckedStoryOptions(self))
+    }
+
     /// A smaller, faster run (300 random seeks, 99 permutations) for tests and quick looks.
     pub fn quick(seed: u64) -> Self {
         StoryOptions {
@@ -61,6 +98,19 @@ impl StoryOptions {
             permutations: 99,
             ..Default::default()
         }
+    }
+}
+
+/// Settings that passed [`StoryOptions::check`]; read them through `Deref`. `Default` is the
+/// checked default. The story's entry points ([`crate::demo_report`], [`crate::data_report`],
+/// [`compute_demo`], [`compute_data`]) accept only these.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CheckedStoryOptions(StoryOptions);
+
+impl std::ops::Deref for CheckedStoryOptions {
+    type Target = StoryOptions;
+    fn deref(&self) -> &StoryOptions {
+        &self.0
     }
 }
 
@@ -79,6 +129,14 @@ pub struct Progress<'a> {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum StoryError {
+    /// A story setting is out of range ([`StoryOptions::check`]).
+    #[error("{field} {message}")]
+    InvalidConfig {
+        /// The setting.
+        field: Field,
+        /// The value, what is wrong and what is allowed.
+        message: String,
+    },
     /// A simulation setting was rejected.
     #[error("simulation setting")]
     SimConfig(#[from] crate::sim::ConfigError),
@@ -131,7 +189,7 @@ pub enum StoryError {
 /// The four predictors of the demo: (label, term list, training run). position-direction is
 /// calibrated as the paper (and 1997 practice) calibrates it, on the two far curves of Table I;
 /// the others on the whole calibration run.
-pub const STORY_MODELS: [(&str, &str, &str); 4] = [
+pub(crate) const STORY_MODELS: [(&str, &str, &str); 4] = [
     (
         preset::PRESET_LIST[0].0,
         preset::POSITION_DIRECTION,
@@ -143,7 +201,7 @@ pub const STORY_MODELS: [(&str, &str, &str); 4] = [
 ];
 
 /// The presets fitted on a user's log: (label, term list).
-pub const DATA_MODELS: [(&str, &str); 4] = [
+pub(crate) const DATA_MODELS: [(&str, &str); 4] = [
     (preset::PRESET_LIST[0].0, preset::POSITION_DIRECTION),
     (preset::PRESET_LIST[2].0, preset::DAHL),
     (preset::PRESET_LIST[1].0, preset::CALIBRATION),
@@ -151,25 +209,25 @@ pub const DATA_MODELS: [(&str, &str); 4] = [
 ];
 
 /// The ladder's terms, added one at a time.
-pub const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;
+pub(crate) const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;
 
 /// The model [`discover`] starts from in a report: position-direction, the industry practice
 /// the report's diagnosis also starts from.
-pub const DISCOVER_START: &str = preset::POSITION_DIRECTION;
+pub(crate) const DISCOVER_START: &str = preset::POSITION_DIRECTION;
 
 /// Steps of a demo run as [`Progress`] counts them (the computation's steps and "assembling the
 /// report").
-pub const DEMO_STEPS: usize = 12 + STORY_MODELS.len();
+pub(crate) const DEMO_STEPS: usize = 12 + STORY_MODELS.len();
 
 /// Steps of a data run as [`Progress`] counts them.
-pub const DATA_STEPS: usize = 5 + DATA_MODELS.len();
+pub(crate) const DATA_STEPS: usize = 5 + DATA_MODELS.len();
 
 /// One fitted and scored predictor.
 ///
 /// `score` is the causal replay's score (each prediction from the rows before it, adaptive
 /// terms following the measurements as firmware would). A free-run score beside it (adaptive
 /// terms frozen) is the seam for a model scorer that computes both: add it here and to
-/// [`super::sections::score_table`].
+/// `super::sections::score_table`.
 #[derive(Debug, Clone)]
 pub struct ScoredModel {
     /// The label shown in tables and figures (a preset name, or "your model (whole log)").
@@ -201,7 +259,7 @@ pub struct DiagnosedRun {
 }
 
 /// A computed step, or why it could not be computed on this data (one line, with causes).
-pub type Step<T> = Result<T, String>;
+pub(crate) type Step<T> = Result<T, String>;
 
 /// Why the paper's robust start value settles when it does, from the numbers of one settle
 /// analysis (start values relative to the converged value, µm·samples; times in ms after
@@ -278,15 +336,15 @@ pub struct DemoRun {
     pub random: Log,
     /// The simulator's true decomposition of each measured bias of the random run.
     pub truth: Vec<Truth>,
-    /// The four predictors of [`STORY_MODELS`], in order, scored on the random run.
+    /// The four predictors of `STORY_MODELS`, in order, scored on the random run.
     pub scored: Vec<ScoredModel>,
     /// The Dahl model's replay of Table II (Figs. 13/14).
     pub dahl_loop: Step<Prediction>,
     /// The diagnosis of position-direction's residual on the random run.
     pub diagnosis: DiagnosedRun,
-    /// The ladder of [`LADDER_TERMS`]: calibration run → random run.
+    /// The ladder of `LADDER_TERMS`: calibration run → random run.
     pub ladder: Ladder,
-    /// [`discover`] from [`DISCOVER_START`]: calibration run → random run.
+    /// [`discover`] from `DISCOVER_START`: calibration run → random run.
     pub discovery: Step<Discovery>,
     /// The settle analysis and the link from prediction error to settle time.
     pub settle: SettleRun,
@@ -299,7 +357,7 @@ pub struct DemoRun {
 pub struct DataRun {
     /// The options it ran with.
     pub opts: StoryOptions,
-    /// The log, its file named relative to the current directory ([`relative_to_cwd`]).
+    /// The log, its file named relative to the current directory (`relative_to_cwd`).
     pub log: Log,
     /// That name.
     pub file: String,
@@ -307,9 +365,9 @@ pub struct DataRun {
     pub train: Log,
     /// The second half (test).
     pub test: Log,
-    /// Whether the positions are seeks to tracks ([`positions_are_tracks`]).
+    /// Whether the positions are seeks to tracks (`positions_are_tracks`).
     pub tracks_like: bool,
-    /// The presets of [`DATA_MODELS`] that could be fitted and scored, in order.
+    /// The presets of `DATA_MODELS` that could be fitted and scored, in order.
     pub scored: Vec<ScoredModel>,
     /// `label: why` of each preset that could not.
     pub failures: Vec<String>,
@@ -318,9 +376,9 @@ pub struct DataRun {
     /// The diagnosis of the user's model on the whole log, else of the first scored preset on
     /// the second half (`Err`: none possible).
     pub diagnosis: Step<DiagnosedRun>,
-    /// The ladder of [`LADDER_TERMS`]: first half → second half.
+    /// The ladder of `LADDER_TERMS`: first half → second half.
     pub ladder: Step<Ladder>,
-    /// [`discover`] from [`DISCOVER_START`]: first half → second half.
+    /// [`discover`] from `DISCOVER_START`: first half → second half.
     pub discovery: Step<Discovery>,
 }
 
@@ -417,7 +475,7 @@ fn discover_run(train: &Log, test: &Log, opts: &StoryOptions) -> Step<Discovery>
 /// `_truth.csv`) into `logs_dir` (which must exist). `progress` is called before each step.
 pub fn compute_demo(
     logs_dir: &Path,
-    opts: &StoryOptions,
+    opts: &CheckedStoryOptions,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<DemoRun, StoryError> {
     let mut steps = Steps::new(DEMO_STEPS - 1, progress);
@@ -502,7 +560,7 @@ pub(crate) fn demo_run(
     };
 
     steps.start("building the ladder");
-    let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
+    let terms = ladder_terms(&LADDER_TERMS.join(","))?;
     let ladder = ladder_fit(&calibration, &random, &terms, &CheckedFitOptions::default())?;
 
     steps.start("discovering terms");
@@ -559,7 +617,7 @@ pub(crate) fn demo_run(
 pub fn compute_data(
     log: &Log,
     model: Option<&FittedModel>,
-    opts: &StoryOptions,
+    opts: &CheckedStoryOptions,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> DataRun {
     let mut steps = Steps::new(DATA_STEPS - 1, progress);
@@ -620,8 +678,8 @@ pub(crate) fn data_run(
     let diagnosis = data_diagnosis(&log, &test, model, user.as_ref(), &scored, opts);
 
     steps.start("building the ladder");
-    let terms: Vec<String> = LADDER_TERMS.iter().map(|s| s.to_string()).collect();
-    let ladder = ladder_fit(&train, &test, &terms, &CheckedFitOptions::default())
+    let ladder = ladder_terms(&LADDER_TERMS.join(","))
+        .and_then(|terms| ladder_fit(&train, &test, &terms, &CheckedFitOptions::default()))
         .map_err(|e| error_chain(&e));
 
     steps.start("discovering terms");
@@ -700,7 +758,7 @@ fn sub_log(log: &Log, range: std::ops::Range<usize>, part: &str) -> Log {
 /// `file` as seen from the current directory: relative to it (with `..` where needed) when the
 /// path is absolute, unchanged when it is already relative (titles and captions then name the
 /// file as the user typed it from where the command ran, never a machine's absolute path).
-pub fn relative_to_cwd(file: &str) -> String {
+pub(crate) fn relative_to_cwd(file: &str) -> String {
     let p = Path::new(file);
     let Ok(cwd) = std::env::current_dir() else {
         return file.to_string();
@@ -729,7 +787,7 @@ pub fn relative_to_cwd(file: &str) -> String {
 /// positioning axis sampled at 1 kHz moves a tiny step per row, each position new) is neither,
 /// and the views of one track over time and of bias against seek length (Figs. 4–9) mean
 /// nothing for it.
-pub fn positions_are_tracks(log: &Log) -> bool {
+pub(crate) fn positions_are_tracks(log: &Log) -> bool {
     let p = log.measured_positions();
     let n = p.len();
     if n < 2 {
@@ -748,7 +806,7 @@ pub fn positions_are_tracks(log: &Log) -> bool {
 }
 
 /// The error and its causes on one line.
-pub fn error_chain(e: &dyn std::error::Error) -> String {
+pub(crate) fn error_chain(e: &dyn std::error::Error) -> String {
     let mut s = e.to_string();
     let mut cur = e.source();
     while let Some(c) = cur {
@@ -768,7 +826,12 @@ mod tests {
     #[test]
     fn demo_run_computes_every_part_without_html() {
         let dir = tempfile::tempdir().unwrap();
-        let run = compute_demo(dir.path(), &StoryOptions::quick(5), &mut |_| {}).unwrap();
+        let run = compute_demo(
+            dir.path(),
+            &StoryOptions::quick(5).check().unwrap(),
+            &mut |_| {},
+        )
+        .unwrap();
         assert_eq!(run.tables.len(), 7);
         assert_eq!(run.scored.len(), STORY_MODELS.len());
         // Reference: every score is the std of measured − predicted of a fresh replay of the

@@ -20,10 +20,8 @@ use crate::plot::svg::fmt_num;
 use crate::plot::views;
 use crate::render::{StagedDir, write_string_atomic};
 
-pub use super::run::{
-    DATA_MODELS, LADDER_TERMS, Progress, STORY_MODELS, StoryError, StoryOptions,
-    positions_are_tracks, relative_to_cwd,
-};
+pub use super::run::{CheckedStoryOptions, Progress, StoryOptions};
+pub(crate) use super::run::{DATA_MODELS, StoryError};
 
 /// What a story run wrote.
 #[derive(Debug, Clone, PartialEq)]
@@ -145,7 +143,7 @@ fn write_scored(
 /// before each step.
 pub fn demo_report(
     dir: &Path,
-    opts: &StoryOptions,
+    opts: &CheckedStoryOptions,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<StoryOutcome, StoryError> {
     let mut out = Out::create(dir)?;
@@ -437,7 +435,7 @@ pub fn data_report(
     dir: &Path,
     log: &crate::log::Log,
     model: Option<&crate::model::FittedModel>,
-    opts: &StoryOptions,
+    opts: &CheckedStoryOptions,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<StoryOutcome, StoryError> {
     let mut out = Out::create(dir)?;

@@ -345,7 +345,7 @@ pub struct Drive {
 }
 
 /// The built-in drive's description (also in `data/paper1997.toml`).
-pub const PAPER1997_TOML: &str = include_str!("../../data/paper1997.toml");
+pub(crate) const PAPER1997_TOML: &str = include_str!("../../data/paper1997.toml");
 
 impl Drive {
     /// The built-in drive tuned to the paper's figures and headline numbers.

@@ -1,6 +1,9 @@
 //! Independent drives for testing diagnosis (issue #10).
 //!
-//! A small generator, written apart from the built-in drive ([`crate::sim::drive`] and
+//! Public as the namespace `biasctl::family` because a user needs it: the examples and tests
+//! that measure the diagnosis generate their logs from it (`family::generate`).
+//!
+//! A small generator, written apart from the built-in drive (`crate::sim::drive` and
 //! `data/paper1997.toml`) so that a diagnosis tuned on that drive is checked on physics it has
 //! never seen. Each [`FamilyDrive`] is a set of parameters:
 //! - the **pivot hysteresis** is not Dahl: a Bouc–Wen element (smooth loading curve
@@ -23,7 +26,7 @@
 //! are switched on, and switching an effect on changes only the bias column.
 //!
 //! ```
-//! use biasctl::sim::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
+//! use biasctl::{family::FamilyConfig, family::FamilyDrive, family::HiddenEffect, family::generate};
 //! let cfg = FamilyConfig::new(FamilyDrive::members()[0].clone(), &[HiddenEffect::Lag], 3, 500);
 //! let run = generate(&cfg).unwrap();
 //! assert_eq!(run.log.rows.len(), 500);
@@ -486,10 +489,10 @@ const LAG_S: f64 = 10.0;
 
 /// Substreams of the seed, one per random process.
 mod stream {
-    pub const SEEKS: u64 = 1;
-    pub const NOISE: u64 = 2;
-    pub const COVARIATE: u64 = 10; // + index in COVARIATES
-    pub const DEFECT: u64 = 30;
+    pub(super) const SEEKS: u64 = 1;
+    pub(super) const NOISE: u64 = 2;
+    pub(super) const COVARIATE: u64 = 10; // + index in COVARIATES
+    pub(super) const DEFECT: u64 = 30;
 }
 
 /// The pivot's state.

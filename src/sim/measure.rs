@@ -39,7 +39,7 @@ const KP: f64 = 100.0;
 
 /// The servo's state at handoff.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Handoff {
+pub(crate) struct Handoff {
     /// Position error at handoff, tracks.
     pub e0: f64,
     /// Velocity at handoff, tracks/s.
@@ -50,7 +50,7 @@ pub struct Handoff {
 
 impl Handoff {
     /// A handoff with no position error or velocity and integrator `z0` counts.
-    pub fn at_rest(z0: f64) -> Handoff {
+    pub(crate) fn at_rest(z0: f64) -> Handoff {
         Handoff {
             e0: 0.0,
             v0: 0.0,
@@ -61,7 +61,7 @@ impl Handoff {
 
 /// The result of one measurement.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Measured {
+pub(crate) struct Measured {
     /// The one-revolution average of the control effort: the measured bias, counts.
     pub average: f64,
     /// The integrator at the end of the measurement (handed to the next track), counts.
@@ -85,7 +85,7 @@ impl Linear {
 
 /// The measuring servo with its precomputed superposition coefficients.
 #[derive(Debug, Clone)]
-pub struct Servo {
+pub(crate) struct Servo {
     t: f64,
     kp: f64,
     kd: f64,
@@ -109,7 +109,7 @@ pub struct Servo {
 
 impl Servo {
     /// Builds the loop for `params` with the runout `harmonics` (empty = no runout).
-    pub fn new(params: &ServoParams, harmonics: &[Harmonic]) -> Servo {
+    pub(crate) fn new(params: &ServoParams, harmonics: &[Harmonic]) -> Servo {
         let t = 1.0 / params.sample_rate_hz;
         let w = TAU * params.bandwidth_hz;
         let g = 3.0 * w * w / KP;
@@ -136,17 +136,17 @@ impl Servo {
     }
 
     /// Samples from handoff to the end of the average.
-    pub fn samples(&self) -> usize {
+    pub(crate) fn samples(&self) -> usize {
         self.settle + self.window
     }
 
     /// Duration of one measurement (settle + one revolution), s.
-    pub fn duration_s(&self) -> f64 {
+    pub(crate) fn duration_s(&self) -> f64 {
         self.samples() as f64 * self.t
     }
 
     /// Spindle angle (rad) at the first servo sample of a measurement that ends at `time_s`.
-    pub fn start_angle(&self, time_s: f64, spindle_rpm: f64) -> f64 {
+    pub(crate) fn start_angle(&self, time_s: f64, spindle_rpm: f64) -> f64 {
         let revs = spindle_rpm / 60.0 * (time_s - self.duration_s());
         TAU * (revs - revs.floor())
     }
@@ -187,7 +187,7 @@ impl Servo {
 
     /// The reference measurement: the loop sample by sample, with runout and `pes_noise`
     /// (tracks, std) drawn per sample from `rng`.
-    pub fn measure_slow(
+    pub(crate) fn measure_slow(
         &self,
         h: &Handoff,
         b: f64,
@@ -206,7 +206,7 @@ impl Servo {
     }
 
     /// The fast measurement by superposition (same law as [`Servo::measure_slow`]).
-    pub fn measure_fast(
+    pub(crate) fn measure_fast(
         &self,
         h: &Handoff,
         b: f64,
@@ -233,7 +233,7 @@ impl Servo {
     }
 
     /// What the runout leaves in the average and in the final integrator, counts.
-    pub fn runout_parts(&self, theta0: f64) -> (f64, f64) {
+    pub(crate) fn runout_parts(&self, theta0: f64) -> (f64, f64) {
         let (mut a, mut z) = (0.0, 0.0);
         for (i, hm) in self.harmonics.iter().enumerate() {
             let psi = f64::from(hm.order) * theta0 + hm.phase_deg.to_radians();
@@ -247,12 +247,14 @@ impl Servo {
     }
 
     /// The average's sensitivity to a constant bias `b` (1 when the integrator has converged).
-    pub fn bias_gain(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn bias_gain(&self) -> f64 {
         self.avg.b
     }
 
     /// The average's sensitivity to the handoff integrator `z0` (what settling leaves behind).
-    pub fn z0_gain(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn z0_gain(&self) -> f64 {
         self.avg.z0
     }
 

@@ -22,7 +22,7 @@
 //! off leaves the others' draws unchanged.
 //!
 //! ```
-//! use biasctl::sim::{simulate_log, SimConfig, SequenceOptions, Drive};
+//! use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
 //! let opts = SequenceOptions { n: Some(500), ..SequenceOptions::default() };
 //! let cfg = SimConfig::new(Drive::paper1997(), "random", &opts, 7, &[]).unwrap();
 //! let log = simulate_log(&cfg).unwrap();
@@ -30,14 +30,14 @@
 //! assert_eq!(log.schema.metadata_value("seed"), Some("7"));
 //! ```
 
-pub mod drive;
+pub(crate) mod drive;
 pub mod family;
-pub mod measure;
-pub mod sequence;
+pub(crate) mod measure;
+pub(crate) mod sequence;
 
-pub use drive::{Drive, DriveError};
-pub use measure::{Handoff, Measured, Servo};
-pub use sequence::{ScriptError, Step};
+pub use drive::Drive;
+pub(crate) use measure::{Handoff, Servo};
+pub(crate) use sequence::{ScriptError, Step};
 
 use crate::field::Field;
 use crate::history::{History, sign};
@@ -120,7 +120,7 @@ pub enum MeasureMode {
 }
 
 /// The sequence names `SimConfig::new` accepts.
-pub const SEQUENCE_NAMES: [&str; 11] = [
+pub(crate) const SEQUENCE_NAMES: [&str; 11] = [
     "table1",
     "table2",
     "table3",
@@ -156,9 +156,9 @@ pub struct SequenceOptions {
 /// Default number of random seeks.
 pub const DEFAULT_N: u64 = 2000;
 /// Default random span, tracks (the paper's headline range).
-pub const DEFAULT_SPAN: f64 = 250.0;
+pub(crate) const DEFAULT_SPAN: f64 = 250.0;
 /// Default random dwell range, s.
-pub const DEFAULT_DWELL_S: (f64, f64) = (0.05, 0.5);
+pub(crate) const DEFAULT_DWELL_S: (f64, f64) = (0.05, 0.5);
 
 /// The validated random-seek part of a sequence.
 #[derive(Debug, Clone, PartialEq)]
@@ -248,10 +248,10 @@ pub struct SimConfig {
 }
 
 /// Dwell-run interval and duration, s.
-pub const DWELL_RUN_S: (f64, f64) = (0.1, 10.0);
+pub(crate) const DWELL_RUN_S: (f64, f64) = (0.1, 10.0);
 
 impl SimConfig {
-    /// Validates `sequence` (one of [`SEQUENCE_NAMES`]) with `opts` against `drive`.
+    /// Validates `sequence` (one of `SEQUENCE_NAMES`) with `opts` against `drive`.
     /// `disabled` lists effect names to switch off. Errors name the setting ([`Field::Sequence`],
     /// [`Field::Disabled`] or a field of [`SequenceOptions`]).
     pub fn new(

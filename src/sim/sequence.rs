@@ -32,13 +32,13 @@ pub struct Step {
 }
 
 /// Dwell of a measured table row, s.
-pub const TABLE_DWELL_S: f64 = 0.2;
+pub(crate) const TABLE_DWELL_S: f64 = 0.2;
 /// Dwell of an unmeasured positioning move, s.
-pub const MOVE_DWELL_S: f64 = 0.05;
+pub(crate) const MOVE_DWELL_S: f64 = 0.05;
 /// Rest time at the intermediate position of Table VI, s.
-pub const REST_DWELL_S: f64 = 2.0;
+pub(crate) const REST_DWELL_S: f64 = 2.0;
 /// One-track steps per branch of the Table II loop (and largest N of Table VII).
-pub const LOOP_STEPS: u32 = 60;
+pub(crate) const LOOP_STEPS: u32 = 60;
 
 fn mv(target: f64) -> Step {
     Step {
@@ -58,7 +58,7 @@ fn meas(target: f64) -> Step {
 
 /// Table `n` (1..=7) centred on `center`, with far distance `far`, in a stroke `0..=max_track`.
 /// Returns `None` for a table number outside 1..=7.
-pub fn table(n: u8, center: f64, far: f64, max_track: f64) -> Option<Vec<Step>> {
+pub(crate) fn table(n: u8, center: f64, far: f64, max_track: f64) -> Option<Vec<Step>> {
     let c = center;
     let mut v = Vec::new();
     match n {
@@ -131,7 +131,7 @@ pub fn table(n: u8, center: f64, far: f64, max_track: f64) -> Option<Vec<Step>> 
 /// Random seeks: `n` uniform whole-track targets in `[center − span/2, center + span/2]`, dwell
 /// uniform in `[dwell_min_s, dwell_max_s]`, every row measured. Streams (no allocation per seek).
 #[derive(Debug, Clone)]
-pub struct RandomSeeks {
+pub(crate) struct RandomSeeks {
     lo: i64,
     width: u64,
     dwell_min_s: f64,
@@ -142,7 +142,7 @@ pub struct RandomSeeks {
 
 impl RandomSeeks {
     /// The generator; draws come from `rng`.
-    pub fn new(
+    pub(crate) fn new(
         n: u64,
         center: f64,
         span: f64,
@@ -182,7 +182,7 @@ impl Iterator for RandomSeeks {
 
 /// The dwell run of Fig. 4: from far OD to `track`, then a measurement every `interval_s` for
 /// `duration_s` (zero-length seeks: the head stays).
-pub fn dwell_run(track: f64, far: f64, duration_s: f64, interval_s: f64) -> Vec<Step> {
+pub(crate) fn dwell_run(track: f64, far: f64, duration_s: f64, interval_s: f64) -> Vec<Step> {
     let mut v = vec![mv((track - far).max(0.0))];
     let n = (duration_s / interval_s).round().max(1.0) as u64;
     v.extend((0..n).map(|_| Step {
@@ -262,7 +262,7 @@ pub enum ScriptError {
 /// Reads a script: CSV with header `track,dwell_s` and an optional `measure` column
 /// (`1`/`0`/`true`/`false`/`yes`/`no`; default 1). Targets must lie in `0..=max_track`, dwell
 /// times must be finite and ≥ 0.
-pub fn read_script(path: &Path, max_track: f64) -> Result<Vec<Step>, ScriptError> {
+pub(crate) fn read_script(path: &Path, max_track: f64) -> Result<Vec<Step>, ScriptError> {
     let file = path.display().to_string();
     let text = crate::log::limits::read_text(path).map_err(|source| ScriptError::Io {
         file: file.clone(),
@@ -272,7 +272,11 @@ pub fn read_script(path: &Path, max_track: f64) -> Result<Vec<Step>, ScriptError
 }
 
 /// Parses script text (see [`read_script`]); `file` names it in messages.
-pub fn parse_script(file: &str, text: &str, max_track: f64) -> Result<Vec<Step>, ScriptError> {
+pub(crate) fn parse_script(
+    file: &str,
+    text: &str,
+    max_track: f64,
+) -> Result<Vec<Step>, ScriptError> {
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_reader(text.as_bytes());

@@ -8,11 +8,11 @@
 //! 10 % of the model holding every matching term.
 
 use crate::common::{biasctl, data, fails_with, ok, write};
-use biasctl::diagnose::{DiagnoseConfig, Diagnosis, diagnose_model, ladder_fit};
-use biasctl::fit::{FitOptions, fit};
-use biasctl::log::Log;
-use biasctl::model::ModelSpec;
-use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::Log;
+use biasctl::ModelSpec;
+use biasctl::{DiagnoseConfig, Diagnosis, diagnose_model, ladder_fit};
+use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
+use biasctl::{FitOptions, fit};
 
 const OFF: [&str; 6] = [
     "overshoot",
@@ -48,7 +48,7 @@ fn logs_n(file: &str, on: &[&str], dwell_max_s: f64, seed: u64, n_train: u64) ->
 }
 
 fn test_std(train: &Log, test: &Log, terms: &str) -> f64 {
-    let t: Vec<String> = terms.split(',').map(String::from).collect();
+    let t = biasctl::ladder_terms(terms).unwrap();
     ladder_fit(train, test, &t, &FitOptions::default().check().unwrap())
         .unwrap()
         .steps
@@ -62,13 +62,10 @@ fn ladder_is_identical_for_any_thread_count() {
     // Reference: the ladder computed on one thread (the serial order). Its steps run in
     // parallel; on 2 and 3 threads every step's std and reduction must be the same bits.
     let (train, test) = logs_n("diag_base.toml", &["memory"], 0.05, 7, 1500);
-    let terms: Vec<String> = "poly2,direction,seek,memory"
-        .split(',')
-        .map(String::from)
-        .collect();
+    let terms = biasctl::ladder_terms("poly2,direction,seek,memory").unwrap();
     let opts = FitOptions::default().check().unwrap();
     let run = |threads| {
-        biasctl::numeric::parallel::with_threads(threads, || {
+        biasctl::with_threads(threads, || {
             ladder_fit(&train, &test, &terms, &opts).unwrap()
         })
         .unwrap()
@@ -79,8 +76,8 @@ fn ladder_is_identical_for_any_thread_count() {
         assert_eq!(run(threads), one, "{threads} threads");
     }
     assert!(matches!(
-        biasctl::numeric::parallel::with_threads(0, || ()),
-        Err(biasctl::numeric::parallel::ThreadsError::Zero)
+        biasctl::with_threads(0, || ()),
+        Err(biasctl::ThreadsError::Zero)
     ));
 }
 

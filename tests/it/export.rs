@@ -221,10 +221,10 @@ fn export_refuses_what_it_cannot_write() {
 /// A user term that does not describe itself in C is refused by name; one that does is exported.
 #[test]
 fn user_terms_export_themselves_or_are_refused_by_name() {
-    use biasctl::export::{CContext, COptions, CTerm, ExportError, c_source};
-    use biasctl::fit::{CheckedFitOptions, FitData, FitError, fit};
-    use biasctl::model::term::{Seek, Term, TermSpec, TermState};
-    use biasctl::model::{ModelError, ModelSpec};
+    use biasctl::{CContext, COptions, CTerm, ExportError, c_source};
+    use biasctl::{CheckedFitOptions, FitData, FitError, fit};
+    use biasctl::{ModelError, ModelSpec};
+    use biasctl::{Seek, Term, TermSpec, TermState};
     use std::sync::Arc;
 
     /// Bias ∝ seek length², counts per track²; `exports` says whether it writes C.
@@ -268,7 +268,7 @@ fn user_terms_export_themselves_or_are_refused_by_name() {
         }
     }
     let csv = "time_s,track,bias\n0,100,3\n1,130,12\n2,90,19\n3,150,39\n4,120,12\n5,80,19\n";
-    let log = biasctl::log::Log::from_reader("x.csv", csv.as_bytes(), &Default::default()).unwrap();
+    let log = biasctl::Log::from_reader("x.csv", csv.as_bytes(), &Default::default()).unwrap();
     for exports in [false, true] {
         let spec = ModelSpec::parse("poly2")
             .unwrap()

@@ -6,11 +6,11 @@
 #[allow(dead_code)]
 mod new_effect;
 
-use biasctl::diagnose::{DiagnoseConfig, diagnose_model, suggestion_path};
-use biasctl::fit::{FitOptions, fit};
-use biasctl::log::{ColumnMap, Log};
-use biasctl::model::term::TermSpec;
-use biasctl::model::{FittedModel, ModelSpec};
+use biasctl::TermSpec;
+use biasctl::{ColumnMap, Log};
+use biasctl::{DiagnoseConfig, diagnose_model, suggestion_path};
+use biasctl::{FitOptions, fit};
+use biasctl::{FittedModel, ModelSpec};
 use new_effect::{TimeAtTrack, p3_log, test_std};
 use std::sync::Arc;
 

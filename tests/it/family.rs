@@ -1,4 +1,4 @@
-//! Acceptance tests of issue #10 on the independent drives of `biasctl::sim::family`: drives
+//! Acceptance tests of issue #10 on the independent drives of `biasctl::family`: drives
 //! whose pivot, position trend, noise and memory law differ from the built-in drive, each with
 //! hidden effects of every class and three logged columns that have no effect. The scoring code
 //! is `examples/diagnose_family.rs` (included, so the README scoreboard and these tests are the
@@ -9,7 +9,7 @@
 #[allow(dead_code)]
 mod diagnose_family;
 
-use biasctl::sim::family::{FamilyDrive, HiddenEffect};
+use biasctl::{family::FamilyDrive, family::HiddenEffect};
 use diagnose_family::{Outcome, full_model_flags, run, scenarios};
 
 /// Seeks per log in the tests (the scoreboard uses 2000).
@@ -136,8 +136,8 @@ fn model_holding_every_effect_flags_nothing_in_19_of_20_seeds() {
 /// counts. Both fitted models survive a save/load round trip with identical predictions.
 #[test]
 fn lag_and_memsum_terms_recover_the_generators_parameters() {
-    use biasctl::model::FittedModel;
-    use biasctl::sim::family::{FamilyConfig, generate};
+    use biasctl::FittedModel;
+    use biasctl::{family::FamilyConfig, family::generate};
     let drive = FamilyDrive::member("bw-sine-t").unwrap();
     let base = diagnose_family::base_terms(&drive);
     let dir = tempfile::tempdir().unwrap();

@@ -7,10 +7,10 @@
 //! random sequence of moves of mixed length through a two-element stop-operator hysteresis, a
 //! quadratic position curve and noise, so every term has something to fit.
 
-use biasctl::diagnose::{CheckedDiagnoseConfig, diagnose_model};
-use biasctl::fit::{CheckedFitOptions, fit};
-use biasctl::log::{ColumnMap, Log};
-use biasctl::model::ModelSpec;
+use biasctl::ModelSpec;
+use biasctl::{CheckedDiagnoseConfig, diagnose_model};
+use biasctl::{CheckedFitOptions, fit};
+use biasctl::{ColumnMap, Log};
 
 /// A small deterministic generator (SplitMix64), so the test does not depend on the crate's.
 struct Mix(u64);
@@ -73,7 +73,7 @@ fn predictions_and_diagnosis_do_not_depend_on_units() {
     ];
     let opts = CheckedFitOptions::default();
     for spec_text in specs {
-        let spec = biasctl::model::preset::preset_terms(spec_text)
+        let spec = biasctl::preset_terms(spec_text)
             .map_or_else(|| ModelSpec::parse(spec_text), ModelSpec::parse)
             .unwrap();
         let m0 = fit(&spec, &base.0, &opts).unwrap();
@@ -96,15 +96,14 @@ fn predictions_and_diagnosis_do_not_depend_on_units() {
             // features are near ties whose order rounding may flip), with the suggested terms.
             // A summed-memory feature is named by its length in the log's position unit
             // (`memsum_L<L>`): compared as L divided by the position factor.
-            let names =
-                |d: &biasctl::diagnose::Diagnosis, xs: f64| -> Vec<(String, Option<String>)> {
-                    d.features
-                        .iter()
-                        .filter(|f| f.explained >= 0.05)
-                        .take(3)
-                        .map(|f| (unit_free_name(&f.name, xs), f.suggested_term.clone()))
-                        .collect()
-                };
+            let names = |d: &biasctl::Diagnosis, xs: f64| -> Vec<(String, Option<String>)> {
+                d.features
+                    .iter()
+                    .filter(|f| f.explained >= 0.05)
+                    .take(3)
+                    .map(|f| (unit_free_name(&f.name, xs), f.suggested_term.clone()))
+                    .collect()
+            };
             assert_eq!(
                 names(&d0, 1.0),
                 names(&d, xs),
@@ -155,7 +154,7 @@ fn dense_log() -> Log {
     Log::from_reader("dense.csv", dense_rows().as_bytes(), &ColumnMap::default()).unwrap()
 }
 
-fn direction_coefficient(m: &biasctl::model::FittedModel) -> f64 {
+fn direction_coefficient(m: &biasctl::FittedModel) -> f64 {
     m.params()
         .into_iter()
         .find(|p| p.name.starts_with("direction"))
@@ -164,8 +163,8 @@ fn direction_coefficient(m: &biasctl::model::FittedModel) -> f64 {
 
 #[test]
 fn dense_log_direction_from_a_deadband_or_a_velocity_column() {
-    use biasctl::fit::FitOptions;
-    use biasctl::history::{DirectionSetting, DirectionSource, log_sampling};
+    use biasctl::FitOptions;
+    use biasctl::{DirectionSetting, DirectionSource, log_sampling};
     // Reference: the generating model, a direction step of ±10 that reverses 3 times (the
     // velocity zeros of the sine at t = 1, 2, 3 s).
     let log = dense_log();
@@ -225,7 +224,7 @@ fn dense_log_direction_from_a_deadband_or_a_velocity_column() {
     for m in [&auto, &vel] {
         let path = dir.path().join("m.json");
         m.save(&path).unwrap();
-        let back = biasctl::model::FittedModel::load(&path).unwrap();
+        let back = biasctl::FittedModel::load(&path).unwrap();
         assert_eq!(back.direction, m.direction);
         let (a, b) = (
             m.predict_log(&log).unwrap(),
@@ -260,7 +259,7 @@ fn log_of(r: &[(f64, f64, f64)]) -> Log {
     log(r, 1.0, 1.0)
 }
 
-fn with_log(l: &Log) -> biasctl::history::DirectionSource {
+fn with_log(l: &Log) -> biasctl::DirectionSource {
     fit(
         &ModelSpec::parse("poly2,direction").unwrap(),
         l,

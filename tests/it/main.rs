@@ -18,6 +18,7 @@ mod real;
 mod report;
 mod review;
 mod selfcheck;
+mod settings;
 mod settle;
 mod sim;
 mod units;

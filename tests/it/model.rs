@@ -2,13 +2,13 @@
 //! causality, the online predictor, and the CLI contract of `fit`/`predict`/`score`.
 
 use crate::common::{fails_with, ok, write};
-use biasctl::fit::{FitData, FitOptions, fit};
-use biasctl::history::History;
-use biasctl::log::{ColumnMap, Log};
-use biasctl::model::terms::dahl::{DahlPredictor, DahlState};
-use biasctl::model::terms::intercept::InterceptTerm;
-use biasctl::model::{ColumnsUsed, FittedModel, FittedTerm, ModelSpec, Predictor};
-use biasctl::numeric::rng::SimRng;
+use biasctl::History;
+use biasctl::SimRng;
+use biasctl::terms::intercept::InterceptTerm;
+use biasctl::{ColumnMap, Log};
+use biasctl::{ColumnsUsed, FittedModel, FittedTerm, ModelSpec, Predictor};
+use biasctl::{FitData, FitOptions, fit};
+use biasctl::{terms::dahl::DahlPredictor, terms::dahl::DahlState};
 use std::sync::Arc;
 
 /// A random seek sequence: mixed short and long seeks over `range` tracks, times 0.1 s apart,
@@ -112,7 +112,7 @@ fn synth(
 }
 
 /// The Dahl rate `r` a term with a searched rate reports (its `.r` parameter).
-fn reported_rate(t: &Arc<dyn biasctl::model::term::Term>) -> f64 {
+fn reported_rate(t: &Arc<dyn biasctl::Term>) -> f64 {
     let n = t.param_names().len();
     t.report(&vec![1.0; n], &vec![0.0; n * n], None)
         .iter()
@@ -123,10 +123,7 @@ fn reported_rate(t: &Arc<dyn biasctl::model::term::Term>) -> f64 {
 /// The term with its searched coordinate set so that its rate is `r` (to the coordinate's
 /// quantisation): the search coordinate is ln L scaled to the log's range, not `ln(1 − r)`, so
 /// the truth is placed by bisection (the rate rises with the coordinate).
-fn with_rate(
-    t: &Arc<dyn biasctl::model::term::Term>,
-    r: f64,
-) -> Arc<dyn biasctl::model::term::Term> {
+fn with_rate(t: &Arc<dyn biasctl::Term>, r: f64) -> Arc<dyn biasctl::Term> {
     let (mut lo, mut hi) = (0.0f64, 1.0f64);
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
@@ -808,7 +805,7 @@ fn calibration_preset_survives_a_table_dominated_training_run() {
     // counts and a test error of 28 counts. Reference: the same preset fitted on the default
     // calibration run (2000 random seeks) scores 7.8 counts on this test run; the drive's memory
     // effect is at most 18 counts, so the fitted memory curve must stay within a few times that.
-    use biasctl::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+    use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
     let sim = |seq: &str, n: u64, seed: u64| {
         let opts = SequenceOptions {
             n: Some(n),
@@ -826,7 +823,7 @@ fn calibration_preset_survives_a_table_dominated_training_run() {
         )
         .unwrap();
         let p = model.predict_log(&test).unwrap();
-        let sd = biasctl::numeric::stats::std_dev(&p.residual).unwrap();
+        let sd = biasctl::std_dev(&p.residual).unwrap();
         let k = p.term_names.iter().position(|n| n == "memory").unwrap();
         let largest = p.contributions[k]
             .iter()

@@ -4,13 +4,13 @@
 //!
 //! Set `BIASCTL_PLOT_DIR` to a directory to also write every figure there for a visual check.
 
-use biasctl::log::{ColumnMap, Log, Units};
 use biasctl::plot::figures::*;
 use biasctl::plot::from_log;
-use biasctl::plot::svg::{
+use biasctl::plot::{
     AXIS_PADDING, AxisRange, Chart, ErrorPoint, Panel, SCATTER_CELL_PX, Series, SeriesData,
 };
-use biasctl::report::{Cell, Report, Table};
+use biasctl::{Cell, Report, Table};
+use biasctl::{ColumnMap, Log, Units};
 use roxmltree::{Document, Node};
 
 fn parse(svg: &str) -> Document<'_> {
@@ -665,10 +665,10 @@ fn prediction_errors_has_a_column_per_model_with_std_in_titles() {
         .collect();
     assert_eq!(charts.len(), 6);
     let titles = texts_of_class(&doc, "title");
-    let want_std = biasctl::numeric::stats::std_dev(&m[1].error).unwrap();
+    let want_std = biasctl::std_dev(&m[1].error).unwrap();
     let want = format!(
         "calibration: error std {} counts",
-        biasctl::plot::svg::fmt_num(want_std)
+        biasctl::plot::fmt_num(want_std)
     );
     assert!(
         titles.iter().any(|t| t.starts_with(&want)),
@@ -938,9 +938,9 @@ fn series_colours_follow_the_palette_and_overrides() {
             .unwrap()
             .to_string()
     };
-    assert_eq!(fill(&s[0].1), biasctl::plot::svg::PALETTE[0]);
-    assert_eq!(fill(&s[1].1), biasctl::plot::svg::PALETTE[0]);
-    assert_eq!(fill(&s[2].1), biasctl::plot::svg::PALETTE[1]);
+    assert_eq!(fill(&s[0].1), biasctl::plot::PALETTE[0]);
+    assert_eq!(fill(&s[1].1), biasctl::plot::PALETTE[0]);
+    assert_eq!(fill(&s[2].1), biasctl::plot::PALETTE[1]);
     assert!(svg.contains("stroke-dasharray"));
 }
 

@@ -2,9 +2,9 @@
 //! streaming through stdin/stdout, and the allocation-free `Predictor`.
 
 use crate::common::{biasctl, data, fails_with, ok, write};
-use biasctl::fit::{CheckedFitOptions, fit};
-use biasctl::log::{ColumnMap, Log};
-use biasctl::model::{ModelSpec, Predictor};
+use biasctl::{CheckedFitOptions, fit};
+use biasctl::{ColumnMap, Log};
+use biasctl::{ModelSpec, Predictor};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::Path;
@@ -188,10 +188,10 @@ fn a_plan_without_bias_is_predicted_exactly_as_the_measured_log() {
     let log = Log::read_with(
         Path::new(&plan),
         &ColumnMap::default(),
-        biasctl::log::BiasColumn::Optional,
+        biasctl::BiasColumn::Optional,
     )
     .unwrap();
-    let m = biasctl::model::FittedModel::load(Path::new(&model)).unwrap();
+    let m = biasctl::FittedModel::load(Path::new(&model)).unwrap();
     let mut p = Predictor::new(&m, &log.schema.covariates).unwrap();
     for (row, want) in log.rows.iter().zip(column(&measured, "predicted")) {
         let got = p.step(row.time_s, row.track, &row.covariates, row.bias);

@@ -4,7 +4,7 @@
 //! flags exit 2; empty or tiny data give a message in the plot.
 
 use crate::common::{biasctl, fails_with, ok, write};
-use biasctl::report::story::{StoryOptions, data_report, demo_report};
+use biasctl::{StoryOptions, data_report, demo_report};
 use roxmltree::{Document, Node};
 use std::path::Path;
 
@@ -52,7 +52,12 @@ fn simulate(dir: &Path, seq: &str, n: &str) -> String {
 #[test]
 fn demo_report_tells_the_whole_story_in_valid_self_contained_html() {
     let dir = tempfile::tempdir().unwrap();
-    let outcome = demo_report(dir.path(), &StoryOptions::quick(7), &mut |_| {}).unwrap();
+    let outcome = demo_report(
+        dir.path(),
+        &StoryOptions::quick(7).check().unwrap(),
+        &mut |_| {},
+    )
+    .unwrap();
     let html = std::fs::read_to_string(&outcome.report).unwrap();
     assert!(html.starts_with("<!DOCTYPE html>"));
     assert!(!html.contains("<script"), "no script");
@@ -171,7 +176,12 @@ fn demo_report_tells_the_whole_story_in_valid_self_contained_html() {
     );
     // Deterministic for a seed.
     let again = tempfile::tempdir().unwrap();
-    let o2 = demo_report(again.path(), &StoryOptions::quick(7), &mut |_| {}).unwrap();
+    let o2 = demo_report(
+        again.path(),
+        &StoryOptions::quick(7).check().unwrap(),
+        &mut |_| {},
+    )
+    .unwrap();
     assert_eq!(
         html,
         std::fs::read_to_string(o2.report).unwrap().replace(
@@ -216,12 +226,12 @@ fn data_report_covers_a_users_log_and_model_and_survives_tiny_data() {
         "tiny.csv",
         "time_s,track,bias\n0,10,1\n1,20,2\n2,15,1.5\n",
     );
-    let tiny_log = biasctl::log::Log::read(Path::new(&tiny), &Default::default()).unwrap();
+    let tiny_log = biasctl::Log::read(Path::new(&tiny), &Default::default()).unwrap();
     let o = data_report(
         &dir.path().join("tiny"),
         &tiny_log,
         None,
-        &StoryOptions::quick(1),
+        &StoryOptions::quick(1).check().unwrap(),
         &mut |_| {},
     )
     .unwrap();
@@ -494,13 +504,13 @@ fn a_report_lands_whole_or_not_at_all_and_leaves_other_files_alone() {
     // A folder named like one of the report's files blocks the run: it fails before moving
     // anything, and neither `out` nor its parent keeps a trace of it.
     std::fs::create_dir(out.join("report.html")).unwrap();
-    let e = demo_report(&out, &StoryOptions::quick(3), &mut |_| {}).unwrap_err();
+    let e = demo_report(&out, &StoryOptions::quick(3).check().unwrap(), &mut |_| {}).unwrap_err();
     assert!(format!("{e:?}").contains("in the way"), "{e:?}");
     assert_eq!(listing(&out), ["mine.txt", "report.html"]);
     assert_eq!(listing(root.path()), ["out"], "no staging folder left");
     // Unblocked, the run lands whole beside the user's file.
     std::fs::remove_dir(out.join("report.html")).unwrap();
-    let o = demo_report(&out, &StoryOptions::quick(3), &mut |_| {}).unwrap();
+    let o = demo_report(&out, &StoryOptions::quick(3).check().unwrap(), &mut |_| {}).unwrap();
     assert!(o.report.exists() && o.files.iter().all(|f| f.exists()));
     let files = listing(&out);
     assert!(

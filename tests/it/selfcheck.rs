@@ -6,7 +6,7 @@
 //! columns: the difference coefficient's standard error is σ / (ε·√n)).
 
 use crate::common::{biasctl, ok};
-use biasctl::numeric::rng::SimRng;
+use biasctl::SimRng;
 
 /// A seek log with covariates `a`, `b` = `a` + `eps`·e (e independent), `c` (independent noise
 /// with no effect) and bias = 2 + 0.5·a + `offset` + N(0, 1).

@@ -2,11 +2,11 @@
 //! simulation, the robust choice against simulated biases, CLI contracts and bad plant files.
 
 use crate::common::{biasctl, data, fails_with, ok, simulate_random_args, write};
-use biasctl::control::Controller;
-use biasctl::control::settle::{
+use biasctl::Controller;
+use biasctl::SimRng;
+use biasctl::{
     Bounds, Handoff, HandoffTable, SettleSpec, Window, analyse, handoff_state, settle_index,
 };
-use biasctl::numeric::rng::SimRng;
 
 fn controller(preset: &str) -> Controller {
     let cfg = SettleSpec::preset(preset).unwrap().check().unwrap();
@@ -183,7 +183,7 @@ fn robust_choice_worst_case_verified_by_simulation() {
     let h = sc.handoff();
     let table = HandoffTable::new(&ctl, n).unwrap();
     for db in [2.0, 8.0, 20.0] {
-        let wc = biasctl::control::settle::worst_case_settle(&table, &h, &sc.window, db).unwrap();
+        let wc = biasctl::worst_case_settle(&table, &h, &sc.window, db).unwrap();
         let ff = wc.robust_ff.unwrap();
         let worst_sim = |start: f64| {
             (0..=200)

@@ -231,7 +231,7 @@ impl TermState for BinsState {
 }
 
 /// Parses `bins:FEATURE[:KNOTS]` and `dbins:FEATURE[:KNOTS]`; the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let head = t.head;
@@ -255,7 +255,10 @@ pub fn parse(
 
 /// Rebuilds a fitted `bins`/`dbins` term (the head of `name` says which); the registry's
 /// restorer.
-pub fn restore(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+pub(crate) fn restore(
+    name: &str,
+    settings: &serde_json::Value,
+) -> Result<Arc<dyn Term>, ModelError> {
     let t: BinsTerm =
         serde_json::from_value(settings.clone()).map_err(|e| ModelError::BadTerm {
             term: name.to_string(),

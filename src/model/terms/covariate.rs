@@ -155,7 +155,7 @@ impl TermState for ColState {
 }
 
 /// Parses `col:NAME`; the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     match t.arg {

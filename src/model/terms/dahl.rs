@@ -11,7 +11,7 @@
 //!
 //! `dahl:N` has N elements with fixed rates whose characteristic lengths are spaced
 //! geometrically between `max(q05 |seek|, q05 A/3)` and `max(q95 |seek|, q95 A)`, where `A` are
-//! the reversal amplitudes ([`crate::history::reversal_amplitudes`]), with signed weights
+//! the reversal amplitudes (`crate::history::reversal_amplitudes`), with signed weights
 //! (counts) fitted by least squares: fast and slow elements of opposite sign reproduce the
 //! overshoot/undershoot eq. 8 cannot. O(N) state. Both ranges come from the data, so a log in
 //! metres and the same log in micrometres give the same predictions.
@@ -454,7 +454,7 @@ impl TermState for DahlTermState {
 }
 
 /// Parses `dahl` or `dahl:N` (N Dahl elements, 1 to 16); the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(DahlSpec {

@@ -156,7 +156,7 @@ impl TermState for DriftState {
 }
 
 /// Parses `drift[:ALPHA]` (forgetting factor in (0, 1]); the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let alpha = match t.arg {

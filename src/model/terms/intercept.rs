@@ -52,13 +52,16 @@ impl TermState for Constant {
 }
 
 /// Parses `intercept` (no argument); the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(InterceptSpec))
 }
 
 /// The fitted `intercept` term (it has no saved settings); the registry's restorer.
-pub fn restore(_name: &str, _settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+pub(crate) fn restore(
+    _name: &str,
+    _settings: &serde_json::Value,
+) -> Result<Arc<dyn Term>, ModelError> {
     Ok(Arc::new(InterceptTerm))
 }

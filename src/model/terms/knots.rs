@@ -2,7 +2,7 @@
 
 /// Knots strictly inside (min, max) of `values`: the quantiles `j/(k+1)`, j = 1..=k (nearest
 /// rank), without repeats, increasing. About `1/(k+1)` of the values lie beyond the last knot.
-pub fn interior_knots(values: &[f64], k: usize) -> Vec<f64> {
+pub(crate) fn interior_knots(values: &[f64], k: usize) -> Vec<f64> {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
     if v.is_empty() {
         return Vec::new();
@@ -27,7 +27,7 @@ pub fn interior_knots(values: &[f64], k: usize) -> Vec<f64> {
 /// (one value per knot). The resulting function is continuous, piecewise linear in `a` with
 /// breakpoints at the knots, and exactly zero beyond the largest knot.
 #[inline]
-pub fn decaying_hinges(knots: &[f64], a: f64, out: &mut [f64]) {
+pub(crate) fn decaying_hinges(knots: &[f64], a: f64, out: &mut [f64]) {
     let scale = knots.last().copied().unwrap_or(1.0);
     for (o, &k) in out.iter_mut().zip(knots) {
         *o = (k - a).max(0.0) / scale;
@@ -37,7 +37,7 @@ pub fn decaying_hinges(knots: &[f64], a: f64, out: &mut [f64]) {
 /// Writes the basis of a term with one decaying-hinge curve per slot of `knots.len()` values:
 /// all zero, then, for `Some((curve, a))`, the hinges of distance `a` into that curve's slot.
 #[inline]
-pub fn curve_hinges(knots: &[f64], at: Option<(usize, f64)>, out: &mut [f64]) {
+pub(crate) fn curve_hinges(knots: &[f64], at: Option<(usize, f64)>, out: &mut [f64]) {
     out.fill(0.0);
     if let Some((c, a)) = at {
         let k = knots.len();
@@ -48,7 +48,7 @@ pub fn curve_hinges(knots: &[f64], at: Option<(usize, f64)>, out: &mut [f64]) {
 /// Curve of the approach direction in `[out, in]` order: 0 for −1 (outbound), 1 for +1
 /// (inbound), `None` before the first move.
 #[inline]
-pub fn direction_side(direction: i8) -> Option<usize> {
+pub(crate) fn direction_side(direction: i8) -> Option<usize> {
     match direction {
         1 => Some(1),
         -1 => Some(0),
@@ -57,7 +57,7 @@ pub fn direction_side(direction: i8) -> Option<usize> {
 }
 
 /// Spec string of a knotted term: `head`, or `head:K` when `k` is not the default.
-pub fn spec_name(head: &str, k: usize, default: usize) -> String {
+pub(crate) fn spec_name(head: &str, k: usize, default: usize) -> String {
     if k == default {
         head.into()
     } else {
@@ -66,12 +66,12 @@ pub fn spec_name(head: &str, k: usize, default: usize) -> String {
 }
 
 /// Short label of a knot position for parameter names (`40`, `12.5`).
-pub fn label(k: f64) -> String {
+pub(crate) fn label(k: f64) -> String {
     crate::log::fmt_trimmed(k, 3)
 }
 
 /// Parameter names `curve@knot` of a term with one decaying-hinge curve per entry of `curves`.
-pub fn curve_param_names(curves: &[&str], knots: &[f64]) -> Vec<String> {
+pub(crate) fn curve_param_names(curves: &[&str], knots: &[f64]) -> Vec<String> {
     curves
         .iter()
         .flat_map(|c| knots.iter().map(move |&k| format!("{c}@{}", label(k))))
@@ -80,7 +80,7 @@ pub fn curve_param_names(curves: &[&str], knots: &[f64]) -> Vec<String> {
 
 /// The fit warning of a hinge term whose data gave it no knots (`seek`, `memory`): the log has
 /// no data for it, so it contributes nothing. Empty if `term` has parameters.
-pub fn no_knots_warning(term: &dyn super::super::term::Term) -> Vec<String> {
+pub(crate) fn no_knots_warning(term: &dyn super::super::term::Term) -> Vec<String> {
     if term.param_count() == 0 {
         vec![format!(
             "term `{}` has no knots: the log has no data for it",

@@ -74,7 +74,10 @@ pub struct LagStage {
 
 /// Restores a saved `lag:NAME` term (a [`ColTerm`] whose settings hold `tau`, `ln_lo` and
 /// `ln_hi`); registry entry.
-pub fn restore(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+pub(crate) fn restore(
+    name: &str,
+    settings: &serde_json::Value,
+) -> Result<Arc<dyn Term>, ModelError> {
     let t: ColTerm = serde_json::from_value(settings.clone()).map_err(|e| ModelError::BadTerm {
         term: name.to_string(),
         why: e.to_string(),
@@ -135,7 +138,7 @@ impl FirstOrderLag {
 }
 
 /// Parses `lag:NAME`; the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     match t.arg {

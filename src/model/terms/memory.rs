@@ -86,7 +86,7 @@ impl TermState for MemoryTerm {
 }
 
 /// Parses `memory[:KNOTS]`; the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(MemorySpec {

@@ -212,7 +212,7 @@ impl TermState for MemsumState {
 }
 
 /// Parses `memsum` (no argument); the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(MemsumSpec))

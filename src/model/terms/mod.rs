@@ -1,5 +1,9 @@
-//! The built-in terms, one file per term (listed once in [`super::registry`]), and the parser
-//! and restorer of term spec strings derived from that registry.
+//! The built-in terms, one file per term (listed once in the registry, `model/registry.rs`), and
+//! the parser and restorer of term spec strings derived from that registry.
+//!
+//! Public as the namespace `biasctl::terms` because a user needs it: a user writing their own
+//! [`crate::Term`] composes or copies the built-in ones, and the Dahl and play predictors are
+//! usable on their own (`terms::dahl::DahlPredictor`).
 
 pub mod bins;
 pub mod by;
@@ -8,7 +12,7 @@ pub mod dahl;
 pub mod direction;
 pub mod drift;
 pub mod intercept;
-pub mod knots;
+pub(crate) mod knots;
 pub mod lag;
 pub mod memory;
 pub mod memsum;
@@ -25,7 +29,7 @@ use super::{ModelError, SpecError};
 use std::sync::Arc;
 
 /// Parses one built-in term spec (`poly2`, `table:50`, `dahl:4`, `col:temp_c`, `bins:dwell_s`,
-/// `dbins:dwell_s:6`…) through the registry ([`super::registry::BUILTINS`]).
+/// `dbins:dwell_s:6`…) through the registry (`super::registry::BUILTINS`).
 pub fn parse_term(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
     let t = TermText::new(text);
     match registry::lookup(t.head) {
@@ -63,7 +67,10 @@ pub(crate) fn unit_rates<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<f
 
 /// Rebuilds a built-in fitted term from its name and saved settings (the model file), through
 /// the registry ([`super::registry::BUILTINS`]).
-pub fn restore_term(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+pub(crate) fn restore_term(
+    name: &str,
+    settings: &serde_json::Value,
+) -> Result<Arc<dyn Term>, ModelError> {
     match registry::lookup(name) {
         Some(b) => (b.restore)(name, settings),
         None => Err(ModelError::BadTerm {

@@ -13,7 +13,7 @@
 //! with threshold r is a Dahl element whose exponential is replaced by a ramp of length 2r.
 //!
 //! Thresholds: geometric from a quarter of the 5 % quantile (or less, so that they span at least
-//! [`MIN_SPAN`]) to half of the 95 % quantile of the training log's reversal amplitudes ([`crate::history::reversal_amplitudes`]: the distances
+//! [`MIN_SPAN`]) to half of the 95 % quantile of the training log's reversal amplitudes (`crate::history::reversal_amplitudes`: the distances
 //! between consecutive turning points), so the elements cover the loops the log actually makes
 //! whatever its position unit. Neighbouring elements are strongly collinear, so the weights are
 //! ridge-regularised ([`Term::ridge`], penalty [`RIDGE`] × each column's sum of squares): the
@@ -364,7 +364,7 @@ impl TermState for PlayState {
 }
 
 /// Parses `play` / `play:N` (N from 1 to 256; default [`DEFAULT_ELEMENTS`]).
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(PlaySpec {

@@ -99,7 +99,7 @@ impl TermState for Poly2Term {
 }
 
 /// Parses `poly2` (no argument); the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(Poly2Spec))

@@ -98,7 +98,7 @@ impl TermState for SeekTerm {
 }
 
 /// Parses `seek[:KNOTS]`; the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(SeekSpec {

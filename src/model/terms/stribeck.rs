@@ -253,7 +253,10 @@ impl TermState for StribeckState {
 
 /// Rebuilds a fitted `stribeck` term from a model file, refusing settings that would predict
 /// NaN (δ outside its range, a non-finite or empty search interval, `u` outside it).
-pub fn restore(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>, ModelError> {
+pub(crate) fn restore(
+    name: &str,
+    settings: &serde_json::Value,
+) -> Result<Arc<dyn Term>, ModelError> {
     let bad = |why: String| ModelError::BadTerm {
         term: name.to_string(),
         why,
@@ -284,7 +287,7 @@ pub fn restore(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>
 
 /// Parses `stribeck`, `stribeck:COL`, `stribeck:DELTA` or `stribeck:COL:DELTA`; the registry's
 /// parser. A numeric item is δ, any other the velocity column.
-pub fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let (mut column, mut delta) = (None, None);
     let items: Vec<&str> = t.arg.map(|a| a.split(':').collect()).unwrap_or_default();
     for item in items {

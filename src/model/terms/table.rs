@@ -109,7 +109,7 @@ impl TermState for TableTerm {
 }
 
 /// Parses `table[:SPACING]` (knot spacing in the log's position unit); the registry's parser.
-pub fn parse(
+pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let spacing = match t.arg {

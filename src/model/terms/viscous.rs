@@ -176,7 +176,7 @@ impl TermState for ViscousState {
 }
 
 /// Parses `viscous` or `viscous:COL`; the registry's parser.
-pub fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
+pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     match t.arg {
         None => Ok(Arc::new(ViscousSpec { column: None })),
         Some(c) if !c.is_empty() && !c.contains(':') => Ok(Arc::new(ViscousSpec {

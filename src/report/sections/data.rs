@@ -7,7 +7,7 @@ use crate::report::run::DataRun;
 use crate::report::{Cell, Report, Table};
 
 /// The section "Your data": rows, columns, units, covariates, ranges and the data views.
-pub fn your_data(r: &mut Report, run: &DataRun) {
+pub(crate) fn your_data(r: &mut Report, run: &DataRun) {
     let log = &run.log;
     let units = &log.schema.units;
     let tracks: Vec<f64> = log.rows.iter().map(|x| x.track).collect();

@@ -7,11 +7,11 @@ use crate::report::run::DiagnosedRun;
 use crate::report::{Cell, Section, Table};
 
 /// Features shown in the table and the panel.
-pub const TOP: usize = 6;
+pub(crate) const TOP: usize = views::DEFAULT_TOP;
 
 /// The strongest `top` candidate features of `d`: share explained out of sample, family-wise
 /// p-value, shape, suggested term, the error std once it is added (bias unit of `d`).
-pub fn diagnosis_table(d: &Diagnosis, top: usize) -> Table {
+pub(crate) fn diagnosis_table(d: &Diagnosis, top: usize) -> Table {
     let std_once = format!("std once added ({})", d.units.bias);
     let mut t = Table::new(&[
         "feature",
@@ -40,11 +40,16 @@ pub fn diagnosis_table(d: &Diagnosis, top: usize) -> Table {
 
 /// The diagnosis' summary, its table of [`TOP`] features and the residual panel (figure
 /// caption `caption`).
-pub fn diagnosis(s: &mut Section, d: &DiagnosedRun, caption: &str) {
+pub(crate) fn diagnosis(s: &mut Section, d: &DiagnosedRun, caption: &str) {
     s.paragraph(d.diagnosis.summary.clone())
         .table(diagnosis_table(&d.diagnosis, TOP))
         .figure(
-            views::diagnose_panel(&d.diagnosis, &d.table, &d.residual, TOP),
+            views::diagnose_panel(
+                &d.diagnosis,
+                &d.table,
+                &d.residual,
+                &views::CheckedPanelOptions::default(),
+            ),
             caption,
         );
 }

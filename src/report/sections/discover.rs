@@ -6,7 +6,7 @@ use crate::report::run::{DISCOVER_START, Step};
 use crate::report::{Cell, Section, Table};
 
 /// The steps of `d`: feature, edit, reason, std before → after (bias unit of `d`), terms after.
-pub fn discover_table(d: &Discovery) -> Table {
+pub(crate) fn discover_table(d: &Discovery) -> Table {
     let before = format!("std before ({})", d.unit);
     let after = format!("std after ({})", d.unit);
     let mut t = Table::new(&[
@@ -39,7 +39,7 @@ pub fn discover_table(d: &Discovery) -> Table {
 /// The section body: what discover does, the steps table (or that no edit was verified), the
 /// final terms and why it stopped; or why it could not run. `train` and `test` name the logs it
 /// fitted on and scored on.
-pub fn discover(s: &mut Section, d: &Step<Discovery>, train: &str, test: &str) {
+pub(crate) fn discover(s: &mut Section, d: &Step<Discovery>, train: &str, test: &str) {
     s.paragraph(format!(
         "discover starts from {DISCOVER_START} fitted on {train}, diagnoses its error, applies \
          the best edit whose gain is verified on held-out seeks, and repeats until no edit \

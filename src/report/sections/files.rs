@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use crate::report::{Report, Table};
 
 /// The section "Files behind this report": each file's name and what it holds.
-pub fn files(report: &mut Report, files: &[(PathBuf, String)]) {
+pub(crate) fn files(report: &mut Report, files: &[(PathBuf, String)]) {
     let mut t = Table::new(&["file", "what it holds"]).caption("Files next to this report");
     for (p, what) in files {
         let name = p.file_name().map_or_else(

@@ -7,7 +7,7 @@ use crate::plot::views;
 use crate::report::{Cell, Section, Table};
 
 /// Each rung's terms, test error std (`units.bias`) and reduction from the first rung.
-pub fn ladder_table(l: &Ladder, units: &Units) -> Table {
+pub(crate) fn ladder_table(l: &Ladder, units: &Units) -> Table {
     let test_std = format!("test error std ({})", units.bias);
     let mut t = Table::new(&["step", "terms", &test_std, "reduction vs step 0"])
         .caption("The ladder: fitted on the training run, scored on the test run");
@@ -23,7 +23,7 @@ pub fn ladder_table(l: &Ladder, units: &Units) -> Table {
 }
 
 /// The ladder's table and bar figure (caption `caption`).
-pub fn ladder(s: &mut Section, l: &Ladder, units: &Units, caption: &str) {
+pub(crate) fn ladder(s: &mut Section, l: &Ladder, units: &Units, caption: &str) {
     s.table(ladder_table(l, units))
         .figure(views::ladder(l, units), caption);
 }

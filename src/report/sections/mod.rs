@@ -13,16 +13,14 @@
 //! A figure that cannot be drawn is reported in the page in its place and collected in
 //! [`Notes`] (the CLI prints them on stderr), never left blank.
 
-pub mod data;
-pub mod diagnosis;
-pub mod discover;
-pub mod files;
-pub mod ladder;
-pub mod paper;
-pub mod scores;
-pub mod settle;
-
-pub use scores::score_table;
+pub(crate) mod data;
+pub(crate) mod diagnosis;
+pub(crate) mod discover;
+pub(crate) mod files;
+pub(crate) mod ladder;
+pub(crate) mod paper;
+pub(crate) mod scores;
+pub(crate) mod settle;
 
 use super::Section;
 use crate::plot::svg::fmt_num;
@@ -30,11 +28,11 @@ use crate::plot::svg::fmt_num;
 /// What went wrong while drawing a report, one line each (a figure that could not be drawn and
 /// why). The page says it in place; [`super::story::StoryOutcome::warnings`] carries these.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Notes(pub Vec<String>);
+pub(crate) struct Notes(pub Vec<String>);
 
 /// Adds figure `svg` with `caption` to `s`, or, when it could not be drawn, a paragraph saying
 /// that `what` could not be drawn and why (also noted in `notes`).
-pub fn figure_or_notice<E: std::error::Error>(
+pub(crate) fn figure_or_notice<E: std::error::Error>(
     s: &mut Section,
     svg: Result<String, E>,
     caption: impl Into<String>,
@@ -54,12 +52,12 @@ pub fn figure_or_notice<E: std::error::Error>(
 }
 
 /// A settle time in ms, or "not settled".
-pub fn ms(v: Option<f64>) -> String {
+pub(crate) fn ms(v: Option<f64>) -> String {
     v.map_or("not settled".into(), |m| format!("{} ms", fmt_num(m)))
 }
 
 /// The reduction from `from` to `to` in whole percent ("n/a" when undefined).
-pub fn pct(from: f64, to: f64) -> String {
+pub(crate) fn pct(from: f64, to: f64) -> String {
     if from > 0.0 && from.is_finite() && to.is_finite() {
         format!("{:.0} %", 100.0 * (from - to) / from)
     } else {
@@ -68,7 +66,7 @@ pub fn pct(from: f64, to: f64) -> String {
 }
 
 /// A p-value in a table cell: `p < 0.0001` below 1e-4 (never `p = 0`), else `p = …`.
-pub fn p_cell(p: f64) -> String {
+pub(crate) fn p_cell(p: f64) -> String {
     if p < 1e-4 {
         "p < 0.0001".into()
     } else {

@@ -10,7 +10,7 @@ use crate::report::{Cell, Report, Table};
 use crate::sim::Truth;
 
 /// The section "What bias is, and what this drive shows" of the demo.
-pub fn what_bias_is(r: &mut Report, run: &DemoRun) {
+pub(crate) fn what_bias_is(r: &mut Report, run: &DemoRun) {
     let s = r.section("What bias is, and what this drive shows");
     s.paragraph(
             "Bias is the average current the voice-coil driver must supply to hold the head on \

@@ -12,7 +12,7 @@ use crate::report::{Cell, Section, Table};
 /// The fit summary: for each model its terms, what it was fitted on, the rows and parameters,
 /// the in-sample residual std (bias unit `units.bias`), whether the fit converged, and the
 /// fit's own warnings (parameters the data cannot determine, …).
-pub fn fit_summary_table<'a>(
+pub(crate) fn fit_summary_table<'a>(
     scored: impl IntoIterator<Item = &'a ScoredModel>,
     units: &Units,
 ) -> Table {
@@ -73,7 +73,7 @@ fn warnings_cell(warnings: &[String]) -> String {
 /// The out-of-sample scores of `scored` (replayed causally over rows they were not fitted on,
 /// or, for a user's model, the rows `caption` names): error std and mean in `units.bias`,
 /// bimodality, the dip test's two humps, the trend against position.
-pub fn score_table<'a>(
+pub(crate) fn score_table<'a>(
     scored: impl IntoIterator<Item = &'a ScoredModel>,
     caption: &str,
     units: &Units,
@@ -125,7 +125,12 @@ pub fn score_table<'a>(
 }
 
 /// Figs. 10/11 of `scored`: each model's error vs position and its histogram.
-pub fn errors_figure(s: &mut Section, scored: &[&ScoredModel], units: &Units, caption: &str) {
+pub(crate) fn errors_figure(
+    s: &mut Section,
+    scored: &[&ScoredModel],
+    units: &Units,
+    caption: &str,
+) {
     let preds: Vec<(&str, &Prediction)> = scored
         .iter()
         .map(|x| (x.label.as_str(), &x.prediction))
@@ -135,7 +140,7 @@ pub fn errors_figure(s: &mut Section, scored: &[&ScoredModel], units: &Units, ca
 
 /// Bias vs position of `log` with `m`'s inbound and outbound curves, or a notice of why they
 /// could not be drawn.
-pub fn curves_figure(
+pub(crate) fn curves_figure(
     s: &mut Section,
     log: &Log,
     m: &ScoredModel,

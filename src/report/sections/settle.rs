@@ -11,7 +11,11 @@ use crate::report::{Cell, Report, Table};
 /// Why the paper's robust choice settles when it does, in words, from the numbers of `w`;
 /// `zero_ms` and `paper_ms` are the simulated settle times of zero feedforward and of the
 /// paper's choice. Start values are relative to the converged integrator value, µm·samples.
-pub fn paper_why_text(w: &PaperRobustWhy, zero_ms: Option<f64>, paper_ms: Option<f64>) -> String {
+pub(crate) fn paper_why_text(
+    w: &PaperRobustWhy,
+    zero_ms: Option<f64>,
+    paper_ms: Option<f64>,
+) -> String {
     let faster = matches!((paper_ms, zero_ms), (Some(p), Some(z)) if p < z);
     let mut t = if faster {
         format!(
@@ -74,7 +78,7 @@ pub fn paper_why_text(w: &PaperRobustWhy, zero_ms: Option<f64>, paper_ms: Option
 /// The section "Settling faster: the integrator start value at handoff": the scenario, the
 /// headline settle times, Figs. 15 and 16, and why the paper's robust choice settles when it
 /// does.
-pub fn settle(r: &mut Report, run: &SettleRun) {
+pub(crate) fn settle(r: &mut Report, run: &SettleRun) {
     let settle = &run.report;
     let paper_ms = settle.paper_robust.as_ref().and_then(|p| p.settle_ms);
     let s = r.section("Settling faster: the integrator start value at handoff");
@@ -125,7 +129,7 @@ pub fn settle(r: &mut Report, run: &SettleRun) {
 
 /// The section "From prediction error to settle time": each model's test error std taken as
 /// the bias uncertainty Δb and the worst-case settle it buys.
-pub fn link(r: &mut Report, run: &SettleRun) {
+pub(crate) fn link(r: &mut Report, run: &SettleRun) {
     let mut t = Table::new(&[
         "model",
         "test error std = Δb (counts)",
