@@ -774,6 +774,7 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         (Some(a), Some(b)) if b > a => Some(b - a),
         _ => None,
     };
+    let raw_reversals = count(0.0);
     Sampling {
         rows_per_s: span.map(|s| (positions.len().saturating_sub(1)) as f64 / s),
         median_step,
@@ -782,8 +783,13 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         regular_clock,
         dense,
         deadband,
-        raw_reversals: count(0.0),
-        reversals: count(deadband),
+        raw_reversals,
+        // With no deadband (every seek log) the count is the raw one: one pass, not two.
+        reversals: if deadband == 0.0 {
+            raw_reversals
+        } else {
+            count(deadband)
+        },
     }
 }
 
