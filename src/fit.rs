@@ -625,6 +625,44 @@ fn self_check(terms: &[Arc<dyn Term>], sol: &Solution, bias_std: f64) -> Vec<Str
     out
 }
 
+/// The causal replay of `model` over `log` that the fit statistics need: the measured bias and
+/// the residual of every measured row, and the range of their finite positions — what
+/// [`FittedModel::predict_log`] gives in `measured`, `residual` and `range(positions)` (tested),
+/// without holding its other columns (rows, positions, predictions, every term's contribution:
+/// about 80 bytes per row).
+fn replay_residuals(
+    model: &FittedModel,
+    log: &Log,
+) -> Result<(Vec<f64>, Vec<f64>, Option<[f64; 2]>), FitError> {
+    model.check_log(log)?;
+    let mut p = crate::model::Predictor::new(model, &log.schema.covariates)?;
+    let m = log.measured_count();
+    let (mut measured, mut residual) = (Vec::with_capacity(m), Vec::with_capacity(m));
+    let mut contrib = vec![0.0; model.terms.len()];
+    let mut range: Option<[f64; 2]> = None;
+    for row in &log.rows {
+        let pred = p.step_detailed(
+            row.time_s,
+            row.track,
+            &row.covariates,
+            row.bias,
+            &mut contrib,
+        );
+        if let Some(y) = row.bias {
+            measured.push(y);
+            residual.push(y - pred);
+            let x = row.track;
+            if x.is_finite() {
+                range = Some(match range {
+                    None => [x, x],
+                    Some([lo, hi]) => [lo.min(x), hi.max(x)],
+                });
+            }
+        }
+    }
+    Ok((measured, residual, range))
+}
+
 /// Fits `spec` to the measured rows of `log`.
 pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
     let sampling = crate::history::log_sampling(log);
@@ -766,6 +804,8 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
     warnings.extend(self_check(&terms, &sol, data.measured_bias_std()));
+    // The seek features (about 100 bytes a row) are not needed past this point.
+    drop(data);
     warnings.extend(reversal_warning);
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
@@ -805,12 +845,12 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             spread: (hi - lo).max(0.0),
         });
     }
-    let pred = model.predict_log(log)?;
-    model.fit.position_range = crate::numeric::stats::range(&pred.positions);
-    let sst = crate::numeric::stats::sum_sq_about_mean(&pred.measured);
-    let sse: f64 = pred.residual.iter().map(|e| e * e).sum();
-    model.fit.residual_std = crate::numeric::stats::std_dev(&pred.residual).unwrap_or(0.0);
-    model.fit.residual_rms = crate::numeric::stats::rms(&pred.residual).unwrap_or(0.0);
+    let (measured_bias, residual, position_range) = replay_residuals(&model, log)?;
+    model.fit.position_range = position_range;
+    let sst = crate::numeric::stats::sum_sq_about_mean(&measured_bias);
+    let sse: f64 = residual.iter().map(|e| e * e).sum();
+    model.fit.residual_std = crate::numeric::stats::std_dev(&residual).unwrap_or(0.0);
+    model.fit.residual_rms = crate::numeric::stats::rms(&residual).unwrap_or(0.0);
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
     let f = &model.fit;
     if ![f.residual_std, f.residual_rms, f.r2, sse, sst]
@@ -856,6 +896,34 @@ mod tests {
             householder_r_reference(&mut slow, m, n);
             let same = |x: &[f64]| x.iter().zip(&slow).all(|(x, y)| x.to_bits() == y.to_bits());
             assert!(same(&fast) && same(&portable), "{m} x {n}");
+        }
+    }
+
+    /// Reference: `FittedModel::predict_log` (what `fit` replayed before) — the measured bias,
+    /// the residuals and the position range must be the same bit for bit.
+    #[test]
+    fn fit_statistics_replay_equals_predict_log() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let opts = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &opts, 4, &[]).unwrap();
+        let log = simulate_log(&cfg).unwrap();
+        for preset in ["calibration", "dahl"] {
+            let spec = ModelSpec::preset(preset).unwrap();
+            let model = fit(&spec, &log, &FitOptions::default().check().unwrap()).unwrap();
+            let pred = model.predict_log(&log).unwrap();
+            let (measured, residual, range) = replay_residuals(&model, &log).unwrap();
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&measured), bits(&pred.measured), "{preset}");
+            assert_eq!(bits(&residual), bits(&pred.residual), "{preset}");
+            let want = crate::numeric::stats::range(&pred.positions);
+            assert_eq!(
+                range.map(|r| r.map(f64::to_bits)),
+                want.map(|r| r.map(f64::to_bits))
+            );
+            assert!(residual.len() > 2000, "{preset}");
         }
     }
 
