@@ -625,15 +625,15 @@ fn self_check(terms: &[Arc<dyn Term>], sol: &Solution, bias_std: f64) -> Vec<Str
     out
 }
 
+/// What [`replay_residuals`] returns: measured bias, residuals, position range.
+type Residuals = (Vec<f64>, Vec<f64>, Option<[f64; 2]>);
+
 /// The causal replay of `model` over `log` that the fit statistics need: the measured bias and
 /// the residual of every measured row, and the range of their finite positions — what
 /// [`FittedModel::predict_log`] gives in `measured`, `residual` and `range(positions)` (tested),
 /// without holding its other columns (rows, positions, predictions, every term's contribution:
 /// about 80 bytes per row).
-fn replay_residuals(
-    model: &FittedModel,
-    log: &Log,
-) -> Result<(Vec<f64>, Vec<f64>, Option<[f64; 2]>), FitError> {
+fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitError> {
     model.check_log(log)?;
     let mut p = crate::model::Predictor::new(model, &log.schema.covariates)?;
     let m = log.measured_count();
