@@ -161,7 +161,7 @@ pub(crate) struct StreamingQr {
 pub(crate) const CHUNK: usize = 1024;
 
 /// Dot product with four accumulators (vectorises).
-#[inline]
+#[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut acc = [0.0f64; 4];
     let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
@@ -175,9 +175,121 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     acc[0] + acc[1] + acc[2] + acc[3] + tail
 }
 
+/// Four [`dot`]s of `v` with `c[0..4]` at once (each summed exactly as [`dot`] sums it).
+#[inline(always)]
+fn dot4(v: &[f64], c: [&[f64]; 4]) -> [f64; 4] {
+    let len = v.len();
+    let c = c.map(|c| &c[..len]);
+    let mut acc = [[0.0f64; 4]; 4];
+    let body = len - len % 4;
+    let mut i = 0;
+    while i < body {
+        let x = &v[i..i + 4];
+        for q in 0..4 {
+            let y = &c[q][i..i + 4];
+            for l in 0..4 {
+                acc[q][l] += x[l] * y[l];
+            }
+        }
+        i += 4;
+    }
+    let mut out = [0.0; 4];
+    for q in 0..4 {
+        let tail: f64 = v[body..]
+            .iter()
+            .zip(&c[q][body..])
+            .map(|(x, y)| x * y)
+            .sum();
+        out[q] = acc[q][0] + acc[q][1] + acc[q][2] + acc[q][3] + tail;
+    }
+    out
+}
+
 /// Householder QR of the column-major `m × n` matrix `a` (m ≥ n), in place: on return the
-/// upper triangle of the first `n` rows is `R` (below it, zeros).
+/// upper triangle of the first `n` rows is `R` (below it, zeros). Runs the AVX2 copy when the
+/// CPU has it: the same operations in the same order four lanes wide (no fused multiply-add),
+/// so the result is the same bit for bit (tested).
 fn householder_r(a: &mut [f64], m: usize, n: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above).
+        unsafe { householder_r_avx2(a, m, n) };
+        return;
+    }
+    householder_r_portable(a, m, n);
+}
+
+/// [`householder_r`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn householder_r_avx2(a: &mut [f64], m: usize, n: usize) {
+    householder_r_portable(a, m, n);
+}
+
+/// [`householder_r`] for any CPU.
+#[inline(always)]
+fn householder_r_portable(a: &mut [f64], m: usize, n: usize) {
+    for j in 0..n {
+        let (left, right) = a.split_at_mut((j + 1) * m);
+        let v = &mut left[j * m + j..j * m + m];
+        let norm = dot(v, v).sqrt();
+        if norm <= 0.0 {
+            continue;
+        }
+        let alpha = if v[0] > 0.0 { -norm } else { norm };
+        v[0] -= alpha;
+        let vv = dot(v, v);
+        if vv > 0.0 {
+            let tau = 2.0 / vv;
+            let v = &*v;
+            let len = v.len();
+            // The trailing columns four at a time: four independent dot products share each
+            // load of `v` (one accumulator chain alone waits on the adder's latency), then
+            // four updates in one pass. Each column's arithmetic is exactly [`dot`]'s and the
+            // update's, in the same order.
+            let ncols = n - j - 1;
+            let quads = ncols / 4;
+            for qd in 0..quads {
+                let block = &mut right[qd * 4 * m..(qd * 4 + 4) * m];
+                let (c0, rest) = block.split_at_mut(m);
+                let (c1, rest) = rest.split_at_mut(m);
+                let (c2, c3) = rest.split_at_mut(m);
+                let (c0, c1, c2, c3) = (
+                    &mut c0[j..j + len],
+                    &mut c1[j..j + len],
+                    &mut c2[j..j + len],
+                    &mut c3[j..j + len],
+                );
+                let d = dot4(v, [&*c0, &*c1, &*c2, &*c3]);
+                let s = [tau * d[0], tau * d[1], tau * d[2], tau * d[3]];
+                for i in 0..len {
+                    let vi = v[i];
+                    c0[i] -= s[0] * vi;
+                    c1[i] -= s[1] * vi;
+                    c2[i] -= s[2] * vi;
+                    c3[i] -= s[3] * vi;
+                }
+            }
+            for k in quads * 4..ncols {
+                let c = &mut right[k * m + j..k * m + m];
+                let s = tau * dot(v, c);
+                for (ci, vi) in c.iter_mut().zip(v.iter()) {
+                    *ci -= s * vi;
+                }
+            }
+        }
+        v[0] = alpha;
+        v[1..].fill(0.0);
+    }
+}
+
+/// The Householder loop one trailing column at a time (before the four-column kernel): the
+/// reference the fast loop is tested against bit for bit.
+#[cfg(test)]
+fn householder_r_reference(a: &mut [f64], m: usize, n: usize) {
     for j in 0..n {
         let (left, right) = a.split_at_mut((j + 1) * m);
         let v = &mut left[j * m + j..j * m + m];
@@ -220,10 +332,13 @@ impl StreamingQr {
     pub(crate) fn push(&mut self, x: &[f64], y: f64) {
         let m = self.cols + CHUNK;
         let row = self.cols + self.fill;
-        for (j, &v) in x.iter().chain(std::iter::once(&y)).enumerate() {
+        let p = x.len();
+        for (j, &v) in x.iter().enumerate() {
             self.block[j * m + row] = v;
             self.colsq[j] += v * v;
         }
+        self.block[p * m + row] = y;
+        self.colsq[p] += y * y;
         self.fill += 1;
         self.rows += 1;
         if self.fill == CHUNK {
@@ -510,6 +625,44 @@ fn self_check(terms: &[Arc<dyn Term>], sol: &Solution, bias_std: f64) -> Vec<Str
     out
 }
 
+/// What [`replay_residuals`] returns: measured bias, residuals, position range.
+type Residuals = (Vec<f64>, Vec<f64>, Option<[f64; 2]>);
+
+/// The causal replay of `model` over `log` that the fit statistics need: the measured bias and
+/// the residual of every measured row, and the range of their finite positions — what
+/// [`FittedModel::predict_log`] gives in `measured`, `residual` and `range(positions)` (tested),
+/// without holding its other columns (rows, positions, predictions, every term's contribution:
+/// about 80 bytes per row).
+fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitError> {
+    model.check_log(log)?;
+    let mut p = crate::model::Predictor::new(model, &log.schema.covariates)?;
+    let m = log.measured_count();
+    let (mut measured, mut residual) = (Vec::with_capacity(m), Vec::with_capacity(m));
+    let mut contrib = vec![0.0; model.terms.len()];
+    let mut range: Option<[f64; 2]> = None;
+    for row in &log.rows {
+        let pred = p.step_detailed(
+            row.time_s,
+            row.track,
+            &row.covariates,
+            row.bias,
+            &mut contrib,
+        );
+        if let Some(y) = row.bias {
+            measured.push(y);
+            residual.push(y - pred);
+            let x = row.track;
+            if x.is_finite() {
+                range = Some(match range {
+                    None => [x, x],
+                    Some([lo, hi]) => [lo.min(x), hi.max(x)],
+                });
+            }
+        }
+    }
+    Ok((measured, residual, range))
+}
+
 /// Fits `spec` to the measured rows of `log`.
 pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
     let sampling = crate::history::log_sampling(log);
@@ -651,6 +804,8 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
     warnings.extend(self_check(&terms, &sol, data.measured_bias_std()));
+    // The seek features (about 100 bytes a row) are not needed past this point.
+    drop(data);
     warnings.extend(reversal_warning);
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
@@ -690,12 +845,12 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             spread: (hi - lo).max(0.0),
         });
     }
-    let pred = model.predict_log(log)?;
-    model.fit.position_range = crate::numeric::stats::range(&pred.positions);
-    let sst = crate::numeric::stats::sum_sq_about_mean(&pred.measured);
-    let sse: f64 = pred.residual.iter().map(|e| e * e).sum();
-    model.fit.residual_std = crate::numeric::stats::std_dev(&pred.residual).unwrap_or(0.0);
-    model.fit.residual_rms = crate::numeric::stats::rms(&pred.residual).unwrap_or(0.0);
+    let (measured_bias, residual, position_range) = replay_residuals(&model, log)?;
+    model.fit.position_range = position_range;
+    let sst = crate::numeric::stats::sum_sq_about_mean(&measured_bias);
+    let sse: f64 = residual.iter().map(|e| e * e).sum();
+    model.fit.residual_std = crate::numeric::stats::std_dev(&residual).unwrap_or(0.0);
+    model.fit.residual_rms = crate::numeric::stats::rms(&residual).unwrap_or(0.0);
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
     let f = &model.fit;
     if ![f.residual_std, f.residual_rms, f.r2, sse, sst]
@@ -716,6 +871,61 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
 mod tests {
     use super::*;
     use crate::numeric::rng::SimRng;
+
+    /// Reference: the one-column-at-a-time Householder loop (what every CPU ran before). The
+    /// four-column kernel, portable and compiled for AVX2, must give the same `R` bit for bit
+    /// on blocks of the sizes the fits use.
+    #[test]
+    fn householder_kernels_equal_the_one_column_loop_bit_for_bit() {
+        let mut rng = SimRng::new(9);
+        let sizes = [
+            (1024 + 5, 5),
+            (1024 + 30, 30),
+            (1024 + 31, 31),
+            (37, 7),
+            (200, 64),
+            (9, 2),
+        ];
+        for &(m, n) in &sizes {
+            let a: Vec<f64> = (0..m * n)
+                .map(|_| rng.normal() * 10f64.powi(rng.below(6) as i32 - 3))
+                .collect();
+            let (mut fast, mut portable, mut slow) = (a.clone(), a.clone(), a);
+            householder_r(&mut fast, m, n);
+            householder_r_portable(&mut portable, m, n);
+            householder_r_reference(&mut slow, m, n);
+            let same = |x: &[f64]| x.iter().zip(&slow).all(|(x, y)| x.to_bits() == y.to_bits());
+            assert!(same(&fast) && same(&portable), "{m} x {n}");
+        }
+    }
+
+    /// Reference: `FittedModel::predict_log` (what `fit` replayed before) — the measured bias,
+    /// the residuals and the position range must be the same bit for bit.
+    #[test]
+    fn fit_statistics_replay_equals_predict_log() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let opts = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &opts, 4, &[]).unwrap();
+        let log = simulate_log(&cfg).unwrap();
+        for preset in ["calibration", "dahl"] {
+            let spec = ModelSpec::preset(preset).unwrap();
+            let model = fit(&spec, &log, &FitOptions::default().check().unwrap()).unwrap();
+            let pred = model.predict_log(&log).unwrap();
+            let (measured, residual, range) = replay_residuals(&model, &log).unwrap();
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&measured), bits(&pred.measured), "{preset}");
+            assert_eq!(bits(&residual), bits(&pred.residual), "{preset}");
+            let want = crate::numeric::stats::range(&pred.positions);
+            assert_eq!(
+                range.map(|r| r.map(f64::to_bits)),
+                want.map(|r| r.map(f64::to_bits))
+            );
+            assert!(residual.len() > 2000, "{preset}");
+        }
+    }
 
     #[test]
     fn streaming_qr_matches_svd_least_squares() {

@@ -696,31 +696,54 @@ pub struct Sampling {
     pub reversals: usize,
 }
 
+/// `crate::numeric::stats::percentile_sorted(&sorted(v), p)` without sorting: the two order
+/// statistics around the percentile's position found by selection (O(n)); `v` is reordered.
+/// Under `total_cmp` equal elements are identical bits, so the result is the same bit for bit.
+fn percentile_select(v: &mut [f64], p: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let pos = (p.clamp(0.0, 100.0) / 100.0) * (v.len() - 1) as f64;
+    let lo = pos.floor() as usize;
+    let hi = pos.ceil() as usize;
+    let frac = pos - lo as f64;
+    let (_, &mut a, right) = v.select_nth_unstable_by(lo, f64::total_cmp);
+    let b = if hi == lo {
+        a
+    } else {
+        // The next order statistic: the smallest of the elements after `lo`.
+        right.iter().copied().min_by(f64::total_cmp).unwrap_or(a)
+    };
+    Some(a + (b - a) * frac)
+}
+
 /// Describes how `positions` (in row order, position unit) sample the motion; `times_s` are the
 /// rows' times. A seek log (each row a seek: irregular times, or a median step ≥ 1 % of the
 /// travel) keeps deadband 0.
 pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
-    let median = |v: &[f64]| {
-        crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(v), 50.0)
-            .unwrap_or(0.0)
+    // Every quantile is found by selection in one reused scratch buffer (O(n), no sort); it
+    // equals `percentile_sorted(&sorted(v), p)` bit for bit (tested against it).
+    let mut scratch: Vec<f64> = Vec::with_capacity(positions.len().max(times_s.len()));
+    let mut quantile = |values: &mut dyn Iterator<Item = f64>, p: f64| {
+        scratch.clear();
+        scratch.extend(values);
+        percentile_select(&mut scratch, p).unwrap_or(0.0)
     };
-    let dts: Vec<f64> = times_s.windows(2).map(|w| w[1] - w[0]).collect();
-    let dt = median(&dts);
-    let dt_dev: Vec<f64> = dts.iter().map(|d| (d - dt).abs()).collect();
-    let regular_clock = dt > 0.0 && median(&dt_dev) <= 0.01 * dt;
-    let steps: Vec<f64> = positions.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
-    let median_step =
-        crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(&steps), 50.0)
-            .unwrap_or(0.0);
-    let sorted_x = crate::numeric::stats::sorted(positions);
-    let q = |p: f64| crate::numeric::stats::percentile_sorted(&sorted_x, p).unwrap_or(0.0);
-    let travel = q(95.0) - q(5.0);
-    let d2: Vec<f64> = positions
-        .windows(3)
-        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
-        .collect();
-    let mad = crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(&d2), 50.0)
-        .unwrap_or(0.0);
+    let dt = quantile(&mut times_s.windows(2).map(|w| w[1] - w[0]), 50.0);
+    let dt_dev = quantile(
+        &mut times_s.windows(2).map(|w| ((w[1] - w[0]) - dt).abs()),
+        50.0,
+    );
+    let regular_clock = dt > 0.0 && dt_dev <= 0.01 * dt;
+    let median_step = quantile(&mut positions.windows(2).map(|w| (w[1] - w[0]).abs()), 50.0);
+    let travel = quantile(&mut positions.iter().copied(), 95.0)
+        - quantile(&mut positions.iter().copied(), 5.0);
+    let mad = quantile(
+        &mut positions
+            .windows(3)
+            .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()),
+        50.0,
+    );
     let noise = 1.4826 * mad / 6f64.sqrt();
     let dense = regular_clock && travel > 0.0 && median_step < 0.01 * travel;
     // The range i.i.d. noise spans over n samples (twice its expected maximum, √(2 ln n)·σ): a
@@ -746,6 +769,7 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         (Some(a), Some(b)) if b > a => Some(b - a),
         _ => None,
     };
+    let raw_reversals = count(0.0);
     Sampling {
         rows_per_s: span.map(|s| (positions.len().saturating_sub(1)) as f64 / s),
         median_step,
@@ -754,8 +778,13 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         regular_clock,
         dense,
         deadband,
-        raw_reversals: count(0.0),
-        reversals: count(deadband),
+        raw_reversals,
+        // With no deadband (every seek log) the count is the raw one: one pass, not two.
+        reversals: if deadband == 0.0 {
+            raw_reversals
+        } else {
+            count(deadband)
+        },
     }
 }
 
@@ -877,6 +906,30 @@ pub(crate) fn sign(x: f64) -> i8 {
 mod tests {
     use super::*;
     use crate::numeric::rng::SimRng;
+
+    /// Reference: sort a copy, then `percentile_sorted` (what `sampling` did before it selected).
+    #[test]
+    fn selected_percentiles_equal_sorted_ones_bit_for_bit() {
+        use crate::numeric::stats::{percentile_sorted, sorted};
+        let mut rng = SimRng::new(7);
+        for case in 0..300 {
+            let n = 1 + rng.below(200) as usize;
+            // Few distinct values (ties), signed zeros, and wide spreads.
+            let v: Vec<f64> = (0..n)
+                .map(|_| match case % 3 {
+                    0 => rng.below(5) as f64 - 2.0,
+                    1 => [0.0, -0.0, 1.5, -1.5][rng.below(4) as usize],
+                    _ => rng.normal() * 10f64.powi(rng.below(20) as i32 - 10),
+                })
+                .collect();
+            for p in [0.0, 5.0, 37.5, 50.0, 95.0, 100.0] {
+                let want = percentile_sorted(&sorted(&v), p).unwrap();
+                let got = percentile_select(&mut v.clone(), p).unwrap();
+                assert_eq!(got.to_bits(), want.to_bits(), "case {case}, p {p}, n {n}");
+            }
+        }
+        assert_eq!(percentile_select(&mut [], 50.0), None);
+    }
 
     /// Slow, obvious reference for the rest memory: keep every rest position with the time it was
     /// made, and call it crossed if any later move's closed interval [min, max] covered it.

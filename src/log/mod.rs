@@ -829,6 +829,15 @@ impl<R: Read> LogReader<R> {
         })
     }
 
+    /// Average bytes per row over the rows read ahead (from their byte offsets); `None` with
+    /// fewer than two of them.
+    fn bytes_per_row(&self) -> Option<f64> {
+        let first = self.lookahead.front()?.position()?.byte();
+        let last = self.lookahead.back()?.position()?.byte();
+        let n = self.lookahead.len();
+        (n >= 2 && last > first).then(|| (last - first) as f64 / (n - 1) as f64)
+    }
+
     /// The log's metadata and columns.
     pub fn schema(&self) -> &LogSchema {
         &self.schema
@@ -1047,7 +1056,21 @@ impl Log {
     /// Reads a whole log file (`-`: standard input) with the bias column required or optional.
     pub fn read_with(path: &Path, map: &ColumnMap, bias: BiasColumn) -> Result<Self, LogError> {
         let mut reader = LogReader::open_with(path, map, bias)?;
-        let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
+        // Room for the rows the file's size suggests (its bytes over the look-ahead rows'
+        // bytes per row, plus 1/16): the vector then grows by doubling rarely or never, which
+        // would copy every row read so far and hold both copies at once.
+        let expected = std::fs::metadata(path)
+            .ok()
+            .filter(|m| m.is_file())
+            .zip(reader.bytes_per_row())
+            .map_or(0, |(m, per_row)| {
+                let rows = m.len() as f64 / per_row;
+                (rows + rows / 16.0).min(1e9) as usize
+            });
+        let mut rows = Vec::with_capacity(expected);
+        for row in reader.by_ref() {
+            rows.push(row?);
+        }
         Ok(Self {
             schema: reader.schema,
             rows,

@@ -373,39 +373,34 @@ pub fn write_predictions_csv<R: Read>(
     header.extend(model.terms.iter().map(|t| t.term.name()));
     let sink_err = |e: csv::Error| ReplayError::Sink(e.into());
     w.write_record(&header).map_err(sink_err)?;
-    if flush_each {
-        w.flush().map_err(ReplayError::Sink)?;
-    }
-    let mut buf = Vec::with_capacity(32);
+    w.flush().map_err(ReplayError::Sink)?;
+    // The rows: numbers only, written without the csv writer's quoting scan (same text).
+    let out = w
+        .into_inner()
+        .map_err(|e| ReplayError::Sink(e.into_error()))?;
+    let mut rows = crate::render::number::NumberRows::new(out);
     let summary = replay_stream(model, reader, start, |row, p: &RowPrediction, contrib| {
-        let mut put = |x: Option<f64>| {
-            buf.clear();
-            if let Some(v) = x {
-                crate::render::number::write_shortest(v, &mut buf);
-            }
-            w.write_field(&buf[..])
-        };
-        put(Some(row.time_s))?;
-        put(Some(row.track))?;
-        put(row.bias)?;
+        rows.cell(Some(row.time_s));
+        rows.cell(Some(row.track));
+        rows.cell(row.bias);
         for &c in &row.covariates {
-            put(Some(c))?;
+            rows.cell(Some(c));
         }
-        put(Some(p.predicted))?;
-        put(p.residual)?;
+        rows.cell(Some(p.predicted));
+        rows.cell(p.residual);
         if start.is_some() {
-            put(p.integrator_start)?;
+            rows.cell(p.integrator_start);
         }
         for &c in contrib {
-            put(Some(c))?;
+            rows.cell(Some(c));
         }
-        w.write_record(None::<&[u8]>)?;
+        rows.end_row()?;
         if flush_each {
-            w.flush()?;
+            rows.flush()?;
         }
         Ok(())
     })?;
-    w.flush().map_err(ReplayError::Sink)?;
+    rows.flush().map_err(ReplayError::Sink)?;
     Ok(summary)
 }
 

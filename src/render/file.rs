@@ -89,6 +89,29 @@ pub(crate) struct WordGuard {
 impl WordGuard {
     /// Scans the next piece of the stream.
     pub(crate) fn scan(&mut self, buf: &[u8]) -> io::Result<()> {
+        // Fast path: a bad word starts with `N` or `i`. When the piece holds neither byte and
+        // the word carried in does not start with one, no bad word ends in this piece; only the
+        // word the piece ends in is carried on (its first bytes, and its length).
+        let carried_may_be_bad = self.len > 0 && matches!(self.word[0], b'N' | b'i');
+        if !carried_may_be_bad && memchr::memchr2(b'N', b'i', buf).is_none() {
+            let is_word = |b: &u8| b.is_ascii_alphanumeric() || *b == b'_';
+            let tail = buf.iter().rev().take_while(|b| is_word(b)).count();
+            if tail < buf.len() {
+                self.len = 0;
+            }
+            for &b in &buf[buf.len() - tail..] {
+                if self.len < 3 {
+                    self.word[self.len] = b;
+                }
+                self.len += 1;
+            }
+            return Ok(());
+        }
+        self.scan_slow(buf)
+    }
+
+    /// [`WordGuard::scan`] byte by byte (the reference the fast path is tested against).
+    fn scan_slow(&mut self, buf: &[u8]) -> io::Result<()> {
         for &b in buf {
             if b.is_ascii_alphanumeric() || b == b'_' {
                 if self.len < 3 {
@@ -760,6 +783,64 @@ mod tests {
             .collect();
         v.sort();
         v
+    }
+
+    /// Reference: the byte-by-byte scan. Streams of numbers and near-miss words (`Nan`, `info`,
+    /// `xinf`, `NaN_`, `NaNs`) with the bad words among them, cut into random pieces: the fast
+    /// scan fails at the same piece (or at the end) as the slow one, or neither fails.
+    #[test]
+    fn fast_word_guard_agrees_with_the_byte_by_byte_scan() {
+        use crate::numeric::rng::SimRng;
+        let tokens: [&[u8]; 14] = [
+            b"1.25",
+            b"-0.5",
+            b"NaN",
+            b"inf",
+            b"-inf",
+            b"Nan",
+            b"info",
+            b"xinf",
+            b"NaN_",
+            b"NaNs",
+            b"time_s",
+            b"in",
+            b"N",
+            b"12345678901234567890",
+        ];
+        let seps: [&[u8]; 4] = [b",", b"\n", b"", b" "];
+        let mut rng = SimRng::new(5);
+        let mut failures = 0;
+        for _ in 0..20_000 {
+            let mut text = Vec::new();
+            for _ in 0..1 + rng.below(12) {
+                text.extend_from_slice(tokens[rng.below(tokens.len() as u64) as usize]);
+                text.extend_from_slice(seps[rng.below(seps.len() as u64) as usize]);
+            }
+            let (mut fast, mut slow) = (WordGuard::default(), WordGuard::default());
+            let (mut at_fast, mut at_slow) = (None, None);
+            let mut start = 0;
+            let mut piece = 0;
+            while start < text.len() {
+                let end = (start + 1 + rng.below(6) as usize).min(text.len());
+                if at_fast.is_none() && fast.scan(&text[start..end]).is_err() {
+                    at_fast = Some(piece);
+                }
+                if at_slow.is_none() && slow.scan_slow(&text[start..end]).is_err() {
+                    at_slow = Some(piece);
+                }
+                start = end;
+                piece += 1;
+            }
+            if at_fast.is_none() && fast.end().is_err() {
+                at_fast = Some(piece);
+            }
+            if at_slow.is_none() && slow.end().is_err() {
+                at_slow = Some(piece);
+            }
+            assert_eq!(at_fast, at_slow, "{}", String::from_utf8_lossy(&text));
+            failures += usize::from(at_slow.is_some());
+        }
+        assert!(failures > 1000, "{failures}");
     }
 
     #[test]
