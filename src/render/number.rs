@@ -100,7 +100,7 @@ fn lay_out_exponent(text: &[u8], out: &mut Vec<u8>) {
 /// ([`write_shortest`]: digits, `-`, `.`) never needs quoting, and every row has several cells,
 /// so an empty cell is written empty. A non-finite value is written as an empty cell, never as
 /// text. Nothing is allocated per row.
-pub struct NumberRows<'a> {
+pub(crate) struct NumberRows<'a> {
     out: &'a mut dyn std::io::Write,
     buf: Vec<u8>,
     row_start: bool,
@@ -111,7 +111,7 @@ const ROWS_FLUSH_AT: usize = 1 << 16;
 
 impl<'a> NumberRows<'a> {
     /// Writes rows to `out`.
-    pub fn new(out: &'a mut dyn std::io::Write) -> Self {
+    pub(crate) fn new(out: &'a mut dyn std::io::Write) -> Self {
         Self {
             out,
             buf: Vec::with_capacity(ROWS_FLUSH_AT + 4096),
@@ -121,7 +121,7 @@ impl<'a> NumberRows<'a> {
 
     /// Appends one cell: `x`'s text, or nothing for `None` or a non-finite value.
     #[inline]
-    pub fn cell(&mut self, x: Option<f64>) {
+    pub(crate) fn cell(&mut self, x: Option<f64>) {
         if !self.row_start {
             self.buf.push(b',');
         }
@@ -133,7 +133,7 @@ impl<'a> NumberRows<'a> {
 
     /// Ends the row (`\n`); hands the gathered rows on when there are enough.
     #[inline]
-    pub fn end_row(&mut self) -> std::io::Result<()> {
+    pub(crate) fn end_row(&mut self) -> std::io::Result<()> {
         self.buf.push(b'\n');
         self.row_start = true;
         if self.buf.len() >= ROWS_FLUSH_AT {
@@ -144,7 +144,7 @@ impl<'a> NumberRows<'a> {
     }
 
     /// Hands every gathered row on and flushes `out`.
-    pub fn flush(&mut self) -> std::io::Result<()> {
+    pub(crate) fn flush(&mut self) -> std::io::Result<()> {
         self.out.write_all(&self.buf)?;
         self.buf.clear();
         self.out.flush()
