@@ -25,10 +25,6 @@ use std::sync::Arc;
 /// Powers `r^n` tabulated for integer seek lengths below this.
 const TABLE: usize = 256;
 
-/// 2^52: for 0 ≤ a ≤ 255, the low bits of a + 2^52 hold a rounded to an integer, and
-/// (a + 2^52) − 2^52 equals a exactly when a is an integer.
-const MAGIC: f64 = 4_503_599_627_370_496.0;
-
 /// One Dahl element with unit amplitude (Fc = 1): the fast, allocation-free state of eq. 8.
 #[derive(Debug, Clone)]
 pub struct DahlState {
@@ -58,11 +54,9 @@ impl DahlState {
     #[inline]
     fn decay(&self, dx: f64) -> f64 {
         let a = dx.abs();
-        // As in `step_many`: min(a, 255) + 2^52 holds the integer index in its low bits, and
-        // equals a + 2^52 exactly when a is an integer below 256 (cheaper than `a as usize`).
-        let t = if a < 255.0 { a } else { 255.0 } + MAGIC;
-        if (t - MAGIC - a).abs() <= 0.0 {
-            self.pow[(t.to_bits() & 0xff) as usize]
+        let n = a as usize;
+        if n < TABLE && (n as f64 - a).abs() <= 0.0 {
+            self.pow[n]
         } else {
             (self.ln_r * a).exp()
         }
@@ -185,6 +179,9 @@ impl DahlPredictor {
     /// [`DahlPredictor::step_many`] for any CPU.
     #[inline(always)]
     fn step_many_portable(&mut self, targets: &[f64], out: &mut Vec<f64>) {
+        // 2^52: for 0 ≤ a ≤ 255, the low bits of a + 2^52 hold a rounded to an integer, and
+        // (a + 2^52) − 2^52 equals a exactly when a is an integer.
+        const MAGIC: f64 = 4_503_599_627_370_496.0;
         let Some(&first) = targets.first() else {
             return;
         };
