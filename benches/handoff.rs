@@ -1,13 +1,17 @@
 //! One handoff on the paper's test bed: bounds (eq. 14), backward min/max and search (eq. 15–16),
 //! and the start-value choices (optimal, robust for Δb = 8 counts, zero feedforward's worst case),
 //! for horizons 64, 128 and 256. The table is precomputed outside the timed loop, as in a drive.
+//! `BIASCTL_BENCH_CPU=1` measures the thread's CPU time instead of wall time (a shared machine).
 
 use biasctl::Controller;
 use biasctl::{Bounds, Handoff, HandoffTable, SettleSpec};
-use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use criterion::measurement::Measurement;
+use criterion::{BenchmarkId, Criterion};
 use std::hint::black_box;
+#[path = "common/cputime.rs"]
+mod cputime;
 
-fn handoff(c: &mut Criterion) {
+fn handoff<M: Measurement>(c: &mut Criterion<M>) {
     let cfg = SettleSpec::preset("paper1997")
         .and_then(|s| s.check())
         .expect("preset is valid");
@@ -43,5 +47,4 @@ fn handoff(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, handoff);
-criterion_main!(benches);
+bench_main!(handoff);

@@ -6,14 +6,21 @@ Benchmarks section. Run it through `benches/peers/run.sh` (it makes the venv and
 Every peer is first checked against biasctl's own output on a small input (the check says what
 it compares); a failed check stops the run. Timings: biasctl from criterion (median of the
 `--warm-up-time 1 --measurement-time 3` run, read from target/criterion) or, where the work is
-a command, the median of 3 wall-clock CLI runs; peers by the median of several repeats. On a shared
-machine only the ratios mean something.
+a command, the median of 3 CLI runs; peers by the median of several repeats. On a shared machine
+the clock is CPU time where it can be: criterion benches built with `bench_main!`
+(benches/common/cputime.rs) measure the thread's CPU time when run.sh sets BIASCTL_BENCH_CPU=1,
+and their peers are then timed by the process's CPU time (`time.process_time`: every thread
+polars or BLAS starts counts); commands by their user + system CPU time (`getrusage` of the
+children). A bench without `bench_main!` measures wall time, and its peer is timed by wall time
+too. Each row says which clock it used; only the ratios mean something.
 """
 
 import argparse
 import json
 import math
 import os
+import re
+import resource
 import subprocess
 import sys
 import time
@@ -32,22 +39,55 @@ def sh(*args, **kw):
     return subprocess.run(args, check=True, capture_output=True, text=True, **kw)
 
 
+class Timing:
+    """Median times (s) of repeated calls: wall clock and CPU (this process's CPU time, plus
+    the CPU time of the commands it ran and waited for)."""
+
+    def __init__(self, wall, cpu):
+        self.wall, self.cpu = wall, cpu
+
+    def on(self, clock):
+        return self.cpu if clock == "cpu" else self.wall
+
+
+def children_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def median_of(f, repeats):
-    """Median wall time of `repeats` calls of f (s), as criterion reports its median, and f's
-    last result."""
-    times, out = [], None
+    """Median wall and CPU time of `repeats` calls of f (s), as criterion reports its median,
+    and f's last result."""
+    walls, cpus, out = [], [], None
     for _ in range(repeats):
-        t = time.perf_counter()
+        w, c, k = time.perf_counter(), time.process_time(), children_cpu()
         out = f()
-        times.append(time.perf_counter() - t)
-    return float(np.median(times)), out
+        walls.append(time.perf_counter() - w)
+        cpus.append(time.process_time() - c + children_cpu() - k)
+    return Timing(float(np.median(walls)), float(np.median(cpus))), out
+
+
+def bench_clock(root, bench_id):
+    """"cpu" if the criterion bench measured thread CPU time (built with `bench_main!` and run
+    with BIASCTL_BENCH_CPU=1, as run.sh does), else "wall"."""
+    name = bench_id.split("/")[0]
+    with open(os.path.join(root, "benches", f"{name}.rs")) as f:
+        uses_cpu = re.search(r"bench_main!\s*\(", f.read()) is not None
+    return "cpu" if uses_cpu and os.environ.get("BIASCTL_BENCH_CPU", "0") != "0" else "wall"
 
 
 def criterion_median(root, bench_id):
-    """Median time (s) of one criterion benchmark, from its last run's estimates."""
+    """Median time (s) of one criterion benchmark, from its last run's estimates, and the
+    clock it was measured with."""
     path = os.path.join(root, "target", "criterion", *bench_id.split("/"), "new", "estimates.json")
     with open(path) as f:
-        return json.load(f)["median"]["point_estimate"] * 1e-9
+        return json.load(f)["median"]["point_estimate"] * 1e-9, bench_clock(root, bench_id)
+
+
+def row(what, ours, peer_name, peer):
+    """A table row: `ours` is (seconds, clock); the peer's Timing is read on the same clock."""
+    t, clock = ours
+    return (what, t, peer_name, peer.on(clock), clock)
 
 
 def check(ok, what):
@@ -94,6 +134,30 @@ def dahl_predict(xs, c0, c1, c2, fc, r, pow_table, out):
     return acc
 
 
+@numba.njit(cache=True)
+def dahl_predict_affine(xs, c0, c1, c2, fc, r, pow_table, out):
+    """The same predictions as `dahl_predict`, written as biasctl's DahlPredictor runs them:
+    G <- G*d + sgn(dx)*(1 - d) with the sign taken without a branch (random seeks would
+    mispredict half of the branches). Returns the sum."""
+    ln_r = math.log(r)
+    g = 0.0
+    acc = 0.0
+    prev = math.nan
+    for i in range(xs.shape[0]):
+        x = xs[i]
+        dx = 0.0 if i == 0 else x - prev
+        prev = x
+        a = abs(dx)
+        n = int(a)
+        d = pow_table[n] if (n < TABLE and n == a) else math.exp(ln_r * a)
+        s = np.float64(dx > 0.0) - np.float64(dx < 0.0)
+        g = g * d + s * (1.0 - d)
+        b = c0 + x * (c1 + x * c2) + fc * g
+        out[i] = b
+        acc += b
+    return acc
+
+
 def find_param(model, name):
     """The value of the parameter `name` anywhere in a model file."""
     stack = [model]
@@ -126,15 +190,27 @@ def dahl(exe, work, root):
     err = np.max(np.abs(out - p["dahl"].to_numpy()))
     # the CSV has 4 decimals and Fc, r are printed in the model file with their own rounding
     check(err < 2e-3 * max(1.0, abs(fc)), f"numba Fc*G equals biasctl predict's `dahl` column (max diff {err:.1e}, Fc {fc:.3f}, r {r:.5f})")
+    out2 = np.empty_like(xs)
+    dahl_predict_affine(xs, 0.0, 0.0, 0.0, fc, r, dahl_pow_table(r), out2)
+    err2 = np.max(np.abs(out2 - out))
+    check(err2 <= 1e-12 * max(1.0, abs(fc)), f"numba G*d + b form equals the eq. 8 form (max diff {err2:.1e})")
     rng = np.random.default_rng(1)
     xs = 1000.0 + rng.integers(0, 250, N).astype(float)  # the criterion bench's workload
     out = np.empty(N)
     table = dahl_pow_table(1.0 - 1.2 / 15.0)
-    run = lambda: dahl_predict(xs, 5.0, 0.01, -1e-6, 15.0, 1.0 - 1.2 / 15.0, table, out)
-    run()
-    t_peer, _ = median_of(run, 30)
-    t_ours = criterion_median(root, "dahl/predictor_1M_seeks")
-    return [("Dahl predictor, 1M seeks (criterion `dahl`)", t_ours, "numba loop, same eq. 8-9 arithmetic", t_peer)]
+    args = (xs, 5.0, 0.01, -1e-6, 15.0, 1.0 - 1.2 / 15.0, table, out)
+    dahl_predict(*args)
+    t_eq8, _ = median_of(lambda: dahl_predict(*args), 30)
+    dahl_predict_affine(*args)
+    t_aff, _ = median_of(lambda: dahl_predict_affine(*args), 30)
+    eq8 = ("numba loop, eq. 8 as written (branch on the sign)", t_eq8)
+    aff = ("numba loop, biasctl's branch-free G·d + b", t_aff)
+    return [
+        row("Dahl predictor, 1M seeks, `step` per seek (criterion `dahl/predictor_1M_seeks`)", criterion_median(root, "dahl/predictor_1M_seeks"), *eq8),
+        row("the same, `step` per seek", criterion_median(root, "dahl/predictor_1M_seeks"), *aff),
+        row("Dahl predictor, 1M seeks, `step_many` (criterion `dahl/step_many_1M_seeks`)", criterion_median(root, "dahl/step_many_1M_seeks"), *eq8),
+        row("the same, `step_many`", criterion_median(root, "dahl/step_many_1M_seeks"), *aff),
+    ]
 
 
 # ---------------------------------------------------------------- handoff (eq. 14-16)
@@ -234,12 +310,14 @@ def handoff(exe, work, root):
     args = (pe, pv, pu, w, zk, zce, zcv, zcu, -15.0, 0.0, 0.0, delta, *bufs)
     bounds_repeat(10, *args)
     t_b, _ = median_of(lambda: bounds_repeat(reps, *args), 30)
+    t_b = Timing(t_b.wall / reps, t_b.cpu / reps)
     shift15 = abs(res[15.0][0]["dz_dbias"]) * 8.0
     solve = lambda: [solve_numpy(pe, pv, pu, w, zk, zce, zcv, zcu, -15.0, 0.0, 0.0, delta, 1, shift15) for _ in range(200)]
     t_s, _ = median_of(solve, 15)
+    t_s = Timing(t_s.wall / 200, t_s.cpu / 200)
     return [
-        ("handoff bounds, horizon 64 (`bounds_into`)", criterion_median(root, "handoff/bounds_into/64"), "numba, same arithmetic on four plain arrays", t_b / reps),
-        ("handoff solve, horizon 64", criterion_median(root, "handoff/solve/64"), "numpy vectorised", t_s / 200),
+        row("handoff bounds, horizon 64 (`bounds_into`)", criterion_median(root, "handoff/bounds_into/64"), "numba, same arithmetic on four plain arrays", t_b),
+        row("handoff solve, horizon 64", criterion_median(root, "handoff/solve/64"), "numpy vectorised", t_s),
     ]
 
 
@@ -257,8 +335,9 @@ def read(exe, work, root, log, cli):
     check(len(dp) == rows and int(dp["bias"].notna().sum()) == measured, "pandas reads the same rows")
     mb = os.path.getsize(log) / 1e6
     return [
-        (f"reading a 1M-row, {mb:.0f} MB log (`check`, CLI)", cli["check"], "polars `read_csv` (1 thread)", t_pl),
-        (f"reading the same log (criterion `read/check_summarise_1M_rows`)", criterion_median(root, "read/check_summarise_1M_rows"), "pandas `read_csv`", t_pd),
+        row(f"reading a 1M-row, {mb:.0f} MB log (`check`, CLI)", (cli["check"].cpu, "cpu"), "polars `read_csv` (1 thread)", t_pl),
+        row("reading the same log (criterion `read/check_summarise_1M_rows`)", criterion_median(root, "read/check_summarise_1M_rows"), "pandas `read_csv`", t_pd),
+        row("the same criterion bench", criterion_median(root, "read/check_summarise_1M_rows"), "polars `read_csv` (1 thread)", t_pl),
     ]
 
 
@@ -285,8 +364,8 @@ def fit(exe, work, root, cli):
     y = a @ rng.standard_normal(30) + rng.standard_normal(N)
     t_np, _ = median_of(lambda: np.linalg.solve(a.T @ a, a.T @ y), 3)
     return [
-        ("`fit --model calibration` (29 parameters), 1M rows, CLI", cli["fit"], "numpy normal equations, 1M × 30 design", t_np),
-        ("the same fit in-process (criterion `fit`)", criterion_median(root, "fit/calibration_1M_rows"), "numpy normal equations, 1M × 30 design", t_np),
+        row("`fit --model calibration` (29 parameters), 1M rows, CLI", (cli["fit"].cpu, "cpu"), "numpy normal equations, 1M × 30 design", t_np),
+        row("the same fit in-process (criterion `fit`)", criterion_median(root, "fit/calibration_1M_rows"), "numpy normal equations, 1M × 30 design", t_np),
     ]
 
 
@@ -303,8 +382,8 @@ def write(exe, work, root, cli, pred_csv):
     check(same and again.columns == small.columns, "polars writes the same columns and values as `biasctl predict` (first 1000 rows read back)")
     mb = os.path.getsize(pred_csv) / 1e6
     return [
-        (f"`predict` 1M rows → {mb:.0f} MB CSV (CLI)", cli["predict"], "polars `write_csv` of the same frame", t_pl),
-        ("replay + CSV into memory (criterion `predict/replay_and_write_1M_rows`)", criterion_median(root, "predict/replay_and_write_1M_rows"), "polars `write_csv` of the same frame", t_pl),
+        row(f"`predict` 1M rows → {mb:.0f} MB CSV (CLI)", (cli["predict"].cpu, "cpu"), "polars `write_csv` of the same frame", t_pl),
+        row("replay + CSV into memory (criterion `predict/replay_and_write_1M_rows`)", criterion_median(root, "predict/replay_and_write_1M_rows"), "polars `write_csv` of the same frame", t_pl),
     ]
 
 
@@ -324,31 +403,39 @@ def main():
     ap.add_argument("--exe", required=True)
     ap.add_argument("--work", required=True)
     ap.add_argument("--cli-repeats", type=int, default=3)
+    ap.add_argument("--only", default="dahl,handoff,read,fit,write", help="comma-separated sections to run")
     a = ap.parse_args()
+    only = set(a.only.split(","))
     os.makedirs(a.work, exist_ok=True)
-    log = os.path.join(a.work, "random_1M.csv")
-    cal, model, pred = (os.path.join(a.work, f) for f in ("cal.csv", "cal.json", "pred_1M.csv"))
-    sh(a.exe, "simulate", "--sequence", "random", "--n", str(N), "--seed", "1", "--out", log)
-    sh(a.exe, "simulate", "--sequence", "calibration", "--seed", "1", "--out", cal)
-    sh(a.exe, "fit", "--data", cal, "--model", "calibration", "--out", model)
-    cli = {
-        "check": median_of(lambda: sh(a.exe, "check", "--data", log), a.cli_repeats)[0],
-        "fit": median_of(lambda: sh(a.exe, "fit", "--data", log, "--model", "calibration", "--out", os.path.join(a.work, "fit_1M.json")), a.cli_repeats)[0],
-        "predict": median_of(lambda: sh(a.exe, "predict", "--model", model, "--data", log, "--out", pred), a.cli_repeats)[0],
-    }
     rows = []
-    rows += dahl(a.exe, a.work, a.root)
-    rows += handoff(a.exe, a.work, a.root)
-    rows += read(a.exe, a.work, a.root, log, cli)
-    rows += fit(a.exe, a.work, a.root, cli)
-    rows += write(a.exe, a.work, a.root, cli, pred)
+    if "dahl" in only:
+        rows += dahl(a.exe, a.work, a.root)
+    if "handoff" in only:
+        rows += handoff(a.exe, a.work, a.root)
+    if only & {"read", "fit", "write"}:
+        log = os.path.join(a.work, "random_1M.csv")
+        cal, model, pred = (os.path.join(a.work, f) for f in ("cal.csv", "cal.json", "pred_1M.csv"))
+        sh(a.exe, "simulate", "--sequence", "random", "--n", str(N), "--seed", "1", "--out", log)
+        sh(a.exe, "simulate", "--sequence", "calibration", "--seed", "1", "--out", cal)
+        sh(a.exe, "fit", "--data", cal, "--model", "calibration", "--out", model)
+        cli = {
+            "check": median_of(lambda: sh(a.exe, "check", "--data", log), a.cli_repeats)[0],
+            "fit": median_of(lambda: sh(a.exe, "fit", "--data", log, "--model", "calibration", "--out", os.path.join(a.work, "fit_1M.json")), a.cli_repeats)[0],
+            "predict": median_of(lambda: sh(a.exe, "predict", "--model", model, "--data", log, "--out", pred), a.cli_repeats)[0],
+        }
+        if "read" in only:
+            rows += read(a.exe, a.work, a.root, log, cli)
+        if "fit" in only:
+            rows += fit(a.exe, a.work, a.root, cli)
+        if "write" in only:
+            rows += write(a.exe, a.work, a.root, cli, pred)
     print()
-    print(f"numba {numba.__version__}, numpy {np.__version__}, polars {pl.__version__}, pandas {pd.__version__}; {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}")
+    print(f"numba {numba.__version__}, numpy {np.__version__}, polars {pl.__version__}, pandas {pd.__version__}; {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f} {os.getloadavg()[1]:.1f} {os.getloadavg()[2]:.1f}; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
     print()
-    print("| work | biasctl | peer, same run | peer | biasctl / peer |")
-    print("|---|---|---|---|---|")
-    for what, ours, peer_name, peer in rows:
-        print(f"| {what} | {fmt_t(ours)} | {peer_name} | {fmt_t(peer)} | **{ours / peer:.2f}** |")
+    print("| work | biasctl | peer, same run | peer | clock | biasctl / peer |")
+    print("|---|---|---|---|---|---|")
+    for what, ours, peer_name, peer, clock in rows:
+        print(f"| {what} | {fmt_t(ours)} | {peer_name} | {fmt_t(peer)} | {clock} | **{ours / peer:.2f}** |")
 
 
 if __name__ == "__main__":

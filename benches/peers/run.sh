@@ -2,8 +2,10 @@
 # The peer harness of issue #16, one command: makes its own venv (pip only) with numpy, numba,
 # polars and pandas, builds biasctl, runs biasctl's criterion benches and the peers in the same
 # run, checks every peer against biasctl's output on a small input, and prints the ratio table
-# of README's Benchmarks section. Optional; not part of `cargo test`. Takes ~10 min.
-#   benches/peers/run.sh            (PEERS_VENV=dir to put the venv elsewhere)
+# of README's Benchmarks section. Optional; not part of `cargo test`. Takes ~10 min (more on a
+# loaded machine). Criterion measures thread CPU time (BIASCTL_BENCH_CPU=1) in the benches built
+# with `bench_main!`, and peers.py times their peers by CPU time too (see its docstring).
+#   benches/peers/run.sh [--only dahl,handoff,read,fit,write]   (PEERS_VENV=dir: the venv elsewhere)
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
@@ -15,10 +17,11 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/pip" install -q -r "$here/requirements.txt"
 cargo build --release --quiet
+export BIASCTL_BENCH_CPU=1
 crit=(-- --warm-up-time 1 --measurement-time 3 --sample-size 10)
-cargo bench --quiet --features bench --bench dahl "${crit[@]}" 'dahl/predictor_1M_seeks'
+cargo bench --quiet --features bench --bench dahl "${crit[@]}" 'dahl/(predictor|step_many)_1M_seeks'
 cargo bench --quiet --features bench --bench handoff "${crit[@]}" 'handoff/(solve|bounds_into)/64$'
 cargo bench --quiet --features bench --bench read "${crit[@]}" 'read/check_summarise_1M_rows'
 cargo bench --quiet --features bench --bench fit "${crit[@]}"
 cargo bench --quiet --features bench --bench predict "${crit[@]}" 'predict/replay_and_write_1M_rows'
-"$venv/bin/python" "$here/peers.py" --root "$root" --exe "$root/target/release/biasctl" --work "$work"
+"$venv/bin/python" "$here/peers.py" --root "$root" --exe "$root/target/release/biasctl" --work "$work" "$@"

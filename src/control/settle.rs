@@ -513,27 +513,134 @@ fn suffix_into(u: &[f64], l: &[f64], su: &mut [f64], sl: &mut [f64], umin: f64, 
     }
 }
 
-/// min and max of one full block as a tree (depth 3, vectorised). Exact for NaN-free input
-/// (the running bounds ignore a NaN bound; the tree would not).
+/// Four samples with lane-wise arithmetic: in a function compiled for AVX2 each operation is one
+/// 256-bit instruction (the compiler keeps the lanes of the fixed-size array together, where a
+/// loop over a block of 8 became 128-bit pairs of U and L).
+#[derive(Debug, Clone, Copy)]
+struct F4([f64; 4]);
+
+impl F4 {
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Self([x; 4])
+    }
+    #[inline(always)]
+    fn load(s: &[f64]) -> Self {
+        Self([s[0], s[1], s[2], s[3]])
+    }
+    #[inline(always)]
+    fn zip(self, o: Self, f: impl Fn(f64, f64) -> f64) -> Self {
+        let (a, b) = (self.0, o.0);
+        Self([f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])])
+    }
+    /// min over the lanes, as a tree (exact for NaN-free lanes).
+    #[inline(always)]
+    fn hmin(self) -> f64 {
+        let a = self.0;
+        fmin(fmin(a[0], a[2]), fmin(a[1], a[3]))
+    }
+    /// max over the lanes, as a tree (exact for NaN-free lanes).
+    #[inline(always)]
+    fn hmax(self) -> f64 {
+        let a = self.0;
+        fmax(fmax(a[0], a[2]), fmax(a[1], a[3]))
+    }
+}
+
+/// The conditions of [`HandoffTable::solve`] on the running bounds (U*, L*), nested: 0, zero
+/// feedforward's worst case inside (L* ≤ −s, U* ≥ s); 1, width ≥ 2s; 2, width ≥ 0.
 #[inline(always)]
-fn block_min_max(u: &[f64; BLOCK], l: &[f64; BLOCK]) -> (f64, f64) {
-    let u4 = [
-        fmin(u[0], u[4]),
-        fmin(u[1], u[5]),
-        fmin(u[2], u[6]),
-        fmin(u[3], u[7]),
-    ];
-    let l4 = [
-        fmax(l[0], l[4]),
-        fmax(l[1], l[5]),
-        fmax(l[2], l[6]),
-        fmax(l[3], l[7]),
-    ];
-    let (u2, l2) = (
-        [fmin(u4[0], u4[2]), fmin(u4[1], u4[3])],
-        [fmax(l4[0], l4[2]), fmax(l4[1], l4[3])],
-    );
-    (fmin(u2[0], u2[1]), fmax(l2[0], l2[1]))
+fn keep<const P: usize>(u: f64, l: f64, shift: f64) -> bool {
+    match P {
+        0 => l <= -shift && u >= shift,
+        1 => u - l >= 2.0 * shift,
+        _ => u - l >= 0.0,
+    }
+}
+
+/// The backward scan of [`HandoffTable::solve`]: the next candidate k (samples k.. are in the
+/// running bounds `umin` = U*(k), `lmax` = L*(k)), moving down towards `floor`.
+struct Scan<'a> {
+    table: &'a HandoffTable,
+    p: Point,
+    /// The handoff's point as lanes: e0, v0, du, δ.
+    lanes: [F4; 4],
+    floor: usize,
+    /// No bound can be NaN: whole blocks may be reduced as trees.
+    nan_free: bool,
+    shift: f64,
+    k: usize,
+    umin: f64,
+    lmax: f64,
+}
+
+impl Scan<'_> {
+    /// U_k, L_k of the block of samples `lo .. lo + BLOCK`, four at a time.
+    #[inline(always)]
+    fn block(&self, lo: usize) -> ([F4; 2], [F4; 2]) {
+        let t = self.table;
+        let [e0, v0, du, delta] = self.lanes;
+        let (pe, pv) = (&t.pe[lo..lo + BLOCK], &t.pv[lo..lo + BLOCK]);
+        let (pu, w) = (&t.pu[lo..lo + BLOCK], &t.w[lo..lo + BLOCK]);
+        let mut u = [F4::splat(0.0); 2];
+        let mut l = [F4::splat(0.0); 2];
+        for h in 0..2 {
+            let o = 4 * h;
+            let mul = |a: f64, b: f64| a * b;
+            let add = |a: f64, b: f64| a + b;
+            // Point::bounds, lane by lane, the same operations in the same order.
+            let mid = F4::load(&pe[o..])
+                .zip(e0, mul)
+                .zip(F4::load(&pv[o..]).zip(v0, mul), add)
+                .zip(F4::load(&pu[o..]).zip(du, mul), add);
+            let half = F4::load(&w[o..]).zip(delta, mul);
+            u[h] = mid.zip(half, add);
+            l[h] = mid.zip(half, |a, b| a - b);
+        }
+        (u, l)
+    }
+
+    /// Moves down while condition `P` holds and returns (k, L*(k), U*(k)) for the lowest k at
+    /// which it holds (k = the floor if it holds all the way; k above the last candidate if it
+    /// never does). Whole blocks that keep it are taken from their tree min/max; the block
+    /// where it stops holding is walked sample by sample.
+    #[inline(always)]
+    fn run<const P: usize>(&mut self) -> (usize, f64, f64) {
+        let (mut k, mut umin, mut lmax) = (self.k, self.umin, self.lmax);
+        let (mut u, mut l) = ([0.0; BLOCK], [0.0; BLOCK]);
+        'blocks: while k > self.floor {
+            let m = (k - self.floor).min(BLOCK);
+            let lo = k - m;
+            if m == BLOCK {
+                let (bu, bl) = self.block(lo);
+                if self.nan_free {
+                    let bmin = bu[0].zip(bu[1], fmin).hmin();
+                    let bmax = bl[0].zip(bl[1], fmax).hmax();
+                    let (nu, nl) = (fmin(umin, bmin), fmax(lmax, bmax));
+                    if keep::<P>(nu, nl, self.shift) {
+                        (umin, lmax, k) = (nu, nl, lo);
+                        continue;
+                    }
+                }
+                for h in 0..2 {
+                    u[4 * h..4 * h + 4].copy_from_slice(&bu[h].0);
+                    l[4 * h..4 * h + 4].copy_from_slice(&bl[h].0);
+                }
+            } else {
+                self.table.fill(lo, self.p, &mut u[..m], &mut l[..m]);
+            }
+            // The running bounds ignore a NaN bound (fmin/fmax keep their first operand).
+            for j in (0..m).rev() {
+                let (a, b) = (fmin(umin, u[j]), fmax(lmax, l[j]));
+                if !keep::<P>(a, b, self.shift) {
+                    break 'blocks;
+                }
+                (umin, lmax, k) = (a, b, lo + j);
+            }
+        }
+        (self.k, self.umin, self.lmax) = (k, umin, lmax);
+        (k, lmax, umin)
+    }
 }
 
 /// Per-controller, per-horizon coefficients of the handoff bounds (see the module docs), laid
@@ -696,11 +803,13 @@ impl HandoffTable {
     /// A non-finite handoff state settles nothing (all `None`).
     ///
     /// The three conditions (zero feedforward's worst case inside, width ≥ 2s, width ≥ 0) are
-    /// nested and each holds on a suffix of settle indices (U* grows and L* falls with k). The
-    /// pass runs over blocks of 8 samples: each block's bounds and running bounds are computed
-    /// at once (vectorised, independent of the blocks above except for one final min/max), and
-    /// only the block where a condition stops holding is searched. On a CPU with AVX2 the same
-    /// code runs compiled for it (the same operations in the same order: identical results).
+    /// nested and each holds on a suffix of settle indices (U* grows and L* falls with k), so
+    /// one scan per condition continues where the previous one stopped, each with its
+    /// condition fixed (no test of which condition is current in the loop). The scan runs over
+    /// blocks of 8 samples: a block's bounds are computed four lanes at a time and reduced as a
+    /// tree; only the block where the condition stops holding is walked sample by sample. On a
+    /// CPU with AVX2 the same code runs compiled for it (the same operations in the same
+    /// order: identical results).
     pub fn solve(&self, h: &Handoff, window: &Window, delta_b: f64) -> HandoffSolution {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
@@ -726,7 +835,6 @@ impl HandoffTable {
         let n = self.w.len();
         let delta = window.half_width_um;
         let shift = (self.dz_dbias * delta_b).abs();
-        let two_shift = 2.0 * shift;
         let mut out = HandoffSolution {
             optimal: None,
             robust: None,
@@ -752,60 +860,22 @@ impl HandoffTable {
             umin = fmin(umin, u);
             lmax = fmax(lmax, l);
         }
-        let keep = |phase: usize, u: f64, l: f64| match phase {
-            0 => l <= -shift && u >= shift,
-            1 => u - l >= two_shift,
-            _ => u - l >= 0.0,
-        };
-        // Per phase: the first candidate k and its running bounds (L*, U*).
-        let mut found = [(0usize, 0.0f64, 0.0f64); 3];
         // |U_k|, |L_k| ≤ bound: far from overflow, so no bound is NaN and whole blocks can be
         // reduced as trees; otherwise every block takes the per-sample path (NaN ignored).
         let bound = self.coef_max * (e0.abs() + v0.abs() + du.abs()) + self.w_max * delta;
-        let nan_free = bound < f64::MAX / 16.0;
-        let mut phase = 0;
-        let mut k = top + 1;
-        let (mut u, mut l) = ([0.0; BLOCK], [0.0; BLOCK]);
-        let (mut su, mut sl) = ([0.0; BLOCK], [0.0; BLOCK]);
-        while k > floor && phase < 3 {
-            let m = (k - floor).min(BLOCK);
-            let lo = k - m;
-            if m == BLOCK {
-                self.fill(lo, p, &mut u, &mut l);
-                let (bu, bl) = block_min_max(&u, &l);
-                let (nu, nl) = (fmin(umin, bu), fmax(lmax, bl));
-                if nan_free && keep(phase, nu, nl) {
-                    // The whole block keeps the condition: no per-sample running bounds.
-                    (umin, lmax, k) = (nu, nl, lo);
-                    continue;
-                }
-                suffix_into(&u, &l, &mut su, &mut sl, umin, lmax);
-            } else {
-                self.fill(lo, p, &mut u[..m], &mut l[..m]);
-                suffix_into(&u[..m], &l[..m], &mut su[..m], &mut sl[..m], umin, lmax);
-            }
-            while phase < 3 && !keep(phase, su[0], sl[0]) {
-                // The condition holds on samples lo + j0 .. k of this block, none below.
-                let held = (0..m)
-                    .rev()
-                    .take_while(|&j| keep(phase, su[j], sl[j]))
-                    .count();
-                let j0 = m - held;
-                found[phase] = if held == 0 {
-                    (k, lmax, umin)
-                } else {
-                    (lo + j0, sl[j0], su[j0])
-                };
-                phase += 1;
-            }
-            umin = su[0];
-            lmax = sl[0];
-            k = lo;
-        }
-        // Conditions still holding at the floor end there.
-        for f in &mut found[phase..] {
-            *f = (k, lmax, umin);
-        }
+        let mut scan = Scan {
+            table: self,
+            p,
+            lanes: [e0, v0, du, delta].map(F4::splat),
+            floor,
+            nan_free: bound < f64::MAX / 16.0,
+            shift,
+            k: top + 1,
+            umin,
+            lmax,
+        };
+        // The conditions are nested: each scan starts where the previous one stopped.
+        let found = [scan.run::<0>(), scan.run::<1>(), scan.run::<2>()];
         let interval =
             |(k, lo, hi): (usize, f64, f64)| (k <= top).then_some(Interval { k, lo, hi });
         out.zero_ff_worst = interval(found[0]).map(|i| i.k);

@@ -29,7 +29,7 @@ const TABLE: usize = 256;
 #[derive(Debug, Clone)]
 pub struct DahlState {
     ln_r: f64,
-    pow: Box<[f64]>,
+    pow: Box<[f64; TABLE]>,
     g: f64,
 }
 
@@ -46,7 +46,7 @@ impl DahlState {
     }
 
     fn with_ln_rate(ln_r: f64) -> Self {
-        let pow = (0..TABLE).map(|n| (ln_r * n as f64).exp()).collect();
+        let pow = Box::new(std::array::from_fn(|n| (ln_r * n as f64).exp()));
         Self { ln_r, pow, g: 0.0 }
     }
 
@@ -147,61 +147,98 @@ impl DahlPredictor {
 
     /// Seeks to every target of `targets` in turn (tracks) and appends the predicted bias after
     /// each (counts) to `out`: the same numbers as calling [`DahlPredictor::step`] on each, bit
-    /// for bit (tested), but faster. Seeks are taken [`STEP_BLOCK`] at a time in passes the
-    /// compiler vectorises: the seek lengths, every decay `r^|dx|` from the table (a block with
-    /// a length off the table — not an integer, or ≥ 256 tracks — recomputes its decays as
-    /// `step` does), the offsets `sgn(dx)·(1 − d)`; then the loop-carried chain `G ← G·d + b`,
-    /// all that remains serial; then the biases. Allocates nothing when `out` has room.
+    /// for bit (tested), but faster. Seeks are taken [`STEP_BLOCK`] at a time: one pass the
+    /// compiler vectorises finds each seek's table index, whether its length is on the table
+    /// (an integer below 256 tracks) and its sign, and writes the position curve into `out`;
+    /// then one loop runs the loop-carried chain `G ← G·d + b` with the table look-up
+    /// `d = r^|dx|` and the offset `b = sgn(dx)·(1 − d)` beside it (they do not depend on G, so
+    /// the CPU computes them while the chain's multiply and add wait on each other). A block
+    /// with a length off the table computes its decays as `step` does. Blocks are short so the
+    /// next block's pass overlaps the chain of this one. On a CPU with AVX2 the same code runs
+    /// compiled for it (separate multiply and add, as in `step`: identical results).
+    /// Allocates nothing when `out` has room.
     pub fn step_many(&mut self, targets: &[f64], out: &mut Vec<f64>) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            return unsafe { self.step_many_avx2(targets, out) };
+        }
+        self.step_many_portable(targets, out);
+    }
+
+    /// [`DahlPredictor::step_many`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn step_many_avx2(&mut self, targets: &[f64], out: &mut Vec<f64>) {
+        self.step_many_portable(targets, out);
+    }
+
+    /// [`DahlPredictor::step_many`] for any CPU.
+    #[inline(always)]
+    fn step_many_portable(&mut self, targets: &[f64], out: &mut Vec<f64>) {
+        // 2^52: for 0 ≤ a ≤ 255, the low bits of a + 2^52 hold a rounded to an integer, and
+        // (a + 2^52) − 2^52 equals a exactly when a is an integer.
+        const MAGIC: f64 = 4_503_599_627_370_496.0;
+        let Some(&first) = targets.first() else {
+            return;
+        };
         out.reserve(targets.len());
-        let (mut dx, mut d, mut b) = ([0.0; STEP_BLOCK], [0.0; STEP_BLOCK], [0.0; STEP_BLOCK]);
         let [c0, c1, c2] = self.c;
         let fc = self.fc;
-        let pow = &self.state.pow;
+        let pow: &[f64; TABLE] = &self.state.pow;
+        let (mut idx, mut sign) = ([0usize; STEP_BLOCK], [0.0f64; STEP_BLOCK]);
+        let mut prev = self.position.unwrap_or(first);
+        let mut g = self.state.g;
         for block in targets.chunks(STEP_BLOCK) {
             let m = block.len();
-            let (dx, d, b) = (&mut dx[..m], &mut d[..m], &mut b[..m]);
-            dx[0] = block[0] - self.position.unwrap_or(block[0]);
-            for ((dx, &x), &prev) in dx[1..].iter_mut().zip(&block[1..]).zip(block) {
-                *dx = x - prev;
-            }
-            // Table look-ups at a clamped index; `hit` is DahlState::decay's test for the table.
+            let (idx, sign) = (&mut idx[..m], &mut sign[..m]);
+            // Pass 1 (vectorised): table index, on-table test and sign of each seek.
             let mut off_table = false;
-            for (d, &dx) in d.iter_mut().zip(dx.iter()) {
-                let a = dx.abs().max(0.0);
-                let n = (a as usize).min(TABLE - 1);
-                off_table |= (n as f64 - a).abs() > 0.0;
-                *d = pow[n];
+            let mut p = prev;
+            for ((i, s), &x) in idx.iter_mut().zip(sign.iter_mut()).zip(block) {
+                let dx = x - p;
+                p = x;
+                // |dx|, a NaN length as 0 (the identity, as in `DahlState::affine`).
+                let a = dx.abs();
+                let a = if a > 0.0 { a } else { 0.0 };
+                let t = if a < 255.0 { a } else { 255.0 } + MAGIC;
+                off_table |= (t - MAGIC - a).abs() > 0.0;
+                *i = (t.to_bits() & 0xff) as usize;
+                *s = if dx > 0.0 { 1.0 } else { 0.0 } - if dx < 0.0 { 1.0 } else { 0.0 };
             }
+            let start = out.len();
+            out.extend(block.iter().map(|&x| c0 + x * (c1 + x * c2)));
+            let biases = &mut out[start..];
+            // Pass 2: the chain, with the decays and offsets beside it.
             if off_table {
-                for (d, &dx) in d.iter_mut().zip(dx.iter()) {
-                    *d = self.state.decay(dx.abs().max(0.0));
+                let mut p = prev;
+                for ((y, &s), &x) in biases.iter_mut().zip(sign.iter()).zip(block) {
+                    let d = self.state.decay((x - p).abs().max(0.0));
+                    p = x;
+                    g = g * d + s * (1.0 - d);
+                    *y += fc * g;
+                }
+            } else {
+                for ((y, &s), &i) in biases.iter_mut().zip(sign.iter()).zip(idx.iter()) {
+                    let d = pow[i & (TABLE - 1)];
+                    g = g * d + s * (1.0 - d);
+                    *y += fc * g;
                 }
             }
-            for ((b, &d), &dx) in b.iter_mut().zip(d.iter()).zip(dx.iter()) {
-                let s = if dx > 0.0 { 1.0 } else { 0.0 } - if dx < 0.0 { 1.0 } else { 0.0 };
-                *b = s * (1.0 - d);
-            }
-            // The chain; d now holds G after each seek.
-            let mut g = self.state.g;
-            for (d, &b) in d.iter_mut().zip(b.iter()) {
-                g = g * *d + b;
-                *d = g;
-            }
-            self.state.g = g;
-            out.extend(
-                block
-                    .iter()
-                    .zip(d.iter())
-                    .map(|(&x, &g)| c0 + x * (c1 + x * c2) + fc * g),
-            );
-            self.position = Some(block[m - 1]);
+            prev = block[m - 1];
         }
+        self.state.g = g;
+        self.position = Some(prev);
     }
 }
 
 /// Seeks per block of [`DahlPredictor::step_many`] (its two scratch arrays live on the stack).
-pub const STEP_BLOCK: usize = 256;
+/// Short, so the next block's vectorised pass overlaps this block's loop-carried chain:
+/// measured 16 → 625, 64 → 541, 256 → 476 M seeks/s with AVX2 on the project's machine.
+pub const STEP_BLOCK: usize = 16;
 
 /// Spec of the `dahl` / `dahl:N` term.
 #[derive(Debug, Clone, Copy)]
