@@ -113,13 +113,13 @@ mod smoother;
 mod verify;
 
 pub use absorbed::{Absorption, FAST_FORGETTING, absorbed, rate_warnings};
-pub use advice::{DAHL_TERM, Shape};
+pub use advice::{DAHL_TERM, PLAY_TERM, Shape};
 pub use discover::{
     CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
 };
 pub use features::{
-    FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION, LAG_MIN_VARIANCE, LAG_POINTS,
-    MEMSUM_FRACTIONS, lagged_column,
+    DERIVED_VELOCITY, FeatureColumn, FeatureOrigin, FeatureTable, LAG_MAX_FRACTION,
+    LAG_MIN_VARIANCE, LAG_POINTS, MEMSUM_FRACTIONS, lagged_column,
 };
 pub use ladder::{Ladder, LadderInput, LadderStep, ladder};
 pub use model::{
@@ -130,8 +130,9 @@ pub use model::{
 pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 pub use verify::{
-    Candidate, CheckedVerifyConfig, RejectedEdit, Verification, VerifiedEdit, VerifyConfig,
-    candidates, cv_residuals, edit_for, measured_rows, table_spacing, verify,
+    Candidate, CheckedVerifyConfig, HUBER_K, RejectedEdit, STRICT_EXTRA_Z, TABLE_REFINEMENTS,
+    UNFLAGGED_P, Verification, VerifiedEdit, VerifyConfig, candidates, cv_residuals, edit_for,
+    measured_rows, table_spacing, unflagged_candidates, verify,
 };
 
 use crate::history::Feature;
