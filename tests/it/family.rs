@@ -49,9 +49,10 @@ fn describe(o: &Outcome) -> String {
 const ISSUE_SCENARIOS: usize = 11;
 /// Known gap (README, "Independent drives for testing diagnosis"): what diagnose reaches today
 /// on this rotation; the test fails if it falls below, and the README says what is missing.
-const KNOWN_RIGHT_FIRST: usize = 7;
+/// (7 and 5 before the strongest unflagged features were verified by refit; 10 and 9 since.)
+const KNOWN_RIGHT_FIRST: usize = 10;
 /// See [`KNOWN_RIGHT_FIRST`].
-const KNOWN_RECOVERED: usize = 5;
+const KNOWN_RECOVERED: usize = 9;
 /// Issue #10's bar for the model holding every effect: at most 1 of 20 seeds flags anything.
 const ISSUE_FLAGGED_SEEDS: usize = 1;
 /// Seeds of 20 allowed to flag something: the issue's bar, met since diagnose's null keeps the
