@@ -102,6 +102,8 @@ fn right_feature_first_and_first_edit_recovers_the_achievable_reduction() {
 /// Reference: with every effect present held by its true term (and the drive's own trend and
 /// pivot by `table` and `dahl:8`), the residual is noise: issue #10 asks that nothing be
 /// flagged in at least 19 of 20 seeds (alpha = 1 % family-wise); today's count is the floor.
+/// The diagnosis is verified and a verified edit counts as a flag, so this is also the
+/// false-alarm check of verifying the strongest unflagged features.
 #[test]
 fn model_holding_every_effect_flags_nothing_in_19_of_20_seeds() {
     let drives = FamilyDrive::members();
