@@ -291,7 +291,8 @@ fn source_of(f: &FeatureReport) -> String {
 }
 
 /// Up to `room` features that are **not** flagged but whose raw permutation p-value is at
-/// most [`UNFLAGGED_P`], one per source ([`source_of`]) not already in `taken`, the largest
+/// most [`UNFLAGGED_P`], one per source (a lagged copy counts as its column, the time features
+/// as `drift`) not already in `taken`, the largest
 /// marginal `explained` first (then the smallest p): the strongest unflagged features, whose
 /// power comes from the refit rather than the one-dimensional smoother. The time features
 /// are left out: unflagged under their row-permutation null, what `drift` would fit is the
