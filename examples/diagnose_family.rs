@@ -21,8 +21,8 @@
 
 use biasctl::Log;
 use biasctl::{
-    CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis, diagnose_model,
-    diagnose_verified, suggestion_path_from,
+    CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis, diagnose_verified,
+    suggestion_path_from,
 };
 use biasctl::{CheckedFitOptions, FitOptions, fit};
 use biasctl::{FittedModel, ModelSpec};
@@ -266,8 +266,8 @@ pub fn run(drive: &FamilyDrive, effects: &[HiddenEffect], seed: u64, n: usize) -
     }
 }
 
-/// The model holding every effect present (base + each effect's true term), diagnosed: the
-/// names of the flagged features.
+/// The model holding every effect present (base + each effect's true term), diagnosed with
+/// verification: the names of the flagged features and the verified edits.
 pub fn full_model_flags(
     drive: &FamilyDrive,
     effects: &[HiddenEffect],
@@ -280,12 +280,28 @@ pub fn full_model_flags(
         terms = with_term(&terms, t);
     }
     let model = fit_terms(&terms, &fam.log);
-    let d = diagnose_model(&model, &fam.log, &config(seed)).expect("diagnose");
-    d.features
+    let d = diagnose_verified(
+        &model,
+        &fam.log,
+        &config(seed),
+        &CheckedVerifyConfig::default(),
+    )
+    .expect("diagnose");
+    let mut flags: Vec<String> = d
+        .features
         .iter()
         .filter(|f| f.flagged)
         .map(|f| f.name.clone())
-        .collect()
+        .collect();
+    // A verified edit is a flag too (its own false-alarm check: the verification of the
+    // strongest unflagged features must not cry wolf either).
+    flags.extend(
+        d.verification
+            .iter()
+            .flat_map(|v| v.edits.iter().filter(|e| e.verified))
+            .map(|e| format!("verified {}", e.edit)),
+    );
+    flags
 }
 
 fn names(effects: &[HiddenEffect]) -> String {

@@ -227,9 +227,9 @@ pub use control::settle::{
 };
 pub use control::{ExpmError, ServoError};
 pub use diagnose::{
-    Absorption, CurveBin, DiagnoseError, DiscoverError, DiscoverStep, Discovery, FeatureColumn,
-    FeatureOrigin, GlobalCheck, Interaction, ModelDiagnosisError, RejectedEdit, Shape,
-    Verification, VerifiedEdit, Whiteness,
+    Absorption, CurveBin, DERIVED_VELOCITY, DiagnoseError, DiscoverError, DiscoverStep, Discovery,
+    FeatureColumn, FeatureOrigin, GlobalCheck, Interaction, ModelDiagnosisError, RejectedEdit,
+    Shape, Verification, VerifiedEdit, Whiteness,
 };
 pub use history::{DirectionError, Replay, RestMemory, Sampling};
 pub use log::{LogSummary, Row, UnitError};

@@ -12,6 +12,16 @@ use super::features::FeatureOrigin;
 /// and four is what the P4/P5 acceptance test needs to reach the error of the full model.
 pub(super) const DAHL_TERM: &str = "dahl:4";
 
+/// The term suggested for hysteresis that spans the reversal amplitudes: `play`, Prandtl–
+/// Ishlinskii play elements with thresholds spread over the log's reversal amplitudes
+/// ([`crate::model::terms::play`]). Suggested after [`DAHL_TERM`], so it leads when the model
+/// already has a Dahl term with at least as many elements (or `seek`, which `dahl:N` does
+/// not fit beside) and the residual still follows the distance since the last reversal:
+/// a loop whose shape changes with the reversal amplitude, which a few Dahl rates and a
+/// direction offset cannot express. The verification scores it beside `dahl:4` and keeps
+/// the better.
+pub(crate) const PLAY_TERM: &str = "play";
+
 /// Shape of the residual's binned curve against a feature.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -175,8 +185,8 @@ fn extreme(v: &[f64], better: impl Fn(f64, f64) -> bool) -> (usize, f64) {
 /// The terms that address a feature, best first.
 /// `by_direction`: the residual follows the feature times the direction of the last move.
 /// `odd_linear`: the feature's sign is the direction's and residual ≈ a·direction + b·feature,
-/// a line in the signed feature (a velocity) that `col:` (or `viscous:`, the same line named as
-/// viscous friction) fits with one parameter. `velocity_sign`: the feature's sign is the
+/// a line in the signed feature (a velocity) that `viscous:` fits with one parameter (named as
+/// the viscous friction it is; `col:` is the same line and is verified beside it). `velocity_sign`: the feature's sign is the
 /// direction's but the law is not that line: a velocity whose friction falls off from a
 /// breakaway level at low speed (`stribeck:`).
 pub(crate) fn candidate_terms(
@@ -197,7 +207,9 @@ pub(crate) fn candidate_terms(
                 Feature::SeekLength
                 | Feature::SeekAbs
                 | Feature::SinceReversal
-                | Feature::DirectionChange => vec![DAHL_TERM.into(), "seek".into()],
+                | Feature::DirectionChange => {
+                    vec![DAHL_TERM.into(), PLAY_TERM.into(), "seek".into()]
+                }
                 Feature::RestDistanceOd | Feature::RestDistanceId => vec!["memory".into()],
                 Feature::Direction => vec!["direction".into()],
                 Feature::ElapsedS | Feature::SeekIndex => vec!["drift".into()],
@@ -206,8 +218,8 @@ pub(crate) fn candidate_terms(
             },
             FeatureOrigin::Covariate if odd_linear => {
                 vec![
-                    format!("col:{name}"),
                     format!("viscous:{name}"),
+                    format!("col:{name}"),
                     format!("dbins:{name}"),
                 ]
             }
@@ -219,6 +231,7 @@ pub(crate) fn candidate_terms(
             // that is `memory` (one curve per approach direction); `memsum` has no direction.
             FeatureOrigin::SummedMemory => vec!["memory".into(), "memsum".into()],
             FeatureOrigin::Lagged => lag_terms(name),
+            FeatureOrigin::DerivedVelocity => velocity_terms(odd_linear, velocity_sign, linear),
         };
     }
     match origin {
@@ -227,7 +240,9 @@ pub(crate) fn candidate_terms(
             Feature::SeekLength | Feature::SeekAbs | Feature::DirectionChange => {
                 vec!["seek".into(), DAHL_TERM.into(), bins]
             }
-            Feature::SinceReversal => vec![DAHL_TERM.into(), "seek".into(), bins],
+            Feature::SinceReversal => {
+                vec![DAHL_TERM.into(), PLAY_TERM.into(), "seek".into(), bins]
+            }
             Feature::RestDistanceOd | Feature::RestDistanceId => vec!["memory".into(), bins],
             Feature::ElapsedS | Feature::SeekIndex => vec!["drift".into(), bins],
             Feature::Direction => vec!["direction".into(), DAHL_TERM.into(), bins],
@@ -240,7 +255,7 @@ pub(crate) fn candidate_terms(
             let lag = format!("lag:{name}");
             let lag = crate::model::terms::parse_term(&lag).is_ok().then_some(lag);
             let mut v = if odd_linear {
-                vec![col, format!("viscous:{name}"), bins]
+                vec![format!("viscous:{name}"), col, bins]
             } else if velocity_sign && !linear {
                 vec![format!("stribeck:{name}"), bins, col]
             } else if linear {
@@ -254,6 +269,18 @@ pub(crate) fn candidate_terms(
         // `bins` cannot compute a summed-memory feature, so it is no fallback here.
         FeatureOrigin::SummedMemory => vec!["memsum".into(), "memory".into()],
         FeatureOrigin::Lagged => lag_terms(name),
+        FeatureOrigin::DerivedVelocity => velocity_terms(odd_linear, velocity_sign, linear),
+    }
+}
+
+/// Velocity friction from the derived velocity (no column): `viscous` (a line in the signed
+/// velocity) and `stribeck` (friction falling off from a breakaway level at low speed), the
+/// one whose law the residual's curve follows first; both are verified by refit.
+fn velocity_terms(odd_linear: bool, velocity_sign: bool, linear: bool) -> Vec<String> {
+    if odd_linear || !velocity_sign || linear {
+        vec!["viscous".into(), "stribeck".into()]
+    } else {
+        vec!["stribeck".into(), "viscous".into()]
     }
 }
 
@@ -272,8 +299,11 @@ fn has_term(existing: &[String], term: &str) -> bool {
         "dahl" => Some(1usize),
         _ => t.strip_prefix("dahl:").and_then(|n| n.parse().ok()),
     };
+    // Any `play:N` holds the play family: the suggestion is `play` (the default count).
+    let play = |t: &str| t == PLAY_TERM || t.starts_with("play:");
     existing.iter().any(|e| {
         e.trim() == term
+            || (play(term) && play(e.trim()))
             || matches!((elements(term), elements(e.trim())), (Some(want), Some(have)) if have >= want)
     })
 }

@@ -22,7 +22,16 @@ pub enum FeatureOrigin {
     /// `<COL>@lag<τ>s`: a covariate column through a first-order lag of time constant τ (s), as
     /// the `lag:COL` term computes it ([`crate::model::terms::lag`]).
     Lagged,
+    /// [`DERIVED_VELOCITY`]: on a dense time series ([`crate::history::Sampling::dense`]) the
+    /// velocity derived from position and time as the `viscous`/`stribeck` terms derive it
+    /// without a column (`seek_length / dwell_s`, [`crate::model::terms::viscous::velocity`]),
+    /// so velocity friction is found on a log with no velocity column.
+    DerivedVelocity,
 }
+
+/// Name of the derived-velocity feature ([`FeatureOrigin::DerivedVelocity`]), position units
+/// per second.
+pub const DERIVED_VELOCITY: &str = "velocity_derived";
 
 /// Length scales of the `memsum_L` features, as fractions of the log's travel (the range of
 /// positions it visits): short, medium and long memory.
@@ -182,11 +191,19 @@ impl FeatureTable {
             .map(|_| Vec::with_capacity(measured))
             .collect();
         let mut lines = Vec::with_capacity(measured);
+        let mut velocity = Vec::with_capacity(measured);
         for (_, row, f) in history {
             if row.bias.is_none() {
                 continue;
             }
             lines.push(row.line);
+            // The rule of `viscous::velocity` without a column: 0 at a zero dwell or a
+            // quotient that is not finite.
+            let v = match (f.value(Feature::SeekLength), f.value(Feature::DwellS)) {
+                (Some(l), Some(d)) if d > 0.0 && (l / d).is_finite() => l / d,
+                _ => 0.0,
+            };
+            velocity.push(Some(v));
             for (col, &feature) in builtin.iter_mut().zip(Feature::ALL.iter()) {
                 col.push(f.value(feature));
             }
@@ -203,6 +220,15 @@ impl FeatureTable {
                 values,
             })
             .collect();
+        let times: Vec<f64> = log.rows.iter().map(|r| r.time_s).collect();
+        let tracks: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+        if crate::history::sampling(&times, &tracks).dense {
+            columns.push(FeatureColumn {
+                name: DERIVED_VELOCITY.to_string(),
+                origin: FeatureOrigin::DerivedVelocity,
+                values: velocity,
+            });
+        }
         columns.extend(summed_memory(log));
         columns.extend(lagged(log, &covariates));
         columns.extend(

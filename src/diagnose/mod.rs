@@ -118,7 +118,7 @@ pub use advice::Shape;
 pub use discover::{
     CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
 };
-pub use features::{FeatureColumn, FeatureOrigin, FeatureTable};
+pub use features::{DERIVED_VELOCITY, FeatureColumn, FeatureOrigin, FeatureTable};
 pub use ladder::{Ladder, LadderStep};
 pub(crate) use ladder::{LadderInput, ladder};
 pub use model::{

@@ -139,9 +139,38 @@ pub fn diagnose_verified(
         config.min_effect,
         verify_config,
     )?;
+    promote_verified(&mut d, &v);
     d.verification = Some(v);
     d.summary = super::report::extend_summary(&d);
     Ok(d)
+}
+
+/// Ranks by verified gain (issue #10, item 4): the feature whose edit is the best verified
+/// one moves to the front of [`Diagnosis::features`] and is flagged — also when the
+/// one-dimensional screen left it unflagged, since its refit cleared the stricter bar of
+/// [`super::STRICT_EXTRA_Z`] — with a note saying so. An edit that came from a pair or
+/// from what an adaptive term absorbed names no single feature and changes nothing here.
+fn promote_verified(d: &mut Diagnosis, v: &super::Verification) {
+    let Some(best) = v.best() else { return };
+    let Some(i) = d.features.iter().position(|f| f.name == best.feature) else {
+        return;
+    };
+    let mut f = d.features.remove(i);
+    if !f.flagged {
+        f.flagged = true;
+        let note = format!(
+            "flagged by its verified refit: `{}` gains {:.1} % out of sample (z = {:.1}), \
+             although the one-dimensional screen alone did not flag it",
+            best.edit,
+            100.0 * best.gain,
+            best.z
+        );
+        f.note = Some(match f.note.take() {
+            Some(n) => format!("{note}; {n}"),
+            None => note,
+        });
+    }
+    d.features.insert(0, f);
 }
 
 /// [`diagnose_model`] for a caller that has already replayed `model` over the log: `table` is

@@ -104,8 +104,15 @@ fn cells_gain(parts: &[&Vec<usize>], r: &[f64], ctx: &Ctx, config: &DiagnoseConf
 
 /// Whether a pair is worth an interaction term: not two time features, not a feature with
 /// the direction (the direction-signed single analysis covers `direction × feature`).
+/// A summed-memory or lagged feature is no column `by:` can read (its term is `memsum` or
+/// `lag:COL`), so it is not paired either.
 fn pairable(c: &FeatureColumn) -> bool {
-    !super::is_time(c.origin) && c.origin != FeatureOrigin::BuiltIn(Feature::Direction)
+    !super::is_time(c.origin)
+        && matches!(
+            c.origin,
+            FeatureOrigin::BuiltIn(_) | FeatureOrigin::Covariate
+        )
+        && c.origin != FeatureOrigin::BuiltIn(Feature::Direction)
 }
 
 /// Pair screening and the global check on `left`, the residual the forward pass left.

@@ -336,8 +336,10 @@ pub(crate) fn feature_report(
     } else {
         curve(b, display_shift, col, residuals)
     };
-    let velocity_sign = col.origin == FeatureOrigin::Covariate
-        && direction.is_some_and(|d| sign_follows_direction(&col.values, d));
+    let velocity_sign = matches!(
+        col.origin,
+        FeatureOrigin::Covariate | FeatureOrigin::DerivedVelocity
+    ) && direction.is_some_and(|d| sign_follows_direction(&col.values, d));
     let odd_linear = velocity_sign && velocity_like(&col.values, residuals, by_direction, r2_bins);
     let candidates = advice::candidate_terms(
         &col.name,

@@ -363,7 +363,7 @@ fn a_direction_step_left_by_a_model_with_direction_says_the_offset_does_not_tran
 }
 
 #[test]
-fn a_velocity_like_covariate_gets_col_and_a_hysteretic_one_gets_dbins() {
+fn a_velocity_like_covariate_gets_viscous_and_a_hysteretic_one_gets_dbins() {
     // Reference: viscous friction leaves residual = 0.8·v − 3·direction with sign(v) = direction
     // (a model with a miscalibrated Coulomb term): a line in the signed velocity, which `col:`
     // fits. The plain analysis saw a curve with a step (`bins`), the direction-signed one
@@ -389,9 +389,10 @@ fn a_velocity_like_covariate_gets_col_and_a_hysteretic_one_gets_dbins() {
     let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let f = d.feature("velocity").unwrap();
     assert!(f.flagged, "{}", d.to_text());
+    // Issue #11 item 4: the line in a velocity is named as the viscous friction it is.
     assert_eq!(
         f.suggested_term.as_deref(),
-        Some("col:velocity"),
+        Some("viscous:velocity"),
         "{}",
         d.to_text()
     );
@@ -408,7 +409,7 @@ fn a_velocity_like_covariate_gets_col_and_a_hysteretic_one_gets_dbins() {
 }
 
 #[test]
-fn a_velocity_with_a_stribeck_dip_gets_stribeck_and_a_line_offers_viscous() {
+fn a_velocity_with_a_stribeck_dip_gets_stribeck_and_a_line_gets_viscous() {
     // Reference: the residual of a model whose Coulomb level is right at speed but misses the
     // breakaway at low speed, sign(v)·1.5·exp(−(|v|/0.5)²), speeds log-uniform over 0.05–10:
     // direction × a curve that falls off at small |v|, not a line: `stribeck:velocity`.
@@ -444,9 +445,9 @@ fn a_velocity_with_a_stribeck_dip_gets_stribeck_and_a_line_offers_viscous() {
     let r = residuals(&t, 24, 0.5, |i| 0.8 * v[i].unwrap() - 3.0 * dir[i]);
     let d = diagnose(&t, &r, &config.check().unwrap()).unwrap();
     let f = d.feature("velocity").unwrap();
-    assert_eq!(f.suggested_term.as_deref(), Some("col:velocity"));
+    assert_eq!(f.suggested_term.as_deref(), Some("viscous:velocity"));
     assert!(
-        f.alternatives.iter().any(|a| a == "viscous:velocity"),
+        f.alternatives.iter().any(|a| a == "col:velocity"),
         "{:?}",
         f.alternatives
     );

@@ -539,3 +539,84 @@ fn results_are_identical_for_1_2_and_4_threads() {
         assert_eq!(f, f1, "{threads} threads");
     }
 }
+
+/// The verification's Huber loss against its closed form: the squared error within ±c, the
+/// line `c·(2|r| − c)` beyond (continuous at c, slope 2c); c = 0 is the squared error. And the
+/// z-score on it equals the squared-error z-score (computed here the slow, obvious way: block
+/// sums of b² − a² over the automatic block) when no residual reaches c.
+#[test]
+fn huber_loss_and_its_z_score_match_the_closed_forms() {
+    use super::verify::{huber, paired_gain};
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1.0);
+    assert!(close(huber(2.0, 1.5), 2.25));
+    assert!(close(huber(2.0, -1.5), 2.25));
+    assert!(close(huber(2.0, 2.0), 4.0));
+    assert!(close(huber(2.0, 5.0), 2.0 * (10.0 - 2.0)));
+    assert!(close(huber(2.0, -5.0), 16.0));
+    assert!(close(huber(0.0, 7.0), 49.0));
+    // A bounded series (|r| ≤ 1.2·MAD-scale): every residual inside c = 1.345·1.4826·MAD? Use
+    // a ±1 square wave, whose MAD is 1 so c = 1.99 > 1: the Huber z is the squared-error z.
+    let mut rng = SimRng::new(3);
+    let before: Vec<f64> = (0..600)
+        .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
+    let after: Vec<f64> = before.iter().map(|b| b * rng.range(0.5, 1.0)).collect();
+    let (gain, z) = paired_gain(&before, &after);
+    let diff: Vec<f64> = before
+        .iter()
+        .zip(&after)
+        .map(|(b, a)| b * b - a * a)
+        .collect();
+    let block = null_block_len(&diff).max(1);
+    let sums: Vec<f64> = diff.chunks(block).map(|c| c.iter().sum()).collect();
+    let m = sums.len() as f64;
+    let mean = sums.iter().sum::<f64>() / m;
+    let sd = (sums.iter().map(|s| (s - mean).powi(2)).sum::<f64>() / (m - 1.0)).sqrt();
+    assert!(
+        close(z, mean / (sd / m.sqrt())),
+        "{z} vs {}",
+        mean / (sd / m.sqrt())
+    );
+    let mse = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+    assert!(close(gain, 1.0 - mse(&after) / mse(&before)));
+}
+
+/// A strict (unflagged-feature) edit must lower the loss in every fold: reference, folds cut
+/// by hand. An edit better on two thirds and worse on the last is refused; better on all three
+/// is accepted.
+#[test]
+fn strict_edits_must_gain_in_every_fold() {
+    use super::verify::gains_in_every_fold;
+    let before = vec![1.0; 90];
+    let all: Vec<f64> = vec![0.5; 90];
+    let mut two: Vec<f64> = vec![0.5; 90];
+    for v in &mut two[60..] {
+        *v = 1.5;
+    }
+    assert!(gains_in_every_fold(&before, &all, 3));
+    assert!(!gains_in_every_fold(&before, &two, 3));
+    assert!(gains_in_every_fold(&before, &two, 2) || two[45..].iter().any(|v| *v > 1.0));
+}
+
+/// The table variants the verification scores: the cross-validated spacing when it is finer
+/// than the model's table, then that table's spacing halved and quartered (reference: the
+/// arithmetic); with no table in the model, the suggestion as it is.
+#[test]
+fn table_suggestion_is_verified_with_finer_tables() {
+    use super::verify::variants;
+    let spec = ModelSpec::parse("table:10,dahl:8").unwrap();
+    assert_eq!(
+        variants("table", &spec, Some(4.7)),
+        ["table:4.7", "table:5", "table:2.5"]
+    );
+    assert_eq!(
+        variants("table", &spec, Some(12.0)),
+        ["table:5", "table:2.5"]
+    );
+    let poly = ModelSpec::parse("poly2,dahl").unwrap();
+    assert_eq!(variants("table", &poly, Some(4.7)), ["table"]);
+    assert_eq!(
+        variants("bins:load", &spec, None),
+        ["bins:load", "bins:load:8", "bins:load:16"]
+    );
+}

@@ -122,13 +122,13 @@ fn emps_diagnose_points_at_acceleration_and_velocity() {
         .collect();
     assert_eq!(path, ["accel_m_s2", "velocity_m_s"], "{}", v["path"]);
     // And the terms are the published model's: both enter linearly (velocity's sign is the
-    // direction, so a line in the signed velocity, not direction × a curve).
+    // direction, so a line in the signed velocity, not direction × a curve: `viscous`).
     let terms: Vec<&str> = (0..2)
         .map(|i| v["path"][i]["term"].as_str().unwrap_or(""))
         .collect();
     assert_eq!(
         terms,
-        ["col:accel_m_s2", "col:velocity_m_s"],
+        ["col:accel_m_s2", "viscous:velocity_m_s"],
         "{}",
         v["path"]
     );
