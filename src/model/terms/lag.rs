@@ -19,6 +19,7 @@ use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Term, TermSpec};
 use serde::{Deserialize, Serialize};
+use std::cell::Cell;
 use std::sync::Arc;
 
 /// Spec of the `lag:NAME` term.
@@ -90,34 +91,91 @@ pub fn restore(name: &str, settings: &serde_json::Value) -> Result<Arc<dyn Term>
 
 /// A first-order lag `τ·dz/dt = c − z` of a sampled signal, linear between samples (exact
 /// update, see the module docs). Public so diagnosis features and benches can use it.
-#[derive(Debug, Clone, Copy)]
+///
+/// The update's two factors `a = exp(−Δt/τ)` and `(1 − a)·τ/Δt` depend only on the step Δt:
+/// they are memoised per Δt (a small direct-mapped table keyed by Δt's exact bits), so a
+/// regularly clocked log — a few distinct Δt however its times round — evaluates the two
+/// transcendentals a handful of times instead of twice per row, and a `peek` followed by the
+/// `step` of the same sample (a model's basis, then its update) computes them once. The memo
+/// returns the very values it stored, so results are bit-identical to computing every time
+/// ([`FirstOrderLag::peek_reference`] is that slow path, tested against it).
+#[derive(Debug, Clone)]
 pub struct FirstOrderLag {
     tau: f64,
     /// `(time, input, output)` at the last sample.
     last: Option<(f64, f64, f64)>,
+    /// `(Δt bits, a, (1 − a)/r)` per slot; a key of 0 (Δt = 0, never looked up) is empty.
+    memo: [Cell<(u64, f64, f64)>; MEMO_SLOTS],
+}
+
+/// Slots of [`FirstOrderLag`]'s memo of decay factors (a power of two).
+const MEMO_SLOTS: usize = 8;
+
+/// The decay factors of one step `dt > 0` with time constant `tau`: `a = exp(−r)` and
+/// `(1 − a)/r`, `r = dt/τ` (the latter accurate for small r).
+#[inline]
+fn decay(dt: f64, tau: f64) -> (f64, f64) {
+    let r = dt / tau;
+    let a = (-r).exp();
+    let g = if r < 1e-6 {
+        1.0 - 0.5 * r
+    } else {
+        -(-r).exp_m1() / r
+    };
+    (a, g)
 }
 
 impl FirstOrderLag {
     /// A lag with time constant `tau` (s, > 0) before its first sample.
     pub fn new(tau: f64) -> Self {
-        Self { tau, last: None }
+        Self {
+            tau,
+            last: None,
+            memo: Default::default(),
+        }
     }
 
-    /// The output at a sample `(t, c)` following the last one, without changing the state.
+    /// [`decay`] of `dt > 0`, from the memo or computed and remembered.
+    #[inline]
+    fn factors(&self, dt: f64) -> (f64, f64) {
+        let key = dt.to_bits();
+        let slot = &self.memo[((key ^ (key >> 17) ^ (key >> 41)) as usize) & (MEMO_SLOTS - 1)];
+        let (k, a, g) = slot.get();
+        if k == key {
+            return (a, g);
+        }
+        let (a, g) = decay(dt, self.tau);
+        slot.set((key, a, g));
+        (a, g)
+    }
+
+    /// The output at a sample `(t, c)` following the last one, without changing the state
+    /// (only the memo of decay factors).
+    #[inline]
     pub fn peek(&self, t: f64, c: f64) -> f64 {
         match self.last {
             None => c,
             Some((t0, c0, z0)) => {
                 let dt = t - t0;
                 if dt > 0.0 {
-                    let r = dt / self.tau;
-                    let a = (-r).exp();
-                    // (1 − a)/r, accurate for small r.
-                    let g = if r < 1e-6 {
-                        1.0 - 0.5 * r
-                    } else {
-                        -(-r).exp_m1() / r
-                    };
+                    let (a, g) = self.factors(dt);
+                    c + (z0 - c0) * a - (c - c0) * g
+                } else {
+                    z0
+                }
+            }
+        }
+    }
+
+    /// [`FirstOrderLag::peek`] computing both factors every time, without the memo (the slow,
+    /// obvious reference the memoised path is tested against, bit for bit).
+    pub fn peek_reference(&self, t: f64, c: f64) -> f64 {
+        match self.last {
+            None => c,
+            Some((t0, c0, z0)) => {
+                let dt = t - t0;
+                if dt > 0.0 {
+                    let (a, g) = decay(dt, self.tau);
                     c + (z0 - c0) * a - (c - c0) * g
                 } else {
                     z0
@@ -127,6 +185,7 @@ impl FirstOrderLag {
     }
 
     /// Takes the sample `(t, c)` and returns the output.
+    #[inline]
     pub fn step(&mut self, t: f64, c: f64) -> f64 {
         let z = self.peek(t, c);
         self.last = Some((t, c, z));
@@ -196,5 +255,37 @@ mod tests {
         let before = lag.peek(t0 + 1.0, 3.0);
         assert!((lag.peek(t0 + 1.0, 3.0) - before).abs() <= 0.0);
         assert!((lag.peek(t0, 99.0) - z).abs() < 1e-5);
+    }
+
+    /// Reference: [`FirstOrderLag::peek_reference`] (both factors computed at every sample).
+    /// The memoised path must give the same bits on a regularly clocked log (times `k·0.3`,
+    /// whose steps differ in their last bits), on an irregular one, with repeated times, and
+    /// with more distinct steps than memo slots (collisions overwrite, never mix up).
+    #[test]
+    fn memoised_steps_are_bit_identical_to_the_reference() {
+        let clocks: [&dyn Fn(usize) -> f64; 3] = [
+            &|k| 0.3 * k as f64,
+            &|k| (k as f64).powf(1.3) + 0.001 * ((k * 7919) % 13) as f64,
+            &|k| 0.25 * (k / 3) as f64 + 0.07 * ((k * 31) % 29) as f64 * (k % 2) as f64,
+        ];
+        for (ci, clock) in clocks.iter().enumerate() {
+            for tau in [1e-9, 0.05, 2.5, 1e7] {
+                let mut fast = FirstOrderLag::new(tau);
+                let mut slow = FirstOrderLag::new(tau);
+                let mut t_prev = f64::NEG_INFINITY;
+                for k in 0..2000 {
+                    let t = clock(k).max(t_prev);
+                    t_prev = t;
+                    let c = (0.37 * k as f64).sin() * 3.0 + 40.0;
+                    // A model peeks (basis), then steps (update) the same sample.
+                    let p = fast.peek(t, c);
+                    let r = slow.peek_reference(t, c);
+                    assert_eq!(p.to_bits(), r.to_bits(), "clock {ci} tau {tau} k {k}");
+                    let z = fast.step(t, c);
+                    assert_eq!(z.to_bits(), r.to_bits(), "clock {ci} tau {tau} k {k}");
+                    slow.last = Some((t, c, r));
+                }
+            }
+        }
     }
 }
