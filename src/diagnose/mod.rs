@@ -1011,6 +1011,32 @@ fn block_permute(y: &[f64], block: usize, out: &mut [f64], rng: &mut SimRng) {
     let n_blocks = n.div_ceil(block);
     let mut order: Vec<usize> = (0..n_blocks).collect();
     shuffle(&mut order, rng);
+    // Block `b` is rows `(i + offset) mod n` for i in its range: at most two contiguous runs.
+    let mut k = 0;
+    for b in order {
+        let len = ((b + 1) * block).min(n) - b * block;
+        let start = (b * block + offset) % n;
+        let first = len.min(n - start);
+        out[k..k + first].copy_from_slice(&y[start..start + first]);
+        out[k + first..k + len].copy_from_slice(&y[..len - first]);
+        k += len;
+    }
+}
+
+/// [`block_permute`] written row by row with the modulo (the slow, obvious reference it is
+/// tested against).
+#[cfg(test)]
+fn block_permute_reference(y: &[f64], block: usize, out: &mut [f64], rng: &mut SimRng) {
+    let n = y.len();
+    if block <= 1 {
+        out.copy_from_slice(y);
+        shuffle(out, rng);
+        return;
+    }
+    let offset = rng.below(n as u64) as usize;
+    let n_blocks = n.div_ceil(block);
+    let mut order: Vec<usize> = (0..n_blocks).collect();
+    shuffle(&mut order, rng);
     let mut k = 0;
     for b in order {
         for i in b * block..((b + 1) * block).min(n) {

@@ -66,21 +66,14 @@ impl Binned {
         min_bin_rows: usize,
         max_discrete: usize,
     ) -> Result<Binned, Unusable> {
+        // The defined values; no sort: the distinct values and the quantile cuts below are
+        // found by scanning and selection (the same values a sort gives, tested).
         let mut sorted: Vec<f64> = values.iter().flatten().copied().collect();
         let has_missing = sorted.len() < values.len();
         if sorted.is_empty() {
             return Err(Unusable::AllMissing);
         }
-        sorted.sort_by(f64::total_cmp);
-        let mut distinct_values: Vec<f64> = Vec::new();
-        for &v in &sorted {
-            if distinct_values.last().is_none_or(|&last| v > last) {
-                distinct_values.push(v);
-                if distinct_values.len() > max_discrete {
-                    break;
-                }
-            }
-        }
+        let distinct_values = smallest_distinct(&mut sorted, max_discrete + 1);
         if distinct_values.len() == 1 && !has_missing {
             return Err(Unusable::Constant(distinct_values[0]));
         }
@@ -154,13 +147,9 @@ impl Binned {
             k_max *= 2;
         }
         let n = sorted.len();
-        let cuts: Vec<f64> = (1..k_max)
-            .map(|k| {
-                let pos = k * n / k_max;
-                // A cut between ranks pos−1 and pos: values ≥ the cut go to the upper bin.
-                sorted[pos.min(n - 1)]
-            })
-            .collect();
+        // A cut between ranks pos−1 and pos: values ≥ the cut go to the upper bin.
+        let ranks: Vec<usize> = (1..k_max).map(|k| (k * n / k_max).min(n - 1)).collect();
+        let cuts = order_statistics(&mut sorted, &ranks);
         // Too few undefined rows for a bin of their own join the top bin (as above).
         let missing = values.len() - n;
         let pool_missing = missing > 0 && missing < min_bin_rows;
@@ -526,6 +515,78 @@ pub(crate) fn f_test_ln_p(ssb: f64, sst: f64, groups: usize, n: usize) -> f64 {
     ln.min(1e-250f64.ln())
 }
 
+/// The up to `limit` smallest distinct values of `x`, ascending — what scanning `x` sorted by
+/// `total_cmp` and keeping each value greater than the last kept gives (values equal as
+/// numbers, −0 and +0, count once, as the first of them in that order). Found in one pass
+/// with a small sorted list for finite values; a sort otherwise (`x` is then left sorted).
+fn smallest_distinct(x: &mut [f64], limit: usize) -> Vec<f64> {
+    if limit == 0 || x.iter().any(|v| v.is_nan()) {
+        return sorted_distinct_reference(x, limit);
+    }
+    let mut out: Vec<f64> = Vec::with_capacity(limit + 1);
+    for &v in x.iter() {
+        if out.len() == limit && out.last().is_some_and(|&l| v > l) {
+            continue;
+        }
+        let pos = out.partition_point(|&d| d < v);
+        match out.get_mut(pos) {
+            Some(d) if *d <= v => {
+                // Equal as numbers: keep the first in total order (−0 before +0).
+                if v.total_cmp(d).is_lt() {
+                    *d = v;
+                }
+            }
+            _ => {
+                out.insert(pos, v);
+                out.truncate(limit);
+            }
+        }
+    }
+    out
+}
+
+/// [`smallest_distinct`] by sorting `x` (the slow, obvious reference, and the path for NaN).
+fn sorted_distinct_reference(x: &mut [f64], limit: usize) -> Vec<f64> {
+    x.sort_by(f64::total_cmp);
+    let mut out: Vec<f64> = Vec::new();
+    for &v in x.iter() {
+        if out.last().is_none_or(|&last| v > last) {
+            if out.len() == limit {
+                break;
+            }
+            out.push(v);
+        }
+    }
+    out
+}
+
+/// The values at `ranks` (ascending, each < `x.len()`) of `x` sorted by `total_cmp`, by
+/// nested selection (`x` is reordered): O(n·log(ranks)) instead of a sort, the same values.
+fn order_statistics(x: &mut [f64], ranks: &[usize]) -> Vec<f64> {
+    /// Fills `out[i]` with the value at rank `ranks[i]` (distinct, ascending) of `x`, whose
+    /// first element has rank `base`.
+    fn select(x: &mut [f64], base: usize, ranks: &[usize], out: &mut [f64]) {
+        if ranks.is_empty() {
+            return;
+        }
+        let mid = ranks.len() / 2;
+        let r = ranks[mid] - base;
+        let (left, &mut v, right) = x.select_nth_unstable_by(r, f64::total_cmp);
+        out[mid] = v;
+        let (lo_out, hi_out) = out.split_at_mut(mid);
+        select(left, base, &ranks[..mid], lo_out);
+        select(right, base + r + 1, &ranks[mid + 1..], &mut hi_out[1..]);
+    }
+    let mut unique = ranks.to_vec();
+    unique.dedup();
+    let mut values = vec![0.0; unique.len()];
+    select(x, 0, &unique, &mut values);
+    ranks
+        .iter()
+        .map(|r| values[unique.partition_point(|u| u < r)])
+        .collect()
+}
+
 /// Summary of one bin of the smoothed curve.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct BinAcc {
@@ -660,5 +721,46 @@ mod tests {
         // Too many slots for a byte: no table (the caller falls back to `min_p`).
         let wide = Binned::new(&columns[0], 512, 1, 10).expect("usable");
         assert!(SlotTable::new(&[&wide], 0).is_none());
+    }
+
+    /// Reference: a sort by `total_cmp` ([`sorted_distinct_reference`], and indexing the
+    /// sorted copy). The scan and the nested selection must give the same bits: distinct
+    /// values with ties, −0 and +0, fewer and more distinct values than the limit; order
+    /// statistics at quantile ranks, repeated ranks and the ends.
+    #[test]
+    fn selection_gives_the_sorted_values() {
+        let mut rng = SimRng::new(8);
+        for n in [1usize, 2, 5, 64, 1000, 4097] {
+            for levels in [1u64, 3, 12, 13, 1 << 40] {
+                let x: Vec<f64> = (0..n)
+                    .map(|_| {
+                        let k = rng.below(levels) as i64 - (levels / 2) as i64;
+                        if k == 0 && rng.below(2) == 0 {
+                            -0.0
+                        } else {
+                            k as f64 * 0.25
+                        }
+                    })
+                    .collect();
+                for limit in [1, 2, 13] {
+                    let fast = smallest_distinct(&mut x.clone(), limit);
+                    let slow = sorted_distinct_reference(&mut x.clone(), limit);
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(
+                        bits(&fast),
+                        bits(&slow),
+                        "n {n} levels {levels} limit {limit}"
+                    );
+                }
+                let mut sorted = x.clone();
+                sorted.sort_by(f64::total_cmp);
+                let mut ranks: Vec<usize> = (1..64).map(|k| (k * n / 64).min(n - 1)).collect();
+                ranks.push(n - 1);
+                let got = order_statistics(&mut x.clone(), &ranks);
+                for (r, g) in ranks.iter().zip(&got) {
+                    assert_eq!(g.to_bits(), sorted[*r].to_bits(), "n {n} rank {r}");
+                }
+            }
+        }
     }
 }

@@ -794,3 +794,19 @@ fn fused_permutation_test_equals_the_per_feature_reference() {
     // The test is not vacuous: some features' p-values are neither 1/100 nor 1.
     assert!(fused.0.iter().any(|&p| p > 0.011 && p < 0.99), "{fused:?}");
 }
+
+/// Reference: [`block_permute_reference`] (row by row, with the modulo). The run-copying
+/// [`block_permute`] must give the same permutation from the same seed, for blocks that do
+/// and do not divide the length, and row permutations.
+#[test]
+fn block_permute_equals_the_row_by_row_reference() {
+    let y: Vec<f64> = (0..1003).map(|i| i as f64 * 0.5 - 7.0).collect();
+    for block in [1, 2, 7, 64, 200, 1003] {
+        for seed in 0..5 {
+            let (mut a, mut b) = (vec![0.0; y.len()], vec![0.0; y.len()]);
+            block_permute(&y, block, &mut a, &mut SimRng::substream(seed, 9));
+            block_permute_reference(&y, block, &mut b, &mut SimRng::substream(seed, 9));
+            assert_eq!(a, b, "block {block} seed {seed}");
+        }
+    }
+}

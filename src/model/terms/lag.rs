@@ -44,8 +44,7 @@ impl TermSpec for LagSpec {
             .filter(|d| *d > 0.0)
             .collect();
         let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
-        let sorted = crate::numeric::stats::sorted(&steps);
-        let median = crate::numeric::stats::percentile_sorted(&sorted, 50.0).unwrap_or(0.0);
+        let median = median_by_selection(steps).unwrap_or(0.0);
         if !(median > 0.0 && span > median) {
             return Err(FitError::BadSetting {
                 term: self.name(),
@@ -60,6 +59,24 @@ impl TermSpec for LagSpec {
         });
         Ok(Arc::new(term))
     }
+}
+
+/// The median of `x` as [`crate::numeric::stats::percentile_sorted`] of the sorted values at
+/// 50 % gives it (the mean of the two middle values, interpolated the same way), found by
+/// selection in O(n) instead of a sort: the same two order statistics, so the same bits.
+fn median_by_selection(mut x: Vec<f64>) -> Option<f64> {
+    if x.is_empty() {
+        return None;
+    }
+    let pos = 0.5 * (x.len() - 1) as f64;
+    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+    let (_, &mut a, right) = x.select_nth_unstable_by(lo, f64::total_cmp);
+    let b = if hi > lo {
+        right.iter().copied().min_by(f64::total_cmp).unwrap_or(a)
+    } else {
+        a
+    };
+    Some(a + (b - a) * (pos - lo as f64))
 }
 
 /// The lag stage of a fitted `lag:NAME` term ([`ColTerm::lag`]).
@@ -108,8 +125,11 @@ pub struct FirstOrderLag {
     memo: [Cell<(u64, f64, f64)>; MEMO_SLOTS],
 }
 
-/// Slots of [`FirstOrderLag`]'s memo of decay factors (a power of two).
-const MEMO_SLOTS: usize = 8;
+/// Slots of [`FirstOrderLag`]'s memo of decay factors: `2^MEMO_BITS`, enough for the 18
+/// distinct steps the times `k·0.3` s of 100,000 rows round to.
+const MEMO_BITS: u32 = 6;
+/// See [`MEMO_BITS`].
+const MEMO_SLOTS: usize = 1 << MEMO_BITS;
 
 /// The decay factors of one step `dt > 0` with time constant `tau`: `a = exp(−r)` and
 /// `(1 − a)/r`, `r = dt/τ` (the latter accurate for small r).
@@ -131,7 +151,7 @@ impl FirstOrderLag {
         Self {
             tau,
             last: None,
-            memo: Default::default(),
+            memo: std::array::from_fn(|_| Cell::new((0, 0.0, 0.0))),
         }
     }
 
@@ -139,7 +159,10 @@ impl FirstOrderLag {
     #[inline]
     fn factors(&self, dt: f64) -> (f64, f64) {
         let key = dt.to_bits();
-        let slot = &self.memo[((key ^ (key >> 17) ^ (key >> 41)) as usize) & (MEMO_SLOTS - 1)];
+        // Fibonacci hashing: the top bits of key·φ mix in the low mantissa bits, where the steps
+        // of one clock differ.
+        let slot =
+            &self.memo[(key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - MEMO_BITS)) as usize];
         let (k, a, g) = slot.get();
         if k == key {
             return (a, g);
@@ -287,5 +310,27 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Reference: the sorted copy and `percentile_sorted(…, 50)`, bit for bit, on odd and even
+    /// lengths, ties and a single value.
+    #[test]
+    fn median_by_selection_equals_the_sorted_median() {
+        let mut rng = crate::numeric::rng::SimRng::new(3);
+        for n in [1usize, 2, 3, 10, 11, 1000, 1001] {
+            for ties in [false, true] {
+                let x: Vec<f64> = (0..n)
+                    .map(|_| {
+                        let v = rng.range(0.0, 1.0);
+                        if ties { (v * 4.0).floor() * 0.3 } else { v }
+                    })
+                    .collect();
+                let sorted = crate::numeric::stats::sorted(&x);
+                let want = crate::numeric::stats::percentile_sorted(&sorted, 50.0);
+                let got = median_by_selection(x);
+                assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "n {n}");
+            }
+        }
+        assert!(median_by_selection(Vec::new()).is_none());
     }
 }
