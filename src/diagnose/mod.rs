@@ -949,6 +949,38 @@ fn shuffle<T>(v: &mut [T], rng: &mut SimRng) {
     }
 }
 
+/// [`shuffle`] of a long residual, the same swaps in the same order (so the same permutation,
+/// tested): the random indices of a chunk are drawn first, then each swap reads the row it
+/// will swap [`SHUFFLE_AHEAD`] swaps later, so the cache misses of a residual larger than the
+/// cache overlap instead of following one another.
+fn shuffle_rows(v: &mut [f64], rng: &mut SimRng) {
+    /// Rows below which the plain loop is as fast (the residual stays in cache).
+    const IN_CACHE: usize = 1 << 16;
+    const CHUNK: usize = 4096;
+    if v.len() < IN_CACHE {
+        return shuffle(v, rng);
+    }
+    let mut js = Vec::with_capacity(CHUNK);
+    let mut touched = 0u64;
+    let mut i = v.len() - 1;
+    while i >= 1 {
+        let lo = i.saturating_sub(CHUNK - 1).max(1);
+        js.clear();
+        js.extend((lo..=i).rev().map(|k| rng.below(k as u64 + 1) as usize));
+        for (step, &j) in js.iter().enumerate() {
+            if let Some(&ahead) = js.get(step + SHUFFLE_AHEAD) {
+                touched ^= v[ahead].to_bits();
+            }
+            v.swap(i - step, j);
+        }
+        i = lo - 1;
+    }
+    std::hint::black_box(touched);
+}
+
+/// How many swaps ahead [`shuffle_rows`] reads its rows.
+const SHUFFLE_AHEAD: usize = 16;
+
 /// Whether a feature is a time feature (`elapsed_s`, `seek_index`): tested against the plain
 /// row permutation, since serial structure of the residual is the effect it stands for.
 pub(crate) fn is_time(origin: FeatureOrigin) -> bool {
@@ -1004,7 +1036,7 @@ fn block_permute(y: &[f64], block: usize, out: &mut [f64], rng: &mut SimRng) {
     let n = y.len();
     if block <= 1 {
         out.copy_from_slice(y);
-        shuffle(out, rng);
+        shuffle_rows(out, rng);
         return;
     }
     let offset = rng.below(n as u64) as usize;

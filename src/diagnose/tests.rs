@@ -810,3 +810,17 @@ fn block_permute_equals_the_row_by_row_reference() {
         }
     }
 }
+
+/// Reference: [`shuffle`] (the plain Fisher–Yates loop). [`shuffle_rows`] — chunks of drawn
+/// indices, rows read ahead — must give the same permutation from the same seed, for lengths
+/// below, at and across its chunk and cache thresholds.
+#[test]
+fn shuffle_rows_equals_the_plain_shuffle() {
+    for n in [0usize, 1, 2, 1000, 65_535, 65_536, 65_537 + 4096 * 3 + 17] {
+        let y: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let (mut a, mut b) = (y.clone(), y.clone());
+        shuffle_rows(&mut a, &mut SimRng::substream(3, 7));
+        shuffle(&mut b, &mut SimRng::substream(3, 7));
+        assert_eq!(a, b, "n {n}");
+    }
+}
