@@ -16,16 +16,20 @@ use biasctl::{
 };
 use biasctl::{CheckedFitOptions, fit};
 use biasctl::{ColumnMap, Log, LogWriter};
-use criterion::{Criterion, criterion_group, criterion_main};
+#[path = "common/cputime.rs"]
+mod cputime;
+
+use criterion::Criterion;
+use criterion::measurement::Measurement;
 
 const ROWS: usize = 100_000;
 
-/// Random targets in a 250-track span with random dwell times, every row measured.
-fn log() -> Log {
+/// `rows` random targets in a 250-track span with random dwell times, every row measured.
+fn seek_log(rows: usize) -> Log {
     let mut rng = SimRng::new(42);
     let mut w = LogWriter::new(Vec::new(), &[], &[]).expect("write to memory");
     let mut t = 0.0;
-    for _ in 0..ROWS {
+    for _ in 0..rows {
         t += rng.range(0.05, 10.0);
         w.write_row(t, rng.below(250) as f64, Some(0.0), &[])
             .expect("write to memory");
@@ -56,9 +60,10 @@ fn effects_log(rows: usize, seed: u64) -> Log {
     Log::from_reader("effects.csv", text.as_slice(), &ColumnMap::default()).expect("valid log")
 }
 
-fn bench(c: &mut Criterion) {
-    let log = log();
-    let table = FeatureTable::from_log(&log);
+/// The feature table of [`seek_log`] and a residual with a planted direction-change step of 3
+/// counts in unit noise.
+fn planted(log: &Log) -> (FeatureTable, Vec<f64>) {
+    let table = FeatureTable::from_log(log);
     let change = &table
         .column("direction_change")
         .expect("built-in feature")
@@ -68,6 +73,12 @@ fn bench(c: &mut Criterion) {
         .iter()
         .map(|v| 3.0 * v.unwrap_or(0.0) + rng.normal())
         .collect();
+    (table, residuals)
+}
+
+fn bench<M: Measurement>(c: &mut Criterion<M>) {
+    let log = seek_log(ROWS);
+    let (table, residuals) = planted(&log);
     let config = DiagnoseConfig::default().check().expect("config");
     // The benchmark measures a real diagnosis: check that it finds the planted effect.
     let d = diagnose(&table, &residuals, &config).expect("diagnosis");
@@ -117,7 +128,21 @@ fn bench(c: &mut Criterion) {
         b.iter(|| discover(black_box(&start), black_box(&small), None, &dc))
     });
     group.finish();
+
+    // The plain diagnosis on 1M rows (built only when the group is selected: it takes
+    // seconds to write and read the log).
+    if std::env::args().any(|a| a.contains("1M")) {
+        let big = seek_log(10 * ROWS);
+        let (table, residuals) = planted(&big);
+        let d = diagnose(&table, &residuals, &config).expect("diagnosis");
+        assert_eq!(d.features[0].name, "direction_change");
+        let mut group = c.benchmark_group("diagnose_1M");
+        group.sample_size(10);
+        group.bench_function("diagnose", |b| {
+            b.iter(|| diagnose(black_box(&table), black_box(&residuals), &config))
+        });
+        group.finish();
+    }
 }
 
-criterion_group!(benches, bench);
-criterion_main!(benches);
+bench_main!(bench);

@@ -3,7 +3,10 @@
 //! several builds at once) wall time measures the queue for a core as much as the code; the
 //! thread's CPU time is the work a dedicated core would do, so per-core throughputs from it are
 //! comparable across runs. Select it with `BIASCTL_BENCH_CPU=1` (else wall time, criterion's
-//! default). Shared memory bandwidth and caches still vary with the load.
+//! default). Shared memory bandwidth and caches still vary with the load. Work that runs on a
+//! `rayon` pool runs on the pool's threads, not the benchmarking one: measure it with
+//! `BIASCTL_BENCH_CPU=process` (the CPU time of every thread of the process,
+//! `CLOCK_PROCESS_CPUTIME_ID`; with `RAYON_NUM_THREADS=1` that is one core's work).
 
 use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use std::time::Duration;
@@ -11,16 +14,24 @@ use std::time::Duration;
 /// The CPU time of the calling thread (see the module docs).
 pub struct ThreadCpuTime;
 
-/// The calling thread's CPU time so far.
-fn now() -> Duration {
+/// The CPU time of the whole process (every thread), see the module docs.
+pub struct ProcessCpuTime;
+
+/// The CPU time of clock `id` so far.
+fn clock(id: libc::clockid_t) -> Duration {
     let mut ts = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,
     };
-    // SAFETY: `ts` is a valid timespec; the clock id is a constant Linux and macOS know.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
+    // SAFETY: `ts` is a valid timespec; the clock ids are constants Linux and macOS know.
+    let rc = unsafe { libc::clock_gettime(id, &mut ts) };
+    assert_eq!(rc, 0, "clock_gettime({id}) failed");
     Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
+}
+
+/// The calling thread's CPU time so far.
+fn now() -> Duration {
+    clock(libc::CLOCK_THREAD_CPUTIME_ID)
 }
 
 /// Wall time's formatter (values are nanoseconds in both).
@@ -49,18 +60,53 @@ impl Measurement for ThreadCpuTime {
     }
 }
 
-/// Whether `BIASCTL_BENCH_CPU` asks for CPU time.
+impl Measurement for ProcessCpuTime {
+    type Intermediate = Duration;
+    type Value = Duration;
+    fn start(&self) -> Duration {
+        clock(libc::CLOCK_PROCESS_CPUTIME_ID)
+    }
+    fn end(&self, start: Duration) -> Duration {
+        clock(libc::CLOCK_PROCESS_CPUTIME_ID).saturating_sub(start)
+    }
+    fn add(&self, a: &Duration, b: &Duration) -> Duration {
+        *a + *b
+    }
+    fn zero(&self) -> Duration {
+        Duration::ZERO
+    }
+    fn to_f64(&self, v: &Duration) -> f64 {
+        v.as_nanos() as f64
+    }
+    fn formatter(&self) -> &dyn ValueFormatter {
+        WALL.formatter()
+    }
+}
+
+/// Whether `BIASCTL_BENCH_CPU` asks for CPU time (of the thread, or with `process` of the
+/// whole process).
 pub fn cpu_time_requested() -> bool {
     std::env::var_os("BIASCTL_BENCH_CPU").is_some_and(|v| v != "0")
 }
 
+/// Whether `BIASCTL_BENCH_CPU=process` asks for the whole process's CPU time.
+pub fn process_cpu_time_requested() -> bool {
+    std::env::var_os("BIASCTL_BENCH_CPU").is_some_and(|v| v == "process")
+}
+
 /// `fn main` of a bench whose one function `$bench` is generic over the measurement: thread
-/// CPU time with `BIASCTL_BENCH_CPU=1`, else wall time; the usual criterion flags apply.
+/// CPU time with `BIASCTL_BENCH_CPU=1`, the process's with `BIASCTL_BENCH_CPU=process`, else wall time; the usual criterion flags apply.
 #[macro_export]
 macro_rules! bench_main {
     ($bench:ident) => {
         fn main() {
-            if cputime::cpu_time_requested() {
+            if cputime::process_cpu_time_requested() {
+                let mut c = criterion::Criterion::default()
+                    .with_measurement(cputime::ProcessCpuTime)
+                    .configure_from_args();
+                $bench(&mut c);
+                c.final_summary();
+            } else if cputime::cpu_time_requested() {
                 let mut c = criterion::Criterion::default()
                     .with_measurement(cputime::ThreadCpuTime)
                     .configure_from_args();

@@ -138,7 +138,7 @@ use crate::numeric::rng::SimRng;
 use crate::numeric::stats;
 use crate::render::OutputError;
 use rayon::prelude::*;
-use smoother::{Binned, FTest, Unusable};
+use smoother::{Binned, FTest, SlotTable, Unusable};
 
 /// Smallest number of measured rows per cross-validation fold.
 pub(crate) const MIN_ROWS_PER_FOLD: usize = 10;
@@ -559,8 +559,15 @@ pub fn diagnose(
             _ => null_block,
         })
         .collect();
-    let (p_raw, p_adj) =
-        permutation_test(&analysed, &y, sst, direction.as_deref(), &blocks, config);
+    let (p_raw, p_adj) = permutation_test(
+        &analysed,
+        &y,
+        sst,
+        direction.as_deref(),
+        &blocks,
+        config,
+        true,
+    );
 
     let ctx = Ctx {
         direction: direction.as_deref(),
@@ -941,6 +948,38 @@ fn shuffle<T>(v: &mut [T], rng: &mut SimRng) {
     }
 }
 
+/// [`shuffle`] of a long residual, the same swaps in the same order (so the same permutation,
+/// tested): the random indices of a chunk are drawn first, then each swap reads the row it
+/// will swap [`SHUFFLE_AHEAD`] swaps later, so the cache misses of a residual larger than the
+/// cache overlap instead of following one another.
+fn shuffle_rows(v: &mut [f64], rng: &mut SimRng) {
+    /// Rows below which the plain loop is as fast (the residual stays in cache).
+    const IN_CACHE: usize = 1 << 16;
+    const CHUNK: usize = 4096;
+    if v.len() < IN_CACHE {
+        return shuffle(v, rng);
+    }
+    let mut js = Vec::with_capacity(CHUNK);
+    let mut touched = 0u64;
+    let mut i = v.len() - 1;
+    while i >= 1 {
+        let lo = i.saturating_sub(CHUNK - 1).max(1);
+        js.clear();
+        js.extend((lo..=i).rev().map(|k| rng.below(k as u64 + 1) as usize));
+        for (step, &j) in js.iter().enumerate() {
+            if let Some(&ahead) = js.get(step + SHUFFLE_AHEAD) {
+                touched ^= v[ahead].to_bits();
+            }
+            v.swap(i - step, j);
+        }
+        i = lo - 1;
+    }
+    std::hint::black_box(touched);
+}
+
+/// How many swaps ahead [`shuffle_rows`] reads its rows.
+const SHUFFLE_AHEAD: usize = 16;
+
 /// Whether a feature is a time feature (`elapsed_s`, `seek_index`): tested against the plain
 /// row permutation, since serial structure of the residual is the effect it stands for.
 pub(crate) fn is_time(origin: FeatureOrigin) -> bool {
@@ -996,6 +1035,32 @@ fn block_permute(y: &[f64], block: usize, out: &mut [f64], rng: &mut SimRng) {
     let n = y.len();
     if block <= 1 {
         out.copy_from_slice(y);
+        shuffle_rows(out, rng);
+        return;
+    }
+    let offset = rng.below(n as u64) as usize;
+    let n_blocks = n.div_ceil(block);
+    let mut order: Vec<usize> = (0..n_blocks).collect();
+    shuffle(&mut order, rng);
+    // Block `b` is rows `(i + offset) mod n` for i in its range: at most two contiguous runs.
+    let mut k = 0;
+    for b in order {
+        let len = ((b + 1) * block).min(n) - b * block;
+        let start = (b * block + offset) % n;
+        let first = len.min(n - start);
+        out[k..k + first].copy_from_slice(&y[start..start + first]);
+        out[k + first..k + len].copy_from_slice(&y[..len - first]);
+        k += len;
+    }
+}
+
+/// [`block_permute`] written row by row with the modulo (the slow, obvious reference it is
+/// tested against).
+#[cfg(test)]
+fn block_permute_reference(y: &[f64], block: usize, out: &mut [f64], rng: &mut SimRng) {
+    let n = y.len();
+    if block <= 1 {
+        out.copy_from_slice(y);
         shuffle(out, rng);
         return;
     }
@@ -1020,6 +1085,46 @@ const PERM_STREAM: u64 = 1 << 32;
 /// [`MAX_NULL_BLOCK`], 1 and the residual's own).
 const PERM_STRIDE: u64 = 16;
 
+/// The features tested against one block length's permutation, swept in one fused pass
+/// ([`SlotTable`]): their indices into the usable features, the signable ones first.
+struct PermGroup {
+    /// Block length index (into the distinct lengths).
+    length: usize,
+    /// Usable-feature indices, signable first.
+    features: Vec<usize>,
+    /// Their fine slots; `None` (a feature with more than 256 slots) tests the group one
+    /// feature at a time with [`FTest::min_p`].
+    table: Option<SlotTable>,
+}
+
+/// The groups of the fused permutation pass: one per distinct block length (`which[k]`: the
+/// length of usable feature `k`), signable features first when the residual is signed.
+fn perm_groups(
+    usable: &[(usize, &Analysed)],
+    lengths: usize,
+    which: &[usize],
+    signed: bool,
+    fused: bool,
+) -> Vec<PermGroup> {
+    (0..lengths)
+        .map(|length| {
+            let mut features: Vec<usize> =
+                (0..usable.len()).filter(|&k| which[k] == length).collect();
+            let is_signed = |k: usize| signed && usable[k].1.signable;
+            // Stable: signable first, each part in usable order.
+            features.sort_by_key(|&k| !is_signed(k));
+            let n_signed = features.iter().filter(|&&k| is_signed(k)).count();
+            let bins: Vec<&Binned> = features.iter().map(|&k| &usable[k].1.binned).collect();
+            PermGroup {
+                length,
+                table: SlotTable::new(&bins, n_signed).filter(|_| fused),
+                features,
+            }
+        })
+        .filter(|g| !g.features.is_empty())
+        .collect()
+}
+
 /// One thread's buffers and hit counts of the permutation test (one slot per usable feature).
 struct PermWorker {
     tests: Vec<FTest>,
@@ -1027,6 +1132,9 @@ struct PermWorker {
     perms: Vec<Vec<f64>>,
     signed: Vec<Vec<f64>>,
     sst_signed: Vec<f64>,
+    /// Per-slot sums of the fused pass (plain and signed residual).
+    acc: Vec<f64>,
+    acc_signed: Vec<f64>,
     stat: Vec<f64>,
     raw: Vec<usize>,
     adj: Vec<usize>,
@@ -1041,6 +1149,8 @@ impl PermWorker {
             perms: vec![vec![0.0; n]; lengths],
             signed: vec![vec![0.0; s]; lengths],
             sst_signed: vec![0.0; lengths],
+            acc: Vec::new(),
+            acc_signed: Vec::new(),
             stat: vec![0.0; m],
             raw: vec![0; m],
             adj: vec![0; m],
@@ -1048,8 +1158,8 @@ impl PermWorker {
     }
 
     /// Permutation `i`: the residual permuted once per distinct block length (`lengths`), each
-    /// feature tested against the permutation of its own block (`which[k]`, an index into
-    /// `lengths`); the family-wise statistic is the smallest over features.
+    /// feature tested against the permutation of its own block (`groups`, one fused pass per
+    /// length); the family-wise statistic is the smallest over features.
     #[allow(clippy::too_many_arguments)]
     fn run(
         &mut self,
@@ -1059,7 +1169,7 @@ impl PermWorker {
         sst: f64,
         direction: Option<&[f64]>,
         lengths: &[usize],
-        which: &[usize],
+        groups: &[PermGroup],
         seed: u64,
     ) {
         for (b, &len) in lengths.iter().enumerate() {
@@ -1077,16 +1187,49 @@ impl PermWorker {
                 self.sst_signed[b] = stats::sum_sq_about_mean(&self.signed[b]);
             }
         }
-        let mut min_stat = f64::INFINITY;
-        for (k, ((_, a), t)) in usable.iter().zip(self.tests.iter_mut()).enumerate() {
-            let b = which[k];
-            self.stat[k] = t.min_p(&a.binned, &self.perms[b], sst);
-            if a.signable && direction.is_some() {
-                self.stat[k] =
-                    self.stat[k].min(t.min_p(&a.binned, &self.signed[b], self.sst_signed[b]));
+        let n = y.len();
+        for g in groups {
+            let b = g.length;
+            match &g.table {
+                Some(table) => {
+                    self.acc.resize(table.len(), 0.0);
+                    self.acc_signed.resize(table.len(), 0.0);
+                    table.accumulate(
+                        &self.perms[b],
+                        &self.signed[b],
+                        &mut self.acc,
+                        &mut self.acc_signed,
+                    );
+                    for (j, &k) in g.features.iter().enumerate() {
+                        let (t, a) = (&mut self.tests[k], usable[k].1);
+                        self.stat[k] = t.min_p_of_sums(&a.binned, table.sums(&self.acc, j), n, sst);
+                        if a.signable && direction.is_some() {
+                            let sums = table.sums(&self.acc_signed, j);
+                            self.stat[k] = self.stat[k].min(t.min_p_of_sums(
+                                &a.binned,
+                                sums,
+                                n,
+                                self.sst_signed[b],
+                            ));
+                        }
+                    }
+                }
+                None => {
+                    for &k in &g.features {
+                        let (t, a) = (&mut self.tests[k], usable[k].1);
+                        self.stat[k] = t.min_p(&a.binned, &self.perms[b], sst);
+                        if a.signable && direction.is_some() {
+                            self.stat[k] = self.stat[k].min(t.min_p(
+                                &a.binned,
+                                &self.signed[b],
+                                self.sst_signed[b],
+                            ));
+                        }
+                    }
+                }
             }
-            min_stat = min_stat.min(self.stat[k]);
         }
+        let min_stat = self.stat.iter().copied().fold(f64::INFINITY, f64::min);
         for (k, &(_, a)) in usable.iter().enumerate() {
             if self.stat[k] <= a.observed {
                 self.raw[k] += 1;
@@ -1100,7 +1243,9 @@ impl PermWorker {
 
 /// Raw and Westfall–Young family-wise permutation p-values for every feature (1 for unusable
 /// ones); feature `j` is tested against block permutations of `blocks[j]` consecutive
-/// residuals (1: rows permuted one by one).
+/// residuals (1: rows permuted one by one). `fused`: the statistics of many features from
+/// one pass over each permuted residual ([`SlotTable`]); else each feature's own pass
+/// ([`FTest::min_p`], the slow reference — the results are bit-identical, tested).
 fn permutation_test(
     analysed: &[Result<Analysed, Unusable>],
     y: &[f64],
@@ -1108,6 +1253,7 @@ fn permutation_test(
     direction: Option<&[f64]>,
     blocks: &[usize],
     config: &DiagnoseConfig,
+    fused: bool,
 ) -> (Vec<f64>, Vec<f64>) {
     let m = analysed.len();
     let mut raw_count = vec![0usize; m];
@@ -1125,6 +1271,7 @@ fn permutation_test(
             .iter()
             .map(|&(j, _)| lengths.binary_search(&blocks[j]).unwrap_or(0))
             .collect();
+        let groups = perm_groups(&usable, lengths.len(), &which, direction.is_some(), fused);
         // Every permutation draws from its own seeded streams and the counts are integers, so
         // the p-values are the same for any number of threads.
         let k = usable.len();
@@ -1133,7 +1280,16 @@ fn permutation_test(
             .fold(
                 || PermWorker::new(&usable, y.len(), lengths.len(), direction.is_some()),
                 |mut w, i| {
-                    w.run(i, &usable, y, sst, direction, &lengths, &which, config.seed);
+                    w.run(
+                        i,
+                        &usable,
+                        y,
+                        sst,
+                        direction,
+                        &lengths,
+                        &groups,
+                        config.seed,
+                    );
                     w
                 },
             )

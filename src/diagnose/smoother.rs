@@ -66,21 +66,14 @@ impl Binned {
         min_bin_rows: usize,
         max_discrete: usize,
     ) -> Result<Binned, Unusable> {
+        // The defined values; no sort: the distinct values and the quantile cuts below are
+        // found by scanning and selection (the same values a sort gives, tested).
         let mut sorted: Vec<f64> = values.iter().flatten().copied().collect();
         let has_missing = sorted.len() < values.len();
         if sorted.is_empty() {
             return Err(Unusable::AllMissing);
         }
-        sorted.sort_by(f64::total_cmp);
-        let mut distinct_values: Vec<f64> = Vec::new();
-        for &v in &sorted {
-            if distinct_values.last().is_none_or(|&last| v > last) {
-                distinct_values.push(v);
-                if distinct_values.len() > max_discrete {
-                    break;
-                }
-            }
-        }
+        let distinct_values = smallest_distinct(&mut sorted, max_discrete + 1);
         if distinct_values.len() == 1 && !has_missing {
             return Err(Unusable::Constant(distinct_values[0]));
         }
@@ -154,13 +147,9 @@ impl Binned {
             k_max *= 2;
         }
         let n = sorted.len();
-        let cuts: Vec<f64> = (1..k_max)
-            .map(|k| {
-                let pos = k * n / k_max;
-                // A cut between ranks pos−1 and pos: values ≥ the cut go to the upper bin.
-                sorted[pos.min(n - 1)]
-            })
-            .collect();
+        // A cut between ranks pos−1 and pos: values ≥ the cut go to the upper bin.
+        let ranks: Vec<usize> = (1..k_max).map(|k| (k * n / k_max).min(n - 1)).collect();
+        let cuts = order_statistics(&mut sorted, &ranks);
         // Too few undefined rows for a bin of their own join the top bin (as above).
         let missing = values.len() - n;
         let pool_missing = missing > 0 && missing < min_bin_rows;
@@ -368,21 +357,37 @@ impl FTest {
     /// serially correlated logs do not all tie at p = 0 (see [`f_test_ln_p`]). 0 when no level
     /// has two non-empty bins.
     pub(super) fn min_p(&mut self, b: &Binned, y: &[f64], sst: f64) -> f64 {
-        self.fine_sum.iter_mut().for_each(|s| *s = 0.0);
+        let mut fine_sum = std::mem::take(&mut self.fine_sum);
+        fine_sum.iter_mut().for_each(|s| *s = 0.0);
         for (i, &v) in y.iter().enumerate() {
-            self.fine_sum[b.fine_slot(i)] += v;
+            fine_sum[b.fine_slot(i)] += v;
         }
-        let n = y.len() as f64;
-        let total: f64 = self.fine_sum.iter().sum();
+        let p = self.min_p_of_sums(b, &fine_sum, y.len(), sst);
+        self.fine_sum = fine_sum;
+        p
+    }
+
+    /// [`FTest::min_p`] from the residuals' sums per fine slot (`fine_sum[s]`: the sum over
+    /// the rows of slot `s`, in row order) of `n` rows — the part of the statistic after the
+    /// pass over the rows, which [`SlotTable::accumulate`] does for many features at once.
+    pub(crate) fn min_p_of_sums(
+        &mut self,
+        b: &Binned,
+        fine_sum: &[f64],
+        n: usize,
+        sst: f64,
+    ) -> f64 {
+        let rows = n as f64;
+        let total: f64 = fine_sum.iter().sum();
         let mut best = 0.0f64;
         for (li, &shift) in b.levels.iter().enumerate() {
             let cnt = &self.level_cnt[li];
             self.level_sum.clear();
             self.level_sum.resize(cnt.len(), 0.0);
-            for (fs, &s) in self.fine_sum.iter().enumerate() {
+            for (fs, &s) in fine_sum.iter().enumerate() {
                 self.level_sum[b.coarse_of_fine_slot(fs, shift)] += s;
             }
-            let mut ssb = -total * total / n;
+            let mut ssb = -total * total / rows;
             let mut groups = 0usize;
             for (s, &c) in self.level_sum.iter().zip(cnt) {
                 if c > 0.0 {
@@ -390,9 +395,100 @@ impl FTest {
                     groups += 1;
                 }
             }
-            best = best.min(f_test_ln_p(ssb.max(0.0), sst, groups, y.len()));
+            best = best.min(f_test_ln_p(ssb.max(0.0), sst, groups, n));
         }
         best
+    }
+}
+
+/// The fine slots of several features, one row after another as bytes, for the permutation
+/// test's fused pass: one sweep over a permuted residual adds every row into every feature's
+/// per-slot sums (the features' additions are independent, so they overlap in the CPU instead
+/// of waiting on each other, and the residual is read once instead of once per feature). Each
+/// slot's sum still adds its rows in row order from 0, so the sums — and every statistic from
+/// them — are bit-identical to [`FTest::min_p`]'s own pass (tested).
+#[derive(Debug, Clone)]
+pub(crate) struct SlotTable {
+    /// `codes[i·m + j]`: the fine slot of feature `j` at row `i`.
+    codes: Vec<u8>,
+    /// Features.
+    m: usize,
+    /// The first `signed` features also sum a second (direction-signed) residual.
+    signed: usize,
+    /// Start of feature `j`'s slots in the accumulators (`offset[m]`: their length).
+    offset: Vec<usize>,
+}
+
+impl SlotTable {
+    /// The table of `bins` (the first `signed` of them also summed for the signed residual);
+    /// `None` when a feature has more than 256 fine slots (then use [`FTest::min_p`]).
+    pub(crate) fn new(bins: &[&Binned], signed: usize) -> Option<SlotTable> {
+        if bins.iter().any(|b| b.n_fine + 1 > 256) {
+            return None;
+        }
+        let m = bins.len();
+        let n = bins.first().map_or(0, |b| b.fine.len());
+        let mut codes = vec![0u8; n * m];
+        for (j, b) in bins.iter().enumerate() {
+            for (i, row) in codes.chunks_exact_mut(m).enumerate() {
+                row[j] = b.fine_slot(i) as u8;
+            }
+        }
+        let mut offset = vec![0usize];
+        for b in bins {
+            offset.push(offset.last().copied().unwrap_or(0) + b.n_fine + 1);
+        }
+        Some(SlotTable {
+            codes,
+            m,
+            signed: signed.min(m),
+            offset,
+        })
+    }
+
+    /// Length of the accumulators [`SlotTable::accumulate`] fills.
+    pub(crate) fn len(&self) -> usize {
+        self.offset[self.m]
+    }
+
+    /// Feature `j`'s sums in an accumulator filled by [`SlotTable::accumulate`].
+    pub(crate) fn sums<'a>(&self, acc: &'a [f64], j: usize) -> &'a [f64] {
+        &acc[self.offset[j]..self.offset[j + 1]]
+    }
+
+    /// Sets `acc` to every feature's per-slot sums of `y`, and `acc_signed` to the first
+    /// `signed` features' sums of `y_signed` (ignored, and may be empty, when there are none).
+    pub(crate) fn accumulate(
+        &self,
+        y: &[f64],
+        y_signed: &[f64],
+        acc: &mut [f64],
+        acc_signed: &mut [f64],
+    ) {
+        acc.iter_mut().for_each(|a| *a = 0.0);
+        let m = self.m;
+        if m == 0 {
+            return;
+        }
+        let offset = &self.offset[..m];
+        if self.signed == 0 {
+            for (row, &v) in self.codes.chunks_exact(m).zip(y) {
+                for (&c, &o) in row.iter().zip(offset) {
+                    acc[o + c as usize] += v;
+                }
+            }
+        } else {
+            acc_signed.iter_mut().for_each(|a| *a = 0.0);
+            let ms = self.signed;
+            for ((row, &v), &w) in self.codes.chunks_exact(m).zip(y).zip(y_signed) {
+                for (&c, &o) in row.iter().zip(offset) {
+                    acc[o + c as usize] += v;
+                }
+                for (&c, &o) in row[..ms].iter().zip(offset) {
+                    acc_signed[o + c as usize] += w;
+                }
+            }
+        }
     }
 }
 
@@ -429,6 +525,78 @@ pub(crate) fn f_test_ln_p(ssb: f64, sst: f64, groups: usize, n: usize) -> f64 {
     let k = df1;
     let ln = (k / 2.0 - 1.0) * (x / 2.0).ln() - x / 2.0 - crate::numeric::stats::ln_gamma(k / 2.0);
     ln.min(1e-250f64.ln())
+}
+
+/// The up to `limit` smallest distinct values of `x`, ascending — what scanning `x` sorted by
+/// `total_cmp` and keeping each value greater than the last kept gives (values equal as
+/// numbers, −0 and +0, count once, as the first of them in that order). Found in one pass
+/// with a small sorted list for finite values; a sort otherwise (`x` is then left sorted).
+fn smallest_distinct(x: &mut [f64], limit: usize) -> Vec<f64> {
+    if limit == 0 || x.iter().any(|v| v.is_nan()) {
+        return sorted_distinct_reference(x, limit);
+    }
+    let mut out: Vec<f64> = Vec::with_capacity(limit + 1);
+    for &v in x.iter() {
+        if out.len() == limit && out.last().is_some_and(|&l| v > l) {
+            continue;
+        }
+        let pos = out.partition_point(|&d| d < v);
+        match out.get_mut(pos) {
+            Some(d) if *d <= v => {
+                // Equal as numbers: keep the first in total order (−0 before +0).
+                if v.total_cmp(d).is_lt() {
+                    *d = v;
+                }
+            }
+            _ => {
+                out.insert(pos, v);
+                out.truncate(limit);
+            }
+        }
+    }
+    out
+}
+
+/// [`smallest_distinct`] by sorting `x` (the slow, obvious reference, and the path for NaN).
+fn sorted_distinct_reference(x: &mut [f64], limit: usize) -> Vec<f64> {
+    x.sort_by(f64::total_cmp);
+    let mut out: Vec<f64> = Vec::new();
+    for &v in x.iter() {
+        if out.last().is_none_or(|&last| v > last) {
+            if out.len() == limit {
+                break;
+            }
+            out.push(v);
+        }
+    }
+    out
+}
+
+/// The values at `ranks` (ascending, each < `x.len()`) of `x` sorted by `total_cmp`, by
+/// nested selection (`x` is reordered): O(n·log(ranks)) instead of a sort, the same values.
+fn order_statistics(x: &mut [f64], ranks: &[usize]) -> Vec<f64> {
+    /// Fills `out[i]` with the value at rank `ranks[i]` (distinct, ascending) of `x`, whose
+    /// first element has rank `base`.
+    fn select(x: &mut [f64], base: usize, ranks: &[usize], out: &mut [f64]) {
+        if ranks.is_empty() {
+            return;
+        }
+        let mid = ranks.len() / 2;
+        let r = ranks[mid] - base;
+        let (left, &mut v, right) = x.select_nth_unstable_by(r, f64::total_cmp);
+        out[mid] = v;
+        let (lo_out, hi_out) = out.split_at_mut(mid);
+        select(left, base, &ranks[..mid], lo_out);
+        select(right, base + r + 1, &ranks[mid + 1..], &mut hi_out[1..]);
+    }
+    let mut unique = ranks.to_vec();
+    unique.dedup();
+    let mut values = vec![0.0; unique.len()];
+    select(x, 0, &unique, &mut values);
+    ranks
+        .iter()
+        .map(|r| values[unique.partition_point(|u| u < r)])
+        .collect()
 }
 
 /// Summary of one bin of the smoothed curve.
@@ -511,4 +679,100 @@ pub(crate) fn cv_predict(
     (0..y.len())
         .map(|i| pred[fold[i] as usize * m + b.coarse_of_fine_slot(b.fine_slot(i), shift)])
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numeric::rng::SimRng;
+
+    /// Reference: [`FTest::min_p`], one feature's own pass over the rows. The fused pass of
+    /// [`SlotTable`] over several features (quantile and discrete bins, missing values in a
+    /// slot of their own and pooled, a signed second residual for the first features) must
+    /// give the same statistic bit for bit.
+    #[test]
+    fn fused_pass_is_bit_identical_to_each_features_own_pass() {
+        let n = 5003;
+        let mut rng = SimRng::new(5);
+        let columns: Vec<Vec<Option<f64>>> = vec![
+            (0..n).map(|_| Some(rng.range(0.0, 250.0))).collect(),
+            (0..n).map(|i| (i % 7 != 0).then(|| rng.normal())).collect(),
+            (0..n).map(|_| Some(rng.below(3) as f64)).collect(),
+            (0..n)
+                .map(|i| (i > 3).then(|| (rng.below(2) as f64) * 2.0 - 1.0))
+                .collect(),
+            (0..n).map(|i| Some((i / 100) as f64)).collect(),
+        ];
+        let bins: Vec<Binned> = columns
+            .iter()
+            .map(|c| Binned::new(c, 64, 30, 10).expect("usable"))
+            .collect();
+        let y: Vec<f64> = (0..n).map(|_| rng.normal() * 3.0 + 0.1).collect();
+        let d: Vec<f64> = (0..n).map(|_| (rng.below(2) as f64) * 2.0 - 1.0).collect();
+        let ys: Vec<f64> = y.iter().zip(&d).map(|(a, b)| a * b).collect();
+        let sst: f64 = y.iter().map(|v| v * v).sum();
+        let sst_s: f64 = ys.iter().map(|v| v * v).sum();
+        for signed in [0, 2, bins.len()] {
+            let refs: Vec<&Binned> = bins.iter().collect();
+            let table = SlotTable::new(&refs, signed).expect("few slots");
+            let mut acc = vec![f64::NAN; table.len()];
+            let mut acc_s = vec![f64::NAN; table.len()];
+            table.accumulate(&y, &ys, &mut acc, &mut acc_s);
+            for (j, b) in bins.iter().enumerate() {
+                let mut t = FTest::new(b);
+                let fused = t.min_p_of_sums(b, table.sums(&acc, j), n, sst);
+                let own = FTest::new(b).min_p(b, &y, sst);
+                assert_eq!(fused.to_bits(), own.to_bits(), "feature {j}");
+                if j < signed {
+                    let fused = t.min_p_of_sums(b, table.sums(&acc_s, j), n, sst_s);
+                    let own = FTest::new(b).min_p(b, &ys, sst_s);
+                    assert_eq!(fused.to_bits(), own.to_bits(), "signed feature {j}");
+                }
+            }
+        }
+        // Too many slots for a byte: no table (the caller falls back to `min_p`).
+        let wide = Binned::new(&columns[0], 512, 1, 10).expect("usable");
+        assert!(SlotTable::new(&[&wide], 0).is_none());
+    }
+
+    /// Reference: a sort by `total_cmp` ([`sorted_distinct_reference`], and indexing the
+    /// sorted copy). The scan and the nested selection must give the same bits: distinct
+    /// values with ties, −0 and +0, fewer and more distinct values than the limit; order
+    /// statistics at quantile ranks, repeated ranks and the ends.
+    #[test]
+    fn selection_gives_the_sorted_values() {
+        let mut rng = SimRng::new(8);
+        for n in [1usize, 2, 5, 64, 1000, 4097] {
+            for levels in [1u64, 3, 12, 13, 1 << 40] {
+                let x: Vec<f64> = (0..n)
+                    .map(|_| {
+                        let k = rng.below(levels) as i64 - (levels / 2) as i64;
+                        if k == 0 && rng.below(2) == 0 {
+                            -0.0
+                        } else {
+                            k as f64 * 0.25
+                        }
+                    })
+                    .collect();
+                for limit in [1, 2, 13] {
+                    let fast = smallest_distinct(&mut x.clone(), limit);
+                    let slow = sorted_distinct_reference(&mut x.clone(), limit);
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(
+                        bits(&fast),
+                        bits(&slow),
+                        "n {n} levels {levels} limit {limit}"
+                    );
+                }
+                let mut sorted = x.clone();
+                sorted.sort_by(f64::total_cmp);
+                let mut ranks: Vec<usize> = (1..64).map(|k| (k * n / 64).min(n - 1)).collect();
+                ranks.push(n - 1);
+                let got = order_statistics(&mut x.clone(), &ranks);
+                for (r, g) in ranks.iter().zip(&got) {
+                    assert_eq!(g.to_bits(), sorted[*r].to_bits(), "n {n} rank {r}");
+                }
+            }
+        }
+    }
 }

@@ -19,6 +19,7 @@ use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Term, TermSpec};
 use serde::{Deserialize, Serialize};
+use std::cell::Cell;
 use std::sync::Arc;
 
 /// Spec of the `lag:NAME` term.
@@ -43,8 +44,7 @@ impl TermSpec for LagSpec {
             .filter(|d| *d > 0.0)
             .collect();
         let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
-        let sorted = crate::numeric::stats::sorted(&steps);
-        let median = crate::numeric::stats::percentile_sorted(&sorted, 50.0).unwrap_or(0.0);
+        let median = median_by_selection(steps).unwrap_or(0.0);
         if !(median > 0.0 && span > median) {
             return Err(FitError::BadSetting {
                 term: self.name(),
@@ -59,6 +59,24 @@ impl TermSpec for LagSpec {
         });
         Ok(Arc::new(term))
     }
+}
+
+/// The median of `x` as [`crate::numeric::stats::percentile_sorted`] of the sorted values at
+/// 50 % gives it (the mean of the two middle values, interpolated the same way), found by
+/// selection in O(n) instead of a sort: the same two order statistics, so the same bits.
+fn median_by_selection(mut x: Vec<f64>) -> Option<f64> {
+    if x.is_empty() {
+        return None;
+    }
+    let pos = 0.5 * (x.len() - 1) as f64;
+    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+    let (_, &mut a, right) = x.select_nth_unstable_by(lo, f64::total_cmp);
+    let b = if hi > lo {
+        right.iter().copied().min_by(f64::total_cmp).unwrap_or(a)
+    } else {
+        a
+    };
+    Some(a + (b - a) * (pos - lo as f64))
 }
 
 /// The lag stage of a fitted `lag:NAME` term ([`ColTerm::lag`]).
@@ -93,34 +111,97 @@ pub(crate) fn restore(
 
 /// A first-order lag `τ·dz/dt = c − z` of a sampled signal, linear between samples (exact
 /// update, see the module docs). Public so diagnosis features and benches can use it.
-#[derive(Debug, Clone, Copy)]
+///
+/// The update's two factors `a = exp(−Δt/τ)` and `(1 − a)·τ/Δt` depend only on the step Δt:
+/// they are memoised per Δt (a small direct-mapped table keyed by Δt's exact bits), so a
+/// regularly clocked log — a few distinct Δt however its times round — evaluates the two
+/// transcendentals a handful of times instead of twice per row, and a `peek` followed by the
+/// `step` of the same sample (a model's basis, then its update) computes them once. The memo
+/// returns the very values it stored, so results are bit-identical to computing every time
+/// ([`FirstOrderLag::peek_reference`] is that slow path, tested against it).
+#[derive(Debug, Clone)]
 pub struct FirstOrderLag {
     tau: f64,
     /// `(time, input, output)` at the last sample.
     last: Option<(f64, f64, f64)>,
+    /// `(Δt bits, a, (1 − a)/r)` per slot; a key of 0 (Δt = 0, never looked up) is empty.
+    memo: [Cell<(u64, f64, f64)>; MEMO_SLOTS],
+}
+
+/// Slots of [`FirstOrderLag`]'s memo of decay factors: `2^MEMO_BITS`, enough for the 18
+/// distinct steps the times `k·0.3` s of 100,000 rows round to.
+const MEMO_BITS: u32 = 6;
+/// See [`MEMO_BITS`].
+const MEMO_SLOTS: usize = 1 << MEMO_BITS;
+
+/// The decay factors of one step `dt > 0` with time constant `tau`: `a = exp(−r)` and
+/// `(1 − a)/r`, `r = dt/τ` (the latter accurate for small r).
+#[inline]
+fn decay(dt: f64, tau: f64) -> (f64, f64) {
+    let r = dt / tau;
+    let a = (-r).exp();
+    let g = if r < 1e-6 {
+        1.0 - 0.5 * r
+    } else {
+        -(-r).exp_m1() / r
+    };
+    (a, g)
 }
 
 impl FirstOrderLag {
     /// A lag with time constant `tau` (s, > 0) before its first sample.
     pub fn new(tau: f64) -> Self {
-        Self { tau, last: None }
+        Self {
+            tau,
+            last: None,
+            memo: std::array::from_fn(|_| Cell::new((0, 0.0, 0.0))),
+        }
     }
 
-    /// The output at a sample `(t, c)` following the last one, without changing the state.
+    /// [`decay`] of `dt > 0`, from the memo or computed and remembered.
+    #[inline]
+    fn factors(&self, dt: f64) -> (f64, f64) {
+        let key = dt.to_bits();
+        // Fibonacci hashing: the top bits of key·φ mix in the low mantissa bits, where the steps
+        // of one clock differ.
+        let slot =
+            &self.memo[(key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - MEMO_BITS)) as usize];
+        let (k, a, g) = slot.get();
+        if k == key {
+            return (a, g);
+        }
+        let (a, g) = decay(dt, self.tau);
+        slot.set((key, a, g));
+        (a, g)
+    }
+
+    /// The output at a sample `(t, c)` following the last one, without changing the state
+    /// (only the memo of decay factors).
+    #[inline]
     pub fn peek(&self, t: f64, c: f64) -> f64 {
         match self.last {
             None => c,
             Some((t0, c0, z0)) => {
                 let dt = t - t0;
                 if dt > 0.0 {
-                    let r = dt / self.tau;
-                    let a = (-r).exp();
-                    // (1 − a)/r, accurate for small r.
-                    let g = if r < 1e-6 {
-                        1.0 - 0.5 * r
-                    } else {
-                        -(-r).exp_m1() / r
-                    };
+                    let (a, g) = self.factors(dt);
+                    c + (z0 - c0) * a - (c - c0) * g
+                } else {
+                    z0
+                }
+            }
+        }
+    }
+
+    /// [`FirstOrderLag::peek`] computing both factors every time, without the memo (the slow,
+    /// obvious reference the memoised path is tested against, bit for bit).
+    pub fn peek_reference(&self, t: f64, c: f64) -> f64 {
+        match self.last {
+            None => c,
+            Some((t0, c0, z0)) => {
+                let dt = t - t0;
+                if dt > 0.0 {
+                    let (a, g) = decay(dt, self.tau);
                     c + (z0 - c0) * a - (c - c0) * g
                 } else {
                     z0
@@ -130,6 +211,7 @@ impl FirstOrderLag {
     }
 
     /// Takes the sample `(t, c)` and returns the output.
+    #[inline]
     pub fn step(&mut self, t: f64, c: f64) -> f64 {
         let z = self.peek(t, c);
         self.last = Some((t, c, z));
@@ -199,5 +281,59 @@ mod tests {
         let before = lag.peek(t0 + 1.0, 3.0);
         assert!((lag.peek(t0 + 1.0, 3.0) - before).abs() <= 0.0);
         assert!((lag.peek(t0, 99.0) - z).abs() < 1e-5);
+    }
+
+    /// Reference: [`FirstOrderLag::peek_reference`] (both factors computed at every sample).
+    /// The memoised path must give the same bits on a regularly clocked log (times `k·0.3`,
+    /// whose steps differ in their last bits), on an irregular one, with repeated times, and
+    /// with more distinct steps than memo slots (collisions overwrite, never mix up).
+    #[test]
+    fn memoised_steps_are_bit_identical_to_the_reference() {
+        let clocks: [&dyn Fn(usize) -> f64; 3] = [
+            &|k| 0.3 * k as f64,
+            &|k| (k as f64).powf(1.3) + 0.001 * ((k * 7919) % 13) as f64,
+            &|k| 0.25 * (k / 3) as f64 + 0.07 * ((k * 31) % 29) as f64 * (k % 2) as f64,
+        ];
+        for (ci, clock) in clocks.iter().enumerate() {
+            for tau in [1e-9, 0.05, 2.5, 1e7] {
+                let mut fast = FirstOrderLag::new(tau);
+                let mut slow = FirstOrderLag::new(tau);
+                let mut t_prev = f64::NEG_INFINITY;
+                for k in 0..2000 {
+                    let t = clock(k).max(t_prev);
+                    t_prev = t;
+                    let c = (0.37 * k as f64).sin() * 3.0 + 40.0;
+                    // A model peeks (basis), then steps (update) the same sample.
+                    let p = fast.peek(t, c);
+                    let r = slow.peek_reference(t, c);
+                    assert_eq!(p.to_bits(), r.to_bits(), "clock {ci} tau {tau} k {k}");
+                    let z = fast.step(t, c);
+                    assert_eq!(z.to_bits(), r.to_bits(), "clock {ci} tau {tau} k {k}");
+                    slow.last = Some((t, c, r));
+                }
+            }
+        }
+    }
+
+    /// Reference: the sorted copy and `percentile_sorted(…, 50)`, bit for bit, on odd and even
+    /// lengths, ties and a single value.
+    #[test]
+    fn median_by_selection_equals_the_sorted_median() {
+        let mut rng = crate::numeric::rng::SimRng::new(3);
+        for n in [1usize, 2, 3, 10, 11, 1000, 1001] {
+            for ties in [false, true] {
+                let x: Vec<f64> = (0..n)
+                    .map(|_| {
+                        let v = rng.range(0.0, 1.0);
+                        if ties { (v * 4.0).floor() * 0.3 } else { v }
+                    })
+                    .collect();
+                let sorted = crate::numeric::stats::sorted(&x);
+                let want = crate::numeric::stats::percentile_sorted(&sorted, 50.0);
+                let got = median_by_selection(x);
+                assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "n {n}");
+            }
+        }
+        assert!(median_by_selection(Vec::new()).is_none());
     }
 }
