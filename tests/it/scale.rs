@@ -5,6 +5,7 @@
 use crate::common::{fails_with, write};
 use biasctl::terms::dahl::DahlState;
 use biasctl::{COptions, ExportError, c_source};
+use biasctl::{CheckedDiagnoseConfig, CheckedVerifyConfig, diagnose_verified};
 use biasctl::{ColumnMap, FitOptions, FittedModel, Log, ModelSpec, SimRng, fit};
 
 /// Truth of the simulated logs: `bias = 5 + 0.01·x − 4e-6·x² + 0.8·c + FC·G + K·c·G + N(0, NOISE²)`
@@ -22,11 +23,16 @@ const NOISE: f64 = 0.5;
 /// A log of `n` seeks (half short ±10 tracks, half long over 0..1000), `supply` drifting from
 /// 30 to 35 with a uniform jitter of 1, the bias of the truth above; values exact in the CSV.
 fn simulate(n: usize, seed: u64) -> (String, Log) {
+    simulate_k(n, seed, K)
+}
+
+/// As [`simulate`] with the interaction `k` in place of [`K`].
+fn simulate_k(n: usize, seed: u64, k: f64) -> (String, Log) {
     let mut rng = SimRng::new(seed);
     let mut g = DahlState::with_length(L);
     let mut text = String::from("time_s,track,bias,supply\n");
     let mut x = 500.0f64;
-    for k in 0..n {
+    for i in 0..n {
         let prev = x;
         x = if rng.uniform() < 0.5 {
             x + rng.below(21) as f64 - 10.0
@@ -34,11 +40,11 @@ fn simulate(n: usize, seed: u64) -> (String, Log) {
             rng.below(1001) as f64
         }
         .clamp(0.0, 1000.0);
-        let c = ((30.0 + 5.0 * k as f64 / n as f64 + rng.uniform()) * 1e6).round() / 1e6;
-        let gv = g.step(if k == 0 { 0.0 } else { x - prev });
+        let c = ((30.0 + 5.0 * i as f64 / n as f64 + rng.uniform()) * 1e6).round() / 1e6;
+        let gv = g.step(if i == 0 { 0.0 } else { x - prev });
         let y =
-            5.0 + 0.01 * x - 4e-6 * x * x + 0.8 * c + FC * gv + K * c * gv + NOISE * rng.normal();
-        text += &format!("{k},{x},{y:.12},{c:.6}\n");
+            5.0 + 0.01 * x - 4e-6 * x * x + 0.8 * c + FC * gv + k * c * gv + NOISE * rng.normal();
+        text += &format!("{i},{x},{y:.12},{c:.6}\n");
     }
     let log = Log::from_reader("scale.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
     (text, log)
@@ -178,4 +184,37 @@ fn bad_specs_exit_2_naming_the_term() {
         );
     }
     assert!(!dir.path().join("m.json").exists(), "nothing half-written");
+}
+
+/// Diagnose suggests the scale term where a covariate's effect flips with the direction and the
+/// model has a direction-signed state term: on the log with the interaction, the `supply`
+/// feature of `poly2,col:supply,dahl` suggests `scale:supply:dahl` and its refit is the best
+/// verified edit; on the same seeks without the interaction (k = 0, the reference) no
+/// `scale:` edit is verified.
+#[test]
+fn diagnose_suggests_and_verifies_the_scale_term() {
+    for (k, expected) in [(K, true), (0.0, false)] {
+        let (_, log) = simulate_k(2000, 6, k);
+        let base = fitted("poly2,col:supply,dahl", &log);
+        let d = diagnose_verified(
+            &base,
+            &log,
+            &CheckedDiagnoseConfig::default(),
+            &CheckedVerifyConfig::default(),
+        )
+        .unwrap();
+        let v = d.verification.as_ref().unwrap();
+        let scale_verified = v
+            .edits
+            .iter()
+            .any(|e| e.verified && e.edit.contains("scale:"));
+        assert_eq!(scale_verified, expected, "k = {k}\n{}", d.to_text());
+        if expected {
+            let f = d.features.iter().find(|f| f.name == "supply").unwrap();
+            assert_eq!(f.suggested_term.as_deref(), Some("scale:supply:dahl"));
+            let best = v.best().unwrap();
+            assert_eq!(best.edit, "add scale:supply:dahl", "{}", d.to_text());
+            assert!(best.std_after < 1.2 * NOISE, "{best:?}");
+        }
+    }
 }
