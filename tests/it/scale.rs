@@ -56,6 +56,7 @@ fn test_rms(m: &FittedModel, log: &Log) -> f64 {
     (p.residual.iter().map(|e| e * e).sum::<f64>() / p.residual.len() as f64).sqrt()
 }
 
+/// `spec` fitted on `log` with the default options.
 fn fitted(spec: &str, log: &Log) -> FittedModel {
     fit(
         &ModelSpec::parse(spec).unwrap(),

@@ -334,6 +334,7 @@ mod tests {
         Log::from_reader("s.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
     }
 
+    /// The spec parsed by the registry's parser of `scale`.
     fn spec(text: &str) -> Result<Arc<dyn TermSpec>, SpecError> {
         parse(&TermText::new(text))
     }
