@@ -278,14 +278,16 @@ pub(crate) fn candidate_terms(
 /// (`direction`, `dahl`, `dahl:N`, `play`, `play:N`): the column likely scales that term's force
 /// (a supply voltage scaling the friction), which `dbins:COL` only approximates piecewise and
 /// without the term's state. One per such term, in model order, none already in the model;
-/// verified by refit like every other edit.
+/// verified by refit like every other edit. Not for a velocity-like column (`velocity_sign`:
+/// its sign is the direction's): that is velocity friction (`viscous:`, `stribeck:`).
 pub(crate) fn scale_terms(
     name: &str,
     origin: FeatureOrigin,
     by_direction: bool,
+    velocity_sign: bool,
     existing: &[String],
 ) -> Vec<String> {
-    if origin != FeatureOrigin::Covariate || !by_direction {
+    if origin != FeatureOrigin::Covariate || !by_direction || velocity_sign {
         return Vec::new();
     }
     let signed_state = |t: &str| {
