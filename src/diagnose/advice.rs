@@ -273,6 +273,39 @@ pub(crate) fn candidate_terms(
     }
 }
 
+/// `scale:COL:TERM` for a covariate column whose effect flips with the direction of the last
+/// move (`by_direction`) while the model already has a direction-signed state term TERM
+/// (`direction`, `dahl`, `dahl:N`, `play`, `play:N`): the column likely scales that term's force
+/// (a supply voltage scaling the friction), which `dbins:COL` only approximates piecewise and
+/// without the term's state. One per such term, in model order, none already in the model;
+/// verified by refit like every other edit. Not for a velocity-like column (`velocity_sign`:
+/// its sign is the direction's): that is velocity friction (`viscous:`, `stribeck:`).
+pub(crate) fn scale_terms(
+    name: &str,
+    origin: FeatureOrigin,
+    by_direction: bool,
+    velocity_sign: bool,
+    existing: &[String],
+) -> Vec<String> {
+    if origin != FeatureOrigin::Covariate || !by_direction || velocity_sign {
+        return Vec::new();
+    }
+    let signed_state = |t: &str| {
+        t == "direction"
+            || t == "dahl"
+            || t.starts_with("dahl:")
+            || t == PLAY_TERM
+            || t.starts_with("play:")
+    };
+    existing
+        .iter()
+        .map(|t| t.trim())
+        .filter(|t| signed_state(t))
+        .map(|t| format!("scale:{name}:{t}"))
+        .filter(|s| !existing.iter().any(|e| e.trim() == s))
+        .collect()
+}
+
 /// Velocity friction from the derived velocity (no column): `viscous` (a line in the signed
 /// velocity) and `stribeck` (friction falling off from a breakaway level at low speed), the
 /// one whose law the residual's curve follows first; both are verified by refit.

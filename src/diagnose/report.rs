@@ -341,14 +341,22 @@ pub(crate) fn feature_report(
         FeatureOrigin::Covariate | FeatureOrigin::DerivedVelocity
     ) && direction.is_some_and(|d| sign_follows_direction(&col.values, d));
     let odd_linear = velocity_sign && velocity_like(&col.values, residuals, by_direction, r2_bins);
-    let candidates = advice::candidate_terms(
+    // A covariate scaling a direction-signed term of the model is tried first (`scale:COL:TERM`).
+    let mut candidates = advice::scale_terms(
+        &col.name,
+        col.origin,
+        by_direction,
+        velocity_sign,
+        &config.existing_terms,
+    );
+    candidates.extend(advice::candidate_terms(
         &col.name,
         col.origin,
         linear,
         by_direction,
         odd_linear,
         velocity_sign,
-    );
+    ));
     let (suggested_term, note) = advice::suggest(&candidates, &config.existing_terms);
     let alternatives = advice::alternatives(
         &candidates,

@@ -369,7 +369,9 @@ fn a_velocity_like_covariate_gets_viscous_and_a_hysteretic_one_gets_dbins() {
     // fits. The plain analysis saw a curve with a step (`bins`), the direction-signed one
     // direction × (0.8·|v| − 3) (`dbins`, the EMPS case); both now say `col:`.
     // A positive covariate acting through the direction (temperature softening the pivot,
-    // direction × 0.5·T) has no such line: `dbins` stays.
+    // direction × 0.5·T) has no such line: no `viscous`/`col`; with `direction` in the model
+    // the exact law is `scale:temp:direction` (direction × centred T, the mean part absorbed by
+    // `direction`), suggested first, `dbins` (piecewise) stays the alternative.
     let mut t = table(21, 1500);
     let dir: Vec<f64> = values(&t, "direction")
         .iter()
@@ -402,7 +404,12 @@ fn a_velocity_like_covariate_gets_viscous_and_a_hysteretic_one_gets_dbins() {
     assert!(f.flagged && f.by_direction, "{}", d.to_text());
     assert_eq!(
         f.suggested_term.as_deref(),
-        Some("dbins:temp"),
+        Some("scale:temp:direction"),
+        "{}",
+        d.to_text()
+    );
+    assert!(
+        f.alternatives.iter().any(|a| a == "dbins:temp"),
         "{}",
         d.to_text()
     );

@@ -18,8 +18,8 @@
 
 use super::term::{Term, TermSpec};
 use super::terms::{
-    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly, seek,
-    stribeck, table, viscous,
+    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly, scale,
+    seek, stribeck, table, viscous,
 };
 use super::{ModelError, SpecError};
 use std::sync::Arc;
@@ -132,6 +132,12 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
         bins::restore,
     ),
     row("by", Some("by:A:B"), by::parse, restore_as::<by::ByTerm>),
+    row(
+        "scale",
+        Some("scale:COL:TERM"),
+        scale::parse,
+        scale::restore,
+    ),
     row("intercept", None, intercept::parse, intercept::restore),
 ];
 

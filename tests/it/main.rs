@@ -17,6 +17,7 @@ mod property;
 mod real;
 mod report;
 mod review;
+mod scale;
 mod selfcheck;
 mod settings;
 mod settle;

@@ -18,6 +18,7 @@ pub mod memory;
 pub mod memsum;
 pub mod play;
 pub mod poly;
+pub mod scale;
 pub mod seek;
 pub mod stribeck;
 pub mod table;
