@@ -13,7 +13,10 @@
 //!    parameter. Covariance `s²·R⁻¹R⁻ᵀ`, `s² = RSS/(n − rank)`.
 //! 3. **Variable projection** for a term's nonlinear parameter (the Dahl rate): a 1-D search
 //!    (grid, then golden section) on the least-squares RSS with the linear parameters refitted
-//!    at each candidate. Its standard error comes from the curvature of the RSS.
+//!    at each candidate. The other terms' columns are factorised once and each candidate's RSS
+//!    comes in closed form from its own columns' sums (`Projection`; a full solve where a column
+//!    nears the rank tolerance); the chosen value is then solved in full. Its standard error
+//!    comes from the curvature of the RSS (three full solves).
 //! 4. **Causal offsets** (`drift`) are tuned on the residual series of the other terms.
 //! 5. The fitted model is replayed causally over the training log for the fit statistics.
 
