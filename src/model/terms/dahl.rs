@@ -20,6 +20,7 @@ use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
+use std::cell::Cell;
 use std::sync::Arc;
 
 /// Powers `r^n` tabulated for integer seek lengths below this.
@@ -72,6 +73,27 @@ impl DahlState {
         } else {
             self.g
         }
+    }
+
+    /// [`DahlState::peek`] with `r^n` for integer `n < table.len()` taken from `table`
+    /// (`table[n] = exp(ln r · n)`, the value `decay` computes: the same bits), branch-free in
+    /// the sign (`s + (G − s)·d` is `1 + (G − 1)·d`, `−1 + (G + 1)·d` or `G` exactly).
+    #[inline]
+    fn peek_table(&self, dx: f64, table: &[f64]) -> f64 {
+        let a = dx.abs();
+        let n = a as usize;
+        match table.get(n) {
+            Some(&d) if (n as f64 - a).abs() <= 0.0 => {
+                let s = (i8::from(dx > 0.0) - i8::from(dx < 0.0)) as f64;
+                s + (self.g - s) * d
+            }
+            _ => self.peek(dx),
+        }
+    }
+
+    /// `exp(ln r · n)` for `n` in `0..len`.
+    fn power_table(&self, len: usize) -> Box<[f64]> {
+        (0..len).map(|n| (self.ln_r * n as f64).exp()).collect()
     }
 
     /// Applies a seek of signed length `dx` and returns the new state.
@@ -384,12 +406,21 @@ impl Term for DahlTerm {
         }
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
+        let elements: Vec<DahlState> = self
+            .lengths()
+            .iter()
+            .map(|&l| DahlState::with_length(l))
+            .collect();
+        let far = if self.search {
+            elements.iter().map(|e| e.power_table(FAR_TABLE)).collect()
+        } else {
+            Vec::new()
+        };
         Ok(Box::new(DahlTermState {
-            elements: self
-                .lengths()
-                .iter()
-                .map(|&l| DahlState::with_length(l))
-                .collect(),
+            far,
+            peeked: Cell::new(None),
+            next: vec![Cell::new(0.0); elements.len()],
+            elements,
         }))
     }
     fn nonlinear(&self) -> Option<Nonlinear> {
@@ -470,19 +501,61 @@ impl Term for DahlTerm {
 #[derive(Debug, Clone)]
 struct DahlTermState {
     elements: Vec<DahlState>,
+    /// The bits of the seek length `basis` last peeked at (since the last `update`), whose
+    /// states after the seek are in `next`: the fit calls `basis` then `update` with the same
+    /// seek, and the update takes them instead of computing `r^|dx|` a second time (the same
+    /// arithmetic, so the same bits).
+    peeked: Cell<Option<u64>>,
+    next: Vec<Cell<f64>>,
+    /// For the searched element (`dahl`), `r^n` for integer seek lengths `n` below
+    /// [`FAR_TABLE`] (the rate search replays the log once per candidate rate, and random
+    /// seeks of a few hundred tracks would each cost an `exp`); empty for `dahl:N`.
+    far: Vec<Box<[f64]>>,
 }
+
+/// Entries of [`DahlTermState::far`]: integer seek lengths up to 4095 tracks (32 KB).
+const FAR_TABLE: usize = 4096;
 
 impl TermState for DahlTermState {
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         let dx = seek.features.seek_length;
-        for (o, e) in out.iter_mut().zip(&self.elements) {
-            *o = e.peek(dx);
+        if let ([o], [e], [n], [far]) =
+            (&mut *out, &self.elements[..], &self.next[..], &self.far[..])
+        {
+            *o = e.peek_table(dx, far);
+            n.set(*o);
+        } else if self.far.is_empty() {
+            for ((o, e), n) in out.iter_mut().zip(&self.elements).zip(&self.next) {
+                *o = e.peek(dx);
+                n.set(*o);
+            }
+        } else {
+            for (((o, e), n), far) in out
+                .iter_mut()
+                .zip(&self.elements)
+                .zip(&self.next)
+                .zip(&self.far)
+            {
+                *o = e.peek_table(dx, far);
+                n.set(*o);
+            }
         }
+        self.peeked.set(Some(dx.to_bits()));
     }
     fn update(&mut self, seek: &Seek<'_>, _residual: Option<f64>) {
         let dx = seek.features.seek_length;
-        for e in &mut self.elements {
-            e.step(dx);
+        if self.peeked.take() == Some(dx.to_bits()) {
+            if let ([e], [n]) = (&mut self.elements[..], &self.next[..]) {
+                e.g = n.get();
+                return;
+            }
+            for (e, n) in self.elements.iter_mut().zip(&self.next) {
+                e.g = n.get();
+            }
+        } else {
+            for e in &mut self.elements {
+                e.step(dx);
+            }
         }
     }
     fn clone_box(&self) -> Box<dyn TermState> {
@@ -500,4 +573,56 @@ pub(crate) fn parse(
             .map(|a| t.count(a, "the number of Dahl elements", 16))
             .transpose()?,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::history::History;
+    use crate::numeric::rng::SimRng;
+
+    /// The fit-side state of the searched element (its power table up to 4095 tracks, the
+    /// branch-free sign, the update taking what `basis` peeked) gives the bits of the plain
+    /// [`DahlState::peek`]/[`DahlState::step`] (the reference), on integer seeks inside and
+    /// beyond the table, non-integer seeks, zero seeks, and rows updated without a `basis`.
+    #[test]
+    fn search_state_equals_plain_dahl_state_bit_for_bit() {
+        for (l, search) in [(37.5, true), (900.0, true), (37.5, false)] {
+            let term = DahlTerm::new("dahl".into(), vec![l], search, None);
+            let mut st = term.start(&[]).unwrap();
+            let mut plain = DahlState::with_length(l);
+            let mut h = History::new();
+            let mut rng = SimRng::new(5);
+            let mut x = 3000.0;
+            let mut out = [0.0];
+            for k in 0..20_000 {
+                x = match rng.below(4) {
+                    0 => rng.below(9000) as f64,
+                    1 => x + rng.below(41) as f64 - 20.0,
+                    2 => x + rng.uniform() * 100.0 - 50.0,
+                    _ => x,
+                };
+                let f = h.step(k as f64 * 0.01, x);
+                let seek = Seek {
+                    features: &f,
+                    covariates: &[],
+                };
+                let dx = f.seek_length;
+                if rng.below(5) > 0 {
+                    st.basis(&seek, &mut out);
+                    assert_eq!(out[0].to_bits(), plain.peek(dx).to_bits(), "dx {dx}");
+                }
+                st.update(&seek, None);
+                plain.step(dx);
+            }
+            st.basis(
+                &Seek {
+                    features: &h.step(1e6, x + 1.0),
+                    covariates: &[],
+                },
+                &mut out,
+            );
+            assert_eq!(out[0].to_bits(), plain.peek(1.0).to_bits());
+        }
+    }
 }
