@@ -997,12 +997,14 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             };
             // The search compares RSS values from the variable projection; the standard
             // error below differentiates the RSS twice, so it takes three full solves.
-            // Used for the `dahl` rate (its search tested to end where the full solves' does,
-            // and its model files compared); `stribeck`'s search keeps the full solve per
-            // candidate: its velocity-scale search compares RSS values that differ by rounding
-            // only, and ends elsewhere within that noise with the projection (its
-            // unit-invariance test, 1e-9 of the prediction, then fails by 1.5×).
-            let proj = (terms[k].name() == "dahl")
+            // Used where the term allows it (`Term::search_by_projection`: the `dahl` rate, its
+            // search tested to end where the full solves' does, and its model files compared);
+            // `stribeck`'s search keeps the full solve per candidate: its velocity-scale search
+            // compares RSS values that differ by rounding only, and ends elsewhere within that
+            // noise with the projection (its unit-invariance test, 1e-9 of the prediction, then
+            // fails by 1.5×).
+            let proj = terms[k]
+                .search_by_projection()
                 .then(|| Projection::new(&terms, k, &data, opts))
                 .flatten();
             let search_rss = |t: f64| -> f64 {

@@ -165,6 +165,15 @@ pub trait Term: Debug + Send + Sync {
     fn nonlinear(&self) -> Option<Nonlinear> {
         None
     }
+    /// Whether the solver may search this term's nonlinear parameter by variable projection:
+    /// the rest of the model factored once, each candidate's RSS from sums over this term's own
+    /// columns, instead of a full solve per candidate. Only for a search whose RSS curve stands
+    /// clear of rounding near its minimum, tested to end where the full solves' search ends
+    /// (`dahl`'s rate). Default: false (a full solve per candidate, as `stribeck`'s velocity
+    /// scale keeps: its RSS values near the minimum differ by rounding only).
+    fn search_by_projection(&self) -> bool {
+        false
+    }
     /// The same term with its nonlinear parameter set to `value` (search coordinate).
     fn with_nonlinear(&self, _value: f64) -> Option<Arc<dyn Term>> {
         None

@@ -435,6 +435,11 @@ impl Term for DahlTerm {
             hi: 1.0,
         })
     }
+    fn search_by_projection(&self) -> bool {
+        // The rate search's projected RSS is tested against the full solve per candidate
+        // (`fit::tests::projected_search_equals_full_solve_per_candidate`).
+        self.search
+    }
     fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
         let [lo, hi] = self.range();
         self.search.then(|| {
