@@ -696,27 +696,6 @@ pub struct Sampling {
     pub reversals: usize,
 }
 
-/// `crate::numeric::stats::percentile_sorted(&sorted(v), p)` without sorting: the two order
-/// statistics around the percentile's position found by selection (O(n)); `v` is reordered.
-/// Under `total_cmp` equal elements are identical bits, so the result is the same bit for bit.
-fn percentile_select(v: &mut [f64], p: f64) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    let pos = (p.clamp(0.0, 100.0) / 100.0) * (v.len() - 1) as f64;
-    let lo = pos.floor() as usize;
-    let hi = pos.ceil() as usize;
-    let frac = pos - lo as f64;
-    let (_, &mut a, right) = v.select_nth_unstable_by(lo, f64::total_cmp);
-    let b = if hi == lo {
-        a
-    } else {
-        // The next order statistic: the smallest of the elements after `lo`.
-        right.iter().copied().min_by(f64::total_cmp).unwrap_or(a)
-    };
-    Some(a + (b - a) * frac)
-}
-
 /// Describes how `positions` (in row order, position unit) sample the motion; `times_s` are the
 /// rows' times. A seek log (each row a seek: irregular times, or a median step ≥ 1 % of the
 /// travel) keeps deadband 0.
@@ -727,7 +706,7 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
     let mut quantile = |values: &mut dyn Iterator<Item = f64>, p: f64| {
         scratch.clear();
         scratch.extend(values);
-        percentile_select(&mut scratch, p).unwrap_or(0.0)
+        crate::numeric::stats::percentile_select(&mut scratch, p).unwrap_or(0.0)
     };
     let dt = quantile(&mut times_s.windows(2).map(|w| w[1] - w[0]), 50.0);
     let dt_dev = quantile(
@@ -910,7 +889,7 @@ mod tests {
     /// Reference: sort a copy, then `percentile_sorted` (what `sampling` did before it selected).
     #[test]
     fn selected_percentiles_equal_sorted_ones_bit_for_bit() {
-        use crate::numeric::stats::{percentile_sorted, sorted};
+        use crate::numeric::stats::{percentile_select, percentile_sorted, sorted};
         let mut rng = SimRng::new(7);
         for case in 0..300 {
             let n = 1 + rng.below(200) as usize;

@@ -51,6 +51,27 @@ pub(crate) fn percentile_sorted(sorted: &[f64], p: f64) -> Option<f64> {
     Some(sorted[lo] + (sorted[hi] - sorted[lo]) * frac)
 }
 
+/// [`percentile_sorted`]`(&sorted(v), p)` without sorting: the two order
+/// statistics around the percentile's position found by selection (O(n)); `v` is reordered.
+/// Under `total_cmp` equal elements are identical bits, so the result is the same bit for bit.
+pub(crate) fn percentile_select(v: &mut [f64], p: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let pos = (p.clamp(0.0, 100.0) / 100.0) * (v.len() - 1) as f64;
+    let lo = pos.floor() as usize;
+    let hi = pos.ceil() as usize;
+    let frac = pos - lo as f64;
+    let (_, &mut a, right) = v.select_nth_unstable_by(lo, f64::total_cmp);
+    let b = if hi == lo {
+        a
+    } else {
+        // The next order statistic: the smallest of the elements after `lo`.
+        right.iter().copied().min_by(f64::total_cmp).unwrap_or(a)
+    };
+    Some(a + (b - a) * frac)
+}
+
 /// Sorts a copy of `x` (total order; NaN last).
 pub fn sorted(x: &[f64]) -> Vec<f64> {
     let mut v = x.to_vec();

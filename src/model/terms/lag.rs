@@ -18,6 +18,7 @@ use super::covariate::ColTerm;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Term, TermSpec};
+use crate::numeric::stats::percentile_select;
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
 use std::sync::Arc;
@@ -38,13 +39,14 @@ impl TermSpec for LagSpec {
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let mut term = ColTerm::prepare(data, &self.column, &self.name())?;
         let rows = &data.log().rows;
-        let steps: Vec<f64> = rows
+        let mut steps: Vec<f64> = rows
             .windows(2)
             .map(|w| w[1].time_s - w[0].time_s)
             .filter(|d| *d > 0.0)
             .collect();
         let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
-        let median = median_by_selection(steps).unwrap_or(0.0);
+        // The median by selection (O(n), the same bits as sorting: `percentile_select`).
+        let median = percentile_select(&mut steps, 50.0).unwrap_or(0.0);
         if !(median > 0.0 && span > median) {
             return Err(FitError::BadSetting {
                 term: self.name(),
@@ -59,24 +61,6 @@ impl TermSpec for LagSpec {
         });
         Ok(Arc::new(term))
     }
-}
-
-/// The median of `x` as [`crate::numeric::stats::percentile_sorted`] of the sorted values at
-/// 50 % gives it (the mean of the two middle values, interpolated the same way), found by
-/// selection in O(n) instead of a sort: the same two order statistics, so the same bits.
-fn median_by_selection(mut x: Vec<f64>) -> Option<f64> {
-    if x.is_empty() {
-        return None;
-    }
-    let pos = 0.5 * (x.len() - 1) as f64;
-    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
-    let (_, &mut a, right) = x.select_nth_unstable_by(lo, f64::total_cmp);
-    let b = if hi > lo {
-        right.iter().copied().min_by(f64::total_cmp).unwrap_or(a)
-    } else {
-        a
-    };
-    Some(a + (b - a) * (pos - lo as f64))
 }
 
 /// The lag stage of a fitted `lag:NAME` term ([`ColTerm::lag`]).
@@ -330,10 +314,10 @@ mod tests {
                     .collect();
                 let sorted = crate::numeric::stats::sorted(&x);
                 let want = crate::numeric::stats::percentile_sorted(&sorted, 50.0);
-                let got = median_by_selection(x);
+                let got = percentile_select(&mut x.clone(), 50.0);
                 assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "n {n}");
             }
         }
-        assert!(median_by_selection(Vec::new()).is_none());
+        assert!(percentile_select(&mut [], 50.0).is_none());
     }
 }
