@@ -11,63 +11,41 @@
 use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use std::time::Duration;
 
-/// The CPU time of the calling thread (see the module docs).
-pub struct ThreadCpuTime;
+/// The CPU time of one clock: the calling thread's (`CLOCK_THREAD_CPUTIME_ID`) or the whole
+/// process's (`CLOCK_PROCESS_CPUTIME_ID`), see the module docs.
+pub struct CpuTime(libc::clockid_t);
 
-/// The CPU time of the whole process (every thread), see the module docs.
-pub struct ProcessCpuTime;
+/// The calling thread's CPU time.
+pub const THREAD_CPU_TIME: CpuTime = CpuTime(libc::CLOCK_THREAD_CPUTIME_ID);
 
-/// The CPU time of clock `id` so far.
-fn clock(id: libc::clockid_t) -> Duration {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid timespec; the clock ids are constants Linux and macOS know.
-    let rc = unsafe { libc::clock_gettime(id, &mut ts) };
-    assert_eq!(rc, 0, "clock_gettime({id}) failed");
-    Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
-}
+/// The CPU time of every thread of the process.
+pub const PROCESS_CPU_TIME: CpuTime = CpuTime(libc::CLOCK_PROCESS_CPUTIME_ID);
 
-/// The calling thread's CPU time so far.
-fn now() -> Duration {
-    clock(libc::CLOCK_THREAD_CPUTIME_ID)
+impl CpuTime {
+    /// The clock's CPU time so far.
+    fn now(&self) -> Duration {
+        let mut ts = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: `ts` is a valid timespec; the clock ids are constants Linux and macOS know.
+        let rc = unsafe { libc::clock_gettime(self.0, &mut ts) };
+        assert_eq!(rc, 0, "clock_gettime({}) failed", self.0);
+        Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
+    }
 }
 
 /// Wall time's formatter (values are nanoseconds in both).
 static WALL: WallTime = WallTime;
 
-impl Measurement for ThreadCpuTime {
+impl Measurement for CpuTime {
     type Intermediate = Duration;
     type Value = Duration;
     fn start(&self) -> Duration {
-        now()
+        self.now()
     }
     fn end(&self, start: Duration) -> Duration {
-        now().saturating_sub(start)
-    }
-    fn add(&self, a: &Duration, b: &Duration) -> Duration {
-        *a + *b
-    }
-    fn zero(&self) -> Duration {
-        Duration::ZERO
-    }
-    fn to_f64(&self, v: &Duration) -> f64 {
-        v.as_nanos() as f64
-    }
-    fn formatter(&self) -> &dyn ValueFormatter {
-        WALL.formatter()
-    }
-}
-
-impl Measurement for ProcessCpuTime {
-    type Intermediate = Duration;
-    type Value = Duration;
-    fn start(&self) -> Duration {
-        clock(libc::CLOCK_PROCESS_CPUTIME_ID)
-    }
-    fn end(&self, start: Duration) -> Duration {
-        clock(libc::CLOCK_PROCESS_CPUTIME_ID).saturating_sub(start)
+        self.now().saturating_sub(start)
     }
     fn add(&self, a: &Duration, b: &Duration) -> Duration {
         *a + *b
@@ -100,15 +78,14 @@ pub fn process_cpu_time_requested() -> bool {
 macro_rules! bench_main {
     ($bench:ident) => {
         fn main() {
-            if cputime::process_cpu_time_requested() {
+            if cputime::cpu_time_requested() {
+                let clock = if cputime::process_cpu_time_requested() {
+                    cputime::PROCESS_CPU_TIME
+                } else {
+                    cputime::THREAD_CPU_TIME
+                };
                 let mut c = criterion::Criterion::default()
-                    .with_measurement(cputime::ProcessCpuTime)
-                    .configure_from_args();
-                $bench(&mut c);
-                c.final_summary();
-            } else if cputime::cpu_time_requested() {
-                let mut c = criterion::Criterion::default()
-                    .with_measurement(cputime::ThreadCpuTime)
+                    .with_measurement(clock)
                     .configure_from_args();
                 $bench(&mut c);
                 c.final_summary();
