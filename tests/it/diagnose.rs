@@ -539,7 +539,6 @@ fn emps_velocity_friction_is_suggested_as_viscous() {
         .iter()
         .find(|f| f.name == DERIVED_VELOCITY)
         .unwrap();
-    eprintln!("{}", d.to_text());
     assert!(v.flagged, "{}", d.to_text());
     let friction = |t: &str| t == "viscous" || t == "stribeck";
     assert!(v.suggested_term.as_deref().is_some_and(friction), "{v:?}");
