@@ -18,7 +18,9 @@
 
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term::{
+    Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermSpec, TermState, se_from_cov,
+};
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
 use std::sync::Arc;
@@ -386,6 +388,13 @@ impl DahlTerm {
     fn range(&self) -> [f64; 2] {
         self.ln_length_range.unwrap_or([T_LO, T_HI])
     }
+
+    /// The characteristic length at search coordinate `t` (what [`Term::with_nonlinear`]
+    /// gives the element).
+    fn length_at(&self, t: f64) -> f64 {
+        let [lo, hi] = self.range();
+        (lo + quantise(t) * (hi - lo)).exp()
+    }
 }
 
 impl Term for DahlTerm {
@@ -441,14 +450,33 @@ impl Term for DahlTerm {
         self.search
     }
     fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
-        let [lo, hi] = self.range();
         self.search.then(|| {
             Arc::new(DahlTerm::new(
                 self.name.clone(),
-                vec![(lo + quantise(t) * (hi - lo)).exp()],
+                vec![self.length_at(t)],
                 true,
                 self.ln_length_range,
             )) as Arc<dyn Term>
+        })
+    }
+    fn search_basis<'d>(&'d self, data: &'d FitData<'_>) -> Box<dyn SearchBasis + 'd> {
+        if !self.search {
+            return Box::new(PerRowSearch { term: self, data });
+        }
+        let log = data.log();
+        let dx: Vec<f64> = data.features().iter().map(|f| f.seek_length).collect();
+        let measured: Vec<bool> = log.rows.iter().map(|r| r.bias.is_some()).collect();
+        // The power table needs the integer seek lengths that occur (below FAR_TABLE).
+        let longest = dx
+            .iter()
+            .map(|d| d.abs())
+            .filter(|&a| a < FAR_TABLE as f64 && (a.trunc() - a).abs() <= 0.0)
+            .fold(0.0_f64, f64::max);
+        Box::new(DahlSearch {
+            term: self.clone(),
+            table_len: longest as usize + 1,
+            dx,
+            measured,
         })
     }
     fn report(&self, coef: &[f64], cov: &[f64], nl_se: Option<f64>) -> Vec<Param> {
@@ -568,6 +596,252 @@ impl TermState for DahlTermState {
     }
 }
 
+/// Candidate rates run side by side by [`DahlSearch`] (one AVX2 register pair, or one AVX-512
+/// register): their chains are independent, so the CPU overlaps them.
+const LANES: usize = 8;
+
+/// Log rows per block of [`DahlSearch`] (the scratch arrays live on the stack).
+const SEARCH_ROWS: usize = 256;
+
+/// The searched element's [`SearchBasis`]: the element at several rates replayed side by side.
+/// Keeps each row's signed seek length and whether it is measured (9 bytes a row). Per block of
+/// [`SEARCH_ROWS`] rows, one pass the compiler vectorises finds each seek's table index, whether
+/// its length is on the table (an integer below the table's length) and its sign, once for
+/// every rate; then one loop runs the [`LANES`] chains `G ← s + (G − s)·d` together, `d = r^|dx|`
+/// read for all of them from one row of an interleaved table (`table[n·LANES + c] = r_c^n`).
+/// A length off the table takes `exp(ln r · |dx|)`, as [`DahlState::peek`] does. The
+/// arithmetic is [`DahlTermState`]'s (so the same bits, tested), compiled for AVX2 when the CPU
+/// has it (no fused multiply-add either way).
+#[derive(Debug)]
+struct DahlSearch {
+    term: DahlTerm,
+    /// Signed seek length of every row of the log (position unit), in log order.
+    dx: Vec<f64>,
+    /// Whether each row is measured.
+    measured: Vec<bool>,
+    /// Entries of the power table: one more than the longest integer seek below
+    /// [`FAR_TABLE`] in the log.
+    table_len: usize,
+}
+
+impl SearchBasis for DahlSearch {
+    fn replay(&self, values: &[f64], sink: &mut dyn FnMut(&[f64], usize)) -> Option<()> {
+        if !self.term.search {
+            return None;
+        }
+        let k = values.len();
+        // Per group of LANES rates: ln r of each (the unused lanes repeat the first), its table
+        // and its chain state.
+        let groups: Vec<([f64; LANES], Vec<f64>)> = values
+            .chunks(LANES)
+            .map(|vals| {
+                let ln_r: [f64; LANES] = std::array::from_fn(|c| {
+                    -1.0 / self
+                        .term
+                        .length_at(vals[if c < vals.len() { c } else { 0 }])
+                });
+                let mut table = vec![0.0; self.table_len * LANES];
+                for (n, row) in table.chunks_exact_mut(LANES).enumerate() {
+                    for (t, l) in row.iter_mut().zip(&ln_r) {
+                        *t = (l * n as f64).exp();
+                    }
+                }
+                (ln_r, table)
+            })
+            .collect();
+        let mut states = vec![[0.0f64; LANES]; groups.len()];
+        let mut idx = [0u32; SEARCH_ROWS];
+        let mut sign = [0.0f64; SEARCH_ROWS];
+        let mut len = [0.0f64; SEARCH_ROWS];
+        let mut chain = vec![[0.0f64; LANES]; SEARCH_ROWS];
+        let mut out = vec![0.0; SEARCH_ROWS * k];
+        for (dx, measured) in self
+            .dx
+            .chunks(SEARCH_ROWS)
+            .zip(self.measured.chunks(SEARCH_ROWS))
+        {
+            let m = dx.len();
+            let off_table = seek_codes(
+                dx,
+                self.table_len,
+                &mut idx[..m],
+                &mut sign[..m],
+                &mut len[..m],
+            );
+            let mut rows = 0;
+            for (q, ((ln_r, table), g)) in groups.iter().zip(&mut states).enumerate() {
+                let chain = &mut chain[..m];
+                if off_table {
+                    chain_off_table(g, ln_r, table, &idx[..m], &sign[..m], &len[..m], chain);
+                } else {
+                    chain_on_table(g, table, &idx[..m], &sign[..m], chain);
+                }
+                let lanes = LANES.min(k - q * LANES);
+                rows = 0;
+                for (gs, _) in chain.iter().zip(measured).filter(|(_, m)| **m) {
+                    out[rows * k + q * LANES..rows * k + q * LANES + lanes]
+                        .copy_from_slice(&gs[..lanes]);
+                    rows += 1;
+                }
+            }
+            if rows > 0 {
+                sink(&out[..rows * k], rows);
+            }
+        }
+        Some(())
+    }
+}
+
+/// For each seek length of `dx`: the index into a power table of `table_len` (≤ 4096) entries
+/// (`idx`), the sign of the seek (`sign`: 1, −1, or 0 for zero and NaN) and |dx| (`len`, NaN as
+/// 0: the identity, as [`DahlState::peek`] leaves a NaN seek). Returns whether any length is
+/// off the table (not an integer below `table_len`); for those `idx` is some valid index.
+fn seek_codes(
+    dx: &[f64],
+    table_len: usize,
+    idx: &mut [u32],
+    sign: &mut [f64],
+    len: &mut [f64],
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above).
+        return unsafe { seek_codes_avx2(dx, table_len, idx, sign, len) };
+    }
+    seek_codes_portable(dx, table_len, idx, sign, len)
+}
+
+/// [`seek_codes`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn seek_codes_avx2(
+    dx: &[f64],
+    table_len: usize,
+    idx: &mut [u32],
+    sign: &mut [f64],
+    len: &mut [f64],
+) -> bool {
+    seek_codes_portable(dx, table_len, idx, sign, len)
+}
+
+/// [`seek_codes`] for any CPU (a loop the compiler vectorises).
+#[inline(always)]
+fn seek_codes_portable(
+    dx: &[f64],
+    table_len: usize,
+    idx: &mut [u32],
+    sign: &mut [f64],
+    len: &mut [f64],
+) -> bool {
+    // 2^52: for 0 ≤ a < 4096, the low bits of a + 2^52 hold a rounded to an integer, and
+    // (a + 2^52) − 2^52 equals a exactly when a is an integer.
+    const MAGIC: f64 = 4_503_599_627_370_496.0;
+    let top = table_len.clamp(1, FAR_TABLE) as f64 - 1.0;
+    let mut off_table = false;
+    for (((i, s), l), &d) in idx
+        .iter_mut()
+        .zip(sign.iter_mut())
+        .zip(len.iter_mut())
+        .zip(dx)
+    {
+        let a = d.abs();
+        let a = if a > 0.0 { a } else { 0.0 };
+        let t = if a < top { a } else { top } + MAGIC;
+        off_table |= (t - MAGIC - a).abs() > 0.0;
+        *i = (t.to_bits() & (FAR_TABLE as u64 - 1)) as u32;
+        *s = if d > 0.0 { 1.0 } else { 0.0 } - if d < 0.0 { 1.0 } else { 0.0 };
+        *l = a;
+    }
+    off_table
+}
+
+/// The chains of one group of rates over a block whose seek lengths are all on the table:
+/// `G ← s + (G − s)·table[idx]` per lane, each row's states written to `chain`.
+fn chain_on_table(
+    g: &mut [f64; LANES],
+    table: &[f64],
+    idx: &[u32],
+    sign: &[f64],
+    chain: &mut [[f64; LANES]],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above).
+        return unsafe { chain_on_table_avx2(g, table, idx, sign, chain) };
+    }
+    chain_on_table_portable(g, table, idx, sign, chain);
+}
+
+/// [`chain_on_table`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn chain_on_table_avx2(
+    g: &mut [f64; LANES],
+    table: &[f64],
+    idx: &[u32],
+    sign: &[f64],
+    chain: &mut [[f64; LANES]],
+) {
+    chain_on_table_portable(g, table, idx, sign, chain);
+}
+
+/// [`chain_on_table`] for any CPU.
+#[inline(always)]
+fn chain_on_table_portable(
+    g: &mut [f64; LANES],
+    table: &[f64],
+    idx: &[u32],
+    sign: &[f64],
+    chain: &mut [[f64; LANES]],
+) {
+    let mut st = *g;
+    for ((out, &i), &s) in chain.iter_mut().zip(idx).zip(sign) {
+        let at = i as usize * LANES;
+        let d: &[f64; LANES] = table
+            .get(at..at + LANES)
+            .and_then(|r| r.try_into().ok())
+            .unwrap_or(&[1.0; LANES]);
+        for c in 0..LANES {
+            st[c] = s + (st[c] - s) * d[c];
+        }
+        *out = st;
+    }
+    *g = st;
+}
+
+/// [`chain_on_table`] for a block with lengths off the table: those rows take
+/// `exp(ln r · |dx|)` per lane.
+fn chain_off_table(
+    g: &mut [f64; LANES],
+    ln_r: &[f64; LANES],
+    table: &[f64],
+    idx: &[u32],
+    sign: &[f64],
+    len: &[f64],
+    chain: &mut [[f64; LANES]],
+) {
+    let mut st = *g;
+    for (((out, &i), &s), &a) in chain.iter_mut().zip(idx).zip(sign).zip(len) {
+        let at = i as usize * LANES;
+        let on = (i as f64 - a).abs() <= 0.0;
+        let d: [f64; LANES] = match table.get(at..at + LANES) {
+            Some(row) if on => std::array::from_fn(|c| row[c]),
+            _ => std::array::from_fn(|c| (ln_r[c] * a).exp()),
+        };
+        for c in 0..LANES {
+            st[c] = s + (st[c] - s) * d[c];
+        }
+        *out = st;
+    }
+    *g = st;
+}
+
 /// Parses `dahl` or `dahl:N` (N Dahl elements, 1 to 16); the registry's parser.
 pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
@@ -585,6 +859,100 @@ mod tests {
     use super::*;
     use crate::history::History;
     use crate::numeric::rng::SimRng;
+
+    /// A CSV log of `n` rows: one seek in `far` to a random track of `span` (longer than the
+    /// 4096-entry power table when `span` is large), the others short moves and zero-length
+    /// seeks, and with `half` also half-track moves; positions multiplied by `scale`
+    /// (non-integer for 0.37); every `unmeasured`-th row with an empty bias cell.
+    fn csv_log(
+        seed: u64,
+        n: usize,
+        [span, far]: [u64; 2],
+        half: bool,
+        scale: f64,
+        unmeasured: usize,
+    ) -> crate::log::Log {
+        let mut rng = SimRng::new(seed);
+        let mut text = String::from("time_s,track,bias\n");
+        let mut x = (span / 2) as f64;
+        for k in 0..n {
+            x = match (rng.below(far), rng.below(4)) {
+                (0, _) => rng.below(span) as f64,
+                (_, 0 | 1) => x + rng.below(41) as f64 - 20.0,
+                (_, 2) if half => x + 0.5,
+                _ => x,
+            };
+            let bias = if unmeasured > 0 && k % unmeasured == 3 {
+                String::new()
+            } else {
+                format!("{:.3}", rng.normal())
+            };
+            text += &format!("{},{},{bias}\n", k as f64 * 0.01, x * scale);
+        }
+        crate::log::Log::from_reader("t.csv", text.as_bytes(), &Default::default()).unwrap()
+    }
+
+    /// Every block of a replay, concatenated.
+    fn replayed(search: &dyn SearchBasis, values: &[f64]) -> Vec<f64> {
+        let mut all = Vec::new();
+        search
+            .replay(values, &mut |block, rows| {
+                assert_eq!(block.len(), rows * values.len());
+                all.extend_from_slice(block);
+            })
+            .unwrap();
+        all
+    }
+
+    /// The searched element's block replay ([`DahlSearch`]: candidates side by side, the
+    /// interleaved power table, the vectorised sign/index pass) gives the bits of the per-row
+    /// path through [`DahlTermState`] (`PerRowSearch`, the reference: `basis` then `update` on
+    /// every row), on logs with integer and non-integer positions, unmeasured rows and seeks
+    /// longer than the power table, for batches of 1, 3, 8 and 11 rates (a second, partial
+    /// group of lanes) including both ends of the search range.
+    #[test]
+    fn search_replay_equals_per_row_path_bit_for_bit() {
+        let logs = [
+            // Every length on the table (the block kernel without `exp`).
+            csv_log(1, 5000, [1000, 2], false, 1.0, 0),
+            // Non-integer positions: every length off the table.
+            csv_log(2, 5000, [1000, 2], true, 0.37, 0),
+            // Rare seeks beyond the table: some blocks off it, most on it; unmeasured rows.
+            csv_log(3, 5000, [20_000, 300], false, 1.0, 7),
+            // Half the rows unmeasured, a few half-track moves.
+            csv_log(4, 3001, [300, 3], true, 1.0, 2),
+        ];
+        let mut rng = SimRng::new(11);
+        for (n, log) in logs.iter().enumerate() {
+            let data = FitData::new(log);
+            let term = DahlSpec { elements: None }.prepare(&data).unwrap();
+            let fast = term.search_basis(&data);
+            let slow = PerRowSearch {
+                term: term.as_ref(),
+                data: &data,
+            };
+            for k in [1, 3, 8, 11] {
+                let mut values: Vec<f64> = (0..k).map(|_| rng.uniform()).collect();
+                values[0] = 0.0;
+                if k > 1 {
+                    values[k - 1] = 1.0;
+                }
+                let (a, b) = (replayed(fast.as_ref(), &values), replayed(&slow, &values));
+                assert_eq!(a.len(), log.measured_count() * k, "log {n}");
+                let same = a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits());
+                assert!(same && a.len() == b.len(), "log {n}, {k} rates");
+            }
+        }
+        // A term whose rate is not searched refuses nothing and replays per row.
+        let data = FitData::new(&logs[0]);
+        let fixed = DahlSpec { elements: Some(2) }.prepare(&data).unwrap();
+        assert!(
+            fixed
+                .search_basis(&data)
+                .replay(&[0.5], &mut |_, _| ())
+                .is_none()
+        );
+    }
 
     /// The fit-side state of the searched element (its power table up to 4095 tracks, the
     /// branch-free sign, the update taking what `basis` peeked) gives the bits of the plain
