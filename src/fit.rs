@@ -1003,6 +1003,8 @@ struct Projection<'d, 'a> {
     z: DMatrix<f64>,
     rho2: f64,
     colsq_f: Vec<f64>,
+    /// The RSS of every effective value evaluated so far ([`Projection::rss_many`]).
+    memo: std::cell::RefCell<Vec<(u64, f64)>>,
     tol: f64,
 }
 
@@ -1077,6 +1079,7 @@ impl<'d, 'a> Projection<'d, 'a> {
             rho2: xr[pf] - w.norm_squared(),
             z: w,
             colsq_f: colsq_f[..pf].to_vec(),
+            memo: std::cell::RefCell::new(Vec::new()),
             tol,
         })
     }
@@ -1089,15 +1092,31 @@ impl<'d, 'a> Projection<'d, 'a> {
 
     /// The RSS at each of `ts`: [`Projection::fast_rss_many`], [`slow_rss`] where it cannot
     /// decide.
+    /// Values whose [`SearchBasis::effective_value`] was evaluated before take the RSS found
+    /// then (the same columns, so the same bits); the others are evaluated once each.
     fn rss_many(&self, terms: &[Arc<dyn Term>], ts: &[f64], opts: &CheckedFitOptions) -> Vec<f64> {
-        let mut out = Vec::with_capacity(ts.len());
-        for batch in ts.chunks(SEARCH_BATCH) {
-            let fast = self.fast_rss_many(terms, batch);
-            for (&t, f) in batch.iter().zip(fast) {
-                out.push(f.unwrap_or_else(|| slow_rss(terms, self.k, t, self.data, opts)));
+        let key = |t: f64| self.search.effective_value(t).to_bits();
+        let known = |memo: &[(u64, f64)], t: f64| {
+            let k = key(t);
+            memo.iter().find(|(m, _)| *m == k).map(|&(_, v)| v)
+        };
+        let mut memo = self.memo.borrow_mut();
+        let mut new: Vec<f64> = Vec::new();
+        for &t in ts {
+            if known(&memo, t).is_none() && !new.iter().any(|&n| key(n) == key(t)) {
+                new.push(t);
             }
         }
-        out
+        for batch in new.chunks(SEARCH_BATCH) {
+            let fast = self.fast_rss_many(terms, batch);
+            for (&t, f) in batch.iter().zip(fast) {
+                let v = f.unwrap_or_else(|| slow_rss(terms, self.k, t, self.data, opts));
+                memo.push((key(t), v));
+            }
+        }
+        ts.iter()
+            .map(|&t| known(&memo, t).unwrap_or(f64::INFINITY))
+            .collect()
     }
 
     /// [`Projection::fast_rss`] at each of `ts`, the searched term's columns for all of them
@@ -1715,9 +1734,14 @@ mod tests {
                     projected += usize::from(proj.fast_rss(&terms, t).is_some());
                     worst = worst.max((fast - slow).abs() / slow);
                 }
-                let f = |t: f64| proj.rss(&terms, t, &opts);
+                // The per-row projected RSS, one candidate at a time, no memo.
+                let f = |t: f64| {
+                    proj.fast_rss(&terms, t)
+                        .unwrap_or_else(|| slow_rss(&terms, k, t, &data, &opts))
+                };
                 let (t_fast, f_fast, ev) = golden_min(&f, 0.0, 1.0, opts.grid, opts.refine);
-                // What the fit runs: the batched search, the same point and count.
+                // What the fit runs: the batched search (candidates side by side, values the
+                // term rounds alike evaluated once), the same point, value and count.
                 let batched = golden_min_batched(
                     &|ts: &[f64]| proj.rss_many(&terms, ts, &opts),
                     0.0,

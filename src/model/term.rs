@@ -256,6 +256,12 @@ pub trait SearchBasis {
     /// values are what [`TermState::basis`] gives on that row after [`TermState::update`] on
     /// every row before it (bit for bit). `None` where the term refuses a value or cannot start.
     fn replay(&self, values: &[f64], sink: &mut dyn FnMut(&[f64], usize)) -> Option<()>;
+    /// The value the term is actually set to at search coordinate `value`: two values with the
+    /// same bits here give the same term, so the search evaluates only one of them (for
+    /// example a coordinate the term rounds). Default: `value` itself.
+    fn effective_value(&self, value: f64) -> f64 {
+        value
+    }
 }
 
 /// Measured rows per block [`PerRowSearch`] hands its sink.
