@@ -210,11 +210,12 @@ pub fn run(drive: &FamilyDrive, effects: &[HiddenEffect], seed: u64, n: usize) -
                 .iter()
                 .map(|e| {
                     format!(
-                        "{}{} {:.1} %/z {:.1}",
+                        "{}{} {:.1} %/z {:.1}/w {:.1}",
                         if e.verified { "*" } else { "" },
                         e.edit,
                         100.0 * e.gain,
-                        e.z
+                        e.z,
+                        100.0 * e.gain_within_folds
                     )
                 })
                 .collect();

@@ -13,7 +13,11 @@
 //! serial correlation needs: the automatic null block of that series), so
 //! serially correlated errors do not make a small gain look sure. An edit is *verified* when
 //! its gain is at least [`super::DiagnoseConfig::min_effect`] and its block z-score at least
-//! [`VerifyConfig::min_z`]. The z-score is taken on Huber losses rather than squared errors
+//! [`VerifyConfig::min_z`], and its gain **within folds** (each stretch's own mean taken out
+//! of both residual series, [`gain_within_folds`]) reaches the same practical minimum: what an
+//! edit gains only by moving the few levels the refits miss is not evidence of an effect (a
+//! random-walk column with no effect gained 3.2 % out of sample at z = 4.2 under AR(1) noise,
+//! 0.3 % within folds). The z-score is taken on Huber losses rather than squared errors
 //! (heavy-tailed noise; see `paired_gain` in the module source).
 //!
 //! ## The strongest unflagged features are verified too
@@ -124,6 +128,11 @@ pub struct VerifiedEdit {
     pub std_after: f64,
     /// Verified gain: 1 − MSE_after / MSE_before (may be negative: the edit made it worse).
     pub gain: f64,
+    /// The same gain within folds: each fold's mean taken out of both residual series first
+    /// ([`gain_within_folds`]); an edit is verified only if this too reaches the practical
+    /// minimum.
+    #[serde(default)]
+    pub gain_within_folds: f64,
     /// Block z-score of the gain (paired squared-error differences, blocks of consecutive rows).
     pub z: f64,
     /// Whether the gain is both practical and beyond noise (see the module docs).
@@ -141,6 +150,7 @@ impl PartialEq for VerifiedEdit {
             && self.std_before.to_bits() == o.std_before.to_bits()
             && self.std_after.to_bits() == o.std_after.to_bits()
             && self.gain.to_bits() == o.gain.to_bits()
+            && self.gain_within_folds.to_bits() == o.gain_within_folds.to_bits()
             && self.z.to_bits() == o.z.to_bits()
             && self.verified == o.verified
     }
@@ -507,6 +517,42 @@ pub(super) fn paired_gain(before: &[f64], after: &[f64]) -> (f64, f64) {
     (gain, z)
 }
 
+/// The verified gain of `after` over `before` **within folds**: `1 − SS_after / SS_before`
+/// where SS is the sum of squares about each fold's own mean (the `folds` contiguous
+/// stretches [`cv_residuals`] scores).
+///
+/// Each fold's refit misses the stretch's level by an amount of its own (the low-frequency
+/// part of serially correlated noise, an intercept or slow-covariate curve fitted on the other
+/// stretches): `folds` numbers, each shared by every row of its stretch. Any slowly varying
+/// column whose stretch means happen to line up with them "corrects" them out of sample, and
+/// the block z-score of [`paired_gain`] counts that one chance alignment once per block. A
+/// random-walk column with **no** effect was verified that way on a held-out `pi-cubic-ar1` log
+/// (AR(1) noise, ρ = 0.6): 3.2 % out of sample at z = 4.2, a gain in every fold — and 0.3 %
+/// within folds. Evidence with `folds` degrees of freedom cannot be told from chance (nor from
+/// a drift), so an edit must also reach the practical minimum within folds; a physical effect
+/// varies inside a stretch and keeps most of its gain there (a lagged temperature: 57.8 % →
+/// 45.0 %; a slow covariate with 1.5 cycles per log, a threshold, a defect likewise).
+pub(super) fn gain_within_folds(before: &[f64], after: &[f64], folds: usize) -> f64 {
+    let ss = |r: &[f64]| -> f64 { within_folds(r, folds).iter().map(|v| v * v).sum() };
+    let sb = ss(before);
+    if sb > 0.0 { 1.0 - ss(after) / sb } else { 0.0 }
+}
+
+/// `r` with the mean of each of `folds` contiguous stretches (cut as [`cv_residuals`] cuts
+/// them) taken out.
+pub(super) fn within_folds(r: &[f64], folds: usize) -> Vec<f64> {
+    let n = r.len();
+    let folds = folds.max(1);
+    let mut out = r.to_vec();
+    for k in 0..folds {
+        let (a, b) = (k * n / folds, (k + 1) * n / folds);
+        if let Some(m) = crate::numeric::stats::mean(&r[a..b]) {
+            out[a..b].iter_mut().for_each(|v| *v -= m);
+        }
+    }
+    out
+}
+
 /// Tuning constant of the verification's Huber loss, in robust standard deviations
 /// (1.4826·MAD) of the residual before the edit: the classic 95 %-efficiency choice.
 pub(crate) const HUBER_K: f64 = 1.345;
@@ -552,6 +598,47 @@ pub(super) fn gains_in_every_fold(before: &[f64], after: &[f64], folds: usize) -
             .sum();
         a == b || d > 0.0
     })
+}
+
+/// The verdict on one edit from its paired out-of-sample residuals.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Judgement {
+    /// [`paired_gain`]'s gain.
+    pub gain: f64,
+    /// [`gain_within_folds`].
+    pub within: f64,
+    /// [`paired_gain`]'s block z-score.
+    pub z: f64,
+    /// Both gains at least the practical minimum and z at least the bar (for a `strict`
+    /// candidate: `min_z` + [`STRICT_EXTRA_Z`] and a gain in every fold).
+    pub verified: bool,
+}
+
+/// Judges an edit from the residuals before and after it on the same folds (see the module
+/// docs): verified when its gain and its gain within folds both reach `min_effect` and its
+/// z-score the bar (`strict`: the unflagged-feature bar).
+pub(super) fn judge(
+    before: &[f64],
+    after: &[f64],
+    min_effect: f64,
+    strict: bool,
+    config: &VerifyConfig,
+) -> Judgement {
+    let (gain, z) = paired_gain(before, after);
+    let within = gain_within_folds(before, after, config.folds);
+    let verified = gain >= min_effect
+        && within >= min_effect
+        && if strict {
+            z >= config.min_z + STRICT_EXTRA_Z && gains_in_every_fold(before, after, config.folds)
+        } else {
+            z >= config.min_z
+        };
+    Judgement {
+        gain,
+        within,
+        z,
+        verified,
+    }
 }
 
 fn std_of(r: &[f64]) -> f64 {
@@ -666,22 +753,17 @@ pub(crate) fn verify(
                 };
                 fitted = true;
                 seen.push(next.to_string());
-                let (gain, z) = paired_gain(&before, &after);
+                let j = judge(&before, &after, min_effect, c.strict, config);
                 let e = VerifiedEdit {
                     feature: c.feature.clone(),
                     edit: edit.to_string(),
                     terms: next.to_string(),
                     std_before: v.std_before,
                     std_after: std_of(&after),
-                    gain,
-                    z,
-                    verified: gain >= min_effect
-                        && if c.strict {
-                            z >= config.min_z + STRICT_EXTRA_Z
-                                && gains_in_every_fold(&before, &after, config.folds)
-                        } else {
-                            z >= config.min_z
-                        },
+                    gain: j.gain,
+                    gain_within_folds: j.within,
+                    z: j.z,
+                    verified: j.verified,
                     model_edit: Some(edit),
                 };
                 if best.as_ref().is_none_or(|b| e.gain > b.gain) {
