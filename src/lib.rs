@@ -177,7 +177,7 @@ pub use field::Field;
 pub use fit::{CheckedFitOptions, FitData, FitError, FitOptions, FitReport, fit};
 pub use history::{
     DirectionSetting, DirectionSource, Feature, History, SeekFeatures, log_sampling, replay,
-    sampling,
+    sampling, summarise_sampling,
 };
 pub use log::limits::{check_toml_numbers, read_text};
 pub use log::{
