@@ -713,25 +713,18 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         &mut times_s.windows(2).map(|w| ((w[1] - w[0]) - dt).abs()),
         50.0,
     );
-    let regular_clock = dt > 0.0 && dt_dev <= 0.01 * dt;
-    let median_step = quantile(&mut positions.windows(2).map(|w| (w[1] - w[0]).abs()), 50.0);
-    let travel = quantile(&mut positions.iter().copied(), 95.0)
-        - quantile(&mut positions.iter().copied(), 5.0);
-    let mad = quantile(
-        &mut positions
-            .windows(3)
-            .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()),
-        50.0,
-    );
-    let noise = 1.4826 * mad / 6f64.sqrt();
-    let dense = regular_clock && travel > 0.0 && median_step < 0.01 * travel;
-    // The range i.i.d. noise spans over n samples (twice its expected maximum, √(2 ln n)·σ): a
-    // smaller band lets two opposite noise extremes fake a reversal somewhere in a long log.
-    let n = positions.len().max(2) as f64;
-    let deadband = if dense {
-        2.0 * (2.0 * n.ln()).sqrt() * noise
-    } else {
-        0.0
+    let q = Quantiles {
+        dt,
+        dt_dev,
+        median_step: quantile(&mut positions.windows(2).map(|w| (w[1] - w[0]).abs()), 50.0),
+        p95: quantile(&mut positions.iter().copied(), 95.0),
+        p5: quantile(&mut positions.iter().copied(), 5.0),
+        mad: quantile(
+            &mut positions
+                .windows(3)
+                .map(|w| second_difference(w[0], w[1], w[2])),
+            50.0,
+        ),
     };
     let count = |d: f64| {
         let mut t = DirectionTracker::new(d);
@@ -748,22 +741,351 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         (Some(a), Some(b)) if b > a => Some(b - a),
         _ => None,
     };
-    let raw_reversals = count(0.0);
-    Sampling {
-        rows_per_s: span.map(|s| (positions.len().saturating_sub(1)) as f64 / s),
-        median_step,
-        travel,
-        noise,
-        regular_clock,
-        dense,
-        deadband,
-        raw_reversals,
-        // With no deadband (every seek log) the count is the raw one: one pass, not two.
-        reversals: if deadband == 0.0 {
-            raw_reversals
+    q.sampling(positions.len(), span, count(0.0), count)
+}
+
+/// |x₂ − 2x₁ + x₀|, the second difference [`Sampling::noise`] is estimated from.
+fn second_difference(x0: f64, x1: f64, x2: f64) -> f64 {
+    (x2 - 2.0 * x1 + x0).abs()
+}
+
+/// The quantiles [`sampling`] is made of: the median Δt and the median |Δt − median Δt|; the
+/// median |position step|; the 95 % and 5 % quantiles of the positions; the median |Δ²x|.
+struct Quantiles {
+    dt: f64,
+    dt_dev: f64,
+    median_step: f64,
+    p95: f64,
+    p5: f64,
+    mad: f64,
+}
+
+impl Quantiles {
+    /// The position noise estimate (see [`Sampling::noise`]).
+    fn noise(&self) -> f64 {
+        1.4826 * self.mad / 6f64.sqrt()
+    }
+
+    /// The deadband of a dense log of `rows` rows: the range i.i.d. noise spans over n samples
+    /// (twice its expected maximum, √(2 ln n)·σ); a smaller band lets two opposite noise
+    /// extremes fake a reversal somewhere in a long log.
+    fn dense_deadband(&self, rows: usize) -> f64 {
+        let n = rows.max(2) as f64;
+        2.0 * (2.0 * n.ln()).sqrt() * self.noise()
+    }
+
+    /// The [`Sampling`] of a log of `rows` rows over time `span` (s) with `raw_reversals`;
+    /// `count` counts the reversals with a deadband.
+    fn sampling(
+        &self,
+        rows: usize,
+        span: Option<f64>,
+        raw_reversals: usize,
+        count: impl FnOnce(f64) -> usize,
+    ) -> Sampling {
+        let regular_clock = self.dt > 0.0 && self.dt_dev <= 0.01 * self.dt;
+        let travel = self.p95 - self.p5;
+        let dense = regular_clock && travel > 0.0 && self.median_step < 0.01 * travel;
+        let deadband = if dense {
+            self.dense_deadband(rows)
         } else {
-            count(deadband)
-        },
+            0.0
+        };
+        Sampling {
+            rows_per_s: span.map(|s| (rows.saturating_sub(1)) as f64 / s),
+            median_step: self.median_step,
+            travel,
+            noise: self.noise(),
+            regular_clock,
+            dense,
+            deadband,
+            raw_reversals,
+            // With no deadband (every seek log) the count is the raw one: one pass, not two.
+            reversals: if deadband == 0.0 {
+                raw_reversals
+            } else {
+                count(deadband)
+            },
+        }
+    }
+}
+
+/// [`sampling`] of a log read in passes, in memory independent of its length (`biasctl
+/// check`): feed every row's time and position with [`SamplingStream::push`], end the pass
+/// with [`SamplingStream::end_pass`], and read the log again while it returns `true`; then
+/// [`SamplingStream::finish`]. Each quantile is exact ([`StreamPercentile`]), so the result
+/// equals [`sampling`] of the whole log bit for bit. Passes: the first counts and
+/// histograms; the quantiles of the positions and of Δt usually end with the second; the
+/// spread of Δt about its median (and the reversals with the deadband) needs two more.
+///
+/// [`StreamPercentile`]: crate::numeric::stats::StreamPercentile
+pub(crate) struct SamplingStream {
+    dt: StreamPercentile,
+    step: StreamPercentile,
+    p95: StreamPercentile,
+    p5: StreamPercentile,
+    d2: StreamPercentile,
+    /// Started in the pass after the median Δt is known.
+    dt_dev: Option<(f64, StreamPercentile)>,
+    /// Rows in the pass so far, and the last two rows' time and position.
+    row: usize,
+    prev: (f64, f64),
+    prev2_x: f64,
+    /// The first pass: rows, first and last time, the raw reversals.
+    rows: usize,
+    first_last: (f64, f64),
+    raw: (DirectionTracker, usize),
+    /// The reversals with the deadband the quantiles give a dense log: counted in the pass
+    /// after the noise is known; `(deadband, tracker, count, done)`.
+    banded: Option<(f64, DirectionTracker, usize, bool)>,
+    passes: usize,
+}
+
+use crate::numeric::stats::StreamPercentile;
+
+impl SamplingStream {
+    /// Before the first pass.
+    pub(crate) fn new() -> Self {
+        Self {
+            dt: StreamPercentile::new(50.0),
+            step: StreamPercentile::new(50.0),
+            p95: StreamPercentile::new(95.0),
+            p5: StreamPercentile::new(5.0),
+            d2: StreamPercentile::new(50.0),
+            dt_dev: None,
+            row: 0,
+            prev: (0.0, 0.0),
+            prev2_x: 0.0,
+            rows: 0,
+            first_last: (0.0, 0.0),
+            raw: (DirectionTracker::new(0.0), 0),
+            banded: None,
+            passes: 0,
+        }
+    }
+
+    /// The next row of the pass: its time (s) and position.
+    pub(crate) fn push(&mut self, t: f64, x: f64) {
+        let count = |tr: &mut DirectionTracker, n: &mut usize| {
+            let s = tr.peek(x, None);
+            tr.commit(x, &s);
+            *n += usize::from(s.reversal);
+        };
+        if self.passes == 0 {
+            if self.row == 0 {
+                self.first_last.0 = t;
+            }
+            self.first_last.1 = t;
+            self.rows += 1;
+            let (tr, n) = &mut self.raw;
+            count(tr, n);
+        }
+        if let Some((_, tr, n, false)) = &mut self.banded {
+            count(tr, n);
+        }
+        let (pt, px) = self.prev;
+        if self.row >= 1 {
+            let dt = t - pt;
+            self.dt.push(dt);
+            if let Some((median, q)) = &mut self.dt_dev {
+                q.push((dt - *median).abs());
+            }
+            self.step.push((x - px).abs());
+        }
+        if self.row >= 2 {
+            self.d2.push(second_difference(self.prev2_x, px, x));
+        }
+        self.p95.push(x);
+        self.p5.push(x);
+        self.prev2_x = px;
+        self.prev = (t, x);
+        self.row += 1;
+    }
+
+    /// Ends a pass; `true` when the log must be read once more.
+    pub(crate) fn end_pass(&mut self) -> bool {
+        for q in [
+            &mut self.dt,
+            &mut self.step,
+            &mut self.p95,
+            &mut self.p5,
+            &mut self.d2,
+        ] {
+            q.end_pass();
+        }
+        if let Some((_, q)) = &mut self.dt_dev {
+            q.end_pass();
+        }
+        if let Some(b) = &mut self.banded {
+            b.3 = true;
+        }
+        self.passes += 1;
+        self.row = 0;
+        if self.dt_dev.is_none()
+            && let Some(median) = self.dt.result()
+        {
+            self.dt_dev = Some((median.unwrap_or(0.0), StreamPercentile::new(50.0)));
+        }
+        if self.banded.is_none()
+            && let Some(mad) = self.d2.result()
+        {
+            let q = Quantiles {
+                dt: 0.0,
+                dt_dev: 0.0,
+                median_step: 0.0,
+                p95: 0.0,
+                p5: 0.0,
+                mad: mad.unwrap_or(0.0),
+            };
+            let d = q.dense_deadband(self.rows);
+            self.banded = Some((d, DirectionTracker::new(d), 0, false));
+        }
+        match self.quantiles() {
+            None => true,
+            Some(q) => {
+                let s = q.sampling(self.rows, None, 0, |_| 0);
+                s.dense && !self.banded.as_ref().is_some_and(|b| b.3)
+            }
+        }
+    }
+
+    /// Every quantile, once all are known.
+    fn quantiles(&self) -> Option<Quantiles> {
+        let get = |q: &StreamPercentile| q.result().map(|r| r.unwrap_or(0.0));
+        Some(Quantiles {
+            dt: get(&self.dt)?,
+            dt_dev: get(&self.dt_dev.as_ref()?.1)?,
+            median_step: get(&self.step)?,
+            p95: get(&self.p95)?,
+            p5: get(&self.p5)?,
+            mad: get(&self.d2)?,
+        })
+    }
+
+    /// The sampling, once [`SamplingStream::end_pass`] has returned `false` (`None` before).
+    pub(crate) fn finish(&self) -> Option<Sampling> {
+        let q = self.quantiles()?;
+        let (a, b) = self.first_last;
+        let span = (self.rows > 0 && b > a).then_some(b - a);
+        let banded = self.banded.as_ref().map(|b| b.2);
+        let s = q.sampling(self.rows, span, self.raw.1, |_| banded.unwrap_or(0));
+        (!s.dense || self.banded.as_ref().is_some_and(|b| b.3)).then_some(s)
+    }
+}
+
+/// Streams the log `reader` was opened on (from `path` with `map`) and returns its summary
+/// ([`LogReader::summarise`](crate::LogReader::summarise)) and its [`sampling`], in memory
+/// independent of the number of rows (`biasctl check`): the exact quantiles (the same bits as
+/// [`sampling`] of every row in memory) need a few passes of radix selection, so a regular file is read again from `path` (usually four passes in
+/// all); standard input (`path` `-`) is read once while the time and position of every row
+/// (16 bytes per row) are written to a temporary file in [`std::env::temp_dir`], which the
+/// later passes read and which is removed at the end. Every pass validates the rows as the
+/// first; a file whose row count changes between passes is an error.
+pub fn summarise_sampling(
+    reader: &mut crate::log::LogReader<Box<dyn std::io::Read>>,
+    path: &std::path::Path,
+    map: &crate::log::ColumnMap,
+) -> Result<(crate::log::LogSummary, Sampling), crate::log::LogError> {
+    use crate::log::{LogError, LogReader, Row, STDIN_PATH};
+    use std::io::{BufReader, BufWriter, Read, Seek, Write};
+    let file = reader.schema().file.clone();
+    let io = |source: std::io::Error| LogError::Io {
+        file: file.clone(),
+        source,
+    };
+    let mut stream = SamplingStream::new();
+    let mut spool = if path.as_os_str() == STDIN_PATH {
+        Some(Spool::create().map_err(io)?)
+    } else {
+        None
+    };
+    let mut spool_err = None;
+    let summary = {
+        let mut out = spool.as_mut().map(|s| BufWriter::new(&mut s.file));
+        let summary = reader.summarise_each(|r| {
+            stream.push(r.time_s, r.track);
+            if let Some(w) = out.as_mut()
+                && spool_err.is_none()
+            {
+                let mut rec = [0u8; 16];
+                rec[..8].copy_from_slice(&r.time_s.to_le_bytes());
+                rec[8..].copy_from_slice(&r.track.to_le_bytes());
+                if let Err(e) = w.write_all(&rec) {
+                    spool_err = Some(e);
+                }
+            }
+        })?;
+        if let Some(e) = spool_err {
+            return Err(io(e));
+        }
+        if let Some(w) = out {
+            w.into_inner().map_err(|e| io(e.into_error()))?;
+        }
+        summary
+    };
+    let changed = || {
+        io(std::io::Error::other(
+            "the file changed while it was read (its row count differs between passes)",
+        ))
+    };
+    while stream.end_pass() {
+        let mut rows = 0u64;
+        match spool.as_mut() {
+            Some(s) => {
+                s.file.rewind().map_err(io)?;
+                let mut r = BufReader::new(&mut s.file);
+                let (mut t, mut x) = ([0u8; 8], [0u8; 8]);
+                for _ in 0..summary.rows {
+                    r.read_exact(&mut t).map_err(io)?;
+                    r.read_exact(&mut x).map_err(io)?;
+                    stream.push(f64::from_le_bytes(t), f64::from_le_bytes(x));
+                }
+                rows = summary.rows;
+            }
+            None => {
+                let mut again = LogReader::open(path, map)?;
+                let mut row = Row::empty(again.schema().covariates.len());
+                while again.read_into(&mut row)? {
+                    stream.push(row.time_s, row.track);
+                    rows += 1;
+                }
+            }
+        }
+        if rows != summary.rows {
+            return Err(changed());
+        }
+    }
+    let sampling = stream.finish().ok_or_else(changed)?;
+    Ok((summary, sampling))
+}
+
+/// A temporary file of `summarise_sampling`, removed when dropped.
+struct Spool {
+    file: std::fs::File,
+    path: std::path::PathBuf,
+}
+
+impl Spool {
+    /// A new file in the temporary directory, named after the process and the time.
+    fn create() -> std::io::Result<Self> {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        let path =
+            std::env::temp_dir().join(format!("biasctl-check-{}-{nanos}.bin", std::process::id()));
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(&path)?;
+        Ok(Self { file, path })
+    }
+}
+
+impl Drop for Spool {
+    fn drop(&mut self) {
+        // Best effort: a file that cannot be removed stays in the temporary directory.
+        let _ = std::fs::remove_file(&self.path);
     }
 }
 
@@ -908,6 +1230,138 @@ mod tests {
             }
         }
         assert_eq!(percentile_select(&mut [], 50.0), None);
+    }
+
+    /// Values with ties, signed zeros, negatives, near-equal clusters (a clock's Δt differing
+    /// in the last bits) and wide spreads, by `case`.
+    fn awkward_values(rng: &mut SimRng, case: usize, n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|_| match case % 6 {
+                0 => rng.below(5) as f64 - 2.0,
+                1 => [0.0, -0.0, 1.5, -1.5][rng.below(4) as usize],
+                2 => rng.normal() * 10f64.powi(rng.below(20) as i32 - 10),
+                3 => f64::from_bits(1e-3f64.to_bits() + rng.below(40)) - 1e-3 * rng.below(2) as f64,
+                4 => -1e-3 * (1.0 + rng.below(3) as f64 * f64::EPSILON),
+                _ => rng.range(-1e6, 1e6).round() + [0.0, 0.25, -0.0][rng.below(3) as usize],
+            })
+            .collect()
+    }
+
+    /// Runs a [`StreamPercentile`] over `v` pass after pass; its result and the passes taken.
+    fn streamed(v: &[f64], p: f64, caps: (u64, usize)) -> (Option<f64>, u32) {
+        use crate::numeric::stats::StreamPercentile;
+        let mut q = StreamPercentile::with_caps(p, caps.0, caps.1);
+        loop {
+            v.iter().for_each(|&x| q.push(x));
+            q.end_pass();
+            if let Some(r) = q.result() {
+                return (r, q.passes());
+            }
+            assert!(q.passes() < 5, "more than five passes");
+        }
+    }
+
+    /// Reference: sort a copy, then `percentile_sorted` (the in-memory definition). The
+    /// constant-memory radix selection `check` uses gives the same bits on random streams with
+    /// ties, ±0, negatives and near-equal clusters, with the production caps and with caps of
+    /// 0 / a few values (every value then goes through all four 16-bit digits, or through the
+    /// distinct-value count), at most five passes.
+    #[test]
+    fn streamed_percentiles_equal_sorted_ones_bit_for_bit() {
+        use crate::numeric::stats::{percentile_sorted, sorted};
+        let mut rng = SimRng::new(17);
+        let caps = [(1 << 17, 4096), (0, 0), (3, 2), (0, 16), (64, 0)];
+        for case in 0..240 {
+            let n = 1 + rng.below(if case % 10 == 0 { 3000 } else { 150 }) as usize;
+            let v = awkward_values(&mut rng, case, n);
+            let sorted = sorted(&v);
+            for p in [0.0, 5.0, 37.5, 50.0, 95.0, 100.0] {
+                let want = percentile_sorted(&sorted, p).unwrap();
+                for cap in caps {
+                    let (got, _) = streamed(&v, p, cap);
+                    assert_eq!(
+                        got.map(f64::to_bits),
+                        Some(want.to_bits()),
+                        "case {case}, p {p}, n {n}, caps {cap:?}: {got:?} vs {want}"
+                    );
+                }
+            }
+        }
+        assert_eq!(streamed(&[], 50.0, (0, 0)), (None, 1));
+        // A long near-constant stream (a regular clock's Δt, differing in the last bits) beyond
+        // the collect cap: exact from the distinct count, with the production caps, at once.
+        let v: Vec<f64> = (0..300_000)
+            .map(|i| ((i + 1) as f64 * 1e-3) - (i as f64 * 1e-3))
+            .collect();
+        let want = percentile_sorted(&sorted(&v), 50.0).unwrap();
+        let (got, passes) = streamed(&v, 50.0, (1 << 17, 4096));
+        assert_eq!(got.map(f64::to_bits), Some(want.to_bits()));
+        assert_eq!(passes, 1);
+        // Without the distinct count: the histogram passes.
+        let (got, passes) = streamed(&v, 50.0, (1 << 17, 0));
+        assert_eq!(got.map(f64::to_bits), Some(want.to_bits()));
+        assert!(passes >= 3, "{passes}");
+    }
+
+    /// Runs [`SamplingStream`] over rows `(t, x)` pass after pass.
+    fn stream_sampling(t: &[f64], x: &[f64]) -> (Sampling, usize) {
+        let mut s = SamplingStream::new();
+        let mut passes = 0;
+        loop {
+            t.iter().zip(x).for_each(|(&t, &x)| s.push(t, x));
+            passes += 1;
+            if !s.end_pass() {
+                break;
+            }
+            assert!(passes < 12, "too many passes");
+        }
+        (s.finish().expect("finished"), passes)
+    }
+
+    /// Reference: [`sampling`] of the rows in memory (its quantiles by selection, themselves
+    /// tested against sorting above). The streamed sampling `check` uses is the same bit for
+    /// bit (every field) on dense time series (regular clock, noisy sine: the deadband pass),
+    /// seek logs (irregular times), logs of a few distinct positions with ±0, negative and
+    /// tiny logs.
+    #[test]
+    fn streamed_sampling_equals_in_memory_sampling() {
+        let mut rng = SimRng::new(23);
+        let (mut dense, mut seek) = (0, 0);
+        for case in 0..120 {
+            let n = match case % 10 {
+                0 => rng.below(4) as usize,
+                1 => 20_000,
+                _ => 1 + rng.below(3000) as usize,
+            };
+            let dt = [1e-3, 0.01, 0.5][rng.below(3) as usize];
+            let (t, x): (Vec<f64>, Vec<f64>) = (0..n)
+                .map(|i| {
+                    let ti = i as f64 * dt;
+                    match case % 4 {
+                        0 | 1 => (ti, 100.0 * (0.002 * i as f64).sin() + 0.05 * rng.normal()),
+                        2 => (
+                            ti + rng.range(0.0, 0.9) * dt,
+                            [0.0, -0.0, -3.0, 7.5][rng.below(4) as usize],
+                        ),
+                        _ => (ti, rng.range(-500.0, 500.0).round()),
+                    }
+                })
+                .unzip();
+            let want = sampling(&t, &x);
+            let (got, passes) = stream_sampling(&t, &x);
+            assert_eq!(
+                format!("{got:?}"),
+                format!("{want:?}"),
+                "case {case}, n {n}"
+            );
+            assert!(passes <= 6, "case {case}: {passes} passes");
+            if want.dense {
+                dense += 1;
+            } else {
+                seek += 1;
+            }
+        }
+        assert!(dense > 20 && seek > 20, "{dense} dense, {seek} seek logs");
     }
 
     /// Slow, obvious reference for the rest memory: keep every rest position with the time it was

@@ -177,7 +177,7 @@ pub use field::Field;
 pub use fit::{CheckedFitOptions, FitData, FitError, FitOptions, FitReport, fit};
 pub use history::{
     DirectionSetting, DirectionSource, Feature, History, SeekFeatures, log_sampling, replay,
-    sampling,
+    sampling, summarise_sampling,
 };
 pub use log::limits::{check_toml_numbers, read_text};
 pub use log::{
@@ -212,7 +212,7 @@ pub use report::story::{
     CheckedStoryOptions, Progress, StoryOptions, StoryOutcome, data_report, demo_report,
 };
 pub use report::{Cell, Report, Table};
-pub use score::{Score, score, score_model, score_with_units};
+pub use score::{Score, grouped_warnings, score, score_model, score_with_units};
 pub use sim::family;
 pub use sim::{
     DEFAULT_N, Drive, MeasureMode, SequenceOptions, SimConfig, TRUTH_COLUMNS, simulate,

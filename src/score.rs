@@ -267,6 +267,40 @@ mod tests {
         (0..n).map(|i| i as f64).collect()
     }
 
+    /// Reference: the grouped lines written out by hand. Per-coefficient warnings of one term
+    /// and reason become one line with their count and first and last names; other warnings
+    /// (another term, another reason, no `TERM.PARAM` head) stay; exact repeats are counted.
+    #[test]
+    fn fit_warnings_are_grouped_per_term_and_reason() {
+        let s = |v: &[&str]| v.iter().map(|w| w.to_string()).collect::<Vec<_>>();
+        let nid = |p: &str, se: &str| {
+            format!(
+                "play:4.{p}: standard error {se} exceeds |value| 1e0: not identifiable from this log"
+            )
+        };
+        let w = vec![
+            nid("w@r=1", "2e0"),
+            "col:a.slope: its contribution swings 1e3× the std of the bias: blowing up".into(),
+            nid("w@r=2", "3e0"),
+            "a nonlinear parameter ended at the edge of its search interval".into(),
+            nid("w@r=4", "5e0"),
+            "a nonlinear parameter ended at the edge of its search interval".into(),
+        ];
+        assert_eq!(
+            grouped_warnings(&w),
+            s(&[
+                &format!(
+                    "{} (×3: the same for 3 coefficients of play:4, from w@r=1 to w@r=4)",
+                    nid("w@r=1", "2e0")
+                ),
+                "col:a.slope: its contribution swings 1e3× the std of the bias: blowing up",
+                "a nonlinear parameter ended at the edge of its search interval (×2)",
+            ])
+        );
+        assert_eq!(grouped_warnings(&s(&["x", "y"])), s(&["x", "y"]));
+        assert!(grouped_warnings(&[]).is_empty());
+    }
+
     #[test]
     fn bimodal_follows_the_dip_test() {
         // Two overlapping humps N(±1.5, 1) (n = 2000): Sarle's coefficient stays below 5/9 but
@@ -427,6 +461,47 @@ pub enum ModelScoreError {
     /// The residuals cannot be scored.
     #[error(transparent)]
     Score(#[from] ScoreError),
+}
+
+/// A fit's warnings for a person to read: each once, in order. An exact repeat is counted
+/// ("(×n)", as the report's fit summary does); the warnings a multi-coefficient term gives per
+/// coefficient for the same reason (`TERM.PARAM: …: REASON`, e.g. a `play:32` weight's
+/// "not identifiable from this log") are one line: the first of them, with how many there
+/// are and the first and last coefficient's name.
+pub fn grouped_warnings(warnings: &[String]) -> Vec<String> {
+    // (the group's key, its first warning, the coefficient names in it)
+    let mut groups: Vec<(String, &str, Vec<&str>)> = Vec::new();
+    for w in warnings {
+        let (head, reason) = match (w.split_once(": "), w.rsplit_once(": ")) {
+            (Some((head, _)), Some((_, reason))) => (head, reason),
+            _ => (w.as_str(), ""),
+        };
+        let (key, param) = match head.split_once('.') {
+            Some((term, param)) if !reason.is_empty() && !term.contains(' ') => {
+                (format!("{term}\u{0}{reason}"), param)
+            }
+            _ => (w.clone(), ""),
+        };
+        match groups.iter_mut().find(|g| g.0 == key) {
+            Some(g) => g.2.push(param),
+            None => groups.push((key, w, vec![param])),
+        }
+    }
+    groups
+        .into_iter()
+        .map(|(key, first, params)| {
+            let n = params.len();
+            match key.split_once('\u{0}') {
+                _ if n == 1 => first.to_string(),
+                Some((term, _)) if params.iter().any(|p| *p != params[0]) => format!(
+                    "{first} (×{n}: the same for {n} coefficients of {term}, from {} to {})",
+                    params[0],
+                    params[n - 1]
+                ),
+                _ => format!("{first} (×{n})"),
+            }
+        })
+        .collect()
 }
 
 /// Scores `model` on `log` (residuals in the log's bias unit): one-step, and for a model with an

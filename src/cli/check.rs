@@ -10,16 +10,15 @@ pub struct Args {
     log: LogArgs,
 }
 
-/// Streams the log and prints rows, measured rows, span, units, the sampling (rows/s, how the
+/// Streams the log (in constant memory) and prints rows, measured rows, span, units, the sampling (rows/s, how the
 /// direction of motion is read, reversals, the position-noise estimate) and covariates.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut reader = LogReader::open(&args.log.data, &args.log.columns.map())?;
+    let map = args.log.columns.map();
+    let mut reader = LogReader::open(&args.log.data, &map)?;
     let units = args.log.columns.units(reader.schema())?;
-    let (mut times, mut positions) = (Vec::new(), Vec::new());
-    let sum = reader.summarise_each(|r| {
-        times.push(r.time_s);
-        positions.push(r.track);
-    })?;
+    // Constant memory: the exact medians take a few passes over the log (see
+    // `summarise_sampling`).
+    let (sum, sampling) = biasctl::summarise_sampling(&mut reader, &args.log.data, &map)?;
     let s = reader.schema();
     outln!("{}: {} rows, {} measured", s.file, sum.rows, sum.measured)?;
     outln!(
@@ -36,7 +35,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sum.times_s[1],
         s.map.time
     )?;
-    for line in biasctl::sampling(&times, &positions).describe(&units.position) {
+    for line in sampling.describe(&units.position) {
         outln!("  {line}")?;
     }
     if !s.covariates.is_empty() {

@@ -25,8 +25,18 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, log, _) = args.input.replay()?;
     let s = score_model(&model, &log, Feedback::every(args.feedback_every))?;
-    for w in &s.warnings {
+    // The score's own warnings name the scored log; the model's fit warnings (which `score`
+    // repeats in its JSON as `fit: …`) come from the training log: named as the model's, and
+    // grouped (a `play:32` gives one per weight).
+    let fit_warnings: Vec<String> = model.warnings.iter().map(|w| format!("fit: {w}")).collect();
+    for w in s.warnings.iter().filter(|w| !fit_warnings.contains(w)) {
         eprintln!("warning: {}: {w}", log.schema.file);
+    }
+    for w in biasctl::grouped_warnings(&model.warnings) {
+        eprintln!(
+            "warning: model {} (from its fit on the training log): {w}",
+            args.input.model.display()
+        );
     }
     if args.json {
         outln!("{}", biasctl::to_string_pretty(&s)?)?;

@@ -417,6 +417,7 @@ pub struct Interval {
 impl Interval {
     /// The start value at least `margin` inside both ends: the midpoint when both ends are
     /// finite, otherwise the value closest to zero feedforward (0) that keeps the margin.
+    #[inline]
     pub fn choice(&self, margin: f64) -> f64 {
         if self.lo.is_finite() && self.hi.is_finite() {
             0.5 * (self.lo + self.hi)
@@ -572,6 +573,12 @@ struct Scan<'a> {
     k: usize,
     umin: f64,
     lmax: f64,
+    /// The samples k − `left` .. k of the block where the previous condition stopped holding,
+    /// not yet walked, with their bounds in `u[..left]`, `l[..left]`: the next condition
+    /// walks them first instead of computing a new (unaligned) block.
+    left: usize,
+    u: [f64; BLOCK],
+    l: [f64; BLOCK],
 }
 
 impl Scan<'_> {
@@ -602,43 +609,58 @@ impl Scan<'_> {
 
     /// Moves down while condition `P` holds and returns (k, L*(k), U*(k)) for the lowest k at
     /// which it holds (k = the floor if it holds all the way; k above the last candidate if it
-    /// never does). Whole blocks that keep it are taken from their tree min/max; the block
-    /// where it stops holding is walked sample by sample.
+    /// never does). The samples the previous condition left in its last block come first,
+    /// sample by sample; then whole blocks that keep it are taken from their tree min/max,
+    /// and the block where it stops holding is walked sample by sample (its unwalked samples
+    /// are left to the next condition).
     #[inline(always)]
     fn run<const P: usize>(&mut self) -> (usize, f64, f64) {
         let (mut k, mut umin, mut lmax) = (self.k, self.umin, self.lmax);
-        let (mut u, mut l) = ([0.0; BLOCK], [0.0; BLOCK]);
-        'blocks: while k > self.floor {
-            let m = (k - self.floor).min(BLOCK);
-            let lo = k - m;
-            if m == BLOCK {
-                let (bu, bl) = self.block(lo);
-                if self.nan_free {
-                    let bmin = bu[0].zip(bu[1], fmin).hmin();
-                    let bmax = bl[0].zip(bl[1], fmax).hmax();
-                    let (nu, nl) = (fmin(umin, bmin), fmax(lmax, bmax));
-                    if keep::<P>(nu, nl, self.shift) {
-                        (umin, lmax, k) = (nu, nl, lo);
-                        continue;
-                    }
-                }
-                for h in 0..2 {
-                    u[4 * h..4 * h + 4].copy_from_slice(&bu[h].0);
-                    l[4 * h..4 * h + 4].copy_from_slice(&bl[h].0);
-                }
-            } else {
-                self.table.fill(lo, self.p, &mut u[..m], &mut l[..m]);
+        let (mut u, mut l) = (self.u, self.l);
+        // The running bounds ignore a NaN bound (fmin/fmax keep their first operand).
+        let mut left = 0;
+        for j in (0..self.left).rev() {
+            let (a, b) = (fmin(umin, u[j]), fmax(lmax, l[j]));
+            if !keep::<P>(a, b, self.shift) {
+                left = j + 1;
+                break;
             }
-            // The running bounds ignore a NaN bound (fmin/fmax keep their first operand).
-            for j in (0..m).rev() {
-                let (a, b) = (fmin(umin, u[j]), fmax(lmax, l[j]));
-                if !keep::<P>(a, b, self.shift) {
-                    break 'blocks;
+            (umin, lmax, k) = (a, b, k - 1);
+        }
+        if left == 0 {
+            'blocks: while k > self.floor {
+                let m = (k - self.floor).min(BLOCK);
+                let lo = k - m;
+                if m == BLOCK {
+                    let (bu, bl) = self.block(lo);
+                    if self.nan_free {
+                        let bmin = bu[0].zip(bu[1], fmin).hmin();
+                        let bmax = bl[0].zip(bl[1], fmax).hmax();
+                        let (nu, nl) = (fmin(umin, bmin), fmax(lmax, bmax));
+                        if keep::<P>(nu, nl, self.shift) {
+                            (umin, lmax, k) = (nu, nl, lo);
+                            continue;
+                        }
+                    }
+                    for h in 0..2 {
+                        u[4 * h..4 * h + 4].copy_from_slice(&bu[h].0);
+                        l[4 * h..4 * h + 4].copy_from_slice(&bl[h].0);
+                    }
+                } else {
+                    self.table.fill(lo, self.p, &mut u[..m], &mut l[..m]);
                 }
-                (umin, lmax, k) = (a, b, lo + j);
+                for j in (0..m).rev() {
+                    let (a, b) = (fmin(umin, u[j]), fmax(lmax, l[j]));
+                    if !keep::<P>(a, b, self.shift) {
+                        left = j + 1;
+                        break 'blocks;
+                    }
+                    (umin, lmax, k) = (a, b, lo + j);
+                }
             }
         }
         (self.k, self.umin, self.lmax) = (k, umin, lmax);
+        (self.left, self.u, self.l) = (left, u, l);
         (k, lmax, umin)
     }
 }
@@ -873,6 +895,9 @@ impl HandoffTable {
             k: top + 1,
             umin,
             lmax,
+            left: 0,
+            u: [0.0; BLOCK],
+            l: [0.0; BLOCK],
         };
         // The conditions are nested: each scan starts where the previous one stopped.
         let found = [scan.run::<0>(), scan.run::<1>(), scan.run::<2>()];

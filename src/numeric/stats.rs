@@ -72,6 +72,303 @@ pub(crate) fn percentile_select(v: &mut [f64], p: f64) -> Option<f64> {
     Some(a + (b - a) * frac)
 }
 
+/// The key of `x` in `f64::total_cmp` order as an unsigned integer (negative values have all
+/// bits flipped, the rest their sign bit set): `key(a) < key(b)` exactly when `a` sorts before
+/// `b`, and `from_key` inverts it bit for bit.
+fn key(x: f64) -> u64 {
+    let b = x.to_bits();
+    if b >> 63 == 1 { !b } else { b | 1 << 63 }
+}
+
+/// The value of a [`key`].
+fn from_key(k: u64) -> f64 {
+    f64::from_bits(if k >> 63 == 1 { k & !(1 << 63) } else { !k })
+}
+
+/// Bits of the key fixed per pass of a [`StreamPercentile`] (a histogram of 2^16 counts).
+const DIGIT: u32 = 16;
+/// A bucket of at most this many values is collected and selected in memory (1 MiB).
+const COLLECT_CAP: u64 = 1 << 17;
+/// A stream (first pass) or bucket with at most this many distinct values is counted exactly
+/// per value (a hash table of 2 × this many slots, 128 KiB).
+const DISTINCT_CAP: usize = 4096;
+
+/// Exact counts of up to `cap` distinct keys (open addressing, linear probing); `full` once a
+/// key beyond them was seen.
+#[derive(Debug, Clone)]
+struct Distinct {
+    keys: Vec<u64>,
+    /// 0 marks an empty slot.
+    counts: Vec<u64>,
+    len: usize,
+    cap: usize,
+    full: bool,
+}
+
+impl Distinct {
+    fn new(cap: usize) -> Self {
+        let slots = (2 * cap).next_power_of_two().max(2);
+        Self {
+            keys: vec![0; slots],
+            counts: vec![0; slots],
+            len: 0,
+            cap,
+            full: false,
+        }
+    }
+
+    #[inline]
+    fn add(&mut self, k: u64) {
+        if self.full {
+            return;
+        }
+        let mask = self.keys.len() - 1;
+        let mut i = (k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as usize & mask;
+        loop {
+            if self.counts[i] == 0 {
+                if self.len == self.cap {
+                    self.full = true;
+                    return;
+                }
+                (self.keys[i], self.counts[i]) = (k, 1);
+                self.len += 1;
+                return;
+            }
+            if self.keys[i] == k {
+                self.counts[i] += 1;
+                return;
+            }
+            i = (i + 1) & mask;
+        }
+    }
+
+    /// The keys seen with their counts, ascending.
+    fn sorted(&self) -> Vec<(u64, u64)> {
+        let mut d: Vec<(u64, u64)> = (self.keys.iter().zip(&self.counts))
+            .filter(|(_, c)| **c > 0)
+            .map(|(k, c)| (*k, *c))
+            .collect();
+        d.sort_unstable_by_key(|e| e.0);
+        d
+    }
+
+    fn clear(&mut self) {
+        self.counts.iter_mut().for_each(|c| *c = 0);
+        self.len = 0;
+        self.full = false;
+    }
+}
+
+/// What the next pass of a [`StreamPercentile`] does with the values in its bucket.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Mode {
+    /// Count the next 16-bit digit of their keys (and their distinct values).
+    Histogram,
+    /// Keep them (at most [`COLLECT_CAP`]) and select in memory.
+    Collect,
+}
+
+/// [`percentile_select`] of a stream of values that can be replayed, in memory independent of
+/// its length: radix selection over the values' [`key`]s (their bit patterns in `total_cmp`
+/// order), 16 bits per pass. The first pass counts the values, histograms the top 16 bits and
+/// counts the distinct values (up to [`DISTINCT_CAP`]: then it is exact at once). Each later
+/// pass looks only at the values whose key starts with the bucket holding the wanted rank: it
+/// keeps them when they are few ([`COLLECT_CAP`]), else histograms their next 16 bits and counts
+/// their distinct values; and it tracks the smallest key above the bucket (the next order
+/// statistic may lie there). At most five passes (the first and four digits); one or two on
+/// the logs tried. The result equals `percentile_select` of the whole stream bit for bit (the
+/// same two order statistics under `total_cmp`, the same interpolation).
+///
+/// Use: [`StreamPercentile::push`] every value of one pass, [`StreamPercentile::end_pass`];
+/// repeat the same stream until [`StreamPercentile::result`] is `Some`.
+#[derive(Debug, Clone)]
+pub(crate) struct StreamPercentile {
+    p: f64,
+    /// Values seen in the first pass.
+    n: u64,
+    /// Passes ended.
+    passes: u32,
+    /// Key bits fixed so far (a multiple of 16) and their value.
+    fixed: u32,
+    prefix: u64,
+    /// Rank of the lower order statistic among the values in the bucket.
+    rank: u64,
+    /// The interpolation weight of the upper order statistic (rank + 1); 0 with one rank.
+    frac: f64,
+    two: bool,
+    mode: Mode,
+    hist: Vec<u64>,
+    kept: Vec<f64>,
+    distinct: Distinct,
+    /// The smallest key above the bucket this pass.
+    above: Option<u64>,
+    result: Option<Option<f64>>,
+    /// [`COLLECT_CAP`] (smaller in tests, to reach every path).
+    collect_cap: u64,
+}
+
+impl StreamPercentile {
+    /// Percentile `p` (0–100, clamped) of the stream, linear interpolation between closest
+    /// ranks as [`percentile_sorted`]; `None` for an empty stream.
+    pub(crate) fn new(p: f64) -> Self {
+        Self::with_caps(p, COLLECT_CAP, DISTINCT_CAP)
+    }
+
+    /// [`StreamPercentile::new`] with other caps than [`COLLECT_CAP`] and [`DISTINCT_CAP`].
+    pub(crate) fn with_caps(p: f64, collect_cap: u64, distinct_cap: usize) -> Self {
+        Self {
+            p,
+            n: 0,
+            passes: 0,
+            fixed: 0,
+            prefix: 0,
+            rank: 0,
+            frac: 0.0,
+            two: false,
+            mode: Mode::Histogram,
+            hist: vec![0; 1 << DIGIT],
+            kept: Vec::new(),
+            distinct: Distinct::new(distinct_cap),
+            above: None,
+            result: None,
+            collect_cap,
+        }
+    }
+
+    /// Passes ended so far.
+    #[cfg(test)]
+    pub(crate) fn passes(&self) -> u32 {
+        self.passes
+    }
+
+    /// The percentile once found: `Some(None)` for an empty stream.
+    pub(crate) fn result(&self) -> Option<Option<f64>> {
+        self.result
+    }
+
+    /// One value of the current pass (ignored once the result is found).
+    #[inline]
+    pub(crate) fn push(&mut self, x: f64) {
+        if self.result.is_some() {
+            return;
+        }
+        let k = key(x);
+        if self.passes == 0 {
+            self.n += 1;
+            self.hist[(k >> (64 - DIGIT)) as usize] += 1;
+            self.distinct.add(k);
+            return;
+        }
+        let top = k >> (64 - self.fixed);
+        if top == self.prefix {
+            match self.mode {
+                Mode::Collect => self.kept.push(x),
+                Mode::Histogram => {
+                    self.hist[((k << self.fixed) >> (64 - DIGIT)) as usize] += 1;
+                    self.distinct.add(k);
+                }
+            }
+        } else if top > self.prefix && self.above.is_none_or(|a| k < a) {
+            self.above = Some(k);
+        }
+    }
+
+    /// Ends a pass: the result when it is known, else what the next pass looks at.
+    pub(crate) fn end_pass(&mut self) {
+        if self.result.is_some() {
+            return;
+        }
+        self.passes += 1;
+        if self.passes == 1 {
+            if self.n == 0 {
+                self.result = Some(None);
+                return;
+            }
+            // As percentile_select: the same position, ranks and weight.
+            let pos = (self.p.clamp(0.0, 100.0) / 100.0) * (self.n - 1) as f64;
+            let (lo, hi) = (pos.floor() as u64, pos.ceil() as u64);
+            self.frac = pos - lo as f64;
+            self.two = hi != lo;
+            self.rank = lo;
+        }
+        if self.mode == Mode::Collect {
+            let mut v = std::mem::take(&mut self.kept);
+            let (_, &mut a, right) = v.select_nth_unstable_by(self.rank as usize, f64::total_cmp);
+            let b = right.iter().copied().min_by(f64::total_cmp);
+            self.finish(a, b);
+            return;
+        }
+        if !self.distinct.full {
+            // Every value of the stream (bucket) counted: the order statistics directly.
+            let d = self.distinct.sorted();
+            let mut below = 0;
+            for (i, &(k, c)) in d.iter().enumerate() {
+                if self.rank < below + c {
+                    let b = if self.rank + 1 < below + c {
+                        Some(from_key(k))
+                    } else {
+                        d.get(i + 1).map(|e| from_key(e.0))
+                    };
+                    self.finish(from_key(k), b);
+                    return;
+                }
+                below += c;
+            }
+        }
+        self.descend();
+    }
+
+    /// The histogram of this pass fixes the next digit: the bucket holding the rank.
+    fn descend(&mut self) {
+        let mut below = 0;
+        let mut digit = 0;
+        while digit + 1 < self.hist.len() && self.rank >= below + self.hist[digit] {
+            below += self.hist[digit];
+            digit += 1;
+        }
+        let count = self.hist[digit];
+        let next = (digit + 1..self.hist.len()).find(|&g| self.hist[g] > 0);
+        self.prefix = (self.prefix << DIGIT) | digit as u64;
+        self.fixed += DIGIT;
+        self.rank -= below;
+        if self.fixed == 64 {
+            // The whole key: the lower order statistic; the upper one is the same key, the next
+            // digit's, or the smallest key above the previous bucket.
+            let a = from_key(self.prefix);
+            let b = if self.rank + 1 < count {
+                Some(a)
+            } else {
+                next.map(|g| from_key((self.prefix & !0xffff) | g as u64))
+            };
+            self.finish(a, b);
+            return;
+        }
+        self.hist.iter_mut().for_each(|h| *h = 0);
+        self.distinct.clear();
+        self.above = None;
+        self.mode = if count <= self.collect_cap {
+            self.kept = Vec::with_capacity(count as usize);
+            Mode::Collect
+        } else {
+            Mode::Histogram
+        };
+    }
+
+    /// The lower order statistic `a` and the next one in the bucket `b` (else the smallest
+    /// value above the bucket).
+    fn finish(&mut self, a: f64, b: Option<f64>) {
+        let b = if self.two {
+            b.or(self.above.map(from_key)).unwrap_or(a)
+        } else {
+            a
+        };
+        self.result = Some(Some(a + (b - a) * self.frac));
+        self.hist = Vec::new();
+        self.kept = Vec::new();
+        self.distinct = Distinct::new(0);
+    }
+}
+
 /// Sorts a copy of `x` (total order; NaN last).
 pub fn sorted(x: &[f64]) -> Vec<f64> {
     let mut v = x.to_vec();

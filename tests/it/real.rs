@@ -350,3 +350,57 @@ fn mrdamper_dahl_terms_come_close_to_the_published_model() {
         "calibration free run: mean {m}, std {sd}"
     );
 }
+
+/// `score` of a `play:32` model on the MR damper: the fit's per-weight "not identifiable"
+/// warnings (one per weight in the model file and the JSON `warnings`) are one stderr line with
+/// their count, named as the model's fit warnings, not the scored file's. Reference: the model
+/// file's own warning list (its length is the count on the line).
+#[test]
+fn score_prints_a_play_models_per_weight_fit_warnings_once_with_a_count() {
+    let (est, val, _dir, model) = split("mrdamper/mrdamper");
+    fit(&est, "position_mm", &["--terms", "play:32"], &model);
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let n = file["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|w| w.as_str().unwrap().contains("not identifiable"))
+        .count();
+    assert!(n > 1, "the fit gives several per-weight warnings: {n}");
+    let r = crate::common::biasctl(&[
+        "score",
+        "--model",
+        &model,
+        "--data",
+        &val,
+        "--track-col",
+        "position_mm",
+        "--bias-col",
+        "force_N",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let lines: Vec<&str> = r
+        .stderr
+        .lines()
+        .filter(|l| l.contains("not identifiable"))
+        .collect();
+    assert_eq!(lines.len(), 1, "{}", r.stderr);
+    assert!(
+        lines[0].starts_with(&format!(
+            "warning: model {model} (from its fit on the training log): play:32."
+        )) && lines[0].contains(&format!("(×{n}: the same for {n} coefficients of play:32")),
+        "{}",
+        lines[0]
+    );
+    assert!(!lines[0].contains(&val), "{}", lines[0]);
+    // The JSON keeps every warning (machine-readable), each marked as the fit's.
+    let json = score_json(&model, &val, "position_mm");
+    let fit_warnings = json["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|w| w.as_str().unwrap().starts_with("fit: "))
+        .count();
+    assert_eq!(fit_warnings, file["warnings"].as_array().unwrap().len());
+}
