@@ -324,12 +324,13 @@ pub fn discover(
         let Some(best) = v.best().cloned() else {
             out.stopped_because = match v.edits.first() {
                 Some(e) => format!(
-                    "the best verified edit, `{}` ({}), gains {:.1} % of the error variance \
-                     out of sample (z = {:.1}): below what noise allows",
+                    "the best scored edit, `{}` ({}), gains {:.1} % of the error variance \
+                     out of sample (z = {:.1}): {}",
                     e.edit,
                     e.feature,
                     100.0 * e.gain,
-                    e.z
+                    e.z,
+                    v.why_not_verified(e)
                 ),
                 None => v
                     .not_run

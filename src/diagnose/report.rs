@@ -557,13 +557,14 @@ fn model_sentences(d: &Diagnosis) -> Vec<String> {
             )),
             None if !v.edits.is_empty() => parts.push(format!(
                 "No suggested edit is verified by refitting: the best, `{}`, changes the \
-                 out-of-sample error std from {} to {} {unit} ({} of the variance, z = {:.1}), \
-                 below what noise allows.",
+                 out-of-sample error std from {} to {} {unit} ({} of the variance, z = {:.1}): \
+                 {}.",
                 v.edits[0].edit,
                 short(v.edits[0].std_before),
                 short(v.edits[0].std_after),
                 percent(v.edits[0].gain),
-                v.edits[0].z
+                v.edits[0].z,
+                v.why_not_verified(&v.edits[0])
             )),
             None => {}
         }
@@ -798,9 +799,9 @@ impl Diagnosis {
                     percent(e.gain),
                     e.z,
                     if e.verified {
-                        ""
+                        String::new()
                     } else {
-                        "  (not verified: below what noise allows)"
+                        format!("  (not verified: {})", v.why_not_verified(e))
                     }
                 ));
             }

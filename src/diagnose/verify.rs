@@ -185,12 +185,31 @@ pub struct Verification {
     /// terms need something the log lacks, such as a covariate that varies).
     #[serde(default)]
     pub not_run: Option<String>,
+    /// The practical minimum gain an edit had to reach, out of sample and within folds
+    /// ([`super::DiagnoseConfig::min_effect`]).
+    #[serde(default)]
+    pub min_effect: f64,
 }
 
 impl Verification {
     /// The best verified edit, if any.
     pub fn best(&self) -> Option<&VerifiedEdit> {
         self.edits.first().filter(|e| e.verified)
+    }
+
+    /// Why `e` is not verified, in words: its gain only re-levels the folds (practical out of
+    /// sample, not within folds), or it is below what noise allows.
+    pub fn why_not_verified(&self, e: &VerifiedEdit) -> String {
+        if e.gain >= self.min_effect && e.gain_within_folds < self.min_effect {
+            format!(
+                "within folds it gains {:.1} % of the error variance, below the practical \
+                 minimum of {:.1} %: it only re-levels the folds",
+                100.0 * e.gain_within_folds,
+                100.0 * self.min_effect
+            )
+        } else {
+            "below what noise allows".into()
+        }
     }
 }
 
@@ -660,6 +679,7 @@ pub(crate) fn verify(
     let mut v = Verification {
         folds: config.folds,
         block_len,
+        min_effect,
         ..Verification::default()
     };
     // The refits the loop below will score (the model as it is; each candidate's first term
