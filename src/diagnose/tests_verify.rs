@@ -691,3 +691,37 @@ fn an_edit_that_only_relevels_the_folds_is_not_verified() {
         "a real effect lost: {j:?}"
     );
 }
+
+/// The reason given for an unverified edit names what failed. Reference: the rule in
+/// `judge` (practical out of sample and within folds): an edit practical out of sample but not
+/// within folds "only re-levels the folds"; one below the minimum out of sample is "below what
+/// noise allows".
+#[test]
+fn an_unverified_edit_says_why() {
+    let v = Verification {
+        min_effect: 0.02,
+        ..Verification::default()
+    };
+    let edit = |gain: f64, within: f64| VerifiedEdit {
+        feature: "walk".into(),
+        edit: "add col:walk".into(),
+        terms: "poly2,col:walk".into(),
+        std_before: 1.0,
+        std_after: (1.0 - gain).sqrt(),
+        gain,
+        gain_within_folds: within,
+        z: 4.0,
+        verified: false,
+        model_edit: None,
+    };
+    let relevel = v.why_not_verified(&edit(0.032, 0.0027));
+    assert!(relevel.contains("re-levels the folds"), "{relevel}");
+    assert!(
+        relevel.contains("0.3 %") && relevel.contains("2.0 %"),
+        "{relevel}"
+    );
+    assert_eq!(
+        v.why_not_verified(&edit(0.01, 0.01)),
+        "below what noise allows"
+    );
+}
