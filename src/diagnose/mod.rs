@@ -909,14 +909,15 @@ pub(crate) const WINSOR_SIGMAS: f64 = 4.0;
 /// seeks) look like an effect. A genuine effect moves many rows by a few noise widths and
 /// survives the clip; its size is still reported from the raw residuals.
 fn winsorize(residuals: &[f64]) -> Vec<f64> {
-    let mut sorted = residuals.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let Some(median) = stats::percentile_sorted(&sorted, 50.0) else {
+    // Medians by selection, not sorting: the same bits (`stats::percentile_select`).
+    let mut scratch = residuals.to_vec();
+    let Some(median) = stats::percentile_select(&mut scratch, 50.0) else {
         return residuals.to_vec();
     };
-    let mut dev: Vec<f64> = residuals.iter().map(|v| (v - median).abs()).collect();
-    dev.sort_by(f64::total_cmp);
-    let mad = stats::percentile_sorted(&dev, 50.0).unwrap_or(0.0);
+    for (d, v) in scratch.iter_mut().zip(residuals) {
+        *d = (v - median).abs();
+    }
+    let mad = stats::percentile_select(&mut scratch, 50.0).unwrap_or(0.0);
     let half = WINSOR_SIGMAS * 1.4826 * mad;
     if half > 0.0 {
         residuals
