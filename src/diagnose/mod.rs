@@ -138,7 +138,7 @@ use crate::numeric::rng::SimRng;
 use crate::numeric::stats;
 use crate::render::OutputError;
 use rayon::prelude::*;
-use smoother::{Binned, FTest, SlotTable, Unusable};
+use smoother::{Binned, FTest, Permuted, SlotTable, Unusable};
 
 /// Smallest number of measured rows per cross-validation fold.
 pub(crate) const MIN_ROWS_PER_FOLD: usize = 10;
@@ -909,14 +909,15 @@ pub(crate) const WINSOR_SIGMAS: f64 = 4.0;
 /// seeks) look like an effect. A genuine effect moves many rows by a few noise widths and
 /// survives the clip; its size is still reported from the raw residuals.
 fn winsorize(residuals: &[f64]) -> Vec<f64> {
-    let mut sorted = residuals.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let Some(median) = stats::percentile_sorted(&sorted, 50.0) else {
+    // Medians by selection, not sorting: the same bits (`stats::percentile_select`).
+    let mut scratch = residuals.to_vec();
+    let Some(median) = stats::percentile_select(&mut scratch, 50.0) else {
         return residuals.to_vec();
     };
-    let mut dev: Vec<f64> = residuals.iter().map(|v| (v - median).abs()).collect();
-    dev.sort_by(f64::total_cmp);
-    let mad = stats::percentile_sorted(&dev, 50.0).unwrap_or(0.0);
+    for (d, v) in scratch.iter_mut().zip(residuals) {
+        *d = (v - median).abs();
+    }
+    let mad = stats::percentile_select(&mut scratch, 50.0).unwrap_or(0.0);
     let half = WINSOR_SIGMAS * 1.4826 * mad;
     if half > 0.0 {
         residuals
@@ -948,33 +949,30 @@ fn shuffle<T>(v: &mut [T], rng: &mut SimRng) {
     }
 }
 
-/// [`shuffle`] of a long residual, the same swaps in the same order (so the same permutation,
-/// tested): the random indices of a chunk are drawn first, then each swap reads the row it
-/// will swap [`SHUFFLE_AHEAD`] swaps later, so the cache misses of a residual larger than the
-/// cache overlap instead of following one another.
-fn shuffle_rows(v: &mut [f64], rng: &mut SimRng) {
-    /// Rows below which the plain loop is as fast (the residual stays in cache).
-    const IN_CACHE: usize = 1 << 16;
+/// [`shuffle`] of a residual, the same swaps in the same order (so the same permutation,
+/// tested): the random indices of a chunk are drawn first ([`SimRng::below_descending`],
+/// without a division per draw), then each swap reads the row it will swap
+/// [`SHUFFLE_AHEAD`] swaps later, so the cache misses of a residual larger than the cache
+/// overlap instead of following one another.
+fn shuffle_rows<T: Copy>(v: &mut [T], rng: &mut SimRng) {
     const CHUNK: usize = 4096;
-    if v.len() < IN_CACHE {
-        return shuffle(v, rng);
+    if v.len() < 2 {
+        return;
     }
-    let mut js = Vec::with_capacity(CHUNK);
-    let mut touched = 0u64;
+    let mut js: Vec<u64> = Vec::with_capacity(CHUNK);
     let mut i = v.len() - 1;
     while i >= 1 {
         let lo = i.saturating_sub(CHUNK - 1).max(1);
         js.clear();
-        js.extend((lo..=i).rev().map(|k| rng.below(k as u64 + 1) as usize));
+        rng.below_descending(lo as u64, i as u64, &mut js);
         for (step, &j) in js.iter().enumerate() {
             if let Some(&ahead) = js.get(step + SHUFFLE_AHEAD) {
-                touched ^= v[ahead].to_bits();
+                std::hint::black_box(v[ahead as usize]);
             }
-            v.swap(i - step, j);
+            v.swap(i - step, j as usize);
         }
         i = lo - 1;
     }
-    std::hint::black_box(touched);
 }
 
 /// How many swaps ahead [`shuffle_rows`] reads its rows.
@@ -1038,20 +1036,26 @@ fn block_permute(y: &[f64], block: usize, out: &mut [f64], rng: &mut SimRng) {
         shuffle_rows(out, rng);
         return;
     }
-    let offset = rng.below(n as u64) as usize;
-    let n_blocks = n.div_ceil(block);
-    let mut order: Vec<usize> = (0..n_blocks).collect();
-    shuffle(&mut order, rng);
-    // Block `b` is rows `(i + offset) mod n` for i in its range: at most two contiguous runs.
-    let mut k = 0;
-    for b in order {
-        let len = ((b + 1) * block).min(n) - b * block;
-        let start = (b * block + offset) % n;
-        let first = len.min(n - start);
-        out[k..k + first].copy_from_slice(&y[start..start + first]);
-        out[k + first..k + len].copy_from_slice(&y[..len - first]);
-        k += len;
+    let mut order = Vec::new();
+    let offset = draw_blocks(n, block, &mut order, rng);
+    Permuted::Blocks {
+        y,
+        block,
+        offset,
+        order: &order,
     }
+    .for_each_run(|k, run| out[k..k + run.len()].copy_from_slice(run));
+}
+
+/// The random part of a block permutation of `n` rows in blocks of `block` (> 1): the
+/// rotation offset (returned) and the order of the blocks (written to `order`), drawn as
+/// [`block_permute_reference`] draws them.
+fn draw_blocks(n: usize, block: usize, order: &mut Vec<usize>, rng: &mut SimRng) -> usize {
+    let offset = rng.below(n as u64) as usize;
+    order.clear();
+    order.extend(0..n.div_ceil(block));
+    shuffle_rows(order, rng);
+    offset
 }
 
 /// [`block_permute`] written row by row with the modulo (the slow, obvious reference it is
@@ -1128,10 +1132,14 @@ fn perm_groups(
 /// One thread's buffers and hit counts of the permutation test (one slot per usable feature).
 struct PermWorker {
     tests: Vec<FTest>,
-    /// One permuted residual per distinct block length, and its direction-signed copy.
-    perms: Vec<Vec<f64>>,
-    signed: Vec<Vec<f64>>,
-    sst_signed: Vec<f64>,
+    /// The row permutation of the residual (block length 1), shuffled in place.
+    rows: Vec<f64>,
+    /// The block order of a block permutation.
+    order: Vec<usize>,
+    /// A materialised permutation and its direction-signed copy, for a group without a
+    /// [`SlotTable`] only.
+    perm: Vec<f64>,
+    signed: Vec<f64>,
     /// Per-slot sums of the fused pass (plain and signed residual).
     acc: Vec<f64>,
     acc_signed: Vec<f64>,
@@ -1141,14 +1149,16 @@ struct PermWorker {
 }
 
 impl PermWorker {
-    fn new(usable: &[(usize, &Analysed)], n: usize, lengths: usize, signed: bool) -> PermWorker {
-        let m = usable.len();
-        let s = if signed { n } else { 0 };
+    /// A worker with its own copy of the usable features' F-tests (`tests`: their counts
+    /// are counted once, not once per worker).
+    fn new(tests: &[FTest]) -> PermWorker {
+        let m = tests.len();
         PermWorker {
-            tests: usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect(),
-            perms: vec![vec![0.0; n]; lengths],
-            signed: vec![vec![0.0; s]; lengths],
-            sst_signed: vec![0.0; lengths],
+            tests: tests.to_vec(),
+            rows: Vec::new(),
+            order: Vec::new(),
+            perm: Vec::new(),
+            signed: Vec::new(),
             acc: Vec::new(),
             acc_signed: Vec::new(),
             stat: vec![0.0; m],
@@ -1158,8 +1168,9 @@ impl PermWorker {
     }
 
     /// Permutation `i`: the residual permuted once per distinct block length (`lengths`), each
-    /// feature tested against the permutation of its own block (`groups`, one fused pass per
-    /// length); the family-wise statistic is the smallest over features.
+    /// feature tested against the permutation of its own block (`groups`, one per length,
+    /// one fused pass each over the permutation read in place); the family-wise statistic is
+    /// the smallest over features.
     #[allow(clippy::too_many_arguments)]
     fn run(
         &mut self,
@@ -1172,58 +1183,68 @@ impl PermWorker {
         groups: &[PermGroup],
         seed: u64,
     ) {
-        for (b, &len) in lengths.iter().enumerate() {
-            let stream = PERM_STREAM + PERM_STRIDE * i as u64 + b as u64;
-            block_permute(
-                y,
-                len,
-                &mut self.perms[b],
-                &mut SimRng::substream(seed, stream),
-            );
-            if let Some(d) = direction {
-                for ((s, p), d) in self.signed[b].iter_mut().zip(&self.perms[b]).zip(d) {
-                    *s = p * d;
-                }
-                self.sst_signed[b] = stats::sum_sq_about_mean(&self.signed[b]);
-            }
-        }
         let n = y.len();
         for g in groups {
             let b = g.length;
+            let len = lengths[b];
+            let stream = PERM_STREAM + PERM_STRIDE * i as u64 + b as u64;
+            let mut rng = SimRng::substream(seed, stream);
             match &g.table {
                 Some(table) => {
+                    let permuted = if len <= 1 {
+                        self.rows.clear();
+                        self.rows.extend_from_slice(y);
+                        shuffle_rows(&mut self.rows, &mut rng);
+                        Permuted::Rows(&self.rows)
+                    } else {
+                        let offset = draw_blocks(n, len, &mut self.order, &mut rng);
+                        Permuted::Blocks {
+                            y,
+                            block: len,
+                            offset,
+                            order: &self.order,
+                        }
+                    };
                     self.acc.resize(table.len(), 0.0);
                     self.acc_signed.resize(table.len(), 0.0);
-                    table.accumulate(
-                        &self.perms[b],
-                        &self.signed[b],
+                    let d = direction.filter(|_| table.signed() > 0).unwrap_or(&[]);
+                    let sum = table.accumulate_permuted(
+                        &permuted,
+                        d,
                         &mut self.acc,
                         &mut self.acc_signed,
                     );
+                    let sst_signed = if d.is_empty() {
+                        0.0
+                    } else {
+                        permuted.signed_sst(d, sum)
+                    };
                     for (j, &k) in g.features.iter().enumerate() {
                         let (t, a) = (&mut self.tests[k], usable[k].1);
                         self.stat[k] = t.min_p_of_sums(&a.binned, table.sums(&self.acc, j), n, sst);
-                        if a.signable && direction.is_some() {
+                        if j < table.signed() {
                             let sums = table.sums(&self.acc_signed, j);
-                            self.stat[k] = self.stat[k].min(t.min_p_of_sums(
-                                &a.binned,
-                                sums,
-                                n,
-                                self.sst_signed[b],
-                            ));
+                            self.stat[k] =
+                                self.stat[k].min(t.min_p_of_sums(&a.binned, sums, n, sst_signed));
                         }
                     }
                 }
                 None => {
+                    self.perm.resize(n, 0.0);
+                    block_permute(y, len, &mut self.perm, &mut rng);
+                    let mut sst_signed = 0.0;
+                    if let Some(d) = direction {
+                        self.signed.clear();
+                        self.signed
+                            .extend(self.perm.iter().zip(d).map(|(p, d)| p * d));
+                        sst_signed = stats::sum_sq_about_mean(&self.signed);
+                    }
                     for &k in &g.features {
                         let (t, a) = (&mut self.tests[k], usable[k].1);
-                        self.stat[k] = t.min_p(&a.binned, &self.perms[b], sst);
+                        self.stat[k] = t.min_p(&a.binned, &self.perm, sst);
                         if a.signable && direction.is_some() {
-                            self.stat[k] = self.stat[k].min(t.min_p(
-                                &a.binned,
-                                &self.signed[b],
-                                self.sst_signed[b],
-                            ));
+                            self.stat[k] =
+                                self.stat[k].min(t.min_p(&a.binned, &self.signed, sst_signed));
                         }
                     }
                 }
@@ -1272,13 +1293,14 @@ fn permutation_test(
             .map(|&(j, _)| lengths.binary_search(&blocks[j]).unwrap_or(0))
             .collect();
         let groups = perm_groups(&usable, lengths.len(), &which, direction.is_some(), fused);
+        let tests: Vec<FTest> = usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect();
         // Every permutation draws from its own seeded streams and the counts are integers, so
         // the p-values are the same for any number of threads.
         let k = usable.len();
         let (raw, adj) = (0..config.permutations)
             .into_par_iter()
             .fold(
-                || PermWorker::new(&usable, y.len(), lengths.len(), direction.is_some()),
+                || PermWorker::new(&tests),
                 |mut w, i| {
                     w.run(
                         i,

@@ -13,7 +13,7 @@
 use crate::numeric::stats::reg_inc_beta;
 
 /// Fine-bin index of a missing value.
-pub(crate) const MISSING: u32 = u32::MAX;
+pub(crate) const MISSING: u16 = u16::MAX;
 
 /// How a feature's values were binned.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,8 +27,9 @@ pub(crate) enum BinKind {
 /// A feature prepared for smoothing.
 #[derive(Debug, Clone)]
 pub(crate) struct Binned {
-    /// Fine bin of each row; [`MISSING`] for an undefined value.
-    pub fine: Vec<u32>,
+    /// Fine bin of each row; [`MISSING`] for an undefined value. Two bytes a row: there
+    /// are at most 4096 quantile bins and 256 discrete values.
+    pub fine: Vec<u16>,
     /// Number of fine (non-missing) bins, ≥ 1.
     pub n_fine: usize,
     /// Discrete or quantile bins.
@@ -89,8 +90,8 @@ impl Binned {
                 counts[distinct_values.partition_point(|&d| d < v)] += 1;
             }
             let missing = values.len() - sorted.len();
-            let mut label = vec![0u32; distinct_values.len()];
-            let mut next = 0u32;
+            let mut label = vec![0u16; distinct_values.len()];
+            let mut next = 0u16;
             let mut pending = 0usize;
             for (k, &c) in counts.iter().enumerate() {
                 label[k] = next;
@@ -125,7 +126,7 @@ impl Binned {
                 .iter()
                 .map(|v| match v {
                     Some(x) => label[distinct_values.partition_point(|&d| d < *x)],
-                    None if pool_missing => n_fine as u32 - 1,
+                    None if pool_missing => n_fine as u16 - 1,
                     None => MISSING,
                 })
                 .collect();
@@ -156,8 +157,8 @@ impl Binned {
         let fine = values
             .iter()
             .map(|v| match v {
-                Some(x) => cuts.partition_point(|&c| c <= *x) as u32,
-                None if pool_missing => (k_max - 1) as u32,
+                Some(x) => cuts.partition_point(|&c| c <= *x) as u16,
+                None if pool_missing => (k_max - 1) as u16,
                 None => MISSING,
             })
             .collect();
@@ -187,13 +188,13 @@ impl Binned {
 
     /// Slot of fine bin `f` at level `shift`.
     #[inline]
-    pub(super) fn slot(&self, f: u32, shift: u32) -> usize {
+    pub(super) fn slot(&self, f: u16, shift: u32) -> usize {
         if f == MISSING {
             self.defined_bins(shift)
         } else if shift >= ONE_BIN {
             0
         } else {
-            (f >> shift) as usize
+            (f as usize) >> shift
         }
     }
 
@@ -457,7 +458,10 @@ impl SlotTable {
     }
 
     /// Sets `acc` to every feature's per-slot sums of `y`, and `acc_signed` to the first
-    /// `signed` features' sums of `y_signed` (ignored, and may be empty, when there are none).
+    /// `signed` features' sums of `y_signed` (ignored, and may be empty, when there are none):
+    /// the fused pass over a materialised residual, the reference of
+    /// [`SlotTable::accumulate_permuted`].
+    #[cfg(test)]
     pub(crate) fn accumulate(
         &self,
         y: &[f64],
@@ -490,6 +494,196 @@ impl SlotTable {
             }
         }
     }
+}
+
+/// A permutation of a residual read in place: consecutive runs of rows of a source, so the
+/// permutation test's fused pass needs no permuted copy of the residual (and no signed copy:
+/// [`SlotTable::accumulate_permuted`] multiplies by the direction as it reads).
+pub(crate) enum Permuted<'a> {
+    /// The permuted residual itself (a row permutation, shuffled into a buffer).
+    Rows(&'a [f64]),
+    /// `y` rotated by `offset`, cut into consecutive blocks of `block` rows, the blocks in
+    /// `order`: block `b` is rows `(i + offset) mod n` for `i` in `b·block..(b+1)·block`, at
+    /// most two runs of `y`.
+    Blocks {
+        /// The residual.
+        y: &'a [f64],
+        /// Rows per block (the last block may be shorter).
+        block: usize,
+        /// Rotation.
+        offset: usize,
+        /// Block order.
+        order: &'a [usize],
+    },
+}
+
+/// How many blocks ahead [`Permuted::for_each_run`] prefetches a block's rows.
+const PREFETCH_BLOCKS: usize = 16;
+
+/// A hint to bring the cache line of `x[0]` into the cache (nothing elsewhere).
+#[inline(always)]
+fn prefetch(x: &[f64]) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch has no effect beyond the cache; SSE is part of x86_64.
+    #[allow(unused_unsafe)]
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+            x.as_ptr().cast::<i8>(),
+        );
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
+impl Permuted<'_> {
+    /// Calls `f(k, run)` for consecutive runs of the permuted residual: `run` is its rows
+    /// `k..k + run.len()`, in order from row 0.
+    #[inline]
+    pub(crate) fn for_each_run(&self, mut f: impl FnMut(usize, &[f64])) {
+        match *self {
+            Permuted::Rows(v) => f(0, v),
+            Permuted::Blocks {
+                y,
+                block,
+                offset,
+                order,
+            } => {
+                let n = y.len();
+                let mut k = 0;
+                for (idx, &b) in order.iter().enumerate() {
+                    // The blocks are scattered over a residual larger than the cache: ask
+                    // for a block's rows PREFETCH_BLOCKS blocks before they are read.
+                    if let Some(&ahead) = order.get(idx + PREFETCH_BLOCKS) {
+                        let start = (ahead * block + offset) % n;
+                        prefetch(&y[start..]);
+                        prefetch(&y[(start + block - 1).min(n - 1)..]);
+                    }
+                    let len = ((b + 1) * block).min(n) - b * block;
+                    let start = (b * block + offset) % n;
+                    let first = len.min(n - start);
+                    f(k, &y[start..start + first]);
+                    if len > first {
+                        f(k + first, &y[..len - first]);
+                    }
+                    k += len;
+                }
+            }
+        }
+    }
+
+    /// Σ(w − w̄)² of the signed permuted residual w = permuted × `direction`, given Σw
+    /// (`signed_sum`, from [`SlotTable::accumulate_permuted`]): the very bits of
+    /// `stats::sum_sq_about_mean` of that product (the same sums in the same order).
+    pub(crate) fn signed_sst(&self, direction: &[f64], signed_sum: f64) -> f64 {
+        let m = signed_sum / direction.len() as f64;
+        let mut ss = -0.0;
+        self.for_each_run(|k, run| {
+            ss = sq_dev_sum(run, &direction[k..k + run.len()], m, ss);
+        });
+        ss
+    }
+}
+
+impl SlotTable {
+    /// [`SlotTable::accumulate`] of a permuted residual read in place, the signed residual
+    /// being the permuted one times `direction` (unused, and may be empty, when no feature is
+    /// signed). Returns Σ of the signed residual in row order (−0 when none is signed). The
+    /// same additions in the same order as [`SlotTable::accumulate`] of the materialised
+    /// permutation and its product (tested).
+    pub(crate) fn accumulate_permuted(
+        &self,
+        y: &Permuted<'_>,
+        direction: &[f64],
+        acc: &mut [f64],
+        acc_signed: &mut [f64],
+    ) -> f64 {
+        acc.iter_mut().for_each(|a| *a = 0.0);
+        let m = self.m;
+        let mut signed_sum = -0.0;
+        if m == 0 {
+            return signed_sum;
+        }
+        let offset = &self.offset[..m];
+        let ms = self.signed;
+        if ms > 0 {
+            acc_signed.iter_mut().for_each(|a| *a = 0.0);
+        }
+        let codes = &self.codes[..];
+        y.for_each_run(|k, run| {
+            let rows = &codes[k * m..(k + run.len()) * m];
+            if ms == 0 {
+                add_rows(rows, m, offset, run, acc);
+            } else {
+                signed_sum = add_rows_signed(
+                    rows,
+                    m,
+                    ms,
+                    offset,
+                    run,
+                    &direction[k..k + run.len()],
+                    acc,
+                    acc_signed,
+                    signed_sum,
+                );
+            }
+        });
+        signed_sum
+    }
+
+    /// Features whose sums of the signed residual are taken.
+    pub(crate) fn signed(&self) -> usize {
+        self.signed
+    }
+}
+
+/// Adds `run[t]` into `acc[offset[j] + codes[t·m + j]]` for every row t and feature j < m.
+#[inline]
+fn add_rows(codes: &[u8], m: usize, offset: &[usize], run: &[f64], acc: &mut [f64]) {
+    for (t, &v) in run.iter().enumerate() {
+        let row = &codes[t * m..(t + 1) * m];
+        for (&c, &o) in row.iter().zip(offset) {
+            acc[o + c as usize] += v;
+        }
+    }
+}
+
+/// [`add_rows`], and `run[t]·d[t]` into `acc_signed` for the first `ms` features; returns
+/// `sum` plus every `run[t]·d[t]` in row order (a local chain, kept in a register).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn add_rows_signed(
+    codes: &[u8],
+    m: usize,
+    ms: usize,
+    offset: &[usize],
+    run: &[f64],
+    d: &[f64],
+    acc: &mut [f64],
+    acc_signed: &mut [f64],
+    mut sum: f64,
+) -> f64 {
+    for (t, (&v, &dt)) in run.iter().zip(d).enumerate() {
+        let w = v * dt;
+        sum += w;
+        let row = &codes[t * m..(t + 1) * m];
+        for (&c, &o) in row.iter().zip(offset) {
+            acc[o + c as usize] += v;
+        }
+        for (&c, &o) in row[..ms].iter().zip(offset) {
+            acc_signed[o + c as usize] += w;
+        }
+    }
+    sum
+}
+
+/// `ss` plus Σ(run[t]·d[t] − m)² in row order (a local chain, kept in a register).
+#[inline]
+fn sq_dev_sum(run: &[f64], d: &[f64], m: f64, mut ss: f64) -> f64 {
+    for (&v, &dt) in run.iter().zip(d) {
+        let w = v * dt;
+        ss += (w - m) * (w - m);
+    }
+    ss
 }
 
 /// p-value of a one-way ANOVA with between-group sum of squares `ssb`, total `sst`, `groups`

@@ -832,3 +832,117 @@ fn shuffle_rows_equals_the_plain_shuffle() {
         assert_eq!(a, b, "n {n}");
     }
 }
+
+/// Reference: the fused pass over a materialised permutation ([`SlotTable::accumulate`] of
+/// [`block_permute_reference`]'s output and its product with the direction) and
+/// `stats::sum_sq_about_mean` of that product. Reading the permutation in place
+/// ([`SlotTable::accumulate_permuted`] over [`Permuted`] runs, with prefetching, the signed
+/// residual multiplied as it is read) must give the same sums and the same signed sum of
+/// squares bit for bit, for row and block permutations, blocks that do and do not divide the
+/// length, and a length past the prefetch distance.
+#[test]
+fn permutation_read_in_place_equals_the_materialised_one() {
+    let t = table(23, 4001);
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|v| v.unwrap_or(0.0))
+        .collect();
+    let r = residuals(&t, 5, 1.0, |i| 0.3 * dir[i]);
+    let bins: Vec<Binned> = t
+        .columns()
+        .iter()
+        .filter_map(|c| Binned::new(&c.values, 64, 10, 12).ok())
+        .collect();
+    assert!(bins.len() >= 8);
+    let refs: Vec<&Binned> = bins.iter().collect();
+    let n = r.len();
+    for signed in [0, 5] {
+        let table = SlotTable::new(&refs, signed).expect("few slots");
+        for block in [1, 2, 7, 64, 1000] {
+            for seed in 0..3 {
+                let mut materialised = vec![0.0; n];
+                block_permute_reference(
+                    &r,
+                    block,
+                    &mut materialised,
+                    &mut SimRng::substream(seed, 5),
+                );
+                let product: Vec<f64> = materialised.iter().zip(&dir).map(|(a, b)| a * b).collect();
+                let (mut want, mut want_s) = (vec![0.0; table.len()], vec![0.0; table.len()]);
+                table.accumulate(&materialised, &product, &mut want, &mut want_s);
+
+                let mut rng = SimRng::substream(seed, 5);
+                let (mut rows, mut order) = (Vec::new(), Vec::new());
+                let permuted = if block <= 1 {
+                    rows.extend_from_slice(&r);
+                    shuffle_rows(&mut rows, &mut rng);
+                    Permuted::Rows(&rows)
+                } else {
+                    let offset = draw_blocks(n, block, &mut order, &mut rng);
+                    Permuted::Blocks {
+                        y: &r,
+                        block,
+                        offset,
+                        order: &order,
+                    }
+                };
+                let (mut got, mut got_s) = (vec![f64::NAN; table.len()], vec![0.0; table.len()]);
+                let d: &[f64] = if signed > 0 { &dir } else { &[] };
+                let sum = table.accumulate_permuted(&permuted, d, &mut got, &mut got_s);
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&got), bits(&want), "block {block} seed {seed}");
+                if signed > 0 {
+                    // The signed features' slots come first.
+                    let end: usize = bins[..signed].iter().map(|b| b.n_fine + 1).sum();
+                    assert_eq!(bits(&got_s[..end]), bits(&want_s[..end]), "signed {block}");
+                    let sst = permuted.signed_sst(&dir, sum);
+                    assert_eq!(
+                        sst.to_bits(),
+                        stats::sum_sq_about_mean(&product).to_bits(),
+                        "block {block} seed {seed}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Reference: the clip as first written, with the median and the MAD read from sorted
+/// copies. [`winsorize`] finds them by selection and must clip to the same bits, for odd and
+/// even lengths, ties, outliers on both sides and a zero MAD.
+#[test]
+fn winsorize_by_selection_equals_the_sorted_reference() {
+    fn reference(residuals: &[f64]) -> Vec<f64> {
+        let sorted = stats::sorted(residuals);
+        let Some(median) = stats::percentile_sorted(&sorted, 50.0) else {
+            return residuals.to_vec();
+        };
+        let dev: Vec<f64> = residuals.iter().map(|v| (v - median).abs()).collect();
+        let mad = stats::percentile_sorted(&stats::sorted(&dev), 50.0).unwrap_or(0.0);
+        let half = WINSOR_SIGMAS * 1.4826 * mad;
+        if half > 0.0 {
+            residuals
+                .iter()
+                .map(|v| v.clamp(median - half, median + half))
+                .collect()
+        } else {
+            residuals.to_vec()
+        }
+    }
+    let mut rng = SimRng::new(31);
+    for n in [0usize, 1, 2, 3, 10, 11, 1000, 1001] {
+        let mut r: Vec<f64> = (0..n)
+            .map(|i| match i % 17 {
+                0 => 50.0 * rng.normal(),
+                1 => (rng.below(3) as f64) * 0.5,
+                _ => rng.normal(),
+            })
+            .collect();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&winsorize(&r)), bits(&reference(&r)), "n {n}");
+        // Mostly one value: a zero MAD leaves the residuals as they are.
+        r.iter_mut().skip(1).step_by(2).for_each(|v| *v = 2.0);
+        r.iter_mut().step_by(3).for_each(|v| *v = 2.0);
+        assert_eq!(bits(&winsorize(&r)), bits(&reference(&r)), "n {n} ties");
+    }
+}

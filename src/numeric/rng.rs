@@ -63,15 +63,105 @@ impl SimRng {
         if n == 0 {
             return 0;
         }
-        let zone = u64::MAX - (u64::MAX % n);
         loop {
             let v = self.inner.next_u64();
-            if v < zone {
+            if accept(v, n) {
                 return v % n;
             }
         }
     }
 
+    /// `below(k + 1)` for k = `hi`, `hi` − 1, …, `lo` (in that order, `lo` ≤ `hi`), appended to
+    /// `out`: the same values and the same generator state afterwards as those calls one by
+    /// one (tested). The draws come first and the reductions `v mod (k + 1)` after, in a loop
+    /// without divisions where k + 1 ≥ 2¹⁶ (an exact quotient from a floating-point estimate,
+    /// vectorised on a CPU with AVX-512), which is what a shuffle's long run of draws costs.
+    pub(crate) fn below_descending(&mut self, lo: u64, hi: u64, out: &mut Vec<u64>) {
+        let start = out.len();
+        for k in (lo..=hi).rev() {
+            let n = k + 1;
+            loop {
+                let v = self.inner.next_u64();
+                if accept(v, n) {
+                    out.push(v);
+                    break;
+                }
+            }
+        }
+        reduce_descending(&mut out[start..], hi + 1);
+    }
+}
+
+/// Whether `below(n)` accepts draw `v`: `v` below the largest multiple of `n` that fits, so
+/// every residue is equally likely. That zone starts above `u64::MAX − n`, so the division
+/// that finds it is needed only for the last `n` values of the range.
+#[inline]
+fn accept(v: u64, n: u64) -> bool {
+    v <= u64::MAX - n || v < u64::MAX - (u64::MAX % n)
+}
+
+/// Smallest modulus [`mod_by_estimate`] takes: its quotient estimate is then within one of
+/// the true quotient.
+const FAST_MOD_MIN: u64 = 1 << 16;
+
+/// `v mod n` for `FAST_MOD_MIN ≤ n < 2⁵³` without a division instruction: the quotient
+/// estimated in floating point, `v / n` (relative error ≤ 2⁻⁵², so for v < 2⁶⁴ and n ≥ 2¹⁶
+/// within 2⁻⁴ of the true v / n before truncation) is the true quotient or one off, and one
+/// correction each way makes the remainder exact (tested against `%`).
+#[inline]
+fn mod_by_estimate(v: u64, n: u64) -> u64 {
+    let q = (v as f64 / n as f64) as u64;
+    // v − q·n is in [−n, 2n): exact in wrapping arithmetic read as signed.
+    let mut r = v.wrapping_sub(q.wrapping_mul(n)) as i64;
+    let ni = n as i64;
+    r += (r >> 63) & ni;
+    r -= ni & -((r >= ni) as i64);
+    r as u64
+}
+
+/// Replaces `v[t]` by `v[t] mod (n0 − t)` (n0 − t ≥ 1); by [`mod_by_estimate`] where the
+/// modulus is at least [`FAST_MOD_MIN`] and below 2⁵³.
+fn reduce_descending(v: &mut [u64], n0: u64) {
+    // The moduli of at least FAST_MOD_MIN come first (they descend).
+    let fast = if n0 < 1 << 53 {
+        (n0.saturating_sub(FAST_MOD_MIN - 1) as usize).min(v.len())
+    } else {
+        0
+    };
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512dq") {
+        // SAFETY: the CPU has AVX-512 F and DQ (DQ implies F; checked just above).
+        unsafe { reduce_fast_avx512(&mut v[..fast], n0) };
+    } else {
+        reduce_fast(&mut v[..fast], n0);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    reduce_fast(&mut v[..fast], n0);
+    for (t, x) in v.iter_mut().enumerate().skip(fast) {
+        *x %= n0 - t as u64;
+    }
+}
+
+/// [`mod_by_estimate`] over a run of descending moduli from `n0` (each ≥ [`FAST_MOD_MIN`]).
+#[inline]
+fn reduce_fast(v: &mut [u64], n0: u64) {
+    for (t, x) in v.iter_mut().enumerate() {
+        *x = mod_by_estimate(*x, n0 - t as u64);
+    }
+}
+
+/// [`reduce_fast`] compiled for AVX-512 F/DQ (64-bit integer ↔ double conversions and
+/// multiplies in vector registers): the same arithmetic, the same results.
+///
+/// # Safety
+/// The CPU must support AVX-512 F and DQ.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq")]
+unsafe fn reduce_fast_avx512(v: &mut [u64], n0: u64) {
+    reduce_fast(v, n0);
+}
+
+impl SimRng {
     /// A standard normal deviate (Box–Muller, both values used).
     pub fn normal(&mut self) -> f64 {
         if let Some(z) = self.spare_normal.take() {
@@ -101,6 +191,81 @@ mod tests {
         let mut s0 = SimRng::substream(1, 0);
         let mut s1 = SimRng::substream(1, 1);
         assert_ne!(s0.next_u64(), s1.next_u64());
+    }
+
+    /// Reference: `below` as it was written first (the rejection zone from a division on
+    /// every call, `v % n`), and `%` itself for the division-free reduction: the same values
+    /// and the same generator state, for small and large moduli, across the 2¹⁶ switch of
+    /// `below_descending`, and at the draws nearest `u64::MAX` where rejection happens.
+    #[test]
+    fn below_and_below_descending_equal_the_reference() {
+        fn below_reference(r: &mut SimRng, n: u64) -> u64 {
+            if n == 0 {
+                return 0;
+            }
+            let zone = u64::MAX - (u64::MAX % n);
+            loop {
+                let v = r.next_u64();
+                if v < zone {
+                    return v % n;
+                }
+            }
+        }
+        for n in [
+            1u64,
+            2,
+            3,
+            7,
+            1000,
+            65_535,
+            65_536,
+            65_537,
+            1 << 40,
+            u64::MAX / 3 + 1,
+        ] {
+            let (mut a, mut b) = (SimRng::new(n), SimRng::new(n));
+            for _ in 0..2000 {
+                assert_eq!(a.below(n), below_reference(&mut b, n), "n {n}");
+            }
+        }
+        for (lo, hi) in [
+            (0u64, 10u64),
+            (1, 70_000),
+            (65_530, 65_540),
+            (999_000, 1_000_000),
+        ] {
+            let (mut a, mut b) = (SimRng::substream(3, lo), SimRng::substream(3, lo));
+            let mut fast = vec![7];
+            a.below_descending(lo, hi, &mut fast);
+            let slow: Vec<u64> = std::iter::once(7)
+                .chain((lo..=hi).rev().map(|k| below_reference(&mut b, k + 1)))
+                .collect();
+            assert_eq!(fast, slow, "{lo}..={hi}");
+            assert_eq!(a.next_u64(), b.next_u64());
+        }
+        // The reduction alone, at the ends of the range of v and of n.
+        let mut r = SimRng::new(11);
+        for k in 0..200_000u64 {
+            let n = match k % 4 {
+                0 => FAST_MOD_MIN + k,
+                1 => (1 << 52) - k,
+                _ => FAST_MOD_MIN + r.next_u64() % (1 << 40),
+            };
+            let v = match k % 3 {
+                0 => u64::MAX - k,
+                1 => k,
+                _ => r.next_u64(),
+            };
+            assert_eq!(mod_by_estimate(v, n), v % n, "{v} mod {n}");
+        }
+        let mut v: Vec<u64> = (0..70_000).map(|_| r.next_u64()).collect();
+        let want: Vec<u64> = v
+            .iter()
+            .enumerate()
+            .map(|(t, x)| x % (70_000 - t as u64))
+            .collect();
+        reduce_descending(&mut v, 70_000);
+        assert_eq!(v, want);
     }
 
     #[test]
