@@ -597,12 +597,90 @@ fn slow_rss(
     data: &FitData<'_>,
     opts: &CheckedFitOptions,
 ) -> f64 {
-    let mut trial = terms.to_vec();
     match terms[k].with_nonlinear(t) {
-        Some(term) => trial[k] = term,
-        None => return f64::INFINITY,
+        Some(term) => slow_rss_of(terms, k, &term, data, opts),
+        None => f64::INFINITY,
     }
+}
+
+/// [`slow_rss`] with term `k` replaced by `term` (a version of it from [`Term::search`]).
+fn slow_rss_of(
+    terms: &[Arc<dyn Term>],
+    k: usize,
+    term: &Arc<dyn Term>,
+    data: &FitData<'_>,
+    opts: &CheckedFitOptions,
+) -> f64 {
+    let mut trial = terms.to_vec();
+    trial[k] = term.clone();
     solve(&trial, data, opts).map_or(f64::INFINITY, |s| s.rss)
+}
+
+/// Term `k`'s own search ([`Term::search`]), if it has one: the residual of the other terms
+/// and the projection are built only when the term asks for them.
+fn own_search(
+    terms: &[Arc<dyn Term>],
+    k: usize,
+    data: &FitData<'_>,
+    opts: &CheckedFitOptions,
+    dof: usize,
+) -> Option<crate::model::term::Searched> {
+    use std::cell::OnceCell;
+    let proj: OnceCell<Option<Projection<'_, '_>>> = OnceCell::new();
+    let projection = || {
+        proj.get_or_init(|| {
+            terms[k]
+                .search_by_projection()
+                .then(|| Projection::new(terms, k, data, opts))
+                .flatten()
+        })
+    };
+    let rest: OnceCell<Vec<f64>> = OnceCell::new();
+    let residual = || -> &[f64] {
+        rest.get_or_init(|| match projection() {
+            // The projection's response is already the residual on the other terms.
+            Some(p) => p.y.clone(),
+            None => rest_residual(terms, k, data, opts),
+        })
+    };
+    let rss = |term: &Arc<dyn Term>| match projection() {
+        Some(p) => p
+            .fast_rss_of(term)
+            .unwrap_or_else(|| slow_rss_of(terms, k, term, data, opts)),
+        None => slow_rss_of(terms, k, term, data, opts),
+    };
+    let ctx = crate::model::term::SearchContext::new(data, &residual, &rss, dof);
+    terms[k].search(&ctx)
+}
+
+/// Per measured row, the bias minus the least-squares fit of every term but `k` (the bias
+/// itself where that fit fails).
+fn rest_residual(
+    terms: &[Arc<dyn Term>],
+    k: usize,
+    data: &FitData<'_>,
+    opts: &CheckedFitOptions,
+) -> Vec<f64> {
+    let fixed: Vec<Arc<dyn Term>> = terms
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != k)
+        .map(|(_, t)| t.clone())
+        .collect();
+    let coef = solve(&fixed, data, opts).map(|s| s.coef).ok();
+    let mut out = Vec::new();
+    let pass = design_pass(&fixed, data, |x, y| {
+        let fit = coef
+            .as_ref()
+            .map_or(0.0, |c| x.iter().zip(c).map(|(a, b)| a * b).sum::<f64>());
+        out.push(y - fit);
+    });
+    if pass.is_err() {
+        out.clear();
+        // No terms: nothing can fail to start.
+        let _ = design_pass(&[], data, |_, y| out.push(y));
+    }
+    out
 }
 
 /// Rows per block of [`Blocked`] sums.
@@ -778,7 +856,11 @@ impl<'d, 'a> Projection<'d, 'a> {
     /// The closed-form RSS, or `None` where [`slow_rss`] must decide (including where the term
     /// refuses `t`: the slow path gives `∞` then).
     fn fast_rss(&self, terms: &[Arc<dyn Term>], t: f64) -> Option<f64> {
-        let term = terms[self.k].with_nonlinear(t)?;
+        self.fast_rss_of(&terms[self.k].with_nonlinear(t)?)
+    }
+
+    /// [`Projection::fast_rss`] with the searched term replaced by `term`.
+    fn fast_rss_of(&self, term: &Arc<dyn Term>) -> Option<f64> {
         let w = term.param_count();
         let pf = self.pf;
         let log = self.data.log();
@@ -995,6 +1077,15 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             let Some(nl) = terms[k].nonlinear() else {
                 continue;
             };
+            // A term that searches its own parameters (`Term::search`: `bump`'s centre and
+            // width) does so here; its standard errors are its own.
+            let dof = measured.saturating_sub(p + 1).max(1);
+            if let Some(found) = own_search(&terms, k, &data, opts, dof) {
+                evaluations += found.evaluations;
+                converged &= found.converged;
+                terms[k] = found.term;
+                continue;
+            }
             // The search compares RSS values from the variable projection; the standard
             // error below differentiates the RSS twice, so it takes three full solves.
             // Used where the term allows it (`Term::search_by_projection`: the `dahl` rate, its

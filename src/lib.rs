@@ -187,7 +187,7 @@ pub use log::{
 };
 pub use model::preset::{CALIBRATION, preset_terms};
 pub use model::registry::builtin_names;
-pub use model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState};
+pub use model::term::{Nonlinear, Param, SearchContext, Searched, Seek, Term, TermSpec, TermState};
 pub use model::terms;
 pub use model::{
     ColumnsUsed, Feedback, FittedModel, FittedTerm, ModelEdit, ModelError, ModelSpec,
