@@ -429,3 +429,63 @@ fn list(terms: &[&String]) -> String {
         .collect::<Vec<_>>()
         .join(", ")
 }
+
+/// The term for a narrow localized position defect: `bump`, a Gaussian bump whose centre and
+/// width the fit searches ([`crate::model::terms::bump`]). Verified beside the finer tables
+/// a `table` suggestion is scored with (and beside `bins:position`'s knot counts): a defect a
+/// few tracks wide needs table knots that close over the whole span, or three parameters of a
+/// bump; the out-of-sample refit decides which resolves it better. Every fold's refit searches
+/// the centre and width on its own training rows (bare `bump`), so the held-out rows never
+/// choose where the bump goes.
+pub(crate) const BUMP_TERM: &str = "bump";
+
+/// The position terms whose verification also scores [`BUMP_TERM`]: `table` and
+/// `bins:position`.
+pub(crate) fn tries_bump(term: &str) -> bool {
+    term == "table" || term == "bins:position"
+}
+
+/// [`BUMP_TERM`], unless the model `spec` already has a term of that name.
+pub(crate) fn bump_variant(spec: &crate::model::ModelSpec) -> Option<String> {
+    (!spec.terms.iter().any(|t| t.name() == BUMP_TERM)).then(|| BUMP_TERM.to_string())
+}
+
+/// `bump:CENTRE:WIDTH` at a fitted centre and width (position unit), both to the hundredth of
+/// the width's leading digit (`bump:1506.89:1.44` for a width of 1.436 tracks): what the
+/// suggestion shows and applies. The term searches again from there (centres within four
+/// widths, widths within a factor three), so refitting it on the log it was found on ends
+/// where the bare `bump` did.
+pub(crate) fn bump_at(centre: f64, width: f64) -> String {
+    let decimals = (2 - width.log10().floor() as i64).clamp(0, 300) as usize;
+    let text = |v: f64| {
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    };
+    format!("{BUMP_TERM}:{}:{}", text(centre), text(width))
+}
+
+/// For a verified `add bump` edit on `spec`: the same edit with the centre and width the
+/// bare `bump` finds when fitted on the whole `log` (`add bump:1506.89:1.44`), and the spec
+/// after it; `None` for any other edit or where that fit fails (the edit then stays `add bump`).
+pub(crate) fn name_bump(
+    spec: &crate::model::ModelSpec,
+    edit: &crate::model::ModelEdit,
+    log: &crate::log::Log,
+    opts: &crate::fit::CheckedFitOptions,
+) -> Option<(crate::model::ModelEdit, crate::model::ModelSpec)> {
+    use crate::model::ModelEdit;
+    let ModelEdit::Add(t) = edit else { return None };
+    if t.name() != BUMP_TERM {
+        return None;
+    }
+    let model = crate::fit::fit(&spec.apply(edit).ok()?, log, opts).ok()?;
+    let p = |n: &str| model.param(&format!("{BUMP_TERM}.{n}")).map(|p| p.value);
+    let named = crate::model::terms::parse_term(&bump_at(p("centre")?, p("width")?)).ok()?;
+    let edit = ModelEdit::Add(named);
+    let next = spec.apply(&edit).ok()?;
+    Some((edit, next))
+}

@@ -447,10 +447,16 @@ pub(super) fn knot_variants(term: &str) -> Vec<String> {
 pub(crate) const TABLE_REFINEMENTS: [f64; 2] = [2.0, 4.0];
 
 /// [`knot_variants`], and for `table` the cross-validated spacing (`spacing`, when finer than
-/// the model's table) then the model's table spacing over each of [`TABLE_REFINEMENTS`].
+/// the model's table) then the model's table spacing over each of [`TABLE_REFINEMENTS`]; for
+/// `table` and `bins:position` also `bump` (a narrow localized defect, see
+/// [`super::advice::BUMP_TERM`]), unless the model has one.
 pub(super) fn variants(term: &str, spec: &ModelSpec, spacing: Option<f64>) -> Vec<String> {
     if term != "table" {
-        return knot_variants(term);
+        let mut out = knot_variants(term);
+        if super::advice::tries_bump(term) {
+            out.extend(super::advice::bump_variant(spec));
+        }
+        return out;
     }
     let current = spec.terms.iter().find_map(|t| {
         t.name()
@@ -469,6 +475,7 @@ pub(super) fn variants(term: &str, spec: &ModelSpec, spacing: Option<f64>) -> Ve
     if out.is_empty() {
         out.push(term.to_string());
     }
+    out.extend(super::advice::bump_variant(spec));
     out
 }
 
@@ -696,6 +703,18 @@ pub(crate) fn verify(
     }
     v.edits
         .sort_by(|a, b| b.verified.cmp(&a.verified).then(b.gain.total_cmp(&a.gain)));
+    // A verified `add bump` names the centre and width it finds on the whole log.
+    for e in v.edits.iter_mut().filter(|e| e.verified) {
+        let named = e
+            .model_edit
+            .as_ref()
+            .and_then(|m| super::advice::name_bump(spec, m, log, &config.fit));
+        if let Some((edit, next)) = named {
+            e.edit = edit.to_string();
+            e.terms = next.to_string();
+            e.model_edit = Some(edit);
+        }
+    }
     Ok(v)
 }
 

@@ -82,11 +82,8 @@ pub struct BumpSpec {
 impl TermSpec for BumpSpec {
     fn name(&self) -> String {
         match self.start {
-            Some((c, w)) => format!(
-                "bump:{}:{}",
-                crate::log::fmt_trimmed(c, 6),
-                crate::log::fmt_trimmed(w, 6)
-            ),
+            // Shortest text that reads back to the same value (any position unit).
+            Some((c, w)) => format!("bump:{c}:{w}"),
             None => "bump".into(),
         }
     }
@@ -478,5 +475,221 @@ pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, SpecError> {
             start: Some((c, w)),
         })),
         _ => Err(t.bad(format!("{usage}; got `{arg}`"))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::{FitOptions, fit};
+    use crate::log::{ColumnMap, Log};
+    use crate::model::{FittedModel, ModelSpec};
+    use crate::numeric::rng::SimRng;
+
+    /// `n` seeks over integer tracks 0..=400 (random moves of mixed length), bias = a linear
+    /// trend + `amp·exp(−½((x − 150)/2)²)` + N(0, 1) noise; positions × `xs`.
+    fn log_text(seed: u64, n: usize, amp: f64, xs: f64) -> String {
+        let mut rng = SimRng::new(seed);
+        let mut text = String::from("time_s,track,bias\n");
+        let mut x = 200.0f64;
+        for k in 0..n {
+            let step = if rng.uniform() < 0.5 { 15.0 } else { 200.0 };
+            x = (x + (rng.uniform() - 0.5) * 2.0 * step)
+                .round()
+                .clamp(0.0, 400.0);
+            let bias =
+                3.0 + 0.01 * x + amp * (-0.5 * ((x - 150.0) / 2.0).powi(2)).exp() + rng.normal();
+            text += &format!("{:?},{:?},{bias:?}\n", 0.1 * k as f64, x * xs);
+        }
+        text
+    }
+
+    fn log(seed: u64, n: usize, amp: f64, xs: f64) -> Log {
+        let text = log_text(seed, n, amp, xs);
+        Log::from_reader("bump.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
+    }
+
+    fn fit_text(spec: &str, log: &Log) -> FittedModel {
+        let opts = FitOptions::default().check().unwrap();
+        fit(&ModelSpec::parse(spec).unwrap(), log, &opts).unwrap()
+    }
+
+    #[test]
+    fn parses_its_syntax_and_refuses_bad_arguments() {
+        // The name is the shortest text of each value, so it reads back to itself.
+        for (ok, name) in [
+            ("bump", "bump"),
+            ("bump:150:2", "bump:150:2"),
+            ("bump:-3.5:1e-6", "bump:-3.5:0.000001"),
+        ] {
+            let t = crate::model::terms::parse_term(ok).unwrap();
+            assert_eq!(t.name(), name);
+            assert_eq!(crate::model::terms::parse_term(name).unwrap().name(), name);
+        }
+        for bad in [
+            "bump:150",
+            "bump:x:2",
+            "bump:150:0",
+            "bump:150:-1",
+            "bump:nan:1",
+            "bump:1:inf",
+        ] {
+            let e = crate::model::terms::parse_term(bad)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("bump:CENTRE:WIDTH"), "{bad}: {e}");
+        }
+    }
+
+    /// Reference: the truth of [`log_text`] (centre 150, width 2, amplitude 6) on 4000 seeks:
+    /// `poly2,bump` from no starting point, and from a start 5 tracks and a factor 1.6 off.
+    #[test]
+    fn recovers_centre_width_and_amplitude() {
+        let l = log(5, 4000, 6.0, 1.0);
+        for spec in ["poly2,bump", "poly2,bump:155:3.2"] {
+            let m = fit_text(spec, &l);
+            let name = spec.split(',').nth(1).unwrap();
+            let p = |n: &str| m.param(&format!("{name}.{n}")).unwrap().clone();
+            let (a, c, w) = (p("A"), p("centre"), p("width"));
+            assert!((c.value - 150.0).abs() < 0.25, "{spec}: {c:?}");
+            assert!((w.value - 2.0).abs() < 0.2 * 2.0, "{spec}: {w:?}");
+            assert!((a.value - 6.0).abs() < 2.5 * a.se.unwrap(), "{spec}: {a:?}");
+            // The curvature standard errors are there and of a plausible size.
+            assert!(c.se.unwrap() > 0.0 && c.se.unwrap() < 0.3, "{spec}: {c:?}");
+            assert!(w.se.unwrap() > 0.0 && w.se.unwrap() < 0.4, "{spec}: {w:?}");
+            assert!(m.fit.converged, "{spec}: {:?}", m.warnings);
+        }
+    }
+
+    /// A start the log cannot use is refused when fitting, naming the term.
+    #[test]
+    fn refuses_a_start_outside_the_log() {
+        let l = log(5, 800, 6.0, 1.0);
+        let opts = FitOptions::default().check().unwrap();
+        for (spec, why) in [
+            ("poly2,bump:900:2", "outside the measured positions"),
+            ("poly2,bump:150:0.01", "outside what this log resolves"),
+            ("poly2,bump:150:300", "outside what this log resolves"),
+        ] {
+            let e = fit(&ModelSpec::parse(spec).unwrap(), &l, &opts)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("bump:") && e.contains(why), "{spec}: {e}");
+        }
+    }
+
+    /// Reference: the windowed sums written out directly — every row's distance tested, no
+    /// sorting or binary search. The scan's scores must be the same bits, and its best
+    /// candidates the largest of those scores, separated.
+    #[test]
+    fn scan_equals_the_direct_windowed_sums() {
+        let mut rng = SimRng::new(3);
+        let x: Vec<f64> = (0..700).map(|_| (rng.uniform() * 300.0).round()).collect();
+        let r: Vec<f64> = x
+            .iter()
+            .map(|&v| 4.0 * (-0.5 * ((v - 77.0) / 3.0f64).powi(2)).exp() + rng.normal())
+            .collect();
+        let (cr, wr) = ((0.0, 300.0), (0.5f64.ln(), 30.0f64.ln()));
+        let hits = scan(&x, &r, cr, wr, 3);
+        assert_eq!(hits.len(), 3);
+        let mut sorted: Vec<(f64, f64)> = x.iter().copied().zip(r.iter().copied()).collect();
+        sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let direct = |c: f64, lw: f64| {
+            let w = lw.exp();
+            let (mut gr, mut gg) = (0.0, 0.0);
+            for &(xi, ri) in &sorted {
+                if xi >= c - SCAN_WINDOW * w && xi <= c + SCAN_WINDOW * w {
+                    let z = (xi - c) / w;
+                    let g = (-0.5 * z * z).exp();
+                    gr += g * ri;
+                    gg += g * g;
+                }
+            }
+            gr * gr / gg
+        };
+        for h in &hits {
+            assert_eq!(direct(h.centre, h.ln_width).to_bits(), h.score.to_bits());
+        }
+        // The best is the defect, and nothing in a dense direct grid beats it by much.
+        assert!((hits[0].centre - 77.0).abs() < 2.0, "{:?}", hits[0]);
+        let mut best = 0.0f64;
+        for i in 0..=600 {
+            for lw in [0.5f64, 1.0, 2.0, 3.0, 5.0, 8.0] {
+                best = best.max(direct(i as f64 * 0.5, lw.ln()));
+            }
+        }
+        assert!(hits[0].score >= 0.9 * best, "{} vs {best}", hits[0].score);
+    }
+
+    /// Unit invariance (the module docs): the same log with positions × 1e-6 … 1e6 gives the
+    /// same predictions (to 1e-9 of the bias spread) and the same centre and width in the new
+    /// unit, with and without a starting point (scaled with the positions).
+    #[test]
+    fn predictions_do_not_depend_on_the_position_unit() {
+        let (train, test) = (log(8, 1500, 5.0, 1.0), log(9, 500, 5.0, 1.0));
+        for (spec, start) in [("bump", None), ("bump:152:3", Some((152.0, 3.0)))] {
+            let m0 = fit_text(&format!("poly2,{spec}"), &train);
+            let p0 = m0.predict_log(&test).unwrap();
+            let spread = p0.measured.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let c0 = m0
+                .params()
+                .find(|p| p.name.ends_with(".centre"))
+                .unwrap()
+                .value;
+            for xs in [1e-6, 1e-3, 0.37, 1e3, 1e6] {
+                let term = match start {
+                    None => "bump".to_string(),
+                    Some((c, w)) => format!("bump:{}:{}", c * xs, w * xs),
+                };
+                let m = fit_text(&format!("poly2,{term}"), &log(8, 1500, 5.0, xs));
+                let p = m.predict_log(&log(9, 500, 5.0, xs)).unwrap();
+                for (a, b) in p0.predicted.iter().zip(&p.predicted) {
+                    assert!((a - b).abs() <= 1e-9 * spread, "{term} ×{xs}: {a} vs {b}");
+                }
+                let c = m
+                    .params()
+                    .find(|p| p.name.ends_with(".centre"))
+                    .unwrap()
+                    .value;
+                assert!(
+                    (c / xs - c0).abs() <= 1e-9 * c0,
+                    "{term} ×{xs}: {c} vs {c0}"
+                );
+            }
+        }
+    }
+
+    /// The model file round trip: settings, coefficients, parameters and predictions come back
+    /// bit for bit; a width ≤ 0 or a misspelt setting is refused at load.
+    #[test]
+    fn round_trips_bit_for_bit_and_refuses_bad_settings() {
+        let l = log(5, 1500, 6.0, 1.0);
+        let m = fit_text("poly2,bump", &l);
+        let json = m.to_json().unwrap();
+        let back =
+            FittedModel::from_json(&json, std::path::Path::new("m.json"), &|_, _| None).unwrap();
+        assert_eq!(back.to_json().unwrap(), json);
+        let (a, b) = (m.predict_log(&l).unwrap(), back.predict_log(&l).unwrap());
+        assert!(
+            a.predicted
+                .iter()
+                .zip(&b.predicted)
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+        );
+        let t = m.terms.iter().find(|t| t.term.name() == "bump").unwrap();
+        let settings = t.term.settings();
+        let again = crate::model::terms::restore_term("bump", &settings).unwrap();
+        assert_eq!(again.settings(), settings);
+        for (key, value) in [
+            ("width", serde_json::json!(0.0)),
+            ("widht", serde_json::json!(1.0)),
+        ] {
+            let mut s = settings.clone();
+            s[key] = value;
+            assert!(
+                crate::model::terms::restore_term("bump", &s).is_err(),
+                "{key}"
+            );
+        }
     }
 }
