@@ -489,3 +489,50 @@ pub(crate) fn name_bump(
     let next = spec.apply(&edit).ok()?;
     Some((edit, next))
 }
+
+/// Margin of the narrow-defect screen ([`defect_screen`]) above `2·ln M` (M candidates
+/// scanned), in units of the residual's variance. For M independent χ²₁ scores the chance
+/// that the largest exceeds `2·ln M + 10` is about `e⁻⁵·√(2/(π·x))` ≈ 0.1 %; the scan's
+/// candidates overlap, so fewer are independent and the chance is smaller still.
+pub(crate) const DEFECT_MARGIN: f64 = 10.0;
+
+/// Residuals beyond this many robust standard deviations are clipped before the screen, so
+/// that one heavy-tailed outlier cannot look like a narrow defect.
+pub(crate) const DEFECT_CLIP: f64 = 3.0;
+
+/// The narrow-defect screen: whether the residual `r` (one per measured row, in the order of
+/// the positions `x`) has a localized bump in position that the one-dimensional smoother's
+/// bins cannot resolve. The bump term's own coarse scan
+/// ([`crate::model::terms::bump`]: Gaussians of every width the log resolves, centres half a
+/// width apart) runs on the residual centred and clipped at [`DEFECT_CLIP`] robust standard
+/// deviations; the best candidate passes when the RSS reduction it alone would bring exceeds
+/// the clipped residual's variance × (`2·ln M` + [`DEFECT_MARGIN`]). Returns that candidate.
+/// The screen only decides whether `bump` is verified by refit when position is not already
+/// a candidate; the refit decides whether it is suggested.
+pub(crate) fn defect_screen(x: &[f64], r: &[f64]) -> Option<crate::model::terms::bump::ScanHit> {
+    use crate::model::terms::bump;
+    let sorted = crate::numeric::stats::sorted(r);
+    let med = crate::numeric::stats::percentile_sorted(&sorted, 50.0)?;
+    let dev = crate::numeric::stats::sorted(&r.iter().map(|v| (v - med).abs()).collect::<Vec<_>>());
+    let s = 1.4826 * crate::numeric::stats::percentile_sorted(&dev, 50.0)?;
+    if !(s > 0.0 && s.is_finite()) {
+        return None;
+    }
+    let clipped: Vec<f64> = r
+        .iter()
+        .map(|v| (v - med).clamp(-DEFECT_CLIP * s, DEFECT_CLIP * s))
+        .collect();
+    let mean = crate::numeric::stats::mean(&clipped)?;
+    let centred: Vec<f64> = clipped.iter().map(|v| v - mean).collect();
+    let var = centred.iter().map(|v| v * v).sum::<f64>() / centred.len() as f64;
+    let finite: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
+    let [lo, hi] = crate::numeric::stats::range(&finite)?;
+    let (w_lo, w_hi) = bump::width_limits(&finite, hi - lo);
+    if !(hi > lo && w_lo < w_hi && var > 0.0) {
+        return None;
+    }
+    let (hits, tried) = bump::scan(x, &centred, (lo, hi), (w_lo.ln(), w_hi.ln()), 1);
+    let best = hits.into_iter().next()?;
+    let threshold = var * (2.0 * (tried.max(1) as f64).ln() + DEFECT_MARGIN);
+    (best.score > threshold).then_some(best)
+}

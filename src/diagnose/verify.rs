@@ -631,8 +631,9 @@ pub(crate) fn verify(
         }
     };
     v.std_before = std_of(&before);
+    let extra = defect_candidate(spec, log, &before, cands);
     let mut seen: Vec<String> = Vec::new();
-    for c in cands {
+    for c in cands.iter().chain(&extra) {
         let mut best: Option<VerifiedEdit> = None;
         for term in &c.terms {
             let mut fitted = false;
@@ -716,6 +717,41 @@ pub(crate) fn verify(
         }
     }
     Ok(v)
+}
+
+/// A strict candidate `bump` for `position` when no candidate tries one yet (position was
+/// neither flagged nor among the strongest unflagged features: the smoother's bins cannot
+/// resolve a defect a few tracks wide) and the narrow-defect screen
+/// ([`super::advice::defect_screen`]) finds one in `residual` (the model's out-of-sample
+/// residual, one per measured row). Each fold's refit still places the bump from its own
+/// training rows.
+fn defect_candidate(
+    spec: &ModelSpec,
+    log: &Log,
+    residual: &[f64],
+    cands: &[Candidate],
+) -> Option<Candidate> {
+    let bump = super::advice::bump_variant(spec)?;
+    if cands
+        .iter()
+        .any(|c| c.terms.iter().any(|t| super::advice::tries_bump(t)))
+    {
+        return None;
+    }
+    let data = crate::model::data::FitData::new(log);
+    let x: Vec<f64> = data
+        .measured_map(|s| Some(s.features.target))
+        .into_iter()
+        .map(|v| v.unwrap_or(f64::NAN))
+        .collect();
+    super::advice::defect_screen(&x, residual)?;
+    Some(Candidate {
+        feature: "position".into(),
+        terms: vec![bump],
+        try_all: false,
+        table_spacing: None,
+        strict: true,
+    })
 }
 
 /// An error and its sources, joined by ": ".
