@@ -1372,6 +1372,86 @@ mod tests {
         );
     }
 
+    /// `bump` searches its own centre and width (`Term::search`) on the RSS by variable
+    /// projection. Reference: [`slow_rss_of`], a full solve per version. On a simulated log
+    /// with a planted defect, the projected RSS of versions across the range equals the full
+    /// solve's to 1e-9, and the whole search run on full solves ends at the same centre and
+    /// width (or at an RSS equal to 1e-12).
+    #[test]
+    fn bump_search_by_projection_equals_full_solves() {
+        use crate::model::term::SearchContext;
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
+        let mut log = simulate_log(&cfg).unwrap();
+        let tracks: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+        let [lo, hi] = crate::numeric::stats::range(&tracks).unwrap();
+        let (c0, w0) = (lo + 0.37 * (hi - lo), (hi - lo) / 300.0);
+        for r in &mut log.rows {
+            if let Some(b) = r.bias.as_mut() {
+                *b += 40.0 * (-0.5 * ((r.track - c0) / w0).powi(2)).exp();
+            }
+        }
+        let opts = FitOptions::default().check().unwrap();
+        let spec = ModelSpec::parse("poly2,direction,bump").unwrap();
+        let data = FitData::new(&log);
+        let mut terms = spec
+            .terms
+            .iter()
+            .map(|t| t.prepare(&data))
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap();
+        let k = terms.iter().position(|t| t.name() == "bump").unwrap();
+        let proj = Projection::new(&terms, k, &data, &opts).expect("fast path applies");
+        let mut rng = SimRng::new(5);
+        for i in 0..30 {
+            let c = if i < 10 {
+                c0 + w0 * (rng.uniform() - 0.5)
+            } else {
+                lo + (hi - lo) * rng.uniform()
+            };
+            let version = terms[k].with_nonlinear(c).unwrap();
+            let slow = slow_rss_of(&terms, k, &version, &data, &opts);
+            let fast = proj.fast_rss_of(&version).expect("closed form");
+            assert!(
+                (fast - slow).abs() <= 1e-9 * slow,
+                "centre {c}: {fast} vs {slow}"
+            );
+        }
+        let measured = log.measured_count();
+        let (_, p) = offsets(&terms);
+        let dof = measured - p - 1;
+        let found = own_search(&terms, k, &data, &opts, dof).expect("bump searches itself");
+        let residual = rest_residual(&terms, k, &data, &opts);
+        let residual_fn = || -> &[f64] { &residual };
+        let rss = |t: &Arc<dyn Term>| slow_rss_of(&terms, k, t, &data, &opts);
+        let ctx = SearchContext::new(&data, &residual_fn, &rss, dof);
+        let reference = terms[k].search(&ctx).unwrap();
+        let params = |t: &Arc<dyn Term>| {
+            t.report(&[0.0], &[0.0], None)
+                .into_iter()
+                .skip(1)
+                .map(|p| p.value)
+                .collect::<Vec<_>>()
+        };
+        let (a, b) = (params(&found.term), params(&reference.term));
+        let (fa, fb) = (
+            slow_rss_of(&terms, k, &found.term, &data, &opts),
+            slow_rss_of(&terms, k, &reference.term, &data, &opts),
+        );
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits())
+                || (fa - fb).abs() <= 1e-12 * fb,
+            "projected {a:?} (RSS {fa}) vs full solves {b:?} (RSS {fb})"
+        );
+        assert!((a[0] - c0).abs() < 0.2 * w0, "centre {} vs {c0}", a[0]);
+        terms[k] = found.term;
+        assert!(solve(&terms, &data, &opts).is_ok());
+    }
+
     #[test]
     fn fit_statistics_replay_equals_predict_log() {
         use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
