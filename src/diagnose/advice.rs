@@ -432,11 +432,12 @@ fn list(terms: &[&String]) -> String {
 
 /// The term for a narrow localized position defect: `bump`, a Gaussian bump whose centre and
 /// width the fit searches ([`crate::model::terms::bump`]). Verified beside the finer tables
-/// a `table` suggestion is scored with (and beside `bins:position`'s knot counts): a defect a
-/// few tracks wide needs table knots that close over the whole span, or three parameters of a
-/// bump; the out-of-sample refit decides which resolves it better. Every fold's refit searches
-/// the centre and width on its own training rows (bare `bump`), so the held-out rows never
-/// choose where the bump goes.
+/// a `table` suggestion is scored with (and beside `bins:position`'s knot counts) when the
+/// narrow-defect screen ([`defect_screen`]) finds a bump narrower than the cross-validated
+/// table spacing can follow ([`worth_a_bump`]): a defect a few tracks wide needs table knots
+/// that close over the whole span, or three parameters of a bump; the out-of-sample refit
+/// decides which resolves it better. Every fold's refit searches the centre and width on its
+/// own training rows (bare `bump`), so the held-out rows never choose where the bump goes.
 pub(crate) const BUMP_TERM: &str = "bump";
 
 /// The position terms whose verification also scores [`BUMP_TERM`]: `table` and
@@ -591,4 +592,19 @@ mod tests {
             assert_eq!(crate::model::terms::parse_term(t).unwrap().name(), t);
         }
     }
+}
+
+/// Full width at half maximum of a Gaussian, in σ: `2·√(2·ln 2)`.
+pub(crate) const FWHM_PER_SIGMA: f64 = 2.354_820_045_030_949;
+
+/// Whether `bump` gets a verification refit for a position candidate whose cross-validated
+/// table spacing is `table_spacing`: the narrow-defect screen found a bump (`defect`) whose
+/// full width at half maximum is below that spacing, so a table at the cross-validated spacing
+/// cannot resolve it (a candidate without a spacing: whenever the screen found one). A broad
+/// bump is left to the tables, and no refit is spent on a bump where the screen sees none.
+pub(crate) fn worth_a_bump(
+    defect: Option<&crate::model::terms::bump::ScanHit>,
+    table_spacing: Option<f64>,
+) -> bool {
+    defect.is_some_and(|h| table_spacing.is_none_or(|s| FWHM_PER_SIGMA * h.ln_width.exp() < s))
 }

@@ -593,6 +593,8 @@ pub(crate) fn verify(
         let mut groups = c.terms.iter().map(|t| {
             variants(t, spec, c.table_spacing)
                 .iter()
+                // `bump` waits for the narrow-defect screen on the residual below.
+                .filter(|v| v.as_str() != super::advice::BUMP_TERM)
                 .filter_map(|v| {
                     edit_for(v, spec, c.table_spacing)
                         .and_then(|e| spec.apply(&e))
@@ -631,13 +633,27 @@ pub(crate) fn verify(
         }
     };
     v.std_before = std_of(&before);
-    let extra = defect_candidate(spec, log, &before, cands);
+    let defect = {
+        let data = crate::model::data::FitData::new(log);
+        let x: Vec<f64> = data
+            .measured_map(|s| Some(s.features.target))
+            .into_iter()
+            .map(|v| v.unwrap_or(f64::NAN))
+            .collect();
+        super::advice::defect_screen(&x, &before)
+    };
+    let extra = defect_candidate(spec, defect.is_some(), cands);
     let mut seen: Vec<String> = Vec::new();
     for c in cands.iter().chain(&extra) {
         let mut best: Option<VerifiedEdit> = None;
         for term in &c.terms {
             let mut fitted = false;
             for (k, variant) in variants(term, spec, c.table_spacing).iter().enumerate() {
+                if variant == super::advice::BUMP_TERM
+                    && !super::advice::worth_a_bump(defect.as_ref(), c.table_spacing)
+                {
+                    continue;
+                }
                 let alt = k > 0;
                 let attempt = edit_for(variant, spec, c.table_spacing).and_then(|e| {
                     let s = spec.apply(&e)?;
@@ -722,29 +738,17 @@ pub(crate) fn verify(
 /// A strict candidate `bump` for `position` when no candidate tries one yet (position was
 /// neither flagged nor among the strongest unflagged features: the smoother's bins cannot
 /// resolve a defect a few tracks wide) and the narrow-defect screen
-/// ([`super::advice::defect_screen`]) finds one in `residual` (the model's out-of-sample
-/// residual, one per measured row). Each fold's refit still places the bump from its own
-/// training rows.
-fn defect_candidate(
-    spec: &ModelSpec,
-    log: &Log,
-    residual: &[f64],
-    cands: &[Candidate],
-) -> Option<Candidate> {
+/// ([`super::advice::defect_screen`], on the model's out-of-sample residual) found one
+/// (`screened`). Each fold's refit still places the bump from its own training rows.
+fn defect_candidate(spec: &ModelSpec, screened: bool, cands: &[Candidate]) -> Option<Candidate> {
     let bump = super::advice::bump_variant(spec)?;
-    if cands
-        .iter()
-        .any(|c| c.terms.iter().any(|t| super::advice::tries_bump(t)))
+    if !screened
+        || cands
+            .iter()
+            .any(|c| c.terms.iter().any(|t| super::advice::tries_bump(t)))
     {
         return None;
     }
-    let data = crate::model::data::FitData::new(log);
-    let x: Vec<f64> = data
-        .measured_map(|s| Some(s.features.target))
-        .into_iter()
-        .map(|v| v.unwrap_or(f64::NAN))
-        .collect();
-    super::advice::defect_screen(&x, residual)?;
     Some(Candidate {
         feature: "position".into(),
         terms: vec![bump],
