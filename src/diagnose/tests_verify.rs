@@ -620,7 +620,12 @@ fn table_suggestion_is_verified_with_finer_tables() {
     assert_eq!(variants("table", &bumped, Some(4.7)), ["table"]);
     assert_eq!(
         variants("bins:position", &spec, None),
-        ["bins:position", "bins:position:8", "bins:position:16", "bump"]
+        [
+            "bins:position",
+            "bins:position:8",
+            "bins:position:16",
+            "bump"
+        ]
     );
     assert_eq!(
         variants("bins:load", &spec, None),
