@@ -538,6 +538,21 @@ pub(crate) fn defect_screen(x: &[f64], r: &[f64]) -> Option<crate::model::terms:
     (best.score > threshold).then_some(best)
 }
 
+/// Full width at half maximum of a Gaussian, in σ: `2·√(2·ln 2)`.
+pub(crate) const FWHM_PER_SIGMA: f64 = 2.354_820_045_030_949;
+
+/// Whether `bump` gets a verification refit for a position candidate whose cross-validated
+/// table spacing is `table_spacing`: the narrow-defect screen found a bump (`defect`) whose
+/// full width at half maximum is below that spacing, so a table at the cross-validated spacing
+/// cannot resolve it (a candidate without a spacing: whenever the screen found one). A broad
+/// bump is left to the tables, and no refit is spent on a bump where the screen sees none.
+pub(crate) fn worth_a_bump(
+    defect: Option<&crate::model::terms::bump::ScanHit>,
+    table_spacing: Option<f64>,
+) -> bool {
+    defect.is_some_and(|h| table_spacing.is_none_or(|s| FWHM_PER_SIGMA * h.ln_width.exp() < s))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -592,19 +607,4 @@ mod tests {
             assert_eq!(crate::model::terms::parse_term(t).unwrap().name(), t);
         }
     }
-}
-
-/// Full width at half maximum of a Gaussian, in σ: `2·√(2·ln 2)`.
-pub(crate) const FWHM_PER_SIGMA: f64 = 2.354_820_045_030_949;
-
-/// Whether `bump` gets a verification refit for a position candidate whose cross-validated
-/// table spacing is `table_spacing`: the narrow-defect screen found a bump (`defect`) whose
-/// full width at half maximum is below that spacing, so a table at the cross-validated spacing
-/// cannot resolve it (a candidate without a spacing: whenever the screen found one). A broad
-/// bump is left to the tables, and no refit is spent on a bump where the screen sees none.
-pub(crate) fn worth_a_bump(
-    defect: Option<&crate::model::terms::bump::ScanHit>,
-    table_spacing: Option<f64>,
-) -> bool {
-    defect.is_some_and(|h| table_spacing.is_none_or(|s| FWHM_PER_SIGMA * h.ln_width.exp() < s))
 }
