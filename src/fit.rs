@@ -16,7 +16,9 @@
 //!    at each candidate. The other terms' columns are factorised once and each candidate's RSS
 //!    comes in closed form from its own columns' sums (`Projection`; a full solve where a column
 //!    nears the rank tolerance); the chosen value is then solved in full. Its standard error
-//!    comes from the curvature of the RSS (three full solves).
+//!    comes from the curvature of the RSS (three full solves). A term that searches its own
+//!    parameters ([`Term::search`], `bump`'s centre and width) is handed the residual of the
+//!    other terms and this RSS for any version of itself instead.
 //! 4. **Causal offsets** (`drift`) are tuned on the residual series of the other terms.
 //! 5. The fitted model is replayed causally over the training log for the fit statistics.
 
