@@ -16,7 +16,9 @@
 //!    at each candidate. The other terms' columns are factorised once and each candidate's RSS
 //!    comes in closed form from its own columns' sums (`Projection`; a full solve where a column
 //!    nears the rank tolerance); the chosen value is then solved in full. Its standard error
-//!    comes from the curvature of the RSS (three full solves).
+//!    comes from the curvature of the RSS (three full solves). A term that searches its own
+//!    parameters ([`Term::search`], `bump`'s centre and width) is handed the residual of the
+//!    other terms and this RSS for any version of itself instead.
 //! 4. **Causal offsets** (`drift`) are tuned on the residual series of the other terms.
 //! 5. The fitted model is replayed causally over the training log for the fit statistics.
 
@@ -766,12 +768,90 @@ fn slow_rss(
     data: &FitData<'_>,
     opts: &CheckedFitOptions,
 ) -> f64 {
-    let mut trial = terms.to_vec();
     match terms[k].with_nonlinear(t) {
-        Some(term) => trial[k] = term,
-        None => return f64::INFINITY,
+        Some(term) => slow_rss_of(terms, k, &term, data, opts),
+        None => f64::INFINITY,
     }
+}
+
+/// [`slow_rss`] with term `k` replaced by `term` (a version of it from [`Term::search`]).
+fn slow_rss_of(
+    terms: &[Arc<dyn Term>],
+    k: usize,
+    term: &Arc<dyn Term>,
+    data: &FitData<'_>,
+    opts: &CheckedFitOptions,
+) -> f64 {
+    let mut trial = terms.to_vec();
+    trial[k] = term.clone();
     solve(&trial, data, opts).map_or(f64::INFINITY, |s| s.rss)
+}
+
+/// Term `k`'s own search ([`Term::search`]), if it has one: the residual of the other terms
+/// and the projection are built only when the term asks for them.
+fn own_search(
+    terms: &[Arc<dyn Term>],
+    k: usize,
+    data: &FitData<'_>,
+    opts: &CheckedFitOptions,
+    dof: usize,
+) -> Option<crate::model::term::Searched> {
+    use std::cell::OnceCell;
+    let proj: OnceCell<Option<Projection<'_, '_>>> = OnceCell::new();
+    let projection = || {
+        proj.get_or_init(|| {
+            terms[k]
+                .search_by_projection()
+                .then(|| Projection::new(terms, k, data, opts))
+                .flatten()
+        })
+    };
+    let rest: OnceCell<Vec<f64>> = OnceCell::new();
+    let residual = || -> &[f64] {
+        rest.get_or_init(|| match projection() {
+            // The projection's response is already the residual on the other terms.
+            Some(p) => p.y.clone(),
+            None => rest_residual(terms, k, data, opts),
+        })
+    };
+    let rss = |term: &Arc<dyn Term>| match projection() {
+        Some(p) => p
+            .fast_rss_of(term)
+            .unwrap_or_else(|| slow_rss_of(terms, k, term, data, opts)),
+        None => slow_rss_of(terms, k, term, data, opts),
+    };
+    let ctx = crate::model::term::SearchContext::new(data, &residual, &rss, dof);
+    terms[k].search(&ctx)
+}
+
+/// Per measured row, the bias minus the least-squares fit of every term but `k` (the bias
+/// itself where that fit fails).
+fn rest_residual(
+    terms: &[Arc<dyn Term>],
+    k: usize,
+    data: &FitData<'_>,
+    opts: &CheckedFitOptions,
+) -> Vec<f64> {
+    let fixed: Vec<Arc<dyn Term>> = terms
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != k)
+        .map(|(_, t)| t.clone())
+        .collect();
+    let coef = solve(&fixed, data, opts).map(|s| s.coef).ok();
+    let mut out = Vec::new();
+    let pass = design_pass(&fixed, data, |x, y| {
+        let fit = coef
+            .as_ref()
+            .map_or(0.0, |c| x.iter().zip(c).map(|(a, b)| a * b).sum::<f64>());
+        out.push(y - fit);
+    });
+    if pass.is_err() {
+        out.clear();
+        // No terms: nothing can fail to start.
+        let _ = design_pass(&[], data, |_, y| out.push(y));
+    }
+    out
 }
 
 /// Rows per block of [`Blocked`] sums.
@@ -807,7 +887,6 @@ impl Blocked {
     }
 
     /// Adds the concatenation of `parts` and zeroes them.
-    #[cfg(test)]
     fn flush(&mut self, parts: &mut [&mut Vec<f64>]) {
         let mut j = 0;
         for part in parts.iter_mut() {
@@ -1217,7 +1296,11 @@ impl<'d, 'a> Projection<'d, 'a> {
     /// reference [`Projection::fast_rss_many`] is tested against.
     #[cfg(test)]
     fn fast_rss(&self, terms: &[Arc<dyn Term>], t: f64) -> Option<f64> {
-        let term = terms[self.k].with_nonlinear(t)?;
+        self.fast_rss_of(&terms[self.k].with_nonlinear(t)?)
+    }
+
+    /// [`Projection::fast_rss`] with the searched term replaced by `term`.
+    fn fast_rss_of(&self, term: &Arc<dyn Term>) -> Option<f64> {
         let w = term.param_count();
         let pf = self.pf;
         let log = self.data.log();
@@ -1440,6 +1523,15 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             let Some(nl) = terms[k].nonlinear() else {
                 continue;
             };
+            // A term that searches its own parameters (`Term::search`: `bump`'s centre and
+            // width) does so here; its standard errors are its own.
+            let dof = measured.saturating_sub(p + 1).max(1);
+            if let Some(found) = own_search(&terms, k, &data, opts, dof) {
+                evaluations += found.evaluations;
+                converged &= found.converged;
+                terms[k] = found.term;
+                continue;
+            }
             // The search compares RSS values from the variable projection; the standard
             // error below differentiates the RSS twice, so it takes three full solves.
             // Used where the term allows it (`Term::search_by_projection`: the `dahl` rate, its
@@ -1770,6 +1862,87 @@ mod tests {
             worst <= 1e-12,
             "largest relative RSS difference {worst:.1e}"
         );
+    }
+
+    /// `bump` searches its own centre and width (`Term::search`) on the RSS by variable
+    /// projection. Reference: [`slow_rss_of`], a full solve per version. On a simulated log
+    /// with a planted defect, the projected RSS of versions across the range equals the full
+    /// solve's to 1e-9, and the whole search run on full solves ends at the same centre and
+    /// width (or at an RSS equal to 1e-12).
+    #[test]
+    fn bump_search_by_projection_equals_full_solves() {
+        use crate::model::term::SearchContext;
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
+        let mut log = simulate_log(&cfg).unwrap();
+        let tracks: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+        let [lo, hi] = crate::numeric::stats::range(&tracks).unwrap();
+        let (c0, w0) = (lo + 0.37 * (hi - lo), (hi - lo) / 300.0);
+        for r in &mut log.rows {
+            if let Some(b) = r.bias.as_mut() {
+                *b += 40.0 * (-0.5 * ((r.track - c0) / w0).powi(2)).exp();
+            }
+        }
+        let opts = FitOptions::default().check().unwrap();
+        let spec = ModelSpec::parse("poly2,direction,bump").unwrap();
+        let data = FitData::new(&log);
+        let mut terms = spec
+            .terms
+            .iter()
+            .map(|t| t.prepare(&data))
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap();
+        let k = terms.iter().position(|t| t.name() == "bump").unwrap();
+        let proj = Projection::new(&terms, k, &data, &opts).expect("fast path applies");
+        let mut rng = SimRng::new(5);
+        for i in 0..30 {
+            let c = if i < 10 {
+                c0 + w0 * (rng.uniform() - 0.5)
+            } else {
+                lo + (hi - lo) * rng.uniform()
+            };
+            let version = terms[k].with_nonlinear(c).unwrap();
+            let slow = slow_rss_of(&terms, k, &version, &data, &opts);
+            let fast = proj.fast_rss_of(&version).expect("closed form");
+            assert!(
+                (fast - slow).abs() <= 1e-9 * slow,
+                "centre {c}: {fast} vs {slow}"
+            );
+        }
+        drop(proj);
+        let measured = log.measured_count();
+        let (_, p) = offsets(&terms);
+        let dof = measured - p - 1;
+        let found = own_search(&terms, k, &data, &opts, dof).expect("bump searches itself");
+        let residual = rest_residual(&terms, k, &data, &opts);
+        let residual_fn = || -> &[f64] { &residual };
+        let rss = |t: &Arc<dyn Term>| slow_rss_of(&terms, k, t, &data, &opts);
+        let ctx = SearchContext::new(&data, &residual_fn, &rss, dof);
+        let reference = terms[k].search(&ctx).unwrap();
+        let params = |t: &Arc<dyn Term>| {
+            t.report(&[0.0], &[0.0], None)
+                .into_iter()
+                .skip(1)
+                .map(|p| p.value)
+                .collect::<Vec<_>>()
+        };
+        let (a, b) = (params(&found.term), params(&reference.term));
+        let (fa, fb) = (
+            slow_rss_of(&terms, k, &found.term, &data, &opts),
+            slow_rss_of(&terms, k, &reference.term, &data, &opts),
+        );
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits())
+                || (fa - fb).abs() <= 1e-12 * fb,
+            "projected {a:?} (RSS {fa}) vs full solves {b:?} (RSS {fb})"
+        );
+        assert!((a[0] - c0).abs() < 0.2 * w0, "centre {} vs {c0}", a[0]);
+        terms[k] = found.term;
+        assert!(solve(&terms, &data, &opts).is_ok());
     }
 
     #[test]

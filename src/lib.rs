@@ -187,7 +187,9 @@ pub use log::{
 };
 pub use model::preset::{CALIBRATION, preset_terms};
 pub use model::registry::builtin_names;
-pub use model::term::{Nonlinear, Param, SearchBasis, Seek, Term, TermSpec, TermState};
+pub use model::term::{
+    Nonlinear, Param, SearchBasis, SearchContext, Searched, Seek, Term, TermSpec, TermState,
+};
 pub use model::terms;
 pub use model::{
     ColumnsUsed, Feedback, FittedModel, FittedTerm, ModelEdit, ModelError, ModelSpec,

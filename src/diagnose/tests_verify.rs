@@ -600,21 +600,33 @@ fn strict_edits_must_gain_in_every_fold() {
 
 /// The table variants the verification scores: the cross-validated spacing when it is finer
 /// than the model's table, then that table's spacing halved and quartered (reference: the
-/// arithmetic); with no table in the model, the suggestion as it is.
+/// arithmetic); with no table in the model, the suggestion as it is; then `bump` (scored only
+/// where the narrow-defect screen asks for it), unless the model has one.
 #[test]
 fn table_suggestion_is_verified_with_finer_tables() {
     use super::verify::variants;
     let spec = ModelSpec::parse("table:10,dahl:8").unwrap();
     assert_eq!(
         variants("table", &spec, Some(4.7)),
-        ["table:4.7", "table:5", "table:2.5"]
+        ["table:4.7", "table:5", "table:2.5", "bump"]
     );
     assert_eq!(
         variants("table", &spec, Some(12.0)),
-        ["table:5", "table:2.5"]
+        ["table:5", "table:2.5", "bump"]
     );
     let poly = ModelSpec::parse("poly2,dahl").unwrap();
-    assert_eq!(variants("table", &poly, Some(4.7)), ["table"]);
+    assert_eq!(variants("table", &poly, Some(4.7)), ["table", "bump"]);
+    let bumped = ModelSpec::parse("poly2,dahl,bump").unwrap();
+    assert_eq!(variants("table", &bumped, Some(4.7)), ["table"]);
+    assert_eq!(
+        variants("bins:position", &spec, None),
+        [
+            "bins:position",
+            "bins:position:8",
+            "bins:position:16",
+            "bump"
+        ]
+    );
     assert_eq!(
         variants("bins:load", &spec, None),
         ["bins:load", "bins:load:8", "bins:load:16"]

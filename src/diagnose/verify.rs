@@ -476,10 +476,16 @@ pub(super) fn knot_variants(term: &str) -> Vec<String> {
 pub(crate) const TABLE_REFINEMENTS: [f64; 2] = [2.0, 4.0];
 
 /// [`knot_variants`], and for `table` the cross-validated spacing (`spacing`, when finer than
-/// the model's table) then the model's table spacing over each of [`TABLE_REFINEMENTS`].
+/// the model's table) then the model's table spacing over each of [`TABLE_REFINEMENTS`]; for
+/// `table` and `bins:position` also `bump` (a narrow localized defect, see
+/// [`super::advice::BUMP_TERM`]), unless the model has one.
 pub(super) fn variants(term: &str, spec: &ModelSpec, spacing: Option<f64>) -> Vec<String> {
     if term != "table" {
-        return knot_variants(term);
+        let mut out = knot_variants(term);
+        if super::advice::tries_bump(term) {
+            out.extend(super::advice::bump_variant(spec));
+        }
+        return out;
     }
     let current = spec.terms.iter().find_map(|t| {
         t.name()
@@ -498,6 +504,7 @@ pub(super) fn variants(term: &str, spec: &ModelSpec, spacing: Option<f64>) -> Ve
     if out.is_empty() {
         out.push(term.to_string());
     }
+    out.extend(super::advice::bump_variant(spec));
     out
 }
 
@@ -693,6 +700,8 @@ pub(crate) fn verify(
         let mut groups = c.terms.iter().map(|t| {
             variants(t, spec, c.table_spacing)
                 .iter()
+                // `bump` waits for the narrow-defect screen on the residual below.
+                .filter(|v| v.as_str() != super::advice::BUMP_TERM)
                 .filter_map(|v| {
                     edit_for(v, spec, c.table_spacing)
                         .and_then(|e| spec.apply(&e))
@@ -731,12 +740,27 @@ pub(crate) fn verify(
         }
     };
     v.std_before = std_of(&before);
+    let defect = {
+        let data = crate::model::data::FitData::new(log);
+        let x: Vec<f64> = data
+            .measured_map(|s| Some(s.features.target))
+            .into_iter()
+            .map(|v| v.unwrap_or(f64::NAN))
+            .collect();
+        super::advice::defect_screen(&x, &before)
+    };
+    let extra = defect_candidate(spec, defect.is_some(), cands);
     let mut seen: Vec<String> = Vec::new();
-    for c in cands {
+    for c in cands.iter().chain(&extra) {
         let mut best: Option<VerifiedEdit> = None;
         for term in &c.terms {
             let mut fitted = false;
             for (k, variant) in variants(term, spec, c.table_spacing).iter().enumerate() {
+                if variant == super::advice::BUMP_TERM
+                    && !super::advice::worth_a_bump(defect.as_ref(), c.table_spacing)
+                {
+                    continue;
+                }
                 let alt = k > 0;
                 let attempt = edit_for(variant, spec, c.table_spacing).and_then(|e| {
                     let s = spec.apply(&e)?;
@@ -798,7 +822,42 @@ pub(crate) fn verify(
     }
     v.edits
         .sort_by(|a, b| b.verified.cmp(&a.verified).then(b.gain.total_cmp(&a.gain)));
+    // A verified `add bump` names the centre and width it finds on the whole log.
+    for e in v.edits.iter_mut().filter(|e| e.verified) {
+        let named = e
+            .model_edit
+            .as_ref()
+            .and_then(|m| super::advice::name_bump(spec, m, log, &config.fit));
+        if let Some((edit, next)) = named {
+            e.edit = edit.to_string();
+            e.terms = next.to_string();
+            e.model_edit = Some(edit);
+        }
+    }
     Ok(v)
+}
+
+/// A strict candidate `bump` for `position` when no candidate tries one yet (position was
+/// neither flagged nor among the strongest unflagged features: the smoother's bins cannot
+/// resolve a defect a few tracks wide) and the narrow-defect screen
+/// ([`super::advice::defect_screen`], on the model's out-of-sample residual) found one
+/// (`screened`). Each fold's refit still places the bump from its own training rows.
+fn defect_candidate(spec: &ModelSpec, screened: bool, cands: &[Candidate]) -> Option<Candidate> {
+    let bump = super::advice::bump_variant(spec)?;
+    if !screened
+        || cands
+            .iter()
+            .any(|c| c.terms.iter().any(|t| super::advice::tries_bump(t)))
+    {
+        return None;
+    }
+    Some(Candidate {
+        feature: "position".into(),
+        terms: vec![bump],
+        try_all: false,
+        table_spacing: None,
+        strict: true,
+    })
 }
 
 /// An error and its sources, joined by ": ".

@@ -18,8 +18,8 @@
 
 use super::term::{Term, TermSpec};
 use super::terms::{
-    bins, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly, scale,
-    seek, stribeck, table, viscous,
+    bins, bump, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly,
+    scale, seek, stribeck, table, viscous,
 };
 use super::{ModelError, SpecError};
 use std::sync::Arc;
@@ -130,6 +130,12 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
         Some("dbins:FEATURE[:KNOTS]"),
         bins::parse,
         bins::restore,
+    ),
+    row(
+        "bump",
+        Some("bump[:CENTRE:WIDTH]"),
+        bump::parse,
+        restore_as::<bump::BumpTerm>,
     ),
     row("by", Some("by:A:B"), by::parse, restore_as::<by::ByTerm>),
     row(

@@ -190,6 +190,18 @@ pub trait Term: Debug + Send + Sync {
     fn search_basis<'d>(&'d self, data: &'d FitData<'_>) -> Box<dyn SearchBasis + 'd> {
         Box::new(PerRowSearch { term: self, data })
     }
+    /// A term that searches its own nonlinear parameters — more than one, or a landscape a
+    /// grid of [`crate::FitOptions::grid`] points cannot cover (`bump`'s centre and width: the
+    /// RSS only moves within a few widths of the defect) — returns the term at its best
+    /// setting here, given the residual of the rest of the model and the exact RSS of the
+    /// whole model at any version of the term ([`SearchContext`]). Called by the fit in place of
+    /// its own 1-D search of [`Term::nonlinear`] (which such a term still reports, so the fit
+    /// knows it has something to search); `None` (the default): the fit searches
+    /// [`Term::nonlinear`] itself. The RSS comes by variable projection where
+    /// [`Term::search_by_projection`] allows it, else by a full solve per version.
+    fn search(&self, _ctx: &SearchContext<'_>) -> Option<Searched> {
+        None
+    }
     /// For a term whose contribution is a causal function of past residuals (an offset, like
     /// `drift`): choose its setting from the residual series of the rest of the model
     /// (measured rows in log order). Returns the tuned term, or `None` if it has nothing to tune.
@@ -319,6 +331,76 @@ impl<T: Term + ?Sized> SearchBasis for PerRowSearch<'_, T> {
         }
         Some(())
     }
+}
+
+/// What the fit gives a term that searches its own nonlinear parameters ([`Term::search`]).
+/// Everything is computed on first use.
+pub struct SearchContext<'a> {
+    data: &'a FitData<'a>,
+    residual: &'a dyn Fn() -> &'a [f64],
+    rss: &'a dyn Fn(&Arc<dyn Term>) -> f64,
+    dof: usize,
+}
+
+impl Debug for SearchContext<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SearchContext")
+            .field("dof", &self.dof)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> SearchContext<'a> {
+    /// The context of one search (built by the fit).
+    pub(crate) fn new(
+        data: &'a FitData<'a>,
+        residual: &'a dyn Fn() -> &'a [f64],
+        rss: &'a dyn Fn(&Arc<dyn Term>) -> f64,
+        dof: usize,
+    ) -> Self {
+        Self {
+            data,
+            residual,
+            rss,
+            dof,
+        }
+    }
+
+    /// The training data (log, seek features, measured rows).
+    pub fn data(&self) -> &FitData<'a> {
+        self.data
+    }
+
+    /// Per measured row, in log order: the measured bias minus the least-squares fit of the
+    /// model's **other** terms (bias unit) — what this term may still explain. Its columns are
+    /// not refitted beside this term's, so it is for locating a setting, not for the final RSS.
+    pub fn residual(&self) -> &'a [f64] {
+        (self.residual)()
+    }
+
+    /// The least-squares RSS of the whole model with this term replaced by `term` (every
+    /// linear parameter refitted; bias unit squared); `∞` where it cannot be fitted.
+    pub fn rss(&self, term: &Arc<dyn Term>) -> f64 {
+        (self.rss)(term)
+    }
+
+    /// Degrees of freedom of the residual variance `s² = RSS / dof` (measured rows minus the
+    /// linear parameters minus one, at least 1), for standard errors from the RSS curvature:
+    /// `var(t) ≈ 2·s² / RSS''(t)`.
+    pub fn dof(&self) -> usize {
+        self.dof
+    }
+}
+
+/// What [`Term::search`] found.
+#[derive(Debug, Clone)]
+pub struct Searched {
+    /// The term at its best setting.
+    pub term: Arc<dyn Term>,
+    /// RSS evaluations spent (added to the fit report's count).
+    pub evaluations: usize,
+    /// Whether every searched parameter ended inside its interval (else the fit warns).
+    pub converged: bool,
 }
 
 /// A term's state while a log is replayed.

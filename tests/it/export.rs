@@ -100,7 +100,7 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
         "held_out.csv",
         &edit_log(&text, false, 300..400),
     );
-    let models: [(&str, &str); 6] = [
+    let models: [(&str, &str); 7] = [
         ("pd", "--model=position-direction"),
         ("cal", "--model=calibration"),
         ("dahl", "--model=dahl"),
@@ -114,6 +114,8 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
         ),
         // Velocity friction: derived velocity (seek over dwell) and a column.
         ("fric", "--terms=poly2,viscous,stribeck,viscous:temp_c"),
+        // A localized defect (the fitted Gaussian's centre and width).
+        ("bump", "--terms=poly2,direction,bump"),
     ];
     let mut jobs = Vec::new();
     for (name, spec) in models {

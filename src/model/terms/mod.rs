@@ -6,6 +6,7 @@
 //! usable on their own (`terms::dahl::DahlPredictor`).
 
 pub mod bins;
+pub mod bump;
 pub mod by;
 pub mod covariate;
 pub mod dahl;
