@@ -423,10 +423,11 @@ fn design_pass(
     let (off, p) = offsets(terms);
     let widths: Vec<usize> = terms.iter().map(|t| t.param_count()).collect();
     let mut buf = vec![0.0; p];
-    for (row, f) in data.log().rows.iter().zip(data.features()) {
+    let mut cov = Vec::new();
+    for (_, row, f) in data.replay_for(terms) {
         let seek = Seek {
-            features: f,
-            covariates: &row.covariates,
+            features: &f,
+            covariates: row.covariates.gather(&mut cov),
         };
         if let Some(y) = row.bias {
             for (k, s) in states.iter().enumerate() {
@@ -791,10 +792,11 @@ impl<'d, 'a> Projection<'d, 'a> {
         let mut e = vec![0.0; w];
         let mut total = Blocked::new(pf * w + w * w + w);
         let mut i = 0;
-        for (row, f) in log.rows.iter().zip(self.data.features()) {
+        let mut cov = Vec::new();
+        for (_, row, f) in self.data.replay_for(std::slice::from_ref(&term)) {
             let seek = Seek {
-                features: f,
-                covariates: &row.covariates,
+                features: &f,
+                covariates: row.covariates.gather(&mut cov),
             };
             if row.bias.is_some() {
                 st.basis(&seek, &mut d);
@@ -917,32 +919,20 @@ type Residuals = (Vec<f64>, Vec<f64>, Option<[f64; 2]>);
 /// without holding its other columns (rows, positions, predictions, every term's contribution:
 /// about 80 bytes per row).
 fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitError> {
-    model.check_log(log)?;
-    let mut p = crate::model::Predictor::new(model, &log.schema.covariates)?;
     let m = log.measured_count();
     let (mut measured, mut residual) = (Vec::with_capacity(m), Vec::with_capacity(m));
-    let mut contrib = vec![0.0; model.terms.len()];
     let mut range: Option<[f64; 2]> = None;
-    for row in &log.rows {
-        let pred = p.step_detailed(
-            row.time_s,
-            row.track,
-            &row.covariates,
-            row.bias,
-            &mut contrib,
-        );
-        if let Some(y) = row.bias {
-            measured.push(y);
-            residual.push(y - pred);
-            let x = row.track;
-            if x.is_finite() {
-                range = Some(match range {
-                    None => [x, x],
-                    Some([lo, hi]) => [lo.min(x), hi.max(x)],
-                });
-            }
+    model.replay_measured(log, crate::model::Feedback::EveryRow, |row, pred, _| {
+        measured.push(row.measured);
+        residual.push(row.measured - pred);
+        let x = row.position;
+        if x.is_finite() {
+            range = Some(match range {
+                None => [x, x],
+                Some([lo, hi]) => [lo.min(x), hi.max(x)],
+            });
         }
-    }
+    })?;
     Ok((measured, residual, range))
 }
 
@@ -951,12 +941,8 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
     let sampling = crate::history::log_sampling(log);
     let direction = opts.direction.resolve_with(log, &sampling)?;
     let data = FitData::with_direction(log, &direction)?;
-    let reversals = data
-        .features()
-        .iter()
-        .filter(|f| f.direction_change)
-        .count();
-    let reversal_warning = direction.reversal_warning(reversals, log.rows.len(), &sampling);
+    let reversals = data.reversals();
+    let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);
     let mut terms = spec
         .terms
         .iter()
@@ -1100,8 +1086,6 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
     warnings.extend(self_check(&terms, &sol, data.measured_bias_std()));
-    // The seek features (about 100 bytes a row) are not needed past this point.
-    drop(data);
     warnings.extend(reversal_warning);
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
@@ -1131,7 +1115,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         direction,
     };
     if let Some(p) = model.params().find(|p| !p.value.is_finite()) {
-        let (lo, hi) = log.rows.iter().fold((f64::MAX, f64::MIN), |(lo, hi), r| {
+        let (lo, hi) = log.rows().fold((f64::MAX, f64::MIN), |(lo, hi), r| {
             (lo.min(r.track), hi.max(r.track))
         });
         return Err(FitError::ParamOverflow {
@@ -1156,8 +1140,8 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         let max_of = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0_f64, |m, x| m.max(x.abs()));
         return Err(FitError::Overflow {
             file: log.schema.file.clone(),
-            max_abs: max_of(&mut log.rows.iter().filter_map(|r| r.bias)),
-            max_pos: max_of(&mut log.rows.iter().map(|r| r.track)),
+            max_abs: max_of(&mut log.rows().filter_map(|r| r.bias)),
+            max_pos: max_of(&mut log.rows().map(|r| r.track)),
         });
     }
     Ok(model)
@@ -1227,8 +1211,8 @@ mod tests {
             let cfg = SimConfig::new(Drive::paper1997(), "random", &so, seed, &[]).unwrap();
             let mut log = simulate_log(&cfg).unwrap();
             if seed == 2 {
-                for r in &mut log.rows {
-                    r.track *= 0.37;
+                for x in log.tracks_mut() {
+                    *x *= 0.37;
                 }
             }
             for text in ["dahl", "poly2,seek,dahl", "poly2,stribeck"] {
@@ -1279,6 +1263,60 @@ mod tests {
             worst <= 1e-12,
             "largest relative RSS difference {worst:.1e}"
         );
+    }
+
+    /// Reference: the full replay (the features every term saw before). A term that says it
+    /// does not read the history ([`Term::reads_history`]) must give the same basis, bit for
+    /// bit, over the light replay; and the flag matters: `direction` and `memory` do read it.
+    #[test]
+    fn terms_without_history_give_the_same_basis_from_a_light_replay() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
+        let mut log = simulate_log(&cfg).unwrap();
+        for x in log.tracks_mut() {
+            *x *= 0.37;
+        }
+        let data = FitData::new(&log);
+        let spec = ModelSpec::parse("poly2,table,dahl,dahl:4,play:8,direction,memory").unwrap();
+        let mut terms: Vec<Arc<dyn Term>> = spec
+            .terms
+            .iter()
+            .map(|t| t.prepare(&data).unwrap())
+            .collect();
+        terms.push(Arc::new(InterceptTerm));
+        let reads: Vec<bool> = terms.iter().map(|t| t.reads_history()).collect();
+        assert_eq!(
+            reads,
+            [false, false, false, false, false, true, true, false]
+        );
+        for t in terms.iter().filter(|t| !t.reads_history()) {
+            let one = std::slice::from_ref(t);
+            let basis = |light: bool| {
+                let mut out = Vec::new();
+                let replay = if light {
+                    data.replay_for(one)
+                } else {
+                    data.replay()
+                };
+                let mut st = t.start(&[]).unwrap();
+                let mut b = vec![0.0; t.param_count()];
+                for (_, _, f) in replay {
+                    let seek = Seek {
+                        features: &f,
+                        covariates: &[],
+                    };
+                    st.basis(&seek, &mut b);
+                    out.extend(b.iter().map(|v| v.to_bits()));
+                    st.update(&seek, None);
+                }
+                out
+            };
+            assert_eq!(basis(true), basis(false), "{}", t.name());
+        }
     }
 
     #[test]

@@ -23,7 +23,7 @@ pub struct Args {
 
 /// Replays the model and prints the score.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, log, _) = args.input.replay()?;
+    let (model, log) = args.input.replay()?;
     let s = score_model(&model, &log, Feedback::every(args.feedback_every))?;
     for w in &s.warnings {
         eprintln!("warning: {}: {w}", log.schema.file);
