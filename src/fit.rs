@@ -178,17 +178,17 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     acc[0] + acc[1] + acc[2] + acc[3] + tail
 }
 
-/// Four [`dot`]s of `v` with `c[0..4]` at once (each summed exactly as [`dot`] sums it).
+/// `N` [`dot`]s of `v` with `c[0..N]` at once (each summed exactly as [`dot`] sums it).
 #[inline(always)]
-fn dot4(v: &[f64], c: [&[f64]; 4]) -> [f64; 4] {
+fn dotn<const N: usize>(v: &[f64], c: [&[f64]; N]) -> [f64; N] {
     let len = v.len();
     let c = c.map(|c| &c[..len]);
-    let mut acc = [[0.0f64; 4]; 4];
+    let mut acc = [[0.0f64; 4]; N];
     let body = len - len % 4;
     let mut i = 0;
     while i < body {
         let x = &v[i..i + 4];
-        for q in 0..4 {
+        for q in 0..N {
             let y = &c[q][i..i + 4];
             for l in 0..4 {
                 acc[q][l] += x[l] * y[l];
@@ -196,8 +196,8 @@ fn dot4(v: &[f64], c: [&[f64]; 4]) -> [f64; 4] {
         }
         i += 4;
     }
-    let mut out = [0.0; 4];
-    for q in 0..4 {
+    let mut out = [0.0; N];
+    for q in 0..N {
         let tail: f64 = v[body..]
             .iter()
             .zip(&c[q][body..])
@@ -248,35 +248,23 @@ fn householder_r_portable(a: &mut [f64], m: usize, n: usize) {
         if vv > 0.0 {
             let tau = 2.0 / vv;
             let v = &*v;
-            let len = v.len();
-            // The trailing columns four at a time: four independent dot products share each
-            // load of `v` (one accumulator chain alone waits on the adder's latency), then
-            // four updates in one pass. Each column's arithmetic is exactly [`dot`]'s and the
-            // update's, in the same order.
+            // The trailing columns eight, then four at a time: independent dot products share
+            // each load of `v` (one accumulator chain alone waits on the adder's latency; eight
+            // keep both adders busy), then the updates in one pass. Each column's arithmetic is
+            // exactly [`dot`]'s and the update's, in the same order.
             let ncols = n - j - 1;
-            let quads = ncols / 4;
-            for qd in 0..quads {
-                let block = &mut right[qd * 4 * m..(qd * 4 + 4) * m];
-                let (c0, rest) = block.split_at_mut(m);
-                let (c1, rest) = rest.split_at_mut(m);
-                let (c2, c3) = rest.split_at_mut(m);
-                let (c0, c1, c2, c3) = (
-                    &mut c0[j..j + len],
-                    &mut c1[j..j + len],
-                    &mut c2[j..j + len],
-                    &mut c3[j..j + len],
-                );
-                let d = dot4(v, [&*c0, &*c1, &*c2, &*c3]);
-                let s = [tau * d[0], tau * d[1], tau * d[2], tau * d[3]];
-                for i in 0..len {
-                    let vi = v[i];
-                    c0[i] -= s[0] * vi;
-                    c1[i] -= s[1] * vi;
-                    c2[i] -= s[2] * vi;
-                    c3[i] -= s[3] * vi;
-                }
+            let octs = ncols / 8;
+            for o in 0..octs {
+                let block = &mut right[o * 8 * m..(o * 8 + 8) * m];
+                update_columns::<8>(block, m, j, v, tau);
             }
-            for k in quads * 4..ncols {
+            let quads = (ncols - octs * 8) / 4;
+            for qd in 0..quads {
+                let at = octs * 8 + qd * 4;
+                let block = &mut right[at * m..(at + 4) * m];
+                update_columns::<4>(block, m, j, v, tau);
+            }
+            for k in octs * 8 + quads * 4..ncols {
                 let c = &mut right[k * m + j..k * m + m];
                 let s = tau * dot(v, c);
                 for (ci, vi) in c.iter_mut().zip(v.iter()) {
@@ -286,6 +274,29 @@ fn householder_r_portable(a: &mut [f64], m: usize, n: usize) {
         }
         v[0] = alpha;
         v[1..].fill(0.0);
+    }
+}
+
+/// Applies the reflector `I − τ·v·vᵀ` (on rows `j..`) to the `N` columns of `block` (column-major,
+/// `m` rows each): `N` dot products sharing each load of `v`, then the `N` updates.
+#[inline(always)]
+fn update_columns<const N: usize>(block: &mut [f64], m: usize, j: usize, v: &[f64], tau: f64) {
+    let len = v.len();
+    let cols: [&mut [f64]; N] = {
+        let mut rest = block;
+        std::array::from_fn(|_| {
+            let (c, r) = std::mem::take(&mut rest).split_at_mut(m);
+            rest = r;
+            &mut c[j..j + len]
+        })
+    };
+    let d = dotn::<N>(v, std::array::from_fn(|q| &*cols[q]));
+    let s: [f64; N] = std::array::from_fn(|q| tau * d[q]);
+    for i in 0..len {
+        let vi = v[i];
+        for q in 0..N {
+            cols[q][i] -= s[q] * vi;
+        }
     }
 }
 
@@ -936,12 +947,32 @@ fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitErro
     Ok((measured, residual, range))
 }
 
+/// Direction changes in the fit's replay of the history. `sampling` has counted them already
+/// (the same tracker over the same positions) when the direction comes from position steps
+/// with its deadband: then no replay is needed (tested equal to [`FitData::reversals`]).
+fn reversal_count(
+    direction: &crate::history::DirectionSource,
+    sampling: &crate::history::Sampling,
+    data: &FitData<'_>,
+) -> usize {
+    use crate::history::DirectionSource;
+    match direction {
+        DirectionSource::Steps => sampling.raw_reversals,
+        DirectionSource::Deadband { deadband }
+            if deadband.to_bits() == sampling.deadband.to_bits() =>
+        {
+            sampling.reversals
+        }
+        _ => data.reversals(),
+    }
+}
+
 /// Fits `spec` to the measured rows of `log`.
 pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
     let sampling = crate::history::log_sampling(log);
     let direction = opts.direction.resolve_with(log, &sampling)?;
     let data = FitData::with_direction(log, &direction)?;
-    let reversals = data.reversals();
+    let reversals = reversal_count(&direction, &sampling, &data);
     let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);
     let mut terms = spec
         .terms
@@ -1317,6 +1348,50 @@ mod tests {
             };
             assert_eq!(basis(true), basis(false), "{}", t.name());
         }
+    }
+
+    /// Reference: [`FitData::reversals`], the count of the fit's own replay. The count taken
+    /// from `sampling` must equal it on a seek log (raw steps) and on a dense noisy series (the
+    /// estimated deadband), and an explicit deadband still replays.
+    #[test]
+    fn reversal_count_from_sampling_equals_the_replays() {
+        use crate::history::DirectionSetting;
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 8, &[]).unwrap();
+        let seeks = simulate_log(&cfg).unwrap();
+        let mut rng = SimRng::new(4);
+        let mut text = String::from("time_s,track,bias\n");
+        for i in 0..4000 {
+            let t = i as f64 * 1e-3;
+            let x = 100.0 * (t * 7.0).sin() + 0.3 * rng.normal();
+            text += &format!("{t},{x},{}\n", rng.normal());
+        }
+        let dense = Log::from_reader("d.csv", text.as_bytes(), &Default::default()).unwrap();
+        let mut checked = 0;
+        for log in [&seeks, &dense] {
+            let sampling = crate::history::log_sampling(log);
+            for setting in [
+                DirectionSetting::Auto,
+                DirectionSetting::Deadband(0.0),
+                DirectionSetting::Deadband(0.5),
+            ] {
+                let direction = setting.resolve_with(log, &sampling).unwrap();
+                let data = FitData::with_direction(log, &direction).unwrap();
+                let want = data.reversals();
+                assert_eq!(
+                    reversal_count(&direction, &sampling, &data),
+                    want,
+                    "{setting:?}"
+                );
+                checked += usize::from(want >= 5);
+            }
+        }
+        assert!(crate::history::log_sampling(&dense).deadband > 0.0);
+        assert_eq!(checked, 6);
     }
 
     #[test]

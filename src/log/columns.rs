@@ -79,6 +79,15 @@ impl Log {
         }
     }
 
+    /// Gives back the room reserved beyond the rows (one column at a time).
+    pub(crate) fn shrink_to_fit(&mut self) {
+        self.time_s.shrink_to_fit();
+        self.track.shrink_to_fit();
+        self.bias.shrink_to_fit();
+        self.covariates.iter_mut().for_each(Vec::shrink_to_fit);
+        self.lines.shrink_to_fit();
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.time_s.len()

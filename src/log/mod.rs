@@ -979,6 +979,7 @@ impl<R: Read> LogReader<R> {
         while self.read_into(&mut row)? {
             log.push(&row);
         }
+        log.shrink_to_fit();
         Ok(log)
     }
 }
