@@ -28,7 +28,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
     let bytes = std::fs::metadata(&path).expect("log exists").len();
     let map = ColumnMap::default();
     // The work is real: every row is read and validated.
-    let rows = Log::read(&path, &map).expect("valid log").rows.len();
+    let rows = Log::read(&path, &map).expect("valid log").len();
     assert!(rows as u64 >= N, "{rows} rows");
     let mut g = c.benchmark_group("read");
     g.sample_size(10);
@@ -36,7 +36,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
     g.bench_function("log_read_1M_rows", |b| {
         b.iter(|| {
             let log = Log::read(black_box(&path), &map).expect("valid log");
-            black_box(log.rows.len())
+            black_box(log.len())
         })
     });
     g.bench_function("check_summarise_1M_rows", |b| {

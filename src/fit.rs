@@ -349,17 +349,17 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     acc[0] + acc[1] + acc[2] + acc[3] + tail
 }
 
-/// Four [`dot`]s of `v` with `c[0..4]` at once (each summed exactly as [`dot`] sums it).
+/// `N` [`dot`]s of `v` with `c[0..N]` at once (each summed exactly as [`dot`] sums it).
 #[inline(always)]
-fn dot4(v: &[f64], c: [&[f64]; 4]) -> [f64; 4] {
+fn dotn<const N: usize>(v: &[f64], c: [&[f64]; N]) -> [f64; N] {
     let len = v.len();
     let c = c.map(|c| &c[..len]);
-    let mut acc = [[0.0f64; 4]; 4];
+    let mut acc = [[0.0f64; 4]; N];
     let body = len - len % 4;
     let mut i = 0;
     while i < body {
         let x = &v[i..i + 4];
-        for q in 0..4 {
+        for q in 0..N {
             let y = &c[q][i..i + 4];
             for l in 0..4 {
                 acc[q][l] += x[l] * y[l];
@@ -367,8 +367,8 @@ fn dot4(v: &[f64], c: [&[f64]; 4]) -> [f64; 4] {
         }
         i += 4;
     }
-    let mut out = [0.0; 4];
-    for q in 0..4 {
+    let mut out = [0.0; N];
+    for q in 0..N {
         let tail: f64 = v[body..]
             .iter()
             .zip(&c[q][body..])
@@ -419,35 +419,23 @@ fn householder_r_portable(a: &mut [f64], m: usize, n: usize) {
         if vv > 0.0 {
             let tau = 2.0 / vv;
             let v = &*v;
-            let len = v.len();
-            // The trailing columns four at a time: four independent dot products share each
-            // load of `v` (one accumulator chain alone waits on the adder's latency), then
-            // four updates in one pass. Each column's arithmetic is exactly [`dot`]'s and the
-            // update's, in the same order.
+            // The trailing columns eight, then four at a time: independent dot products share
+            // each load of `v` (one accumulator chain alone waits on the adder's latency; eight
+            // keep both adders busy), then the updates in one pass. Each column's arithmetic is
+            // exactly [`dot`]'s and the update's, in the same order.
             let ncols = n - j - 1;
-            let quads = ncols / 4;
-            for qd in 0..quads {
-                let block = &mut right[qd * 4 * m..(qd * 4 + 4) * m];
-                let (c0, rest) = block.split_at_mut(m);
-                let (c1, rest) = rest.split_at_mut(m);
-                let (c2, c3) = rest.split_at_mut(m);
-                let (c0, c1, c2, c3) = (
-                    &mut c0[j..j + len],
-                    &mut c1[j..j + len],
-                    &mut c2[j..j + len],
-                    &mut c3[j..j + len],
-                );
-                let d = dot4(v, [&*c0, &*c1, &*c2, &*c3]);
-                let s = [tau * d[0], tau * d[1], tau * d[2], tau * d[3]];
-                for i in 0..len {
-                    let vi = v[i];
-                    c0[i] -= s[0] * vi;
-                    c1[i] -= s[1] * vi;
-                    c2[i] -= s[2] * vi;
-                    c3[i] -= s[3] * vi;
-                }
+            let octs = ncols / 8;
+            for o in 0..octs {
+                let block = &mut right[o * 8 * m..(o * 8 + 8) * m];
+                update_columns::<8>(block, m, j, v, tau);
             }
-            for k in quads * 4..ncols {
+            let quads = (ncols - octs * 8) / 4;
+            for qd in 0..quads {
+                let at = octs * 8 + qd * 4;
+                let block = &mut right[at * m..(at + 4) * m];
+                update_columns::<4>(block, m, j, v, tau);
+            }
+            for k in octs * 8 + quads * 4..ncols {
                 let c = &mut right[k * m + j..k * m + m];
                 let s = tau * dot(v, c);
                 for (ci, vi) in c.iter_mut().zip(v.iter()) {
@@ -457,6 +445,29 @@ fn householder_r_portable(a: &mut [f64], m: usize, n: usize) {
         }
         v[0] = alpha;
         v[1..].fill(0.0);
+    }
+}
+
+/// Applies the reflector `I − τ·v·vᵀ` (on rows `j..`) to the `N` columns of `block` (column-major,
+/// `m` rows each): `N` dot products sharing each load of `v`, then the `N` updates.
+#[inline(always)]
+fn update_columns<const N: usize>(block: &mut [f64], m: usize, j: usize, v: &[f64], tau: f64) {
+    let len = v.len();
+    let cols: [&mut [f64]; N] = {
+        let mut rest = block;
+        std::array::from_fn(|_| {
+            let (c, r) = std::mem::take(&mut rest).split_at_mut(m);
+            rest = r;
+            &mut c[j..j + len]
+        })
+    };
+    let d = dotn::<N>(v, std::array::from_fn(|q| &*cols[q]));
+    let s: [f64; N] = std::array::from_fn(|q| tau * d[q]);
+    for i in 0..len {
+        let vi = v[i];
+        for q in 0..N {
+            cols[q][i] -= s[q] * vi;
+        }
     }
 }
 
@@ -594,10 +605,11 @@ fn design_pass(
     let (off, p) = offsets(terms);
     let widths: Vec<usize> = terms.iter().map(|t| t.param_count()).collect();
     let mut buf = vec![0.0; p];
-    for (row, f) in data.log().rows.iter().zip(data.features()) {
+    let mut cov = Vec::new();
+    for (_, row, f) in data.replay_for(terms) {
         let seek = Seek {
-            features: f,
-            covariates: &row.covariates,
+            features: &f,
+            covariates: row.covariates.gather(&mut cov),
         };
         if let Some(y) = row.bias {
             for (k, s) in states.iter().enumerate() {
@@ -1313,10 +1325,11 @@ impl<'d, 'a> Projection<'d, 'a> {
         let mut e = vec![0.0; w];
         let mut total = Blocked::new(pf * w + w * w + w);
         let mut i = 0;
-        for (row, f) in log.rows.iter().zip(self.data.features()) {
+        let mut cov = Vec::new();
+        for (_, row, f) in self.data.replay_for(std::slice::from_ref(&term)) {
             let seek = Seek {
-                features: f,
-                covariates: &row.covariates,
+                features: &f,
+                covariates: row.covariates.gather(&mut cov),
             };
             if row.bias.is_some() {
                 st.basis(&seek, &mut d);
@@ -1445,33 +1458,41 @@ type Residuals = (Vec<f64>, Vec<f64>, Option<[f64; 2]>);
 /// without holding its other columns (rows, positions, predictions, every term's contribution:
 /// about 80 bytes per row).
 fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitError> {
-    model.check_log(log)?;
-    let mut p = crate::model::Predictor::new(model, &log.schema.covariates)?;
     let m = log.measured_count();
     let (mut measured, mut residual) = (Vec::with_capacity(m), Vec::with_capacity(m));
-    let mut contrib = vec![0.0; model.terms.len()];
     let mut range: Option<[f64; 2]> = None;
-    for row in &log.rows {
-        let pred = p.step_detailed(
-            row.time_s,
-            row.track,
-            &row.covariates,
-            row.bias,
-            &mut contrib,
-        );
-        if let Some(y) = row.bias {
-            measured.push(y);
-            residual.push(y - pred);
-            let x = row.track;
-            if x.is_finite() {
-                range = Some(match range {
-                    None => [x, x],
-                    Some([lo, hi]) => [lo.min(x), hi.max(x)],
-                });
-            }
+    model.replay_measured(log, crate::model::Feedback::EveryRow, |row, pred, _| {
+        measured.push(row.measured);
+        residual.push(row.measured - pred);
+        let x = row.position;
+        if x.is_finite() {
+            range = Some(match range {
+                None => [x, x],
+                Some([lo, hi]) => [lo.min(x), hi.max(x)],
+            });
         }
-    }
+    })?;
     Ok((measured, residual, range))
+}
+
+/// Direction changes in the fit's replay of the history. `sampling` has counted them already
+/// (the same tracker over the same positions) when the direction comes from position steps
+/// with its deadband: then no replay is needed (tested equal to [`FitData::reversals`]).
+fn reversal_count(
+    direction: &crate::history::DirectionSource,
+    sampling: &crate::history::Sampling,
+    data: &FitData<'_>,
+) -> usize {
+    use crate::history::DirectionSource;
+    match direction {
+        DirectionSource::Steps => sampling.raw_reversals,
+        DirectionSource::Deadband { deadband }
+            if deadband.to_bits() == sampling.deadband.to_bits() =>
+        {
+            sampling.reversals
+        }
+        _ => data.reversals(),
+    }
 }
 
 /// Fits `spec` to the measured rows of `log`.
@@ -1479,12 +1500,8 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
     let sampling = crate::history::log_sampling(log);
     let direction = opts.direction.resolve_with(log, &sampling)?;
     let data = FitData::with_direction(log, &direction)?;
-    let reversals = data
-        .features()
-        .iter()
-        .filter(|f| f.direction_change)
-        .count();
-    let reversal_warning = direction.reversal_warning(reversals, log.rows.len(), &sampling);
+    let reversals = reversal_count(&direction, &sampling, &data);
+    let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);
     let mut terms = spec
         .terms
         .iter()
@@ -1648,8 +1665,6 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
     warnings.extend(self_check(&terms, &sol, data.measured_bias_std()));
-    // The seek features (about 100 bytes a row) are not needed past this point.
-    drop(data);
     warnings.extend(reversal_warning);
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
@@ -1679,7 +1694,7 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         direction,
     };
     if let Some(p) = model.params().find(|p| !p.value.is_finite()) {
-        let (lo, hi) = log.rows.iter().fold((f64::MAX, f64::MIN), |(lo, hi), r| {
+        let (lo, hi) = log.rows().fold((f64::MAX, f64::MIN), |(lo, hi), r| {
             (lo.min(r.track), hi.max(r.track))
         });
         return Err(FitError::ParamOverflow {
@@ -1704,8 +1719,8 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         let max_of = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0_f64, |m, x| m.max(x.abs()));
         return Err(FitError::Overflow {
             file: log.schema.file.clone(),
-            max_abs: max_of(&mut log.rows.iter().filter_map(|r| r.bias)),
-            max_pos: max_of(&mut log.rows.iter().map(|r| r.track)),
+            max_abs: max_of(&mut log.rows().filter_map(|r| r.bias)),
+            max_pos: max_of(&mut log.rows().map(|r| r.track)),
         });
     }
     Ok(model)
@@ -1775,14 +1790,14 @@ mod tests {
             let cfg = SimConfig::new(Drive::paper1997(), "random", &so, seed, &[]).unwrap();
             let mut log = simulate_log(&cfg).unwrap();
             if seed == 2 {
-                for r in &mut log.rows {
-                    r.track *= 0.37;
+                for x in log.tracks_mut() {
+                    *x *= 0.37;
                 }
             }
             if seed == 7 {
                 // Unmeasured rows: the block sums' runs break where the rows do not.
-                for r in log.rows.iter_mut().skip(3).step_by(5) {
-                    r.bias = None;
+                for i in (3..log.len()).step_by(5) {
+                    log.set_bias(i, None);
                 }
             }
             for text in ["dahl", "poly2,seek,dahl", "poly2,stribeck"] {
@@ -1864,6 +1879,104 @@ mod tests {
         );
     }
 
+    /// Reference: the full replay (the features every term saw before). A term that says it
+    /// does not read the history ([`Term::reads_history`]) must give the same basis, bit for
+    /// bit, over the light replay; and the flag matters: `direction` and `memory` do read it.
+    #[test]
+    fn terms_without_history_give_the_same_basis_from_a_light_replay() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
+        let mut log = simulate_log(&cfg).unwrap();
+        for x in log.tracks_mut() {
+            *x *= 0.37;
+        }
+        let data = FitData::new(&log);
+        let spec = ModelSpec::parse("poly2,table,dahl,dahl:4,play:8,direction,memory").unwrap();
+        let mut terms: Vec<Arc<dyn Term>> = spec
+            .terms
+            .iter()
+            .map(|t| t.prepare(&data).unwrap())
+            .collect();
+        terms.push(Arc::new(InterceptTerm));
+        let reads: Vec<bool> = terms.iter().map(|t| t.reads_history()).collect();
+        assert_eq!(
+            reads,
+            [false, false, false, false, false, true, true, false]
+        );
+        for t in terms.iter().filter(|t| !t.reads_history()) {
+            let one = std::slice::from_ref(t);
+            let basis = |light: bool| {
+                let mut out = Vec::new();
+                let replay = if light {
+                    data.replay_for(one)
+                } else {
+                    data.replay()
+                };
+                let mut st = t.start(&[]).unwrap();
+                let mut b = vec![0.0; t.param_count()];
+                for (_, _, f) in replay {
+                    let seek = Seek {
+                        features: &f,
+                        covariates: &[],
+                    };
+                    st.basis(&seek, &mut b);
+                    out.extend(b.iter().map(|v| v.to_bits()));
+                    st.update(&seek, None);
+                }
+                out
+            };
+            assert_eq!(basis(true), basis(false), "{}", t.name());
+        }
+    }
+
+    /// Reference: [`FitData::reversals`], the count of the fit's own replay. The count taken
+    /// from `sampling` must equal it on a seek log (raw steps) and on a dense noisy series (the
+    /// estimated deadband), and an explicit deadband still replays.
+    #[test]
+    fn reversal_count_from_sampling_equals_the_replays() {
+        use crate::history::DirectionSetting;
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 8, &[]).unwrap();
+        let seeks = simulate_log(&cfg).unwrap();
+        let mut rng = SimRng::new(4);
+        let mut text = String::from("time_s,track,bias\n");
+        for i in 0..4000 {
+            let t = i as f64 * 1e-3;
+            let x = 100.0 * (t * 7.0).sin() + 0.3 * rng.normal();
+            text += &format!("{t},{x},{}\n", rng.normal());
+        }
+        let dense = Log::from_reader("d.csv", text.as_bytes(), &Default::default()).unwrap();
+        let mut checked = 0;
+        for log in [&seeks, &dense] {
+            let sampling = crate::history::log_sampling(log);
+            for setting in [
+                DirectionSetting::Auto,
+                DirectionSetting::Deadband(0.0),
+                DirectionSetting::Deadband(0.5),
+            ] {
+                let direction = setting.resolve_with(log, &sampling).unwrap();
+                let data = FitData::with_direction(log, &direction).unwrap();
+                let want = data.reversals();
+                assert_eq!(
+                    reversal_count(&direction, &sampling, &data),
+                    want,
+                    "{setting:?}"
+                );
+                checked += usize::from(want >= 5);
+            }
+        }
+        assert!(crate::history::log_sampling(&dense).deadband > 0.0);
+        assert_eq!(checked, 6);
+    }
+
     /// `bump` searches its own centre and width (`Term::search`) on the RSS by variable
     /// projection. Reference: [`slow_rss_of`], a full solve per version. On a simulated log
     /// with a planted defect, the projected RSS of versions across the range equals the full
@@ -1879,12 +1992,12 @@ mod tests {
         };
         let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
         let mut log = simulate_log(&cfg).unwrap();
-        let tracks: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
-        let [lo, hi] = crate::numeric::stats::range(&tracks).unwrap();
+        let [lo, hi] = crate::numeric::stats::range(log.tracks()).unwrap();
         let (c0, w0) = (lo + 0.37 * (hi - lo), (hi - lo) / 300.0);
-        for r in &mut log.rows {
-            if let Some(b) = r.bias.as_mut() {
-                *b += 40.0 * (-0.5 * ((r.track - c0) / w0).powi(2)).exp();
+        for i in 0..log.len() {
+            if let Some(b) = log.bias(i) {
+                let x = log.tracks()[i];
+                log.set_bias(i, Some(b + 40.0 * (-0.5 * ((x - c0) / w0).powi(2)).exp()));
             }
         }
         let opts = FitOptions::default().check().unwrap();

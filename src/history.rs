@@ -428,6 +428,39 @@ impl History {
         }
     }
 
+    /// Records a seek to `target` at `time_s` and returns only the features its time and the
+    /// positions give without the seek history: `seek_index`, `time_s`, `elapsed_s`,
+    /// `dwell_s`, `source`, `target` and `seek_length`, each the same bits as
+    /// [`History::step`]'s (tested); `direction` 0, no `direction_change`, `since_reversal` 0
+    /// and no rest distances. The direction and rest memory are not advanced: a history is
+    /// stepped one way or the other throughout.
+    #[inline(always)]
+    pub(crate) fn step_light(&mut self, time_s: f64, target: f64) -> SeekFeatures {
+        let source = self.position.unwrap_or(target);
+        let first = self.position.is_none();
+        let f = SeekFeatures {
+            seek_index: self.seeks,
+            time_s,
+            elapsed_s: if first { 0.0 } else { time_s - self.start_time },
+            dwell_s: if first { 0.0 } else { time_s - self.last_time },
+            source,
+            target,
+            seek_length: target - source,
+            direction: 0,
+            direction_change: false,
+            since_reversal: 0.0,
+            rest_distance_od: None,
+            rest_distance_id: None,
+        };
+        if first {
+            self.start_time = time_s;
+        }
+        self.position = Some(target);
+        self.last_time = time_s;
+        self.seeks += 1;
+        f
+    }
+
     /// Records a seek to `target` at `time_s` and returns its features.
     pub fn step(&mut self, time_s: f64, target: f64) -> SeekFeatures {
         self.step_moved(time_s, target, None)
@@ -557,8 +590,8 @@ impl DirectionSetting {
 
 /// [`sampling`] of every row of `log`.
 pub fn log_sampling(log: &crate::log::Log) -> Sampling {
-    let times: Vec<f64> = log.rows.iter().map(|r| r.time_s).collect();
-    let positions: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+    let times: Vec<f64> = log.rows().map(|r| r.time_s).collect();
+    let positions: Vec<f64> = log.rows().map(|r| r.track).collect();
     sampling(&times, &positions)
 }
 
@@ -643,17 +676,35 @@ pub(crate) fn replay_with<'a>(
 ) -> Result<Replay<'a>, DirectionError> {
     let velocity = source.column_index(&log.schema.file, &log.schema.covariates)?;
     Ok(Replay {
-        rows: log.rows.iter().enumerate(),
+        rows: log.rows().enumerate(),
         history: source.history(),
         velocity,
+        light: false,
     })
+}
+
+/// [`replay_with`] for a source already checked against `log`: `velocity` is
+/// [`DirectionSource::column_index`]'s answer. With `light`, only the features a log's times
+/// and positions give without the seek history are computed ([`History::step_light`]).
+pub(crate) fn replay_checked<'a>(
+    log: &'a crate::log::Log,
+    source: &DirectionSource,
+    velocity: Option<usize>,
+    light: bool,
+) -> Replay<'a> {
+    Replay {
+        rows: log.rows().enumerate(),
+        history: source.history(),
+        velocity,
+        light,
+    }
 }
 
 /// The turning points of a replayed log, in order: where each direction change began
 /// (`target − direction·since_reversal` of every seek with `direction_change`), position unit.
-pub(crate) fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
+pub(crate) fn turning_points(features: impl IntoIterator<Item = SeekFeatures>) -> Vec<f64> {
     features
-        .iter()
+        .into_iter()
         .filter(|f| f.direction_change)
         .map(|f| f.target - f64::from(f.direction) * f.since_reversal)
         .collect()
@@ -662,7 +713,7 @@ pub(crate) fn turning_points(features: &[SeekFeatures]) -> Vec<f64> {
 /// The reversal amplitudes of a replayed log: distances between consecutive turning points
 /// ([`turning_points`]), position unit; the travel a hysteresis loop of the log spans. Empty
 /// with fewer than two reversals.
-pub(crate) fn reversal_amplitudes(features: &[SeekFeatures]) -> Vec<f64> {
+pub(crate) fn reversal_amplitudes(features: impl IntoIterator<Item = SeekFeatures>) -> Vec<f64> {
     turning_points(features)
         .windows(2)
         .map(|w| (w[1] - w[0]).abs())
@@ -1139,7 +1190,7 @@ impl Sampling {
 }
 
 /// The one replay of a log's seek history: every row of `log` in order, with its index in
-/// `log.rows` and its [`SeekFeatures`]. Unmeasured rows move the head too, so they are yielded
+/// the log and its [`SeekFeatures`]. Unmeasured rows move the head too, so they are yielded
 /// as well; callers that want only measured rows filter on `row.bias`. Used by the fit
 /// ([`crate::model::data::FitData`]), diagnose, the plots and the report.
 ///
@@ -1155,28 +1206,35 @@ impl Sampling {
 /// ```
 pub fn replay(log: &crate::log::Log) -> Replay<'_> {
     Replay {
-        rows: log.rows.iter().enumerate(),
+        rows: log.rows().enumerate(),
         history: History::new(),
         velocity: None,
+        light: false,
     }
 }
 
 /// The iterator of [`replay`]: yields `(index, row, features)` for every row of a log.
 #[derive(Debug, Clone)]
 pub struct Replay<'a> {
-    rows: std::iter::Enumerate<std::slice::Iter<'a, crate::log::Row>>,
+    rows: std::iter::Enumerate<crate::log::Rows<'a>>,
     history: History,
     velocity: Option<usize>,
+    /// Only the features of [`History::step_light`].
+    light: bool,
 }
 
 impl<'a> Iterator for Replay<'a> {
-    type Item = (usize, &'a crate::log::Row, SeekFeatures);
+    type Item = (usize, crate::log::RowRef<'a>, SeekFeatures);
 
+    #[inline(always)]
     fn next(&mut self) -> Option<Self::Item> {
         let (i, row) = self.rows.next()?;
+        if self.light {
+            return Some((i, row, self.history.step_light(row.time_s, row.track)));
+        }
         let moved = self
             .velocity
-            .map(|k| DirectionSource::moved(row.covariates.get(k).copied()));
+            .map(|k| DirectionSource::moved(row.covariates.get(k)));
         Some((
             i,
             row,
@@ -1393,6 +1451,42 @@ mod tests {
             }
         }
         (od.map(|p| target - p), id.map(|p| p - target))
+    }
+
+    /// Reference: [`History::step`], the full replay. The light step must give its positional
+    /// features bit for bit (repeated positions, equal times, non-integer positions) and leave
+    /// the history-dependent ones empty.
+    #[test]
+    fn light_steps_give_the_positional_features_bit_for_bit() {
+        let mut rng = SimRng::new(3);
+        let (mut full, mut light) = (History::new(), History::new());
+        let mut t = 0.25;
+        for k in 0..2000 {
+            let x = if k % 7 == 0 {
+                500.0
+            } else {
+                rng.below(1000) as f64 * 0.37
+            };
+            t += [0.0, 0.125, 1.0 / 3.0][rng.below(3) as usize];
+            let (f, l) = (full.step(t, x), light.step_light(t, x));
+            let bits = |g: &SeekFeatures| {
+                [
+                    g.time_s,
+                    g.elapsed_s,
+                    g.dwell_s,
+                    g.source,
+                    g.target,
+                    g.seek_length,
+                ]
+                .map(f64::to_bits)
+            };
+            assert_eq!((bits(&f), f.seek_index), (bits(&l), l.seek_index), "{k}");
+            assert_eq!((l.direction, l.direction_change), (0, false));
+            assert_eq!(
+                (l.since_reversal, l.rest_distance_od, l.rest_distance_id),
+                (0.0, None, None)
+            );
+        }
     }
 
     #[test]

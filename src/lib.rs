@@ -207,8 +207,9 @@ pub use numeric::rng::SimRng;
 pub use numeric::stats::{dip_test, dip_test_sorted, mean, sorted, std_dev};
 pub use render::json::to_string_pretty;
 pub use render::{
-    NonFinite, OutputError, StagedDir, check_paths, check_prediction, check_text, flush_stdout,
-    is_broken_pipe, message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
+    NonFinite, OutputError, StagedDir, check_paths, check_prediction, check_replay, check_text,
+    flush_stdout, is_broken_pipe, message, message_with, quote, write_atomic, write_stdout,
+    write_string_atomic,
 };
 pub use report::story::{
     CheckedStoryOptions, Progress, StoryOptions, StoryOutcome, data_report, demo_report,
@@ -234,7 +235,7 @@ pub use diagnose::{
     Shape, Verification, VerifiedEdit, Whiteness,
 };
 pub use history::{DirectionError, Replay, RestMemory, Sampling};
-pub use log::{LogSummary, Row, UnitError};
+pub use log::{Covariates, LogSummary, Row, RowRef, Rows, UnitError};
 pub use model::RangeWarning;
 pub use model::predictor::ReplayError;
 pub use numeric::stats::{Dip, DipTest, Histogram, Trend};

@@ -4,7 +4,7 @@
 use super::common::{DirectionArgs, LogArgs, SettleArgs};
 use biasctl::write_atomic;
 use biasctl::{BiasColumn, Log, LogReader, STDIN_PATH};
-use biasctl::{FittedModel, Prediction, ReplaySummary, StartValues, write_predictions_csv};
+use biasctl::{FittedModel, ReplaySummary, StartValues, write_predictions_csv};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -33,14 +33,16 @@ impl ModelLogArgs {
         Ok(model)
     }
 
-    /// Loads the model and the log and replays the model causally over the log.
-    pub fn replay(&self) -> anyhow::Result<(FittedModel, Log, Prediction)> {
+    /// Loads the model and the log and replays the model causally over the log (streamed:
+    /// nothing per row is kept), refusing a non-finite prediction and warning where the log
+    /// goes beyond the fitted positions.
+    pub fn replay(&self) -> anyhow::Result<(FittedModel, Log)> {
         let model = self.load_model()?;
         let log = self.log.columns.read_log(&self.log.data)?;
-        let pred = model.predict_log(&log)?;
-        biasctl::check_prediction(&pred, &log)?;
-        super::common::warn_outside_range(&model, &log.schema.file, &pred.positions);
-        Ok((model, log, pred))
+        biasctl::check_replay(&model, &log)??;
+        let positions = log.measured_positions();
+        super::common::warn_outside_range(&model, &log.schema.file, &positions);
+        Ok((model, log))
     }
 }
 

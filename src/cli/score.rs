@@ -23,7 +23,7 @@ pub struct Args {
 
 /// Replays the model and prints the score.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, log, _) = args.input.replay()?;
+    let (model, log) = args.input.replay()?;
     let s = score_model(&model, &log, Feedback::every(args.feedback_every))?;
     // The score's own warnings name the scored log; the model's fit warnings (which `score`
     // repeats in its JSON as `fit: …`) come from the training log: named as the model's, and

@@ -80,7 +80,7 @@ pub struct FeatureTable {
 
 /// The `memsum_L` features at [`MEMSUM_FRACTIONS`] of the log's travel (none if it never moves).
 fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
-    let tracks: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+    let tracks: Vec<f64> = log.rows().map(|r| r.track).collect();
     let Some(travel) = crate::numeric::stats::range(&tracks)
         .map(|[a, b]| b - a)
         .filter(|t| *t > 0.0)
@@ -94,7 +94,7 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
             let mut state = MemsumState::new(l);
             let mut source = None;
             let mut values = Vec::with_capacity(log.measured_count());
-            for row in &log.rows {
+            for row in log.rows() {
                 let from = source.unwrap_or(row.track);
                 if row.bias.is_some() {
                     values.push(Some(state.value_after_move(from, row.track)));
@@ -115,15 +115,15 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
 /// (none if that range is empty: a log too short or too coarse for a lag to show). `measured` holds each covariate's values at
 /// the measured rows (for the skip of non-finite ones); the lag runs over every row.
 fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
-    let rows = &log.rows;
-    let steps: Vec<f64> = rows
+    let times = log.times();
+    let steps: Vec<f64> = times
         .windows(2)
-        .map(|w| w[1].time_s - w[0].time_s)
+        .map(|w| w[1] - w[0])
         .filter(|d| *d > 0.0)
         .collect();
     let median =
         crate::numeric::stats::percentile_sorted(&crate::numeric::stats::sorted(&steps), 50.0);
-    let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
+    let span = times.last().map_or(0.0, |t| *t) - times.first().map_or(0.0, |t| *t);
     let hi = LAG_MAX_FRACTION * span;
     let Some(lo) = median.filter(|&m| m > 0.0 && hi > m) else {
         return Vec::new();
@@ -141,10 +141,10 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
         for p in LAG_POINTS {
             let tau = lo * (hi / lo).powf(p);
             let mut lag = FirstOrderLag::new(tau);
-            let lagged: Vec<f64> = rows
-                .iter()
+            let lagged: Vec<f64> = log
+                .rows()
                 .filter_map(|r| {
-                    let z = lag.step(r.time_s, r.covariates.get(k).copied().unwrap_or(0.0));
+                    let z = lag.step(r.time_s, r.covariates.get(k).unwrap_or(0.0));
                     r.bias.is_some().then_some(z)
                 })
                 .collect();
@@ -208,7 +208,7 @@ impl FeatureTable {
                 col.push(f.value(feature));
             }
             for (k, col) in covariates.iter_mut().enumerate() {
-                col.push(row.covariates.get(k).copied().filter(|v| v.is_finite()));
+                col.push(row.covariates.get(k).filter(|v| v.is_finite()));
             }
         }
         let mut columns: Vec<FeatureColumn> = Feature::ALL
@@ -220,8 +220,8 @@ impl FeatureTable {
                 values,
             })
             .collect();
-        let times: Vec<f64> = log.rows.iter().map(|r| r.time_s).collect();
-        let tracks: Vec<f64> = log.rows.iter().map(|r| r.track).collect();
+        let times: Vec<f64> = log.rows().map(|r| r.time_s).collect();
+        let tracks: Vec<f64> = log.rows().map(|r| r.track).collect();
         if crate::history::sampling(&times, &tracks).dense {
             columns.push(FeatureColumn {
                 name: DERIVED_VELOCITY.to_string(),

@@ -401,11 +401,10 @@ pub(crate) fn edit_for(
     Ok(ModelEdit::Add(parse_term(term)?))
 }
 
-/// Indices into `log.rows` of the rows with a measured bias, in log order (the rows every
+/// Indices into `log` of the rows with a measured bias, in log order (the rows every
 /// residual, fold and score of a diagnosis is counted over).
 pub(super) fn measured_rows(log: &Log) -> Vec<usize> {
-    log.rows
-        .iter()
+    log.rows()
         .enumerate()
         .filter(|(_, r)| r.bias.is_some())
         .map(|(i, _)| i)
@@ -434,7 +433,7 @@ pub(super) fn cv_residuals(
             }
             let mut masked = log.clone();
             for &i in &measured[a..b] {
-                masked.rows[i].bias = None;
+                masked.set_bias(i, None);
             }
             let model = fit(spec, &masked, opts).map_err(|source| ModelDiagnosisError::Fit {
                 step: k,

@@ -41,7 +41,10 @@
 //! assert_eq!(reader.schema().units.bias, "counts");
 //! ```
 
+mod columns;
 pub(crate) mod limits;
+
+pub use columns::{Covariates, Log, RowRef, Rows};
 
 use crate::log::limits::{LineLimit, MAX_COLUMNS};
 use std::fs::File;
@@ -968,6 +971,19 @@ impl<R: Read> LogReader<R> {
     }
 }
 
+impl<R: Read> LogReader<R> {
+    /// Reads the rest of the log into columns, with room for `expected` rows.
+    fn read_all(mut self, expected: usize) -> Result<Log, LogError> {
+        let mut row = Row::empty(self.schema.covariates.len());
+        let mut log = Log::with_capacity(self.schema.clone(), expected);
+        while self.read_into(&mut row)? {
+            log.push(&row);
+        }
+        log.shrink_to_fit();
+        Ok(log)
+    }
+}
+
 impl<R: Read> Iterator for LogReader<R> {
     type Item = Result<Row, LogError>;
 
@@ -1038,15 +1054,6 @@ fn malformed(file: &str, line: u64, e: &csv::Error) -> LogError {
     }
 }
 
-/// A whole log in memory: what the fitting and diagnosis commands work on.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Log {
-    /// Metadata and columns.
-    pub schema: LogSchema,
-    /// All rows in file order.
-    pub rows: Vec<Row>,
-}
-
 impl Log {
     /// Reads a whole log file (`-`: standard input).
     pub fn read(path: &Path, map: &ColumnMap) -> Result<Self, LogError> {
@@ -1055,7 +1062,7 @@ impl Log {
 
     /// Reads a whole log file (`-`: standard input) with the bias column required or optional.
     pub fn read_with(path: &Path, map: &ColumnMap, bias: BiasColumn) -> Result<Self, LogError> {
-        let mut reader = LogReader::open_with(path, map, bias)?;
+        let reader = LogReader::open_with(path, map, bias)?;
         // Room for the rows the file's size suggests (its bytes over the look-ahead rows'
         // bytes per row, plus 1/16): the vector then grows by doubling rarely or never, which
         // would copy every row read so far and hold both copies at once.
@@ -1067,14 +1074,7 @@ impl Log {
                 let rows = m.len() as f64 / per_row;
                 (rows + rows / 16.0).min(1e9) as usize
             });
-        let mut rows = Vec::with_capacity(expected);
-        for row in reader.by_ref() {
-            rows.push(row?);
-        }
-        Ok(Self {
-            schema: reader.schema,
-            rows,
-        })
+        reader.read_all(expected)
     }
 
     /// Reads a whole log from a reader; `file` names it in messages.
@@ -1089,26 +1089,7 @@ impl Log {
         map: &ColumnMap,
         bias: BiasColumn,
     ) -> Result<Self, LogError> {
-        let mut reader = LogReader::from_reader_with(file, reader, map, bias)?;
-        let rows = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
-        Ok(Self {
-            schema: reader.schema,
-            rows,
-        })
-    }
-
-    /// Number of rows with a measured bias.
-    pub fn measured_count(&self) -> usize {
-        self.rows.iter().filter(|r| r.bias.is_some()).count()
-    }
-
-    /// Target positions of the rows with a measured bias, in log order.
-    pub fn measured_positions(&self) -> Vec<f64> {
-        self.rows
-            .iter()
-            .filter(|r| r.bias.is_some())
-            .map(|r| r.track)
-            .collect()
+        LogReader::from_reader_with(file, reader, map, bias)?.read_all(0)
     }
 }
 
@@ -1232,11 +1213,11 @@ mod tests {
                 .unwrap();
         assert_eq!(log.schema.metadata_value("seed"), Some("7"));
         assert_eq!(log.schema.metadata_value("generator"), Some("biasctl"));
-        assert_eq!(log.rows.len(), 2);
-        assert_eq!(log.rows[0].line, 4);
-        assert_eq!(log.rows[1].line, 5);
-        assert_eq!(log.rows[1].bias, None);
-        assert_eq!(log.rows[1].covariates, vec![4.0]);
+        assert_eq!(log.len(), 2);
+        assert_eq!(log.row(0).line, 4);
+        assert_eq!(log.row(1).line, 5);
+        assert_eq!(log.row(1).bias, None);
+        assert_eq!(log.row(1).covariates, vec![4.0]);
         assert_eq!(log.measured_count(), 1);
     }
 
@@ -1254,8 +1235,8 @@ mod tests {
             &map,
         )
         .unwrap();
-        assert_eq!(log.rows[0].track, 0.001);
-        assert_eq!(log.rows[0].bias, Some(1.5));
+        assert_eq!(log.row(0).track, 0.001);
+        assert_eq!(log.row(0).bias, Some(1.5));
         assert_eq!(log.schema.covariates, vec!["v".to_string()]);
     }
 
@@ -1312,7 +1293,7 @@ mod tests {
         let plan = read_plan("time_s,track,temp_c\n0,100,25\n0.5,120,26\n").unwrap();
         assert!(!plan.schema.has_bias());
         assert_eq!(plan.schema.covariates, vec!["temp_c".to_string()]);
-        assert_eq!(plan.rows[1].covariates, vec![26.0]);
+        assert_eq!(plan.row(1).covariates, vec![26.0]);
         assert_eq!(plan.measured_count(), 0);
         let empty = read_plan("time_s,track,bias\n0,100,\n0.5,120,\n").unwrap();
         assert!(empty.schema.has_bias() && empty.measured_count() == 0);
@@ -1332,7 +1313,7 @@ mod tests {
             "\u{feff}time_s,track,bias\n0,1,2\n",
         ] {
             let log = read(text).expect(text);
-            assert_eq!(log.rows[0].bias, Some(2.0), "{text:?}");
+            assert_eq!(log.row(0).bias, Some(2.0), "{text:?}");
         }
         assert_eq!(
             read("\u{feff}# seed = 1\ntime_s,track,bias\n0,1,2\n")
@@ -1518,7 +1499,12 @@ mod tests {
         ];
         for text in dialects {
             let log = read(text).expect(text);
-            assert_eq!(log.rows, plain.rows, "{text:?}");
+            assert!(
+                log.rows()
+                    .map(|r| r.to_row())
+                    .eq(plain.rows().map(|r| r.to_row())),
+                "{text:?}"
+            );
             assert_eq!(log.schema.covariates, ["temp_c"], "{text:?}");
         }
         let notes = read(dialects[0]).unwrap().schema.notes;
@@ -1600,6 +1586,6 @@ mod tests {
         );
         assert_eq!(read(&quoted).unwrap().schema.covariates, names);
         let log = read(&text).unwrap();
-        assert_eq!(log.rows[1].track, 101.25);
+        assert_eq!(log.row(1).track, 101.25);
     }
 }

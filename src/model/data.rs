@@ -3,11 +3,12 @@
 //! [`TermSpec::prepare`](super::term::TermSpec::prepare)) returns ([`FitError`]) and the record
 //! of how a fit ended ([`FitReport`], saved in the model file). `crate::fit` re-exports all three.
 
-use super::term::Seek;
+use super::term::{Seek, Term};
 use super::{ModelError, SpecError};
-use crate::history::SeekFeatures;
+use crate::history::{DirectionSource, Replay};
 use crate::log::Log;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// An error fitting a model. Nothing is written when a fit fails.
 #[derive(Debug, thiserror::Error)]
@@ -155,68 +156,116 @@ pub struct FitReport {
     pub position_range: Option<[f64; 2]>,
 }
 
-/// The training data as terms see it while they prepare: the log and every row's seek features.
-#[derive(Debug)]
+/// The training data as terms see it while they prepare: the log, and its seek history
+/// replayed on demand ([`FitData::replay`]). Nothing per row is held beyond the log itself:
+/// each question about the seek features streams one replay.
+#[derive(Debug, Clone)]
 pub struct FitData<'a> {
     log: &'a Log,
-    features: Vec<SeekFeatures>,
+    direction: DirectionSource,
+    /// The velocity column of `direction` ([`DirectionSource::column_index`], checked).
+    velocity: Option<usize>,
 }
 
 impl<'a> FitData<'a> {
-    /// Replays the log's seek history once ([`crate::history::replay`]), direction from raw
-    /// position steps.
+    /// The log, its direction from raw position steps.
     pub fn new(log: &'a Log) -> Self {
-        let features = crate::history::replay(log).map(|(_, _, f)| f).collect();
-        Self { log, features }
+        Self {
+            log,
+            direction: DirectionSource::Steps,
+            velocity: None,
+        }
     }
 
-    /// Replays the log's seek history once with direction read as `direction` says
-    /// (`crate::history::replay_with`).
-    pub fn with_direction(
-        log: &'a Log,
-        direction: &crate::history::DirectionSource,
-    ) -> Result<Self, FitError> {
-        let features = crate::history::replay_with(log, direction)?
-            .map(|(_, _, f)| f)
-            .collect();
-        Ok(Self { log, features })
+    /// The log with direction read as `direction` says; an error when its velocity column is
+    /// missing.
+    pub fn with_direction(log: &'a Log, direction: &DirectionSource) -> Result<Self, FitError> {
+        let velocity = direction.column_index(&log.schema.file, &log.schema.covariates)?;
+        Ok(Self {
+            log,
+            direction: direction.clone(),
+            velocity,
+        })
     }
 
     /// The log.
-    pub fn log(&self) -> &Log {
+    pub fn log(&self) -> &'a Log {
         self.log
+    }
+
+    /// One replay of the log's seek history (every row, measured or not, in log order), the
+    /// direction read as this data's source says.
+    pub fn replay(&self) -> Replay<'a> {
+        crate::history::replay_checked(self.log, &self.direction, self.velocity, false)
+    }
+
+    /// A replay for `terms`: without the direction tracker and rest memory
+    /// ([`crate::history::History::step_light`]) when no term reads the history
+    /// ([`Term::reads_history`]).
+    pub(crate) fn replay_for(&self, terms: &[Arc<dyn Term>]) -> Replay<'a> {
+        self.replay_reading(terms.iter().any(|t| t.reads_history()))
+    }
+
+    /// A replay with the direction tracker and rest memory only if `reads_history` (else
+    /// [`crate::history::History::step_light`]: the positional features alone).
+    pub(crate) fn replay_reading(&self, reads_history: bool) -> Replay<'a> {
+        crate::history::replay_checked(self.log, &self.direction, self.velocity, !reads_history)
     }
 
     /// Standard deviation of the measured bias (the log's bias unit; 0 with fewer than two).
     pub fn measured_bias_std(&self) -> f64 {
-        let b: Vec<f64> = self.log.rows.iter().filter_map(|r| r.bias).collect();
+        let b: Vec<f64> = self.log.rows().filter_map(|r| r.bias).collect();
         crate::numeric::stats::std_dev(&b).unwrap_or(0.0)
     }
 
-    /// Seek features of every row, in log order.
-    pub fn features(&self) -> &[SeekFeatures] {
-        &self.features
+    /// Direction changes in the replayed history.
+    pub fn reversals(&self) -> usize {
+        self.replay().filter(|(_, _, f)| f.direction_change).count()
     }
 
-    /// `f` of every measured row, as `Option`s (in log order).
+    /// The reversal amplitudes of the replayed history: distances between consecutive turning
+    /// points, position unit (`crate::history::reversal_amplitudes`).
+    pub fn reversal_amplitudes(&self) -> Vec<f64> {
+        crate::history::reversal_amplitudes(self.replay().map(|(_, _, f)| f))
+    }
+
+    /// `f` of every measured row, as `Option`s (in log order); one replay.
     pub fn measured_map(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<Option<f64>> {
-        self.log
-            .rows
-            .iter()
-            .zip(&self.features)
-            .filter(|(r, _)| r.bias.is_some())
-            .map(|(r, feat)| {
-                f(&Seek {
-                    features: feat,
-                    covariates: &r.covariates,
-                })
-            })
-            .collect()
+        let mut out = Vec::with_capacity(self.log.measured_count());
+        self.each_measured(false, |s| out.push(f(s)));
+        out
     }
 
-    /// The defined values of `f` over the measured rows.
+    /// The defined values of `f` over the measured rows; one replay.
     pub fn measured_values(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
-        self.measured_map(f).into_iter().flatten().collect()
+        let mut out = Vec::new();
+        self.each_measured(false, |s| out.extend(f(s)));
+        out
+    }
+
+    /// [`FitData::measured_values`] of a function of the features a log's times and positions
+    /// give row by row (`seek_index`, `time_s`, `elapsed_s`, `dwell_s`, `source`, `target`,
+    /// `seek_length`; see [`Term::reads_history`]) and the covariates: the same values, from a
+    /// replay without the direction tracker and rest memory.
+    pub fn measured_positional(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.each_measured(true, |s| out.extend(f(s)));
+        out
+    }
+
+    /// Calls `each` with every measured row's seek, in log order.
+    fn each_measured(&self, light: bool, mut each: impl FnMut(&Seek<'_>)) {
+        let mut cov = Vec::with_capacity(self.log.schema.covariates.len());
+        let replay =
+            crate::history::replay_checked(self.log, &self.direction, self.velocity, light);
+        for (_, row, feat) in replay {
+            if row.bias.is_some() {
+                each(&Seek {
+                    features: &feat,
+                    covariates: row.covariates.gather(&mut cov),
+                });
+            }
+        }
     }
 
     /// Index of covariate `column`, or the error naming `term`.

@@ -409,7 +409,7 @@ impl fmt::Display for RangeWarning {
 pub struct Prediction {
     /// Names of the terms, in contribution order.
     pub term_names: Vec<String>,
-    /// Index into `log.rows` of each measured row.
+    /// Index into the log of each measured row.
     pub rows: Vec<usize>,
     /// Target position of each row, tracks.
     pub positions: Vec<f64>,
@@ -643,8 +643,6 @@ impl FittedModel {
         log: &Log,
         feedback: Feedback,
     ) -> Result<Prediction, ModelError> {
-        self.check_log(log)?;
-        let mut p = Predictor::new(self, &log.schema.covariates)?;
         let nt = self.terms.len();
         let m = log.measured_count();
         let mut out = Prediction {
@@ -652,27 +650,67 @@ impl FittedModel {
             contributions: vec![Vec::with_capacity(m); nt],
             ..Default::default()
         };
-        let mut contrib = vec![0.0; nt];
+        self.replay_measured(log, feedback, |row, predicted, contrib| {
+            out.rows.push(row.index);
+            out.positions.push(row.position);
+            out.measured.push(row.measured);
+            out.predicted.push(predicted);
+            out.residual.push(row.measured - predicted);
+            for (c, v) in out.contributions.iter_mut().zip(contrib) {
+                c.push(*v);
+            }
+        })?;
+        Ok(out)
+    }
+
+    /// The replay of [`FittedModel::predict_log_with`], streamed: `each` gets every measured
+    /// row (its index, position and measured bias), its causal prediction and every term's
+    /// contribution to it, in log order; nothing per row is held.
+    pub(crate) fn replay_measured(
+        &self,
+        log: &Log,
+        feedback: Feedback,
+        mut each: impl FnMut(MeasuredRow, f64, &[f64]),
+    ) -> Result<(), ModelError> {
+        self.check_log(log)?;
+        let mut p = Predictor::new(self, &log.schema.covariates)?;
+        let mut contrib = vec![0.0; self.terms.len()];
         let mut seen = 0u64;
-        for (i, row) in log.rows.iter().enumerate() {
+        let mut cov = Vec::with_capacity(log.schema.covariates.len());
+        for (i, row) in log.rows().enumerate() {
             let shown = row.bias.filter(|_| {
                 seen += 1;
                 feedback.shows(seen - 1)
             });
-            let pred = p.step_detailed(row.time_s, row.track, &row.covariates, shown, &mut contrib);
+            let pred = p.step_detailed(
+                row.time_s,
+                row.track,
+                row.covariates.gather(&mut cov),
+                shown,
+                &mut contrib,
+            );
             if let Some(y) = row.bias {
-                out.rows.push(i);
-                out.positions.push(row.track);
-                out.measured.push(y);
-                out.predicted.push(pred);
-                out.residual.push(y - pred);
-                for (c, v) in out.contributions.iter_mut().zip(&contrib) {
-                    c.push(*v);
-                }
+                let row = MeasuredRow {
+                    index: i,
+                    position: row.track,
+                    measured: y,
+                };
+                each(row, pred, &contrib);
             }
         }
-        Ok(out)
+        Ok(())
     }
+}
+
+/// A measured row as [`FittedModel::replay_measured`] hands it over.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct MeasuredRow {
+    /// Index of the row in the log.
+    pub(crate) index: usize,
+    /// Its target position.
+    pub(crate) position: f64,
+    /// Its measured bias.
+    pub(crate) measured: f64,
 }
 
 /// How often a replay shows the measured bias to the model's adaptive terms (`drift`).

@@ -430,13 +430,19 @@ pub fn predict_next(
     model.check_log(log)?;
     let mut p = Predictor::new(model, &log.schema.covariates)?;
     let replay = match target {
-        None => log.rows.len().saturating_sub(1),
-        Some(_) => log.rows.len(),
+        None => log.len().saturating_sub(1),
+        Some(_) => log.len(),
     };
-    for row in &log.rows[..replay] {
-        p.step(row.time_s, row.track, &row.covariates, row.bias);
+    let mut cov = Vec::new();
+    for row in log.rows().take(replay) {
+        p.step(
+            row.time_s,
+            row.track,
+            row.covariates.gather(&mut cov),
+            row.bias,
+        );
     }
-    let Some(last) = log.rows.last() else {
+    let Some(last) = log.last() else {
         return Err(ModelError::EmptyLog {
             file: log.schema.file.clone(),
         });
@@ -445,7 +451,7 @@ pub fn predict_next(
     Ok(NextPrediction {
         target,
         time_s: last.time_s,
-        bias: p.peek(last.time_s, target, &last.covariates),
+        bias: p.peek(last.time_s, target, last.covariates.gather(&mut cov)),
         rows_replayed: replay,
     })
 }

@@ -174,6 +174,15 @@ pub trait Term: Debug + Send + Sync {
     fn search_by_projection(&self) -> bool {
         false
     }
+    /// Whether the term's state reads the seek history: any feature beyond those a log's times
+    /// and positions give row by row (`seek_index`, `time_s`, `elapsed_s`, `dwell_s`, `source`,
+    /// `target`, `seek_length`). A fit whose terms all answer `false` replays the log without
+    /// the direction tracker and the rest memory (their features are then 0 / `None`, see
+    /// [`crate::history::History`]), as the `dahl` rate search does once per candidate.
+    /// Default: true.
+    fn reads_history(&self) -> bool {
+        true
+    }
     /// The same term with its nonlinear parameter set to `value` (search coordinate).
     fn with_nonlinear(&self, _value: f64) -> Option<Arc<dyn Term>> {
         None
@@ -306,10 +315,11 @@ impl<T: Term + ?Sized> SearchBasis for PerRowSearch<'_, T> {
         let stride = values.len() * w;
         let mut block = vec![0.0; PER_ROW_BLOCK * stride];
         let mut rows = 0;
-        for (row, f) in log.rows.iter().zip(self.data.features()) {
+        let mut cov = Vec::new();
+        for (_, row, f) in self.data.replay_reading(self.term.reads_history()) {
             let seek = Seek {
-                features: f,
-                covariates: &row.covariates,
+                features: &f,
+                covariates: row.covariates.gather(&mut cov),
             };
             if row.bias.is_some() {
                 let out = &mut block[rows * stride..(rows + 1) * stride];

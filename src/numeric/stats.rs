@@ -424,8 +424,12 @@ pub(crate) fn histogram(x: &[f64], bins: usize) -> Histogram {
 
 /// Number of histogram bins by the Freedman–Diaconis rule, clamped to 5..=60.
 pub(crate) fn fd_bins(x: &[f64]) -> usize {
-    let s = sorted(x);
-    let (Some(q1), Some(q3)) = (percentile_sorted(&s, 25.0), percentile_sorted(&s, 75.0)) else {
+    fd_bins_sorted(&sorted(x))
+}
+
+/// [`fd_bins`] of values already sorted ascending (by `f64::total_cmp`, as [`sorted`] sorts).
+pub(crate) fn fd_bins_sorted(s: &[f64]) -> usize {
+    let (Some(q1), Some(q3)) = (percentile_sorted(s, 25.0), percentile_sorted(s, 75.0)) else {
         return 5;
     };
     let iqr = q3 - q1;

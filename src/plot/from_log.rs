@@ -63,8 +63,7 @@ pub fn bias_vs_position_with_fit(
 /// measured rows.
 pub fn busiest_track(log: &Log) -> Option<f64> {
     let mut tracks: Vec<f64> = log
-        .rows
-        .iter()
+        .rows()
         .filter(|r| r.bias.is_some())
         .map(|r| r.track)
         .collect();
@@ -98,8 +97,7 @@ pub struct NoDataAtTrack {
 /// more than a "no data" panel.
 pub fn check_track(log: &Log, track: f64) -> Result<(), NoDataAtTrack> {
     let measured = log
-        .rows
-        .iter()
+        .rows()
         .any(|r| r.bias.is_some() && r.track.total_cmp(&track).is_eq());
     if measured {
         Ok(())
@@ -118,8 +116,7 @@ pub fn bias_vs_time(log: &Log, track: Option<f64>) -> String {
     let track = track.or_else(|| busiest_track(log));
     let points = match track {
         Some(t) => log
-            .rows
-            .iter()
+            .rows()
             .filter(|r| r.track.total_cmp(&t).is_eq())
             .filter_map(|r| r.bias.map(|b| (r.time_s, b)))
             .collect(),

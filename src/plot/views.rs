@@ -113,19 +113,19 @@ pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), Vi
     let means: Vec<f64> = (0..s.covariates.len())
         .map(|k| {
             let v: Vec<f64> = log
-                .rows
-                .iter()
-                .filter_map(|r| r.covariates.get(k).copied())
+                .rows()
+                .filter_map(|r| r.covariates.get(k))
                 .filter(|v| v.is_finite())
                 .collect();
             crate::numeric::stats::mean(&v).unwrap_or(0.0)
         })
         .collect();
     let mut replayed = Predictor::new(model, &s.covariates)?;
-    for r in &log.rows {
-        replayed.step(r.time_s, r.track, &r.covariates, r.bias);
+    let mut cov = Vec::new();
+    for r in log.rows() {
+        replayed.step(r.time_s, r.track, r.covariates.gather(&mut cov), r.bias);
     }
-    let t_end = log.rows.last().map_or(0.0, |r| r.time_s);
+    let t_end = log.last().map_or(0.0, |r| r.time_s);
     let curve_point = |first: f64, second: f64, x: f64| {
         let mut p = replayed.clone();
         p.step(t_end + CURVE_DWELL_S, first, &means, None);
@@ -413,7 +413,7 @@ mod tests {
             assert!((a - (mid + 12.0)).abs() < 3.0, "inbound at {x}: {a}");
             assert!((b - (mid - 12.0)).abs() < 3.0, "outbound at {x}: {b}");
         }
-        let t_end = log.rows.last().unwrap().time_s;
+        let t_end = log.last().unwrap().time_s;
         for (i, &(x, a)) in inbound.iter().enumerate().step_by(10) {
             let mut ext = text.clone();
             // The last row is measured (any value: a prediction never sees its own row's

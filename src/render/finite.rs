@@ -63,11 +63,7 @@ pub fn check_prediction(
     for (name, values) in columns.into_iter().chain(terms) {
         for (i, &v) in values.iter().enumerate() {
             check_finite(v, || {
-                let line = pred
-                    .rows
-                    .get(i)
-                    .and_then(|&r| log.rows.get(r))
-                    .map(|r| r.line);
+                let line = pred.rows.get(i).and_then(|&r| log.get(r)).map(|r| r.line);
                 format!(
                     "{}: row {} (line {}), column `{name}`",
                     log.schema.file,
@@ -80,9 +76,88 @@ pub fn check_prediction(
     Ok(())
 }
 
+/// [`check_prediction`] of [`FittedModel::predict_log`](crate::model::FittedModel::predict_log)
+/// without holding it: the model replayed over `log` once, streamed, and the same first
+/// non-finite number named the same way (the first in `predicted`, else in `residual`, else in
+/// each term's column in order). The outer error: the model cannot be replayed on the log.
+pub fn check_replay(
+    model: &crate::model::FittedModel,
+    log: &crate::log::Log,
+) -> Result<Result<(), NonFinite>, crate::model::ModelError> {
+    let nt = model.terms.len();
+    // Per column (predicted, residual, each term): the first non-finite value and its
+    // measured row (0-based) and log row.
+    let mut first: Vec<Option<(usize, usize, f64)>> = vec![None; 2 + nt];
+    let mut i = 0;
+    model.replay_measured(
+        log,
+        crate::model::Feedback::EveryRow,
+        |row, pred, contrib| {
+            let values = [pred, row.measured - pred]
+                .into_iter()
+                .chain(contrib.iter().copied());
+            for (slot, v) in first.iter_mut().zip(values) {
+                if slot.is_none() && !v.is_finite() {
+                    *slot = Some((i, row.index, v));
+                }
+            }
+            i += 1;
+        },
+    )?;
+    let names = ["predicted".to_string(), "residual".to_string()]
+        .into_iter()
+        .chain(model.terms.iter().map(|t| t.term.name()));
+    for (name, slot) in names.zip(first) {
+        if let Some((i, r, v)) = slot {
+            let checked = check_finite(v, || {
+                format!(
+                    "{}: row {} (line {}), column `{name}`",
+                    log.schema.file,
+                    i + 1,
+                    log.line(r)
+                )
+            });
+            return Ok(checked.map(|_| ()));
+        }
+    }
+    Ok(Ok(()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Reference: [`check_prediction`] of the whole `predict_log`. The streamed check must give
+    /// the same answer, the same message: a finite model, and models with one coefficient made
+    /// infinite or NaN (in a term's column first, or in the prediction).
+    #[test]
+    fn streamed_check_names_what_the_whole_prediction_check_names() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(500),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 2, &[]).unwrap();
+        let log = simulate_log(&cfg).unwrap();
+        let spec = crate::model::ModelSpec::preset("calibration").unwrap();
+        let model = crate::fit::fit(&spec, &log, &Default::default()).unwrap();
+        let text = |r: Result<(), NonFinite>| r.map_err(|e| e.to_string());
+        let whole = |m: &crate::model::FittedModel| {
+            text(check_prediction(&m.predict_log(&log).unwrap(), &log))
+        };
+        assert_eq!(text(check_replay(&model, &log).unwrap()), Ok(()));
+        for (t, c, v) in [
+            (1, 0, f64::INFINITY),
+            (3, 2, f64::NAN),
+            (0, 1, f64::NEG_INFINITY),
+        ] {
+            let mut bad = model.clone();
+            bad.terms[t].coefficients[c] = v;
+            let want = whole(&bad);
+            assert!(want.is_err(), "{t} {c}");
+            assert_eq!(text(check_replay(&bad, &log).unwrap()), want, "{t} {c}");
+        }
+    }
 
     #[test]
     fn check_text_finds_formatted_non_finite_numbers_only() {

@@ -24,7 +24,7 @@ pub(crate) mod number;
 pub(crate) mod stdout;
 
 pub use file::{StagedDir, check_paths, write_atomic, write_string_atomic};
-pub use finite::{NonFinite, check_prediction, check_text};
+pub use finite::{NonFinite, check_prediction, check_replay, check_text};
 pub use stdout::{flush_stdout, is_broken_pipe, write_stdout};
 
 use std::io;

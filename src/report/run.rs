@@ -637,8 +637,7 @@ pub(crate) fn data_run(
     log.schema.file = file.clone();
     let tracks_like = positions_are_tracks(&log);
     let measured_idx: Vec<usize> = log
-        .rows
-        .iter()
+        .rows()
         .enumerate()
         .filter(|(_, r)| r.bias.is_some())
         .map(|(i, _)| i)
@@ -646,9 +645,9 @@ pub(crate) fn data_run(
     let split = measured_idx
         .get(measured_idx.len() / 2)
         .copied()
-        .unwrap_or(log.rows.len());
+        .unwrap_or(log.len());
     let train = sub_log(&log, 0..split, "first half");
-    let test = sub_log(&log, split..log.rows.len(), "second half");
+    let test = sub_log(&log, split..log.len(), "second half");
     steps.start("bias plots");
 
     let mut scored = Vec::new();
@@ -749,10 +748,9 @@ fn data_diagnosis(
 fn sub_log(log: &Log, range: std::ops::Range<usize>, part: &str) -> Log {
     let mut schema = log.schema.clone();
     schema.file = format!("{} ({part})", log.schema.file);
-    Log {
-        schema,
-        rows: log.rows[range].to_vec(),
-    }
+    let mut part = log.slice(range);
+    part.schema = schema;
+    part
 }
 
 /// `file` as seen from the current directory: relative to it (with `..` where needed) when the

@@ -29,7 +29,7 @@
 //! use biasctl::{family::FamilyConfig, family::FamilyDrive, family::HiddenEffect, family::generate};
 //! let cfg = FamilyConfig::new(FamilyDrive::members()[0].clone(), &[HiddenEffect::Lag], 3, 500);
 //! let run = generate(&cfg).unwrap();
-//! assert_eq!(run.log.rows.len(), 500);
+//! assert_eq!(run.log.len(), 500);
 //! assert!(run.log.schema.covariate_index("walk").is_some());
 //! let lag = run.truth("lag").unwrap();
 //! assert!(lag.iter().any(|v| v.abs() > 0.0));
@@ -892,7 +892,7 @@ mod tests {
     use crate::model::terms::memsum::MemsumState;
 
     fn log_text(run: &FamilyRun) -> String {
-        format!("{:?}", run.log.rows)
+        format!("{:?}", run.log.rows().collect::<Vec<_>>())
     }
 
     /// Same seed, same log, byte for byte (the rows as written and read back); another seed,
@@ -908,7 +908,7 @@ mod tests {
             for e in HiddenEffect::ALL {
                 let on = generate(&FamilyConfig::new(drive.clone(), &[e], 5, 300)).unwrap();
                 let mut differs = 0;
-                for (r0, r1) in a.log.rows.iter().zip(&on.log.rows) {
+                for (r0, r1) in a.log.rows().zip(on.log.rows()) {
                     assert_eq!((r0.time_s, r0.track), (r1.time_s, r1.track));
                     assert_eq!(r0.covariates, r1.covariates);
                     differs += usize::from(r0.bias != r1.bias);
@@ -926,7 +926,7 @@ mod tests {
         let effects = [HiddenEffect::SummedMemory, HiddenEffect::Lag];
         let run = generate(&FamilyConfig::new(drive, &effects, 9, 400)).unwrap();
         assert_eq!(run.log.schema.covariates, COVARIATES.to_vec());
-        for (k, row) in run.log.rows.iter().enumerate() {
+        for (k, row) in run.log.rows().enumerate() {
             let sum: f64 = run.truth.iter().map(|(_, v)| v[k]).sum();
             let bias = row.bias.unwrap();
             assert!((bias - sum).abs() <= 5.1e-5, "row {k}: {bias} vs {sum}");
@@ -952,8 +952,8 @@ mod tests {
         .unwrap();
         let truth = run.truth("summed_memory").unwrap();
         let mut state = MemsumState::new(l);
-        let mut source = run.log.rows[0].track;
-        for (k, row) in run.log.rows.iter().enumerate() {
+        let mut source = run.log.row(0).track;
+        for (k, row) in run.log.rows().enumerate() {
             let v = scale * state.value_after_move(source, row.track);
             assert!((v - truth[k]).abs() < 1e-9, "row {k}: {v} vs {}", truth[k]);
             state.apply_move(source, row.track);

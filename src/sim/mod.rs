@@ -26,7 +26,7 @@
 //! let opts = SequenceOptions { n: Some(500), ..SequenceOptions::default() };
 //! let cfg = SimConfig::new(Drive::paper1997(), "random", &opts, 7, &[]).unwrap();
 //! let log = simulate_log(&cfg).unwrap();
-//! assert_eq!(log.rows.len(), 500);
+//! assert_eq!(log.len(), 500);
 //! assert_eq!(log.schema.metadata_value("seed"), Some("7"));
 //! ```
 

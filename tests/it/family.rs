@@ -312,7 +312,7 @@ fn bump_term_recovers_the_generators_defect() {
             .iter()
             .enumerate()
             .fold((0, f64::MIN), |b, (k, &v)| if v > b.1 { (k, v) } else { b });
-        let c_true = run.log.rows[k].track;
+        let c_true = run.log.tracks()[k];
         let terms = diagnose_family::with_term(&diagnose_family::base_terms(&drive), "bump");
         let model = diagnose_family::fit_terms(&terms, &run.log);
         let p = |n: &str| model.param(&format!("bump.{n}")).unwrap().clone();
@@ -392,7 +392,7 @@ fn narrow_defect_is_named_first_and_its_bump_recovers_the_achievable_reduction()
         let k = (0..truth.len())
             .max_by(|&a, &b| truth[a].total_cmp(&truth[b]))
             .unwrap();
-        let c_true = fam.log.rows[k].track;
+        let c_true = fam.log.tracks()[k];
         assert!(
             (centre - c_true).abs() < 0.5,
             "centre {centre} vs {c_true}: {text}"

@@ -321,10 +321,10 @@ fn exercise(kind: Kind, name: &str, bytes: &[u8], ctx: &Ctx) -> Res {
     match kind {
         Kind::Log => {
             let log = Log::from_reader(name, bytes, &map_for(name))?;
-            for r in &log.rows {
+            for r in log.rows() {
                 finite("log row", [r.time_s, r.track, r.bias.unwrap_or(0.0)])?;
             }
-            if log.rows.len() <= 400 {
+            if log.len() <= 400 {
                 let spec = ModelSpec::parse("poly2,direction")?;
                 fit_save_load(&spec, &log, dir)?;
             }
@@ -352,7 +352,7 @@ fn exercise(kind: Kind, name: &str, bytes: &[u8], ctx: &Ctx) -> Res {
             };
             let cfg = SimConfig::new(drive, "random", &opts, 1, &[])?;
             let log = simulate_log(&cfg)?;
-            finite("simulated log", log.rows.iter().map(|r| r.track))?;
+            finite("simulated log", log.rows().map(|r| r.track))?;
             let out = dir.join("sim.csv");
             simulate_to_files(&cfg, &out, Some(&dir.join("truth.csv")))?;
             text_ok("simulated log file", &std::fs::read_to_string(&out)?)

@@ -373,7 +373,7 @@ fn dahl_predictor_equals_generic_model_replay() {
     let mut fast = DahlPredictor::new(c, fc, sigma).unwrap();
     let pred = model.predict_log(&log).unwrap();
     for (i, &r) in pred.rows.iter().enumerate() {
-        let y = fast.step(log.rows[r].track);
+        let y = fast.step(log.row(r).track);
         assert!(
             (y - pred.predicted[i]).abs() < 1e-6,
             "row {r}: {y} vs {}",
@@ -539,7 +539,7 @@ fn prediction_is_causal() {
     .unwrap();
     let a = model.predict_log(&log).unwrap();
     let mut changed = log.clone();
-    changed.rows[400].bias = Some(1e4);
+    changed.set_bias(400, Some(1e4));
     let b = model.predict_log(&changed).unwrap();
     assert_eq!(a.predicted[..=400], b.predicted[..=400]);
     assert!(
@@ -570,13 +570,13 @@ fn online_peek_equals_step() {
     )
     .unwrap();
     let mut p = Predictor::new(&model, &log.schema.covariates).unwrap();
-    for r in &log.rows {
+    for r in log.rows() {
         let candidates = [r.track - 7.0, r.track + 100.0, r.track];
         let peeks: Vec<f64> = candidates
             .iter()
-            .map(|&c| p.peek(r.time_s, c, &r.covariates))
+            .map(|&c| p.peek(r.time_s, c, &r.covariates.to_vec()))
             .collect();
-        let stepped = p.step(r.time_s, r.track, &r.covariates, r.bias);
+        let stepped = p.step(r.time_s, r.track, &r.covariates.to_vec(), r.bias);
         assert_eq!(peeks[2].to_bits(), stepped.to_bits());
     }
 }
@@ -622,7 +622,7 @@ fn sample_log(dir: &std::path::Path) -> String {
         1.0,
         4,
     );
-    let bias: Vec<f64> = log.rows.iter().map(|r| r.bias.unwrap()).collect();
+    let bias: Vec<f64> = log.rows().map(|r| r.bias.unwrap()).collect();
     write(dir, "log.csv", &csv(&rows, &bias))
 }
 

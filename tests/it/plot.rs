@@ -813,7 +813,7 @@ fn log_plots_split_by_direction_and_reversal() {
 
     // A log with no rows (the reader refuses such files, but a caller may filter all rows out).
     let mut empty = log("time_s,track,bias\n0,1,2\n");
-    empty.rows.clear();
+    empty.clear();
     for svg in [
         from_log::bias_vs_position(&empty),
         from_log::bias_vs_time(&empty, None),

@@ -63,7 +63,7 @@ impl TermSpec for BinsSpec {
         let covariate = Feature::from_name(&self.source).is_none();
         let values: Vec<Option<f64>> = if covariate {
             let idx = data.covariate(&self.source, &self.name())?;
-            data.measured_values(|s| Some(s.covariates[idx]))
+            data.measured_positional(|s| Some(s.covariates[idx]))
                 .into_iter()
                 .map(Some)
                 .collect()

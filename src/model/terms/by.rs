@@ -55,7 +55,7 @@ impl TermSpec for BySpec {
                 None => {
                     covariate[k] = true;
                     let idx = data.covariate(src, &self.name())?;
-                    data.measured_values(|s| Some(s.covariates[idx]))
+                    data.measured_positional(|s| Some(s.covariates[idx]))
                 }
             };
             centre[k] = crate::numeric::stats::mean(&values).unwrap_or(0.0);

@@ -51,7 +51,7 @@ impl ColTerm {
     /// constant column gets scale 1), without a lag stage; `name` labels errors.
     pub fn prepare(data: &FitData<'_>, column: &str, name: &str) -> Result<ColTerm, FitError> {
         let idx = data.covariate(column, name)?;
-        let v = data.measured_values(|s| Some(s.covariates[idx]));
+        let v = data.measured_positional(|s| Some(s.covariates[idx]));
         let centre = crate::numeric::stats::mean(&v).unwrap_or(0.0);
         let sd = crate::numeric::stats::std_dev(&v).unwrap_or(0.0);
         Ok(ColTerm {

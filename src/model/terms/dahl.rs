@@ -280,14 +280,12 @@ impl TermSpec for DahlSpec {
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let steps = crate::numeric::stats::sorted(
-            &data.measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0)),
+            &data.measured_positional(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0)),
         );
-        let amps =
-            crate::numeric::stats::sorted(&crate::history::reversal_amplitudes(data.features()));
+        let amps = crate::numeric::stats::sorted(&data.reversal_amplitudes());
         let q = |v: &[f64], p: f64| crate::numeric::stats::percentile_sorted(v, p).unwrap_or(0.0);
-        let travel =
-            crate::numeric::stats::range(&data.measured_values(|s| Some(s.features.target)))
-                .map_or(0.0, |[a, b]| b - a);
+        let travel = crate::numeric::stats::range(&data.log().measured_positions())
+            .map_or(0.0, |[a, b]| b - a);
         // Search range of ln L; a log without moves gets a unit range (the element stays 0).
         let step_lo = q(&steps, 5.0);
         let range = if step_lo > 0.0 && travel > 0.0 {
@@ -398,6 +396,10 @@ impl DahlTerm {
 }
 
 impl Term for DahlTerm {
+    fn reads_history(&self) -> bool {
+        // Its state reads `target` / `seek_length` only.
+        false
+    }
     fn name(&self) -> String {
         self.name.clone()
     }
@@ -463,9 +465,12 @@ impl Term for DahlTerm {
         if !self.search {
             return Box::new(PerRowSearch { term: self, data });
         }
-        let log = data.log();
-        let dx: Vec<f64> = data.features().iter().map(|f| f.seek_length).collect();
-        let measured: Vec<bool> = log.rows.iter().map(|r| r.bias.is_some()).collect();
+        // Seek lengths from the positional replay (the searched element reads no other
+        // feature).
+        let (dx, measured): (Vec<f64>, Vec<bool>) = data
+            .replay_reading(false)
+            .map(|(_, row, f)| (f.seek_length, row.bias.is_some()))
+            .unzip();
         // The power table needs the integer seek lengths that occur (below FAR_TABLE).
         let longest = dx
             .iter()

@@ -23,6 +23,10 @@ impl TermSpec for InterceptSpec {
 pub struct InterceptTerm;
 
 impl Term for InterceptTerm {
+    fn reads_history(&self) -> bool {
+        // Its state reads `target` / `seek_length` only.
+        false
+    }
     fn name(&self) -> String {
         "intercept".into()
     }

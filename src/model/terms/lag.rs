@@ -38,13 +38,13 @@ impl TermSpec for LagSpec {
     /// `[ln(median Δt / 2), ln(time span)]` of the training log, starting at its middle.
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let mut term = ColTerm::prepare(data, &self.column, &self.name())?;
-        let rows = &data.log().rows;
-        let mut steps: Vec<f64> = rows
+        let times = data.log().times();
+        let mut steps: Vec<f64> = times
             .windows(2)
-            .map(|w| w[1].time_s - w[0].time_s)
+            .map(|w| w[1] - w[0])
             .filter(|d| *d > 0.0)
             .collect();
-        let span = rows.last().map_or(0.0, |r| r.time_s) - rows.first().map_or(0.0, |r| r.time_s);
+        let span = times.last().map_or(0.0, |t| *t) - times.first().map_or(0.0, |t| *t);
         // The median by selection (O(n), the same bits as sorting: `percentile_select`).
         let median = percentile_select(&mut steps, 50.0).unwrap_or(0.0);
         if !(median > 0.0 && span > median) {

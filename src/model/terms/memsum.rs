@@ -37,7 +37,7 @@ impl TermSpec for MemsumSpec {
         "memsum".into()
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let positions: Vec<f64> = data.log().rows.iter().map(|r| r.track).collect();
+        let positions: Vec<f64> = data.log().rows().map(|r| r.track).collect();
         let travel = crate::numeric::stats::range(&positions)
             .map(|[lo, hi]| hi - lo)
             .filter(|t| *t > 0.0)

@@ -296,7 +296,7 @@ impl TermSpec for PlaySpec {
         format!("play:{}", self.elements)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let amps = crate::history::reversal_amplitudes(data.features());
+        let amps = data.reversal_amplitudes();
         let thresholds = thresholds(&amps, self.elements).ok_or_else(|| FitError::BadSetting {
             term: self.name(),
             why: format!(
@@ -322,6 +322,10 @@ pub struct PlayTerm {
 }
 
 impl Term for PlayTerm {
+    fn reads_history(&self) -> bool {
+        // Its state reads `target` / `seek_length` only.
+        false
+    }
     fn name(&self) -> String {
         self.name.clone()
     }

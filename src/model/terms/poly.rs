@@ -20,7 +20,7 @@ impl TermSpec for Poly2Spec {
         "poly2".into()
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let x = data.measured_values(|s| Some(s.features.target));
+        let x = data.log().measured_positions();
         let centre = crate::numeric::stats::mean(&x).unwrap_or(0.0);
         let half = crate::numeric::stats::range(&x).map_or(0.0, |[lo, hi]| 0.5 * (hi - lo));
         let scale = if half > 0.0 { half } else { 1.0 };
@@ -39,6 +39,10 @@ pub struct Poly2Term {
 }
 
 impl Term for Poly2Term {
+    fn reads_history(&self) -> bool {
+        // Its state reads `target` / `seek_length` only.
+        false
+    }
     fn name(&self) -> String {
         "poly2".into()
     }

@@ -346,7 +346,7 @@ mod tests {
     fn basis_is_the_inner_basis_times_the_centred_column() {
         let log = log(300, 3);
         let data = FitData::new(&log);
-        let v: Vec<f64> = log.rows.iter().map(|r| r.covariates[0]).collect();
+        let v: Vec<f64> = log.rows().map(|r| r.covariates[0]).collect();
         let mean = v.iter().sum::<f64>() / v.len() as f64;
         let sd = crate::numeric::stats::std_dev(&v).unwrap();
         let covs = log.schema.covariates.clone();
@@ -368,10 +368,11 @@ mod tests {
             );
             let (mut oa, mut ob, mut or) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
             let mut nonzero = 0;
-            for (row, f) in log.rows.iter().zip(data.features()) {
+            let mut cov = Vec::new();
+            for (_, row, f) in data.replay() {
                 let seek = Seek {
-                    features: f,
-                    covariates: &row.covariates,
+                    features: &f,
+                    covariates: row.covariates.gather(&mut cov),
                 };
                 a.basis(&seek, &mut oa);
                 b.basis(&seek, &mut ob);

@@ -36,7 +36,8 @@ impl TermSpec for SeekSpec {
         spec_name("seek", self.knots, DEFAULT_KNOTS)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let a = data.measured_values(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
+        let a =
+            data.measured_positional(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
         Ok(Arc::new(SeekTerm {
             name: self.name(),
             knots: interior_knots(&a, self.knots),

@@ -354,8 +354,7 @@ mod tests {
             .position(|c| c == "vel")
             .unwrap();
         let rows: Vec<(f64, f64)> = log
-            .rows
-            .iter()
+            .rows()
             .map(|r| (r.covariates[vel], r.bias.unwrap()))
             .collect();
         let x = nalgebra::DMatrix::from_fn(rows.len(), 3, |i, j| {

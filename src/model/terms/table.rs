@@ -24,7 +24,7 @@ impl TermSpec for TableSpec {
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let x = data.measured_values(|s| Some(s.features.target));
+        let x = data.log().measured_positions();
         let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let range = hi - lo;
@@ -64,6 +64,10 @@ pub struct TableTerm {
 }
 
 impl Term for TableTerm {
+    fn reads_history(&self) -> bool {
+        // Its state reads `target` / `seek_length` only.
+        false
+    }
     fn name(&self) -> String {
         self.name.clone()
     }

@@ -10,12 +10,12 @@ use crate::report::{Cell, Report, Table};
 pub(crate) fn your_data(r: &mut Report, run: &DataRun) {
     let log = &run.log;
     let units = &log.schema.units;
-    let tracks: Vec<f64> = log.rows.iter().map(|x| x.track).collect();
+    let tracks: Vec<f64> = log.rows().map(|x| x.track).collect();
     let [lo, hi] = crate::numeric::stats::range(&tracks).unwrap_or([f64::NAN; 2]);
     let sec = r.section("Your data");
     sec.table(
         Table::new(&["quantity", "value"])
-            .row(vec!["rows".into(), log.rows.len().into()])
+            .row(vec!["rows".into(), log.len().into()])
             .row(vec!["measured rows".into(), log.measured_count().into()])
             .row(vec![
                 "columns (time, position, bias)".into(),
@@ -40,8 +40,7 @@ pub(crate) fn your_data(r: &mut Report, run: &DataRun) {
             .row(vec![
                 "time span (s)".into(),
                 Cell::Number(
-                    log.rows.last().map_or(0.0, |x| x.time_s)
-                        - log.rows.first().map_or(0.0, |x| x.time_s),
+                    log.last().map_or(0.0, |x| x.time_s) - log.first().map_or(0.0, |x| x.time_s),
                 ),
             ]),
     )

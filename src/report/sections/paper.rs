@@ -57,7 +57,7 @@ pub(crate) fn what_bias_is(r: &mut Report, run: &DemoRun) {
 fn measured_rows(log: &Log) -> Vec<(crate::history::SeekFeatures, f64, Option<f64>)> {
     let mut out = Vec::new();
     for (i, r, f) in crate::history::replay(log) {
-        let two_back = i.checked_sub(2).map(|j| log.rows[j].track);
+        let two_back = i.checked_sub(2).map(|j| log.row(j).track);
         if let Some(b) = r.bias {
             out.push((f, b, two_back));
         }
