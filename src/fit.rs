@@ -1326,7 +1326,7 @@ impl<'d, 'a> Projection<'d, 'a> {
         let mut total = Blocked::new(pf * w + w * w + w);
         let mut i = 0;
         let mut cov = Vec::new();
-        for (_, row, f) in self.data.replay_for(std::slice::from_ref(&term)) {
+        for (_, row, f) in self.data.replay_for(std::slice::from_ref(term)) {
             let seek = Seek {
                 features: &f,
                 covariates: row.covariates.gather(&mut cov),

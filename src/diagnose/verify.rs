@@ -129,7 +129,7 @@ pub struct VerifiedEdit {
     /// Verified gain: 1 − MSE_after / MSE_before (may be negative: the edit made it worse).
     pub gain: f64,
     /// The same gain within folds: each fold's mean taken out of both residual series first
-    /// ([`gain_within_folds`]); an edit is verified only if this too reaches the practical
+    /// (`verify::gain_within_folds`); an edit is verified only if this too reaches the practical
     /// minimum.
     #[serde(default)]
     pub gain_within_folds: f64,
