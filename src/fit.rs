@@ -1895,7 +1895,8 @@ mod tests {
             *x *= 0.37;
         }
         let data = FitData::new(&log);
-        let spec = ModelSpec::parse("poly2,table,dahl,dahl:4,play:8,direction,memory").unwrap();
+        let spec =
+            ModelSpec::parse("poly2,table,dahl,dahl:4,play:8,bump,direction,memory").unwrap();
         let mut terms: Vec<Arc<dyn Term>> = spec
             .terms
             .iter()
@@ -1905,7 +1906,7 @@ mod tests {
         let reads: Vec<bool> = terms.iter().map(|t| t.reads_history()).collect();
         assert_eq!(
             reads,
-            [false, false, false, false, false, true, true, false]
+            [false, false, false, false, false, false, true, true, false]
         );
         for t in terms.iter().filter(|t| !t.reads_history()) {
             let one = std::slice::from_ref(t);

@@ -206,6 +206,10 @@ impl BumpTerm {
 }
 
 impl Term for BumpTerm {
+    fn reads_history(&self) -> bool {
+        // Its state reads `target` only.
+        false
+    }
     fn name(&self) -> String {
         self.name.clone()
     }
