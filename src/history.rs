@@ -680,6 +680,7 @@ pub(crate) fn replay_with<'a>(
         history: source.history(),
         velocity,
         light: false,
+        cached: None,
     })
 }
 
@@ -697,6 +698,7 @@ pub(crate) fn replay_checked<'a>(
         history: source.history(),
         velocity,
         light,
+        cached: None,
     }
 }
 
@@ -1210,6 +1212,7 @@ pub fn replay(log: &crate::log::Log) -> Replay<'_> {
         history: History::new(),
         velocity: None,
         light: false,
+        cached: None,
     }
 }
 
@@ -1221,6 +1224,18 @@ pub struct Replay<'a> {
     velocity: Option<usize>,
     /// Only the features of [`History::step_light`].
     light: bool,
+    /// Every row's features, replayed before (`crate::model::FitData`'s bounded cache): read
+    /// instead of stepping the history (the same values, bit for bit).
+    cached: Option<std::sync::Arc<[SeekFeatures]>>,
+}
+
+impl<'a> Replay<'a> {
+    /// This replay reading `features` (one per row of the log, from a full replay of it with
+    /// the same direction source) instead of stepping the history.
+    pub(crate) fn reading_cache(mut self, features: std::sync::Arc<[SeekFeatures]>) -> Self {
+        self.cached = Some(features);
+        self
+    }
 }
 
 impl<'a> Iterator for Replay<'a> {
@@ -1229,6 +1244,9 @@ impl<'a> Iterator for Replay<'a> {
     #[inline(always)]
     fn next(&mut self) -> Option<Self::Item> {
         let (i, row) = self.rows.next()?;
+        if let Some(c) = &self.cached {
+            return Some((i, row, c[i]));
+        }
         if self.light {
             return Some((i, row, self.history.step_light(row.time_s, row.track)));
         }

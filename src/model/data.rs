@@ -5,7 +5,7 @@
 
 use super::term::{Seek, Term};
 use super::{ModelError, SpecError};
-use crate::history::{DirectionSource, Replay};
+use crate::history::{DirectionSource, Replay, SeekFeatures};
 use crate::log::Log;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -165,7 +165,17 @@ pub struct FitData<'a> {
     direction: DirectionSource,
     /// The velocity column of `direction` ([`DirectionSource::column_index`], checked).
     velocity: Option<usize>,
+    /// Every row's features, kept after the first full replay of a log of at most
+    /// [`FEATURE_CACHE_ROWS`] rows (a bounded cache: at most 27 MB), so the fit's later passes
+    /// and the many small refits of `diagnose`'s verification read them instead of stepping
+    /// the history again.
+    cache: std::sync::OnceLock<Option<Arc<[SeekFeatures]>>>,
 }
+
+/// Logs of at most this many rows keep their replayed seek features in [`FitData`]
+/// (104 B/row: at most 27 MB); longer logs replay the history on each pass and hold nothing
+/// per row.
+pub(crate) const FEATURE_CACHE_ROWS: usize = 1 << 18;
 
 impl<'a> FitData<'a> {
     /// The log, its direction from raw position steps.
@@ -174,6 +184,7 @@ impl<'a> FitData<'a> {
             log,
             direction: DirectionSource::Steps,
             velocity: None,
+            cache: std::sync::OnceLock::new(),
         }
     }
 
@@ -185,6 +196,7 @@ impl<'a> FitData<'a> {
             log,
             direction: direction.clone(),
             velocity,
+            cache: std::sync::OnceLock::new(),
         })
     }
 
@@ -196,7 +208,21 @@ impl<'a> FitData<'a> {
     /// One replay of the log's seek history (every row, measured or not, in log order), the
     /// direction read as this data's source says.
     pub fn replay(&self) -> Replay<'a> {
-        crate::history::replay_checked(self.log, &self.direction, self.velocity, false)
+        self.replay_reading(true)
+    }
+
+    /// The cached features of a short log ([`FEATURE_CACHE_ROWS`]), filled by one full replay
+    /// on first use; `None` for a longer log.
+    fn cached(&self) -> Option<Arc<[SeekFeatures]>> {
+        self.cache
+            .get_or_init(|| {
+                (self.log.len() <= FEATURE_CACHE_ROWS).then(|| {
+                    crate::history::replay_checked(self.log, &self.direction, self.velocity, false)
+                        .map(|(_, _, f)| f)
+                        .collect()
+                })
+            })
+            .clone()
     }
 
     /// A replay for `terms`: without the direction tracker and rest memory
@@ -209,7 +235,18 @@ impl<'a> FitData<'a> {
     /// A replay with the direction tracker and rest memory only if `reads_history` (else
     /// [`crate::history::History::step_light`]: the positional features alone).
     pub(crate) fn replay_reading(&self, reads_history: bool) -> Replay<'a> {
-        crate::history::replay_checked(self.log, &self.direction, self.velocity, !reads_history)
+        let replay = crate::history::replay_checked(
+            self.log,
+            &self.direction,
+            self.velocity,
+            !reads_history,
+        );
+        // A short log reads its cached features (a full replay's, which include the light
+        // ones bit for bit); a light replay of a long log steps the light history.
+        match self.cached() {
+            Some(c) => replay.reading_cache(c),
+            None => replay,
+        }
     }
 
     /// Standard deviation of the measured bias (the log's bias unit; 0 with fewer than two).
@@ -256,9 +293,7 @@ impl<'a> FitData<'a> {
     /// Calls `each` with every measured row's seek, in log order.
     fn each_measured(&self, light: bool, mut each: impl FnMut(&Seek<'_>)) {
         let mut cov = Vec::with_capacity(self.log.schema.covariates.len());
-        let replay =
-            crate::history::replay_checked(self.log, &self.direction, self.velocity, light);
-        for (_, row, feat) in replay {
+        for (_, row, feat) in self.replay_reading(!light) {
             if row.bias.is_some() {
                 each(&Seek {
                     features: &feat,
@@ -310,5 +345,68 @@ impl<'a> FitData<'a> {
                     s.covariates.join(", ")
                 },
             })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reference: the uncached replays (`history::replay_checked`, full and light). A short
+    /// log's replays read its cache after the first: every feature of the full replay equals
+    /// the stepped one bit for bit, and a light replay's positional features (what a term that
+    /// reads no history may use) equal the light stepping's; the cache is filled once and
+    /// shared by clones. A log above the bound keeps no cache.
+    #[test]
+    fn cached_replays_equal_the_stepped_ones() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(2000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 3, &[]).unwrap();
+        let log = simulate_log(&cfg).unwrap();
+        let data = FitData::new(&log);
+        let stepped = |light: bool| -> Vec<SeekFeatures> {
+            crate::history::replay_checked(&log, &DirectionSource::Steps, None, light)
+                .map(|(_, _, f)| f)
+                .collect()
+        };
+        let full = stepped(false);
+        for _ in 0..2 {
+            let got: Vec<SeekFeatures> = data.replay().map(|(_, _, f)| f).collect();
+            assert_eq!(got.len(), full.len());
+            for (a, b) in got.iter().zip(&full) {
+                assert_eq!(format!("{a:?}"), format!("{b:?}"));
+            }
+        }
+        assert!(data.cache.get().is_some_and(|c| c.is_some()));
+        let light = stepped(true);
+        let key = |f: &SeekFeatures| {
+            [
+                f.time_s,
+                f.elapsed_s,
+                f.dwell_s,
+                f.source,
+                f.target,
+                f.seek_length,
+            ]
+            .map(f64::to_bits)
+        };
+        let clone = data.clone();
+        let got: Vec<SeekFeatures> = clone.replay_reading(false).map(|(_, _, f)| f).collect();
+        for (a, b) in got.iter().zip(&light) {
+            assert_eq!(key(a), key(b));
+            assert_eq!(a.seek_index, b.seek_index);
+        }
+        assert!(log.len() <= FEATURE_CACHE_ROWS);
+        let mut text = String::from("time_s,track,bias\n");
+        for i in 0..=FEATURE_CACHE_ROWS {
+            text += &format!("{i},{},1\n", i % 97);
+        }
+        let long = Log::from_reader("long.csv", text.as_bytes(), &Default::default()).unwrap();
+        let data = FitData::new(&long);
+        assert_eq!(data.replay().count(), FEATURE_CACHE_ROWS + 1);
+        assert!(data.cache.get().is_some_and(|c| c.is_none()));
     }
 }
