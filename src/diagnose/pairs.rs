@@ -55,7 +55,7 @@ pub struct GlobalCheck {
 
 /// A feature's level per row: quartile (or value) index, `LEVELS` for undefined.
 fn levels(col: &FeatureColumn) -> Option<Vec<usize>> {
-    let mut defined: Vec<f64> = col.values.iter().flatten().copied().collect();
+    let mut defined: Vec<f64> = col.iter().flatten().collect();
     if defined.len() < 2 * LEVELS {
         return None;
     }
@@ -64,7 +64,7 @@ fn levels(col: &FeatureColumn) -> Option<Vec<usize>> {
     let cuts: Vec<f64> = if defined.len() <= LEVELS {
         defined.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect()
     } else {
-        let mut all: Vec<f64> = col.values.iter().flatten().copied().collect();
+        let mut all: Vec<f64> = col.iter().flatten().collect();
         all.sort_by(f64::total_cmp);
         let mut c: Vec<f64> = (1..LEVELS).map(|q| all[q * all.len() / LEVELS]).collect();
         c.dedup_by(|a, b| a.total_cmp(b).is_eq());
@@ -74,10 +74,9 @@ fn levels(col: &FeatureColumn) -> Option<Vec<usize>> {
         return None;
     }
     Some(
-        col.values
-            .iter()
+        col.iter()
             .map(|v| match v {
-                Some(x) => cuts.iter().filter(|&&c| *x >= c).count(),
+                Some(x) => cuts.iter().filter(|&&c| x >= c).count(),
                 None => LEVELS,
             })
             .collect(),
@@ -87,8 +86,8 @@ fn levels(col: &FeatureColumn) -> Option<Vec<usize>> {
 /// The cross-validated gain of the cells made of `parts` on `r`.
 fn cells_gain(parts: &[&Vec<usize>], r: &[f64], ctx: &Ctx, config: &DiagnoseConfig) -> f64 {
     let base = LEVELS + 1;
-    let cell: Vec<Option<f64>> = (0..r.len())
-        .map(|i| Some(parts.iter().fold(0usize, |acc, p| acc * base + p[i]) as f64))
+    let cell: Vec<f64> = (0..r.len())
+        .map(|i| parts.iter().fold(0usize, |acc, p| acc * base + p[i]) as f64)
         .collect();
     let max_cells = base.pow(parts.len() as u32);
     match Binned::new(
