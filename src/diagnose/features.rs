@@ -1,6 +1,8 @@
 //! The candidate features of every measured row: the seek history replayed over the whole log,
 //! plus every covariate column, aligned with the rows that carry a measured bias.
 
+use std::sync::Arc;
+
 use crate::history::{Feature, replay};
 use crate::log::{Log, Units};
 use crate::model::terms::lag::FirstOrderLag;
@@ -60,6 +62,7 @@ pub(super) fn lagged_column(name: &str) -> Option<&str> {
 /// The values are stored as plain `f64` with NaN marking an undefined row (8 bytes a row
 /// instead of the 16 of an `Option<f64>`); a defined value is never NaN. Read them with
 /// [`FeatureColumn::get`] or [`FeatureColumn::iter`], which give `None` for an undefined row.
+/// The values are shared: a clone (as in [`FeatureTable::without`]) does not copy them.
 #[derive(Debug, Clone)]
 pub struct FeatureColumn {
     /// The feature's name: a built-in name (`seek_length`, …) or the covariate's header name.
@@ -67,7 +70,7 @@ pub struct FeatureColumn {
     /// Built-in or covariate.
     pub origin: FeatureOrigin,
     /// One value per measured row, in log order; NaN = undefined (missing).
-    values: Vec<f64>,
+    values: Arc<[f64]>,
 }
 
 /// `Some(x)` unless `x` is NaN, the mark of an undefined value in a [`FeatureColumn`].
@@ -92,7 +95,7 @@ impl PartialEq for FeatureColumn {
             && self
                 .values
                 .iter()
-                .zip(&other.values)
+                .zip(other.values.iter())
                 .all(|(&a, &b)| defined(a).map(f64::to_bits) == defined(b).map(f64::to_bits))
     }
 }
@@ -137,7 +140,7 @@ impl FeatureColumn {
 /// kept only for rows with a measured bias, so they line up with one residual per measured row.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FeatureTable {
-    lines: Vec<u64>,
+    lines: Arc<[u64]>,
     columns: Vec<FeatureColumn>,
     units: Units,
 }
@@ -169,7 +172,7 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
             FeatureColumn {
                 name: format!("memsum_L{}", super::advice::short(l)),
                 origin: FeatureOrigin::SummedMemory,
-                values,
+                values: values.into(),
             }
         })
         .collect()
@@ -222,7 +225,7 @@ fn lagged(log: &Log, measured: &[Vec<f64>]) -> Vec<FeatureColumn> {
             out.push(FeatureColumn {
                 name: format!("{name}@lag{}s", super::advice::short(tau)),
                 origin: FeatureOrigin::Lagged,
-                values: lagged,
+                values: lagged.into(),
             });
         }
     }
@@ -280,7 +283,7 @@ impl FeatureTable {
             .map(|(&feature, values)| FeatureColumn {
                 name: feature.name().to_string(),
                 origin: FeatureOrigin::BuiltIn(feature),
-                values,
+                values: values.into(),
             })
             .collect();
         let times: Vec<f64> = log.rows().map(|r| r.time_s).collect();
@@ -289,7 +292,7 @@ impl FeatureTable {
             columns.push(FeatureColumn {
                 name: DERIVED_VELOCITY.to_string(),
                 origin: FeatureOrigin::DerivedVelocity,
-                values: velocity,
+                values: velocity.into(),
             });
         }
         columns.extend(summed_memory(log));
@@ -302,11 +305,11 @@ impl FeatureTable {
                 .map(|(name, values)| FeatureColumn {
                     name: name.clone(),
                     origin: FeatureOrigin::Covariate,
-                    values,
+                    values: values.into(),
                 }),
         );
         FeatureTable {
-            lines,
+            lines: lines.into(),
             columns,
             units: log.schema.units.clone(),
         }
@@ -317,7 +320,7 @@ impl FeatureTable {
     /// and tracks until [`FeatureTable::with_units`] says otherwise.
     pub fn with_lines(lines: Vec<u64>) -> FeatureTable {
         FeatureTable {
-            lines,
+            lines: lines.into(),
             columns: Vec::new(),
             units: Units::default(),
         }
@@ -353,7 +356,7 @@ impl FeatureTable {
                 name: name.to_string(),
             });
         }
-        let values = values
+        let values: Arc<[f64]> = values
             .into_iter()
             .map(|v| stored(v.filter(|x| x.is_finite())))
             .collect();

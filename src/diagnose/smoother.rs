@@ -889,7 +889,7 @@ mod tests {
     fn fused_pass_is_bit_identical_to_each_features_own_pass() {
         let n = 5003;
         let mut rng = SimRng::new(5);
-        let columns: Vec<Vec<Option<f64>>> = vec![
+        let options: Vec<Vec<Option<f64>>> = vec![
             (0..n).map(|_| Some(rng.range(0.0, 250.0))).collect(),
             (0..n).map(|i| (i % 7 != 0).then(|| rng.normal())).collect(),
             (0..n).map(|_| Some(rng.below(3) as f64)).collect(),
@@ -898,6 +898,11 @@ mod tests {
                 .collect(),
             (0..n).map(|i| Some((i / 100) as f64)).collect(),
         ];
+        // Stored as a feature column stores them: NaN = undefined.
+        let columns: Vec<Vec<f64>> = options
+            .iter()
+            .map(|c| c.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+            .collect();
         let bins: Vec<Binned> = columns
             .iter()
             .map(|c| Binned::new(c, 64, 30, 10).expect("usable"))
