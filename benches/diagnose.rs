@@ -64,10 +64,7 @@ fn effects_log(rows: usize, seed: u64) -> Log {
 /// counts in unit noise.
 fn planted(log: &Log) -> (FeatureTable, Vec<f64>) {
     let table = FeatureTable::from_log(log);
-    let change = &table
-        .column("direction_change")
-        .expect("built-in feature")
-        .values;
+    let change = &table.column("direction_change").expect("built-in feature");
     let mut rng = SimRng::new(7);
     let residuals: Vec<f64> = change
         .iter()

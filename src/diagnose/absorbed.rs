@@ -59,6 +59,30 @@ pub(crate) fn rate_warnings(model: &FittedModel) -> Vec<String> {
         .collect()
 }
 
+/// Frees what [`absorbed`] does not read of `prediction`: every vector but the residual and
+/// the contributions of `model`'s adaptive terms (the others are left empty, which
+/// [`absorbed`] skips as it skips a non-adaptive term).
+pub(crate) fn keep_needed(model: &FittedModel, prediction: &mut Prediction) {
+    prediction.rows = Vec::new();
+    prediction.positions = Vec::new();
+    prediction.measured = Vec::new();
+    prediction.predicted = Vec::new();
+    for (name, contribution) in prediction
+        .term_names
+        .iter()
+        .zip(prediction.contributions.iter_mut())
+    {
+        let keep = model
+            .terms
+            .iter()
+            .find(|f| f.term.name() == *name)
+            .is_some_and(|term| adaptive(contribution, &term.term.param_names()));
+        if !keep {
+            *contribution = Vec::new();
+        }
+    }
+}
+
 /// For every adaptive term of `model`: diagnose residual + its contribution (replayed in
 /// `prediction`, rows aligned with `table`) against every non-time candidate, and report the
 /// flagged ones that explain at least `config.min_effect` of it and clearly more than of the

@@ -1,6 +1,8 @@
 //! The candidate features of every measured row: the seek history replayed over the whole log,
 //! plus every covariate column, aligned with the rows that carry a measured bias.
 
+use std::sync::Arc;
+
 use crate::history::{Feature, replay};
 use crate::log::{Log, Units};
 use crate::model::terms::lag::FirstOrderLag;
@@ -55,15 +57,80 @@ pub(super) fn lagged_column(name: &str) -> Option<&str> {
     name.rsplit_once("@lag").map(|(c, _)| c)
 }
 
-/// One candidate feature's values, one per measured row; `None` where it is undefined.
-#[derive(Debug, Clone, PartialEq)]
+/// One candidate feature's values, one per measured row; undefined (missing) on some rows.
+///
+/// The values are stored as plain `f64` with NaN marking an undefined row (8 bytes a row
+/// instead of the 16 of an `Option<f64>`); a defined value is never NaN. Read them with
+/// [`FeatureColumn::get`] or [`FeatureColumn::iter`], which give `None` for an undefined row.
+/// The values are shared: a clone (as in [`FeatureTable::without`]) does not copy them.
+#[derive(Debug, Clone)]
 pub struct FeatureColumn {
     /// The feature's name: a built-in name (`seek_length`, …) or the covariate's header name.
     pub name: String,
     /// Built-in or covariate.
     pub origin: FeatureOrigin,
-    /// One value per measured row, in log order; `None` = undefined (missing).
-    pub values: Vec<Option<f64>>,
+    /// One value per measured row, in log order; NaN = undefined (missing).
+    values: Arc<[f64]>,
+}
+
+/// `Some(x)` unless `x` is NaN, the mark of an undefined value in a [`FeatureColumn`].
+#[inline]
+pub(crate) fn defined(x: f64) -> Option<f64> {
+    (!x.is_nan()).then_some(x)
+}
+
+/// `v` as a stored value: NaN for `None`.
+#[inline]
+fn stored(v: Option<f64>) -> f64 {
+    v.unwrap_or(f64::NAN)
+}
+
+impl PartialEq for FeatureColumn {
+    /// Same name, origin and values, an undefined row equal to an undefined row (and a
+    /// defined value equal only to the same value).
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+            && self.origin == other.origin
+            && self.values.len() == other.values.len()
+            && self
+                .values
+                .iter()
+                .zip(other.values.iter())
+                .all(|(&a, &b)| defined(a).map(f64::to_bits) == defined(b).map(f64::to_bits))
+    }
+}
+
+impl FeatureColumn {
+    /// Number of measured rows (defined or not).
+    pub fn len(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Whether the column has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.values.is_empty()
+    }
+
+    /// The value at measured row `i` (0-based); `None` where it is undefined or `i` is out
+    /// of range.
+    pub fn get(&self, i: usize) -> Option<f64> {
+        self.values.get(i).copied().and_then(defined)
+    }
+
+    /// Every row's value in log order; `None` where it is undefined.
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = Option<f64>> + '_ {
+        self.values.iter().map(|&x| defined(x))
+    }
+
+    /// Number of rows with a defined value.
+    pub fn defined_count(&self) -> usize {
+        self.values.iter().filter(|x| !x.is_nan()).count()
+    }
+
+    /// The stored values: NaN = undefined (never passed on to an output).
+    pub(crate) fn raw(&self) -> &[f64] {
+        &self.values
+    }
 }
 
 /// Candidate features aligned with the measured rows of a log.
@@ -73,7 +140,7 @@ pub struct FeatureColumn {
 /// kept only for rows with a measured bias, so they line up with one residual per measured row.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FeatureTable {
-    lines: Vec<u64>,
+    lines: Arc<[u64]>,
     columns: Vec<FeatureColumn>,
     units: Units,
 }
@@ -97,7 +164,7 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
             for row in log.rows() {
                 let from = source.unwrap_or(row.track);
                 if row.bias.is_some() {
-                    values.push(Some(state.value_after_move(from, row.track)));
+                    values.push(state.value_after_move(from, row.track));
                 }
                 state.apply_move(from, row.track);
                 source = Some(row.track);
@@ -105,7 +172,7 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
             FeatureColumn {
                 name: format!("memsum_L{}", super::advice::short(l)),
                 origin: FeatureOrigin::SummedMemory,
-                values,
+                values: values.into(),
             }
         })
         .collect()
@@ -114,7 +181,7 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
 /// Every covariate through first-order lags at [`LAG_POINTS`] of `[median Δt, span/16]`
 /// (none if that range is empty: a log too short or too coarse for a lag to show). `measured` holds each covariate's values at
 /// the measured rows (for the skip of non-finite ones); the lag runs over every row.
-fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
+fn lagged(log: &Log, measured: &[Vec<f64>]) -> Vec<FeatureColumn> {
     let times = log.times();
     let steps: Vec<f64> = times
         .windows(2)
@@ -132,12 +199,12 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
     for (k, name) in log.schema.covariates.iter().enumerate() {
         if measured
             .get(k)
-            .is_some_and(|v| v.iter().any(Option::is_none))
+            .is_some_and(|v| v.iter().any(|x| x.is_nan()))
         {
             continue; // a gap in the column would stall the lag
         }
-        let raw: Vec<f64> = measured[k].iter().flatten().copied().collect();
-        let raw_var = crate::numeric::stats::std_dev(&raw).map_or(0.0, |s| s * s);
+        let raw: &[f64] = &measured[k];
+        let raw_var = crate::numeric::stats::std_dev(raw).map_or(0.0, |s| s * s);
         for p in LAG_POINTS {
             let tau = lo * (hi / lo).powf(p);
             let mut lag = FirstOrderLag::new(tau);
@@ -155,11 +222,10 @@ fn lagged(log: &Log, measured: &[Vec<Option<f64>>]) -> Vec<FeatureColumn> {
             if !(var >= LAG_MIN_VARIANCE * raw_var && var > 0.0) {
                 continue;
             }
-            let values = lagged.into_iter().map(Some).collect();
             out.push(FeatureColumn {
                 name: format!("{name}@lag{}s", super::advice::short(tau)),
                 origin: FeatureOrigin::Lagged,
-                values,
+                values: lagged.into(),
             });
         }
     }
@@ -180,11 +246,11 @@ impl FeatureTable {
     /// direction read another way: `crate::history::replay_with`).
     pub fn from_replay(log: &Log, history: crate::history::Replay<'_>) -> FeatureTable {
         let measured = log.measured_count();
-        let mut builtin: Vec<Vec<Option<f64>>> = Feature::ALL
+        let mut builtin: Vec<Vec<f64>> = Feature::ALL
             .iter()
             .map(|_| Vec::with_capacity(measured))
             .collect();
-        let mut covariates: Vec<Vec<Option<f64>>> = log
+        let mut covariates: Vec<Vec<f64>> = log
             .schema
             .covariates
             .iter()
@@ -203,12 +269,12 @@ impl FeatureTable {
                 (Some(l), Some(d)) if d > 0.0 && (l / d).is_finite() => l / d,
                 _ => 0.0,
             };
-            velocity.push(Some(v));
+            velocity.push(v);
             for (col, &feature) in builtin.iter_mut().zip(Feature::ALL.iter()) {
-                col.push(f.value(feature));
+                col.push(stored(f.value(feature)));
             }
             for (k, col) in covariates.iter_mut().enumerate() {
-                col.push(row.covariates.get(k).filter(|v| v.is_finite()));
+                col.push(stored(row.covariates.get(k).filter(|v| v.is_finite())));
             }
         }
         let mut columns: Vec<FeatureColumn> = Feature::ALL
@@ -217,7 +283,7 @@ impl FeatureTable {
             .map(|(&feature, values)| FeatureColumn {
                 name: feature.name().to_string(),
                 origin: FeatureOrigin::BuiltIn(feature),
-                values,
+                values: values.into(),
             })
             .collect();
         let times: Vec<f64> = log.rows().map(|r| r.time_s).collect();
@@ -226,7 +292,7 @@ impl FeatureTable {
             columns.push(FeatureColumn {
                 name: DERIVED_VELOCITY.to_string(),
                 origin: FeatureOrigin::DerivedVelocity,
-                values: velocity,
+                values: velocity.into(),
             });
         }
         columns.extend(summed_memory(log));
@@ -239,11 +305,11 @@ impl FeatureTable {
                 .map(|(name, values)| FeatureColumn {
                     name: name.clone(),
                     origin: FeatureOrigin::Covariate,
-                    values,
+                    values: values.into(),
                 }),
         );
         FeatureTable {
-            lines,
+            lines: lines.into(),
             columns,
             units: log.schema.units.clone(),
         }
@@ -254,7 +320,7 @@ impl FeatureTable {
     /// and tracks until [`FeatureTable::with_units`] says otherwise.
     pub fn with_lines(lines: Vec<u64>) -> FeatureTable {
         FeatureTable {
-            lines,
+            lines: lines.into(),
             columns: Vec::new(),
             units: Units::default(),
         }
@@ -290,9 +356,9 @@ impl FeatureTable {
                 name: name.to_string(),
             });
         }
-        let values = values
+        let values: Arc<[f64]> = values
             .into_iter()
-            .map(|v| v.filter(|x| x.is_finite()))
+            .map(|v| stored(v.filter(|x| x.is_finite())))
             .collect();
         self.columns.push(FeatureColumn {
             name: name.to_string(),

@@ -21,7 +21,7 @@
 //! let log = Log::from_reader("demo.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
 //! let table = FeatureTable::from_log(&log);
 //! let change = table.column("direction_change").unwrap();
-//! for (i, v) in change.values.iter().enumerate() {
+//! for (i, v) in change.iter().enumerate() {
 //!     residuals.push(5.0 * v.unwrap_or(0.0) + ((i * 7919) % 13) as f64 * 0.1);
 //! }
 //! let config = DiagnoseConfig { permutations: 99, ..DiagnoseConfig::default() }.check().unwrap();
@@ -499,7 +499,7 @@ pub fn diagnose(
     let direction: Option<Vec<f64>> = table
         .column(Feature::Direction.name())
         .filter(|c| c.origin == FeatureOrigin::BuiltIn(Feature::Direction))
-        .map(|c| c.values.iter().map(|v| v.unwrap_or(0.0)).collect());
+        .map(|c| c.iter().map(|v| v.unwrap_or(0.0)).collect());
     let signed = direction.as_ref().map(|d| Signed::new(&y, d));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
@@ -509,7 +509,7 @@ pub fn diagnose(
         .par_iter()
         .map(|col| {
             Binned::new(
-                &col.values,
+                col.raw(),
                 config.max_bins,
                 config.min_bin_rows,
                 config.max_discrete,
@@ -555,7 +555,7 @@ pub fn diagnose(
         .zip(table.columns())
         .map(|(a, col)| match a {
             Ok(a) if is_time(a.origin) => 1,
-            Ok(_) if config.null_block.is_none() => feature_null_block(&col.values, null_block),
+            Ok(_) if config.null_block.is_none() => feature_null_block(col.raw(), null_block),
             _ => null_block,
         })
         .collect();
@@ -1015,11 +1015,15 @@ pub(crate) fn null_block_len(y: &[f64]) -> usize {
 /// The null block of one feature beside a residual whose own null block is `residual_block`:
 /// [`null_block_len`] of the feature's values in seek order (undefined rows at the mean),
 /// rounded up to a power of two, at most `residual_block`. A feature that is exchangeable in
-/// seek order (random targets) gets short blocks, a slow column the residual's.
-pub(crate) fn feature_null_block(values: &[Option<f64>], residual_block: usize) -> usize {
-    let defined: Vec<f64> = values.iter().flatten().copied().collect();
+/// seek order (random targets) gets short blocks, a slow column the residual's. NaN marks an
+/// undefined value.
+pub(crate) fn feature_null_block(values: &[f64], residual_block: usize) -> usize {
+    let defined: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
     let mean = stats::mean(&defined).unwrap_or(0.0);
-    let filled: Vec<f64> = values.iter().map(|v| v.unwrap_or(mean) - mean).collect();
+    let filled: Vec<f64> = values
+        .iter()
+        .map(|&v| features::defined(v).unwrap_or(mean) - mean)
+        .collect();
     null_block_len(&filled)
         .next_power_of_two()
         .min(residual_block)

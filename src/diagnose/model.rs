@@ -89,7 +89,10 @@ pub fn diagnose_model(
     log: &Log,
     config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, ModelDiagnosisError> {
-    let prediction = replay_model(model, log)?;
+    let mut prediction = replay_model(model, log)?;
+    // Only the residual and the adaptive terms' contributions are read below: the rest of the
+    // replay is freed before the diagnosis's peak of memory.
+    super::absorbed::keep_needed(model, &mut prediction);
     let table = model_table(model, log);
     let mut d = diagnose_residual(model, &table, &prediction.residual, config)?;
     let mut config = config.clone();

@@ -53,9 +53,10 @@ pub struct GlobalCheck {
     pub remains: bool,
 }
 
-/// A feature's level per row: quartile (or value) index, `LEVELS` for undefined.
-fn levels(col: &FeatureColumn) -> Option<Vec<usize>> {
-    let mut defined: Vec<f64> = col.values.iter().flatten().copied().collect();
+/// A feature's level per row: quartile (or value) index, `LEVELS` for undefined (one byte a
+/// row: `LEVELS` < 256).
+fn levels(col: &FeatureColumn) -> Option<Vec<u8>> {
+    let mut defined: Vec<f64> = col.iter().flatten().collect();
     if defined.len() < 2 * LEVELS {
         return None;
     }
@@ -64,7 +65,7 @@ fn levels(col: &FeatureColumn) -> Option<Vec<usize>> {
     let cuts: Vec<f64> = if defined.len() <= LEVELS {
         defined.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect()
     } else {
-        let mut all: Vec<f64> = col.values.iter().flatten().copied().collect();
+        let mut all: Vec<f64> = col.iter().flatten().collect();
         all.sort_by(f64::total_cmp);
         let mut c: Vec<f64> = (1..LEVELS).map(|q| all[q * all.len() / LEVELS]).collect();
         c.dedup_by(|a, b| a.total_cmp(b).is_eq());
@@ -74,21 +75,24 @@ fn levels(col: &FeatureColumn) -> Option<Vec<usize>> {
         return None;
     }
     Some(
-        col.values
-            .iter()
+        col.iter()
             .map(|v| match v {
-                Some(x) => cuts.iter().filter(|&&c| *x >= c).count(),
-                None => LEVELS,
+                Some(x) => cuts.iter().filter(|&&c| x >= c).count() as u8,
+                None => LEVELS as u8,
             })
             .collect(),
     )
 }
 
 /// The cross-validated gain of the cells made of `parts` on `r`.
-fn cells_gain(parts: &[&Vec<usize>], r: &[f64], ctx: &Ctx, config: &DiagnoseConfig) -> f64 {
+fn cells_gain(parts: &[&Vec<u8>], r: &[f64], ctx: &Ctx, config: &DiagnoseConfig) -> f64 {
     let base = LEVELS + 1;
-    let cell: Vec<Option<f64>> = (0..r.len())
-        .map(|i| Some(parts.iter().fold(0usize, |acc, p| acc * base + p[i]) as f64))
+    let cell: Vec<f64> = (0..r.len())
+        .map(|i| {
+            parts
+                .iter()
+                .fold(0usize, |acc, p| acc * base + usize::from(p[i])) as f64
+        })
         .collect();
     let max_cells = base.pow(parts.len() as u32);
     match Binned::new(
@@ -122,7 +126,7 @@ pub(crate) fn screen(
     ctx: &Ctx,
     config: &DiagnoseConfig,
 ) -> (Vec<Interaction>, Option<GlobalCheck>) {
-    let cols: Vec<(&FeatureColumn, Vec<usize>)> = table
+    let cols: Vec<(&FeatureColumn, Vec<u8>)> = table
         .columns()
         .iter()
         .filter(|c| !super::is_time(c.origin))
@@ -166,7 +170,7 @@ pub(crate) fn screen(
     let mut order: Vec<usize> = (0..cols.len()).collect();
     order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
     let top: Vec<usize> = order.into_iter().take(GLOBAL_FEATURES).collect();
-    let parts: Vec<&Vec<usize>> = top.iter().map(|&k| &cols[k].1).collect();
+    let parts: Vec<&Vec<u8>> = top.iter().map(|&k| &cols[k].1).collect();
     let joint = cells_gain(&parts, left, ctx, config);
     let best_single = single.iter().copied().fold(0.0, f64::max);
     let global = GlobalCheck {

@@ -9,6 +9,7 @@ use crate::numeric::stats;
 use crate::render::write_atomic;
 
 use super::advice::{self, Point, Shape, short};
+use super::features::defined;
 use super::features::{FeatureColumn, FeatureOrigin};
 use super::smoother::{BinKind, Binned, Unusable, accumulate};
 use super::{DiagnoseConfig, DiagnoseError};
@@ -184,7 +185,7 @@ fn finite(x: f64) -> Option<f64> {
 
 /// Curve of the residual `y` against `col` at level `shift`.
 fn curve(b: &Binned, shift: u32, col: &FeatureColumn, y: &[f64]) -> Vec<CurveBin> {
-    let acc = accumulate(b, shift, &col.values, y);
+    let acc = accumulate(b, shift, col.raw(), y);
     let defined = b.defined_bins(shift);
     acc.iter()
         .enumerate()
@@ -212,10 +213,10 @@ fn curve(b: &Binned, shift: u32, col: &FeatureColumn, y: &[f64]) -> Vec<CurveBin
 
 /// Whether a covariate's sign is the direction's on at least 90 % of the rows where both are
 /// non-zero (a velocity).
-fn sign_follows_direction(x: &[Option<f64>], direction: &[f64]) -> bool {
+fn sign_follows_direction(x: &[f64], direction: &[f64]) -> bool {
     let (mut agree, mut both) = (0usize, 0usize);
-    for (x, &d) in x.iter().zip(direction) {
-        if let Some(x) = *x
+    for (&x, &d) in x.iter().zip(direction) {
+        if let Some(x) = defined(x)
             && x != 0.0
             && d != 0.0
         {
@@ -233,11 +234,11 @@ fn sign_follows_direction(x: &[Option<f64>], direction: &[f64]) -> bool {
 /// line is in (sign x, x); for the direction-signed one `y = r·d` and, with sign x = d, the same
 /// law is a line in |x|. A line with at least 0.85 of the curve's R² means `col:x` (with the
 /// model's `direction` carrying a·sign) fits it with one parameter.
-fn velocity_like(x: &[Option<f64>], y: &[f64], by_direction: bool, r2_bins: f64) -> bool {
+fn velocity_like(x: &[f64], y: &[f64], by_direction: bool, r2_bins: f64) -> bool {
     let mut rows: Vec<[f64; 3]> = Vec::new();
     let mut ys = Vec::new();
-    for (x, &y) in x.iter().zip(y) {
-        let Some(x) = *x else { continue };
+    for (&x, &y) in x.iter().zip(y) {
+        let Some(x) = defined(x) else { continue };
         let sign = if x == 0.0 { 0.0 } else { x.signum() };
         rows.push(if by_direction {
             [1.0, x.abs(), 0.0]
@@ -302,7 +303,6 @@ pub(crate) fn feature_report(
 ) -> FeatureReport {
     let chosen = curve(b, shift, col, residuals);
     let (xs, ys): (Vec<f64>, Vec<f64>) = col
-        .values
         .iter()
         .zip(residuals)
         .filter_map(|(x, &y)| x.map(|x| (x, y)))
@@ -339,8 +339,8 @@ pub(crate) fn feature_report(
     let velocity_sign = matches!(
         col.origin,
         FeatureOrigin::Covariate | FeatureOrigin::DerivedVelocity
-    ) && direction.is_some_and(|d| sign_follows_direction(&col.values, d));
-    let odd_linear = velocity_sign && velocity_like(&col.values, residuals, by_direction, r2_bins);
+    ) && direction.is_some_and(|d| sign_follows_direction(col.raw(), d));
+    let odd_linear = velocity_sign && velocity_like(col.raw(), residuals, by_direction, r2_bins);
     // A covariate scaling a direction-signed term of the model is tried first (`scale:COL:TERM`).
     let mut candidates = advice::scale_terms(
         &col.name,
@@ -381,7 +381,7 @@ pub(crate) fn feature_report(
             .and_then(finite),
         expected_std: residual_std * (1.0 - explained).max(0.0).sqrt(),
         n: xs.len(),
-        missing: col.values.len() - xs.len(),
+        missing: col.len() - xs.len(),
         bins: chosen.len(),
         slope: trend.and_then(|t| finite(t.slope)),
         slope_p: trend.and_then(|t| finite(t.p_value)),
@@ -406,7 +406,7 @@ pub(crate) fn skipped_report(
         ),
         Unusable::AllMissing => "skipped: undefined on every measured row".to_string(),
     };
-    let defined = col.values.iter().flatten().count();
+    let defined = col.defined_count();
     FeatureReport {
         name: col.name.clone(),
         explained: 0.0,
@@ -421,7 +421,7 @@ pub(crate) fn skipped_report(
         shape_at: None,
         expected_std: residual_std,
         n: defined,
-        missing: col.values.len() - defined,
+        missing: col.len() - defined,
         bins: 0,
         slope: None,
         slope_p: None,

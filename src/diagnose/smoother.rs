@@ -10,6 +10,7 @@
 //! bin per value and two candidates: all values, or one bin. Missing values always form a bin of
 //! their own, also in the one-bin candidate, so "undefined" can itself be an effect.
 
+use super::features::defined;
 use crate::numeric::stats::reg_inc_beta;
 
 /// Fine-bin index of a missing value.
@@ -60,16 +61,16 @@ const ONE_BIN: u32 = 31;
 impl Binned {
     /// Bins `values`: discrete if at most `max_discrete` distinct values, else `k_max` quantile
     /// bins, where `k_max` is the largest power of two ≤ `max_bins` leaving at least
-    /// `min_bin_rows` defined values per bin.
+    /// `min_bin_rows` defined values per bin. NaN marks an undefined value.
     pub(super) fn new(
-        values: &[Option<f64>],
+        values: &[f64],
         max_bins: usize,
         min_bin_rows: usize,
         max_discrete: usize,
     ) -> Result<Binned, Unusable> {
         // The defined values; no sort: the distinct values and the quantile cuts below are
         // found by scanning and selection (the same values a sort gives, tested).
-        let mut sorted: Vec<f64> = values.iter().flatten().copied().collect();
+        let mut sorted: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
         let has_missing = sorted.len() < values.len();
         if sorted.is_empty() {
             return Err(Unusable::AllMissing);
@@ -124,8 +125,8 @@ impl Binned {
             }
             let fine = values
                 .iter()
-                .map(|v| match v {
-                    Some(x) => label[distinct_values.partition_point(|&d| d < *x)],
+                .map(|&v| match defined(v) {
+                    Some(x) => label[distinct_values.partition_point(|&d| d < x)],
                     None if pool_missing => n_fine as u16 - 1,
                     None => MISSING,
                 })
@@ -156,8 +157,8 @@ impl Binned {
         let pool_missing = missing > 0 && missing < min_bin_rows;
         let fine = values
             .iter()
-            .map(|v| match v {
-                Some(x) => cuts.partition_point(|&c| c <= *x) as u16,
+            .map(|&v| match defined(v) {
+                Some(x) => cuts.partition_point(|&c| c <= x) as u16,
                 None if pool_missing => (k_max - 1) as u16,
                 None => MISSING,
             })
@@ -805,7 +806,7 @@ pub(crate) struct BinAcc {
 }
 
 /// Per-slot accumulators of (x, y) at level `shift`.
-pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[Option<f64>], y: &[f64]) -> Vec<BinAcc> {
+pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[f64], y: &[f64]) -> Vec<BinAcc> {
     let mut acc = vec![
         BinAcc {
             x_min: f64::INFINITY,
@@ -819,7 +820,7 @@ pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[Option<f64>], y: &[f64]) -
         a.count += 1;
         a.y_sum += yv;
         a.y_sq += yv * yv;
-        if let Some(xv) = xv {
+        if let Some(xv) = defined(xv) {
             a.x_sum += xv;
             a.x_min = a.x_min.min(xv);
             a.x_max = a.x_max.max(xv);
@@ -888,7 +889,7 @@ mod tests {
     fn fused_pass_is_bit_identical_to_each_features_own_pass() {
         let n = 5003;
         let mut rng = SimRng::new(5);
-        let columns: Vec<Vec<Option<f64>>> = vec![
+        let options: Vec<Vec<Option<f64>>> = vec![
             (0..n).map(|_| Some(rng.range(0.0, 250.0))).collect(),
             (0..n).map(|i| (i % 7 != 0).then(|| rng.normal())).collect(),
             (0..n).map(|_| Some(rng.below(3) as f64)).collect(),
@@ -897,6 +898,11 @@ mod tests {
                 .collect(),
             (0..n).map(|i| Some((i / 100) as f64)).collect(),
         ];
+        // Stored as a feature column stores them: NaN = undefined.
+        let columns: Vec<Vec<f64>> = options
+            .iter()
+            .map(|c| c.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+            .collect();
         let bins: Vec<Binned> = columns
             .iter()
             .map(|c| Binned::new(c, 64, 30, 10).expect("usable"))

@@ -33,8 +33,8 @@ fn table(seed: u64, rows: usize) -> FeatureTable {
     FeatureTable::from_log(&synthetic_log(seed, rows))
 }
 
-fn values<'a>(t: &'a FeatureTable, name: &str) -> &'a [Option<f64>] {
-    &t.column(name).expect("feature present").values
+fn values(t: &FeatureTable, name: &str) -> Vec<Option<f64>> {
+    t.column(name).expect("feature present").iter().collect()
 }
 
 /// Residual = f(row) + N(0, noise²).
@@ -771,7 +771,7 @@ fn fused_permutation_test_equals_the_per_feature_reference() {
         .columns()
         .iter()
         .map(|col| {
-            Binned::new(&col.values, config.max_bins, config.min_bin_rows, 12).map(|binned| {
+            Binned::new(col.raw(), config.max_bins, config.min_bin_rows, 12).map(|binned| {
                 let observed = FTest::new(&binned).min_p(&binned, &y, sst) * 0.5;
                 Analysed {
                     binned,
@@ -851,7 +851,7 @@ fn permutation_read_in_place_equals_the_materialised_one() {
     let bins: Vec<Binned> = t
         .columns()
         .iter()
-        .filter_map(|c| Binned::new(&c.values, 64, 10, 12).ok())
+        .filter_map(|c| Binned::new(c.raw(), 64, 10, 12).ok())
         .collect();
     assert!(bins.len() >= 8);
     let refs: Vec<&Binned> = bins.iter().collect();

@@ -23,7 +23,6 @@ fn seek_table(seed: u64, rows: usize) -> FeatureTable {
 fn values_of(t: &FeatureTable, name: &str) -> Vec<f64> {
     t.column(name)
         .unwrap()
-        .values
         .iter()
         .map(|v| v.unwrap_or(0.0))
         .collect()

@@ -227,8 +227,7 @@ pub fn diagnose_panel(
             let raw = table
                 .column(&f.name)
                 .map(|c| {
-                    c.values
-                        .iter()
+                    c.iter()
                         .zip(residuals)
                         .filter_map(|(v, r)| v.map(|v| (v, *r)))
                         .collect()
