@@ -224,6 +224,12 @@ impl Log {
         self.bias.iter().filter(|b| !b.is_nan()).count()
     }
 
+    /// The bias column as stored: NaN where a row is not measured (crate-internal; never
+    /// written out).
+    pub(crate) fn bias_raw(&self) -> &[f64] {
+        &self.bias
+    }
+
     /// Target positions of the rows with a measured bias, in log order.
     pub fn measured_positions(&self) -> Vec<f64> {
         self.track

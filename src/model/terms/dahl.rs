@@ -465,23 +465,21 @@ impl Term for DahlTerm {
         if !self.search {
             return Box::new(PerRowSearch { term: self, data });
         }
-        // Seek lengths from the positional replay (the searched element reads no other
-        // feature).
-        let (dx, measured): (Vec<f64>, Vec<bool>) = data
-            .replay_reading(false)
-            .map(|(_, row, f)| (f.seek_length, row.bias.is_some()))
-            .unzip();
+        // The searched element reads the seek length only: `target − source`, the source being
+        // the previous row's target (the first row's seek is 0), as `History` computes it. It
+        // is taken from the log's positions block by block (nothing held per row).
+        let log = data.log();
+        let tracks = log.tracks();
         // The power table needs the integer seek lengths that occur (below FAR_TABLE).
-        let longest = dx
-            .iter()
-            .map(|d| d.abs())
+        let longest = (0..tracks.len())
+            .map(|i| (tracks[i] - tracks[i.saturating_sub(1)]).abs())
             .filter(|&a| a < FAR_TABLE as f64 && (a.trunc() - a).abs() <= 0.0)
             .fold(0.0_f64, f64::max);
         Box::new(DahlSearch {
             term: self.clone(),
             table_len: longest as usize + 1,
-            dx,
-            measured,
+            tracks,
+            bias: log.bias_raw(),
         })
     }
     fn report(&self, coef: &[f64], cov: &[f64], nl_se: Option<f64>) -> Vec<Param> {
@@ -620,18 +618,18 @@ const SEARCH_ROWS: usize = 16;
 /// arithmetic is [`DahlTermState`]'s (so the same bits, tested), compiled for AVX2 when the CPU
 /// has it (no fused multiply-add either way).
 #[derive(Debug)]
-struct DahlSearch {
+struct DahlSearch<'d> {
     term: DahlTerm,
-    /// Signed seek length of every row of the log (position unit), in log order.
-    dx: Vec<f64>,
-    /// Whether each row is measured.
-    measured: Vec<bool>,
+    /// Target position of every row of the log (position unit), in log order.
+    tracks: &'d [f64],
+    /// The bias column as stored (NaN: not measured).
+    bias: &'d [f64],
     /// Entries of the power table: one more than the longest integer seek below
     /// [`FAR_TABLE`] in the log.
     table_len: usize,
 }
 
-impl SearchBasis for DahlSearch {
+impl SearchBasis for DahlSearch<'_> {
     fn replay(&self, values: &[f64], sink: &mut dyn FnMut(&[f64], usize)) -> Option<()> {
         if !self.term.search {
             return None;
@@ -662,12 +660,14 @@ impl SearchBasis for DahlSearch {
         let mut len = [0.0f64; SEARCH_ROWS];
         let mut chain = vec![[0.0f64; LANES]; SEARCH_ROWS];
         let mut out = vec![0.0; SEARCH_ROWS * k];
-        for (dx, measured) in self
-            .dx
-            .chunks(SEARCH_ROWS)
-            .zip(self.measured.chunks(SEARCH_ROWS))
+        let mut dx_buf = Vec::with_capacity(SEARCH_ROWS);
+        for (start, bias) in (0..self.tracks.len())
+            .step_by(SEARCH_ROWS)
+            .zip(self.bias.chunks(SEARCH_ROWS))
         {
-            let m = dx.len();
+            let m = bias.len();
+            let dx = seek_lengths(self.tracks, start, m, &mut dx_buf);
+            let measured = bias.iter().map(|b| !b.is_nan());
             let off_table = seek_codes(
                 dx,
                 self.table_len,
@@ -685,7 +685,7 @@ impl SearchBasis for DahlSearch {
                 }
                 let lanes = LANES.min(k - q * LANES);
                 rows = 0;
-                for (gs, _) in chain.iter().zip(measured).filter(|(_, m)| **m) {
+                for (gs, _) in chain.iter().zip(measured.clone()).filter(|(_, m)| *m) {
                     out[rows * k + q * LANES..rows * k + q * LANES + lanes]
                         .copy_from_slice(&gs[..lanes]);
                     rows += 1;
@@ -701,6 +701,15 @@ impl SearchBasis for DahlSearch {
         // `with_nonlinear` sets the length from the quantised coordinate alone.
         quantise(value)
     }
+}
+
+/// The seek lengths of rows `start..start + m` of a log with target positions `tracks`, into
+/// `buf`: `tracks[i] − tracks[i − 1]`, and 0 for the first row (`target − source`, as
+/// `History` computes `seek_length`).
+fn seek_lengths<'b>(tracks: &[f64], start: usize, m: usize, buf: &'b mut Vec<f64>) -> &'b [f64] {
+    buf.clear();
+    buf.extend((start..start + m).map(|i| tracks[i] - tracks[i.saturating_sub(1)]));
+    buf
 }
 
 /// For each seek length of `dx`: the index into a power table of `table_len` (≤ 4096) entries
