@@ -559,47 +559,48 @@ pub(crate) fn dip_statistic(x: &[f64]) -> Option<Dip> {
 /// it drops from the modal interval once plus the hull vertices still inside it, and the rounds
 /// are few (2 to 24, with at most ~3.4·n vertex visits in all, on the 10⁶-value samples of
 /// very different shapes we measured; about 30 ms each in a dev build). Tied values are
-/// allowed. `None` for fewer than four values, zero spread, a non-finite value or unsorted
-/// input.
+/// allowed. `None` for fewer than four values, zero spread, a non-finite value, unsorted
+/// input or more than 2³² values.
 pub(crate) fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
     let n = x.len();
     if n < 4 || x.iter().any(|v| !v.is_finite()) || x.windows(2).any(|w| w[1] < w[0]) {
         return None;
     }
     let last = n - 1;
-    if x[last] <= x[0] {
+    if x[last] <= x[0] || u32::try_from(last).is_err() {
         return None;
     }
     // Geometry on the points (x_i, i): heights are counts, so every distance below is n times a
     // distance between distribution functions, and the dip is half the largest such distance.
     //
     // below[j]: the vertex before j on the greatest convex minorant (lower hull) of points 0..=j.
-    let mut below = vec![0usize; n];
+    // Hull indices are kept as u32 (4 B per point instead of 8; `n` ≤ 2^32 is checked above).
+    let mut below = vec![0u32; n];
     for j in 1..n {
         let mut a = j - 1;
         while a > 0 {
-            let b = below[a];
+            let b = below[a] as usize;
             // Keep `a` while the hull turns upwards there: slope b→a below slope a→j.
             if (x[j] - x[a]) * ((a - b) as f64) < (x[a] - x[b]) * ((j - a) as f64) {
                 break;
             }
             a = b;
         }
-        below[j] = a;
+        below[j] = a as u32;
     }
     // above[k]: the vertex after k on the least concave majorant (upper hull) of points k..=last.
-    let mut above = vec![last; n];
+    let mut above = vec![last as u32; n];
     for k in (0..last).rev() {
         let mut a = k + 1;
         while a < last {
-            let b = above[a];
+            let b = above[a] as usize;
             // Keep `a` while the hull turns downwards there: slope a→b below slope k→a.
             if (x[a] - x[k]) * ((b - a) as f64) < (x[b] - x[a]) * ((a - k) as f64) {
                 break;
             }
             a = b;
         }
-        above[k] = a;
+        above[k] = a as u32;
     }
 
     // Twice the dip, in counts; 1 is the smallest possible value (a jump of one count).
@@ -620,14 +621,14 @@ pub(crate) fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
         let mut g = high;
         gcm.push(g);
         while g > low {
-            g = below[g];
+            g = below[g] as usize;
             gcm.push(g);
         }
         lcm.clear();
         let mut l = low;
         lcm.push(l);
         while l < high {
-            l = above[l];
+            l = above[l] as usize;
             lcm.push(l);
         }
         let (lg, ll) = (gcm.len(), lcm.len());
