@@ -17,14 +17,22 @@ pub struct Args {
     #[arg(long, value_name = "PRESET", conflicts_with = "terms")]
     model: Option<String>,
     /// A comma-separated term list, e.g. `poly2,dahl:4,col:temp_c` or
-    /// `poly2,direction,seek,memory,drift,dbins:dwell_s`. Terms: poly2, table[:SPACING],
-    /// direction, seek[:K], memory[:K], drift[:ALPHA], dahl, dahl:N, col:NAME, bins:FEATURE[:K],
-    /// dbins:FEATURE[:K].
-    #[arg(long, value_name = "T1,T2,...")]
+    /// `poly2,direction,seek,memory,drift,dbins:dwell_s` (`--help` lists every built-in term).
+    #[arg(long, value_name = "T1,T2,...", long_help = terms_help())]
     terms: Option<String>,
     /// The model file to write (JSON).
     #[arg(long, value_name = "MODEL.json")]
     out: PathBuf,
+}
+
+/// `--terms`'s long help: the example and every built-in term's syntax, from the registry (so
+/// a new term is listed without editing this text).
+fn terms_help() -> String {
+    format!(
+        "A comma-separated term list, e.g. `poly2,dahl:4,col:temp_c` or \
+         `poly2,direction,seek,memory,drift,dbins:dwell_s`. Terms: {}",
+        biasctl::builtin_names()
+    )
 }
 
 /// Validates the spec, reads the log, fits, prints the parameters and writes the model.

@@ -3,7 +3,7 @@
 //! runs, with exit 2, a message naming the flag (the CLI's field → flag table) and nothing
 //! written. Reference: the documented range of each setting.
 
-use crate::common::{biasctl, fails_with};
+use crate::common::{biasctl, fails_with, ok};
 use biasctl::plot::views::PanelOptions;
 use biasctl::{StoryOptions, ladder_terms};
 
@@ -113,4 +113,19 @@ fn library_checks_name_the_setting() {
         "{e}"
     );
     assert_eq!(&*ladder_terms("poly2, seek").unwrap(), ["poly2", "seek"]);
+}
+
+/// Reference: the term registry (`biasctl::builtin_names`, what a spec error lists). `fit
+/// --help` lists every built-in term's syntax, so a new term cannot be missing from the help
+/// (its text was written by hand and had fallen eight terms behind).
+#[test]
+fn fit_help_lists_every_built_in_term() {
+    let help = ok(&["fit", "--help"]);
+    let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
+    for syntax in biasctl::builtin_names().split(", ") {
+        assert!(
+            flat.contains(syntax),
+            "`{syntax}` missing from fit --help:\n{help}"
+        );
+    }
 }
