@@ -157,8 +157,10 @@ pub struct FitReport {
 }
 
 /// The training data as terms see it while they prepare: the log, and its seek history
-/// replayed on demand ([`FitData::replay`]). Nothing per row is held beyond the log itself:
-/// each question about the seek features streams one replay.
+/// replayed on demand ([`FitData::replay`]). On a log of more than 2¹⁸ rows nothing per row is
+/// held beyond the log itself: each question about the seek features streams one replay; a
+/// shorter log keeps the features of its first replay (at most 27 MB) and serves the later
+/// ones from them (the same values, bit for bit).
 #[derive(Debug, Clone)]
 pub struct FitData<'a> {
     log: &'a Log,
