@@ -866,6 +866,19 @@ fn rest_residual(
     out
 }
 
+/// One step of Neumaier's compensated sum: adds `x` to the running sum `s`, and the rounding
+/// error of that addition to the compensation `c`.
+#[inline(always)]
+fn neumaier(s: &mut f64, c: &mut f64, x: f64) {
+    let t = *s + x;
+    *c += if s.abs() >= x.abs() {
+        (*s - t) + x
+    } else {
+        (x - t) + *s
+    };
+    *s = t;
+}
+
 /// Rows per block of [`Blocked`] sums.
 const BLOCK: usize = 256;
 
@@ -888,52 +901,24 @@ impl Blocked {
     /// Adds one block's sums `v` (in order, `len` = n).
     fn add(&mut self, v: &[f64]) {
         for ((s, c), &x) in self.sum.iter_mut().zip(&mut self.comp).zip(v) {
-            let t = *s + x;
-            *c += if s.abs() >= x.abs() {
-                (*s - t) + x
-            } else {
-                (x - t) + *s
-            };
-            *s = t;
+            neumaier(s, c, x);
         }
     }
 
     /// Adds the concatenation of `parts` and zeroes them.
     fn flush(&mut self, parts: &mut [&mut Vec<f64>]) {
-        let mut j = 0;
-        for part in parts.iter_mut() {
-            for x in part.iter_mut() {
-                let (s, c) = (&mut self.sum[j], &mut self.comp[j]);
-                let t = *s + *x;
-                *c += if s.abs() >= x.abs() {
-                    (*s - t) + *x
-                } else {
-                    (*x - t) + *s
-                };
-                *s = t;
-                *x = 0.0;
-                j += 1;
-            }
+        let xs = parts.iter_mut().flat_map(|p| p.iter_mut());
+        for ((s, c), x) in self.sum.iter_mut().zip(&mut self.comp).zip(xs) {
+            neumaier(s, c, std::mem::take(x));
         }
     }
 
     /// [`Blocked::flush`] of lane `c` of the lane-interleaved `acc` (`acc[j · lanes + c]` is
     /// sum `j`), zeroing it: the same arithmetic per sum.
     fn flush_lane(&mut self, acc: &mut [f64], lanes: usize, c: usize) {
-        for ((s, comp), x) in self
-            .sum
-            .iter_mut()
-            .zip(&mut self.comp)
-            .zip(acc.iter_mut().skip(c).step_by(lanes))
-        {
-            let t = *s + *x;
-            *comp += if s.abs() >= x.abs() {
-                (*s - t) + *x
-            } else {
-                (*x - t) + *s
-            };
-            *s = t;
-            *x = 0.0;
+        let xs = acc.iter_mut().skip(c).step_by(lanes);
+        for ((s, comp), x) in self.sum.iter_mut().zip(&mut self.comp).zip(xs) {
+            neumaier(s, comp, std::mem::take(x));
         }
     }
 
