@@ -675,13 +675,7 @@ pub(crate) fn replay_with<'a>(
     source: &DirectionSource,
 ) -> Result<Replay<'a>, DirectionError> {
     let velocity = source.column_index(&log.schema.file, &log.schema.covariates)?;
-    Ok(Replay {
-        rows: log.rows().enumerate(),
-        history: source.history(),
-        velocity,
-        light: false,
-        cached: None,
-    })
+    Ok(replay_checked(log, source, velocity, false))
 }
 
 /// [`replay_with`] for a source already checked against `log`: `velocity` is
