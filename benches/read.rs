@@ -1,6 +1,7 @@
 //! Reading a 1,000,000-row measurement log from disk, the work every command starts with:
-//! `Log::read` (the whole log in memory, what fit/predict/diagnose use) and
-//! `LogReader::summarise` (streaming, constant memory, what `biasctl check` does). The log is
+//! `Log::read` (the whole log in memory, what fit/predict/diagnose use),
+//! `LogReader::summarise` (streaming, constant memory, the read `biasctl check` does) and
+//! `summarise_sampling` (all of `check`: that read and the exact quantiles). The log is
 //! what `biasctl simulate --sequence random --n 1000000 --seed 1` writes (same code path),
 //! made once outside the timed loop. Throughput is in bytes of the file. This bench only
 //! measures: the reader is being changed elsewhere.
@@ -43,6 +44,14 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
         b.iter(|| {
             let mut r = LogReader::open(black_box(&path), &map).expect("valid log");
             black_box(r.summarise().expect("valid log"))
+        })
+    });
+    // All of `biasctl check`: the streaming read, every row's time and position spooled to a
+    // temporary file, the exact quantiles' later passes over that file.
+    g.bench_function("check_sampling_1M_rows", |b| {
+        b.iter(|| {
+            let mut r = LogReader::open(black_box(&path), &map).expect("valid log");
+            black_box(biasctl::summarise_sampling(&mut r, &path, &map).expect("valid log"))
         })
     });
     g.finish();

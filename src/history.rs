@@ -761,8 +761,7 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         50.0,
     );
     let q = Quantiles {
-        dt,
-        dt_dev,
+        regular_clock: regular_clock(dt, dt_dev),
         median_step: quantile(&mut positions.windows(2).map(|w| (w[1] - w[0]).abs()), 50.0),
         p95: quantile(&mut positions.iter().copied(), 95.0),
         p5: quantile(&mut positions.iter().copied(), 5.0),
@@ -796,11 +795,20 @@ fn second_difference(x0: f64, x1: f64, x2: f64) -> f64 {
     (x2 - 2.0 * x1 + x0).abs()
 }
 
-/// The quantiles [`sampling`] is made of: the median Δt and the median |Δt − median Δt|; the
-/// median |position step|; the 95 % and 5 % quantiles of the positions; the median |Δ²x|.
+/// Whether rows whose median Δt is `dt` and median |Δt − median Δt| is `dt_dev` come on a
+/// regular clock ([`Sampling::regular_clock`]).
+fn regular_clock(dt: f64, dt_dev: f64) -> bool {
+    dt > 0.0 && dt_dev <= CLOCK_TOLERANCE * dt
+}
+
+/// How far (relative) the median |Δt − median Δt| may stray for a regular clock.
+const CLOCK_TOLERANCE: f64 = 0.01;
+
+/// The quantiles [`sampling`] is made of: whether the clock is regular (from the median Δt and
+/// the median |Δt − median Δt|); the median |position step|; the 95 % and 5 % quantiles of the
+/// positions; the median |Δ²x|.
 struct Quantiles {
-    dt: f64,
-    dt_dev: f64,
+    regular_clock: bool,
     median_step: f64,
     p95: f64,
     p5: f64,
@@ -830,7 +838,7 @@ impl Quantiles {
         raw_reversals: usize,
         count: impl FnOnce(f64) -> usize,
     ) -> Sampling {
-        let regular_clock = self.dt > 0.0 && self.dt_dev <= 0.01 * self.dt;
+        let regular_clock = self.regular_clock;
         let travel = self.p95 - self.p5;
         let dense = regular_clock && travel > 0.0 && self.median_step < 0.01 * travel;
         let deadband = if dense {
@@ -862,8 +870,15 @@ impl Quantiles {
 /// with [`SamplingStream::end_pass`], and read the log again while it returns `true`; then
 /// [`SamplingStream::finish`]. Each quantile is exact ([`StreamPercentile`]), so the result
 /// equals [`sampling`] of the whole log bit for bit. Passes: the first counts and
-/// histograms; the quantiles of the positions and of Δt usually end with the second; the
-/// spread of Δt about its median (and the reversals with the deadband) needs two more.
+/// histograms; the quantiles of the positions and of Δt usually end with the second; a dense
+/// log's reversals with the deadband need one more. Whether the clock is regular (the spread of
+/// Δt about its median) costs no pass of its own when the first pass settles it: a Δt of at
+/// most 4096 distinct values (a clock) is known value by value, so the spread is
+/// computed from that table; else the first pass's histogram bounds how many Δt can lie within
+/// 2 % of their median, and when that is fewer than half of them the clock is irregular (the
+/// median spread is then above 1 % of the median: a seek log's dwells). Only a clock that is
+/// neither (jittered beyond the table, yet within 2 %) reads the log for the spread: one or two
+/// passes after the median.
 ///
 /// [`StreamPercentile`]: crate::numeric::stats::StreamPercentile
 pub(crate) struct SamplingStream {
@@ -872,8 +887,11 @@ pub(crate) struct SamplingStream {
     p95: StreamPercentile,
     p5: StreamPercentile,
     d2: StreamPercentile,
-    /// Started in the pass after the median Δt is known.
+    /// Started in the pass after the median Δt is known (at once, from the first pass's
+    /// values, when Δt has few distinct values).
     dt_dev: Option<(f64, StreamPercentile)>,
+    /// The first pass settled that the clock is irregular: `dt_dev` is not needed.
+    irregular: bool,
     /// Rows in the pass so far, and the last two rows' time and position.
     row: usize,
     prev: (f64, f64),
@@ -900,6 +918,7 @@ impl SamplingStream {
             p5: StreamPercentile::new(5.0),
             d2: StreamPercentile::new(50.0),
             dt_dev: None,
+            irregular: false,
             row: 0,
             prev: (0.0, 0.0),
             prev2_x: 0.0,
@@ -942,7 +961,9 @@ impl SamplingStream {
         if self.row >= 2 {
             self.d2.push(second_difference(self.prev2_x, px, x));
         }
-        self.p95.push(x);
+        if self.passes > 0 {
+            self.p95.push(x);
+        }
         self.p5.push(x);
         self.prev2_x = px;
         self.prev = (t, x);
@@ -951,6 +972,16 @@ impl SamplingStream {
 
     /// Ends a pass; `true` when the log must be read once more.
     pub(crate) fn end_pass(&mut self) -> bool {
+        // Read before the first pass's histograms and value tables are dropped.
+        let first = self.passes == 0;
+        let dt_values = first.then(|| self.dt.first_pass_values()).flatten();
+        let dt_near = first
+            .then(|| self.dt.first_pass_count_near(2.0 * CLOCK_TOLERANCE))
+            .flatten();
+        if first {
+            // The first pass pushed the positions into `p5` alone.
+            self.p95 = self.p5.first_pass_twin(95.0);
+        }
         for q in [
             &mut self.dt,
             &mut self.step,
@@ -968,17 +999,35 @@ impl SamplingStream {
         }
         self.passes += 1;
         self.row = 0;
+        if let Some(near) = dt_near
+            && self.dt.result().is_none()
+        {
+            // Fewer Δt within 2 % of the median than the lower middle rank of the spreads
+            // (`percentile_select`'s position for 50 % of rows − 1 values): the median spread is
+            // at least that order statistic, above 1 % of the median.
+            let lower_middle = (0.5 * self.rows.saturating_sub(2) as f64).floor() as u64;
+            self.irregular = near <= lower_middle;
+        }
         if self.dt_dev.is_none()
+            && !self.irregular
             && let Some(median) = self.dt.result()
         {
-            self.dt_dev = Some((median.unwrap_or(0.0), StreamPercentile::new(50.0)));
+            let median = median.unwrap_or(0.0);
+            let mut spread = StreamPercentile::new(50.0);
+            if let Some(values) = dt_values {
+                // Every Δt of the log, value by value: the spreads' stream is that table.
+                for (dt, count) in values {
+                    spread.push_counted((dt - median).abs(), count);
+                }
+                spread.end_pass();
+            }
+            self.dt_dev = Some((median, spread));
         }
         if self.banded.is_none()
             && let Some(mad) = self.d2.result()
         {
             let q = Quantiles {
-                dt: 0.0,
-                dt_dev: 0.0,
+                regular_clock: false,
                 median_step: 0.0,
                 p95: 0.0,
                 p5: 0.0,
@@ -999,9 +1048,10 @@ impl SamplingStream {
     /// Every quantile, once all are known.
     fn quantiles(&self) -> Option<Quantiles> {
         let get = |q: &StreamPercentile| q.result().map(|r| r.unwrap_or(0.0));
+        let regular =
+            !self.irregular && regular_clock(get(&self.dt)?, get(&self.dt_dev.as_ref()?.1)?);
         Some(Quantiles {
-            dt: get(&self.dt)?,
-            dt_dev: get(&self.dt_dev.as_ref()?.1)?,
+            regular_clock: regular,
             median_step: get(&self.step)?,
             p95: get(&self.p95)?,
             p5: get(&self.p5)?,
@@ -1023,28 +1073,42 @@ impl SamplingStream {
 /// Streams the log `reader` was opened on (from `path` with `map`) and returns its summary
 /// ([`LogReader::summarise`](crate::LogReader::summarise)) and its [`sampling`], in memory
 /// independent of the number of rows (`biasctl check`): the exact quantiles (the same bits as
-/// [`sampling`] of every row in memory) need a few passes of radix selection, so a regular file is read again from `path` (usually four passes in
-/// all); standard input (`path` `-`) is read once while the time and position of every row
-/// (16 bytes per row) are written to a temporary file in [`std::env::temp_dir`], which the
-/// later passes read and which is removed at the end. Every pass validates the rows as the
-/// first; a file whose row count changes between passes is an error.
+/// [`sampling`] of every row in memory) need a few passes of radix selection
+/// ([`SamplingStream`]: two on seek logs, three on dense ones). The log itself is read once:
+/// while it is, the time and position of every row (16 bytes per row) are written to a
+/// temporary file in [`std::env::temp_dir`], which the later passes read and which is removed
+/// at the end. Should that file not be made or written, a regular file is read again from
+/// `path` instead (every pass validates the rows as the first; a file whose row count changes
+/// between passes is an error); for standard input (`path` `-`) it is an error.
 pub fn summarise_sampling(
     reader: &mut crate::log::LogReader<Box<dyn std::io::Read>>,
     path: &std::path::Path,
     map: &crate::log::ColumnMap,
 ) -> Result<(crate::log::LogSummary, Sampling), crate::log::LogError> {
     use crate::log::{LogError, LogReader, Row, STDIN_PATH};
-    use std::io::{BufReader, BufWriter, Read, Seek, Write};
+    use std::io::{BufWriter, Read, Seek, Write};
     let file = reader.schema().file.clone();
     let io = |source: std::io::Error| LogError::Io {
         file: file.clone(),
         source,
     };
+    let stdin = path.as_os_str() == STDIN_PATH;
+    // Standard input cannot be read again: its passes need the temporary file.
+    let spool_failed = |e: std::io::Error| {
+        let dir = std::env::temp_dir();
+        io(std::io::Error::new(
+            e.kind(),
+            format!(
+                "the later passes need a temporary file in {} (set TMPDIR to a writable folder with room for 16 bytes per row): {e}",
+                dir.display()
+            ),
+        ))
+    };
     let mut stream = SamplingStream::new();
-    let mut spool = if path.as_os_str() == STDIN_PATH {
-        Some(Spool::create().map_err(io)?)
-    } else {
-        None
+    let mut spool = match Spool::create() {
+        Ok(s) => Some(s),
+        Err(e) if stdin => return Err(spool_failed(e)),
+        Err(_) => None,
     };
     let mut spool_err = None;
     let summary = {
@@ -1062,14 +1126,17 @@ pub fn summarise_sampling(
                 }
             }
         })?;
-        if let Some(e) = spool_err {
-            return Err(io(e));
-        }
-        if let Some(w) = out {
-            w.into_inner().map_err(|e| io(e.into_error()))?;
-        }
+        let flushed = out.map(|w| w.into_inner().map(|_| ()).map_err(|e| e.into_error()));
+        spool_err = spool_err.or(flushed.and_then(Result::err));
         summary
     };
+    if let Some(e) = spool_err {
+        if stdin {
+            return Err(spool_failed(e));
+        }
+        // A full or failing temporary directory: read the file again instead.
+        spool = None;
+    }
     let changed = || {
         io(std::io::Error::other(
             "the file changed while it was read (its row count differs between passes)",
@@ -1080,14 +1147,28 @@ pub fn summarise_sampling(
         match spool.as_mut() {
             Some(s) => {
                 s.file.rewind().map_err(io)?;
-                let mut r = BufReader::new(&mut s.file);
-                let (mut t, mut x) = ([0u8; 8], [0u8; 8]);
-                for _ in 0..summary.rows {
-                    r.read_exact(&mut t).map_err(io)?;
-                    r.read_exact(&mut x).map_err(io)?;
-                    stream.push(f64::from_le_bytes(t), f64::from_le_bytes(x));
+                // Whole records from a block buffer (a short read may split one).
+                let mut buf = vec![0u8; 1 << 16];
+                let mut filled = 0;
+                loop {
+                    let got = s.file.read(&mut buf[filled..]).map_err(io)?;
+                    filled += got;
+                    let whole = filled - filled % 16;
+                    for rec in buf[..whole].chunks_exact(16) {
+                        let (t, x) = rec.split_at(8);
+                        let f = |b: &[u8]| f64::from_le_bytes(b.try_into().unwrap_or([0; 8]));
+                        stream.push(f(t), f(x));
+                    }
+                    rows += (whole / 16) as u64;
+                    buf.copy_within(whole..filled, 0);
+                    filled -= whole;
+                    if got == 0 {
+                        break;
+                    }
                 }
-                rows = summary.rows;
+                if filled != 0 {
+                    return Err(changed());
+                }
             }
             None => {
                 let mut again = LogReader::open(path, map)?;
@@ -1373,8 +1454,9 @@ mod tests {
         assert!(passes >= 3, "{passes}");
     }
 
-    /// Runs [`SamplingStream`] over rows `(t, x)` pass after pass.
-    fn stream_sampling(t: &[f64], x: &[f64]) -> (Sampling, usize) {
+    /// Runs [`SamplingStream`] over rows `(t, x)` pass after pass; the sampling, the passes and
+    /// whether the first pass settled the clock as irregular.
+    fn stream_sampling(t: &[f64], x: &[f64]) -> (Sampling, usize, bool) {
         let mut s = SamplingStream::new();
         let mut passes = 0;
         loop {
@@ -1385,46 +1467,80 @@ mod tests {
             }
             assert!(passes < 12, "too many passes");
         }
-        (s.finish().expect("finished"), passes)
+        (s.finish().expect("finished"), passes, s.irregular)
     }
 
     /// Reference: [`sampling`] of the rows in memory (its quantiles by selection, themselves
     /// tested against sorting above). The streamed sampling `check` uses is the same bit for
     /// bit (every field) on dense time series (regular clock, noisy sine: the deadband pass),
     /// seek logs (irregular times), logs of a few distinct positions with ±0, negative and
-    /// tiny logs.
+    /// tiny logs, and clocks whose jitter straddles the 1 % a regular clock allows (beyond the
+    /// first pass's value table, so only the exact passes can tell) or whose Δt are half
+    /// regular, half spread. It also checks the passes: a seek log with irregular times ends
+    /// in at most two (the first settles the clock), a clock of few distinct Δt needs no pass for the
+    /// spread, and the settling happens on the seek logs (it is not a path never taken).
     #[test]
     fn streamed_sampling_equals_in_memory_sampling() {
         let mut rng = SimRng::new(23);
-        let (mut dense, mut seek) = (0, 0);
-        for case in 0..120 {
+        let (mut dense, mut seek, mut settled) = (0, 0, 0);
+        let mut jittered = [0, 0];
+        for case in 0..150 {
             let n = match case % 10 {
                 0 => rng.below(4) as usize,
-                1 => 20_000,
+                1 | 4 | 7 => 20_000,
                 _ => 1 + rng.below(3000) as usize,
             };
             let dt = [1e-3, 0.01, 0.5][rng.below(3) as usize];
+            let jitter = [0.03, 0.034, 0.04][rng.below(3) as usize];
+            let mut clock = 0.0;
             let (t, x): (Vec<f64>, Vec<f64>) = (0..n)
                 .map(|i| {
                     let ti = i as f64 * dt;
-                    match case % 4 {
+                    match case % 6 {
                         0 | 1 => (ti, 100.0 * (0.002 * i as f64).sin() + 0.05 * rng.normal()),
                         2 => (
                             ti + rng.range(0.0, 0.9) * dt,
                             [0.0, -0.0, -3.0, 7.5][rng.below(4) as usize],
                         ),
-                        _ => (ti, rng.range(-500.0, 500.0).round()),
+                        3 => (ti, rng.range(-500.0, 500.0).round()),
+                        // Jitter of ±1.5–2 % of Δt at each row: median spreads of
+                        // 0.3·that, 0.88–1.17 % (triangular differences), about the 1 % bar.
+                        4 => (
+                            ti + rng.range(-jitter, jitter) * dt * 0.5,
+                            100.0 * (0.002 * i as f64).sin() + 0.05 * rng.normal(),
+                        ),
+                        // Every other step on the clock, the rest 1.5–3 Δt: the median Δt at
+                        // the edge of the regular half.
+                        _ => {
+                            clock += if i % 2 == 0 {
+                                dt
+                            } else {
+                                dt * rng.range(1.5, 3.0)
+                            };
+                            (clock, rng.range(-500.0, 500.0).round())
+                        }
                     }
                 })
                 .unzip();
             let want = sampling(&t, &x);
-            let (got, passes) = stream_sampling(&t, &x);
+            let (got, passes, irregular) = stream_sampling(&t, &x);
             assert_eq!(
                 format!("{got:?}"),
                 format!("{want:?}"),
                 "case {case}, n {n}"
             );
             assert!(passes <= 6, "case {case}: {passes} passes");
+            if case % 6 == 2 && n > 5000 {
+                assert!(passes <= 2 && irregular, "case {case}: {passes} passes");
+            }
+            if case % 6 == 3 {
+                // Integer positions, a clock of one Δt: every quantile from the first pass.
+                assert_eq!(passes, 1, "case {case}");
+            }
+            settled += usize::from(irregular);
+            if case % 6 == 4 && n > 1000 {
+                jittered[usize::from(want.regular_clock)] += 1;
+            }
             if want.dense {
                 dense += 1;
             } else {
@@ -1432,6 +1548,50 @@ mod tests {
             }
         }
         assert!(dense > 20 && seek > 20, "{dense} dense, {seek} seek logs");
+        assert!(settled >= 5, "{settled} logs settled as irregular");
+        assert!(
+            jittered[0] > 0 && jittered[1] > 0,
+            "jittered clocks {jittered:?}"
+        );
+    }
+
+    /// Reference: the count, in a sorted copy, of the values within `1 ± rel` of the exact
+    /// percentile (`percentile_sorted`). The first pass's bound on it
+    /// (`first_pass_count_near`) is never below it, on streams of ties, clusters, wide spreads
+    /// and signed values, and stays well below the stream's length on wide spreads (it is a
+    /// bound that can settle something).
+    #[test]
+    fn first_pass_count_near_bounds_the_true_count() {
+        use crate::numeric::stats::{StreamPercentile, percentile_sorted, sorted};
+        let mut rng = SimRng::new(29);
+        for case in 0..200 {
+            let n = 1 + rng.below(5000) as usize;
+            let wide = case % 4 == 3;
+            let v: Vec<f64> = if wide {
+                (0..n).map(|_| rng.range(0.05, 0.5)).collect()
+            } else {
+                awkward_values(&mut rng, case, n)
+            };
+            let p = [5.0, 50.0, 95.0][case % 3];
+            let mut q = StreamPercentile::new(p);
+            v.iter().for_each(|&x| q.push(x));
+            let m = percentile_sorted(&sorted(&v), p).unwrap();
+            for rel in [0.0, 0.02, 0.1] {
+                let Some(bound) = q.first_pass_count_near(rel) else {
+                    assert!(
+                        m <= 0.0 || m < 1e-300 || !wide,
+                        "case {case}: no bound for {m}"
+                    );
+                    continue;
+                };
+                let (lo, hi) = (m * (1.0 - rel), m * (1.0 + rel));
+                let truth = v.iter().filter(|&&x| x >= lo && x <= hi).count() as u64;
+                assert!(bound >= truth, "case {case}, rel {rel}: {bound} < {truth}");
+                if wide && n > 1000 && rel == 0.02 {
+                    assert!(bound < n as u64 / 4, "case {case}: {bound} of {n}");
+                }
+            }
+        }
     }
 
     /// Slow, obvious reference for the rest memory: keep every rest position with the time it was

@@ -119,6 +119,12 @@ impl Distinct {
 
     #[inline]
     fn add(&mut self, k: u64) {
+        self.add_counted(k, 1);
+    }
+
+    /// `count` (≥ 1) more of key `k`.
+    #[inline]
+    fn add_counted(&mut self, k: u64, count: u64) {
         if self.full {
             return;
         }
@@ -130,12 +136,12 @@ impl Distinct {
                     self.full = true;
                     return;
                 }
-                (self.keys[i], self.counts[i]) = (k, 1);
+                (self.keys[i], self.counts[i]) = (k, count);
                 self.len += 1;
                 return;
             }
             if self.keys[i] == k {
-                self.counts[i] += 1;
+                self.counts[i] += count;
                 return;
             }
             i = (i + 1) & mask;
@@ -271,6 +277,85 @@ impl StreamPercentile {
         } else if top > self.prefix && self.above.is_none_or(|a| k < a) {
             self.above = Some(k);
         }
+    }
+
+    /// `count` copies of `x` in the first pass, as many [`StreamPercentile::push`]es of it
+    /// (the stream of a value table); ignored after the first pass.
+    pub(crate) fn push_counted(&mut self, x: f64, count: u64) {
+        if self.passes > 0 || self.result.is_some() || count == 0 {
+            return;
+        }
+        let k = key(x);
+        self.n += count;
+        self.hist[(k >> (64 - DIGIT)) as usize] += count;
+        self.distinct.add_counted(k, count);
+    }
+
+    /// In the first pass, before [`StreamPercentile::end_pass`]: percentile `p` of the same
+    /// stream, as if it had been pushed every value so far (the first pass only counts the
+    /// values, the same for any percentile: two percentiles of one stream count it once).
+    pub(crate) fn first_pass_twin(&self, p: f64) -> Self {
+        let mut twin = self.clone();
+        twin.p = p;
+        twin
+    }
+
+    /// In the first pass, before [`StreamPercentile::end_pass`]: every distinct value so far
+    /// with its count, ascending (`total_cmp`), while there are at most [`DISTINCT_CAP`]; `None`
+    /// beyond them or after the first pass.
+    pub(crate) fn first_pass_values(&self) -> Option<Vec<(f64, u64)>> {
+        (self.passes == 0 && !self.distinct.full).then(|| {
+            (self.distinct.sorted().into_iter())
+                .map(|(k, c)| (from_key(k), c))
+                .collect()
+        })
+    }
+
+    /// In the first pass, before [`StreamPercentile::end_pass`]: an upper bound on how many
+    /// values lie within a factor `1 ± rel` of the percentile, from the first pass's histogram
+    /// of the top 16 key bits (values 1/16 of an octave apart): the percentile lies between the
+    /// smallest value of the bucket holding its lower rank and the largest of the bucket holding
+    /// its upper one, and the bound counts every value in the buckets that meet that span
+    /// widened by `rel`. `None` when that span is not wholly above 0, or after the first pass.
+    pub(crate) fn first_pass_count_near(&self, rel: f64) -> Option<u64> {
+        if self.passes > 0 || self.n == 0 {
+            return None;
+        }
+        let pos = (self.p.clamp(0.0, 100.0) / 100.0) * (self.n - 1) as f64;
+        let bucket_of = |rank: u64| {
+            let mut below = 0;
+            self.hist.iter().position(|&h| {
+                below += h;
+                rank < below
+            })
+        };
+        let (lo, hi) = (
+            bucket_of(pos.floor() as u64)?,
+            bucket_of(pos.ceil() as u64)?,
+        );
+        let edge = |digit: usize, last: bool| {
+            let k = (digit as u64) << (64 - DIGIT);
+            from_key(if last {
+                k | ((1 << (64 - DIGIT)) - 1)
+            } else {
+                k
+            })
+        };
+        let (a, b) = (edge(lo, false), edge(hi, true));
+        if a.is_nan() || b.is_nan() || a <= 0.0 {
+            return None;
+        }
+        let (from, to) = (a * (1.0 - rel), b * (1.0 + rel));
+        Some(
+            (self.hist.iter().enumerate())
+                // A bucket whose edge is NaN counts (it cannot be placed).
+                .filter(|&(g, &h)| {
+                    let (first, last) = (edge(g, false), edge(g, true));
+                    h > 0 && (last >= from || last.is_nan()) && (first <= to || first.is_nan())
+                })
+                .map(|(_, &h)| h)
+                .sum(),
+        )
     }
 
     /// Ends a pass: the result when it is known, else what the next pass looks at.

@@ -208,8 +208,9 @@ fn check_reads_spreadsheet_dialects_with_notes() {
     );
 }
 
-/// `check` reads a log in several passes (constant memory): a file is read again, standard
-/// input is spooled to a temporary file. Reference: the in-memory summary of the same rows
+/// `check` reads a log in several passes (constant memory): the later passes read a temporary
+/// file of every row's time and position (a file is read again when no temporary file can be
+/// made). Reference: the in-memory summary of the same rows
 /// (`biasctl::sampling` over every row, as `check` computed it before) gives the same lines,
 /// and the file and standard input give the same output but for the name, on a dense time
 /// series (regular clock: the deadband pass) and a random seek log.
@@ -258,6 +259,34 @@ fn check_reads_a_file_and_stdin_alike_and_matches_the_in_memory_sampling() {
             "{from_file}"
         );
     }
+    // Without a usable temporary folder a file is read again for the later passes (the same
+    // output); standard input cannot be, and says what it needs (exit 2, nothing on stdout).
+    let no_tmp = |args: &[&str], stdin: Stdio| {
+        Command::new(env!("CARGO_BIN_EXE_biasctl"))
+            .args(args)
+            .env("TMPDIR", dir.path().join("missing"))
+            .stdin(stdin)
+            .output()
+            .unwrap()
+    };
+    for f in [&dense, &seek] {
+        let out = no_tmp(&["check", "--data", f], Stdio::null());
+        assert!(out.status.success(), "{out:?}");
+        assert_eq!(
+            String::from_utf8(out.stdout).unwrap(),
+            ok(&["check", "--data", f])
+        );
+    }
+    let out = no_tmp(
+        &["check", "--data", "-"],
+        Stdio::from(std::fs::File::open(&seek).unwrap()),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        out.stdout.is_empty() && err.contains("<stdin>") && err.contains("TMPDIR"),
+        "{err}"
+    );
     // The rows as written (Rust's float formatting reads back to the same bits).
     let want = biasctl::sampling(&t, &x).describe("tracks");
     let got = ok(&["check", "--data", &dense]);
