@@ -78,16 +78,11 @@ impl FitOptions {
     }
 }
 
-/// Fit settings that passed [`FitOptions::check`]; the only settings [`fit`] accepts. Read
-/// them through `Deref` ([`FitOptions`]'s fields). `Default` is the checked default.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct CheckedFitOptions(FitOptions);
-
-impl std::ops::Deref for CheckedFitOptions {
-    type Target = FitOptions;
-    fn deref(&self) -> &FitOptions {
-        &self.0
-    }
+checked_settings! {
+    /// Fit settings that passed [`FitOptions::check`]; the only settings [`fit`] accepts. Read
+    /// them through `Deref` ([`FitOptions`]'s fields). `Default` is the checked default.
+    #[derive(Debug, Clone, PartialEq, Default)]
+    pub struct CheckedFitOptions(FitOptions);
 }
 
 impl Default for FitOptions {

@@ -123,6 +123,24 @@
 #![warn(unnameable_types)]
 #![warn(unreachable_pub)]
 
+/// Defines a checked-settings newtype: the struct as written (its docs and derives), holding
+/// the settings type it wraps, and `Deref` to that type (its fields are read through it). The
+/// only way to make one besides its `Default` is the settings type's `check()`, which stays
+/// beside each use.
+macro_rules! checked_settings {
+    ($(#[$meta:meta])* $vis:vis struct $checked:ident($inner:ty);) => {
+        $(#[$meta])*
+        $vis struct $checked($inner);
+
+        impl std::ops::Deref for $checked {
+            type Target = $inner;
+            fn deref(&self) -> &$inner {
+                &self.0
+            }
+        }
+    };
+}
+
 // Modules in the order a log travels through them; a module imports only modules above it.
 pub(crate) mod field;
 

@@ -65,16 +65,11 @@ impl DiscoverConfig {
     }
 }
 
-/// Settings that passed [`DiscoverConfig::check`]; read them through `Deref`. `Default` is the
-/// checked default.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct CheckedDiscoverConfig(DiscoverConfig);
-
-impl std::ops::Deref for CheckedDiscoverConfig {
-    type Target = DiscoverConfig;
-    fn deref(&self) -> &DiscoverConfig {
-        &self.0
-    }
+checked_settings! {
+    /// Settings that passed [`DiscoverConfig::check`]; read them through `Deref`. `Default` is the
+    /// checked default.
+    #[derive(Debug, Clone, PartialEq, Default)]
+    pub struct CheckedDiscoverConfig(DiscoverConfig);
 }
 
 /// An error of [`discover`].

@@ -372,16 +372,11 @@ impl DiagnoseConfig {
     }
 }
 
-/// Diagnosis settings that passed [`DiagnoseConfig::check`]; read them through `Deref`.
-/// `Default` is the checked default.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct CheckedDiagnoseConfig(DiagnoseConfig);
-
-impl std::ops::Deref for CheckedDiagnoseConfig {
-    type Target = DiagnoseConfig;
-    fn deref(&self) -> &DiagnoseConfig {
-        &self.0
-    }
+checked_settings! {
+    /// Diagnosis settings that passed [`DiagnoseConfig::check`]; read them through `Deref`.
+    /// `Default` is the checked default.
+    #[derive(Debug, Clone, PartialEq, Default)]
+    pub struct CheckedDiagnoseConfig(DiagnoseConfig);
 }
 
 impl CheckedDiagnoseConfig {

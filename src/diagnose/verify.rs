@@ -100,16 +100,11 @@ impl VerifyConfig {
     }
 }
 
-/// Verification settings that passed [`VerifyConfig::check`]; read them through `Deref`.
-/// `Default` is the checked default.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct CheckedVerifyConfig(VerifyConfig);
-
-impl std::ops::Deref for CheckedVerifyConfig {
-    type Target = VerifyConfig;
-    fn deref(&self) -> &VerifyConfig {
-        &self.0
-    }
+checked_settings! {
+    /// Verification settings that passed [`VerifyConfig::check`]; read them through `Deref`.
+    /// `Default` is the checked default.
+    #[derive(Debug, Clone, PartialEq, Default)]
+    pub struct CheckedVerifyConfig(VerifyConfig);
 }
 
 /// One suggested edit, refitted and scored out of sample. Equality ignores the typed edit

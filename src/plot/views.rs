@@ -75,16 +75,11 @@ impl PanelOptions {
     }
 }
 
-/// Settings that passed [`PanelOptions::check`]; read them through `Deref`. `Default` is the
-/// checked default.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct CheckedPanelOptions(PanelOptions);
-
-impl std::ops::Deref for CheckedPanelOptions {
-    type Target = PanelOptions;
-    fn deref(&self) -> &PanelOptions {
-        &self.0
-    }
+checked_settings! {
+    /// Settings that passed [`PanelOptions::check`]; read them through `Deref`. `Default` is the
+    /// checked default.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+    pub struct CheckedPanelOptions(PanelOptions);
 }
 
 /// A curve of `(position, bias)` points.

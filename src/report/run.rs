@@ -101,17 +101,12 @@ impl StoryOptions {
     }
 }
 
-/// Settings that passed [`StoryOptions::check`]; read them through `Deref`. `Default` is the
-/// checked default. The story's entry points ([`crate::demo_report`], [`crate::data_report`],
-/// [`compute_demo`], [`compute_data`]) accept only these.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct CheckedStoryOptions(StoryOptions);
-
-impl std::ops::Deref for CheckedStoryOptions {
-    type Target = StoryOptions;
-    fn deref(&self) -> &StoryOptions {
-        &self.0
-    }
+checked_settings! {
+    /// Settings that passed [`StoryOptions::check`]; read them through `Deref`. `Default` is the
+    /// checked default. The story's entry points ([`crate::demo_report`], [`crate::data_report`],
+    /// [`compute_demo`], [`compute_data`]) accept only these.
+    #[derive(Debug, Clone, PartialEq, Default)]
+    pub struct CheckedStoryOptions(StoryOptions);
 }
 
 /// One progress report: step `done` of `total` is starting, described by `step`.
