@@ -313,13 +313,7 @@ mod tests {
     #[test]
     fn streamed_score_equals_scoring_predict_log() {
         use crate::model::{Feedback, ModelSpec};
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-        let so = SequenceOptions {
-            n: Some(3000),
-            ..SequenceOptions::default()
-        };
-        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 6, &[]).unwrap();
-        let log = simulate_log(&cfg).unwrap();
+        let log = crate::sim::random_log(3000, 6);
         let spec = ModelSpec::preset("calibration").unwrap();
         let model = crate::fit::fit(&spec, &log, &Default::default()).unwrap();
         let s = score_model(&model, &log, Feedback::Never).unwrap();

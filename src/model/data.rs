@@ -361,13 +361,7 @@ mod tests {
     /// shared by clones. A log above the bound keeps no cache.
     #[test]
     fn cached_replays_equal_the_stepped_ones() {
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-        let so = SequenceOptions {
-            n: Some(2000),
-            ..SequenceOptions::default()
-        };
-        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 3, &[]).unwrap();
-        let log = simulate_log(&cfg).unwrap();
+        let log = crate::sim::random_log(2000, 3);
         let data = FitData::new(&log);
         let stepped = |light: bool| -> Vec<SeekFeatures> {
             crate::history::replay_checked(&log, &DirectionSource::Steps, None, light)

@@ -132,13 +132,7 @@ mod tests {
     /// infinite or NaN (in a term's column first, or in the prediction).
     #[test]
     fn streamed_check_names_what_the_whole_prediction_check_names() {
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-        let so = SequenceOptions {
-            n: Some(500),
-            ..SequenceOptions::default()
-        };
-        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 2, &[]).unwrap();
-        let log = simulate_log(&cfg).unwrap();
+        let log = crate::sim::random_log(500, 2);
         let spec = crate::model::ModelSpec::preset("calibration").unwrap();
         let model = crate::fit::fit(&spec, &log, &Default::default()).unwrap();
         let text = |r: Result<(), NonFinite>| r.map_err(|e| e.to_string());

@@ -852,5 +852,18 @@ pub fn simulate_to_files(
         end_time_s: 0.0,
     }))
 }
+/// Test support: the log of `n` random seeks on the built-in `paper1997` drive with every
+/// effect on, simulated with `seed` (the setup unit tests share).
+#[cfg(test)]
+pub(crate) fn random_log(n: u64, seed: u64) -> crate::log::Log {
+    let opts = SequenceOptions {
+        n: Some(n),
+        ..SequenceOptions::default()
+    };
+    let cfg = SimConfig::new(Drive::paper1997(), "random", &opts, seed, &[])
+        .expect("the built-in drive and the random sequence are valid");
+    simulate_log(&cfg).expect("a simulated log")
+}
+
 #[cfg(test)]
 mod tests;
