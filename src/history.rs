@@ -1073,8 +1073,9 @@ impl SamplingStream {
 /// Streams the log `reader` was opened on (from `path` with `map`) and returns its summary
 /// ([`LogReader::summarise`](crate::LogReader::summarise)) and its [`sampling`], in memory
 /// independent of the number of rows (`biasctl check`): the exact quantiles (the same bits as
-/// [`sampling`] of every row in memory) need a few passes of radix selection
-/// ([`SamplingStream`]: two on seek logs, three on dense ones). The log itself is read once:
+/// [`sampling`] of every row in memory) need a few passes of radix selection (one on logs
+/// whose quantiles take few distinct values and whose clock the first pass settles, three on a
+/// dense 1 kHz log with noisy positions, more when a jittered clock's spread must be read). The log itself is read once:
 /// while it is, the time and position of every row (16 bytes per row) are written to a
 /// temporary file in [`std::env::temp_dir`], which the later passes read and which is removed
 /// at the end. Should that file not be made or written, a regular file is read again from
