@@ -1075,12 +1075,12 @@ impl SamplingStream {
 /// independent of the number of rows (`biasctl check`): the exact quantiles (the same bits as
 /// [`sampling`] of every row in memory) need a few passes of radix selection (one on logs
 /// whose quantiles take few distinct values and whose clock the first pass settles, three on a
-/// dense 1 kHz log with noisy positions, more when a jittered clock's spread must be read). The log itself is read once:
-/// while it is, the time and position of every row (16 bytes per row) are written to a
-/// temporary file in [`std::env::temp_dir`], which the later passes read and which is removed
-/// at the end. Should that file not be made or written, a regular file is read again from
-/// `path` instead (every pass validates the rows as the first; a file whose row count changes
-/// between passes is an error); for standard input (`path` `-`) it is an error.
+/// dense 1 kHz log with noisy positions, more when a jittered clock's spread must be read).
+/// The log itself is read once: while it is, the time and position of every row (16 bytes per
+/// row) are written to a temporary file in [`std::env::temp_dir`], which the later passes read
+/// and which is removed at the end. Should that file not be made or written, a regular file is
+/// read again from `path` instead (every pass validates the rows as the first; a file whose row
+/// count changes between passes is an error); for standard input (`path` `-`) it is an error.
 pub fn summarise_sampling(
     reader: &mut crate::log::LogReader<Box<dyn std::io::Read>>,
     path: &std::path::Path,
