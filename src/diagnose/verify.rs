@@ -9,9 +9,11 @@
 //! causally over the whole log, and its residuals on the blanked stretch are kept. The model
 //! before and after the edit are scored on the same folds, so the per-row squared errors pair
 //! up: the verified gain is `1 − MSE_after / MSE_before`, and its noise is judged from the
-//! paired differences summed over blocks of consecutive rows (as long as the differences' own
-//! serial correlation needs: the automatic null block of that series), so
-//! serially correlated errors do not make a small gain look sure. An edit is *verified* when
+//! **noise part** of the paired differences (the edit's change of the prediction times the
+//! residual after it: what is random once the change is given, `conditional_z`) summed over
+//! blocks of consecutive rows (as long as that series' own serial correlation needs: its
+//! automatic null block), so serially correlated errors do not make a small gain look sure,
+//! and an effect whose gain comes in episodes is not taken for noise. An edit is *verified* when
 //! its gain is at least [`super::DiagnoseConfig::min_effect`] and its block z-score at least
 //! [`VerifyConfig::min_z`], and its gain **within folds** (each stretch's own mean taken out
 //! of both residual series, [`gain_within_folds`]) reaches the same practical minimum: what an
@@ -133,7 +135,8 @@ pub struct VerifiedEdit {
     /// minimum.
     #[serde(default)]
     pub gain_within_folds: f64,
-    /// Block z-score of the gain (paired squared-error differences, blocks of consecutive rows).
+    /// z-score of the gain: the paired Huber-loss differences' sum over the block standard
+    /// error of their noise part (the change times the residual after the edit).
     pub z: f64,
     /// Whether the gain is both practical and beyond noise (see the module docs).
     pub verified: bool,
@@ -174,8 +177,8 @@ pub struct Verification {
     pub folds: usize,
     /// Out-of-sample error std of the model as it is (bias unit).
     pub std_before: f64,
-    /// The diagnosis's null block (rows); each edit's z-score uses the block of its own paired
-    /// differences (see `paired_gain` in the module source).
+    /// The diagnosis's null block (rows); each edit's z-score uses the block of the noise part
+    /// of its own paired differences (see `conditional_z` in the module source).
     pub block_len: usize,
     /// Every edit that fitted, largest verified gain first.
     pub edits: Vec<VerifiedEdit>,
