@@ -4,6 +4,7 @@
 //! cargo run --release --example diagnose_family            # 3 drives × every scenario × 10 seeds
 //! cargo run --release --example diagnose_family -- 20 2000  # seeds, seeks per log
 //! cargo run --release --example diagnose_family -- 1 2000 full  # only the full-model flags
+//! cargo run --release --example diagnose_family -- 5 1500 all 1 lag  # lag scenarios, each run
 //! ```
 //!
 //! For every family drive, every hidden effect alone and a few pairs, and every seed: generate a
@@ -322,6 +323,15 @@ fn main() {
     // three members; the 5th argument is the first seed (default 1), for held-out seeds.
     let mode = args.get(3).map(String::as_str).unwrap_or("all");
     let from: u64 = args.get(4).and_then(|a| a.parse().ok()).unwrap_or(1);
+    // 6th argument: only the scenarios whose name (`lag`, `lag+position_direction`) contains
+    // it; every run's verification is then printed too.
+    let only = args.get(5).cloned();
+    let scenarios = || -> Vec<Vec<HiddenEffect>> {
+        scenarios()
+            .into_iter()
+            .filter(|e| only.as_deref().is_none_or(|o| names(e).contains(o)))
+            .collect()
+    };
     let drives = if mode == "fresh" {
         vec![fresh_drive()]
     } else {
@@ -351,6 +361,19 @@ fn main() {
                 .clone()
                 .map(|s| run(drive, &effects, s, n))
                 .collect();
+            if only.is_some() {
+                for o in &outs {
+                    println!(
+                        "  seed {} first {:?} edit {:?} recovered {} | {}",
+                        o.seed,
+                        o.first,
+                        o.edit,
+                        o.recovered()
+                            .map_or("-".to_string(), |r| format!("{:.0} %", 100.0 * r)),
+                        o.verification
+                    );
+                }
+            }
             let right = outs.iter().filter(|o| o.right_first).count();
             let mut rec: Vec<f64> = outs.iter().filter_map(Outcome::recovered).collect();
             rec.sort_by(f64::total_cmp);

@@ -50,10 +50,12 @@ const ISSUE_SCENARIOS: usize = 11;
 /// Known gap (README, "Independent drives for testing diagnosis"): what diagnose reaches today
 /// on this rotation; the test fails if it falls below, and the README says what is missing.
 /// (7 and 5 before the strongest unflagged features were verified by refit; 10 and 9 since;
-/// 11 and 10 since the `bump` term resolves the narrow defect.)
+/// 11 and 10 since the `bump` term resolves the narrow defect; 11 and 11 since the
+/// verification's z-score is taken on the noise part of the paired loss difference: the
+/// `bw1-sine-tar` threshold run's `bins:load:16`, 6.6 % at z = 1.2 before, is verified at 2.4.)
 const KNOWN_RIGHT_FIRST: usize = 11;
 /// See [`KNOWN_RIGHT_FIRST`].
-const KNOWN_RECOVERED: usize = 10;
+const KNOWN_RECOVERED: usize = 11;
 /// Issue #10's bar for the model holding every effect: at most 1 of 20 seeds flags anything.
 const ISSUE_FLAGGED_SEEDS: usize = 1;
 /// Seeds of 20 allowed to flag something: the issue's bar, met since diagnose's null keeps the
@@ -397,5 +399,34 @@ fn narrow_defect_is_named_first_and_its_bump_recovers_the_achievable_reduction()
             (centre - c_true).abs() < 0.5,
             "centre {centre} vs {c_true}: {text}"
         );
+    }
+}
+
+/// The lag runs the verification missed before its z-score was taken on the noise part of the
+/// paired loss difference (seeds 1–5 of the study in README, "Known gap"): a lagged
+/// temperature alone, and beside a position × direction effect. In each, `lag:temp_lag`
+/// gained 19–56 % out of sample but at z = 1.8–2.8, under the unflagged-feature bar of 3
+/// (the gain comes in episodes at set-point changes, which the block sums of the whole
+/// difference counted as noise), so nothing or only `dbins:position` was verified (24–50 % of
+/// the achievable). Reference: the generator's truth — the first-ranked feature reads
+/// `temp_lag`, the first verified edit is the effect's own term `add lag:temp_lag`, and it
+/// recovers ≥ 90 % of the reduction the best single true term achieves.
+#[test]
+fn a_lagged_temperature_is_verified_first_also_beside_position_direction() {
+    use HiddenEffect::{Lag, PositionDirection};
+    let drives = FamilyDrive::members();
+    let cases: [(usize, &[HiddenEffect], u64); 5] = [
+        (0, &[Lag], 5),
+        (1, &[Lag], 4),
+        (2, &[Lag], 1),
+        (0, &[Lag, PositionDirection], 5),
+        (1, &[Lag, PositionDirection], 4),
+    ];
+    for (d, effects, seed) in cases {
+        let o = run(&drives[d], effects, seed, N);
+        let text = describe(&o);
+        assert!(o.right_first, "{text}");
+        assert_eq!(o.edit.as_deref(), Some("add lag:temp_lag"), "{text}");
+        assert!(o.recovered().is_some_and(|r| r >= 0.9), "{text}");
     }
 }
