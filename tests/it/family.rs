@@ -93,6 +93,12 @@ fn right_feature_first_and_first_edit_recovers_the_achievable_reduction() {
             "a bump verified without a defect: {}",
             describe(o)
         );
+        // No step where there is no threshold.
+        assert!(
+            o.effects.contains(&HiddenEffect::Threshold) || !o.verification.contains("*add step"),
+            "a step verified without a threshold: {}",
+            describe(o)
+        );
     }
     eprintln!(
         "right first {right}/{ISSUE_SCENARIOS}, edit ≥ 90 % {recovered}/{ISSUE_SCENARIOS}\n{}",
@@ -268,7 +274,7 @@ fn play_and_interaction_are_suggested_where_they_apply_and_only_there() {
 /// Issue #10: a slowly varying column with **no** effect must not be flagged under strongly
 /// autocorrelated noise. Reference: the generator's truth. `pi-cubic-ar1` logs (AR(1) noise in
 /// seek order, ρ = 0.6) with the threshold effect, diagnosed (with verification) on the model
-/// that holds every effect present (`table`, `dahl:8`, the true `bins:load:16`): the random
+/// that holds every effect present (`table`, `dahl:8`, the true `step:load`): the random
 /// walk `walk`, the warm-up curve and white noise are logged but never enter the bias, so any
 /// flag or verified edit is a false alarm, and none of 6 seeds may have one. Seed 50 is the
 /// held-out log where, before the within-fold gain was required, `walk@lag32.4s` was flagged
