@@ -490,7 +490,7 @@ pub(crate) fn step_at(column: &str, t: f64, se: Option<f64>) -> String {
 
 /// For a verified `add bump` or `add step:COL` edit on `spec`: the same edit with what the
 /// bare term finds when fitted on the whole `log` — the bump's centre and width
-/// (`add bump:1506.89:1.44`), the step's threshold (`add step:load:0.59947`) — and the spec
+/// (`add bump:1506.89:1.44`), the step's threshold (`add step:load:0.599469`) — and the spec
 /// after it; `None` for any other edit or where that fit fails (the edit then stays as it is).
 pub(crate) fn name_searched(
     spec: &crate::model::ModelSpec,
@@ -782,12 +782,12 @@ mod tests {
     fn step_text_rounds_to_the_standard_error_and_reads_back() {
         assert_eq!(
             step_at("load", 0.5994695, Some(0.00089)),
-            "step:load:0.59947"
+            "step:load:0.599469"
         );
         assert_eq!(step_at("load", 599469.5, Some(890.0)), "step:load:599470");
         assert_eq!(step_at("load", 0.25, None), "step:load:0.25");
         assert_eq!(step_at("load", 1.0 / 3.0, None), "step:load:0.333333");
-        for t in ["step:load:0.59947", "step:load:599470"] {
+        for t in ["step:load:0.599469", "step:load:599470"] {
             assert_eq!(crate::model::terms::parse_term(t).unwrap().name(), t);
         }
     }

@@ -367,6 +367,70 @@ fn bump_term_recovers_the_generators_defect() {
     }
 }
 
+/// Reference: the generator's truth. The threshold scenario adds `2·a` where `load > 0.6`
+/// (a = the drive's effect scale × noise std: the largest value of the truth series).
+/// Fitting the user's model plus `step:load` (threshold found from the data) on three drives
+/// must put the threshold within 0.005 of 0.6 (2.5 % of load's std), with a profile standard
+/// error, and the height within 2.5 standard errors of `2·a`; the fitted model survives a
+/// save/load round trip bit for bit.
+#[test]
+fn step_term_recovers_the_generators_threshold() {
+    use biasctl::FittedModel;
+    use biasctl::{family::FamilyConfig, family::generate};
+    let dir = tempfile::tempdir().unwrap();
+    for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
+        let seed = 51 + i as u64;
+        let run = generate(&FamilyConfig::new(
+            drive.clone(),
+            &[HiddenEffect::Threshold],
+            seed,
+            3000,
+        ))
+        .unwrap();
+        let truth = run.truth("threshold").unwrap();
+        let a_true = truth.iter().copied().fold(0.0, f64::max);
+        let terms = diagnose_family::with_term(&diagnose_family::base_terms(&drive), "step:load");
+        let model = diagnose_family::fit_terms(&terms, &run.log);
+        let p = |n: &str| model.param(&format!("step:load.{n}")).unwrap().clone();
+        let (a, t) = (p("A"), p("threshold"));
+        eprintln!(
+            "{} seed {seed}: A {:.3} ± {:.3} (truth {a_true:.3}), threshold {:.4} ± {:.4} \
+             (truth 0.6)",
+            drive.name,
+            a.value,
+            a.se.unwrap(),
+            t.value,
+            t.se.unwrap_or(f64::NAN),
+        );
+        assert!(
+            (t.value - 0.6).abs() < 0.005,
+            "{}: threshold {t:?}",
+            drive.name
+        );
+        assert!(t.se.is_some_and(|se| se > 0.0), "{}: {t:?}", drive.name);
+        assert!(
+            (a.value - a_true).abs() < 2.5 * a.se.unwrap(),
+            "{}: height {a:?} vs {a_true}",
+            drive.name
+        );
+        let path = dir.path().join(format!("{}.json", drive.name));
+        model.save(&path).unwrap();
+        let back = FittedModel::load(&path).unwrap();
+        let (x, y) = (
+            model.predict_log(&run.log).unwrap(),
+            back.predict_log(&run.log).unwrap(),
+        );
+        assert!(
+            x.predicted
+                .iter()
+                .zip(&y.predicted)
+                .all(|(u, v)| u.to_bits() == v.to_bits()),
+            "{}: the reloaded model predicts other bits",
+            drive.name
+        );
+    }
+}
+
 /// Issue #10's bar on the narrow defect, on every drive (seeds not in the rotation).
 /// Reference: the generator's truth — the first-ranked flagged feature is `position`, the first
 /// verified edit adds a `bump` whose centre lies within half a track of the track where the

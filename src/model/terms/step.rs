@@ -46,7 +46,8 @@
 //! Reported: `A` (standard error from the least squares) and `threshold` (column unit), whose
 //! standard error is half the width of the thresholds whose scanned RSS lies within `s²` of the
 //! minimum (`s² = RSS/dof`: the Δχ² = 1 profile interval, from the scan, extended to the
-//! neighbouring logged values). Exportable to C (`export c`); in single precision a logged value
+//! neighbouring logged values; it assumes independent errors, so serially correlated noise
+//! makes it too narrow). Exportable to C (`export c`); in single precision a logged value
 //! within float rounding of `T` may fall on the other side.
 
 use super::covariate_position;
