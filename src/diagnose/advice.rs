@@ -559,11 +559,12 @@ pub(crate) fn defect_screen(x: &[f64], r: &[f64]) -> Option<crate::model::terms:
 /// (1.4826·MAD), centred on its mean; and its variance. `None` when the robust scale is 0.
 /// What the screens ([`defect_screen`], [`step_screen`]) scan, so that one heavy-tailed
 /// outlier cannot look like a defect or a step.
-fn clipped_residual(r: &[f64]) -> Option<(Vec<f64>, f64)> {
-    let sorted = crate::numeric::stats::sorted(r);
-    let med = crate::numeric::stats::percentile_sorted(&sorted, 50.0)?;
-    let dev = crate::numeric::stats::sorted(&r.iter().map(|v| (v - med).abs()).collect::<Vec<_>>());
-    let s = 1.4826 * crate::numeric::stats::percentile_sorted(&dev, 50.0)?;
+pub(crate) fn clipped_residual(r: &[f64]) -> Option<(Vec<f64>, f64)> {
+    use crate::numeric::stats::percentile_select;
+    // The medians by selection (O(n), the same bits as sorting: `percentile_select`).
+    let med = percentile_select(&mut r.to_vec(), 50.0)?;
+    let mut dev: Vec<f64> = r.iter().map(|v| (v - med).abs()).collect();
+    let s = 1.4826 * percentile_select(&mut dev, 50.0)?;
     if !(s > 0.0 && s.is_finite()) {
         return None;
     }
@@ -613,26 +614,30 @@ pub(crate) fn step_variant(term: &str, spec: &crate::model::ModelSpec) -> Option
 /// independent and the chance is smaller still).
 pub(crate) const STEP_MARGIN: f64 = DEFECT_MARGIN;
 
-/// The step screen: whether the residual `r` (one per measured row) steps at one value of
-/// the covariate `v` (the same rows). The step term's own scan
-/// ([`crate::model::terms::step`]: every split leaving enough rows on each side) runs on the
-/// residual clipped and centred as for [`defect_screen`]; the best split passes when the RSS
+/// The step screen: whether a residual (one per measured row) steps at one value of the
+/// covariate `v` (the same rows). The step term's own scan ([`crate::model::terms::step`]:
+/// every split leaving enough rows on each side) runs on the residual clipped and centred as
+/// for [`defect_screen`], given with its variance (`clipped`, [`clipped_residual`]: computed
+/// once per residual, whatever the number of columns screened); the best split passes when the RSS
 /// reduction it alone would bring exceeds the clipped residual's variance × (`2·ln M` +
 /// [`STEP_MARGIN`]) **and** what a straight line in `v` brings (a linear effect is a line; the
 /// best split of a line explains about ¾ of it). Returns that split. The screen only decides
 /// whether `step:COL` is verified by refit; the refit decides whether it is suggested.
-pub(crate) fn step_screen(v: &[f64], r: &[f64]) -> Option<crate::model::terms::step::StepHit> {
+pub(crate) fn step_screen(
+    v: &[f64],
+    clipped: &(Vec<f64>, f64),
+) -> Option<crate::model::terms::step::StepHit> {
     use crate::model::terms::step;
-    let (centred, var) = clipped_residual(r)?;
+    let (centred, var) = (&clipped.0, clipped.1);
     let rows: Vec<(f64, f64)> = v
         .iter()
-        .zip(&centred)
+        .zip(centred)
         .filter(|(a, _)| a.is_finite())
         .map(|(&a, &b)| (a, b))
         .collect();
     let hits = step::scan(
         v,
-        &centred,
+        centred,
         (f64::NEG_INFINITY, f64::INFINITY),
         step::min_side(rows.len()),
     );
@@ -740,20 +745,21 @@ mod tests {
     /// explains it better than any one step) in none of 20.
     #[test]
     fn step_screen_finds_a_threshold_and_passes_noise_and_lines_by() {
+        let screen = |v: &[f64], r: &[f64]| step_screen(v, &clipped_residual(r).unwrap());
         let (v, r) = step_rows(1, 1500, 1.0, 0.0);
-        let hit = step_screen(&v, &r).expect("the planted step");
+        let hit = screen(&v, &r).expect("the planted step");
         assert!((hit.threshold - 0.8).abs() < 0.1, "{hit:?}");
         let noise = (0..40)
             .filter(|&s| {
                 let (v, r) = step_rows(100 + s, 1500, 0.0, 0.0);
-                step_screen(&v, &r).is_some()
+                screen(&v, &r).is_some()
             })
             .count();
         assert_eq!(noise, 0);
         let lines = (0..20)
             .filter(|&s| {
                 let (v, r) = step_rows(200 + s, 1500, 0.0, 1.0);
-                step_screen(&v, &r).is_some()
+                screen(&v, &r).is_some()
             })
             .count();
         assert_eq!(lines, 0);

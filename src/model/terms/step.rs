@@ -151,8 +151,9 @@ pub(crate) fn min_side(n: usize) -> usize {
 struct Splits {
     /// `(value, rows)`, increasing.
     groups: Vec<(f64, usize)>,
-    /// Smallest and largest value (0 when empty).
+    /// Smallest value (0 when empty).
     lo: f64,
+    /// Largest value (0 when empty).
     hi: f64,
 }
 
@@ -206,15 +207,12 @@ pub(crate) struct StepHit {
     pub threshold: f64,
     /// Rows at or below the threshold.
     pub below: usize,
-    /// Least-squares height of the step on the scanned residual (bias unit).
-    pub height: f64,
 }
 
 /// The scan of the module docs, step 1: `v` and `r` are the column and the residual of the
 /// same rows (non-finite pairs skipped). Every split between neighbouring distinct values
 /// whose threshold lies in `[t_lo, t_hi]` and leaves at least `min_side` rows on each side is
-/// scored. Returns the scored splits in increasing threshold order and the residual's sum of
-/// squares about its mean.
+/// scored. Returns the scored splits in increasing threshold order.
 pub(crate) fn scan(
     v: &[f64],
     r: &[f64],
@@ -262,7 +260,6 @@ pub(crate) fn scan(
                 score: c * c / gg,
                 threshold: t,
                 below,
-                height: c / gg,
             });
         }
     }
