@@ -753,21 +753,25 @@ pub(crate) fn verify(
     // The step screen, per covariate column a `step:COL` variant is scored for (the clipped
     // residual and the measured rows computed once, on first use).
     let mut steps: HashMap<String, bool> = HashMap::new();
-    let mut clipped: Option<Option<((Vec<f64>, f64), Vec<usize>)>> = None;
+    let mut clipped: Option<Option<(Vec<f64>, f64)>> = None;
+    let mut rows: Option<Vec<usize>> = None;
     let mut step_screened = |variant: &str| {
         let col = variant.split_once(':').map_or("", |(_, c)| c);
         *steps.entry(col.to_string()).or_insert_with(|| {
             let Some(k) = log.schema.covariate_index(col) else {
                 return false;
             };
-            let shared = clipped.get_or_insert_with(|| {
-                super::advice::clipped_residual(&before).map(|c| (c, measured_rows(log)))
-            });
-            shared.as_ref().is_some_and(|(c, rows)| {
-                let column = log.covariate(k);
-                let v: Vec<f64> = rows.iter().map(|&i| column[i]).collect();
-                super::advice::step_screen(&v, c).is_some()
-            })
+            let Some(c) = clipped.get_or_insert_with(|| super::advice::clipped_residual(&before))
+            else {
+                return false;
+            };
+            let column = log.covariate(k);
+            let v: Vec<f64> = rows
+                .get_or_insert_with(|| measured_rows(log))
+                .iter()
+                .map(|&i| column[i])
+                .collect();
+            super::advice::step_screen(&v, c).is_some()
         })
     };
     let extra = defect_candidate(spec, defect.is_some(), cands);
