@@ -2039,6 +2039,75 @@ mod tests {
         assert!(solve(&terms, &data, &opts).is_ok());
     }
 
+    /// `step` searches its own threshold (`Term::search`) on the RSS by variable projection.
+    /// Reference: [`slow_rss_of`], a full solve per version. On a simulated log with a logged
+    /// covariate and a planted step in it, the projected RSS at thresholds across the column
+    /// equals the full solve's to 1e-9, and the whole search run on full solves ends at the
+    /// same threshold (or at an RSS equal to 1e-12), the planted one.
+    #[test]
+    fn step_search_by_projection_equals_full_solves() {
+        use crate::model::term::SearchContext;
+        let mut rng = SimRng::new(11);
+        let mut text = String::from("time_s,track,bias,load\n");
+        let (mut x, mut load) = (200.0f64, 0.0f64);
+        for k in 0..3000 {
+            x = (x + (rng.uniform() - 0.5) * 160.0)
+                .round()
+                .clamp(0.0, 400.0);
+            load = 0.95 * load + 0.3 * rng.normal();
+            let load = (load * 1000.0).round() / 1000.0;
+            let d = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
+            let bias = 5.0 + 0.02 * x + 1.5 * d + if load > 0.4 { 2.0 } else { 0.0 } + rng.normal();
+            text += &format!("{:?},{x:?},{bias:?},{load:?}\n", 0.2 * k as f64);
+        }
+        let log = Log::from_reader("step.csv", text.as_bytes(), &Default::default()).unwrap();
+        let opts = FitOptions::default().check().unwrap();
+        let spec = ModelSpec::parse("poly2,direction,step:load").unwrap();
+        let data = FitData::new(&log);
+        let mut terms = spec
+            .terms
+            .iter()
+            .map(|t| t.prepare(&data))
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap();
+        let k = terms.iter().position(|t| t.name() == "step:load").unwrap();
+        let proj = Projection::new(&terms, k, &data, &opts).expect("fast path applies");
+        let nl = terms[k].nonlinear().unwrap();
+        for i in 0..30 {
+            let t = nl.lo + (nl.hi - nl.lo) * (f64::from(i) + rng.uniform()) / 30.0;
+            let version = terms[k].with_nonlinear(t).unwrap();
+            let slow = slow_rss_of(&terms, k, &version, &data, &opts);
+            let fast = proj.fast_rss_of(&version).expect("closed form");
+            assert!(
+                (fast - slow).abs() <= 1e-9 * slow,
+                "threshold {t}: {fast} vs {slow}"
+            );
+        }
+        drop(proj);
+        let measured = log.measured_count();
+        let (_, p) = offsets(&terms);
+        let dof = measured - p - 1;
+        let found = own_search(&terms, k, &data, &opts, dof).expect("step searches itself");
+        let residual = rest_residual(&terms, k, &data, &opts);
+        let residual_fn = || -> &[f64] { &residual };
+        let rss = |t: &Arc<dyn Term>| slow_rss_of(&terms, k, t, &data, &opts);
+        let ctx = SearchContext::new(&data, &residual_fn, &rss, dof);
+        let reference = terms[k].search(&ctx).unwrap();
+        let threshold = |t: &Arc<dyn Term>| t.nonlinear().unwrap().value;
+        let (a, b) = (threshold(&found.term), threshold(&reference.term));
+        let (fa, fb) = (
+            slow_rss_of(&terms, k, &found.term, &data, &opts),
+            slow_rss_of(&terms, k, &reference.term, &data, &opts),
+        );
+        assert!(
+            a.to_bits() == b.to_bits() || (fa - fb).abs() <= 1e-12 * fb,
+            "projected {a} (RSS {fa}) vs full solves {b} (RSS {fb})"
+        );
+        assert!((a - 0.4).abs() < 0.02, "threshold {a} vs 0.4");
+        terms[k] = found.term;
+        assert!(solve(&terms, &data, &opts).is_ok());
+    }
+
     #[test]
     fn fit_statistics_replay_equals_predict_log() {
         use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};

@@ -625,9 +625,20 @@ fn table_suggestion_is_verified_with_finer_tables() {
             "bump"
         ]
     );
+    // A covariate's `bins` is also scored as a `step` (a threshold), unless the model has one.
     assert_eq!(
         variants("bins:load", &spec, None),
+        ["bins:load", "bins:load:8", "bins:load:16", "step:load"]
+    );
+    let stepped = ModelSpec::parse("poly2,dahl,step:load:0.6").unwrap();
+    assert_eq!(
+        variants("bins:load", &stepped, None),
         ["bins:load", "bins:load:8", "bins:load:16"]
+    );
+    assert_eq!(variants("bins:load:8", &spec, None), ["bins:load:8"]);
+    assert_eq!(
+        variants("dbins:load", &spec, None),
+        ["dbins:load", "dbins:load:8", "dbins:load:16"]
     );
 }
 

@@ -475,13 +475,15 @@ pub(crate) const TABLE_REFINEMENTS: [f64; 2] = [2.0, 4.0];
 /// [`knot_variants`], and for `table` the cross-validated spacing (`spacing`, when finer than
 /// the model's table) then the model's table spacing over each of [`TABLE_REFINEMENTS`]; for
 /// `table` and `bins:position` also `bump` (a narrow localized defect, see
-/// [`super::advice::BUMP_TERM`]), unless the model has one.
+/// [`super::advice::BUMP_TERM`]), unless the model has one; for `bins:COL` on a covariate
+/// also `step:COL` (a threshold, see [`super::advice::STEP_HEAD`]), unless the model has one.
 pub(super) fn variants(term: &str, spec: &ModelSpec, spacing: Option<f64>) -> Vec<String> {
     if term != "table" {
         let mut out = knot_variants(term);
         if super::advice::tries_bump(term) {
             out.extend(super::advice::bump_variant(spec));
         }
+        out.extend(super::advice::step_variant(term, spec));
         return out;
     }
     let current = spec.terms.iter().find_map(|t| {
@@ -734,8 +736,8 @@ pub(crate) fn verify(
         let mut groups = c.terms.iter().map(|t| {
             variants(t, spec, c.table_spacing)
                 .iter()
-                // `bump` waits for the narrow-defect screen on the residual below.
-                .filter(|v| v.as_str() != super::advice::BUMP_TERM)
+                // `bump` and `step` wait for their screens on the residual below.
+                .filter(|v| v.as_str() != super::advice::BUMP_TERM && !super::advice::is_step(v))
                 .filter_map(|v| {
                     edit_for(v, spec, c.table_spacing)
                         .and_then(|e| spec.apply(&e))
@@ -783,6 +785,30 @@ pub(crate) fn verify(
             .collect();
         super::advice::defect_screen(&x, &before)
     };
+    // The step screen, per covariate column a `step:COL` variant is scored for (the clipped
+    // residual and the measured rows computed once, on first use).
+    let mut steps: HashMap<String, bool> = HashMap::new();
+    let mut clipped: Option<Option<(Vec<f64>, f64)>> = None;
+    let mut rows: Option<Vec<usize>> = None;
+    let mut step_screened = |variant: &str| {
+        let col = variant.split_once(':').map_or("", |(_, c)| c);
+        *steps.entry(col.to_string()).or_insert_with(|| {
+            let Some(k) = log.schema.covariate_index(col) else {
+                return false;
+            };
+            let Some(c) = clipped.get_or_insert_with(|| super::advice::clipped_residual(&before))
+            else {
+                return false;
+            };
+            let column = log.covariate(k);
+            let v: Vec<f64> = rows
+                .get_or_insert_with(|| measured_rows(log))
+                .iter()
+                .map(|&i| column[i])
+                .collect();
+            super::advice::step_screen(&v, c).is_some()
+        })
+    };
     let extra = defect_candidate(spec, defect.is_some(), cands);
     let mut seen: Vec<String> = Vec::new();
     for c in cands.iter().chain(&extra) {
@@ -793,6 +819,9 @@ pub(crate) fn verify(
                 if variant == super::advice::BUMP_TERM
                     && !super::advice::worth_a_bump(defect.as_ref(), c.table_spacing)
                 {
+                    continue;
+                }
+                if super::advice::is_step(variant) && !step_screened(variant) {
                     continue;
                 }
                 let alt = k > 0;
@@ -856,12 +885,13 @@ pub(crate) fn verify(
     }
     v.edits
         .sort_by(|a, b| b.verified.cmp(&a.verified).then(b.gain.total_cmp(&a.gain)));
-    // A verified `add bump` names the centre and width it finds on the whole log.
+    // A verified `add bump` (`add step:COL`) names the centre and width (the threshold) it
+    // finds on the whole log.
     for e in v.edits.iter_mut().filter(|e| e.verified) {
         let named = e
             .model_edit
             .as_ref()
-            .and_then(|m| super::advice::name_bump(spec, m, log, &config.fit));
+            .and_then(|m| super::advice::name_searched(spec, m, log, &config.fit));
         if let Some((edit, next)) = named {
             e.edit = edit.to_string();
             e.terms = next.to_string();

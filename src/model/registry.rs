@@ -19,7 +19,7 @@
 use super::term::{Term, TermSpec};
 use super::terms::{
     bins, bump, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly,
-    scale, seek, stribeck, table, viscous,
+    scale, seek, step, stribeck, table, viscous,
 };
 use super::{ModelError, SpecError};
 use std::sync::Arc;
@@ -136,6 +136,12 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
         Some("bump[:CENTRE:WIDTH]"),
         bump::parse,
         restore_as::<bump::BumpTerm>,
+    ),
+    row(
+        "step",
+        Some("step:COL[:T]"),
+        step::parse,
+        restore_as::<step::StepTerm>,
     ),
     row("by", Some("by:A:B"), by::parse, restore_as::<by::ByTerm>),
     row(

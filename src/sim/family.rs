@@ -390,7 +390,9 @@ impl HiddenEffect {
     }
 
     /// The term that captures the effect (the "achievable" refit adds it): `col:temp_fast`,
-    /// `col:temp_slow`, `bins:load:16` (knots dense enough to follow the step), `lag:temp_lag`, `dbins:humid`, `dbins:position`,
+    /// `col:temp_slow`, `step:load` (the generator's own form: a step of fitted height at a
+    /// fitted threshold; `bins:load:16`, the stand-in before the step term, fits 17 parameters
+    /// and scored some in-sample overfit as achievable), `lag:temp_lag`, `dbins:humid`, `dbins:position`,
     /// `bump` (the generator's own form: a Gaussian with fitted centre and width; `table:2`,
     /// the stand-in before the bump term, fits ~120 knots and scored its in-sample overfit as
     /// achievable: 1.83 counts in sample but 2.07 out of sample on a `bw-sine-t` log where
@@ -400,7 +402,7 @@ impl HiddenEffect {
         match self {
             HiddenEffect::FastCovariate => Some("col:temp_fast"),
             HiddenEffect::SlowCovariate => Some("col:temp_slow"),
-            HiddenEffect::Threshold => Some("bins:load:16"),
+            HiddenEffect::Threshold => Some("step:load"),
             HiddenEffect::Lag => Some("lag:temp_lag"),
             HiddenEffect::CovariateDirection => Some("dbins:humid"),
             HiddenEffect::PositionDirection => Some("dbins:position"),

@@ -100,7 +100,7 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
         "held_out.csv",
         &edit_log(&text, false, 300..400),
     );
-    let models: [(&str, &str); 7] = [
+    let models: [(&str, &str); 8] = [
         ("pd", "--model=position-direction"),
         ("cal", "--model=calibration"),
         ("dahl", "--model=dahl"),
@@ -116,6 +116,8 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
         ("fric", "--terms=poly2,viscous,stribeck,viscous:temp_c"),
         // A localized defect (the fitted Gaussian's centre and width).
         ("bump", "--terms=poly2,direction,bump"),
+        // A threshold in a covariate (the fitted step's height and threshold).
+        ("step", "--terms=poly2,direction,step:temp_c"),
     ];
     let mut jobs = Vec::new();
     for (name, spec) in models {

@@ -95,6 +95,12 @@ fn right_feature_first_and_first_edit_recovers_the_achievable_reduction() {
             "a bump verified without a defect: {}",
             describe(o)
         );
+        // No step where there is no threshold.
+        assert!(
+            o.effects.contains(&HiddenEffect::Threshold) || !o.verification.contains("*add step"),
+            "a step verified without a threshold: {}",
+            describe(o)
+        );
     }
     eprintln!(
         "right first {right}/{ISSUE_SCENARIOS}, edit ≥ 90 % {recovered}/{ISSUE_SCENARIOS}\n{}",
@@ -270,7 +276,7 @@ fn play_and_interaction_are_suggested_where_they_apply_and_only_there() {
 /// Issue #10: a slowly varying column with **no** effect must not be flagged under strongly
 /// autocorrelated noise. Reference: the generator's truth. `pi-cubic-ar1` logs (AR(1) noise in
 /// seek order, ρ = 0.6) with the threshold effect, diagnosed (with verification) on the model
-/// that holds every effect present (`table`, `dahl:8`, the true `bins:load:16`): the random
+/// that holds every effect present (`table`, `dahl:8`, the true `step:load`): the random
 /// walk `walk`, the warm-up curve and white noise are logged but never enter the bias, so any
 /// flag or verified edit is a false alarm, and none of 6 seeds may have one. Seed 50 is the
 /// held-out log where, before the within-fold gain was required, `walk@lag32.4s` was flagged
@@ -343,6 +349,70 @@ fn bump_term_recovers_the_generators_defect() {
         assert!(
             (a.value - a_true).abs() < 2.5 * a.se.unwrap(),
             "{}: amplitude {a:?} vs {a_true}",
+            drive.name
+        );
+        let path = dir.path().join(format!("{}.json", drive.name));
+        model.save(&path).unwrap();
+        let back = FittedModel::load(&path).unwrap();
+        let (x, y) = (
+            model.predict_log(&run.log).unwrap(),
+            back.predict_log(&run.log).unwrap(),
+        );
+        assert!(
+            x.predicted
+                .iter()
+                .zip(&y.predicted)
+                .all(|(u, v)| u.to_bits() == v.to_bits()),
+            "{}: the reloaded model predicts other bits",
+            drive.name
+        );
+    }
+}
+
+/// Reference: the generator's truth. The threshold scenario adds `2·a` where `load > 0.6`
+/// (a = the drive's effect scale × noise std: the largest value of the truth series).
+/// Fitting the user's model plus `step:load` (threshold found from the data) on three drives
+/// must put the threshold within 0.005 of 0.6 (2.5 % of load's std), with a profile standard
+/// error, and the height within 2.5 standard errors of `2·a`; the fitted model survives a
+/// save/load round trip bit for bit.
+#[test]
+fn step_term_recovers_the_generators_threshold() {
+    use biasctl::FittedModel;
+    use biasctl::{family::FamilyConfig, family::generate};
+    let dir = tempfile::tempdir().unwrap();
+    for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
+        let seed = 51 + i as u64;
+        let run = generate(&FamilyConfig::new(
+            drive.clone(),
+            &[HiddenEffect::Threshold],
+            seed,
+            3000,
+        ))
+        .unwrap();
+        let truth = run.truth("threshold").unwrap();
+        let a_true = truth.iter().copied().fold(0.0, f64::max);
+        let terms = diagnose_family::with_term(&diagnose_family::base_terms(&drive), "step:load");
+        let model = diagnose_family::fit_terms(&terms, &run.log);
+        let p = |n: &str| model.param(&format!("step:load.{n}")).unwrap().clone();
+        let (a, t) = (p("A"), p("threshold"));
+        eprintln!(
+            "{} seed {seed}: A {:.3} ± {:.3} (truth {a_true:.3}), threshold {:.4} ± {:.4} \
+             (truth 0.6)",
+            drive.name,
+            a.value,
+            a.se.unwrap(),
+            t.value,
+            t.se.unwrap_or(f64::NAN),
+        );
+        assert!(
+            (t.value - 0.6).abs() < 0.005,
+            "{}: threshold {t:?}",
+            drive.name
+        );
+        assert!(t.se.is_some_and(|se| se > 0.0), "{}: {t:?}", drive.name);
+        assert!(
+            (a.value - a_true).abs() < 2.5 * a.se.unwrap(),
+            "{}: height {a:?} vs {a_true}",
             drive.name
         );
         let path = dir.path().join(format!("{}.json", drive.name));

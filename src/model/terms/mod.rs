@@ -21,6 +21,7 @@ pub mod play;
 pub mod poly;
 pub mod scale;
 pub mod seek;
+pub mod step;
 pub mod stribeck;
 pub mod table;
 pub mod viscous;
