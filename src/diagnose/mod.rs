@@ -978,7 +978,7 @@ fn shuffle_rows<T: Copy>(v: &mut [T], rng: &mut SimRng) {
         rng.below_descending(lo as u64, i as u64, &mut js);
         for (step, &j) in js.iter().enumerate() {
             if let Some(&ahead) = js.get(step + SHUFFLE_AHEAD) {
-                std::hint::black_box(v[ahead as usize]);
+                smoother::prefetch(&v[ahead as usize..]);
             }
             v.swap(i - step, j as usize);
         }
@@ -987,7 +987,7 @@ fn shuffle_rows<T: Copy>(v: &mut [T], rng: &mut SimRng) {
 }
 
 /// How many swaps ahead [`shuffle_rows`] reads its rows.
-const SHUFFLE_AHEAD: usize = 16;
+const SHUFFLE_AHEAD: usize = 32;
 
 /// Whether a feature is a time feature (`elapsed_s`, `seek_index`): tested against the plain
 /// row permutation, since serial structure of the residual is the effect it stands for.

@@ -523,7 +523,7 @@ const PREFETCH_BLOCKS: usize = 16;
 
 /// A hint to bring the cache line of `x[0]` into the cache (nothing elsewhere).
 #[inline(always)]
-fn prefetch(x: &[f64]) {
+pub(crate) fn prefetch<T>(x: &[T]) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch has no effect beyond the cache; SSE is part of x86_64.
     #[allow(unused_unsafe)]
