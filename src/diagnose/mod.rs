@@ -962,9 +962,10 @@ fn shuffle<T>(v: &mut [T], rng: &mut SimRng) {
 
 /// [`shuffle`] of a residual, the same swaps in the same order (so the same permutation,
 /// tested): the random indices of a chunk are drawn first ([`SimRng::below_descending`],
-/// without a division per draw), then each swap reads the row it will swap
+/// without a division per draw), then each swap prefetches the row it will swap
 /// [`SHUFFLE_AHEAD`] swaps later, so the cache misses of a residual larger than the cache
-/// overlap instead of following one another.
+/// overlap instead of following one another (a prefetch, unlike a load, does not hold the
+/// swaps behind it while it waits).
 fn shuffle_rows<T: Copy>(v: &mut [T], rng: &mut SimRng) {
     const CHUNK: usize = 4096;
     if v.len() < 2 {
