@@ -138,7 +138,7 @@ use crate::numeric::rng::SimRng;
 use crate::numeric::stats;
 use crate::render::OutputError;
 use rayon::prelude::*;
-use smoother::{Binned, FTest, Permuted, SlotTable, Unusable};
+use smoother::{Binned, BlockLane, FTest, LANES, Permuted, SlotTable, Unusable};
 
 /// Smallest number of measured rows per cross-validation fold.
 pub(crate) const MIN_ROWS_PER_FOLD: usize = 10;
@@ -582,10 +582,11 @@ pub fn diagnose(
     let signed_residuals: Option<Vec<f64>> = direction
         .as_ref()
         .map(|d| residuals.iter().zip(d).map(|(r, d)| r * d).collect());
+    // One report per column, independent of the others: in parallel, in column order.
     let mut reports: Vec<(usize, FeatureReport)> = table
         .columns()
-        .iter()
-        .zip(&analysed)
+        .par_iter()
+        .zip(analysed.par_iter())
         .enumerate()
         .map(|(j, (col, a))| {
             let mut r = match a {
@@ -819,9 +820,14 @@ fn forward_pass(
     };
     let mut r = y.to_vec();
     for _ in 0..FORWARD_STEPS {
-        let mut gains: Vec<(usize, Gain)> = flagged
+        // Each candidate's gain is independent of the others': in parallel, in order.
+        let candidates: Vec<usize> = flagged
             .iter()
+            .copied()
             .filter(|j| !out.order.contains(j))
+            .collect();
+        let mut gains: Vec<(usize, Gain)> = candidates
+            .par_iter()
             .filter_map(|&j| eval(j, &r).map(|g| (j, g)))
             .filter(|(_, g)| g.explained > 0.0)
             .collect();
@@ -838,19 +844,21 @@ fn forward_pass(
         let mut chosen = tied[0];
         if tied.len() > 1 {
             // For each tied candidate: what is left of the others once it is removed.
-            let mut covers: Vec<Cover> = Vec::new();
-            for &(c, gc) in &tied {
-                let Ok(a) = &analysed[c] else { continue };
-                let rc = remove(&a.binned, gc, &r, ctx);
-                let mut worst = 0.0f64;
-                let mut left = Vec::new();
-                for &(j, gj) in tied.iter().filter(|(j, _)| *j != c) {
-                    let after = eval(j, &rc).map_or(0.0, |g| g.explained);
-                    worst = worst.max(after / gj.explained);
-                    left.push((j, after));
-                }
-                covers.push((c, gc, worst, left));
-            }
+            let covers: Vec<Cover> = tied
+                .par_iter()
+                .filter_map(|&(c, gc)| {
+                    let a = analysed[c].as_ref().ok()?;
+                    let rc = remove(&a.binned, gc, &r, ctx);
+                    let mut worst = 0.0f64;
+                    let mut left = Vec::new();
+                    for &(j, gj) in tied.iter().filter(|(j, _)| *j != c) {
+                        let after = eval(j, &rc).map_or(0.0, |g| g.explained);
+                        worst = worst.max(after / gj.explained);
+                        left.push((j, after));
+                    }
+                    Some((c, gc, worst, left))
+                })
+                .collect();
             let is_covariate = |j: usize| {
                 analysed[j]
                     .as_ref()
@@ -884,11 +892,14 @@ fn forward_pass(
             r = remove(&a.binned, gc, &r, ctx);
         }
     }
-    for j in 0..m {
-        if out.beyond[j].is_none() {
-            out.beyond[j] = eval(j, &r).map(|g| g.explained);
-        }
-    }
+    let rest: Vec<Option<f64>> = (0..m)
+        .into_par_iter()
+        .map(|j| match out.beyond[j] {
+            None => eval(j, &r).map(|g| g.explained),
+            taken => taken,
+        })
+        .collect();
+    out.beyond = rest;
     out.left = r;
     out
 }
@@ -946,9 +957,10 @@ fn shuffle<T>(v: &mut [T], rng: &mut SimRng) {
 
 /// [`shuffle`] of a residual, the same swaps in the same order (so the same permutation,
 /// tested): the random indices of a chunk are drawn first ([`SimRng::below_descending`],
-/// without a division per draw), then each swap reads the row it will swap
+/// without a division per draw), then each swap prefetches the row it will swap
 /// [`SHUFFLE_AHEAD`] swaps later, so the cache misses of a residual larger than the cache
-/// overlap instead of following one another.
+/// overlap instead of following one another (a prefetch, unlike a load, does not hold the
+/// swaps behind it while it waits).
 fn shuffle_rows<T: Copy>(v: &mut [T], rng: &mut SimRng) {
     const CHUNK: usize = 4096;
     if v.len() < 2 {
@@ -962,7 +974,7 @@ fn shuffle_rows<T: Copy>(v: &mut [T], rng: &mut SimRng) {
         rng.below_descending(lo as u64, i as u64, &mut js);
         for (step, &j) in js.iter().enumerate() {
             if let Some(&ahead) = js.get(step + SHUFFLE_AHEAD) {
-                std::hint::black_box(v[ahead as usize]);
+                smoother::prefetch(&v[ahead as usize..]);
             }
             v.swap(i - step, j as usize);
         }
@@ -971,7 +983,7 @@ fn shuffle_rows<T: Copy>(v: &mut [T], rng: &mut SimRng) {
 }
 
 /// How many swaps ahead [`shuffle_rows`] reads its rows.
-const SHUFFLE_AHEAD: usize = 16;
+const SHUFFLE_AHEAD: usize = 32;
 
 /// Whether a feature is a time feature (`elapsed_s`, `seek_index`): tested against the plain
 /// row permutation, since serial structure of the residual is the effect it stands for.
@@ -1133,18 +1145,35 @@ struct PermWorker {
     tests: Vec<FTest>,
     /// The row permutation of the residual (block length 1), shuffled in place.
     rows: Vec<f64>,
-    /// The block order of a block permutation.
-    order: Vec<usize>,
+    /// The block orders of the [`LANES`] block permutations of a batch.
+    orders: [Vec<usize>; LANES],
     /// A materialised permutation and its direction-signed copy, for a group without a
     /// [`SlotTable`] only.
     perm: Vec<f64>,
     signed: Vec<f64>,
-    /// Per-slot sums of the fused pass (plain and signed residual).
+    /// Per-slot sums of the fused pass (plain and signed residual) of one permutation.
     acc: Vec<f64>,
     acc_signed: Vec<f64>,
+    /// The same for the lanes of a batch, and the batch's gathered rows.
+    acc_lanes: Vec<[f64; LANES]>,
+    acc_signed_lanes: Vec<[f64; LANES]>,
+    chunk: Vec<[f64; LANES]>,
+    /// `stat[l·m + k]`: feature `k`'s statistic in permutation `l` of the batch.
     stat: Vec<f64>,
     raw: Vec<usize>,
     adj: Vec<usize>,
+}
+
+/// What every permutation of one test shares.
+struct PermInput<'a, 'b> {
+    usable: &'a [(usize, &'b Analysed)],
+    y: &'a [f64],
+    sst: f64,
+    direction: Option<&'a [f64]>,
+    lengths: &'a [usize],
+    groups: &'a [PermGroup],
+    seed: u64,
+    permutations: usize,
 }
 
 impl PermWorker {
@@ -1155,107 +1184,179 @@ impl PermWorker {
         PermWorker {
             tests: tests.to_vec(),
             rows: Vec::new(),
-            order: Vec::new(),
+            orders: Default::default(),
             perm: Vec::new(),
             signed: Vec::new(),
             acc: Vec::new(),
             acc_signed: Vec::new(),
-            stat: vec![0.0; m],
+            acc_lanes: Vec::new(),
+            acc_signed_lanes: Vec::new(),
+            chunk: Vec::new(),
+            stat: vec![0.0; m * LANES],
             raw: vec![0; m],
             adj: vec![0; m],
         }
     }
 
-    /// Permutation `i`: the residual permuted once per distinct block length (`lengths`), each
-    /// feature tested against the permutation of its own block (`groups`, one per length,
-    /// one fused pass each over the permutation read in place); the family-wise statistic is
-    /// the smallest over features.
-    #[allow(clippy::too_many_arguments)]
-    fn run(
-        &mut self,
-        i: usize,
-        usable: &[(usize, &Analysed)],
-        y: &[f64],
-        sst: f64,
-        direction: Option<&[f64]>,
-        lengths: &[usize],
-        groups: &[PermGroup],
-        seed: u64,
-    ) {
-        let n = y.len();
-        for g in groups {
-            let b = g.length;
-            let len = lengths[b];
-            let stream = PERM_STREAM + PERM_STRIDE * i as u64 + b as u64;
-            let mut rng = SimRng::substream(seed, stream);
+    /// The random generator of permutation `i` for block length index `b`.
+    fn rng(seed: u64, i: usize, b: usize) -> SimRng {
+        SimRng::substream(seed, PERM_STREAM + PERM_STRIDE * i as u64 + b as u64)
+    }
+
+    /// Permutations `LANES·batch ..` (at most [`LANES`], fewer at the end): the residual
+    /// permuted once per distinct block length, each feature tested against the permutation
+    /// of its own block (`groups`, one per length, one fused pass each over the permutation
+    /// read in place — the block permutations of the batch side by side in the lanes of one
+    /// vector); the family-wise statistic is the smallest over features. Each permutation
+    /// draws from its own streams, and each lane's sums are those of its own pass, so the
+    /// counts are those of one permutation at a time.
+    fn run_batch(&mut self, batch: usize, p: &PermInput) {
+        let first = LANES * batch;
+        let count = LANES.min(p.permutations - first);
+        let m = p.usable.len();
+        let n = p.y.len();
+        let mut stat = std::mem::take(&mut self.stat);
+        for g in p.groups {
+            let len = p.lengths[g.length];
             match &g.table {
-                Some(table) => {
-                    let permuted = if len <= 1 {
-                        self.rows.clear();
-                        self.rows.extend_from_slice(y);
-                        shuffle_rows(&mut self.rows, &mut rng);
-                        Permuted::Rows(&self.rows)
-                    } else {
-                        let offset = draw_blocks(n, len, &mut self.order, &mut rng);
-                        Permuted::Blocks {
-                            y,
-                            block: len,
-                            offset,
-                            order: &self.order,
+                Some(table) if len > 1 => {
+                    let mut offsets = [0usize; LANES];
+                    for (l, offset) in offsets.iter_mut().enumerate().take(count) {
+                        let mut rng = Self::rng(p.seed, first + l, g.length);
+                        *offset = draw_blocks(n, len, &mut self.orders[l], &mut rng);
+                    }
+                    // Unused lanes (the last batch) repeat lane 0; their sums are ignored.
+                    let lanes: [BlockLane; LANES] = std::array::from_fn(|l| {
+                        let l = if l < count { l } else { 0 };
+                        BlockLane {
+                            offset: offsets[l],
+                            order: &self.orders[l],
                         }
-                    };
-                    self.acc.resize(table.len(), 0.0);
-                    self.acc_signed.resize(table.len(), 0.0);
-                    let d = direction.filter(|_| table.signed() > 0).unwrap_or(&[]);
-                    let sum = table.accumulate_permuted(
-                        &permuted,
+                    });
+                    let d = p.direction.filter(|_| table.signed() > 0).unwrap_or(&[]);
+                    let sum = table.accumulate_lanes(
+                        p.y,
+                        len,
+                        &lanes,
                         d,
-                        &mut self.acc,
-                        &mut self.acc_signed,
+                        &mut self.chunk,
+                        &mut self.acc_lanes,
+                        &mut self.acc_signed_lanes,
                     );
                     let sst_signed = if d.is_empty() {
-                        0.0
+                        [0.0; LANES]
                     } else {
-                        permuted.signed_sst(d, sum)
+                        SlotTable::signed_sst_lanes(p.y, len, &lanes, d, sum, &mut self.chunk)
                     };
-                    for (j, &k) in g.features.iter().enumerate() {
-                        let (t, a) = (&mut self.tests[k], usable[k].1);
-                        self.stat[k] = t.min_p_of_sums(&a.binned, table.sums(&self.acc, j), n, sst);
-                        if j < table.signed() {
-                            let sums = table.sums(&self.acc_signed, j);
-                            self.stat[k] =
-                                self.stat[k].min(t.min_p_of_sums(&a.binned, sums, n, sst_signed));
+                    for l in 0..count {
+                        self.acc.clear();
+                        self.acc.extend(self.acc_lanes.iter().map(|a| a[l]));
+                        self.acc_signed.clear();
+                        if table.signed() > 0 {
+                            self.acc_signed
+                                .extend(self.acc_signed_lanes.iter().map(|a| a[l]));
+                        }
+                        let stat = &mut stat[l * m..(l + 1) * m];
+                        for (j, &k) in g.features.iter().enumerate() {
+                            let (t, a) = (&mut self.tests[k], p.usable[k].1);
+                            stat[k] =
+                                t.min_p_of_sums(&a.binned, table.sums(&self.acc, j), n, p.sst);
+                            if j < table.signed() {
+                                let sums = table.sums(&self.acc_signed, j);
+                                stat[k] =
+                                    stat[k].min(t.min_p_of_sums(&a.binned, sums, n, sst_signed[l]));
+                            }
                         }
                     }
                 }
-                None => {
-                    self.perm.resize(n, 0.0);
-                    block_permute(y, len, &mut self.perm, &mut rng);
-                    let mut sst_signed = 0.0;
-                    if let Some(d) = direction {
-                        self.signed.clear();
-                        self.signed
-                            .extend(self.perm.iter().zip(d).map(|(p, d)| p * d));
-                        sst_signed = stats::sum_sq_about_mean(&self.signed);
-                    }
-                    for &k in &g.features {
-                        let (t, a) = (&mut self.tests[k], usable[k].1);
-                        self.stat[k] = t.min_p(&a.binned, &self.perm, sst);
-                        if a.signable && direction.is_some() {
-                            self.stat[k] =
-                                self.stat[k].min(t.min_p(&a.binned, &self.signed, sst_signed));
-                        }
+                _ => {
+                    for l in 0..count {
+                        let mut rng = Self::rng(p.seed, first + l, g.length);
+                        self.run_group(g, len, &mut rng, p, &mut stat[l * m..(l + 1) * m]);
                     }
                 }
             }
         }
-        let min_stat = self.stat.iter().copied().fold(f64::INFINITY, f64::min);
-        for (k, &(_, a)) in usable.iter().enumerate() {
-            if self.stat[k] <= a.observed {
-                self.raw[k] += 1;
+        for l in 0..count {
+            let stat = &stat[l * m..(l + 1) * m];
+            let min_stat = stat.iter().copied().fold(f64::INFINITY, f64::min);
+            for (k, &(_, a)) in p.usable.iter().enumerate() {
+                if stat[k] <= a.observed {
+                    self.raw[k] += 1;
+                }
+                if min_stat <= a.observed {
+                    self.adj[k] += 1;
+                }
             }
-            if min_stat <= a.observed {
-                self.adj[k] += 1;
+        }
+        self.stat = stat;
+    }
+
+    /// One permutation of group `g` (block length `len`) drawn from `rng`, one at a time: the
+    /// row permutation shuffled into a buffer and read by the fused pass, or (no
+    /// [`SlotTable`]) materialised and tested feature by feature. Writes the group's
+    /// features' statistics into `stat`.
+    fn run_group(
+        &mut self,
+        g: &PermGroup,
+        len: usize,
+        rng: &mut SimRng,
+        p: &PermInput,
+        stat: &mut [f64],
+    ) {
+        let (y, n, sst) = (p.y, p.y.len(), p.sst);
+        match &g.table {
+            Some(table) => {
+                let permuted = if len <= 1 {
+                    self.rows.clear();
+                    self.rows.extend_from_slice(y);
+                    shuffle_rows(&mut self.rows, rng);
+                    Permuted::Rows(&self.rows)
+                } else {
+                    let offset = draw_blocks(n, len, &mut self.orders[0], rng);
+                    Permuted::Blocks {
+                        y,
+                        block: len,
+                        offset,
+                        order: &self.orders[0],
+                    }
+                };
+                self.acc.resize(table.len(), 0.0);
+                self.acc_signed.resize(table.len(), 0.0);
+                let d = p.direction.filter(|_| table.signed() > 0).unwrap_or(&[]);
+                let sum =
+                    table.accumulate_permuted(&permuted, d, &mut self.acc, &mut self.acc_signed);
+                let sst_signed = if d.is_empty() {
+                    0.0
+                } else {
+                    permuted.signed_sst(d, sum)
+                };
+                for (j, &k) in g.features.iter().enumerate() {
+                    let (t, a) = (&mut self.tests[k], p.usable[k].1);
+                    stat[k] = t.min_p_of_sums(&a.binned, table.sums(&self.acc, j), n, sst);
+                    if j < table.signed() {
+                        let sums = table.sums(&self.acc_signed, j);
+                        stat[k] = stat[k].min(t.min_p_of_sums(&a.binned, sums, n, sst_signed));
+                    }
+                }
+            }
+            None => {
+                self.perm.resize(n, 0.0);
+                block_permute(y, len, &mut self.perm, rng);
+                let mut sst_signed = 0.0;
+                if let Some(d) = p.direction {
+                    self.signed.clear();
+                    self.signed
+                        .extend(self.perm.iter().zip(d).map(|(p, d)| p * d));
+                    sst_signed = stats::sum_sq_about_mean(&self.signed);
+                }
+                for &k in &g.features {
+                    let (t, a) = (&mut self.tests[k], p.usable[k].1);
+                    stat[k] = t.min_p(&a.binned, &self.perm, sst);
+                    if a.signable && p.direction.is_some() {
+                        stat[k] = stat[k].min(t.min_p(&a.binned, &self.signed, sst_signed));
+                    }
+                }
             }
         }
     }
@@ -1296,21 +1397,22 @@ fn permutation_test(
         // Every permutation draws from its own seeded streams and the counts are integers, so
         // the p-values are the same for any number of threads.
         let k = usable.len();
-        let (raw, adj) = (0..config.permutations)
+        let input = PermInput {
+            usable: &usable,
+            y,
+            sst,
+            direction,
+            lengths: &lengths,
+            groups: &groups,
+            seed: config.seed,
+            permutations: config.permutations,
+        };
+        let (raw, adj) = (0..config.permutations.div_ceil(LANES))
             .into_par_iter()
             .fold(
                 || PermWorker::new(&tests),
-                |mut w, i| {
-                    w.run(
-                        i,
-                        &usable,
-                        y,
-                        sst,
-                        direction,
-                        &lengths,
-                        &groups,
-                        config.seed,
-                    );
+                |mut w, batch| {
+                    w.run_batch(batch, &input);
                     w
                 },
             )

@@ -11,6 +11,7 @@
 //! [`GLOBAL_FEATURES`] strongest candidates: when they explain clearly more than the best single
 //! feature, something remains that no single feature explains.
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::smoother::Binned;
@@ -126,9 +127,11 @@ pub(crate) fn screen(
     ctx: &Ctx,
     config: &DiagnoseConfig,
 ) -> (Vec<Interaction>, Option<GlobalCheck>) {
+    // Every level table and every cell smoother below is independent of the others: in
+    // parallel, collected in order (the same results for any thread count).
     let cols: Vec<(&FeatureColumn, Vec<u8>)> = table
         .columns()
-        .iter()
+        .par_iter()
         .filter(|c| !super::is_time(c.origin))
         .filter_map(|c| levels(c).map(|l| (c, l)))
         .collect();
@@ -136,31 +139,33 @@ pub(crate) fn screen(
         return (Vec::new(), None);
     }
     let single: Vec<f64> = cols
-        .iter()
+        .par_iter()
         .map(|(_, l)| cells_gain(&[l], left, ctx, config))
+        .collect();
+    let pairs: Vec<(usize, usize)> = (0..cols.len())
+        .flat_map(|i| (i + 1..cols.len()).map(move |j| (i, j)))
+        .filter(|&(i, j)| pairable(cols[i].0) && pairable(cols[j].0))
+        .collect();
+    let pair_gains: Vec<f64> = pairs
+        .par_iter()
+        .map(|&(i, j)| cells_gain(&[&cols[i].1, &cols[j].1], left, ctx, config))
         .collect();
     let mut found = Vec::new();
     // Each feature's strongest showing, alone or in a pair: the global check smooths the
     // joint cells of the strongest, so a feature that matters only jointly is among them.
     let mut score = single.clone();
-    for i in 0..cols.len() {
-        for j in i + 1..cols.len() {
-            if !pairable(cols[i].0) || !pairable(cols[j].0) {
-                continue;
-            }
-            let pair = cells_gain(&[&cols[i].1, &cols[j].1], left, ctx, config);
-            score[i] = score[i].max(pair);
-            score[j] = score[j].max(pair);
-            let best = single[i].max(single[j]);
-            if pair - best >= config.min_effect.max(1e-9) {
-                found.push(Interaction {
-                    a: cols[i].0.name.clone(),
-                    b: cols[j].0.name.clone(),
-                    explained_pair: pair,
-                    best_single: best,
-                    suggested_term: format!("by:{}:{}", cols[i].0.name, cols[j].0.name),
-                });
-            }
+    for (&(i, j), &pair) in pairs.iter().zip(&pair_gains) {
+        score[i] = score[i].max(pair);
+        score[j] = score[j].max(pair);
+        let best = single[i].max(single[j]);
+        if pair - best >= config.min_effect.max(1e-9) {
+            found.push(Interaction {
+                a: cols[i].0.name.clone(),
+                b: cols[j].0.name.clone(),
+                explained_pair: pair,
+                best_single: best,
+                suggested_term: format!("by:{}:{}", cols[i].0.name, cols[j].0.name),
+            });
         }
     }
     found.sort_by(|x, y| {

@@ -523,7 +523,7 @@ const PREFETCH_BLOCKS: usize = 16;
 
 /// A hint to bring the cache line of `x[0]` into the cache (nothing elsewhere).
 #[inline(always)]
-fn prefetch(x: &[f64]) {
+pub(crate) fn prefetch<T>(x: &[T]) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch has no effect beyond the cache; SSE is part of x86_64.
     #[allow(unused_unsafe)]
@@ -534,6 +534,13 @@ fn prefetch(x: &[f64]) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = x;
+}
+
+/// `i mod n` for `i < 2n` (a block start `b·block < n` plus an offset `< n`): one compare
+/// instead of a 64-bit division per block.
+#[inline(always)]
+fn wrap(i: usize, n: usize) -> usize {
+    if i >= n { i - n } else { i }
 }
 
 impl Permuted<'_> {
@@ -555,12 +562,12 @@ impl Permuted<'_> {
                     // The blocks are scattered over a residual larger than the cache: ask
                     // for a block's rows PREFETCH_BLOCKS blocks before they are read.
                     if let Some(&ahead) = order.get(idx + PREFETCH_BLOCKS) {
-                        let start = (ahead * block + offset) % n;
+                        let start = wrap(ahead * block + offset, n);
                         prefetch(&y[start..]);
                         prefetch(&y[(start + block - 1).min(n - 1)..]);
                     }
                     let len = ((b + 1) * block).min(n) - b * block;
-                    let start = (b * block + offset) % n;
+                    let start = wrap(b * block + offset, n);
                     let first = len.min(n - start);
                     f(k, &y[start..start + first]);
                     if len > first {
@@ -635,6 +642,309 @@ impl SlotTable {
     pub(crate) fn signed(&self) -> usize {
         self.signed
     }
+}
+
+/// Permutations summed side by side, one per lane of a vector, by
+/// [`SlotTable::accumulate_lanes`] (four `f64`: one 256-bit register with AVX2).
+pub(crate) const LANES: usize = 4;
+
+/// Rows per chunk of [`SlotTable::accumulate_lanes`]: the lanes' permuted rows are gathered
+/// into a chunk of `CHUNK × LANES` values (32 KiB, in L1/L2) before they are summed.
+const CHUNK: usize = 1024;
+
+/// One lane's block permutation, read in place: the residual rotated by `offset`, cut into
+/// blocks of `block` rows taken in `order` (as [`Permuted::Blocks`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct BlockLane<'a> {
+    /// Rotation.
+    pub(crate) offset: usize,
+    /// Block order.
+    pub(crate) order: &'a [usize],
+}
+
+/// Where one lane's gathering stands: the block (index into its order) and the row in it.
+#[derive(Debug, Clone, Copy, Default)]
+struct Cursor {
+    idx: usize,
+    pos: usize,
+}
+
+/// Copies the next `out.len()` rows of lane `lane`'s block permutation of `y` (blocks of
+/// `block` rows) into `out[t][slot]`, advancing `cur`; prefetches the rows of the block
+/// [`PREFETCH_BLOCKS`] blocks ahead, as [`Permuted::for_each_run`] does.
+#[inline(always)]
+fn gather_lane(
+    y: &[f64],
+    block: usize,
+    lane: &BlockLane<'_>,
+    slot: usize,
+    cur: &mut Cursor,
+    out: &mut [[f64; LANES]],
+) {
+    let n = y.len();
+    let mut t = 0;
+    while t < out.len() {
+        let b = lane.order[cur.idx];
+        let len = ((b + 1) * block).min(n) - b * block;
+        let take = (len - cur.pos).min(out.len() - t);
+        // The block's rows from `cur.pos` on: at most two runs of `y` (it may wrap).
+        let start = wrap(b * block + lane.offset + cur.pos, n);
+        let first = take.min(n - start);
+        for (o, &v) in out[t..t + first].iter_mut().zip(&y[start..start + first]) {
+            o[slot] = v;
+        }
+        for (o, &v) in out[t + first..t + take].iter_mut().zip(&y[..take - first]) {
+            o[slot] = v;
+        }
+        t += take;
+        cur.pos += take;
+        if cur.pos == len {
+            cur.pos = 0;
+            cur.idx += 1;
+            if let Some(&ahead) = lane.order.get(cur.idx + PREFETCH_BLOCKS) {
+                let s = wrap(ahead * block + lane.offset, n);
+                prefetch(&y[s..]);
+                prefetch(&y[(s + block - 1).min(n - 1)..]);
+            }
+        }
+    }
+}
+
+/// The [`LANES`] block permutations of `y`, gathered chunk by chunk in row order from row 0
+/// (`next` fills `buf[t][l]` with row `k + t` of lane `l`'s permutation).
+struct Chunks<'a, 'b> {
+    y: &'a [f64],
+    block: usize,
+    lanes: &'a [BlockLane<'b>; LANES],
+    cur: [Cursor; LANES],
+    k: usize,
+}
+
+impl<'a, 'b> Chunks<'a, 'b> {
+    /// Starts at row 0 (asking for the first blocks' rows).
+    #[inline(always)]
+    fn new(y: &'a [f64], block: usize, lanes: &'a [BlockLane<'b>; LANES]) -> Self {
+        let n = y.len();
+        for lane in lanes {
+            for &b in lane.order.iter().take(PREFETCH_BLOCKS) {
+                prefetch(&y[wrap(b * block + lane.offset, n)..]);
+            }
+        }
+        Chunks {
+            y,
+            block,
+            lanes,
+            cur: [Cursor::default(); LANES],
+            k: 0,
+        }
+    }
+
+    /// Gathers the next chunk into `buf` (at most `buf.len()` rows): its first row and its
+    /// length, `None` after the last row.
+    #[inline(always)]
+    fn next(&mut self, buf: &mut [[f64; LANES]]) -> Option<(usize, usize)> {
+        let k = self.k;
+        let c = buf.len().min(self.y.len() - k);
+        if c == 0 {
+            return None;
+        }
+        for (l, lane) in self.lanes.iter().enumerate() {
+            gather_lane(self.y, self.block, lane, l, &mut self.cur[l], &mut buf[..c]);
+        }
+        self.k += c;
+        Some((k, c))
+    }
+}
+
+/// `v[l]·d` for every lane (one vector multiplication).
+#[inline(always)]
+fn scale_lanes(v: &[f64; LANES], d: f64) -> [f64; LANES] {
+    let mut w = [0.0; LANES];
+    for l in 0..LANES {
+        w[l] = v[l] * d;
+    }
+    w
+}
+
+/// `a[l] += v[l]` for every lane (one vector addition; each lane its own IEEE sum).
+#[inline(always)]
+fn add_lanes(a: &mut [f64; LANES], v: &[f64; LANES]) {
+    for l in 0..LANES {
+        a[l] += v[l];
+    }
+}
+
+impl SlotTable {
+    /// [`SlotTable::accumulate_permuted`] of [`LANES`] block permutations (blocks of `block`
+    /// rows > 1) at once: `acc[s][l]` is lane `l`'s sum of slot `s`, `acc_signed` the same
+    /// for the signed residual (permuted × `direction`; unused, and may be empty, when no
+    /// feature is signed). Returns each lane's Σ of the signed residual in row order (−0 when
+    /// none is signed). Each lane's sums take the same additions in the same order as
+    /// [`SlotTable::accumulate_permuted`] of that lane's permutation, so they are the same
+    /// bits (tested); the lanes of one row are added by one vector instruction. Runs the
+    /// AVX2 copy when the CPU has it (lane-wise additions and products, no fused
+    /// multiply-add: the same results).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn accumulate_lanes(
+        &self,
+        y: &[f64],
+        block: usize,
+        lanes: &[BlockLane<'_>; LANES],
+        direction: &[f64],
+        buf: &mut Vec<[f64; LANES]>,
+        acc: &mut Vec<[f64; LANES]>,
+        acc_signed: &mut Vec<[f64; LANES]>,
+    ) -> [f64; LANES] {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe {
+                self.accumulate_lanes_avx2(y, block, lanes, direction, buf, acc, acc_signed)
+            };
+        }
+        self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
+    }
+
+    /// [`SlotTable::accumulate_lanes`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn accumulate_lanes_avx2(
+        &self,
+        y: &[f64],
+        block: usize,
+        lanes: &[BlockLane<'_>; LANES],
+        direction: &[f64],
+        buf: &mut Vec<[f64; LANES]>,
+        acc: &mut Vec<[f64; LANES]>,
+        acc_signed: &mut Vec<[f64; LANES]>,
+    ) -> [f64; LANES] {
+        self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
+    }
+
+    /// [`SlotTable::accumulate_lanes`] for any CPU.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn accumulate_lanes_portable(
+        &self,
+        y: &[f64],
+        block: usize,
+        lanes: &[BlockLane<'_>; LANES],
+        direction: &[f64],
+        buf: &mut Vec<[f64; LANES]>,
+        acc: &mut Vec<[f64; LANES]>,
+        acc_signed: &mut Vec<[f64; LANES]>,
+    ) -> [f64; LANES] {
+        let m = self.m;
+        let mut sum = [-0.0; LANES];
+        acc.clear();
+        acc.resize(self.len(), [0.0; LANES]);
+        if m == 0 {
+            return sum;
+        }
+        let ms = self.signed;
+        if ms > 0 {
+            acc_signed.clear();
+            acc_signed.resize(self.len(), [0.0; LANES]);
+        }
+        let offset = &self.offset[..m];
+        let codes = &self.codes[..];
+        let (acc, acc_signed) = (&mut acc[..], &mut acc_signed[..]);
+        buf.resize(CHUNK, [0.0; LANES]);
+        let mut chunks = Chunks::new(y, block, lanes);
+        while let Some((k, c)) = chunks.next(buf) {
+            let chunk = &buf[..c];
+            let rows = &codes[k * m..(k + c) * m];
+            if ms == 0 {
+                for (row, v) in rows.chunks_exact(m).zip(chunk) {
+                    // A local copy: one register, not reloaded after every store to `acc`.
+                    let v = *v;
+                    for (&c, &o) in row.iter().zip(offset) {
+                        add_lanes(&mut acc[o + c as usize], &v);
+                    }
+                }
+            } else {
+                let d = &direction[k..k + chunk.len()];
+                for ((row, v), &dt) in rows.chunks_exact(m).zip(chunk).zip(d) {
+                    let v = *v;
+                    let w = scale_lanes(&v, dt);
+                    add_lanes(&mut sum, &w);
+                    for (&c, &o) in row.iter().zip(offset) {
+                        add_lanes(&mut acc[o + c as usize], &v);
+                    }
+                    for (&c, &o) in row[..ms].iter().zip(offset) {
+                        add_lanes(&mut acc_signed[o + c as usize], &w);
+                    }
+                }
+            }
+        }
+        sum
+    }
+
+    /// [`Permuted::signed_sst`] of [`LANES`] block permutations at once (`signed_sum`: each
+    /// lane's Σ from [`SlotTable::accumulate_lanes`]): each lane the very bits of
+    /// `stats::sum_sq_about_mean` of its signed residual (tested).
+    pub(crate) fn signed_sst_lanes(
+        y: &[f64],
+        block: usize,
+        lanes: &[BlockLane<'_>; LANES],
+        direction: &[f64],
+        signed_sum: [f64; LANES],
+        buf: &mut Vec<[f64; LANES]>,
+    ) -> [f64; LANES] {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { signed_sst_lanes_avx2(y, block, lanes, direction, signed_sum, buf) };
+        }
+        signed_sst_lanes_portable(y, block, lanes, direction, signed_sum, buf)
+    }
+}
+
+/// [`SlotTable::signed_sst_lanes`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn signed_sst_lanes_avx2(
+    y: &[f64],
+    block: usize,
+    lanes: &[BlockLane<'_>; LANES],
+    direction: &[f64],
+    signed_sum: [f64; LANES],
+    buf: &mut Vec<[f64; LANES]>,
+) -> [f64; LANES] {
+    signed_sst_lanes_portable(y, block, lanes, direction, signed_sum, buf)
+}
+
+/// [`SlotTable::signed_sst_lanes`] for any CPU: per lane, `ss += (w − m)·(w − m)` in row
+/// order from −0, as [`sq_dev_sum`].
+#[inline(always)]
+fn signed_sst_lanes_portable(
+    y: &[f64],
+    block: usize,
+    lanes: &[BlockLane<'_>; LANES],
+    direction: &[f64],
+    signed_sum: [f64; LANES],
+    buf: &mut Vec<[f64; LANES]>,
+) -> [f64; LANES] {
+    let mean = signed_sum.map(|s| s / direction.len() as f64);
+    let mut ss = [-0.0; LANES];
+    buf.resize(CHUNK, [0.0; LANES]);
+    let mut chunks = Chunks::new(y, block, lanes);
+    while let Some((k, c)) = chunks.next(buf) {
+        for (v, &dt) in buf[..c].iter().zip(&direction[k..k + c]) {
+            for l in 0..LANES {
+                let w = v[l] * dt;
+                ss[l] += (w - mean[l]) * (w - mean[l]);
+            }
+        }
+    }
+    ss
 }
 
 /// Adds `run[t]` into `acc[offset[j] + codes[t·m + j]]` for every row t and feature j < m.

@@ -907,6 +907,84 @@ fn permutation_read_in_place_equals_the_materialised_one() {
     }
 }
 
+/// Reference: the fused pass over each materialised permutation ([`SlotTable::accumulate`] of
+/// [`block_permute_reference`]'s output and its product with the direction) and
+/// `stats::sum_sq_about_mean` of that product. [`SlotTable::accumulate_lanes`] — four block
+/// permutations gathered chunk by chunk and summed side by side in the lanes of one vector —
+/// and [`SlotTable::signed_sst_lanes`] must give every lane the same sums and signed sum of
+/// squares bit for bit, for blocks that do and do not divide the length, blocks longer than a
+/// chunk, a length that is not a whole number of chunks, with and without signed features.
+#[test]
+fn lanes_of_block_permutations_equal_the_materialised_ones() {
+    let t = table(29, 4001);
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|v| v.unwrap_or(0.0))
+        .collect();
+    let r = residuals(&t, 6, 1.0, |i| 0.3 * dir[i]);
+    let bins: Vec<Binned> = t
+        .columns()
+        .iter()
+        .filter_map(|c| Binned::new(c.raw(), 64, 10, 12).ok())
+        .collect();
+    assert!(bins.len() >= 8);
+    let refs: Vec<&Binned> = bins.iter().collect();
+    let n = r.len();
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for signed in [0, 5] {
+        let table = SlotTable::new(&refs, signed).expect("few slots");
+        for block in [2, 7, 64, 1500, n] {
+            for seed in 0..2u64 {
+                let stream = |l: usize| SimRng::substream(seed, 11 + l as u64);
+                let mut orders: [Vec<usize>; LANES] = Default::default();
+                let mut offsets = [0usize; LANES];
+                for (l, order) in orders.iter_mut().enumerate() {
+                    offsets[l] = draw_blocks(n, block, order, &mut stream(l));
+                }
+                let lanes: [BlockLane; LANES] = std::array::from_fn(|l| BlockLane {
+                    offset: offsets[l],
+                    order: &orders[l],
+                });
+                let d: &[f64] = if signed > 0 { &dir } else { &[] };
+                let (mut buf, mut acc, mut acc_s) = (Vec::new(), Vec::new(), Vec::new());
+                let sum =
+                    table.accumulate_lanes(&r, block, &lanes, d, &mut buf, &mut acc, &mut acc_s);
+                let sst = if signed > 0 {
+                    SlotTable::signed_sst_lanes(&r, block, &lanes, &dir, sum, &mut buf)
+                } else {
+                    [0.0; LANES]
+                };
+                for l in 0..LANES {
+                    let mut materialised = vec![0.0; n];
+                    block_permute_reference(&r, block, &mut materialised, &mut stream(l));
+                    let product: Vec<f64> =
+                        materialised.iter().zip(&dir).map(|(a, b)| a * b).collect();
+                    let (mut want, mut want_s) = (vec![0.0; table.len()], vec![0.0; table.len()]);
+                    table.accumulate(&materialised, &product, &mut want, &mut want_s);
+                    let got: Vec<f64> = acc.iter().map(|a| a[l]).collect();
+                    assert_eq!(
+                        bits(&got),
+                        bits(&want),
+                        "block {block} seed {seed} lane {l}"
+                    );
+                    if signed > 0 {
+                        let end: usize = bins[..signed].iter().map(|b| b.n_fine + 1).sum();
+                        let got_s: Vec<f64> = acc_s[..end].iter().map(|a| a[l]).collect();
+                        assert_eq!(bits(&got_s), bits(&want_s[..end]), "signed {block} {l}");
+                        let want_sum = product.iter().fold(-0.0, |s, w| s + w);
+                        assert_eq!(sum[l].to_bits(), want_sum.to_bits(), "sum {block} {l}");
+                        assert_eq!(
+                            sst[l].to_bits(),
+                            stats::sum_sq_about_mean(&product).to_bits(),
+                            "sst block {block} seed {seed} lane {l}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Reference: the clip as first written, with the median and the MAD read from sorted
 /// copies. [`winsorize`] finds them by selection and must clip to the same bits, for odd and
 /// even lengths, ties, outliers on both sides and a zero MAD.
