@@ -515,15 +515,25 @@ impl StreamingQr {
 
     /// Adds one row `x` (length p) with response `y`.
     pub(crate) fn push(&mut self, x: &[f64], y: f64) {
+        let p = x.len();
+        for (s, &v) in self.colsq.iter_mut().zip(x) {
+            *s += v * v;
+        }
+        self.colsq[p] += y * y;
+        self.place(x.iter().copied(), y);
+    }
+
+    /// Adds one row (its `p` regressors, then the response `y`) without summing its squares.
+    #[inline(always)]
+    fn place(&mut self, x: impl Iterator<Item = f64>, y: f64) {
         let m = self.cols + CHUNK;
         let row = self.cols + self.fill;
-        let p = x.len();
-        for (j, &v) in x.iter().enumerate() {
-            self.block[j * m + row] = v;
-            self.colsq[j] += v * v;
+        let mut at = row;
+        for v in x {
+            self.block[at] = v;
+            at += m;
         }
-        self.block[p * m + row] = y;
-        self.colsq[p] += y * y;
+        self.block[at] = y;
         self.fill += 1;
         self.rows += 1;
         if self.fill == CHUNK {
@@ -560,6 +570,149 @@ impl StreamingQr {
             n,
             |i, j| if i <= j { self.block[j * m + i] } else { 0.0 },
         );
+        (r, self.colsq)
+    }
+}
+
+/// Byte budget of the blocks of [`PatternQr`]'s per-pattern factorisations; rows of a new
+/// pattern beyond it go to the dense block (all columns).
+const PATTERN_BYTES: usize = 16 << 20;
+
+/// Slots of [`PatternQr`]'s pattern table (a power of two, more than the patterns it keeps).
+const PATTERN_SLOTS: usize = 1 << 10;
+
+/// [`StreamingQr`] for designs whose rows are sparse in a few recurring patterns (the hinge
+/// curves of `seek` and `memory`: one curve of four, its hinges beyond the seek zero): rows are
+/// grouped by the set of their non-zero columns and each group is factorised on those columns
+/// alone (a Householder TSQR of `k + 1` instead of `p + 1` columns: `2k²` instead of `2p²`
+/// flops per row); [`PatternQr::finish`] stacks the groups' `R` factors, each in its columns
+/// of the whole design, and factorises them once more. Every step is an orthogonal
+/// transformation of the rows of `[X y]`, so the `R` is [`StreamingQr`]'s up to the signs of
+/// its rows and rounding (the rows are combined in another order; tested against it). Rows of
+/// patterns beyond the byte budget [`PATTERN_BYTES`] (or of designs of more than 63 columns)
+/// go to one dense group of all columns.
+#[derive(Debug, Clone)]
+pub(crate) struct PatternQr {
+    p: usize,
+    /// Per group: its columns (increasing, the response not included) and its factorisation.
+    groups: Vec<(Vec<usize>, StreamingQr)>,
+    /// Open-addressing table from a pattern (bit `j`: column `j` is non-zero) to its group
+    /// (`u32::MAX`: empty slot).
+    table: Vec<(u64, u32)>,
+    /// The group of every row of a pattern that found no room ([`PATTERN_BYTES`]).
+    dense: Option<usize>,
+    /// Slots of `table` in use.
+    filled: usize,
+    bytes: usize,
+    colsq: Vec<f64>,
+    rows: usize,
+}
+
+impl PatternQr {
+    /// A problem with `p` regressors (plus the response column).
+    pub(crate) fn new(p: usize) -> Self {
+        Self {
+            p,
+            groups: Vec::new(),
+            table: vec![(0, u32::MAX); PATTERN_SLOTS],
+            dense: None,
+            filled: 0,
+            bytes: 0,
+            colsq: vec![0.0; p + 1],
+            rows: 0,
+        }
+    }
+
+    /// The group of all columns.
+    fn dense_group(&mut self) -> usize {
+        *self.dense.get_or_insert_with(|| {
+            self.groups
+                .push(((0..self.p).collect(), StreamingQr::new(self.p)));
+            self.groups.len() - 1
+        })
+    }
+
+    /// The group of the rows whose non-zero columns are `mask`, made on first use (the dense
+    /// group where there is no room).
+    fn group(&mut self, mask: u64) -> usize {
+        let mut slot = (mask.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 54) as usize % PATTERN_SLOTS;
+        loop {
+            let (m, g) = self.table[slot];
+            if g == u32::MAX {
+                break;
+            }
+            if m == mask {
+                return g as usize;
+            }
+            slot = (slot + 1) % PATTERN_SLOTS;
+        }
+        // The table holds at most half its slots (so a probe always ends at an empty one).
+        if self.filled >= PATTERN_SLOTS / 2 {
+            return self.dense_group();
+        }
+        let cols: Vec<usize> = (0..self.p).filter(|&j| mask >> j & 1 == 1).collect();
+        let size = (cols.len() + 1 + CHUNK) * (cols.len() + 1) * 8;
+        let g = if self.bytes + size <= PATTERN_BYTES {
+            self.bytes += size;
+            let k = cols.len();
+            self.groups.push((cols, StreamingQr::new(k)));
+            self.groups.len() - 1
+        } else {
+            self.dense_group()
+        };
+        self.table[slot] = (mask, g as u32);
+        self.filled += 1;
+        g
+    }
+
+    /// Adds one row `x` (length p) with response `y`.
+    pub(crate) fn push(&mut self, x: &[f64], y: f64) {
+        self.rows += 1;
+        for (s, &v) in self.colsq.iter_mut().zip(x) {
+            *s += v * v;
+        }
+        self.colsq[self.p] += y * y;
+        let g = if self.p < 64 {
+            let mut mask = 0u64;
+            for (j, &v) in x.iter().enumerate() {
+                mask |= u64::from(v != 0.0) << j;
+            }
+            self.group(mask)
+        } else {
+            self.dense_group()
+        };
+        let (cols, qr) = &mut self.groups[g];
+        qr.place(cols.iter().map(|&j| x[j]), y);
+    }
+
+    /// Rows pushed so far.
+    pub(crate) fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Column norms² of the rows pushed so far (regressors, then the response).
+    pub(crate) fn colsq(&self) -> &[f64] {
+        &self.colsq
+    }
+
+    /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms²
+    /// (as [`StreamingQr::finish`]).
+    pub(crate) fn finish(self) -> (DMatrix<f64>, Vec<f64>) {
+        let p = self.p;
+        let mut all = StreamingQr::new(p);
+        let mut row = vec![0.0; p];
+        for (cols, qr) in self.groups {
+            let k = cols.len();
+            let (r, _) = qr.finish();
+            for i in 0..=k {
+                row.fill(0.0);
+                for (a, &j) in cols.iter().enumerate() {
+                    row[j] = r[(i, a)];
+                }
+                all.push(&row, r[(i, k)]);
+            }
+        }
+        let (r, _) = all.finish();
         (r, self.colsq)
     }
 }
@@ -662,7 +815,7 @@ fn solve(
     let droppable: Vec<bool> = (0..p).map(|c| param_label(terms, c).1).collect();
     let mut order: Vec<usize> = (0..p).filter(|&c| !droppable[c]).collect();
     order.extend((0..p).filter(|&c| droppable[c]));
-    let mut qr = StreamingQr::new(p);
+    let mut qr = PatternQr::new(p);
     let mut xp = vec![0.0; p];
     let mut sums = vec![0.0; p];
     design_pass(terms, data, |x, y| {
@@ -678,14 +831,14 @@ fn solve(
         let mut v = vec![0.0; p];
         for (q, &c) in order.iter().enumerate() {
             let nf = n.max(1) as f64;
-            v[c] = (qr.colsq[q] - sums[c] * sums[c] / nf).max(0.0);
+            v[c] = (qr.colsq()[q] - sums[c] * sums[c] / nf).max(0.0);
         }
         v
     };
     // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column.
     let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
     if ridge.iter().any(|&l| l > 0.0) {
-        let colsq = qr.colsq.clone();
+        let colsq = qr.colsq().to_vec();
         for (q, &c) in order.iter().enumerate() {
             if ridge[c] > 0.0 && colsq[q] > 0.0 {
                 xp.fill(0.0);
@@ -1460,6 +1613,126 @@ fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitErro
     Ok((measured, residual, range))
 }
 
+/// Where the adaptive terms begin, if they all come after the others and read nothing but the
+/// residuals ([`Term::reads_only_residuals`]; `terms.len()` when there are none): then the
+/// fit's statistics replay only them ([`replay_tail`]) over the static prediction of the others
+/// ([`static_predictions`]) instead of the whole model over the log.
+fn adaptive_tail(terms: &[Arc<dyn Term>]) -> Option<usize> {
+    let first = terms
+        .iter()
+        .position(|t| t.adaptive())
+        .unwrap_or(terms.len());
+    terms[first..]
+        .iter()
+        .all(|t| t.adaptive() && t.param_count() == 0 && t.reads_only_residuals())
+        .then_some(first)
+}
+
+/// The measured bias of every measured row, in log order.
+fn measured_bias(log: &Log) -> impl Iterator<Item = f64> + '_ {
+    log.bias_raw().iter().copied().filter(|b| !b.is_nan())
+}
+
+/// Per measured row, the prediction of `terms[..tail]` with coefficients `coef` (the whole
+/// design's), each term's basis times its coefficients plus its offset, summed term by term
+/// in the order and the arithmetic of `Predictor::evaluate` (so the same bits as the
+/// predictor's running total before term `tail`; tested); and the range of the measured rows'
+/// finite positions. One replay of the history.
+fn static_predictions(
+    terms: &[Arc<dyn Term>],
+    tail: usize,
+    data: &FitData<'_>,
+    coef: &[f64],
+) -> Result<(Vec<f64>, Option<[f64; 2]>), FitError> {
+    let head = &terms[..tail];
+    let covs = &data.log().schema.covariates;
+    let mut states = head
+        .iter()
+        .map(|t| t.start(covs))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (off, _) = offsets(terms);
+    let widths: Vec<usize> = head.iter().map(|t| t.param_count()).collect();
+    let mut buf = vec![0.0; widths.iter().copied().max().unwrap_or(0)];
+    let mut out = Vec::with_capacity(data.log().measured_count());
+    let mut range: Option<[f64; 2]> = None;
+    let mut cov = Vec::new();
+    for (_, row, f) in data.replay_for(head) {
+        let seek = Seek {
+            features: &f,
+            covariates: row.covariates.gather(&mut cov),
+        };
+        if row.bias.is_some() {
+            let mut total = 0.0;
+            for (k, s) in states.iter().enumerate() {
+                let b = &mut buf[..widths[k]];
+                s.basis(&seek, b);
+                let c = &coef[off[k]..off[k] + widths[k]];
+                total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + s.offset(&seek);
+            }
+            out.push(total);
+            let x = row.track;
+            if x.is_finite() {
+                range = Some(match range {
+                    None => [x, x],
+                    Some([lo, hi]) => [lo.min(x), hi.max(x)],
+                });
+            }
+        }
+        for s in &mut states {
+            s.update(&seek, None);
+        }
+    }
+    Ok((out, range))
+}
+
+/// The measured bias and the residual of every measured row when the adaptive terms `tail`
+/// (which read nothing but the residuals) follow the static prediction `statics` of the
+/// others: each adds its offset to the running total and learns from the residual, as in
+/// `Predictor::step_detailed` (what [`replay_residuals`] gives, bit for bit; tested).
+fn replay_tail(
+    tail: &[Arc<dyn Term>],
+    log: &Log,
+    statics: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>), FitError> {
+    let mut states = tail
+        .iter()
+        .map(|t| t.start(&log.schema.covariates))
+        .collect::<Result<Vec<_>, _>>()?;
+    // These states read no features and no covariates.
+    let none = crate::history::SeekFeatures {
+        seek_index: 0,
+        time_s: 0.0,
+        elapsed_s: 0.0,
+        dwell_s: 0.0,
+        source: 0.0,
+        target: 0.0,
+        seek_length: 0.0,
+        direction: 0,
+        direction_change: false,
+        since_reversal: 0.0,
+        rest_distance_od: None,
+        rest_distance_id: None,
+    };
+    let seek = Seek {
+        features: &none,
+        covariates: &[],
+    };
+    let measured: Vec<f64> = measured_bias(log).collect();
+    let mut residual = Vec::with_capacity(measured.len());
+    for (&s, &y) in statics.iter().zip(&measured) {
+        let mut total = s;
+        for st in &states {
+            total += std::iter::empty::<f64>().sum::<f64>() + st.offset(&seek);
+        }
+        let r = y - total;
+        for st in &mut states {
+            st.update(&seek, Some(r));
+        }
+        residual.push(r);
+    }
+    Ok((measured, residual))
+}
+
 /// Direction changes in the fit's replay of the history. `sampling` has counted them already
 /// (the same tracker over the same positions) when the direction comes from position steps
 /// with its deadband: then no replay is needed (tested equal to [`FitData::reversals`]).
@@ -1585,12 +1858,26 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
 
     let sol = solve(&terms, &data, opts)?;
 
+    // The prediction of every term before the adaptive ones, per measured row, where those
+    // read nothing but the residuals (`drift`): then they are replayed over it below.
+    let tail = adaptive_tail(&terms);
+    let statics = match tail {
+        Some(t) => Some(static_predictions(&terms, t, &data, &sol.coef)?),
+        None => None,
+    };
+
     // Causal offsets tuned on the static residuals.
     if terms.iter().any(|t| t.param_count() == 0) {
-        let mut residuals = Vec::with_capacity(sol.n);
-        design_pass(&terms, &data, |x, y| {
-            residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
-        })?;
+        let residuals: Vec<f64> = match &statics {
+            Some((st, _)) => measured_bias(log).zip(st).map(|(y, s)| y - s).collect(),
+            None => {
+                let mut residuals = Vec::with_capacity(sol.n);
+                design_pass(&terms, &data, |x, y| {
+                    residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
+                })?;
+                residuals
+            }
+        };
         for t in &mut terms {
             if let Some(tuned) = t.tune_on_residuals(&residuals) {
                 *t = tuned;
@@ -1689,7 +1976,13 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             spread: (hi - lo).max(0.0),
         });
     }
-    let (measured_bias, residual, position_range) = replay_residuals(&model, log)?;
+    let (measured_bias, residual, position_range) = match (tail, statics) {
+        (Some(t), Some((st, range))) => {
+            let (measured, residual) = replay_tail(&terms[t..], log, &st)?;
+            (measured, residual, range)
+        }
+        _ => replay_residuals(&model, log)?,
+    };
     model.fit.position_range = position_range;
     let sst = crate::numeric::stats::sum_sq_about_mean(&measured_bias);
     let sse: f64 = residual.iter().map(|e| e * e).sum();
@@ -2067,6 +2360,156 @@ mod tests {
                 want.map(|r| r.map(f64::to_bits))
             );
             assert!(residual.len() > 2000, "{preset}");
+        }
+    }
+
+    /// Reference: `FittedModel::predict_log` (the predictor replayed over the log). Where the
+    /// adaptive terms come last and read only residuals, the fit's statistics come from the
+    /// static prediction of the other terms and a replay of the adaptive ones alone: the
+    /// measured bias, the residuals and the position range must be the predictor's bit for bit
+    /// (drift last, no drift, a fixed drift; every fifth row unmeasured in the second log).
+    /// Where drift is not last, or a term other than drift adapts, there is no such path.
+    #[test]
+    fn static_prediction_and_tail_replay_equal_predict_log() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
+        let full = simulate_log(&cfg).unwrap();
+        let mut gaps = full.clone();
+        for i in (2..gaps.len()).step_by(5) {
+            gaps.set_bias(i, None);
+        }
+        let opts = FitOptions::default().check().unwrap();
+        let mut fast = 0;
+        for log in [&full, &gaps] {
+            for text in [
+                "calibration",
+                "dahl",
+                "poly2,seek,drift:0.05",
+                "poly2,direction,memory",
+                "poly2,drift,seek",
+            ] {
+                let spec = ModelSpec::preset(text)
+                    .or_else(|_| ModelSpec::parse(text))
+                    .unwrap();
+                let model = fit(&spec, log, &opts).unwrap();
+                let terms: Vec<Arc<dyn Term>> =
+                    model.terms.iter().map(|t| t.term.clone()).collect();
+                let coef: Vec<f64> = model
+                    .terms
+                    .iter()
+                    .flat_map(|t| t.coefficients.iter().copied())
+                    .collect();
+                let Some(tail) = adaptive_tail(&terms) else {
+                    assert_eq!(text, "poly2,drift,seek");
+                    continue;
+                };
+                fast += 1;
+                let data = FitData::with_direction(log, &model.direction).unwrap();
+                let (st, range) = static_predictions(&terms, tail, &data, &coef).unwrap();
+                let (measured, residual) = replay_tail(&terms[tail..], log, &st).unwrap();
+                let pred = model.predict_log(log).unwrap();
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&measured), bits(&pred.measured), "{text}");
+                assert_eq!(bits(&residual), bits(&pred.residual), "{text}");
+                let want = crate::numeric::stats::range(&pred.positions);
+                assert_eq!(
+                    range.map(|r| r.map(f64::to_bits)),
+                    want.map(|r| r.map(f64::to_bits))
+                );
+            }
+        }
+        assert_eq!(fast, 8);
+    }
+
+    /// Reference: the dense [`StreamingQr`] of the same rows (one factorisation of all
+    /// columns). On designs whose rows are sparse in recurring patterns (hinge-like blocks, one
+    /// of four active per row, as `seek` and `memory` give; and random patterns over 40
+    /// columns, more than the byte budget holds, so rows also go to the dense group),
+    /// [`PatternQr`] must give the same column norms bit for bit, `RᵀR` (= `[X y]ᵀ[X y]`, which
+    /// fixes `R` up to the signs of its rows) within rounding, and the same least-squares
+    /// solution and RSS within 1e-10 relative (the rows are combined in another order).
+    #[test]
+    fn pattern_qr_equals_dense_streaming_qr() {
+        let mut rng = SimRng::new(11);
+        for case in 0..3 {
+            let (n, p) = match case {
+                0 => (5000, 1 + 16 + 2),
+                1 => (1500, 7),
+                _ => (3000, 40),
+            };
+            let mut dense = StreamingQr::new(p);
+            let mut pattern = PatternQr::new(p);
+            let mut rows = Vec::new();
+            for _ in 0..n {
+                let mut x = vec![0.0; p];
+                if case == 2 {
+                    for v in x.iter_mut() {
+                        if rng.uniform() < 0.5 {
+                            *v = rng.normal();
+                        }
+                    }
+                    x[0] = 1.0;
+                } else {
+                    x[0] = 1.0;
+                    let curve = rng.below(4) as usize;
+                    let a = 100.0 * rng.uniform();
+                    for (j, k) in [20.0, 40.0, 60.0, 80.0].iter().enumerate() {
+                        if 1 + curve * 4 + j < p {
+                            x[1 + curve * 4 + j] = (k - a).max(0.0) / 80.0;
+                        }
+                    }
+                    let u = rng.uniform() * 2.0 - 1.0;
+                    x[p - 2] = u;
+                    x[p - 1] = u * u;
+                }
+                let y = x.iter().sum::<f64>() + 0.3 * rng.normal();
+                dense.push(&x, y);
+                pattern.push(&x, y);
+                rows.push((x, y));
+            }
+            assert_eq!(pattern.rows(), n);
+            let (rd, cd) = dense.finish();
+            let (rp, cp) = pattern.finish();
+            assert!(cd.iter().zip(&cp).all(|(a, b)| a.to_bits() == b.to_bits()));
+            let (gd, gp) = (rd.transpose() * &rd, rp.transpose() * &rp);
+            for i in 0..=p {
+                for j in 0..=p {
+                    let scale = (cd[i] * cd[j]).sqrt();
+                    assert!(
+                        (gd[(i, j)] - gp[(i, j)]).abs() <= 1e-12 * scale,
+                        "{case} {i} {j}"
+                    );
+                }
+            }
+            let solve = |r: &DMatrix<f64>| {
+                let beta = r
+                    .view((0, 0), (p, p))
+                    .clone_owned()
+                    .solve_upper_triangular(&r.view((0, p), (p, 1)).clone_owned())
+                    .unwrap();
+                (beta, r[(p, p)].powi(2))
+            };
+            let ((bd, sd), (bp, sp)) = (solve(&rd), solve(&rp));
+            let norm = bd.norm();
+            assert!((&bd - &bp).norm() <= 1e-10 * norm, "{case}");
+            assert!((sd - sp).abs() <= 1e-10 * sd, "{case}");
+            // And both solve the problem: the residual is orthogonal to every column.
+            for j in 0..p {
+                let g: f64 = rows
+                    .iter()
+                    .map(|(x, y)| {
+                        x[j] * (y - x.iter().zip(bp.iter()).map(|(a, b)| a * b).sum::<f64>())
+                    })
+                    .sum();
+                assert!(
+                    g.abs() <= 1e-8 * (cd[j] * sp).sqrt().max(1e-300),
+                    "{case} {j}"
+                );
+            }
         }
     }
 
