@@ -578,6 +578,9 @@ impl StreamingQr {
 /// pattern beyond it go to the dense block (all columns).
 const PATTERN_BYTES: usize = 16 << 20;
 
+/// Rows [`PatternQr`] looks at before it decides whether grouping by pattern pays.
+const PATTERN_PROBE: usize = 1024;
+
 /// Slots of [`PatternQr`]'s pattern table (a power of two, more than the patterns it keeps).
 const PATTERN_SLOTS: usize = 1 << 10;
 
@@ -589,8 +592,10 @@ const PATTERN_SLOTS: usize = 1 << 10;
 /// of the whole design, and factorises them once more. Every step is an orthogonal
 /// transformation of the rows of `[X y]`, so the `R` is [`StreamingQr`]'s up to the signs of
 /// its rows and rounding (the rows are combined in another order; tested against it). Rows of
-/// patterns beyond the byte budget [`PATTERN_BYTES`] (or of designs of more than 63 columns)
-/// go to one dense group of all columns.
+/// patterns beyond the byte budget [`PATTERN_BYTES`] go to one dense group of all columns.
+/// Grouping is used only where it at least halves the flops (judged on the first
+/// [`PATTERN_PROBE`] rows; designs of at most 63 columns): otherwise every row goes to the
+/// dense group and the result is [`StreamingQr`]'s bit for bit (tested).
 #[derive(Debug, Clone)]
 pub(crate) struct PatternQr {
     p: usize,
@@ -603,6 +608,10 @@ pub(crate) struct PatternQr {
     dense: Option<usize>,
     /// Slots of `table` in use.
     filled: usize,
+    /// The first rows (row-major, regressors then response) until [`PatternQr::decide`].
+    probe: Option<Vec<f64>>,
+    /// Whether rows are grouped by pattern (else all go to the dense group).
+    patterned: bool,
     bytes: usize,
     colsq: Vec<f64>,
     rows: usize,
@@ -617,6 +626,8 @@ impl PatternQr {
             table: vec![(0, u32::MAX); PATTERN_SLOTS],
             dense: None,
             filled: 0,
+            probe: Some(Vec::with_capacity(PATTERN_PROBE * (p + 1))),
+            patterned: false,
             bytes: 0,
             colsq: vec![0.0; p + 1],
             rows: 0,
@@ -672,7 +683,39 @@ impl PatternQr {
             *s += v * v;
         }
         self.colsq[self.p] += y * y;
-        let g = if self.p < 64 {
+        if let Some(buf) = &mut self.probe {
+            buf.extend_from_slice(x);
+            buf.push(y);
+            if buf.len() == PATTERN_PROBE * (self.p + 1) {
+                self.decide();
+            }
+            return;
+        }
+        self.route(x, y);
+    }
+
+    /// Decides from the rows held so far whether grouping by pattern pays (the mean count `k`
+    /// of non-zero columns: `(k + 1)² ≤ (p + 1)² / 2`, at most half the flops), then adds them.
+    fn decide(&mut self) {
+        let Some(buf) = self.probe.take() else {
+            return;
+        };
+        let w = self.p + 1;
+        let rows = buf.len() / w;
+        let nonzero = buf
+            .chunks_exact(w)
+            .map(|r| r[..self.p].iter().filter(|&&v| v != 0.0).count())
+            .sum::<usize>() as f64
+            / rows.max(1) as f64;
+        self.patterned = self.p < 64 && 2.0 * (nonzero + 1.0).powi(2) <= (w * w) as f64;
+        for r in buf.chunks_exact(w) {
+            self.route(&r[..self.p], r[self.p]);
+        }
+    }
+
+    /// Adds one row to its group (the dense one unless [`PatternQr::decide`] chose patterns).
+    fn route(&mut self, x: &[f64], y: f64) {
+        let g = if self.patterned {
             let mut mask = 0u64;
             for (j, &v) in x.iter().enumerate() {
                 mask |= u64::from(v != 0.0) << j;
@@ -697,8 +740,15 @@ impl PatternQr {
 
     /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms²
     /// (as [`StreamingQr::finish`]).
-    pub(crate) fn finish(self) -> (DMatrix<f64>, Vec<f64>) {
+    pub(crate) fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
+        self.decide();
         let p = self.p;
+        if self.groups.len() == 1 && self.groups[0].0.len() == p {
+            // One dense factorisation: [`StreamingQr`]'s `R` itself.
+            if let Some((_, qr)) = self.groups.pop() {
+                return (qr.finish().0, self.colsq);
+            }
+        }
         let mut all = StreamingQr::new(p);
         let mut row = vec![0.0; p];
         for (cols, qr) in self.groups {
@@ -2429,24 +2479,28 @@ mod tests {
     /// columns). On designs whose rows are sparse in recurring patterns (hinge-like blocks, one
     /// of four active per row, as `seek` and `memory` give; and random patterns over 40
     /// columns, more than the byte budget holds, so rows also go to the dense group),
-    /// [`PatternQr`] must give the same column norms bit for bit, `RᵀR` (= `[X y]ᵀ[X y]`, which
+    /// [`PatternQr`] must give the same column norms bit for bit (and on dense rows the same
+    /// `R` bit for bit), `RᵀR` (= `[X y]ᵀ[X y]`, which
     /// fixes `R` up to the signs of its rows) within rounding, and the same least-squares
     /// solution and RSS within 1e-10 relative (the rows are combined in another order).
     #[test]
     fn pattern_qr_equals_dense_streaming_qr() {
         let mut rng = SimRng::new(11);
-        for case in 0..3 {
+        for case in 0..4 {
             let (n, p) = match case {
                 0 => (5000, 1 + 16 + 2),
                 1 => (1500, 7),
-                _ => (3000, 40),
+                2 => (3000, 40),
+                _ => (2500, 5),
             };
             let mut dense = StreamingQr::new(p);
             let mut pattern = PatternQr::new(p);
             let mut rows = Vec::new();
             for _ in 0..n {
                 let mut x = vec![0.0; p];
-                if case == 2 {
+                if case == 3 {
+                    x.iter_mut().for_each(|v| *v = rng.normal());
+                } else if case == 2 {
                     for v in x.iter_mut() {
                         if rng.uniform() < 0.5 {
                             *v = rng.normal();
@@ -2475,6 +2529,14 @@ mod tests {
             let (rd, cd) = dense.finish();
             let (rp, cp) = pattern.finish();
             assert!(cd.iter().zip(&cp).all(|(a, b)| a.to_bits() == b.to_bits()));
+            if case == 3 {
+                // Dense rows: grouping would not pay, so the dense factorisation itself.
+                assert!(
+                    rd.iter()
+                        .zip(rp.iter())
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+                );
+            }
             let (gd, gp) = (rd.transpose() * &rd, rp.transpose() * &rp);
             for i in 0..=p {
                 for j in 0..=p {
