@@ -6,7 +6,8 @@
 //! 2. **One linear least-squares solve** for all linear parameters of all terms: the basis rows
 //!    of the measured rows are streamed through a chunked Householder QR (TSQR: the running
 //!    `R` factor stacked on 1024 new rows, re-factorised), so memory is O(p²) and nothing like
-//!    normal equations is ever formed. Terms supply centred/scaled columns (`poly2` uses
+//!    normal equations is ever formed; rows sparse in recurring patterns are factorised per
+//!    pattern on their non-zero columns ([`PatternQr`]). Terms supply centred/scaled columns (`poly2` uses
 //!    `(x − centre)/scale`, hinges are divided by their largest knot). Columns whose `R`
 //!    diagonal falls below `rank_tolerance` × their norm cannot be determined from the log:
 //!    for hinge terms they are fixed at 0 with a warning, otherwise the fit fails naming the
@@ -20,7 +21,9 @@
 //!    parameters ([`Term::search`], `bump`'s centre and width) is handed the residual of the
 //!    other terms and this RSS for any version of itself instead.
 //! 4. **Causal offsets** (`drift`) are tuned on the residual series of the other terms.
-//! 5. The fitted model is replayed causally over the training log for the fit statistics.
+//! 5. The fitted model is replayed causally over the training log for the fit statistics
+//!    (only its adaptive terms, over the others' stored prediction, where those read nothing
+//!    but residuals: [`adaptive_tail`]).
 
 use crate::field::Field;
 use crate::log::Log;
@@ -328,7 +331,6 @@ pub(crate) struct StreamingQr {
     block: Vec<f64>,
     fill: usize,
     colsq: Vec<f64>,
-    rows: usize,
 }
 
 /// Rows added between two re-factorisations.
@@ -509,7 +511,6 @@ impl StreamingQr {
             block: vec![0.0; (cols + CHUNK) * cols],
             fill: 0,
             colsq: vec![0.0; cols],
-            rows: 0,
         }
     }
 
@@ -535,7 +536,6 @@ impl StreamingQr {
         }
         self.block[at] = y;
         self.fill += 1;
-        self.rows += 1;
         if self.fill == CHUNK {
             self.fold();
         }
@@ -554,11 +554,6 @@ impl StreamingQr {
         }
         householder_r(&mut self.block, m, n);
         self.fill = 0;
-    }
-
-    /// Rows pushed so far.
-    pub(crate) fn rows(&self) -> usize {
-        self.rows
     }
 
     /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms².
