@@ -6,8 +6,7 @@
 //! 2. **One linear least-squares solve** for all linear parameters of all terms: the basis rows
 //!    of the measured rows are streamed through a chunked Householder QR (TSQR: the running
 //!    `R` factor stacked on 1024 new rows, re-factorised), so memory is O(p²) and nothing like
-//!    normal equations is ever formed; rows sparse in recurring patterns are factorised per
-//!    pattern on their non-zero columns ([`PatternQr`]). Terms supply centred/scaled columns (`poly2` uses
+//!    normal equations is ever formed. Terms supply centred/scaled columns (`poly2` uses
 //!    `(x − centre)/scale`, hinges are divided by their largest knot). Columns whose `R`
 //!    diagonal falls below `rank_tolerance` × their norm cannot be determined from the log:
 //!    for hinge terms they are fixed at 0 with a warning, otherwise the fit fails naming the
@@ -331,6 +330,7 @@ pub(crate) struct StreamingQr {
     block: Vec<f64>,
     fill: usize,
     colsq: Vec<f64>,
+    rows: usize,
 }
 
 /// Rows added between two re-factorisations.
@@ -511,6 +511,7 @@ impl StreamingQr {
             block: vec![0.0; (cols + CHUNK) * cols],
             fill: 0,
             colsq: vec![0.0; cols],
+            rows: 0,
         }
     }
 
@@ -536,6 +537,7 @@ impl StreamingQr {
         }
         self.block[at] = y;
         self.fill += 1;
+        self.rows += 1;
         if self.fill == CHUNK {
             self.fold();
         }
@@ -556,6 +558,11 @@ impl StreamingQr {
         self.fill = 0;
     }
 
+    /// Rows pushed so far.
+    pub(crate) fn rows(&self) -> usize {
+        self.rows
+    }
+
     /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms².
     pub(crate) fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
         self.fold();
@@ -565,199 +572,6 @@ impl StreamingQr {
             n,
             |i, j| if i <= j { self.block[j * m + i] } else { 0.0 },
         );
-        (r, self.colsq)
-    }
-}
-
-/// Byte budget of the blocks of [`PatternQr`]'s per-pattern factorisations; rows of a new
-/// pattern beyond it go to the dense block (all columns).
-const PATTERN_BYTES: usize = 16 << 20;
-
-/// Rows [`PatternQr`] looks at before it decides whether grouping by pattern pays.
-const PATTERN_PROBE: usize = 1024;
-
-/// Slots of [`PatternQr`]'s pattern table (a power of two, more than the patterns it keeps).
-const PATTERN_SLOTS: usize = 1 << 10;
-
-/// [`StreamingQr`] for designs whose rows are sparse in a few recurring patterns (the hinge
-/// curves of `seek` and `memory`: one curve of four, its hinges beyond the seek zero): rows are
-/// grouped by the set of their non-zero columns and each group is factorised on those columns
-/// alone (a Householder TSQR of `k + 1` instead of `p + 1` columns: `2k²` instead of `2p²`
-/// flops per row); [`PatternQr::finish`] stacks the groups' `R` factors, each in its columns
-/// of the whole design, and factorises them once more. Every step is an orthogonal
-/// transformation of the rows of `[X y]`, so the `R` is [`StreamingQr`]'s up to the signs of
-/// its rows and rounding (the rows are combined in another order; tested against it). Rows of
-/// patterns beyond the byte budget [`PATTERN_BYTES`] go to one dense group of all columns.
-/// Grouping is used only where it at least halves the flops (judged on the first
-/// [`PATTERN_PROBE`] rows; designs of at most 63 columns): otherwise every row goes to the
-/// dense group and the result is [`StreamingQr`]'s bit for bit (tested).
-#[derive(Debug, Clone)]
-pub(crate) struct PatternQr {
-    p: usize,
-    /// Per group: its columns (increasing, the response not included) and its factorisation.
-    groups: Vec<(Vec<usize>, StreamingQr)>,
-    /// Open-addressing table from a pattern (bit `j`: column `j` is non-zero) to its group
-    /// (`u32::MAX`: empty slot).
-    table: Vec<(u64, u32)>,
-    /// The group of every row of a pattern that found no room ([`PATTERN_BYTES`]).
-    dense: Option<usize>,
-    /// Slots of `table` in use.
-    filled: usize,
-    /// The first rows (row-major, regressors then response) until [`PatternQr::decide`].
-    probe: Option<Vec<f64>>,
-    /// Whether rows are grouped by pattern (else all go to the dense group).
-    patterned: bool,
-    bytes: usize,
-    colsq: Vec<f64>,
-    rows: usize,
-}
-
-impl PatternQr {
-    /// A problem with `p` regressors (plus the response column).
-    pub(crate) fn new(p: usize) -> Self {
-        Self {
-            p,
-            groups: Vec::new(),
-            table: vec![(0, u32::MAX); PATTERN_SLOTS],
-            dense: None,
-            filled: 0,
-            probe: Some(Vec::with_capacity(PATTERN_PROBE * (p + 1))),
-            patterned: false,
-            bytes: 0,
-            colsq: vec![0.0; p + 1],
-            rows: 0,
-        }
-    }
-
-    /// The group of all columns.
-    fn dense_group(&mut self) -> usize {
-        *self.dense.get_or_insert_with(|| {
-            self.groups
-                .push(((0..self.p).collect(), StreamingQr::new(self.p)));
-            self.groups.len() - 1
-        })
-    }
-
-    /// The group of the rows whose non-zero columns are `mask`, made on first use (the dense
-    /// group where there is no room).
-    fn group(&mut self, mask: u64) -> usize {
-        let mut slot = (mask.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 54) as usize % PATTERN_SLOTS;
-        loop {
-            let (m, g) = self.table[slot];
-            if g == u32::MAX {
-                break;
-            }
-            if m == mask {
-                return g as usize;
-            }
-            slot = (slot + 1) % PATTERN_SLOTS;
-        }
-        // The table holds at most half its slots (so a probe always ends at an empty one).
-        if self.filled >= PATTERN_SLOTS / 2 {
-            return self.dense_group();
-        }
-        let cols: Vec<usize> = (0..self.p).filter(|&j| mask >> j & 1 == 1).collect();
-        let size = (cols.len() + 1 + CHUNK) * (cols.len() + 1) * 8;
-        let g = if self.bytes + size <= PATTERN_BYTES {
-            self.bytes += size;
-            let k = cols.len();
-            self.groups.push((cols, StreamingQr::new(k)));
-            self.groups.len() - 1
-        } else {
-            self.dense_group()
-        };
-        self.table[slot] = (mask, g as u32);
-        self.filled += 1;
-        g
-    }
-
-    /// Adds one row `x` (length p) with response `y`.
-    pub(crate) fn push(&mut self, x: &[f64], y: f64) {
-        self.rows += 1;
-        for (s, &v) in self.colsq.iter_mut().zip(x) {
-            *s += v * v;
-        }
-        self.colsq[self.p] += y * y;
-        if let Some(buf) = &mut self.probe {
-            buf.extend_from_slice(x);
-            buf.push(y);
-            if buf.len() == PATTERN_PROBE * (self.p + 1) {
-                self.decide();
-            }
-            return;
-        }
-        self.route(x, y);
-    }
-
-    /// Decides from the rows held so far whether grouping by pattern pays (the mean count `k`
-    /// of non-zero columns: `(k + 1)² ≤ (p + 1)² / 2`, at most half the flops), then adds them.
-    fn decide(&mut self) {
-        let Some(buf) = self.probe.take() else {
-            return;
-        };
-        let w = self.p + 1;
-        let rows = buf.len() / w;
-        let nonzero = buf
-            .chunks_exact(w)
-            .map(|r| r[..self.p].iter().filter(|&&v| v != 0.0).count())
-            .sum::<usize>() as f64
-            / rows.max(1) as f64;
-        self.patterned = self.p < 64 && 2.0 * (nonzero + 1.0).powi(2) <= (w * w) as f64;
-        for r in buf.chunks_exact(w) {
-            self.route(&r[..self.p], r[self.p]);
-        }
-    }
-
-    /// Adds one row to its group (the dense one unless [`PatternQr::decide`] chose patterns).
-    fn route(&mut self, x: &[f64], y: f64) {
-        let g = if self.patterned {
-            let mut mask = 0u64;
-            for (j, &v) in x.iter().enumerate() {
-                mask |= u64::from(v != 0.0) << j;
-            }
-            self.group(mask)
-        } else {
-            self.dense_group()
-        };
-        let (cols, qr) = &mut self.groups[g];
-        qr.place(cols.iter().map(|&j| x[j]), y);
-    }
-
-    /// Rows pushed so far.
-    pub(crate) fn rows(&self) -> usize {
-        self.rows
-    }
-
-    /// Column norms² of the rows pushed so far (regressors, then the response).
-    pub(crate) fn colsq(&self) -> &[f64] {
-        &self.colsq
-    }
-
-    /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms²
-    /// (as [`StreamingQr::finish`]).
-    pub(crate) fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
-        self.decide();
-        let p = self.p;
-        if self.groups.len() == 1 && self.groups[0].0.len() == p {
-            // One dense factorisation: [`StreamingQr`]'s `R` itself.
-            if let Some((_, qr)) = self.groups.pop() {
-                return (qr.finish().0, self.colsq);
-            }
-        }
-        let mut all = StreamingQr::new(p);
-        let mut row = vec![0.0; p];
-        for (cols, qr) in self.groups {
-            let k = cols.len();
-            let (r, _) = qr.finish();
-            for i in 0..=k {
-                row.fill(0.0);
-                for (a, &j) in cols.iter().enumerate() {
-                    row[j] = r[(i, a)];
-                }
-                all.push(&row, r[(i, k)]);
-            }
-        }
-        let (r, _) = all.finish();
         (r, self.colsq)
     }
 }
@@ -860,7 +674,7 @@ fn solve(
     let droppable: Vec<bool> = (0..p).map(|c| param_label(terms, c).1).collect();
     let mut order: Vec<usize> = (0..p).filter(|&c| !droppable[c]).collect();
     order.extend((0..p).filter(|&c| droppable[c]));
-    let mut qr = PatternQr::new(p);
+    let mut qr = StreamingQr::new(p);
     let mut xp = vec![0.0; p];
     let mut sums = vec![0.0; p];
     design_pass(terms, data, |x, y| {
@@ -876,14 +690,14 @@ fn solve(
         let mut v = vec![0.0; p];
         for (q, &c) in order.iter().enumerate() {
             let nf = n.max(1) as f64;
-            v[c] = (qr.colsq()[q] - sums[c] * sums[c] / nf).max(0.0);
+            v[c] = (qr.colsq[q] - sums[c] * sums[c] / nf).max(0.0);
         }
         v
     };
     // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column.
     let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
     if ridge.iter().any(|&l| l > 0.0) {
-        let colsq = qr.colsq().to_vec();
+        let colsq = qr.colsq.clone();
         for (q, &c) in order.iter().enumerate() {
             if ridge[c] > 0.0 && colsq[q] > 0.0 {
                 xp.fill(0.0);
@@ -2468,106 +2282,6 @@ mod tests {
             }
         }
         assert_eq!(fast, 8);
-    }
-
-    /// Reference: the dense [`StreamingQr`] of the same rows (one factorisation of all
-    /// columns). On designs whose rows are sparse in recurring patterns (hinge-like blocks, one
-    /// of four active per row, as `seek` and `memory` give; and random patterns over 40
-    /// columns, more than the byte budget holds, so rows also go to the dense group),
-    /// [`PatternQr`] must give the same column norms bit for bit (and on dense rows the same
-    /// `R` bit for bit), `RᵀR` (= `[X y]ᵀ[X y]`, which
-    /// fixes `R` up to the signs of its rows) within rounding, and the same least-squares
-    /// solution and RSS within 1e-10 relative (the rows are combined in another order).
-    #[test]
-    fn pattern_qr_equals_dense_streaming_qr() {
-        let mut rng = SimRng::new(11);
-        for case in 0..4 {
-            let (n, p) = match case {
-                0 => (5000, 1 + 16 + 2),
-                1 => (1500, 7),
-                2 => (3000, 40),
-                _ => (2500, 5),
-            };
-            let mut dense = StreamingQr::new(p);
-            let mut pattern = PatternQr::new(p);
-            let mut rows = Vec::new();
-            for _ in 0..n {
-                let mut x = vec![0.0; p];
-                if case == 3 {
-                    x.iter_mut().for_each(|v| *v = rng.normal());
-                } else if case == 2 {
-                    for v in x.iter_mut() {
-                        if rng.uniform() < 0.5 {
-                            *v = rng.normal();
-                        }
-                    }
-                    x[0] = 1.0;
-                } else {
-                    x[0] = 1.0;
-                    let curve = rng.below(4) as usize;
-                    let a = 100.0 * rng.uniform();
-                    for (j, k) in [20.0, 40.0, 60.0, 80.0].iter().enumerate() {
-                        if 1 + curve * 4 + j < p {
-                            x[1 + curve * 4 + j] = (k - a).max(0.0) / 80.0;
-                        }
-                    }
-                    let u = rng.uniform() * 2.0 - 1.0;
-                    x[p - 2] = u;
-                    x[p - 1] = u * u;
-                }
-                let y = x.iter().sum::<f64>() + 0.3 * rng.normal();
-                dense.push(&x, y);
-                pattern.push(&x, y);
-                rows.push((x, y));
-            }
-            assert_eq!(pattern.rows(), n);
-            let (rd, cd) = dense.finish();
-            let (rp, cp) = pattern.finish();
-            assert!(cd.iter().zip(&cp).all(|(a, b)| a.to_bits() == b.to_bits()));
-            if case == 3 {
-                // Dense rows: grouping would not pay, so the dense factorisation itself.
-                assert!(
-                    rd.iter()
-                        .zip(rp.iter())
-                        .all(|(a, b)| a.to_bits() == b.to_bits())
-                );
-            }
-            let (gd, gp) = (rd.transpose() * &rd, rp.transpose() * &rp);
-            for i in 0..=p {
-                for j in 0..=p {
-                    let scale = (cd[i] * cd[j]).sqrt();
-                    assert!(
-                        (gd[(i, j)] - gp[(i, j)]).abs() <= 1e-12 * scale,
-                        "{case} {i} {j}"
-                    );
-                }
-            }
-            let solve = |r: &DMatrix<f64>| {
-                let beta = r
-                    .view((0, 0), (p, p))
-                    .clone_owned()
-                    .solve_upper_triangular(&r.view((0, p), (p, 1)).clone_owned())
-                    .unwrap();
-                (beta, r[(p, p)].powi(2))
-            };
-            let ((bd, sd), (bp, sp)) = (solve(&rd), solve(&rp));
-            let norm = bd.norm();
-            assert!((&bd - &bp).norm() <= 1e-10 * norm, "{case}");
-            assert!((sd - sp).abs() <= 1e-10 * sd, "{case}");
-            // And both solve the problem: the residual is orthogonal to every column.
-            for j in 0..p {
-                let g: f64 = rows
-                    .iter()
-                    .map(|(x, y)| {
-                        x[j] * (y - x.iter().zip(bp.iter()).map(|(a, b)| a * b).sum::<f64>())
-                    })
-                    .sum();
-                assert!(
-                    g.abs() <= 1e-8 * (cd[j] * sp).sqrt().max(1e-300),
-                    "{case} {j}"
-                );
-            }
-        }
     }
 
     #[test]
