@@ -20,7 +20,9 @@
 //!    parameters ([`Term::search`], `bump`'s centre and width) is handed the residual of the
 //!    other terms and this RSS for any version of itself instead.
 //! 4. **Causal offsets** (`drift`) are tuned on the residual series of the other terms.
-//! 5. The fitted model is replayed causally over the training log for the fit statistics.
+//! 5. The fitted model is replayed causally over the training log for the fit statistics
+//!    (only its adaptive terms, over the others' stored prediction, where those read nothing
+//!    but residuals: [`adaptive_tail`]).
 
 use crate::field::Field;
 use crate::log::Log;
@@ -510,15 +512,25 @@ impl StreamingQr {
 
     /// Adds one row `x` (length p) with response `y`.
     pub(crate) fn push(&mut self, x: &[f64], y: f64) {
+        let p = x.len();
+        for (s, &v) in self.colsq.iter_mut().zip(x) {
+            *s += v * v;
+        }
+        self.colsq[p] += y * y;
+        self.place(x.iter().copied(), y);
+    }
+
+    /// Adds one row (its `p` regressors, then the response `y`) without summing its squares.
+    #[inline(always)]
+    fn place(&mut self, x: impl Iterator<Item = f64>, y: f64) {
         let m = self.cols + CHUNK;
         let row = self.cols + self.fill;
-        let p = x.len();
-        for (j, &v) in x.iter().enumerate() {
-            self.block[j * m + row] = v;
-            self.colsq[j] += v * v;
+        let mut at = row;
+        for v in x {
+            self.block[at] = v;
+            at += m;
         }
-        self.block[p * m + row] = y;
-        self.colsq[p] += y * y;
+        self.block[at] = y;
         self.fill += 1;
         self.rows += 1;
         if self.fill == CHUNK {
@@ -1455,6 +1467,126 @@ fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitErro
     Ok((measured, residual, range))
 }
 
+/// Where the adaptive terms begin, if they all come after the others and read nothing but the
+/// residuals ([`Term::reads_only_residuals`]; `terms.len()` when there are none): then the
+/// fit's statistics replay only them ([`replay_tail`]) over the static prediction of the others
+/// ([`static_predictions`]) instead of the whole model over the log.
+fn adaptive_tail(terms: &[Arc<dyn Term>]) -> Option<usize> {
+    let first = terms
+        .iter()
+        .position(|t| t.adaptive())
+        .unwrap_or(terms.len());
+    terms[first..]
+        .iter()
+        .all(|t| t.adaptive() && t.param_count() == 0 && t.reads_only_residuals())
+        .then_some(first)
+}
+
+/// The measured bias of every measured row, in log order.
+fn measured_bias(log: &Log) -> impl Iterator<Item = f64> + '_ {
+    log.bias_raw().iter().copied().filter(|b| !b.is_nan())
+}
+
+/// Per measured row, the prediction of `terms[..tail]` with coefficients `coef` (the whole
+/// design's), each term's basis times its coefficients plus its offset, summed term by term
+/// in the order and the arithmetic of `Predictor::evaluate` (so the same bits as the
+/// predictor's running total before term `tail`; tested); and the range of the measured rows'
+/// finite positions. One replay of the history.
+fn static_predictions(
+    terms: &[Arc<dyn Term>],
+    tail: usize,
+    data: &FitData<'_>,
+    coef: &[f64],
+) -> Result<(Vec<f64>, Option<[f64; 2]>), FitError> {
+    let head = &terms[..tail];
+    let covs = &data.log().schema.covariates;
+    let mut states = head
+        .iter()
+        .map(|t| t.start(covs))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (off, _) = offsets(terms);
+    let widths: Vec<usize> = head.iter().map(|t| t.param_count()).collect();
+    let mut buf = vec![0.0; widths.iter().copied().max().unwrap_or(0)];
+    let mut out = Vec::with_capacity(data.log().measured_count());
+    let mut range: Option<[f64; 2]> = None;
+    let mut cov = Vec::new();
+    for (_, row, f) in data.replay_for(head) {
+        let seek = Seek {
+            features: &f,
+            covariates: row.covariates.gather(&mut cov),
+        };
+        if row.bias.is_some() {
+            let mut total = 0.0;
+            for (k, s) in states.iter().enumerate() {
+                let b = &mut buf[..widths[k]];
+                s.basis(&seek, b);
+                let c = &coef[off[k]..off[k] + widths[k]];
+                total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + s.offset(&seek);
+            }
+            out.push(total);
+            let x = row.track;
+            if x.is_finite() {
+                range = Some(match range {
+                    None => [x, x],
+                    Some([lo, hi]) => [lo.min(x), hi.max(x)],
+                });
+            }
+        }
+        for s in &mut states {
+            s.update(&seek, None);
+        }
+    }
+    Ok((out, range))
+}
+
+/// The measured bias and the residual of every measured row when the adaptive terms `tail`
+/// (which read nothing but the residuals) follow the static prediction `statics` of the
+/// others: each adds its offset to the running total and learns from the residual, as in
+/// `Predictor::step_detailed` (what [`replay_residuals`] gives, bit for bit; tested).
+fn replay_tail(
+    tail: &[Arc<dyn Term>],
+    log: &Log,
+    statics: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>), FitError> {
+    let mut states = tail
+        .iter()
+        .map(|t| t.start(&log.schema.covariates))
+        .collect::<Result<Vec<_>, _>>()?;
+    // These states read no features and no covariates.
+    let none = crate::history::SeekFeatures {
+        seek_index: 0,
+        time_s: 0.0,
+        elapsed_s: 0.0,
+        dwell_s: 0.0,
+        source: 0.0,
+        target: 0.0,
+        seek_length: 0.0,
+        direction: 0,
+        direction_change: false,
+        since_reversal: 0.0,
+        rest_distance_od: None,
+        rest_distance_id: None,
+    };
+    let seek = Seek {
+        features: &none,
+        covariates: &[],
+    };
+    let measured: Vec<f64> = measured_bias(log).collect();
+    let mut residual = Vec::with_capacity(measured.len());
+    for (&s, &y) in statics.iter().zip(&measured) {
+        let mut total = s;
+        for st in &states {
+            total += std::iter::empty::<f64>().sum::<f64>() + st.offset(&seek);
+        }
+        let r = y - total;
+        for st in &mut states {
+            st.update(&seek, Some(r));
+        }
+        residual.push(r);
+    }
+    Ok((measured, residual))
+}
+
 /// Direction changes in the fit's replay of the history. `sampling` has counted them already
 /// (the same tracker over the same positions) when the direction comes from position steps
 /// with its deadband: then no replay is needed (tested equal to [`FitData::reversals`]).
@@ -1580,12 +1712,26 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
 
     let sol = solve(&terms, &data, opts)?;
 
+    // The prediction of every term before the adaptive ones, per measured row, where those
+    // read nothing but the residuals (`drift`): then they are replayed over it below.
+    let tail = adaptive_tail(&terms);
+    let statics = match tail {
+        Some(t) => Some(static_predictions(&terms, t, &data, &sol.coef)?),
+        None => None,
+    };
+
     // Causal offsets tuned on the static residuals.
     if terms.iter().any(|t| t.param_count() == 0) {
-        let mut residuals = Vec::with_capacity(sol.n);
-        design_pass(&terms, &data, |x, y| {
-            residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
-        })?;
+        let residuals: Vec<f64> = match &statics {
+            Some((st, _)) => measured_bias(log).zip(st).map(|(y, s)| y - s).collect(),
+            None => {
+                let mut residuals = Vec::with_capacity(sol.n);
+                design_pass(&terms, &data, |x, y| {
+                    residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
+                })?;
+                residuals
+            }
+        };
         for t in &mut terms {
             if let Some(tuned) = t.tune_on_residuals(&residuals) {
                 *t = tuned;
@@ -1684,7 +1830,13 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             spread: (hi - lo).max(0.0),
         });
     }
-    let (measured_bias, residual, position_range) = replay_residuals(&model, log)?;
+    let (measured_bias, residual, position_range) = match (tail, statics) {
+        (Some(t), Some((st, range))) => {
+            let (measured, residual) = replay_tail(&terms[t..], log, &st)?;
+            (measured, residual, range)
+        }
+        _ => replay_residuals(&model, log)?,
+    };
     model.fit.position_range = position_range;
     let sst = crate::numeric::stats::sum_sq_about_mean(&measured_bias);
     let sse: f64 = residual.iter().map(|e| e * e).sum();
@@ -2132,6 +2284,68 @@ mod tests {
             );
             assert!(residual.len() > 2000, "{preset}");
         }
+    }
+
+    /// Reference: `FittedModel::predict_log` (the predictor replayed over the log). Where the
+    /// adaptive terms come last and read only residuals, the fit's statistics come from the
+    /// static prediction of the other terms and a replay of the adaptive ones alone: the
+    /// measured bias, the residuals and the position range must be the predictor's bit for bit
+    /// (drift last, no drift, a fixed drift; every fifth row unmeasured in the second log).
+    /// Where drift is not last, or a term other than drift adapts, there is no such path.
+    #[test]
+    fn static_prediction_and_tail_replay_equal_predict_log() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let so = SequenceOptions {
+            n: Some(3000),
+            ..SequenceOptions::default()
+        };
+        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
+        let full = simulate_log(&cfg).unwrap();
+        let mut gaps = full.clone();
+        for i in (2..gaps.len()).step_by(5) {
+            gaps.set_bias(i, None);
+        }
+        let opts = FitOptions::default().check().unwrap();
+        let mut fast = 0;
+        for log in [&full, &gaps] {
+            for text in [
+                "calibration",
+                "dahl",
+                "poly2,seek,drift:0.05",
+                "poly2,direction,memory",
+                "poly2,drift,seek",
+            ] {
+                let spec = ModelSpec::preset(text)
+                    .or_else(|_| ModelSpec::parse(text))
+                    .unwrap();
+                let model = fit(&spec, log, &opts).unwrap();
+                let terms: Vec<Arc<dyn Term>> =
+                    model.terms.iter().map(|t| t.term.clone()).collect();
+                let coef: Vec<f64> = model
+                    .terms
+                    .iter()
+                    .flat_map(|t| t.coefficients.iter().copied())
+                    .collect();
+                let Some(tail) = adaptive_tail(&terms) else {
+                    assert_eq!(text, "poly2,drift,seek");
+                    continue;
+                };
+                fast += 1;
+                let data = FitData::with_direction(log, &model.direction).unwrap();
+                let (st, range) = static_predictions(&terms, tail, &data, &coef).unwrap();
+                let (measured, residual) = replay_tail(&terms[tail..], log, &st).unwrap();
+                let pred = model.predict_log(log).unwrap();
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&measured), bits(&pred.measured), "{text}");
+                assert_eq!(bits(&residual), bits(&pred.residual), "{text}");
+                let want = crate::numeric::stats::range(&pred.positions);
+                assert_eq!(
+                    range.map(|r| r.map(f64::to_bits)),
+                    want.map(|r| r.map(f64::to_bits))
+                );
+            }
+        }
+        assert_eq!(fast, 8);
     }
 
     #[test]

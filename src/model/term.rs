@@ -137,6 +137,14 @@ pub trait Term: Debug + Send + Sync {
     fn adaptive(&self) -> bool {
         false
     }
+    /// Whether the term's state reads nothing but the residuals: an [`Term::adaptive`] term
+    /// with no linear parameters whose [`TermState::offset`] and [`TermState::update`] read
+    /// neither the seek features nor the covariates (`drift`). The fit then replays it over the
+    /// rest of the model's stored predictions for its statistics instead of replaying the whole
+    /// model over the log once more (the same arithmetic, tested). Default `false`.
+    fn reads_only_residuals(&self) -> bool {
+        false
+    }
     /// Number of linear parameters (basis values); the solver sizes the design by it.
     /// Default: the length of [`Term::param_names`].
     fn param_count(&self) -> usize {

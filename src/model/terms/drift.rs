@@ -111,6 +111,9 @@ impl Term for DriftTerm {
     fn adaptive(&self) -> bool {
         true
     }
+    fn reads_only_residuals(&self) -> bool {
+        true
+    }
     fn tune_on_residuals(&self, residuals: &[f64]) -> Option<Arc<dyn Term>> {
         if self.fixed || residuals.is_empty() {
             return None;
