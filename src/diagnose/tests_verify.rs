@@ -853,3 +853,58 @@ fn the_noise_part_z_score_is_calibrated_under_no_effect() {
         );
     }
 }
+
+/// A verified physical edit within 10 % of a verified `add drift` is ranked before it; a
+/// weaker one, an unverified one, or a leading edit that is not adaptive leaves the order as
+/// the gain sort made it. Reference: the rule stated in `prefer_physics_to_drift`, on the
+/// gains of the family log that motivated it (`pi-cubic-ar1` lag, seed 70: drift 67.4 %,
+/// `lag:temp_lag` 65.8 % out of sample).
+#[test]
+fn a_physical_edit_close_to_drift_is_ranked_before_it() {
+    let edit = |term: &str, gain: f64, verified: bool| VerifiedEdit {
+        feature: term.into(),
+        edit: format!("add {term}"),
+        terms: format!("poly2,{term}"),
+        std_before: 1.0,
+        std_after: (1.0 - gain).sqrt(),
+        gain,
+        gain_within_folds: gain,
+        z: 10.0,
+        verified,
+        model_edit: Some(crate::model::ModelEdit::Add(
+            crate::model::terms::parse_term(term).unwrap(),
+        )),
+    };
+    let order =
+        |edits: &[VerifiedEdit]| -> Vec<String> { edits.iter().map(|e| e.edit.clone()).collect() };
+    let mut e = vec![
+        edit("drift", 0.674, true),
+        edit("by:position:seek_length", 0.026, true),
+        edit("lag:temp_lag", 0.658, true),
+    ];
+    super::verify::prefer_physics_to_drift(&mut e);
+    assert_eq!(
+        order(&e),
+        [
+            "add lag:temp_lag",
+            "add drift",
+            "add by:position:seek_length"
+        ]
+    );
+    // Below 90 % of drift's gain, or not verified: drift stays first.
+    for (gain, verified) in [(0.5, true), (0.66, false)] {
+        let mut e = vec![
+            edit("drift", 0.674, true),
+            edit("lag:temp_lag", gain, verified),
+        ];
+        super::verify::prefer_physics_to_drift(&mut e);
+        assert_eq!(order(&e)[0], "add drift");
+    }
+    // A leading physical edit is not moved.
+    let mut e = vec![
+        edit("col:temp_c", 0.7, true),
+        edit("lag:temp_c", 0.69, true),
+    ];
+    super::verify::prefer_physics_to_drift(&mut e);
+    assert_eq!(order(&e), ["add col:temp_c", "add lag:temp_c"]);
+}
