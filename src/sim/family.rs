@@ -396,8 +396,10 @@ impl HiddenEffect {
     /// `bump` (the generator's own form: a Gaussian with fitted centre and width; `table:2`,
     /// the stand-in before the bump term, fits ~120 knots and scored its in-sample overfit as
     /// achievable: 1.83 counts in sample but 2.07 out of sample on a `bw-sine-t` log where
-    /// `bump` gives 1.89 and 1.93, and the user's model 2.01 and 2.07), `memsum`;
-    /// `None` for the interaction (no built-in term multiplies a column by position).
+    /// `bump` gives 1.89 and 1.93, and the user's model 2.01 and 2.07), `memsum`, and
+    /// `by:position:supply` for the interaction (the centred product of position and the
+    /// column: the generator's `(supply − 12)·u` up to terms linear in position, which the
+    /// model's position curve holds, and in `supply` times the mean of `u`).
     pub fn true_term(self) -> Option<&'static str> {
         match self {
             HiddenEffect::FastCovariate => Some("col:temp_fast"),
@@ -408,7 +410,7 @@ impl HiddenEffect {
             HiddenEffect::PositionDirection => Some("dbins:position"),
             HiddenEffect::Defect => Some("bump"),
             HiddenEffect::SummedMemory => Some("memsum"),
-            HiddenEffect::Interaction => None,
+            HiddenEffect::Interaction => Some("by:position:supply"),
         }
     }
 }
