@@ -302,12 +302,16 @@ pub(crate) fn feature_report(
     config: &DiagnoseConfig,
 ) -> FeatureReport {
     let chosen = curve(b, shift, col, residuals);
-    // The defined rows' (value, residual) pairs, read in place (no copy of the column).
+    // The defined rows' (value, residual) pairs, read in place from the column decoded once
+    // (no copy of the pairs; `linear_trend_of` runs over them several times).
+    let values = col.raw();
     let trend = stats::linear_trend_of(
-        col.iter()
+        values
+            .iter()
             .zip(residuals)
-            .filter_map(|(x, &y)| x.map(|x| (x, y))),
+            .filter_map(|(&x, &y)| defined(x).map(|x| (x, y))),
     );
+    drop(values);
     let r2_bins = binned_r2(&chosen);
     let linear = trend.is_some_and(|t| r2_bins > 0.0 && t.r2 >= 0.85 * r2_bins);
     let (shape, shape_at) = if explained > 0.0 {
