@@ -59,10 +59,13 @@ pub(super) fn lagged_column(name: &str) -> Option<&str> {
 
 /// One candidate feature's values, one per measured row; undefined (missing) on some rows.
 ///
-/// The values are stored as plain `f64` with NaN marking an undefined row (8 bytes a row
-/// instead of the 16 of an `Option<f64>`); a defined value is never NaN. Read them with
-/// [`FeatureColumn::get`] or [`FeatureColumn::iter`], which give `None` for an undefined row.
-/// The values are shared: a clone (as in [`FeatureTable::without`]) does not copy them.
+/// The values are `f64` with NaN marking an undefined row (a defined value is never NaN),
+/// stored in the narrowest of `i8`, `i16`, `i32`, `f32` and `f64` that holds every one of
+/// them exactly (bit for bit: a `-0.0` is not an integer), so a column of track numbers,
+/// directions or seek counts costs 1–4 bytes a row instead of 8 and reads back the same
+/// `f64`s. Read them with [`FeatureColumn::get`] or [`FeatureColumn::iter`], which give `None`
+/// for an undefined row. The values are shared: a clone (as in [`FeatureTable::without`])
+/// does not copy them.
 #[derive(Debug, Clone)]
 pub struct FeatureColumn {
     /// The feature's name: a built-in name (`seek_length`, …) or the covariate's header name.
@@ -70,7 +73,223 @@ pub struct FeatureColumn {
     /// Built-in or covariate.
     pub origin: FeatureOrigin,
     /// One value per measured row, in log order; NaN = undefined (missing).
-    values: Arc<[f64]>,
+    values: Values,
+}
+
+/// A number type a column may be stored in: [`Narrow::encode`] gives `None` for an `f64` it
+/// cannot hold exactly; [`Narrow::decode`] gives the `f64` back bit for bit (NaN for the
+/// undefined mark).
+trait Narrow: Copy {
+    fn encode(x: f64) -> Option<Self>;
+    fn decode(self) -> f64;
+}
+
+macro_rules! narrow_int {
+    ($t:ty) => {
+        impl Narrow for $t {
+            /// `MIN` marks an undefined value; an integer in `(MIN, MAX]` is stored as itself.
+            #[inline]
+            fn encode(x: f64) -> Option<$t> {
+                if x.is_nan() {
+                    return Some(<$t>::MIN);
+                }
+                let v = x as $t; // saturating: out-of-range values fail the check below
+                (v != <$t>::MIN && f64::from(v).to_bits() == x.to_bits()).then_some(v)
+            }
+            #[inline]
+            fn decode(self) -> f64 {
+                if self == <$t>::MIN {
+                    f64::NAN
+                } else {
+                    f64::from(self)
+                }
+            }
+        }
+    };
+}
+narrow_int!(i8);
+narrow_int!(i16);
+narrow_int!(i32);
+
+impl Narrow for f32 {
+    #[inline]
+    fn encode(x: f64) -> Option<f32> {
+        if x.is_nan() {
+            return Some(f32::NAN);
+        }
+        let v = x as f32;
+        (f64::from(v).to_bits() == x.to_bits()).then_some(v)
+    }
+    #[inline]
+    fn decode(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+impl Narrow for f64 {
+    #[inline]
+    fn encode(x: f64) -> Option<f64> {
+        Some(x)
+    }
+    #[inline]
+    fn decode(self) -> f64 {
+        self
+    }
+}
+
+/// A column's stored values ([`FeatureColumn`]): the narrowest exact type.
+#[derive(Debug, Clone)]
+enum Values {
+    I8(Arc<[i8]>),
+    I16(Arc<[i16]>),
+    I32(Arc<[i32]>),
+    F32(Arc<[f32]>),
+    F64(Arc<[f64]>),
+}
+
+/// Dispatches `$body` on the stored slice `$v` of a [`Values`] or [`Builder`] (same variants).
+macro_rules! each {
+    ($e:expr, $ty:ident, $v:ident => $body:expr) => {
+        match $e {
+            $ty::I8($v) => $body,
+            $ty::I16($v) => $body,
+            $ty::I32($v) => $body,
+            $ty::F32($v) => $body,
+            $ty::F64($v) => $body,
+        }
+    };
+}
+
+impl Values {
+    fn len(&self) -> usize {
+        each!(self, Values, v => v.len())
+    }
+
+    /// The value at row `i` (NaN = undefined); `None` out of range.
+    #[inline]
+    fn at(&self, i: usize) -> Option<f64> {
+        each!(self, Values, v => v.get(i).map(|x| x.decode()))
+    }
+
+    /// Every value as `f64` (borrowed when stored as `f64`).
+    fn to_f64(&self) -> std::borrow::Cow<'_, [f64]> {
+        match self {
+            Values::F64(v) => std::borrow::Cow::Borrowed(v),
+            other => std::borrow::Cow::Owned(
+                each!(other, Values, v => v.iter().map(|x| x.decode()).collect()),
+            ),
+        }
+    }
+
+    /// Bytes a row.
+    fn width(&self) -> usize {
+        match self {
+            Values::I8(_) => 1,
+            Values::I16(_) => 2,
+            Values::I32(_) | Values::F32(_) => 4,
+            Values::F64(_) => 8,
+        }
+    }
+}
+
+impl From<Vec<f64>> for Values {
+    /// `values` in the narrowest exact type.
+    fn from(values: Vec<f64>) -> Values {
+        let mut b = Builder::with_capacity(values.len());
+        for x in values {
+            b.push(x);
+        }
+        b.finish()
+    }
+}
+
+/// A [`Values`] built row by row: it starts as `i8` and widens (re-encoding what it holds)
+/// to the narrowest type that holds every value pushed so far, so no `f64` copy of a narrow
+/// column is ever made.
+#[derive(Debug)]
+enum Builder {
+    I8(Vec<i8>),
+    I16(Vec<i16>),
+    I32(Vec<i32>),
+    F32(Vec<f32>),
+    F64(Vec<f64>),
+}
+
+/// `values` re-encoded as `T`, if every one of them fits, with room for `cap` values.
+fn reencode<T: Narrow>(values: &[f64], cap: usize) -> Option<Vec<T>> {
+    let mut out = Vec::with_capacity(cap.max(values.len()));
+    for &x in values {
+        out.push(T::encode(x)?);
+    }
+    Some(out)
+}
+
+impl Builder {
+    fn with_capacity(n: usize) -> Builder {
+        Builder::I8(Vec::with_capacity(n))
+    }
+
+    /// Appends `x` (NaN = undefined), widening the storage if `x` does not fit.
+    #[inline]
+    fn push(&mut self, x: f64) {
+        let fits = match self {
+            Builder::I8(v) => i8::encode(x).map(|e| v.push(e)),
+            Builder::I16(v) => i16::encode(x).map(|e| v.push(e)),
+            Builder::I32(v) => i32::encode(x).map(|e| v.push(e)),
+            Builder::F32(v) => f32::encode(x).map(|e| v.push(e)),
+            Builder::F64(v) => {
+                v.push(x);
+                Some(())
+            }
+        };
+        if fits.is_none() {
+            self.widen(x);
+        }
+    }
+
+    /// Re-encodes the values held and `x` in the narrowest type wider than the current one
+    /// that holds them all, then appends `x`.
+    #[cold]
+    fn widen(&mut self, x: f64) {
+        let cap = each!(&*self, Builder, v => v.capacity());
+        let mut all: Vec<f64> = Vec::with_capacity(cap.max(1));
+        each!(&*self, Builder, v => all.extend(v.iter().map(|y| y.decode())));
+        all.push(x);
+        let rank = match self {
+            Builder::I8(_) => 0,
+            Builder::I16(_) => 1,
+            Builder::I32(_) => 2,
+            Builder::F32(_) => 3,
+            Builder::F64(_) => 4,
+        };
+        // i32 and f32 are not nested (2²⁴ + 1 is an i32, 0.5 an f32): both are tried.
+        let narrower = if rank < 1 {
+            reencode(&all, cap).map(Builder::I16)
+        } else {
+            None
+        }
+        .or_else(|| {
+            (rank < 2)
+                .then(|| reencode(&all, cap).map(Builder::I32))
+                .flatten()
+        })
+        .or_else(|| {
+            (rank < 3)
+                .then(|| reencode(&all, cap).map(Builder::F32))
+                .flatten()
+        });
+        *self = narrower.unwrap_or(Builder::F64(all));
+    }
+
+    fn finish(self) -> Values {
+        match self {
+            Builder::I8(v) => Values::I8(v.into()),
+            Builder::I16(v) => Values::I16(v.into()),
+            Builder::I32(v) => Values::I32(v.into()),
+            Builder::F32(v) => Values::F32(v.into()),
+            Builder::F64(v) => Values::F64(v.into()),
+        }
+    }
 }
 
 /// `Some(x)` unless `x` is NaN, the mark of an undefined value in a [`FeatureColumn`].
@@ -87,16 +306,15 @@ fn stored(v: Option<f64>) -> f64 {
 
 impl PartialEq for FeatureColumn {
     /// Same name, origin and values, an undefined row equal to an undefined row (and a
-    /// defined value equal only to the same value).
+    /// defined value equal only to the same value), however each side is stored.
     fn eq(&self, other: &Self) -> bool {
         self.name == other.name
             && self.origin == other.origin
-            && self.values.len() == other.values.len()
+            && self.len() == other.len()
             && self
-                .values
                 .iter()
-                .zip(other.values.iter())
-                .all(|(&a, &b)| defined(a).map(f64::to_bits) == defined(b).map(f64::to_bits))
+                .zip(other.iter())
+                .all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits))
     }
 }
 
@@ -108,28 +326,35 @@ impl FeatureColumn {
 
     /// Whether the column has no rows.
     pub fn is_empty(&self) -> bool {
-        self.values.is_empty()
+        self.len() == 0
     }
 
     /// The value at measured row `i` (0-based); `None` where it is undefined or `i` is out
     /// of range.
     pub fn get(&self, i: usize) -> Option<f64> {
-        self.values.get(i).copied().and_then(defined)
+        self.values.at(i).and_then(defined)
     }
 
     /// Every row's value in log order; `None` where it is undefined.
-    pub fn iter(&self) -> impl ExactSizeIterator<Item = Option<f64>> + '_ {
-        self.values.iter().map(|&x| defined(x))
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = Option<f64>> + Clone + '_ {
+        (0..self.len()).map(move |i| self.get(i))
     }
 
     /// Number of rows with a defined value.
     pub fn defined_count(&self) -> usize {
-        self.values.iter().filter(|x| !x.is_nan()).count()
+        self.iter().filter(Option::is_some).count()
     }
 
-    /// The stored values: NaN = undefined (never passed on to an output).
-    pub(crate) fn raw(&self) -> &[f64] {
-        &self.values
+    /// Bytes a row the values are stored in (1, 2, 4 or 8).
+    pub fn bytes_per_row(&self) -> usize {
+        self.values.width()
+    }
+
+    /// The values as `f64`, NaN = undefined (never passed on to an output): borrowed when
+    /// stored as `f64`, else decoded into a new vector that lives as long as the caller
+    /// keeps it.
+    pub(crate) fn raw(&self) -> std::borrow::Cow<'_, [f64]> {
+        self.values.to_f64()
     }
 }
 
@@ -140,15 +365,71 @@ impl FeatureColumn {
 /// kept only for rows with a measured bias, so they line up with one residual per measured row.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FeatureTable {
-    lines: Arc<[u64]>,
+    lines: Lines,
     columns: Vec<FeatureColumn>,
     units: Units,
 }
 
+/// The log line numbers of the measured rows, as runs of consecutive lines (a log without
+/// comment lines or unmeasured rows between its rows is one run): a few bytes in all instead
+/// of 8 a row.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct Lines {
+    /// `(first row, its line)` of each run, rows increasing; row `i` of the run starting at
+    /// row `r` with line `l` is on line `l + (i − r)`. Maximal runs, so equal line lists have
+    /// equal runs.
+    runs: Arc<[(usize, u64)]>,
+    len: usize,
+}
+
+impl Lines {
+    fn new(lines: impl IntoIterator<Item = u64>) -> Lines {
+        let mut b = LinesBuilder::default();
+        lines.into_iter().for_each(|l| b.push(l));
+        b.finish()
+    }
+
+    fn get(&self, i: usize) -> Option<u64> {
+        if i >= self.len {
+            return None;
+        }
+        let run = self.runs.partition_point(|&(r, _)| r <= i);
+        let (r, l) = self.runs[run.checked_sub(1)?];
+        Some(l + (i - r) as u64)
+    }
+}
+
+/// [`Lines`] built line by line.
+#[derive(Debug, Default)]
+struct LinesBuilder {
+    runs: Vec<(usize, u64)>,
+    len: usize,
+}
+
+impl LinesBuilder {
+    #[inline]
+    fn push(&mut self, line: u64) {
+        let continues = self
+            .runs
+            .last()
+            .is_some_and(|&(r, l)| l.checked_add((self.len - r) as u64) == Some(line));
+        if !continues {
+            self.runs.push((self.len, line));
+        }
+        self.len += 1;
+    }
+
+    fn finish(self) -> Lines {
+        Lines {
+            runs: self.runs.into(),
+            len: self.len,
+        }
+    }
+}
+
 /// The `memsum_L` features at [`MEMSUM_FRACTIONS`] of the log's travel (none if it never moves).
 fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
-    let tracks: Vec<f64> = log.rows().map(|r| r.track).collect();
-    let Some(travel) = crate::numeric::stats::range(&tracks)
+    let Some(travel) = crate::numeric::stats::range(log.tracks())
         .map(|[a, b]| b - a)
         .filter(|t| *t > 0.0)
     else {
@@ -160,7 +441,7 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
             let l = f * travel;
             let mut state = MemsumState::new(l);
             let mut source = None;
-            let mut values = Vec::with_capacity(log.measured_count());
+            let mut values = Builder::with_capacity(log.measured_count());
             for row in log.rows() {
                 let from = source.unwrap_or(row.track);
                 if row.bias.is_some() {
@@ -172,7 +453,7 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
             FeatureColumn {
                 name: format!("memsum_L{}", super::advice::short(l)),
                 origin: FeatureOrigin::SummedMemory,
-                values: values.into(),
+                values: values.finish(),
             }
         })
         .collect()
@@ -225,7 +506,7 @@ fn lagged(log: &Log, measured: &[Vec<f64>]) -> Vec<FeatureColumn> {
             out.push(FeatureColumn {
                 name: format!("{name}@lag{}s", super::advice::short(tau)),
                 origin: FeatureOrigin::Lagged,
-                values: lagged.into(),
+                values: Values::from(lagged),
             });
         }
     }
@@ -246,9 +527,9 @@ impl FeatureTable {
     /// direction read another way: `crate::history::replay_with`).
     pub fn from_replay(log: &Log, history: crate::history::Replay<'_>) -> FeatureTable {
         let measured = log.measured_count();
-        let mut builtin: Vec<Vec<f64>> = Feature::ALL
+        let mut builtin: Vec<Builder> = Feature::ALL
             .iter()
-            .map(|_| Vec::with_capacity(measured))
+            .map(|_| Builder::with_capacity(measured))
             .collect();
         let mut covariates: Vec<Vec<f64>> = log
             .schema
@@ -256,20 +537,23 @@ impl FeatureTable {
             .iter()
             .map(|_| Vec::with_capacity(measured))
             .collect();
-        let mut lines = Vec::with_capacity(measured);
-        let mut velocity = Vec::with_capacity(measured);
+        let mut lines = LinesBuilder::default();
+        let dense = crate::history::sampling(log.times(), log.tracks()).dense;
+        let mut velocity = Builder::with_capacity(if dense { measured } else { 0 });
         for (_, row, f) in history {
             if row.bias.is_none() {
                 continue;
             }
             lines.push(row.line);
-            // The rule of `viscous::velocity` without a column: 0 at a zero dwell or a
-            // quotient that is not finite.
-            let v = match (f.value(Feature::SeekLength), f.value(Feature::DwellS)) {
-                (Some(l), Some(d)) if d > 0.0 && (l / d).is_finite() => l / d,
-                _ => 0.0,
-            };
-            velocity.push(v);
+            if dense {
+                // The rule of `viscous::velocity` without a column: 0 at a zero dwell or a
+                // quotient that is not finite.
+                let v = match (f.value(Feature::SeekLength), f.value(Feature::DwellS)) {
+                    (Some(l), Some(d)) if d > 0.0 && (l / d).is_finite() => l / d,
+                    _ => 0.0,
+                };
+                velocity.push(v);
+            }
             for (col, &feature) in builtin.iter_mut().zip(Feature::ALL.iter()) {
                 col.push(stored(f.value(feature)));
             }
@@ -283,16 +567,14 @@ impl FeatureTable {
             .map(|(&feature, values)| FeatureColumn {
                 name: feature.name().to_string(),
                 origin: FeatureOrigin::BuiltIn(feature),
-                values: values.into(),
+                values: values.finish(),
             })
             .collect();
-        let times: Vec<f64> = log.rows().map(|r| r.time_s).collect();
-        let tracks: Vec<f64> = log.rows().map(|r| r.track).collect();
-        if crate::history::sampling(&times, &tracks).dense {
+        if dense {
             columns.push(FeatureColumn {
                 name: DERIVED_VELOCITY.to_string(),
                 origin: FeatureOrigin::DerivedVelocity,
-                values: velocity.into(),
+                values: velocity.finish(),
             });
         }
         columns.extend(summed_memory(log));
@@ -309,7 +591,7 @@ impl FeatureTable {
                 }),
         );
         FeatureTable {
-            lines: lines.into(),
+            lines: lines.finish(),
             columns,
             units: log.schema.units.clone(),
         }
@@ -320,7 +602,7 @@ impl FeatureTable {
     /// and tracks until [`FeatureTable::with_units`] says otherwise.
     pub fn with_lines(lines: Vec<u64>) -> FeatureTable {
         FeatureTable {
-            lines: lines.into(),
+            lines: Lines::new(lines),
             columns: Vec::new(),
             units: Units::default(),
         }
@@ -356,10 +638,11 @@ impl FeatureTable {
                 name: name.to_string(),
             });
         }
-        let values: Arc<[f64]> = values
-            .into_iter()
-            .map(|v| stored(v.filter(|x| x.is_finite())))
-            .collect();
+        let mut stored_values = Builder::with_capacity(values.len());
+        for v in values {
+            stored_values.push(stored(v.filter(|x| x.is_finite())));
+        }
+        let values = stored_values.finish();
         self.columns.push(FeatureColumn {
             name: name.to_string(),
             origin: FeatureOrigin::Covariate,
@@ -370,17 +653,22 @@ impl FeatureTable {
 
     /// Number of measured rows.
     pub fn len(&self) -> usize {
-        self.lines.len()
+        self.lines.len
     }
 
     /// Whether the table has no measured rows.
     pub fn is_empty(&self) -> bool {
-        self.lines.is_empty()
+        self.lines.len == 0
     }
 
-    /// The log line of each measured row.
-    pub fn lines(&self) -> &[u64] {
-        &self.lines
+    /// The log line of each measured row (made from the table's runs of consecutive lines).
+    pub fn lines(&self) -> Vec<u64> {
+        (0..self.len()).filter_map(|i| self.line(i)).collect()
+    }
+
+    /// The log line of measured row `i` (0-based); `None` out of range.
+    pub fn line(&self, i: usize) -> Option<u64> {
+        self.lines.get(i)
     }
 
     /// All feature columns: built-in features in [`Feature::ALL`] order, then covariates.
@@ -400,5 +688,124 @@ impl FeatureTable {
             columns: self.columns.iter().filter(|c| !drop(c)).cloned().collect(),
             units: self.units.clone(),
         }
+    }
+}
+
+#[cfg(test)]
+mod storage_tests {
+    //! The narrow column storage and the line runs against the plain vectors they replace:
+    //! every value read back bit for bit, and the width the narrowest type by a direct check.
+    use super::*;
+    use crate::numeric::rng::SimRng;
+
+    /// The reference width: the first of i8, i16, i32, f32, f64 (in that order) in which every
+    /// value converts to and back bit for bit, the integers' MIN kept for the undefined mark.
+    fn narrowest(values: &[f64]) -> usize {
+        let int = |lo: f64, hi: f64| {
+            values.iter().all(|&x| {
+                x.is_nan()
+                    || (x.fract() == 0.0 && x > lo && x <= hi && x.to_bits() != (-0.0f64).to_bits())
+            })
+        };
+        let f32_exact = values
+            .iter()
+            .all(|&x| x.is_nan() || f64::from(x as f32).to_bits() == x.to_bits());
+        if int(-128.0, 127.0) {
+            1
+        } else if int(-32768.0, 32767.0) {
+            2
+        } else if int(-2147483648.0, 2147483647.0) || f32_exact {
+            4
+        } else {
+            8
+        }
+    }
+
+    fn check(values: &[f64]) {
+        let stored = Values::from(values.to_vec());
+        let col = FeatureColumn {
+            name: "x".into(),
+            origin: FeatureOrigin::Covariate,
+            values: stored,
+        };
+        assert_eq!(col.len(), values.len());
+        assert_eq!(col.bytes_per_row(), narrowest(values), "{values:?}");
+        let raw = col.raw();
+        for (i, &x) in values.iter().enumerate() {
+            let want = defined(x).map(f64::to_bits);
+            assert_eq!(col.get(i).map(f64::to_bits), want, "row {i} of {values:?}");
+            assert_eq!(
+                defined(raw[i]).map(f64::to_bits),
+                want,
+                "row {i} of {values:?}"
+            );
+        }
+        assert_eq!(col.get(values.len()), None);
+        let listed: Vec<Option<u64>> = col.iter().map(|v| v.map(f64::to_bits)).collect();
+        let want: Vec<Option<u64>> = values
+            .iter()
+            .map(|&x| defined(x).map(f64::to_bits))
+            .collect();
+        assert_eq!(listed, want);
+        assert_eq!(
+            col.defined_count(),
+            values.iter().filter(|x| !x.is_nan()).count()
+        );
+    }
+
+    #[test]
+    fn narrow_storage_reads_back_every_value_bit_for_bit() {
+        let nan = f64::NAN;
+        // Each list widens at its end (the re-encoding of what was held is exercised).
+        for values in [
+            vec![],
+            vec![nan, nan],
+            vec![0.0, 1.0, -1.0, nan, 127.0, -127.0],
+            vec![1.0, 2.0, -128.0],
+            vec![1.0, nan, 300.0, -32767.0],
+            vec![1.0, 2.0, -32768.0],
+            vec![1.0, 70000.0, -2147483647.0, nan],
+            vec![1.0, 2.0, 16777217.0],
+            vec![1.0, 2.0, 0.5, -1.25e-3f32 as f64, nan],
+            vec![1.0, -0.0],
+            vec![5.0, 16777217.0, 0.5],
+            vec![1.0, 0.1],
+            vec![3.0, 1e300, 1e-310, nan],
+            vec![1.0, 2147483648.0],
+            vec![f64::INFINITY, 1.0],
+        ] {
+            check(&values);
+        }
+        let mut rng = SimRng::new(7);
+        for scale in [1.0, 100.0, 1e4, 1e9] {
+            let ints: Vec<f64> = (0..500)
+                .map(|_| (rng.range(-1.0, 1.0) * scale).round())
+                .collect();
+            check(&ints);
+            let reals: Vec<f64> = (0..500).map(|_| rng.range(-1.0, 1.0) * scale).collect();
+            check(&reals);
+        }
+    }
+
+    #[test]
+    fn line_runs_give_back_every_line() {
+        for lines in [
+            vec![],
+            vec![5],
+            vec![2, 3, 4, 5],
+            vec![2, 4, 5, 6, 9, 10, 11, 12, 40],
+            vec![7, 7, 8, u64::MAX - 1, u64::MAX, 0, 1],
+        ] {
+            let t = FeatureTable::with_lines(lines.clone());
+            assert_eq!(t.len(), lines.len());
+            assert_eq!(t.lines(), lines);
+            for (i, &l) in lines.iter().enumerate() {
+                assert_eq!(t.line(i), Some(l));
+            }
+            assert_eq!(t.line(lines.len()), None);
+        }
+        // A run per gap, not per row.
+        let t = FeatureTable::with_lines((10..1000).chain(2000..3000).collect());
+        assert_eq!(t.lines.runs.len(), 2);
     }
 }

@@ -457,7 +457,7 @@ pub fn diagnose(
     {
         return Err(DiagnoseError::BadResidual {
             index,
-            line: table.lines().get(index).copied().unwrap_or(0),
+            line: table.line(index).unwrap_or(0),
             value,
         });
     }
@@ -482,9 +482,10 @@ pub fn diagnose(
         });
     }
 
-    let clipped = winsorize(residuals);
-    let mean = stats::mean(&clipped).unwrap_or(0.0);
-    let y: Vec<f64> = clipped.iter().map(|v| v - mean).collect();
+    // Clipped, then centred in place (no second copy of the residual).
+    let mut y = winsorize(residuals);
+    let mean = stats::mean(&y).unwrap_or(0.0);
+    y.iter_mut().for_each(|v| *v -= mean);
     let sst: f64 = y.iter().map(|v| v * v).sum();
     let variance = sst / n as f64;
     let residual_std = stats::std_dev(residuals).unwrap_or(0.0);
@@ -504,7 +505,7 @@ pub fn diagnose(
         .par_iter()
         .map(|col| {
             Binned::new(
-                col.raw(),
+                &col.raw(),
                 config.max_bins,
                 config.min_bin_rows,
                 config.max_discrete,
@@ -651,6 +652,13 @@ pub fn diagnose(
     reports.sort_by(|(ra, a), (rb, b)| ra.cmp(rb).then(report::compare(a, b)));
     let reports: Vec<FeatureReport> = reports.into_iter().map(|(_, r)| r).collect();
 
+    // The pair screen reads only the table and what the forward pass left: the binned
+    // features and the residual's other copies are freed before it (its cells are the
+    // diagnosis's peak of memory otherwise).
+    drop(analysed);
+    drop(signed_residuals);
+    drop(signed);
+    drop(y);
     let (interactions, global) = pairs::screen(table, &forward.left, &ctx, config);
     let whiteness = Whiteness::of(residuals, config.ljung_box_lags, config.alpha);
     let bimodality = stats::bimodality_coefficient(residuals).filter(|b| b.is_finite());
@@ -1024,13 +1032,23 @@ pub(crate) fn null_block_len(y: &[f64]) -> usize {
 /// rounded up to a power of two, at most `residual_block`. A feature that is exchangeable in
 /// seek order (random targets) gets short blocks, a slow column the residual's. NaN marks an
 /// undefined value.
-pub(crate) fn feature_null_block(values: &[f64], residual_block: usize) -> usize {
-    let defined: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
-    let mean = stats::mean(&defined).unwrap_or(0.0);
-    let filled: Vec<f64> = values
-        .iter()
-        .map(|&v| features::defined(v).unwrap_or(mean) - mean)
-        .collect();
+pub(crate) fn feature_null_block(
+    values: std::borrow::Cow<'_, [f64]>,
+    residual_block: usize,
+) -> usize {
+    // The mean of the defined values, summed in row order as `stats::mean` sums them.
+    let defined = || values.iter().copied().filter(|x| !x.is_nan());
+    let count = defined().count();
+    let mean = if count > 0 {
+        defined().sum::<f64>() / count as f64
+    } else {
+        0.0
+    };
+    // One buffer: the decoded column itself where it was decoded for this call.
+    let mut filled = values.into_owned();
+    for v in &mut filled {
+        *v = features::defined(*v).unwrap_or(mean) - mean;
+    }
     null_block_len(&filled)
         .next_power_of_two()
         .min(residual_block)

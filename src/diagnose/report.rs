@@ -185,7 +185,7 @@ fn finite(x: f64) -> Option<f64> {
 
 /// Curve of the residual `y` against `col` at level `shift`.
 fn curve(b: &Binned, shift: u32, col: &FeatureColumn, y: &[f64]) -> Vec<CurveBin> {
-    let acc = accumulate(b, shift, col.raw(), y);
+    let acc = accumulate(b, shift, &col.raw(), y);
     let defined = b.defined_bins(shift);
     acc.iter()
         .enumerate()
@@ -302,12 +302,16 @@ pub(crate) fn feature_report(
     config: &DiagnoseConfig,
 ) -> FeatureReport {
     let chosen = curve(b, shift, col, residuals);
-    let (xs, ys): (Vec<f64>, Vec<f64>) = col
-        .iter()
-        .zip(residuals)
-        .filter_map(|(x, &y)| x.map(|x| (x, y)))
-        .unzip();
-    let trend = stats::linear_trend(&xs, &ys);
+    // The defined rows' (value, residual) pairs, read in place from the column decoded once
+    // (no copy of the pairs; `linear_trend_of` runs over them several times).
+    let values = col.raw();
+    let trend = stats::linear_trend_of(
+        values
+            .iter()
+            .zip(residuals)
+            .filter_map(|(&x, &y)| defined(x).map(|x| (x, y))),
+    );
+    drop(values);
     let r2_bins = binned_r2(&chosen);
     let linear = trend.is_some_and(|t| r2_bins > 0.0 && t.r2 >= 0.85 * r2_bins);
     let (shape, shape_at) = if explained > 0.0 {
@@ -339,8 +343,8 @@ pub(crate) fn feature_report(
     let velocity_sign = matches!(
         col.origin,
         FeatureOrigin::Covariate | FeatureOrigin::DerivedVelocity
-    ) && direction.is_some_and(|d| sign_follows_direction(col.raw(), d));
-    let odd_linear = velocity_sign && velocity_like(col.raw(), residuals, by_direction, r2_bins);
+    ) && direction.is_some_and(|d| sign_follows_direction(&col.raw(), d));
+    let odd_linear = velocity_sign && velocity_like(&col.raw(), residuals, by_direction, r2_bins);
     // A covariate scaling a direction-signed term of the model is tried first (`scale:COL:TERM`).
     let mut candidates = advice::scale_terms(
         &col.name,
@@ -380,8 +384,8 @@ pub(crate) fn feature_report(
             .filter(|_| b.kind == BinKind::Quantile)
             .and_then(finite),
         expected_std: residual_std * (1.0 - explained).max(0.0).sqrt(),
-        n: xs.len(),
-        missing: col.len() - xs.len(),
+        n: col.defined_count(),
+        missing: col.len() - col.defined_count(),
         bins: chosen.len(),
         slope: trend.and_then(|t| finite(t.slope)),
         slope_p: trend.and_then(|t| finite(t.p_value)),

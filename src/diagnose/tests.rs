@@ -771,7 +771,7 @@ fn fused_permutation_test_equals_the_per_feature_reference() {
         .columns()
         .iter()
         .map(|col| {
-            Binned::new(col.raw(), config.max_bins, config.min_bin_rows, 12).map(|binned| {
+            Binned::new(&col.raw(), config.max_bins, config.min_bin_rows, 12).map(|binned| {
                 let observed = FTest::new(&binned).min_p(&binned, &y, sst) * 0.5;
                 Analysed {
                     binned,
@@ -851,7 +851,7 @@ fn permutation_read_in_place_equals_the_materialised_one() {
     let bins: Vec<Binned> = t
         .columns()
         .iter()
-        .filter_map(|c| Binned::new(c.raw(), 64, 10, 12).ok())
+        .filter_map(|c| Binned::new(&c.raw(), 64, 10, 12).ok())
         .collect();
     assert!(bins.len() >= 8);
     let refs: Vec<&Binned> = bins.iter().collect();
@@ -1022,5 +1022,53 @@ fn winsorize_by_selection_equals_the_sorted_reference() {
         r.iter_mut().skip(1).step_by(2).for_each(|v| *v = 2.0);
         r.iter_mut().step_by(3).for_each(|v| *v = 2.0);
         assert_eq!(bits(&winsorize(&r)), bits(&reference(&r)), "n {n} ties");
+    }
+}
+
+/// `feature_null_block` as it was before it read the column in place (a copy of the defined
+/// values for the mean, a second for the filled column): the reference the in-place one must
+/// match, on slow (random-walk) and fast columns with undefined rows, stored as `f64` and
+/// narrow.
+fn feature_null_block_copying(values: &[f64], residual_block: usize) -> usize {
+    let defined: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
+    let mean = stats::mean(&defined).unwrap_or(0.0);
+    let filled: Vec<f64> = values
+        .iter()
+        .map(|&v| features::defined(v).unwrap_or(mean) - mean)
+        .collect();
+    null_block_len(&filled)
+        .next_power_of_two()
+        .min(residual_block)
+        .max(1)
+}
+
+#[test]
+fn feature_null_block_in_place_matches_the_copying_one() {
+    let mut rng = SimRng::new(31);
+    let mut walk = 0.0;
+    for round in 0..6 {
+        let n = 2000 + 500 * round;
+        let values: Vec<f64> = (0..n)
+            .map(|i| {
+                walk += rng.range(-1.0, 1.0);
+                let v = if round % 2 == 0 {
+                    walk.round()
+                } else {
+                    walk + 0.1 * (i % 7) as f64
+                };
+                if rng.uniform() < 0.05 { f64::NAN } else { v }
+            })
+            .collect();
+        let opts: Vec<Option<f64>> = values.iter().map(|&v| features::defined(v)).collect();
+        let mut t = FeatureTable::with_lines((0..n as u64).collect());
+        t.push_column("c", opts).expect("column");
+        let col = &t.columns()[0];
+        for residual_block in [1, 8, 64, 512] {
+            assert_eq!(
+                feature_null_block(col.raw(), residual_block),
+                feature_null_block_copying(&values, residual_block),
+                "round {round}, block {residual_block}"
+            );
+        }
     }
 }

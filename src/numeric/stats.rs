@@ -555,7 +555,11 @@ pub(crate) fn skew_kurtosis(x: &[f64]) -> Option<(f64, f64)> {
 /// The power of two nearest below the largest |value| of `x` (1 when that is 0, not finite,
 /// or already between 2^-64 and 2^64): dividing by it is exact and brings the values near 1.
 fn pow2_scale(x: &[f64]) -> f64 {
-    let m = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    pow2_of_max(x.iter().fold(0.0f64, |a, v| a.max(v.abs())))
+}
+
+/// [`pow2_scale`] of values whose largest magnitude is `m`.
+fn pow2_of_max(m: f64) -> f64 {
     if !(m.is_finite() && m > 0.0) {
         return 1.0;
     }
@@ -908,25 +912,35 @@ pub struct Trend {
 /// Least-squares trend of `y` against `x` (centred, so large x values lose no precision);
 /// `None` for fewer than three points or zero spread in x. A perfect fit gives p = 0.
 pub(crate) fn linear_trend(x: &[f64], y: &[f64]) -> Option<Trend> {
-    let n = x.len().min(y.len());
+    linear_trend_of(x.iter().copied().zip(y.iter().copied()))
+}
+
+/// [`linear_trend`] of the points `(x, y)` that `points` gives (it is run through several
+/// times instead of copied: the same sums in the same order, so the same bits).
+pub(crate) fn linear_trend_of(points: impl Iterator<Item = (f64, f64)> + Clone) -> Option<Trend> {
+    let n = points.clone().count();
     if n < 3 {
         return None;
     }
     // Computed on x / 2^a and y / 2^b (exact scalings; in-range data give the same bits) so
     // that squares of 1e-200 or 1e200 neither underflow nor overflow; slope, intercept and
     // slope_se are scaled back, t, p and r² are scale-free.
-    let (kx, ky) = (pow2_scale(&x[..n]), pow2_scale(&y[..n]));
-    let xs: Vec<f64> = x[..n].iter().map(|v| v / kx).collect();
-    let ys: Vec<f64> = y[..n].iter().map(|v| v / ky).collect();
-    let (x, y) = (&xs[..], &ys[..]);
-    let mx = mean(x)?;
-    let my = mean(y)?;
-    let sxx: f64 = x.iter().map(|v| (v - mx).powi(2)).sum();
+    let max_abs = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0f64, |a, v| a.max(v.abs()));
+    let (kx, ky) = (
+        pow2_of_max(max_abs(&mut points.clone().map(|p| p.0))),
+        pow2_of_max(max_abs(&mut points.clone().map(|p| p.1))),
+    );
+    let scaled = points.map(move |(x, y)| (x / kx, y / ky));
+    let x = || scaled.clone().map(|p| p.0);
+    let y = || scaled.clone().map(|p| p.1);
+    let mx = x().sum::<f64>() / n as f64;
+    let my = y().sum::<f64>() / n as f64;
+    let sxx: f64 = x().map(|v| (v - mx).powi(2)).sum();
     if sxx <= 0.0 {
         return None;
     }
-    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
-    let syy: f64 = y.iter().map(|v| (v - my).powi(2)).sum();
+    let sxy: f64 = scaled.clone().map(|(a, b)| (a - mx) * (b - my)).sum();
+    let syy: f64 = y().map(|v| (v - my).powi(2)).sum();
     let slope = sxy / sxx;
     let sse = (syy - slope * sxy).max(0.0);
     let dof = (n - 2) as f64;
@@ -1130,6 +1144,84 @@ mod tests {
 
     fn close(a: f64, b: f64, tol: f64) -> bool {
         (a - b).abs() <= tol
+    }
+
+    /// The slice-copying `linear_trend` as it was before it read its points in place (issue
+    /// #16): the reference `linear_trend_of` must match bit for bit.
+    fn linear_trend_copying(x: &[f64], y: &[f64]) -> Option<Trend> {
+        let n = x.len().min(y.len());
+        if n < 3 {
+            return None;
+        }
+        let (kx, ky) = (pow2_scale(&x[..n]), pow2_scale(&y[..n]));
+        let xs: Vec<f64> = x[..n].iter().map(|v| v / kx).collect();
+        let ys: Vec<f64> = y[..n].iter().map(|v| v / ky).collect();
+        let (x, y) = (&xs[..], &ys[..]);
+        let mx = mean(x)?;
+        let my = mean(y)?;
+        let sxx: f64 = x.iter().map(|v| (v - mx).powi(2)).sum();
+        if sxx <= 0.0 {
+            return None;
+        }
+        let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+        let syy: f64 = y.iter().map(|v| (v - my).powi(2)).sum();
+        let slope = sxy / sxx;
+        let sse = (syy - slope * sxy).max(0.0);
+        let dof = (n - 2) as f64;
+        let slope_se = (sse / dof / sxx).sqrt().max(f64::EPSILON * slope.abs());
+        let t = if slope_se > 0.0 {
+            slope / slope_se
+        } else {
+            0.0
+        };
+        Some(Trend {
+            slope: slope * (ky / kx),
+            intercept: (my - slope * mx) * ky,
+            slope_se: slope_se * (ky / kx),
+            t,
+            p_value: student_t_two_sided_p(t, dof),
+            r2: if syy > 0.0 { 1.0 - sse / syy } else { 0.0 },
+            n,
+        })
+    }
+
+    #[test]
+    fn linear_trend_in_place_matches_the_copying_one_bit_for_bit() {
+        let mut rng = crate::numeric::rng::SimRng::new(11);
+        let bits = |t: Option<Trend>| {
+            t.map(|t| {
+                [
+                    t.slope,
+                    t.intercept,
+                    t.slope_se,
+                    t.t,
+                    t.p_value,
+                    t.r2,
+                    t.n as f64,
+                ]
+                .map(f64::to_bits)
+            })
+        };
+        for (sx, sy) in [(1.0, 1.0), (1e3, 1e-3), (1e200, 1e-200), (1e-250, 1e250)] {
+            for n in [0usize, 2, 3, 10, 1000] {
+                let x: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 3.0) * sx).collect();
+                let y: Vec<f64> = x
+                    .iter()
+                    .map(|v| (0.3 * v / sx + rng.range(-1.0, 1.0)) * sy)
+                    .collect();
+                assert_eq!(
+                    bits(linear_trend(&x, &y)),
+                    bits(linear_trend_copying(&x, &y))
+                );
+                // Unequal lengths: the shorter decides, as before.
+                let short = &y[..n.saturating_sub(1)];
+                assert_eq!(
+                    bits(linear_trend(&x, short)),
+                    bits(linear_trend_copying(&x, short))
+                );
+            }
+        }
+        assert!(linear_trend(&[2.0; 5], &[1.0, 2.0, 3.0, 4.0, 5.0]).is_none());
     }
 
     #[test]
