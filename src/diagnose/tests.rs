@@ -925,7 +925,7 @@ fn lanes_of_block_permutations_equal_the_materialised_ones() {
     let bins: Vec<Binned> = t
         .columns()
         .iter()
-        .filter_map(|c| Binned::new(c.raw(), 64, 10, 12).ok())
+        .filter_map(|c| Binned::new(&c.raw(), 64, 10, 12).ok())
         .collect();
     assert!(bins.len() >= 8);
     let refs: Vec<&Binned> = bins.iter().collect();
