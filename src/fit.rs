@@ -1077,7 +1077,7 @@ enum FixedReader<'s, 'a> {
     Stored { xf: &'s [f64], pf: usize },
     /// Replayed a block of rows at a time: `buf` holds rows `start..` (row-major, `pf` wide).
     Streamed {
-        rows: FixedRows<'a>,
+        rows: Box<FixedRows<'a>>,
         buf: Vec<f64>,
         start: usize,
         pf: usize,
@@ -1326,7 +1326,7 @@ impl<'d, 'a> Projection<'d, 'a> {
         Some(match &self.xf {
             FixedBlock::Stored(xf) => FixedReader::Stored { xf, pf: self.pf },
             FixedBlock::Streamed(fixed) => FixedReader::Streamed {
-                rows: FixedRows::new(fixed, self.data).ok()?,
+                rows: Box::new(FixedRows::new(fixed, self.data).ok()?),
                 buf: Vec::with_capacity(BLOCK * self.pf),
                 start: 0,
                 pf: self.pf,
