@@ -1058,6 +1058,123 @@ fn accumulate_one_portable(acc: &mut [f64], xf: &[f64], y: &[f64], d: &[f64]) {
     }
 }
 
+/// [`Projection`] keeps its fixed block row by row up to this many bytes (64 MiB); a larger
+/// one is replayed from its terms on every pass ([`FixedRows`]) instead: the same rows and the
+/// same bits, for the CPU time of a replay of the fixed terms per pass.
+const STORED_FIXED_BYTES: usize = 64 << 20;
+
+/// [`Projection`]'s fixed block.
+enum FixedBlock {
+    /// Row-major, one row of fixed columns per measured row.
+    Stored(Vec<f64>),
+    /// The fixed terms, replayed per pass ([`FixedRows`]).
+    Streamed(Vec<Arc<dyn Term>>),
+}
+
+/// The fixed block's rows as a pass reads them, in order.
+enum FixedReader<'s, 'a> {
+    /// The stored block, `pf` columns wide.
+    Stored { xf: &'s [f64], pf: usize },
+    /// Replayed a block of rows at a time: `buf` holds rows `start..` (row-major, `pf` wide).
+    Streamed {
+        rows: Box<FixedRows<'a>>,
+        buf: Vec<f64>,
+        start: usize,
+        pf: usize,
+    },
+}
+
+impl FixedReader<'_, '_> {
+    /// Measured rows `i..i + run` (row-major); `i` never goes back before the previous call's
+    /// first row. `None` where the replay ends early (it cannot: the same rows as the stored
+    /// block's).
+    fn rows(&mut self, i: usize, run: usize) -> Option<&[f64]> {
+        match self {
+            FixedReader::Stored { xf, pf } => xf.get(i * *pf..(i + run) * *pf),
+            FixedReader::Streamed {
+                rows,
+                buf,
+                start,
+                pf,
+            } => {
+                let pf = *pf;
+                let have = *start + buf.len() / pf;
+                if i + run > have {
+                    // Drop the rows before `i`, then replay at least a block more.
+                    let drop = (i.min(have) - *start) * pf;
+                    buf.drain(..drop);
+                    *start = i.min(have);
+                    let need = i + run - have;
+                    if rows.fill(buf, need.max(BLOCK)) < need {
+                        return None;
+                    }
+                }
+                buf.get((i - *start) * pf..(i - *start + run) * pf)
+            }
+        }
+    }
+}
+
+/// The measured rows of a design of `terms`, replayed a block at a time: the rows
+/// [`design_pass`] visits, in the same order and with the same bits.
+struct FixedRows<'a> {
+    replay: crate::history::Replay<'a>,
+    states: Vec<Box<dyn crate::model::term::TermState>>,
+    off: Vec<usize>,
+    widths: Vec<usize>,
+    buf: Vec<f64>,
+    cov: Vec<f64>,
+}
+
+impl<'a> FixedRows<'a> {
+    /// Starts the replay; fails where a term fails to start.
+    fn new(terms: &[Arc<dyn Term>], data: &FitData<'a>) -> Result<Self, FitError> {
+        let covs = &data.log().schema.covariates;
+        let states = terms
+            .iter()
+            .map(|t| t.start(covs))
+            .collect::<Result<Vec<_>, _>>()?;
+        let (off, p) = offsets(terms);
+        Ok(Self {
+            replay: data.replay_for(terms),
+            states,
+            off,
+            widths: terms.iter().map(|t| t.param_count()).collect(),
+            buf: vec![0.0; p],
+            cov: Vec::new(),
+        })
+    }
+
+    /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, row-major;
+    /// returns how many it appended.
+    fn fill(&mut self, out: &mut Vec<f64>, rows: usize) -> usize {
+        let mut n = 0;
+        while n < rows {
+            let Some((_, row, f)) = self.replay.next() else {
+                break;
+            };
+            let seek = Seek {
+                features: &f,
+                covariates: row.covariates.gather(&mut self.cov),
+            };
+            if row.bias.is_some() {
+                for (k, s) in self.states.iter().enumerate() {
+                    s.basis(
+                        &seek,
+                        &mut self.buf[self.off[k]..self.off[k] + self.widths[k]],
+                    );
+                }
+                out.extend_from_slice(&self.buf);
+                n += 1;
+            }
+            for s in &mut self.states {
+                s.update(&seek, None);
+            }
+        }
+        n
+    }
+}
+
 /// A column whose residual on all the other columns is below this multiple of the rank
 /// tolerance (× its norm) sends a candidate to [`slow_rss`], which decides what to drop.
 const PROJECTION_MARGIN: f64 = 10.0;
@@ -1076,8 +1193,8 @@ struct Projection<'d, 'a> {
     /// Term `k`'s columns at a batch of candidate values ([`Term::search_basis`]).
     search: Box<dyn SearchBasis + 'd>,
     pf: usize,
-    /// Row-major, one row of fixed columns per measured row.
-    xf: Vec<f64>,
+    /// The fixed columns: stored row by row, or replayed per pass where too large.
+    xf: FixedBlock,
     /// Per measured row, the response's residual `r = y − Xf·βf` on the fixed block (it takes
     /// the place of `y`).
     y: Vec<f64>,
@@ -1100,6 +1217,18 @@ impl<'d, 'a> Projection<'d, 'a> {
         data: &'d FitData<'a>,
         opts: &CheckedFitOptions,
     ) -> Option<Self> {
+        Self::with_budget(terms, k, data, opts, STORED_FIXED_BYTES)
+    }
+
+    /// [`Projection::new`], storing the fixed block only if it takes at most `budget` bytes
+    /// (else it is replayed per pass: the same rows, the same bits).
+    fn with_budget(
+        terms: &'d [Arc<dyn Term>],
+        k: usize,
+        data: &'d FitData<'a>,
+        opts: &CheckedFitOptions,
+        budget: usize,
+    ) -> Option<Self> {
         if terms.iter().any(|t| t.ridge() > 0.0) {
             return None;
         }
@@ -1114,11 +1243,17 @@ impl<'d, 'a> Projection<'d, 'a> {
             return None;
         }
         let m = data.log().measured_count();
-        let mut xf = Vec::with_capacity(m * pf);
+        let store = m
+            .saturating_mul(pf)
+            .saturating_mul(std::mem::size_of::<f64>())
+            <= budget;
+        let mut xf = Vec::with_capacity(if store { m * pf } else { 0 });
         let mut y = Vec::with_capacity(m);
         let mut qr = StreamingQr::new(pf);
         design_pass(&fixed, data, |x, v| {
-            xf.extend_from_slice(x);
+            if store {
+                xf.extend_from_slice(x);
+            }
             y.push(v);
             qr.push(x, v);
         })
@@ -1139,14 +1274,33 @@ impl<'d, 'a> Projection<'d, 'a> {
         // the fixed block still explains of it (`w = Rf⁻ᵀ Xfᵀ r`, rounding) is kept exactly.
         let mut xr = Blocked::new(pf + 1);
         let mut sums = vec![0.0; pf + 1];
-        for (x, yv) in xf.chunks_exact(pf).zip(y.iter_mut()) {
+        let mut residual = |x: &[f64], yv: &mut f64| {
             *yv -= x.iter().zip(beta.iter()).map(|(a, b)| a * b).sum::<f64>();
             for (s, &a) in sums.iter_mut().zip(x) {
                 *s = a * *yv;
             }
             sums[pf] = *yv * *yv;
             xr.add(&sums);
-        }
+        };
+        let xf = if store {
+            for (x, yv) in xf.chunks_exact(pf).zip(y.iter_mut()) {
+                residual(x, yv);
+            }
+            FixedBlock::Stored(xf)
+        } else {
+            // The same rows again, in the same order (a replay is deterministic).
+            let mut rows = y.iter_mut();
+            let mut short = false;
+            design_pass(&fixed, data, |x, _| match rows.next() {
+                Some(yv) => residual(x, yv),
+                None => short = true,
+            })
+            .ok()?;
+            if short || rows.next().is_some() {
+                return None;
+            }
+            FixedBlock::Streamed(fixed)
+        };
         let xr = xr.total();
         let w = rf
             .transpose()
@@ -1164,6 +1318,19 @@ impl<'d, 'a> Projection<'d, 'a> {
             colsq_f: colsq_f[..pf].to_vec(),
             memo: std::cell::RefCell::new(Vec::new()),
             tol,
+        })
+    }
+
+    /// A reader of the fixed block's rows for one pass; `None` where its terms fail to start.
+    fn reader(&self) -> Option<FixedReader<'_, 'a>> {
+        Some(match &self.xf {
+            FixedBlock::Stored(xf) => FixedReader::Stored { xf, pf: self.pf },
+            FixedBlock::Streamed(fixed) => FixedReader::Streamed {
+                rows: Box::new(FixedRows::new(fixed, self.data).ok()?),
+                buf: Vec::with_capacity(BLOCK * self.pf),
+                start: 0,
+                pf: self.pf,
+            },
         })
     }
 
@@ -1238,16 +1405,25 @@ impl<'d, 'a> Projection<'d, 'a> {
         let mut acc = vec![0.0; n_acc * L];
         let mut totals: Vec<Blocked> = (0..L).map(|_| Blocked::new(n_acc)).collect();
         let mut i = 0;
+        let mut xf = self.reader()?;
+        let mut short = false;
         self.search
             .replay(vals, &mut |block: &[f64], rows: usize| {
+                if short {
+                    return;
+                }
                 if w == 1 {
                     // Runs of rows up to the next flush, each added by one call of the kernel.
                     let mut j = 0;
                     while j < rows {
                         let run = (BLOCK - i % BLOCK).min(rows - j);
+                        let Some(x) = xf.rows(i, run) else {
+                            short = true;
+                            return;
+                        };
                         accumulate_one(
                             &mut acc,
-                            &self.xf[i * pf..(i + run) * pf],
+                            x,
                             &self.y[i..i + run],
                             &block[j * L..(j + run) * L],
                         );
@@ -1262,7 +1438,11 @@ impl<'d, 'a> Projection<'d, 'a> {
                     return;
                 }
                 for d in block.chunks_exact(L * w).take(rows) {
-                    let (x, yv) = (&self.xf[i * pf..(i + 1) * pf], self.y[i]);
+                    let Some(x) = xf.rows(i, 1) else {
+                        short = true;
+                        return;
+                    };
+                    let yv = self.y[i];
                     for b in 0..w {
                         for c in 0..L {
                             let db = d[c * w + b];
@@ -1283,6 +1463,9 @@ impl<'d, 'a> Projection<'d, 'a> {
                     }
                 }
             })?;
+        if short {
+            return None;
+        }
         Some(
             totals
                 .iter_mut()
@@ -1318,6 +1501,7 @@ impl<'d, 'a> Projection<'d, 'a> {
         let mut total = Blocked::new(pf * w + w * w + w);
         let mut i = 0;
         let mut cov = Vec::new();
+        let mut xf = self.reader()?;
         for (_, row, f) in self.data.replay_for(std::slice::from_ref(term)) {
             let seek = Seek {
                 features: &f,
@@ -1325,7 +1509,7 @@ impl<'d, 'a> Projection<'d, 'a> {
             };
             if row.bias.is_some() {
                 st.basis(&seek, &mut d);
-                let (x, yv) = (&self.xf[i * pf..(i + 1) * pf], self.y[i]);
+                let (x, yv) = (xf.rows(i, 1)?, self.y[i]);
                 if w == 1 {
                     // One column (the searched Dahl element): the same sums, without the
                     // index arithmetic.
@@ -2108,6 +2292,85 @@ mod tests {
         }
         assert!(crate::history::log_sampling(&dense).deadband > 0.0);
         assert_eq!(checked, 6);
+    }
+
+    /// A fixed block over the budget is replayed per pass instead of stored: every RSS the
+    /// projection gives (batched, row by row, and of `bump`'s own versions) and its residual
+    /// equal the stored block's bit for bit (the reference: the stored block, itself tested
+    /// against full solves above), on simulated logs with and without unmeasured rows (the
+    /// replayed rows skip them as the stored ones do) and longer than several row blocks.
+    #[test]
+    fn streamed_fixed_block_equals_the_stored_one() {
+        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+        let opts = FitOptions::default().check().unwrap();
+        for seed in [1, 7] {
+            let so = SequenceOptions {
+                n: Some(3000),
+                ..SequenceOptions::default()
+            };
+            let cfg = SimConfig::new(Drive::paper1997(), "random", &so, seed, &[]).unwrap();
+            let mut log = simulate_log(&cfg).unwrap();
+            if seed == 7 {
+                for i in (3..log.len()).step_by(5) {
+                    log.set_bias(i, None);
+                }
+            }
+            let [lo, hi] = crate::numeric::stats::range(log.tracks()).unwrap();
+            for text in ["dahl", "poly2,seek,dahl", "poly2,direction,bump"] {
+                let spec = ModelSpec::parse(text).unwrap();
+                let data = FitData::new(&log);
+                let mut terms = spec
+                    .terms
+                    .iter()
+                    .map(|t| t.prepare(&data))
+                    .collect::<Result<Vec<_>, _>>()
+                    .unwrap();
+                if !terms.iter().any(|t| t.provides_intercept()) {
+                    terms.insert(0, Arc::new(InterceptTerm));
+                }
+                let k = terms.iter().position(|t| t.search_by_projection()).unwrap();
+                let stored = Projection::with_budget(&terms, k, &data, &opts, usize::MAX)
+                    .expect("fast path applies");
+                let streamed =
+                    Projection::with_budget(&terms, k, &data, &opts, 0).expect("fast path applies");
+                assert!(matches!(stored.xf, FixedBlock::Stored(_)), "{text}");
+                assert!(matches!(streamed.xf, FixedBlock::Streamed(_)), "{text}");
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&stored.y), bits(&streamed.y), "{text}");
+                assert_eq!(stored.rho2.to_bits(), streamed.rho2.to_bits(), "{text}");
+                // Candidate rates for `dahl`, centres across the tracks for `bump`.
+                let ts: Vec<f64> = (0..=12)
+                    .map(|i| f64::from(i) / 12.0)
+                    .map(|u| {
+                        if text.ends_with("bump") {
+                            lo + (hi - lo) * u
+                        } else {
+                            u
+                        }
+                    })
+                    .collect();
+                let as_bits = |v: Vec<Option<f64>>| {
+                    v.into_iter()
+                        .map(|x| x.map(f64::to_bits))
+                        .collect::<Vec<_>>()
+                };
+                let many = as_bits(stored.fast_rss_many(&terms, &ts));
+                assert!(
+                    many.iter().any(Option::is_some),
+                    "{text}: nothing to compare"
+                );
+                assert_eq!(many, as_bits(streamed.fast_rss_many(&terms, &ts)), "{text}");
+                for &t in &ts {
+                    if let Some(version) = terms[k].with_nonlinear(t) {
+                        assert_eq!(
+                            stored.fast_rss_of(&version).map(f64::to_bits),
+                            streamed.fast_rss_of(&version).map(f64::to_bits),
+                            "{text} at {t}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     /// `bump` searches its own centre and width (`Term::search`) on the RSS by variable
