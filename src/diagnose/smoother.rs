@@ -645,6 +645,18 @@ impl SlotTable {
                 add_rows_held(rows, m, offset, run, acc);
             } else if ms == 0 {
                 add_rows(rows, m, offset, run, acc);
+            } else if self.steady {
+                signed_sum = add_rows_signed_held(
+                    rows,
+                    m,
+                    ms,
+                    offset,
+                    run,
+                    &direction[k..k + run.len()],
+                    acc,
+                    acc_signed,
+                    signed_sum,
+                );
             } else {
                 signed_sum = add_rows_signed(
                     rows,
@@ -1049,6 +1061,80 @@ fn add_rows_signed(
         }
         for (&c, &o) in row[..ms].iter().zip(offset) {
             acc_signed[o + c as usize] += w;
+        }
+    }
+    sum
+}
+
+/// [`add_rows_signed`] (m ≤ [`HELD_MAX`]) with each feature's current slots (plain and
+/// signed) held in registers, as [`add_rows_held`]: the same adds per slot in row order.
+#[allow(clippy::too_many_arguments)]
+fn add_rows_signed_held(
+    codes: &[u8],
+    m: usize,
+    ms: usize,
+    offset: &[usize],
+    run: &[f64],
+    d: &[f64],
+    acc: &mut [f64],
+    acc_signed: &mut [f64],
+    sum: f64,
+) -> f64 {
+    let f = match m {
+        1 => add_rows_signed_held_m::<1>,
+        2 => add_rows_signed_held_m::<2>,
+        3 => add_rows_signed_held_m::<3>,
+        4 => add_rows_signed_held_m::<4>,
+        _ => return add_rows_signed(codes, m, ms, offset, run, d, acc, acc_signed, sum),
+    };
+    f(codes, ms, offset, run, d, acc, acc_signed, sum)
+}
+
+/// [`add_rows_signed_held`] for `M` features.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn add_rows_signed_held_m<const M: usize>(
+    codes: &[u8],
+    ms: usize,
+    offset: &[usize],
+    run: &[f64],
+    d: &[f64],
+    acc: &mut [f64],
+    acc_signed: &mut [f64],
+    mut sum: f64,
+) -> f64 {
+    if run.is_empty() {
+        return sum;
+    }
+    let off: [usize; M] = std::array::from_fn(|j| offset[j]);
+    let mut slot: [usize; M] = std::array::from_fn(|j| off[j] + codes[j] as usize);
+    let mut held: [f64; M] = std::array::from_fn(|j| acc[slot[j]]);
+    let mut held_s: [f64; M] =
+        std::array::from_fn(|j| if j < ms { acc_signed[slot[j]] } else { 0.0 });
+    for ((row, &v), &dt) in codes.chunks_exact(M).zip(run).zip(d) {
+        let w = v * dt;
+        sum += w;
+        for j in 0..M {
+            let s = off[j] + row[j] as usize;
+            if s != slot[j] {
+                acc[slot[j]] = held[j];
+                held[j] = acc[s];
+                if j < ms {
+                    acc_signed[slot[j]] = held_s[j];
+                    held_s[j] = acc_signed[s];
+                }
+                slot[j] = s;
+            }
+            held[j] += v;
+            if j < ms {
+                held_s[j] += w;
+            }
+        }
+    }
+    for j in 0..M {
+        acc[slot[j]] = held[j];
+        if j < ms {
+            acc_signed[slot[j]] = held_s[j];
         }
     }
     sum
