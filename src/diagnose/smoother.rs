@@ -419,7 +419,15 @@ pub(crate) struct SlotTable {
     signed: usize,
     /// Start of feature `j`'s slots in the accumulators (`offset[m]`: their length).
     offset: Vec<usize>,
+    /// Whether every feature stays in one slot for long runs of rows in seek order (at most
+    /// one change of slot per [`STEADY_ROWS`] rows, as the time features' monotone bins do):
+    /// then a row-permuted residual is summed with each feature's current slot held in a
+    /// register ([`add_rows_held`]).
+    steady: bool,
 }
+
+/// Rows per change of slot, at least, of a [`SlotTable`] summed with [`add_rows_held`].
+const STEADY_ROWS: usize = 64;
 
 impl SlotTable {
     /// The table of `bins` (the first `signed` of them also summed for the signed residual);
@@ -440,12 +448,26 @@ impl SlotTable {
         for b in bins {
             offset.push(offset.last().copied().unwrap_or(0) + b.n_fine + 1);
         }
+        let changes = (0..m)
+            .map(|j| {
+                let col = codes.iter().skip(j).step_by(m);
+                col.clone().zip(col.skip(1)).filter(|(a, b)| a != b).count()
+            })
+            .max()
+            .unwrap_or(0);
         Some(SlotTable {
+            steady: m <= HELD_MAX && changes * STEADY_ROWS <= n,
             codes,
             m,
             signed: signed.min(m),
             offset,
         })
+    }
+
+    /// Whether a row-permuted residual is summed by [`add_rows_held`].
+    #[cfg(test)]
+    pub(crate) fn steady(&self) -> bool {
+        self.steady
     }
 
     /// Length of the accumulators [`SlotTable::accumulate`] fills.
@@ -619,8 +641,22 @@ impl SlotTable {
         let codes = &self.codes[..];
         y.for_each_run(|k, run| {
             let rows = &codes[k * m..(k + run.len()) * m];
-            if ms == 0 {
+            if ms == 0 && self.steady {
+                add_rows_held(rows, m, offset, run, acc);
+            } else if ms == 0 {
                 add_rows(rows, m, offset, run, acc);
+            } else if self.steady {
+                signed_sum = add_rows_signed_held(
+                    rows,
+                    m,
+                    ms,
+                    offset,
+                    run,
+                    &direction[k..k + run.len()],
+                    acc,
+                    acc_signed,
+                    signed_sum,
+                );
             } else {
                 signed_sum = add_rows_signed(
                     rows,
@@ -947,6 +983,49 @@ fn signed_sst_lanes_portable(
     ss
 }
 
+/// Most features [`add_rows_held`] takes.
+const HELD_MAX: usize = 4;
+
+/// [`add_rows`] (m ≤ [`HELD_MAX`]) with each feature's current slot held in a register: it is
+/// written back, and the next slot read, only when the feature's slot changes. Every slot
+/// still receives its rows in row order from the value it had, so the sums are the same bits
+/// (tested); what goes is the chain through memory (each add waiting for the previous add's
+/// store to the same slot) when a feature keeps its slot for many rows.
+fn add_rows_held(codes: &[u8], m: usize, offset: &[usize], run: &[f64], acc: &mut [f64]) {
+    match m {
+        1 => add_rows_held_m::<1>(codes, offset, run, acc),
+        2 => add_rows_held_m::<2>(codes, offset, run, acc),
+        3 => add_rows_held_m::<3>(codes, offset, run, acc),
+        4 => add_rows_held_m::<4>(codes, offset, run, acc),
+        _ => add_rows(codes, m, offset, run, acc),
+    }
+}
+
+/// [`add_rows_held`] for `M` features.
+#[inline]
+fn add_rows_held_m<const M: usize>(codes: &[u8], offset: &[usize], run: &[f64], acc: &mut [f64]) {
+    if run.is_empty() {
+        return;
+    }
+    let off: [usize; M] = std::array::from_fn(|j| offset[j]);
+    let mut slot: [usize; M] = std::array::from_fn(|j| off[j] + codes[j] as usize);
+    let mut held: [f64; M] = std::array::from_fn(|j| acc[slot[j]]);
+    for (row, &v) in codes.chunks_exact(M).zip(run) {
+        for j in 0..M {
+            let s = off[j] + row[j] as usize;
+            if s != slot[j] {
+                acc[slot[j]] = held[j];
+                slot[j] = s;
+                held[j] = acc[s];
+            }
+            held[j] += v;
+        }
+    }
+    for j in 0..M {
+        acc[slot[j]] = held[j];
+    }
+}
+
 /// Adds `run[t]` into `acc[offset[j] + codes[t·m + j]]` for every row t and feature j < m.
 #[inline]
 fn add_rows(codes: &[u8], m: usize, offset: &[usize], run: &[f64], acc: &mut [f64]) {
@@ -982,6 +1061,80 @@ fn add_rows_signed(
         }
         for (&c, &o) in row[..ms].iter().zip(offset) {
             acc_signed[o + c as usize] += w;
+        }
+    }
+    sum
+}
+
+/// [`add_rows_signed`] (m ≤ [`HELD_MAX`]) with each feature's current slots (plain and
+/// signed) held in registers, as [`add_rows_held`]: the same adds per slot in row order.
+#[allow(clippy::too_many_arguments)]
+fn add_rows_signed_held(
+    codes: &[u8],
+    m: usize,
+    ms: usize,
+    offset: &[usize],
+    run: &[f64],
+    d: &[f64],
+    acc: &mut [f64],
+    acc_signed: &mut [f64],
+    sum: f64,
+) -> f64 {
+    let f = match m {
+        1 => add_rows_signed_held_m::<1>,
+        2 => add_rows_signed_held_m::<2>,
+        3 => add_rows_signed_held_m::<3>,
+        4 => add_rows_signed_held_m::<4>,
+        _ => return add_rows_signed(codes, m, ms, offset, run, d, acc, acc_signed, sum),
+    };
+    f(codes, ms, offset, run, d, acc, acc_signed, sum)
+}
+
+/// [`add_rows_signed_held`] for `M` features.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn add_rows_signed_held_m<const M: usize>(
+    codes: &[u8],
+    ms: usize,
+    offset: &[usize],
+    run: &[f64],
+    d: &[f64],
+    acc: &mut [f64],
+    acc_signed: &mut [f64],
+    mut sum: f64,
+) -> f64 {
+    if run.is_empty() {
+        return sum;
+    }
+    let off: [usize; M] = std::array::from_fn(|j| offset[j]);
+    let mut slot: [usize; M] = std::array::from_fn(|j| off[j] + codes[j] as usize);
+    let mut held: [f64; M] = std::array::from_fn(|j| acc[slot[j]]);
+    let mut held_s: [f64; M] =
+        std::array::from_fn(|j| if j < ms { acc_signed[slot[j]] } else { 0.0 });
+    for ((row, &v), &dt) in codes.chunks_exact(M).zip(run).zip(d) {
+        let w = v * dt;
+        sum += w;
+        for j in 0..M {
+            let s = off[j] + row[j] as usize;
+            if s != slot[j] {
+                acc[slot[j]] = held[j];
+                held[j] = acc[s];
+                if j < ms {
+                    acc_signed[slot[j]] = held_s[j];
+                    held_s[j] = acc_signed[s];
+                }
+                slot[j] = s;
+            }
+            held[j] += v;
+            if j < ms {
+                held_s[j] += w;
+            }
+        }
+    }
+    for j in 0..M {
+        acc[slot[j]] = held[j];
+        if j < ms {
+            acc_signed[slot[j]] = held_s[j];
         }
     }
     sum

@@ -907,6 +907,62 @@ fn permutation_read_in_place_equals_the_materialised_one() {
     }
 }
 
+/// Reference: [`SlotTable::accumulate`] (every add through the accumulator, row by row) of
+/// the same row permutation. The row-permuted residual summed with each feature's slot held
+/// in a register (the time features `elapsed_s` and `seek_index`, whose bins are runs of
+/// consecutive rows, alone and with one, two or three more features up to the four the held
+/// path takes; none to all of them also summing the direction-signed residual) must give the
+/// same sums and signed sum bit for bit, and a table with a feature whose slot
+/// changes often (`direction`) must not take that path.
+#[test]
+fn held_slots_equal_the_accumulator_pass() {
+    let t = table(29, 5003);
+    let r = residuals(&t, 7, 1.0, |i| (i as f64 * 1e-3).sin());
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|v| v.unwrap_or(0.0))
+        .collect();
+    let bin = |name: &str| {
+        Binned::new(&t.column(name).expect("feature present").raw(), 64, 10, 12).expect("binned")
+    };
+    let (elapsed, index, position) = (bin("elapsed_s"), bin("seek_index"), bin("position"));
+    let direction = bin("direction");
+    for (refs, steady) in [
+        (vec![&elapsed], true),
+        (vec![&elapsed, &index], true),
+        (vec![&index, &elapsed, &index], true),
+        (vec![&elapsed, &index, &elapsed, &index], true),
+        (vec![&elapsed, &direction], false),
+        (vec![&elapsed, &index, &position, &elapsed, &index], false),
+    ] {
+        for signed in 0..=refs.len() {
+            let table = SlotTable::new(&refs, signed).expect("few slots");
+            assert_eq!(table.steady(), steady, "{} features", refs.len());
+            for seed in 0..3 {
+                let mut rows = r.clone();
+                shuffle_rows(&mut rows, &mut SimRng::substream(seed, 9));
+                let product: Vec<f64> = rows.iter().zip(&dir).map(|(a, b)| a * b).collect();
+                let (mut want, mut want_s) = (vec![0.0; table.len()], vec![0.0; table.len()]);
+                table.accumulate(&rows, &product, &mut want, &mut want_s);
+                let (mut got, mut got_s) =
+                    (vec![f64::NAN; table.len()], vec![f64::NAN; table.len()]);
+                let d: &[f64] = if signed > 0 { &dir } else { &[] };
+                let sum =
+                    table.accumulate_permuted(&Permuted::Rows(&rows), d, &mut got, &mut got_s);
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let what = format!("{} features, {signed} signed, seed {seed}", refs.len());
+                assert_eq!(bits(&got), bits(&want), "{what}");
+                if signed > 0 {
+                    let end: usize = refs[..signed].iter().map(|b| b.n_fine + 1).sum();
+                    assert_eq!(bits(&got_s[..end]), bits(&want_s[..end]), "{what}");
+                    let serial = product.iter().fold(-0.0, |a, x| a + x);
+                    assert_eq!(sum.to_bits(), serial.to_bits(), "{what}");
+                }
+            }
+        }
+    }
+}
+
 /// Reference: the fused pass over each materialised permutation ([`SlotTable::accumulate`] of
 /// [`block_permute_reference`]'s output and its product with the direction) and
 /// `stats::sum_sq_about_mean` of that product. [`SlotTable::accumulate_lanes`] — four block
