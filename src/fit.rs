@@ -2438,16 +2438,10 @@ mod tests {
     /// whose velocity scale is searched the same way).
     #[test]
     fn projected_search_equals_full_solve_per_candidate() {
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
         let opts = FitOptions::default().check().unwrap();
         let (mut projected, mut worst) = (0, 0.0_f64);
         for seed in [1, 2, 7] {
-            let so = SequenceOptions {
-                n: Some(4000),
-                ..SequenceOptions::default()
-            };
-            let cfg = SimConfig::new(Drive::paper1997(), "random", &so, seed, &[]).unwrap();
-            let mut log = simulate_log(&cfg).unwrap();
+            let mut log = crate::sim::random_log(4000, seed);
             if seed == 2 {
                 for x in log.tracks_mut() {
                     *x *= 0.37;
@@ -2543,13 +2537,7 @@ mod tests {
     /// bit, over the light replay; and the flag matters: `direction` and `memory` do read it.
     #[test]
     fn terms_without_history_give_the_same_basis_from_a_light_replay() {
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-        let so = SequenceOptions {
-            n: Some(3000),
-            ..SequenceOptions::default()
-        };
-        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
-        let mut log = simulate_log(&cfg).unwrap();
+        let mut log = crate::sim::random_log(3000, 5);
         for x in log.tracks_mut() {
             *x *= 0.37;
         }
@@ -2599,13 +2587,7 @@ mod tests {
     #[test]
     fn reversal_count_from_sampling_equals_the_replays() {
         use crate::history::DirectionSetting;
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-        let so = SequenceOptions {
-            n: Some(3000),
-            ..SequenceOptions::default()
-        };
-        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 8, &[]).unwrap();
-        let seeks = simulate_log(&cfg).unwrap();
+        let seeks = crate::sim::random_log(3000, 8);
         let mut rng = SimRng::new(4);
         let mut text = String::from("time_s,track,bias\n");
         for i in 0..4000 {
@@ -2644,15 +2626,9 @@ mod tests {
     /// replayed rows skip them as the stored ones do) and longer than several row blocks.
     #[test]
     fn streamed_fixed_block_equals_the_stored_one() {
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
         let opts = FitOptions::default().check().unwrap();
         for seed in [1, 7] {
-            let so = SequenceOptions {
-                n: Some(3000),
-                ..SequenceOptions::default()
-            };
-            let cfg = SimConfig::new(Drive::paper1997(), "random", &so, seed, &[]).unwrap();
-            let mut log = simulate_log(&cfg).unwrap();
+            let mut log = crate::sim::random_log(3000, seed);
             if seed == 7 {
                 for i in (3..log.len()).step_by(5) {
                     log.set_bias(i, None);
@@ -2724,13 +2700,7 @@ mod tests {
     #[test]
     fn bump_search_by_projection_equals_full_solves() {
         use crate::model::term::SearchContext;
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-        let so = SequenceOptions {
-            n: Some(3000),
-            ..SequenceOptions::default()
-        };
-        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
-        let mut log = simulate_log(&cfg).unwrap();
+        let mut log = crate::sim::random_log(3000, 5);
         let [lo, hi] = crate::numeric::stats::range(log.tracks()).unwrap();
         let (c0, w0) = (lo + 0.37 * (hi - lo), (hi - lo) / 300.0);
         for i in 0..log.len() {
@@ -2868,13 +2838,7 @@ mod tests {
 
     #[test]
     fn fit_statistics_replay_equals_predict_log() {
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-        let opts = SequenceOptions {
-            n: Some(3000),
-            ..SequenceOptions::default()
-        };
-        let cfg = SimConfig::new(Drive::paper1997(), "random", &opts, 4, &[]).unwrap();
-        let log = simulate_log(&cfg).unwrap();
+        let log = crate::sim::random_log(3000, 4);
         for preset in ["calibration", "dahl"] {
             let spec = ModelSpec::preset(preset).unwrap();
             let model = fit(&spec, &log, &FitOptions::default().check().unwrap()).unwrap();
@@ -2900,13 +2864,7 @@ mod tests {
     /// Where drift is not last, or a term other than drift adapts, there is no such path.
     #[test]
     fn static_prediction_and_tail_replay_equal_predict_log() {
-        use crate::sim::{Drive, SequenceOptions, SimConfig, simulate_log};
-        let so = SequenceOptions {
-            n: Some(3000),
-            ..SequenceOptions::default()
-        };
-        let cfg = SimConfig::new(Drive::paper1997(), "random", &so, 5, &[]).unwrap();
-        let full = simulate_log(&cfg).unwrap();
+        let full = crate::sim::random_log(3000, 5);
         let mut gaps = full.clone();
         for i in (2..gaps.len()).step_by(5) {
             gaps.set_bias(i, None);
