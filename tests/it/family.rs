@@ -148,7 +148,6 @@ fn model_holding_every_effect_flags_nothing_in_19_of_20_seeds() {
 /// counts. Both fitted models survive a save/load round trip with identical predictions.
 #[test]
 fn lag_and_memsum_terms_recover_the_generators_parameters() {
-    use biasctl::FittedModel;
     use biasctl::{family::FamilyConfig, family::generate};
     let drive = FamilyDrive::member("bw-sine-t").unwrap();
     let base = diagnose_family::base_terms(&drive);
@@ -181,7 +180,7 @@ fn lag_and_memsum_terms_recover_the_generators_parameters() {
         }
         let path = dir.path().join(format!("{}.json", effect.name()));
         model.save(&path).unwrap();
-        let back = FittedModel::load(&path).unwrap();
+        let back = biasctl::FittedModel::load(&path).unwrap();
         let (a, b) = (
             model.predict_log(&run.log).unwrap(),
             back.predict_log(&run.log).unwrap(),
@@ -297,7 +296,6 @@ fn slow_no_effect_column_is_not_flagged_under_ar1_noise() {
 /// errors; the fitted model survives a save/load round trip bit for bit.
 #[test]
 fn bump_term_recovers_the_generators_defect() {
-    use biasctl::FittedModel;
     use biasctl::{family::FamilyConfig, family::generate};
     let dir = tempfile::tempdir().unwrap();
     for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
@@ -345,21 +343,7 @@ fn bump_term_recovers_the_generators_defect() {
             "{}: amplitude {a:?} vs {a_true}",
             drive.name
         );
-        let path = dir.path().join(format!("{}.json", drive.name));
-        model.save(&path).unwrap();
-        let back = FittedModel::load(&path).unwrap();
-        let (x, y) = (
-            model.predict_log(&run.log).unwrap(),
-            back.predict_log(&run.log).unwrap(),
-        );
-        assert!(
-            x.predicted
-                .iter()
-                .zip(&y.predicted)
-                .all(|(u, v)| u.to_bits() == v.to_bits()),
-            "{}: the reloaded model predicts other bits",
-            drive.name
-        );
+        assert_reload_predicts_the_same_bits(&model, &run.log, dir.path(), &drive.name);
     }
 }
 
@@ -371,7 +355,6 @@ fn bump_term_recovers_the_generators_defect() {
 /// save/load round trip bit for bit.
 #[test]
 fn step_term_recovers_the_generators_threshold() {
-    use biasctl::FittedModel;
     use biasctl::{family::FamilyConfig, family::generate};
     let dir = tempfile::tempdir().unwrap();
     for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
@@ -409,21 +392,7 @@ fn step_term_recovers_the_generators_threshold() {
             "{}: height {a:?} vs {a_true}",
             drive.name
         );
-        let path = dir.path().join(format!("{}.json", drive.name));
-        model.save(&path).unwrap();
-        let back = FittedModel::load(&path).unwrap();
-        let (x, y) = (
-            model.predict_log(&run.log).unwrap(),
-            back.predict_log(&run.log).unwrap(),
-        );
-        assert!(
-            x.predicted
-                .iter()
-                .zip(&y.predicted)
-                .all(|(u, v)| u.to_bits() == v.to_bits()),
-            "{}: the reloaded model predicts other bits",
-            drive.name
-        );
+        assert_reload_predicts_the_same_bits(&model, &run.log, dir.path(), &drive.name);
     }
 }
 
@@ -493,4 +462,29 @@ fn a_lagged_temperature_is_verified_first_also_beside_position_direction() {
         assert_eq!(o.edit.as_deref(), Some("add lag:temp_lag"), "{text}");
         assert!(o.recovered().is_some_and(|r| r >= 0.9), "{text}");
     }
+}
+
+/// Saves `model` as `<name>.json` in `dir`, loads it back and asserts that the reloaded model
+/// predicts `log` bit for bit as the original does (the model file round trip of a searched
+/// term: its found centre, width or threshold must survive the text).
+fn assert_reload_predicts_the_same_bits(
+    model: &biasctl::FittedModel,
+    log: &biasctl::Log,
+    dir: &std::path::Path,
+    name: &str,
+) {
+    let path = dir.join(format!("{name}.json"));
+    model.save(&path).unwrap();
+    let back = biasctl::FittedModel::load(&path).unwrap();
+    let (x, y) = (
+        model.predict_log(log).unwrap(),
+        back.predict_log(log).unwrap(),
+    );
+    assert!(
+        x.predicted
+            .iter()
+            .zip(&y.predicted)
+            .all(|(u, v)| u.to_bits() == v.to_bits()),
+        "{name}: the reloaded model predicts other bits"
+    );
 }
