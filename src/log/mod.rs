@@ -1212,73 +1212,99 @@ impl<R: Read> LogReader<R> {
             return Ok(());
         };
         let delimiter = *delimiter;
-        let in_range = |v: f64| v.abs() <= MAX_ABS_VALUE;
         row.covariates.resize(self.schema.covariate_idx.len(), 0.0);
         loop {
-            let line = match lines.peek() {
-                Ok(Some(line)) => line,
-                Ok(None) => return Ok(()),
+            // Whole lines, each ending in `\n`: no search for the line's end, the cells' own
+            // scan finds it.
+            let base_line = lines.line();
+            let window = match lines.ready() {
+                Ok([]) => return Ok(()),
+                Ok(window) => window,
                 Err(e) => return Err(source_failed(&self.schema.file, &e)),
             };
-            let (mut time_s, mut track, mut bias) = (f64::NAN, f64::NAN, None);
-            let mut i = 0;
-            let mut ok = true;
-            for (c, role) in roles.iter().enumerate() {
-                if c > 0 {
-                    if line.get(i) != Some(&delimiter) {
-                        ok = false;
+            let (mut at, mut rows, mut stop) = (0, 0, false);
+            while at < window.len() {
+                match plain_row(window, at, roles, delimiter, &mut row.covariates) {
+                    Some((time_s, track, bias, next))
+                        if self.prev_time.is_none_or(|prev| time_s >= prev) =>
+                    {
+                        row.line = base_line + rows;
+                        row.time_s = time_s;
+                        row.track = track;
+                        row.bias = bias;
+                        log.push(row);
+                        self.prev_time = Some(time_s);
+                        self.measured += u64::from(bias.is_some());
+                        rows += 1;
+                        at = next;
+                    }
+                    _ => {
+                        stop = true;
                         break;
+                    }
+                }
+            }
+            lines.consume(at, rows);
+            if stop {
+                return Ok(());
+            }
+        }
+    }
+}
+
+/// The row of the plain line at `window[at..]` (which ends in `\n`): time, position, bias
+/// (covariates into `covariates`) and the start of the next line; `None` for a line the fast
+/// way does not take (see [`LogReader::plain_rows`]).
+#[inline(always)]
+fn plain_row(
+    window: &[u8],
+    at: usize,
+    roles: &[Role],
+    delimiter: u8,
+    covariates: &mut [f64],
+) -> Option<(f64, f64, Option<f64>, usize)> {
+    let (mut time_s, mut track, mut bias) = (f64::NAN, f64::NAN, None);
+    let mut i = at;
+    for (c, role) in roles.iter().enumerate() {
+        if c > 0 {
+            if window.get(i) != Some(&delimiter) {
+                return None;
+            }
+            i += 1;
+        }
+        let value = match role {
+            Role::Skipped => {
+                // Any text but what would change the split or needs a UTF-8 check.
+                while let Some(&b) = window.get(i)
+                    && b != delimiter
+                    && b != b'\n'
+                {
+                    if b == b'"' || b == b'\r' || !b.is_ascii() {
+                        return None;
                     }
                     i += 1;
                 }
-                let cell_ends = |i: usize| line.get(i).is_none_or(|&b| b == delimiter);
-                let value = match role {
-                    Role::Skipped => {
-                        // Any text but what would change the split or needs a UTF-8 check.
-                        while let Some(&b) = line.get(i)
-                            && b != delimiter
-                        {
-                            if b == b'"' || b == b'\r' || !b.is_ascii() {
-                                ok = false;
-                                break;
-                            }
-                            i += 1;
-                        }
-                        continue;
-                    }
-                    Role::Bias if cell_ends(i) => continue,
-                    _ => match plain::parse_plain(line, i) {
-                        Some((v, next)) if in_range(v) => {
-                            i = next;
-                            v
-                        }
-                        _ => {
-                            ok = false;
-                            break;
-                        }
-                    },
-                };
-                match *role {
-                    Role::Time => time_s = value,
-                    Role::Track => track = value,
-                    Role::Bias => bias = Some(value),
-                    Role::Covariate(k) => row.covariates[k] = value,
-                    Role::Skipped => {}
+                continue;
+            }
+            Role::Bias if window.get(i).is_none_or(|&b| b == delimiter || b == b'\n') => continue,
+            _ => {
+                let (v, next) = plain::parse_plain(window, i)?;
+                if v.abs() > MAX_ABS_VALUE {
+                    return None;
                 }
+                i = next;
+                v
             }
-            if !ok || i != line.len() || self.prev_time.is_some_and(|prev| time_s < prev) {
-                return Ok(());
-            }
-            row.line = lines.line();
-            row.time_s = time_s;
-            row.track = track;
-            row.bias = bias;
-            log.push(row);
-            lines.advance();
-            self.prev_time = Some(time_s);
-            self.measured += u64::from(bias.is_some());
+        };
+        match *role {
+            Role::Time => time_s = value,
+            Role::Track => track = value,
+            Role::Bias => bias = Some(value),
+            Role::Covariate(k) => covariates[k] = value,
+            Role::Skipped => {}
         }
     }
+    (window.get(i) == Some(&b'\n')).then_some((time_s, track, bias, i + 1))
 }
 
 /// What a column of a log is, for [`LogReader::plain_rows`].

@@ -24,6 +24,9 @@ pub(super) struct PlainLines<R> {
     end: usize,
     /// End of the current line (its `\n`, or `end` for a last line without one), once peeked.
     line_end: Option<usize>,
+    /// End of the last whole line (just past its `\n`) in `buf[..end]`, or at most `start`
+    /// when none is buffered.
+    complete: usize,
     /// The source returned no more bytes.
     eof: bool,
     /// The source failed: no more lines (as the csv reader ends after an I/O error).
@@ -44,6 +47,7 @@ impl<R: Read> PlainLines<R> {
             start: 0,
             end: 0,
             line_end: None,
+            complete: 0,
             eof: false,
             failed: false,
             line,
@@ -88,6 +92,29 @@ impl<R: Read> PlainLines<R> {
         }
     }
 
+    /// The whole lines buffered from the current one on, each ending in `\n` (reading more
+    /// when none is); empty at the end of the source, after it failed, or when only a last
+    /// line without a `\n` is left ([`PlainLines::peek`] returns that one).
+    #[inline]
+    pub(super) fn ready(&mut self) -> io::Result<&[u8]> {
+        while self.complete <= self.start && !self.eof && !self.failed {
+            self.fill()?;
+        }
+        if self.failed || self.complete <= self.start {
+            return Ok(&[]);
+        }
+        Ok(&self.buf[self.start..self.complete])
+    }
+
+    /// Moves past `rows` whole lines, `bytes` bytes in all, of [`PlainLines::ready`]'s window.
+    #[inline]
+    pub(super) fn consume(&mut self, bytes: usize, rows: u64) {
+        debug_assert!(self.line_end.is_none() && self.start + bytes <= self.complete);
+        self.start += bytes;
+        self.byte += bytes as u64;
+        self.line += rows;
+    }
+
     /// 1-based line number of the current line.
     #[inline]
     pub(super) fn line(&self) -> u64 {
@@ -105,6 +132,7 @@ impl<R: Read> PlainLines<R> {
         if self.start > 0 {
             self.buf.copy_within(self.start..self.end, 0);
             self.end -= self.start;
+            self.complete = self.complete.saturating_sub(self.start);
             self.start = 0;
         }
         if self.buf.len() < self.end + READ_BYTES {
@@ -116,7 +144,11 @@ impl<R: Read> PlainLines<R> {
                 .read(&mut self.buf[self.end..self.end + READ_BYTES])
             {
                 Ok(0) => self.eof = true,
-                Ok(n) => self.end += n,
+                Ok(n) => {
+                    self.end += n;
+                    self.complete = memchr::memrchr(b'\n', &self.buf[self.start..self.end])
+                        .map_or(self.start, |k| self.start + k + 1);
+                }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                 Err(e) => {
                     self.failed = true;
