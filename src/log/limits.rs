@@ -93,17 +93,32 @@ pub fn read_text(path: &Path) -> io::Result<String> {
 pub(crate) struct LineLimit<R> {
     inner: R,
     run: u64,
+    /// The source has ended: every read returns 0 without asking it again.
+    finished: bool,
 }
 
 impl<R> LineLimit<R> {
     /// Wraps `inner`.
     pub(crate) fn new(inner: R) -> Self {
-        LineLimit { inner, run: 0 }
+        LineLimit {
+            inner,
+            run: 0,
+            finished: false,
+        }
+    }
+
+    /// Marks the source as ended (it returned 0): later reads return 0 at once (a terminal on
+    /// standard input would otherwise wait for more).
+    pub(crate) fn finish(&mut self) {
+        self.finished = true;
     }
 }
 
 impl<R: Read> Read for LineLimit<R> {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        if self.finished {
+            return Ok(0);
+        }
         let n = self.inner.read(buf)?;
         // No line can pass the limit within this chunk: only the run after its last newline
         // matters (found from the end, a line's length away), not a scan of every byte.

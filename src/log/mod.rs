@@ -43,6 +43,7 @@
 
 mod columns;
 pub(crate) mod limits;
+mod plain;
 
 pub use columns::{Covariates, Log, RowRef, Rows};
 
@@ -539,25 +540,161 @@ pub const STDIN_PATH: &str = "-";
 /// The name standard input has in messages.
 pub(crate) const STDIN_NAME: &str = "<stdin>";
 
+/// What the CSV parser of a [`LogReader`] reads: bytes already read (the header line, or the
+/// buffered rest from the first line that is not plain), then the rest of the source.
+type CsvSource<R> = io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>;
+
+/// Where a [`LogReader`]'s records come from.
+enum Source<R: Read> {
+    /// Lines without a quote or a carriage return, split by the delimiter here: the fast path,
+    /// from the first row on while every line is plain ([`plain`]).
+    Plain {
+        lines: plain::PlainLines<BufReader<LineLimit<R>>>,
+        delimiter: u8,
+        /// Fields of the header (every record must have as many).
+        columns: usize,
+    },
+    /// The csv crate's parser, the reference: from the header on when the header line is not
+    /// plain, or from the first line that is not plain to the end.
+    Csv {
+        csv: csv::Reader<CsvSource<R>>,
+        /// Lines before the parser's first line.
+        line_offset: u64,
+        /// Bytes before the parser's first byte, from the header's first byte.
+        byte_offset: u64,
+        /// Fields a record must have, when the parser started after the header (it does not
+        /// know the header then).
+        columns: Option<usize>,
+    },
+    /// Only while the plain source hands over to the csv parser.
+    Switching,
+}
+
+impl<R: Read> Source<R> {
+    /// Reads the next record into `record` (reusing it), its position's line the line in the
+    /// file (1-based, counting metadata lines); `Ok(false)` at the end. A record with a field
+    /// that is not valid UTF-8 is refused naming its line and field, as reading text records
+    /// did; a record with another number of fields than the header is refused naming both.
+    fn read_record(&mut self, record: &mut csv::ByteRecord, file: &str) -> Result<bool, LogError> {
+        loop {
+            match self {
+                Source::Plain {
+                    lines,
+                    delimiter,
+                    columns,
+                } => {
+                    let line = match lines.peek() {
+                        Ok(Some(line)) => line,
+                        Ok(None) => return Ok(false),
+                        Err(e) => return Err(source_failed(file, &e)),
+                    };
+                    if line.is_empty() || line.iter().any(|&b| b == b'"' || b == b'\r') {
+                        self.switch_to_csv();
+                        continue;
+                    }
+                    record.clear();
+                    for field in line.split(|&b| b == *delimiter) {
+                        record.push_field(field);
+                    }
+                    let mut pos = csv::Position::new();
+                    pos.set_line(lines.line()).set_byte(lines.byte());
+                    record.set_position(Some(pos));
+                    let line_no = lines.line();
+                    lines.advance();
+                    if record.len() != *columns {
+                        return Err(LogError::Malformed {
+                            file: file.into(),
+                            line: line_no,
+                            message: unequal_lengths(record.len(), *columns),
+                        });
+                    }
+                    check_utf8(record, file)?;
+                    return Ok(true);
+                }
+                Source::Csv {
+                    csv,
+                    line_offset,
+                    byte_offset,
+                    columns,
+                } => {
+                    let (line_offset, byte_offset) = (*line_offset, *byte_offset);
+                    let line_of =
+                        |p: Option<&csv::Position>| p.map(|p| p.line() + line_offset).unwrap_or(0);
+                    let more = csv
+                        .read_byte_record(record)
+                        .map_err(|e| malformed(file, line_of(e.position()), &e))?;
+                    if let Some(p) = record.position() {
+                        let mut p = p.clone();
+                        let (line, byte) = (p.line(), p.byte());
+                        p.set_line(line + line_offset).set_byte(byte + byte_offset);
+                        record.set_position(Some(p));
+                    }
+                    if more
+                        && let Some(columns) = *columns
+                        && record.len() != columns
+                    {
+                        return Err(LogError::Malformed {
+                            file: file.into(),
+                            line: record.position().map_or(0, |p| p.line()),
+                            message: unequal_lengths(record.len(), columns),
+                        });
+                    }
+                    if more {
+                        check_utf8(record, file)?;
+                    }
+                    return Ok(more);
+                }
+                Source::Switching => unreachable!("the switch to the csv parser completes"),
+            }
+        }
+    }
+
+    /// Hands the rest of the source, from the current line on, to the csv parser: started at
+    /// a line's start as the parser that read the lines before would have been.
+    fn switch_to_csv(&mut self) {
+        let Source::Plain {
+            lines,
+            delimiter,
+            columns,
+        } = std::mem::replace(self, Source::Switching)
+        else {
+            return;
+        };
+        let (rest, mut src, eof, line, byte) = lines.into_parts();
+        if eof {
+            // The source said it has ended: not asked again (a terminal would wait).
+            src.get_mut().finish();
+        }
+        let csv = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .delimiter(delimiter)
+            .buffer_capacity(1 << 16)
+            .from_reader(io::Cursor::new(rest).chain(src));
+        *self = Source::Csv {
+            csv,
+            line_offset: line - 1,
+            byte_offset: byte,
+            columns: Some(columns),
+        };
+    }
+}
+
 /// A streaming reader of a measurement log: constant memory in the number of rows.
 ///
 /// It yields `Result<Row, LogError>`; after the last row it yields one
 /// [`LogError::NoMeasuredRows`] if no row held a bias (unless read with
-/// What the CSV parser of a [`LogReader`] reads: the header line already read, then the rest.
-type CsvSource<R> = io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>;
-
 /// [`BiasColumn::Optional`]), then ends.
 pub struct LogReader<R: Read> {
     schema: LogSchema,
-    csv: csv::Reader<CsvSource<R>>,
+    source: Source<R>,
     /// The current record, reused row after row (no allocation per row); every field is valid
-    /// UTF-8 ([`read_checked`]).
+    /// UTF-8 ([`Source::read_record`]).
     record: csv::ByteRecord,
     /// Records read ahead to classify the columns, yielded before the rest of the file.
     lookahead: std::collections::VecDeque<csv::ByteRecord>,
     /// A parse error met while reading ahead, returned after the records before it.
     pending: Option<LogError>,
-    line_offset: u64,
     prev_time: Option<f64>,
     measured: u64,
     bias_column: BiasColumn,
@@ -631,6 +768,19 @@ impl<R: Read> LogReader<R> {
         bias_column: BiasColumn,
         lookahead_rows: usize,
     ) -> Result<Self, LogError> {
+        Self::from_reader_source(file, reader, map, bias_column, lookahead_rows, true)
+    }
+
+    /// As [`LogReader::from_reader_lookahead`]; without `plain_lines` every line goes through
+    /// the csv parser (the reference the plain lines are tested against).
+    fn from_reader_source(
+        file: &str,
+        reader: R,
+        map: &ColumnMap,
+        bias_column: BiasColumn,
+        lookahead_rows: usize,
+        plain_lines: bool,
+    ) -> Result<Self, LogError> {
         let mut buf = BufReader::new(LineLimit::new(reader));
         let io_err = |source| LogError::Io {
             file: file.to_string(),
@@ -684,19 +834,50 @@ impl<R: Read> LogReader<R> {
                 }
             ));
         }
-        let mut csv = csv::ReaderBuilder::new()
-            .has_headers(true)
-            .delimiter(delimiter)
-            // Headers are trimmed here; cells as they are read ([`field`]): the parser's own
-            // trimming of records rebuilds each record (an allocation per row).
-            .trim(csv::Trim::Headers)
-            .buffer_capacity(1 << 16)
-            .from_reader(io::Cursor::new(header.into_bytes()).chain(buf));
         let header_line = line_no + 1;
-        let headers = csv
-            .headers()
-            .map_err(|e| malformed(file, header_line, &e))?
-            .clone();
+        // A plain header line (no quote, no carriage return: what the fast path splits) is
+        // parsed alone and the rows after it split line by line, while they are plain; any
+        // other header is read with the rows by the csv parser, as it always was.
+        let plain = plain_lines
+            && !header.bytes().any(|b| b == b'"' || b == b'\r')
+            && ![b'"', b'\r', b'\n'].contains(&delimiter);
+        let builder = || {
+            let mut b = csv::ReaderBuilder::new();
+            b.has_headers(true)
+                .delimiter(delimiter)
+                // Headers are trimmed here; cells as they are read ([`field`]): the parser's
+                // own trimming of records rebuilds each record (an allocation per row).
+                .trim(csv::Trim::Headers)
+                .buffer_capacity(1 << 16);
+            b
+        };
+        let header_bytes = header.len() as u64;
+        let (headers, mut source) = if plain {
+            let mut csv = builder().from_reader(header.as_bytes());
+            let headers = csv
+                .headers()
+                .map_err(|e| malformed(file, header_line, &e))?
+                .clone();
+            let source = Source::Plain {
+                lines: plain::PlainLines::new(buf, header_line + 1, header_bytes),
+                delimiter,
+                columns: headers.len(),
+            };
+            (headers, source)
+        } else {
+            let mut csv = builder().from_reader(io::Cursor::new(header.into_bytes()).chain(buf));
+            let headers = csv
+                .headers()
+                .map_err(|e| malformed(file, header_line, &e))?
+                .clone();
+            let source = Source::Csv {
+                csv,
+                line_offset: line_no,
+                byte_offset: 0,
+                columns: None,
+            };
+            (headers, source)
+        };
         if headers.is_empty() || headers.iter().all(str::is_empty) {
             return Err(LogError::Empty { file: file.into() });
         }
@@ -758,7 +939,7 @@ impl<R: Read> LogReader<R> {
         let mut pending = None;
         while lookahead.len() < lookahead_rows {
             let mut rec = csv::ByteRecord::new();
-            match read_checked(&mut csv, &mut rec, file, line_no) {
+            match source.read_record(&mut rec, file) {
                 Ok(true) => lookahead.push_back(rec),
                 Ok(false) => break,
                 Err(e) => {
@@ -776,7 +957,7 @@ impl<R: Read> LogReader<R> {
             let text = lookahead.iter().find_map(|r| {
                 let v = field(r, i)?;
                 parse_field(v.as_bytes(), decimal_comma).is_err().then(|| {
-                    let line = r.position().map_or(0, |p| p.line() + line_no);
+                    let line = r.position().map_or(0, |p| p.line());
                     (line, v)
                 })
             });
@@ -820,11 +1001,10 @@ impl<R: Read> LogReader<R> {
         schema.set_units(None, None)?;
         Ok(Self {
             schema,
-            csv,
+            source,
             record: csv::ByteRecord::new(),
             lookahead,
             pending,
-            line_offset: line_no,
             prev_time: None,
             measured: 0,
             bias_column,
@@ -886,7 +1066,7 @@ impl<R: Read> LogReader<R> {
         } else if let Some(e) = self.pending.take() {
             return Err(e);
         } else {
-            read_checked(&mut self.csv, &mut self.record, file, self.line_offset)?
+            self.source.read_record(&mut self.record, file)?
         };
         if !more {
             if self.measured == 0 && self.bias_column == BiasColumn::Required {
@@ -897,11 +1077,7 @@ impl<R: Read> LogReader<R> {
             }
             return Ok(false);
         }
-        let line = self
-            .record
-            .position()
-            .map(|p| p.line() + self.line_offset)
-            .unwrap_or(0);
+        let line = self.record.position().map(|p| p.line()).unwrap_or(0);
         let s = &self.schema;
         let decimal_comma = s.delimiter != b',';
         let number = |idx: usize| -> Result<Option<f64>, LogError> {
@@ -973,15 +1149,174 @@ impl<R: Read> LogReader<R> {
 
 impl<R: Read> LogReader<R> {
     /// Reads the rest of the log into columns, with room for `expected` rows.
-    fn read_all(mut self, expected: usize) -> Result<Log, LogError> {
+    fn read_all(self, expected: usize) -> Result<Log, LogError> {
+        self.read_all_with(expected, true)
+    }
+
+    /// [`LogReader::read_all`]; with `fast` the plain rows go the fast way
+    /// ([`LogReader::plain_rows`]), without it every row goes through
+    /// [`LogReader::read_into`] (the reference the fast way is tested against).
+    fn read_all_with(mut self, expected: usize, fast: bool) -> Result<Log, LogError> {
         let mut row = Row::empty(self.schema.covariates.len());
         let mut log = Log::with_capacity(self.schema.clone(), expected);
-        while self.read_into(&mut row)? {
+        let roles = fast.then(|| self.roles());
+        loop {
+            if let Some(roles) = &roles {
+                self.plain_rows(roles, &mut row, &mut log)?;
+            }
+            // The row the fast way left (not plain, an error to name, or the end).
+            if !self.read_into(&mut row)? {
+                break;
+            }
             log.push(&row);
         }
         log.shrink_to_fit();
         Ok(log)
     }
+
+    /// What each column of the file is, in file order.
+    fn roles(&self) -> Vec<Role> {
+        let s = &self.schema;
+        (0..s.columns.len())
+            .map(|i| {
+                if i == s.time_idx {
+                    Role::Time
+                } else if i == s.track_idx {
+                    Role::Track
+                } else if Some(i) == s.bias_idx {
+                    Role::Bias
+                } else if let Some(k) = s.covariate_idx.iter().position(|&c| c == i) {
+                    Role::Covariate(k)
+                } else {
+                    Role::Skipped
+                }
+            })
+            .collect()
+    }
+
+    /// Reads rows into `log` the fast way while they are plain and valid: the line split and
+    /// its numbers converted in one pass ([`plain::parse_plain`]), straight from the read
+    /// buffer. Returns at the end, at an error of the source, or at the first line it does not
+    /// take — a quote, a carriage return, a byte beyond ASCII, another number of fields, a
+    /// cell of another shape, a value out of range, time going backwards — without consuming
+    /// it: [`LogReader::read_into`] then reads that line as every line was read before
+    /// (the same row, or the same error).
+    fn plain_rows(&mut self, roles: &[Role], row: &mut Row, log: &mut Log) -> Result<(), LogError> {
+        if !self.lookahead.is_empty() || self.pending.is_some() {
+            return Ok(());
+        }
+        let Source::Plain {
+            lines, delimiter, ..
+        } = &mut self.source
+        else {
+            return Ok(());
+        };
+        let delimiter = *delimiter;
+        row.covariates.resize(self.schema.covariate_idx.len(), 0.0);
+        loop {
+            // Whole lines, each ending in `\n`: no search for the line's end, the cells' own
+            // scan finds it.
+            let base_line = lines.line();
+            let window = match lines.ready() {
+                Ok([]) => return Ok(()),
+                Ok(window) => window,
+                Err(e) => return Err(source_failed(&self.schema.file, &e)),
+            };
+            let (mut at, mut rows, mut stop) = (0, 0, false);
+            while at < window.len() {
+                match plain_row(window, at, roles, delimiter, &mut row.covariates) {
+                    Some((time_s, track, bias, next))
+                        if self.prev_time.is_none_or(|prev| time_s >= prev) =>
+                    {
+                        row.line = base_line + rows;
+                        row.time_s = time_s;
+                        row.track = track;
+                        row.bias = bias;
+                        log.push(row);
+                        self.prev_time = Some(time_s);
+                        self.measured += u64::from(bias.is_some());
+                        rows += 1;
+                        at = next;
+                    }
+                    _ => {
+                        stop = true;
+                        break;
+                    }
+                }
+            }
+            lines.consume(at, rows);
+            if stop {
+                return Ok(());
+            }
+        }
+    }
+}
+
+/// The row of the plain line at `window[at..]` (which ends in `\n`): time, position, bias
+/// (covariates into `covariates`) and the start of the next line; `None` for a line the fast
+/// way does not take (see [`LogReader::plain_rows`]).
+#[inline(always)]
+fn plain_row(
+    window: &[u8],
+    at: usize,
+    roles: &[Role],
+    delimiter: u8,
+    covariates: &mut [f64],
+) -> Option<(f64, f64, Option<f64>, usize)> {
+    let (mut time_s, mut track, mut bias) = (f64::NAN, f64::NAN, None);
+    let mut i = at;
+    for (c, role) in roles.iter().enumerate() {
+        if c > 0 {
+            if window.get(i) != Some(&delimiter) {
+                return None;
+            }
+            i += 1;
+        }
+        let value = match role {
+            Role::Skipped => {
+                // Any text but what would change the split or needs a UTF-8 check.
+                while let Some(&b) = window.get(i)
+                    && b != delimiter
+                    && b != b'\n'
+                {
+                    if b == b'"' || b == b'\r' || !b.is_ascii() {
+                        return None;
+                    }
+                    i += 1;
+                }
+                continue;
+            }
+            Role::Bias if window.get(i).is_none_or(|&b| b == delimiter || b == b'\n') => continue,
+            _ => {
+                let (v, next) = plain::parse_plain(window, i)?;
+                if v.abs() > MAX_ABS_VALUE {
+                    return None;
+                }
+                i = next;
+                v
+            }
+        };
+        match *role {
+            Role::Time => time_s = value,
+            Role::Track => track = value,
+            Role::Bias => bias = Some(value),
+            Role::Covariate(k) => covariates[k] = value,
+            Role::Skipped => {}
+        }
+    }
+    (window.get(i) == Some(&b'\n')).then_some((time_s, track, bias, i + 1))
+}
+
+/// What a column of a log is, for [`LogReader::plain_rows`].
+#[derive(Debug, Clone, Copy)]
+enum Role {
+    Time,
+    Track,
+    Bias,
+    /// Covariate `k` of [`LogSchema::covariates`].
+    Covariate(usize),
+    /// A column read past (no name, not numeric, empty in the first rows).
+    Skipped,
 }
 
 impl<R: Read> Iterator for LogReader<R> {
@@ -1006,38 +1341,42 @@ impl<R: Read> Iterator for LogReader<R> {
     }
 }
 
-/// Field `idx` of a record checked by [`read_checked`], trimmed of surrounding whitespace (as
+/// Field `idx` of a record checked by [`check_utf8`], trimmed of surrounding whitespace (as
 /// `str::trim`); `None` past the record's end.
 fn field(record: &csv::ByteRecord, idx: usize) -> Option<&str> {
     let bytes = record.get(idx)?;
-    // read_checked refused any record with a field that is not UTF-8.
+    // check_utf8 refused any record with a field that is not UTF-8.
     Some(std::str::from_utf8(bytes).unwrap_or("").trim())
 }
 
-/// Reads the next record into `record` (reusing it); `Ok(false)` at the end. A record with a
-/// field that is not valid UTF-8 is refused naming its line and field, as reading text records
-/// did. `line_offset`: lines before the header (metadata) that the parser did not see.
-fn read_checked<R: Read>(
-    csv: &mut csv::Reader<R>,
-    record: &mut csv::ByteRecord,
-    file: &str,
-    line_offset: u64,
-) -> Result<bool, LogError> {
-    let line_of = |p: Option<&csv::Position>| p.map(|p| p.line() + line_offset).unwrap_or(0);
-    let more = csv
-        .read_byte_record(record)
-        .map_err(|e| malformed(file, line_of(e.position()), &e))?;
-    if more
-        && !record.as_slice().is_ascii()
+/// Refuses a record with a field that is not valid UTF-8, naming its line (the record's
+/// position) and field.
+fn check_utf8(record: &csv::ByteRecord, file: &str) -> Result<(), LogError> {
+    if !record.as_slice().is_ascii()
         && let Some(i) = record.iter().position(|f| std::str::from_utf8(f).is_err())
     {
         return Err(LogError::Malformed {
             file: file.into(),
-            line: line_of(record.position()),
+            line: record.position().map_or(0, |p| p.line()),
             message: format!("field {} is not valid UTF-8 text", i + 1),
         });
     }
-    Ok(more)
+    Ok(())
+}
+
+/// An I/O error of the source while reading rows, as the csv parser reported it: no line.
+fn source_failed(file: &str, e: &io::Error) -> LogError {
+    LogError::Malformed {
+        file: file.into(),
+        line: 0,
+        message: e.to_string(),
+    }
+}
+
+/// The message of a record with `len` fields where the header has `expected` (the csv
+/// parser's `UnequalLengths`, as [`malformed`] words it).
+fn unequal_lengths(len: usize, expected: usize) -> String {
+    format!("{len} fields, but the header has {expected}")
 }
 
 fn malformed(file: &str, line: u64, e: &csv::Error) -> LogError {
@@ -1484,6 +1823,271 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn plain_number_parser_equals_str_parse() {
+        // Reference: `str::parse::<f64>` (correctly rounded). Every cell the plain parser takes
+        // whole must have the very bits `str::parse` gives; the common shapes must be taken.
+        let mut rng = crate::numeric::rng::SimRng::new(29);
+        let mut cells: Vec<String> = [
+            "0",
+            "-0",
+            "0.0",
+            "-0.000",
+            "1.",
+            ".5",
+            "-.5",
+            "5.",
+            "0.086173",
+            "1481",
+            "110.2882",
+            "-3.25",
+            "9007199254740992",
+            "9007199254740993",
+            "0.1234567890123456789",
+            "1234567890123456789",
+            "12345678901234567890",
+            "0.0000000000000000000001",
+            "0.00000000000000000000001",
+            "-",
+            ".",
+            "-.",
+            "",
+            "+1",
+            "1e5",
+            "1.5.2",
+            "--1",
+            "0x1",
+        ]
+        .iter()
+        .map(|c| c.to_string())
+        .collect();
+        for _ in 0..50_000 {
+            let x = rng.range(-1.0, 1.0) * 10f64.powi(rng.below(34) as i32 - 16);
+            let decimals = rng.below(24) as usize;
+            cells.push(format!("{x:.decimals$}"));
+            cells.push(format!("{}", rng.below(1 << 54)));
+            cells.push(x.to_string());
+        }
+        let mut taken = 0;
+        for c in &cells {
+            let Some((v, end)) = plain::parse_plain(c.as_bytes(), 0) else {
+                continue;
+            };
+            if end != c.len() {
+                continue;
+            }
+            taken += 1;
+            let want: f64 = c.parse().expect(c);
+            assert_eq!(v.to_bits(), want.to_bits(), "{c:?}: {v:e} vs {want:e}");
+        }
+        for c in [
+            "0.086173",
+            "1481",
+            "-110.2882",
+            "-0",
+            ".5",
+            "5.",
+            "9007199254740992",
+        ] {
+            let (v, end) = plain::parse_plain(c.as_bytes(), 0).expect(c);
+            assert_eq!(
+                (v.to_bits(), end),
+                (c.parse::<f64>().unwrap().to_bits(), c.len())
+            );
+        }
+        assert!(taken > cells.len() / 3, "{taken} of {}", cells.len());
+        for c in [
+            "9007199254740993",
+            "12345678901234567890",
+            "0.00000000000000000000001",
+        ] {
+            assert!(plain::parse_plain(c.as_bytes(), 0).is_none(), "{c}");
+        }
+    }
+
+    /// A source handing out `data` in pieces of 1 to `max` bytes.
+    struct Pieces<'a> {
+        data: &'a [u8],
+        max: usize,
+        rng: crate::numeric::rng::SimRng,
+    }
+
+    impl Read for Pieces<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            let n = (1 + self.rng.below(self.max as u64) as usize)
+                .min(buf.len())
+                .min(self.data.len());
+            buf[..n].copy_from_slice(&self.data[..n]);
+            self.data = &self.data[n..];
+            Ok(n)
+        }
+    }
+
+    /// A random log text: plain rows with, now and then, a cell or line of another kind —
+    /// ones the reader takes (spaces, exponents, quotes, `+`, CRLF, blank lines, text in a
+    /// skipped column, long digit strings) and ones it refuses (text, NaN, inf, out of range,
+    /// time backwards, empty required cells, other field counts, bytes that are not UTF-8).
+    fn random_log_text(rng: &mut crate::numeric::rng::SimRng) -> Vec<u8> {
+        let (header, sep, dc) = match rng.below(5) {
+            0 => ("time_s,track,bias", ',', false),
+            1 => ("time_s,track,bias,temp_c", ',', false),
+            2 => ("time_s,track,notes,bias,temp_c", ',', false),
+            3 => ("time_s;track;bias;temp_c", ';', true),
+            _ => ("bias\ttime_s\ttrack", '\t', true),
+        };
+        let names: Vec<&str> = header.split(sep).collect();
+        let mut text = format!("# seed = 1\n{header}\n").into_bytes();
+        let rows = 1 + rng.below(2500);
+        // Defects: rare enough that most logs read far, often enough that every kind is met.
+        let odd = 0.0005 + 0.002 * rng.uniform();
+        let mut t = 0.0;
+        for _ in 0..rows {
+            t += rng.range(0.0, 0.5);
+            let mut cells: Vec<String> = names
+                .iter()
+                .map(|&name| match name {
+                    "time_s" => format!("{t:.6}"),
+                    "track" => format!("{}", rng.below(3000)),
+                    "bias" if rng.uniform() < 0.1 => String::new(),
+                    "bias" => format!("{:.4}", rng.range(-200.0, 200.0)),
+                    "temp_c" => format!("{:.2}", rng.range(20.0, 60.0)),
+                    _ => ["start", "", "x y", "ok"][rng.below(4) as usize].to_string(),
+                })
+                .collect();
+            if dc {
+                for c in &mut cells {
+                    if rng.uniform() < 0.3 {
+                        *c = c.replace('.', ",");
+                    }
+                }
+            }
+            let mut end = "\n";
+            if rng.uniform() < odd {
+                let k = rng.below(cells.len() as u64) as usize;
+                let odd_cells = [
+                    "x",
+                    "NaN",
+                    "inf",
+                    "-inf",
+                    "1e400",
+                    "2e15",
+                    "-3e15",
+                    "2000000000000000",
+                    "-1000000000000000.5",
+                    " 12.5 ",
+                    "1e3",
+                    "+5",
+                    "\"7.5\"",
+                    "\"1,5\"",
+                    "0,5",
+                    "",
+                    "  ",
+                    "-",
+                    ".",
+                    "5.",
+                    "-0",
+                    ".25",
+                    "123456789012345678901234",
+                    "0.000000000000000000000000123",
+                    "é",
+                    "\u{a0}4",
+                    "1\"2",
+                    "99999999",
+                ];
+                match rng.below(8) {
+                    0 => end = "\r\n",
+                    1 => end = "\n\n",
+                    2 => cells.push("1".into()),
+                    3 => {
+                        cells.pop();
+                    }
+                    4 => t -= 1.0,
+                    5 => cells[k] = "\u{ff}".into(),
+                    _ => cells[k] = odd_cells[rng.below(odd_cells.len() as u64) as usize].into(),
+                }
+            }
+            let mut line = cells.join(&sep.to_string()).into_bytes();
+            if line.ends_with("\u{ff}".as_bytes()) {
+                // A byte that is not UTF-8 (the cell above marks where).
+                line.truncate(line.len() - 2);
+                line.push(0xff);
+            }
+            text.extend_from_slice(&line);
+            text.extend_from_slice(end.as_bytes());
+        }
+        if rng.uniform() < 0.2 {
+            text.pop(); // no line end after the last row
+        }
+        text
+    }
+
+    #[test]
+    fn fast_reading_equals_the_csv_parser_and_the_row_by_row_read() {
+        // Reference: every line through the csv crate's parser and every row through
+        // `read_into` (the reader before the fast path). The plain lines (row by row) and the
+        // fast rows must give the same log — values bit for bit, line numbers, notes — or the
+        // same error word for word, whatever pieces the source hands out.
+        let mut rng = crate::numeric::rng::SimRng::new(1616);
+        let map = ColumnMap::default();
+        let read = |text: &[u8], plain: bool, fast: bool, max: usize, seed: u64| {
+            let src = Pieces {
+                data: text,
+                max,
+                rng: crate::numeric::rng::SimRng::new(seed),
+            };
+            let r = LogReader::from_reader_source(
+                "t.csv",
+                src,
+                &map,
+                BiasColumn::Required,
+                LOOKAHEAD_ROWS,
+                plain,
+            )?;
+            r.read_all_with(0, fast)
+        };
+        let (mut read_whole, mut errors) = (0, 0);
+        for case in 0..400 {
+            let text = random_log_text(&mut rng);
+            let max = [1 << 16, 7, 1000][case % 3];
+            let reference = read(&text, false, false, max, case as u64);
+            for (plain, fast) in [(true, false), (true, true)] {
+                let got = read(&text, plain, fast, max, case as u64 + 1);
+                let show = || String::from_utf8_lossy(&text).into_owned();
+                match (&reference, &got) {
+                    (Ok(a), Ok(b)) => {
+                        assert!(
+                            a == b,
+                            "case {case} ({plain}, {fast}): logs differ\n{}",
+                            show()
+                        );
+                        for i in 0..a.len() {
+                            let bits = |l: &Log| l.bias(i).map(f64::to_bits);
+                            assert_eq!(bits(a), bits(b), "case {case} row {i}");
+                        }
+                    }
+                    (Err(a), Err(b)) => {
+                        assert_eq!(a.to_string(), b.to_string(), "case {case}\n{}", show())
+                    }
+                    (a, b) => panic!(
+                        "case {case} ({plain}, {fast}): {:?} vs {:?}\n{}",
+                        a.as_ref().map(Log::len).map_err(ToString::to_string),
+                        b.as_ref().map(Log::len).map_err(ToString::to_string),
+                        show()
+                    ),
+                }
+            }
+            match reference {
+                Ok(_) => read_whole += 1,
+                Err(_) => errors += 1,
+            }
+        }
+        // Both outcomes are exercised many times.
+        assert!(
+            read_whole > 50 && errors > 50,
+            "{read_whole} read, {errors} errors"
+        );
     }
 
     #[test]
