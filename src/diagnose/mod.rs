@@ -659,10 +659,18 @@ pub fn diagnose(
     drop(signed_residuals);
     drop(signed);
     drop(y);
-    let (interactions, global) = pairs::screen(table, &forward.left, &ctx, config);
-    let whiteness = Whiteness::of(residuals, config.ljung_box_lags, config.alpha);
-    let bimodality = stats::bimodality_coefficient(residuals).filter(|b| b.is_finite());
-    let dip = stats::dip_test(residuals);
+    // The residual's own statistics (one thread each: a sort for the dip test, the
+    // Ljung–Box sums) run beside the pair screen instead of after it.
+    let ((interactions, global), (whiteness, bimodality, dip)) = rayon::join(
+        || pairs::screen(table, &forward.left, &ctx, config),
+        || {
+            (
+                Whiteness::of(residuals, config.ljung_box_lags, config.alpha),
+                stats::bimodality_coefficient(residuals).filter(|b| b.is_finite()),
+                stats::dip_test(residuals),
+            )
+        },
+    );
     let mut d = Diagnosis {
         residual_std,
         features: reports,
@@ -1140,6 +1148,7 @@ fn perm_groups(
     fused: bool,
 ) -> Vec<PermGroup> {
     (0..lengths)
+        .into_par_iter()
         .map(|length| {
             let mut features: Vec<usize> =
                 (0..usable.len()).filter(|&k| which[k] == length).collect();
@@ -1155,7 +1164,7 @@ fn perm_groups(
             }
         })
         .filter(|g| !g.features.is_empty())
-        .collect()
+        .collect::<Vec<_>>()
 }
 
 /// One thread's buffers and hit counts of the permutation test (one slot per usable feature).
@@ -1411,7 +1420,10 @@ fn permutation_test(
             .map(|&(j, _)| lengths.binary_search(&blocks[j]).unwrap_or(0))
             .collect();
         let groups = perm_groups(&usable, lengths.len(), &which, direction.is_some(), fused);
-        let tests: Vec<FTest> = usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect();
+        let tests: Vec<FTest> = usable
+            .par_iter()
+            .map(|(_, a)| FTest::new(&a.binned))
+            .collect();
         // Every permutation draws from its own seeded streams and the counts are integers, so
         // the p-values are the same for any number of threads.
         let k = usable.len();

@@ -173,6 +173,69 @@ impl Binned {
         })
     }
 
+    /// [`Binned::new`] of byte codes, every row defined (the numbers `codes[i] as f64`,
+    /// with `max_discrete` at least the number of distinct codes, so the bins are
+    /// discrete): the distinct values and their rows counted in one pass over the bytes
+    /// instead of scanning for distinct values. The same bins, or the same reason for none,
+    /// as [`Binned::new`] of those numbers (tested): each value is its own bin, a value seen
+    /// in fewer than `min_bin_rows` rows pooled with the next larger one (the largest with
+    /// the one below).
+    pub(super) fn from_codes(codes: &[u8], min_bin_rows: usize) -> Result<Binned, Unusable> {
+        let mut by_code = [0usize; 256];
+        for &c in codes {
+            by_code[c as usize] += 1;
+        }
+        // The distinct values ascending, and their counts.
+        let present: Vec<usize> = (0..by_code.len()).filter(|&c| by_code[c] > 0).collect();
+        let counts: Vec<usize> = present.iter().map(|&c| by_code[c]).collect();
+        match present.len() {
+            0 => return Err(Unusable::AllMissing),
+            1 => return Err(Unusable::Constant(present[0] as f64)),
+            _ => {}
+        }
+        // As `Binned::new`'s discrete path with no undefined rows.
+        let mut label = vec![0u16; present.len()];
+        let mut next = 0u16;
+        let mut pending = 0usize;
+        for (k, &c) in counts.iter().enumerate() {
+            label[k] = next;
+            pending += c;
+            if pending >= min_bin_rows {
+                next += 1;
+                pending = 0;
+            }
+        }
+        if pending > 0 && next > 0 {
+            for l in label.iter_mut().filter(|l| **l == next) {
+                *l = next - 1;
+            }
+        } else if pending > 0 {
+            next = 1;
+        }
+        let n_fine = next.max(1) as usize;
+        if n_fine == 1 {
+            let (k, &most) = counts
+                .iter()
+                .enumerate()
+                .max_by_key(|(_, c)| **c)
+                .unwrap_or((0, &0));
+            return Err(Unusable::NearlyConstant {
+                value: present[k] as f64,
+                others: codes.len() - most,
+            });
+        }
+        let mut fine_of = [0u16; 256];
+        for (&c, &l) in present.iter().zip(&label) {
+            fine_of[c] = l;
+        }
+        Ok(Binned {
+            fine: codes.iter().map(|&c| fine_of[c as usize]).collect(),
+            n_fine,
+            kind: BinKind::Discrete,
+            levels: vec![ONE_BIN, 0],
+        })
+    }
+
     /// Number of slots (non-missing bins, then the missing bin) at level `shift`.
     pub(super) fn slots(&self, shift: u32) -> usize {
         self.defined_bins(shift) + 1
@@ -1189,7 +1252,7 @@ pub(crate) fn f_test_ln_p(ssb: f64, sst: f64, groups: usize, n: usize) -> f64 {
 /// `total_cmp` and keeping each value greater than the last kept gives (values equal as
 /// numbers, −0 and +0, count once, as the first of them in that order). Found in one pass
 /// with a small sorted list for finite values; a sort otherwise (`x` is then left sorted).
-fn smallest_distinct(x: &mut [f64], limit: usize) -> Vec<f64> {
+pub(super) fn smallest_distinct(x: &mut [f64], limit: usize) -> Vec<f64> {
     if limit == 0 || x.iter().any(|v| v.is_nan()) {
         return sorted_distinct_reference(x, limit);
     }
@@ -1232,7 +1295,7 @@ fn sorted_distinct_reference(x: &mut [f64], limit: usize) -> Vec<f64> {
 
 /// The values at `ranks` (ascending, each < `x.len()`) of `x` sorted by `total_cmp`, by
 /// nested selection (`x` is reordered): O(n·log(ranks)) instead of a sort, the same values.
-fn order_statistics(x: &mut [f64], ranks: &[usize]) -> Vec<f64> {
+pub(super) fn order_statistics(x: &mut [f64], ranks: &[usize]) -> Vec<f64> {
     /// Fills `out[i]` with the value at rank `ranks[i]` (distinct, ascending) of `x`, whose
     /// first element has rank `base`.
     fn select(x: &mut [f64], base: usize, ranks: &[usize], out: &mut [f64]) {
