@@ -138,7 +138,9 @@ use crate::numeric::rng::SimRng;
 use crate::numeric::stats;
 use crate::render::OutputError;
 use rayon::prelude::*;
-use smoother::{Binned, BlockLane, FTest, LANES, Permuted, SlotTable, Unusable};
+use smoother::{
+    Binned, BlockLane, FTest, LANES, Permuted, SlotTable, Unusable, sst_of_sums, sst_one_pass,
+};
 
 /// Smallest number of measured rows per cross-validation fold.
 pub(crate) const MIN_ROWS_PER_FOLD: usize = 10;
@@ -1261,7 +1263,7 @@ impl PermWorker {
                         }
                     });
                     let d = p.direction.filter(|_| table.signed() > 0).unwrap_or(&[]);
-                    let sum = table.accumulate_lanes(
+                    let (sum, sq) = table.accumulate_lanes(
                         p.y,
                         len,
                         &lanes,
@@ -1270,11 +1272,9 @@ impl PermWorker {
                         &mut self.acc_lanes,
                         &mut self.acc_signed_lanes,
                     );
-                    let sst_signed = if d.is_empty() {
-                        [0.0; LANES]
-                    } else {
-                        SlotTable::signed_sst_lanes(p.y, len, &lanes, d, sum, &mut self.chunk)
-                    };
+                    // The signed sum of squares from the pass's own sums (no second gather).
+                    let sst_signed: [f64; LANES] =
+                        std::array::from_fn(|l| sst_of_sums(sum[l], sq[l], n));
                     for l in 0..count {
                         self.acc.clear();
                         self.acc.extend(self.acc_lanes.iter().map(|a| a[l]));
@@ -1351,13 +1351,9 @@ impl PermWorker {
                 self.acc.resize(table.len(), 0.0);
                 self.acc_signed.resize(table.len(), 0.0);
                 let d = p.direction.filter(|_| table.signed() > 0).unwrap_or(&[]);
-                let sum =
+                let (sum, sq) =
                     table.accumulate_permuted(&permuted, d, &mut self.acc, &mut self.acc_signed);
-                let sst_signed = if d.is_empty() {
-                    0.0
-                } else {
-                    permuted.signed_sst(d, sum)
-                };
+                let sst_signed = sst_of_sums(sum, sq, n);
                 for (j, &k) in g.features.iter().enumerate() {
                     let (t, a) = (&mut self.tests[k], p.usable[k].1);
                     stat[k] = t.min_p_of_sums(&a.binned, table.sums(&self.acc, j), n, sst);
@@ -1375,7 +1371,7 @@ impl PermWorker {
                     self.signed.clear();
                     self.signed
                         .extend(self.perm.iter().zip(d).map(|(p, d)| p * d));
-                    sst_signed = stats::sum_sq_about_mean(&self.signed);
+                    sst_signed = sst_one_pass(&self.signed);
                 }
                 for &k in &g.features {
                     let (t, a) = (&mut self.tests[k], p.usable[k].1);

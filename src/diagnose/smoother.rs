@@ -664,37 +664,47 @@ impl Permuted<'_> {
         }
     }
 
-    /// Σ(w − w̄)² of the signed permuted residual w = permuted × `direction`, given Σw
-    /// (`signed_sum`, from [`SlotTable::accumulate_permuted`]): the very bits of
-    /// `stats::sum_sq_about_mean` of that product (the same sums in the same order).
-    pub(crate) fn signed_sst(&self, direction: &[f64], signed_sum: f64) -> f64 {
-        let m = signed_sum / direction.len() as f64;
-        let mut ss = -0.0;
-        self.for_each_run(|k, run| {
-            ss = sq_dev_sum(run, &direction[k..k + run.len()], m, ss);
-        });
-        ss
-    }
+}
+
+/// Σ(w − w̄)² of `n` values from their sum and their sum of squares: Σw² − (Σw)²/n (never
+/// below 0). The permutation test's signed sum of squares, from the sums the fused pass
+/// takes as it reads the permuted residual ([`SlotTable::accumulate_permuted`],
+/// [`SlotTable::accumulate_lanes`]) instead of a second pass for the deviations from the
+/// mean: the same value as `stats::sum_sq_about_mean` up to rounding — within 1e-12
+/// relative wherever the mean is small against the spread, as it is for a permuted
+/// residual (the residual is centred, so the signed mean is a sum of ± terms; tested) — not
+/// the same bits.
+#[inline]
+pub(crate) fn sst_of_sums(sum: f64, sq: f64, n: usize) -> f64 {
+    (sq - sum * sum / n as f64).max(0.0)
+}
+
+/// [`sst_of_sums`] of `w`, its sums taken in row order as the fused pass takes them (Σw
+/// from −0, Σw² from 0): the statistic of a materialised signed residual.
+pub(crate) fn sst_one_pass(w: &[f64]) -> f64 {
+    let (sum, sq) = w.iter().fold((-0.0, 0.0), |(s, q), &x| (s + x, q + x * x));
+    sst_of_sums(sum, sq, w.len())
 }
 
 impl SlotTable {
     /// [`SlotTable::accumulate`] of a permuted residual read in place, the signed residual
     /// being the permuted one times `direction` (unused, and may be empty, when no feature is
-    /// signed). Returns Σ of the signed residual in row order (−0 when none is signed). The
-    /// same additions in the same order as [`SlotTable::accumulate`] of the materialised
-    /// permutation and its product (tested).
+    /// signed). Returns Σ of the signed residual in row order (−0 when none is signed) and
+    /// Σ of its squares (0 when none is signed; for [`sst_of_sums`]). The same additions in
+    /// the same order as [`SlotTable::accumulate`] of the materialised permutation and its
+    /// product (tested).
     pub(crate) fn accumulate_permuted(
         &self,
         y: &Permuted<'_>,
         direction: &[f64],
         acc: &mut [f64],
         acc_signed: &mut [f64],
-    ) -> f64 {
+    ) -> (f64, f64) {
         acc.iter_mut().for_each(|a| *a = 0.0);
         let m = self.m;
-        let mut signed_sum = -0.0;
+        let mut signed = (-0.0, 0.0);
         if m == 0 {
-            return signed_sum;
+            return signed;
         }
         let offset = &self.offset[..m];
         let ms = self.signed;
@@ -709,7 +719,7 @@ impl SlotTable {
             } else if ms == 0 {
                 add_rows(rows, m, offset, run, acc);
             } else if self.steady {
-                signed_sum = add_rows_signed_held(
+                signed = add_rows_signed_held(
                     rows,
                     m,
                     ms,
@@ -718,10 +728,10 @@ impl SlotTable {
                     &direction[k..k + run.len()],
                     acc,
                     acc_signed,
-                    signed_sum,
+                    signed,
                 );
             } else {
-                signed_sum = add_rows_signed(
+                signed = add_rows_signed(
                     rows,
                     m,
                     ms,
@@ -730,11 +740,11 @@ impl SlotTable {
                     &direction[k..k + run.len()],
                     acc,
                     acc_signed,
-                    signed_sum,
+                    signed,
                 );
             }
         });
-        signed_sum
+        signed
     }
 
     /// Features whose sums of the signed residual are taken.
@@ -865,6 +875,16 @@ fn scale_lanes(v: &[f64; LANES], d: f64) -> [f64; LANES] {
     w
 }
 
+/// `a[l]·b[l]` for every lane (one vector multiplication).
+#[inline(always)]
+fn mul_lanes(a: &[f64; LANES], b: &[f64; LANES]) -> [f64; LANES] {
+    let mut w = [0.0; LANES];
+    for l in 0..LANES {
+        w[l] = a[l] * b[l];
+    }
+    w
+}
+
 /// `a[l] += v[l]` for every lane (one vector addition; each lane its own IEEE sum).
 #[inline(always)]
 fn add_lanes(a: &mut [f64; LANES], v: &[f64; LANES]) {
@@ -878,7 +898,7 @@ impl SlotTable {
     /// rows > 1) at once: `acc[s][l]` is lane `l`'s sum of slot `s`, `acc_signed` the same
     /// for the signed residual (permuted × `direction`; unused, and may be empty, when no
     /// feature is signed). Returns each lane's Σ of the signed residual in row order (−0 when
-    /// none is signed). Each lane's sums take the same additions in the same order as
+    /// none is signed) and Σ of its squares (0 when none is signed). Each lane's sums take the same additions in the same order as
     /// [`SlotTable::accumulate_permuted`] of that lane's permutation, so they are the same
     /// bits (tested); the lanes of one row are added by one vector instruction. Runs the
     /// AVX2 copy when the CPU has it (lane-wise additions and products, no fused
@@ -893,7 +913,7 @@ impl SlotTable {
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> [f64; LANES] {
+    ) -> ([f64; LANES], [f64; LANES]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
@@ -920,7 +940,7 @@ impl SlotTable {
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> [f64; LANES] {
+    ) -> ([f64; LANES], [f64; LANES]) {
         self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
     }
 
@@ -936,13 +956,14 @@ impl SlotTable {
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> [f64; LANES] {
+    ) -> ([f64; LANES], [f64; LANES]) {
         let m = self.m;
         let mut sum = [-0.0; LANES];
+        let mut sq = [0.0; LANES];
         acc.clear();
         acc.resize(self.len(), [0.0; LANES]);
         if m == 0 {
-            return sum;
+            return (sum, sq);
         }
         let ms = self.signed;
         if ms > 0 {
@@ -971,6 +992,7 @@ impl SlotTable {
                     let v = *v;
                     let w = scale_lanes(&v, dt);
                     add_lanes(&mut sum, &w);
+                    add_lanes(&mut sq, &mul_lanes(&w, &w));
                     for (&c, &o) in row.iter().zip(offset) {
                         add_lanes(&mut acc[o + c as usize], &v);
                     }
@@ -980,70 +1002,8 @@ impl SlotTable {
                 }
             }
         }
-        sum
+        (sum, sq)
     }
-
-    /// [`Permuted::signed_sst`] of [`LANES`] block permutations at once (`signed_sum`: each
-    /// lane's Σ from [`SlotTable::accumulate_lanes`]): each lane the very bits of
-    /// `stats::sum_sq_about_mean` of its signed residual (tested).
-    pub(crate) fn signed_sst_lanes(
-        y: &[f64],
-        block: usize,
-        lanes: &[BlockLane<'_>; LANES],
-        direction: &[f64],
-        signed_sum: [f64; LANES],
-        buf: &mut Vec<[f64; LANES]>,
-    ) -> [f64; LANES] {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { signed_sst_lanes_avx2(y, block, lanes, direction, signed_sum, buf) };
-        }
-        signed_sst_lanes_portable(y, block, lanes, direction, signed_sum, buf)
-    }
-}
-
-/// [`SlotTable::signed_sst_lanes`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn signed_sst_lanes_avx2(
-    y: &[f64],
-    block: usize,
-    lanes: &[BlockLane<'_>; LANES],
-    direction: &[f64],
-    signed_sum: [f64; LANES],
-    buf: &mut Vec<[f64; LANES]>,
-) -> [f64; LANES] {
-    signed_sst_lanes_portable(y, block, lanes, direction, signed_sum, buf)
-}
-
-/// [`SlotTable::signed_sst_lanes`] for any CPU: per lane, `ss += (w − m)·(w − m)` in row
-/// order from −0, as [`sq_dev_sum`].
-#[inline(always)]
-fn signed_sst_lanes_portable(
-    y: &[f64],
-    block: usize,
-    lanes: &[BlockLane<'_>; LANES],
-    direction: &[f64],
-    signed_sum: [f64; LANES],
-    buf: &mut Vec<[f64; LANES]>,
-) -> [f64; LANES] {
-    let mean = signed_sum.map(|s| s / direction.len() as f64);
-    let mut ss = [-0.0; LANES];
-    buf.resize(CHUNK, [0.0; LANES]);
-    let mut chunks = Chunks::new(y, block, lanes);
-    while let Some((k, c)) = chunks.next(buf) {
-        for (v, &dt) in buf[..c].iter().zip(&direction[k..k + c]) {
-            for l in 0..LANES {
-                let w = v[l] * dt;
-                ss[l] += (w - mean[l]) * (w - mean[l]);
-            }
-        }
-    }
-    ss
 }
 
 /// Most features [`add_rows_held`] takes.
@@ -1101,7 +1061,8 @@ fn add_rows(codes: &[u8], m: usize, offset: &[usize], run: &[f64], acc: &mut [f6
 }
 
 /// [`add_rows`], and `run[t]·d[t]` into `acc_signed` for the first `ms` features; returns
-/// `sum` plus every `run[t]·d[t]` in row order (a local chain, kept in a register).
+/// `(sum, sq)` plus every `run[t]·d[t]` and its square in row order (local chains, kept in
+/// registers).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn add_rows_signed(
@@ -1113,11 +1074,12 @@ fn add_rows_signed(
     d: &[f64],
     acc: &mut [f64],
     acc_signed: &mut [f64],
-    mut sum: f64,
-) -> f64 {
+    (mut sum, mut sq): (f64, f64),
+) -> (f64, f64) {
     for (t, (&v, &dt)) in run.iter().zip(d).enumerate() {
         let w = v * dt;
         sum += w;
+        sq += w * w;
         let row = &codes[t * m..(t + 1) * m];
         for (&c, &o) in row.iter().zip(offset) {
             acc[o + c as usize] += v;
@@ -1126,7 +1088,7 @@ fn add_rows_signed(
             acc_signed[o + c as usize] += w;
         }
     }
-    sum
+    (sum, sq)
 }
 
 /// [`add_rows_signed`] (m ≤ [`HELD_MAX`]) with each feature's current slots (plain and
@@ -1141,8 +1103,8 @@ fn add_rows_signed_held(
     d: &[f64],
     acc: &mut [f64],
     acc_signed: &mut [f64],
-    sum: f64,
-) -> f64 {
+    sum: (f64, f64),
+) -> (f64, f64) {
     let f = match m {
         1 => add_rows_signed_held_m::<1>,
         2 => add_rows_signed_held_m::<2>,
@@ -1164,10 +1126,10 @@ fn add_rows_signed_held_m<const M: usize>(
     d: &[f64],
     acc: &mut [f64],
     acc_signed: &mut [f64],
-    mut sum: f64,
-) -> f64 {
+    (mut sum, mut sq): (f64, f64),
+) -> (f64, f64) {
     if run.is_empty() {
-        return sum;
+        return (sum, sq);
     }
     let off: [usize; M] = std::array::from_fn(|j| offset[j]);
     let mut slot: [usize; M] = std::array::from_fn(|j| off[j] + codes[j] as usize);
@@ -1177,6 +1139,7 @@ fn add_rows_signed_held_m<const M: usize>(
     for ((row, &v), &dt) in codes.chunks_exact(M).zip(run).zip(d) {
         let w = v * dt;
         sum += w;
+        sq += w * w;
         for j in 0..M {
             let s = off[j] + row[j] as usize;
             if s != slot[j] {
@@ -1200,17 +1163,7 @@ fn add_rows_signed_held_m<const M: usize>(
             acc_signed[slot[j]] = held_s[j];
         }
     }
-    sum
-}
-
-/// `ss` plus Σ(run[t]·d[t] − m)² in row order (a local chain, kept in a register).
-#[inline]
-fn sq_dev_sum(run: &[f64], d: &[f64], m: f64, mut ss: f64) -> f64 {
-    for (&v, &dt) in run.iter().zip(d) {
-        let w = v * dt;
-        ss += (w - m) * (w - m);
-    }
-    ss
+    (sum, sq)
 }
 
 /// p-value of a one-way ANOVA with between-group sum of squares `ssb`, total `sst`, `groups`
