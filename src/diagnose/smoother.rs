@@ -663,7 +663,6 @@ impl Permuted<'_> {
             }
         }
     }
-
 }
 
 /// Σ(w − w̄)² of `n` values from their sum and their sum of squares: Σw² − (Σw)²/n (never

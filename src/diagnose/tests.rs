@@ -1053,7 +1053,13 @@ fn one_pass_signed_sum_of_squares_is_within_1e_12_of_the_two_pass() {
     let n = 200_000;
     let mut rng = SimRng::new(31);
     let dir: Vec<f64> = (0..n)
-        .map(|i| if i < 3 { 0.0 } else { [1.0, -1.0][rng.below(2) as usize] })
+        .map(|i| {
+            if i < 3 {
+                0.0
+            } else {
+                [1.0, -1.0][rng.below(2) as usize]
+            }
+        })
         .collect();
     let r: Vec<f64> = (0..n)
         .map(|i| 0.4 * dir[i] + (i as f64 * 1e-4).sin() + rng.normal())
