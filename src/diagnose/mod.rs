@@ -775,7 +775,8 @@ fn remove(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
                 .collect()
         }
         None => {
-            let (p, m) = smoother::cv_fold_means(b, g.shift, r.iter().copied(), ctx.fold, ctx.folds);
+            let (p, m) =
+                smoother::cv_fold_means(b, g.shift, r.iter().copied(), ctx.fold, ctx.folds);
             r.iter()
                 .enumerate()
                 .map(|(i, v)| v - p[cell(m, i)])

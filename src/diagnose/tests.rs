@@ -1174,12 +1174,8 @@ fn row_by_row_remove_and_gain_equal_the_stored_vectors() {
         // The gain's signed analysis against the stored product.
         let s = Signed::new(&r, &dir);
         let cv = smoother::cross_validate(&b, &s.y, &fold, folds);
-        let cv_rows = smoother::cross_validate_rows(
-            &b,
-            r.iter().zip(&dir).map(|(v, d)| v * d),
-            &fold,
-            folds,
-        );
+        let cv_rows =
+            smoother::cross_validate_rows(&b, r.iter().zip(&dir).map(|(v, d)| v * d), &fold, folds);
         assert_eq!(cv.shift, cv_rows.shift, "{}", col.name);
         assert_eq!(cv.mse.to_bits(), cv_rows.mse.to_bits(), "{}", col.name);
         let sst_rows = sum_sq_about_mean_rows(|| r.iter().zip(&dir).map(|(v, d)| v * d));
