@@ -326,7 +326,14 @@ pub(crate) struct StreamingQr {
     block: Vec<f64>,
     fill: usize,
     colsq: Vec<f64>,
+    /// Whether a partial chunk is factorised on its filled rows alone ([`StreamingQr::fold`]).
+    compact: bool,
+    /// Rows added between two re-factorisations ([`CHUNK`], or [`COMPACT_CHUNK`]).
+    chunk: usize,
 }
+
+/// Rows between two re-factorisations of a [`StreamingQr::compact`].
+const COMPACT_CHUNK: usize = 1024;
 
 /// Rows added between two re-factorisations.
 pub(crate) const CHUNK: usize = 1024;
@@ -537,6 +544,25 @@ impl StreamingQr {
             block: vec![0.0; (cols + CHUNK) * cols],
             fill: 0,
             colsq: vec![0.0; cols],
+            compact: false,
+            chunk: CHUNK,
+        }
+    }
+
+    /// [`StreamingQr::new`] whose last, partial chunk is factorised on its filled rows alone
+    /// (a block of `p + 1 + filled` rows instead of `p + 1 + CHUNK`) and whose chunks are
+    /// [`COMPACT_CHUNK`] rows: the same `R` up to rounding (the dot products split into other
+    /// partial sums), much less work and memory where a factorisation ends with a few rows —
+    /// [`solve`]'s chunks, whose every pattern group ends with a partial chunk.
+    fn compact(p: usize) -> Self {
+        let cols = p + 1;
+        Self {
+            cols,
+            block: vec![0.0; (cols + COMPACT_CHUNK) * cols],
+            fill: 0,
+            colsq: vec![0.0; cols],
+            compact: true,
+            chunk: COMPACT_CHUNK,
         }
     }
 
@@ -553,7 +579,7 @@ impl StreamingQr {
     /// Adds one row (its `p` regressors, then the response `y`) without summing its squares.
     #[inline(always)]
     fn place(&mut self, x: impl Iterator<Item = f64>, y: f64) {
-        let m = self.cols + CHUNK;
+        let m = self.cols + self.chunk;
         let row = self.cols + self.fill;
         let mut at = row;
         for v in x {
@@ -562,7 +588,7 @@ impl StreamingQr {
         }
         self.block[at] = y;
         self.fill += 1;
-        if self.fill == CHUNK {
+        if self.fill == self.chunk {
             self.fold();
         }
     }
@@ -571,8 +597,23 @@ impl StreamingQr {
         if self.fill == 0 {
             return;
         }
-        let (n, m) = (self.cols, self.cols + CHUNK);
-        if self.fill < CHUNK {
+        let (n, m) = (self.cols, self.cols + self.chunk);
+        if self.fill < self.chunk && self.compact {
+            // Partial chunk on its filled rows alone: the columns moved together (each column's
+            // first `n + fill` rows; forward, so no column overwrites one not yet moved), the
+            // factorisation, and `R` (the first `n` rows) moved back (backward, likewise).
+            let mc = n + self.fill;
+            for j in 1..n {
+                self.block.copy_within(j * m..j * m + mc, j * mc);
+            }
+            householder_r(&mut self.block[..n * mc], mc, n);
+            for j in (1..n).rev() {
+                self.block.copy_within(j * mc..j * mc + n, j * m);
+            }
+            self.fill = 0;
+            return;
+        }
+        if self.fill < self.chunk {
             // Partial chunk: factorise only the filled rows (zero the stale ones).
             for j in 0..n {
                 self.block[j * m + n + self.fill..(j + 1) * m].fill(0.0);
@@ -585,7 +626,7 @@ impl StreamingQr {
     /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms².
     pub(crate) fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
         self.fold();
-        let (n, m) = (self.cols, self.cols + CHUNK);
+        let (n, m) = (self.cols, self.cols + self.chunk);
         let r = DMatrix::from_fn(
             n,
             n,
@@ -634,7 +675,13 @@ pub(crate) struct PatternQr {
     /// Whether rows are grouped by pattern (else all go to the dense group).
     patterned: bool,
     bytes: usize,
+    /// Whether its groups are [`StreamingQr::compact`].
+    compact: bool,
+    /// Column norms² and count of the rows [`PatternQr::push`] added (the tests' entry point;
+    /// [`solve`] sums its own and adds rows with [`PatternQr::place_row`]).
+    #[cfg_attr(not(test), allow(dead_code))]
     colsq: Vec<f64>,
+    #[cfg_attr(not(test), allow(dead_code))]
     rows: usize,
 }
 
@@ -650,6 +697,7 @@ impl PatternQr {
             probe: Some(Vec::with_capacity(PATTERN_PROBE * (p + 1))),
             patterned: false,
             bytes: 0,
+            compact: false,
             colsq: vec![0.0; p + 1],
             rows: 0,
         }
@@ -657,7 +705,6 @@ impl PatternQr {
 
     /// [`PatternQr::new`] that never groups: [`StreamingQr`]'s `R` bit for bit (the tests'
     /// reference for the grouped solve).
-    #[cfg(test)]
     fn dense(p: usize) -> Self {
         Self {
             probe: None,
@@ -665,13 +712,35 @@ impl PatternQr {
         }
     }
 
+    /// [`PatternQr::new`] (or [`PatternQr::dense`] with `dense`) whose groups are
+    /// [`StreamingQr::compact`]: for [`solve`]'s chunks.
+    fn compact(p: usize, dense: bool) -> Self {
+        let base = if dense { Self::dense(p) } else { Self::new(p) };
+        Self {
+            compact: true,
+            ..base
+        }
+    }
+
+    /// A group's factorisation of `k` columns.
+    fn group_qr(&self, k: usize) -> StreamingQr {
+        if self.compact {
+            StreamingQr::compact(k)
+        } else {
+            StreamingQr::new(k)
+        }
+    }
+
     /// The group of all columns.
     fn dense_group(&mut self) -> usize {
-        *self.dense.get_or_insert_with(|| {
-            self.groups
-                .push(((0..self.p).collect(), StreamingQr::new(self.p)));
-            self.groups.len() - 1
-        })
+        if let Some(g) = self.dense {
+            return g;
+        }
+        let qr = self.group_qr(self.p);
+        self.groups.push(((0..self.p).collect(), qr));
+        let g = self.groups.len() - 1;
+        self.dense = Some(g);
+        g
     }
 
     /// The group of the rows whose non-zero columns are `mask`, made on first use (the dense
@@ -693,11 +762,13 @@ impl PatternQr {
             return self.dense_group();
         }
         let cols: Vec<usize> = (0..self.p).filter(|&j| mask >> j & 1 == 1).collect();
-        let size = (cols.len() + 1 + CHUNK) * (cols.len() + 1) * 8;
+        let chunk = if self.compact { COMPACT_CHUNK } else { CHUNK };
+        let size = (cols.len() + 1 + chunk) * (cols.len() + 1) * 8;
         let g = if self.bytes + size <= PATTERN_BYTES {
             self.bytes += size;
             let k = cols.len();
-            self.groups.push((cols, StreamingQr::new(k)));
+            let qr = self.group_qr(k);
+            self.groups.push((cols, qr));
             self.groups.len() - 1
         } else {
             self.dense_group()
@@ -708,12 +779,19 @@ impl PatternQr {
     }
 
     /// Adds one row `x` (length p) with response `y`.
+    #[cfg_attr(not(test), allow(dead_code))]
     pub(crate) fn push(&mut self, x: &[f64], y: f64) {
         self.rows += 1;
         for (s, &v) in self.colsq.iter_mut().zip(x) {
             *s += v * v;
         }
         self.colsq[self.p] += y * y;
+        self.place_row(x, y);
+    }
+
+    /// Adds one row `x` (length p) with response `y`, without counting it or summing its
+    /// squares ([`PatternQr::rows`] and [`PatternQr::colsq`] do not see it).
+    pub(crate) fn place_row(&mut self, x: &[f64], y: f64) {
         if let Some(buf) = &mut self.probe {
             buf.extend_from_slice(x);
             buf.push(y);
@@ -746,27 +824,68 @@ impl PatternQr {
 
     /// Adds one row to its group (the dense one unless [`PatternQr::decide`] chose patterns).
     fn route(&mut self, x: &[f64], y: f64) {
-        let g = if self.patterned {
+        if !self.patterned {
+            // Every row on all columns: straight into the dense group's block.
+            let g = self.dense_group();
+            self.groups[g].1.place(x.iter().copied(), y);
+            return;
+        }
+        let g = {
             let mut mask = 0u64;
             for (j, &v) in x.iter().enumerate() {
                 mask |= u64::from(v != 0.0) << j;
             }
             self.group(mask)
-        } else {
-            self.dense_group()
         };
         let (cols, qr) = &mut self.groups[g];
         qr.place(cols.iter().map(|&j| x[j]), y);
     }
 
     /// Rows pushed so far.
+    #[cfg(test)]
     pub(crate) fn rows(&self) -> usize {
         self.rows
     }
 
-    /// Column norms² of the rows pushed so far (regressors, then the response).
-    pub(crate) fn colsq(&self) -> &[f64] {
-        &self.colsq
+    /// A [`PatternQr`] that groups from the first row (no probe): [`solve`]'s merge of its
+    /// chunks' groups ([`PatternQr::place_group_r`]); dense for designs of 64 columns or more.
+    fn merging(p: usize) -> Self {
+        Self {
+            probe: None,
+            patterned: p < 64,
+            ..Self::new(p)
+        }
+    }
+
+    /// Each group's columns and its `R` ((k+1) × (k+1), the response last), in the order the
+    /// groups were made (the order their patterns first occur in the rows): the factorisation
+    /// before [`PatternQr::finish`] stacks the groups.
+    fn finish_groups(mut self) -> Vec<(Vec<usize>, DMatrix<f64>)> {
+        self.decide();
+        self.groups
+            .into_iter()
+            .map(|(cols, qr)| (cols, qr.finish().0))
+            .collect()
+    }
+
+    /// Adds the `k + 1` rows of `r`, a group's `R` over the design columns `cols`
+    /// ([`PatternQr::finish_groups`]), to the group of those columns (every row of a group's
+    /// `R` lies in its columns; the dense group where there is no room or no grouping).
+    fn place_group_r(&mut self, cols: &[usize], r: &DMatrix<f64>) {
+        let g = if self.patterned {
+            self.group(cols.iter().fold(0u64, |m, &j| m | 1 << j))
+        } else {
+            self.dense_group()
+        };
+        let k = cols.len();
+        let mut x = vec![0.0; self.p];
+        let (gcols, qr) = &mut self.groups[g];
+        for i in 0..=k {
+            for (a, &j) in cols.iter().enumerate() {
+                x[j] = r[(i, a)];
+            }
+            qr.place(gcols.iter().map(|&j| x[j]), r[(i, k)]);
+        }
     }
 
     /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms²
@@ -780,7 +899,7 @@ impl PatternQr {
                 return (qr.finish().0, self.colsq);
             }
         }
-        let mut all = StreamingQr::new(p);
+        let mut all = self.group_qr(p);
         let mut row = vec![0.0; p];
         for (cols, qr) in self.groups {
             let k = cols.len();
@@ -886,6 +1005,24 @@ fn ridge_of(terms: &[Arc<dyn Term>], col: usize) -> f64 {
     0.0
 }
 
+/// Bytes of design rows [`solve`] factorises as one chunk (its `[X y]` rows, row-major).
+const SOLVE_CHUNK_BYTES: usize = 4 << 20;
+
+/// Measured rows per chunk of [`solve`] for `p` design columns: [`SOLVE_CHUNK_BYTES`] of rows,
+/// a multiple of [`CHUNK`]. Depends on `p` alone, never on the thread count.
+fn solve_chunk_rows(p: usize) -> usize {
+    (SOLVE_CHUNK_BYTES / 8 / (p + 1)).max(1).div_ceil(CHUNK) * CHUNK
+}
+
+/// The row-major `[X y]` rows `rows` (`p + 1` values each) factorised by `qr`: its groups'
+/// columns and `R` factors ([`PatternQr::finish_groups`]).
+fn factorise_rows(mut qr: PatternQr, rows: &[f64], p: usize) -> Vec<(Vec<usize>, DMatrix<f64>)> {
+    for row in rows.chunks_exact(p + 1) {
+        qr.place_row(&row[..p], row[p]);
+    }
+    qr.finish_groups()
+}
+
 fn solve(
     terms: &[Arc<dyn Term>],
     data: &FitData<'_>,
@@ -897,45 +1034,115 @@ fn solve(
     let mut order: Vec<usize> = (0..p).filter(|&c| !droppable[c]).collect();
     order.extend((0..p).filter(|&c| droppable[c]));
     #[cfg(test)]
-    let mut qr = if tests::DENSE_SOLVE.get() {
-        PatternQr::dense(p)
-    } else {
-        PatternQr::new(p)
-    };
+    let dense = tests::DENSE_SOLVE.get();
     #[cfg(not(test))]
-    let mut qr = PatternQr::new(p);
-    let mut xp = vec![0.0; p];
-    let mut sums = vec![0.0; p];
-    design_pass(terms, data, |x, y| {
-        for (q, &c) in order.iter().enumerate() {
-            xp[q] = x[c];
-            sums[c] += x[c];
+    let dense = false;
+    let new_qr = |p| {
+        if dense {
+            PatternQr::dense(p)
+        } else {
+            PatternQr::new(p)
         }
-        qr.push(&xp, y);
-    })?;
-    let n = qr.rows();
+    };
+    let w = p + 1;
+    let mut rows = FixedRows::new(terms, data)?;
+    let mut sums = vec![0.0; p];
+    let mut colsq = vec![0.0; w];
+    let per_chunk = solve_chunk_rows(p);
+    let measured = data.log().measured_count();
+    let mut xp = vec![0.0; p];
+    // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column (after the
+    // data rows; `colsq` is the data rows' sums of squares).
+    let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
+    // Pushes them and adds their squares to `colsq` (as the rank test has always seen them).
+    let mut ridge_rows = |colsq: &mut [f64], push: &mut dyn FnMut(&[f64])| -> Vec<f64> {
+        let data_sq = colsq.to_vec();
+        for (q, &c) in order.iter().enumerate() {
+            if ridge[c] > 0.0 && data_sq[q] > 0.0 {
+                xp.fill(0.0);
+                xp[q] = (ridge[c] * data_sq[q]).sqrt();
+                push(&xp);
+                colsq[q] += xp[q] * xp[q];
+            }
+        }
+        data_sq
+    };
+    let mut n = 0;
+    let (r, data_sq) = if measured <= per_chunk {
+        // One chunk: its factorisation, the ridge rows included (as before the chunks).
+        let mut qr = new_qr(p);
+        let mut scratch = vec![0.0; p];
+        n = rows.each_ordered(
+            per_chunk,
+            &order,
+            &mut sums,
+            &mut colsq,
+            &mut scratch,
+            |x, y| qr.place_row(x, y),
+        );
+        let data_sq = ridge_rows(&mut colsq, &mut |x| qr.place_row(x, 0.0));
+        (qr.finish().0, data_sq)
+    } else {
+        // Chunks of `per_chunk` measured rows (boundaries fixed by the row count alone), each
+        // factorised on its own while the replay fills the next (`rayon::join`: on another
+        // core where the pool has one), their `R` factors stacked in chunk order into one
+        // more factorisation: the same `R` for any thread count, bit for bit (tested).
+        let mut merged = if dense {
+            PatternQr::dense(p)
+        } else {
+            PatternQr::merging(p)
+        };
+        if rayon::current_num_threads() > 1 {
+            let mut cur = Vec::with_capacity(per_chunk * w);
+            let mut next = Vec::with_capacity(per_chunk * w);
+            n = rows.fill_ordered(&mut cur, per_chunk, &order, &mut sums, &mut colsq);
+            while !cur.is_empty() {
+                let (groups, got) = rayon::join(
+                    || factorise_rows(PatternQr::compact(p, dense), &cur, p),
+                    || rows.fill_ordered(&mut next, per_chunk, &order, &mut sums, &mut colsq),
+                );
+                for (cols, r) in &groups {
+                    merged.place_group_r(cols, r);
+                }
+                n += got;
+                std::mem::swap(&mut cur, &mut next);
+                next.clear();
+            }
+        } else {
+            // One thread: each chunk's rows straight into its factorisation (no buffer), the
+            // same chunks, so the same `R` bit for bit.
+            let mut scratch = vec![0.0; p];
+            loop {
+                let mut qr = PatternQr::compact(p, dense);
+                let got = rows.each_ordered(
+                    per_chunk,
+                    &order,
+                    &mut sums,
+                    &mut colsq,
+                    &mut scratch,
+                    |x, y| qr.place_row(x, y),
+                );
+                if got == 0 {
+                    break;
+                }
+                for (cols, r) in &qr.finish_groups() {
+                    merged.place_group_r(cols, r);
+                }
+                n += got;
+            }
+        }
+        let data_sq = ridge_rows(&mut colsq, &mut |x| merged.place_row(x, 0.0));
+        (merged.finish().0, data_sq)
+    };
     // Σ(x − x̄)² = Σx² − (Σx)²/n, from the data rows' sums of squares (before any ridge row).
     let centred_sq: Vec<f64> = {
         let mut v = vec![0.0; p];
         for (q, &c) in order.iter().enumerate() {
             let nf = n.max(1) as f64;
-            v[c] = (qr.colsq()[q] - sums[c] * sums[c] / nf).max(0.0);
+            v[c] = (data_sq[q] - sums[c] * sums[c] / nf).max(0.0);
         }
         v
     };
-    // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column.
-    let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
-    if ridge.iter().any(|&l| l > 0.0) {
-        let colsq = qr.colsq().to_vec();
-        for (q, &c) in order.iter().enumerate() {
-            if ridge[c] > 0.0 && colsq[q] > 0.0 {
-                xp.fill(0.0);
-                xp[q] = (ridge[c] * colsq[q]).sqrt();
-                qr.push(&xp, 0.0);
-            }
-        }
-    }
-    let (r, colsq) = qr.finish();
     let mut keep = Vec::new();
     let mut dropped = Vec::new();
     for q in 0..p {
@@ -973,10 +1180,7 @@ fn solve(
     let r = if dropped.is_empty() {
         r
     } else {
-        let mut sel: Vec<usize> = keep.clone();
-        sel.push(p);
-        let sub = r.select_columns(sel.iter());
-        sub.qr().r()
+        refactor_kept(&r, &keep)
     };
     let rk = r.view((0, 0), (k, k)).clone_owned();
     let z = r.view((0, k), (k, 1)).clone_owned();
@@ -1009,6 +1213,25 @@ fn solve(
         rank: k,
         n,
     })
+}
+
+/// The `R` of the columns `keep` of the `(p+1) × (p+1)` factor `r` and its last column (the
+/// response), `(k+1) × (k+1)`: [`solve`]'s re-factorisation when columns were dropped. By
+/// [`householder_r`], whose reflector scales a column of tiny values (nalgebra's `qr()`, used
+/// before, squares them unscaled: a kept column whose entries in `r` were all ~1e-170 gave a
+/// zero diagonal, the triangular solve failed and every coefficient came out 0; at ~1e-158
+/// subnormal squares cost 6e-9 relative; tested).
+fn refactor_kept(r: &DMatrix<f64>, keep: &[usize]) -> DMatrix<f64> {
+    let (m, p) = (r.nrows(), r.ncols() - 1);
+    let n = keep.len() + 1;
+    let mut a = vec![0.0; m * n];
+    for (col, &c) in keep.iter().chain(std::iter::once(&p)).enumerate() {
+        for i in 0..m {
+            a[col * m + i] = r[(i, c)];
+        }
+    }
+    householder_r(&mut a, m, n);
+    DMatrix::from_fn(n, n, |i, j| if i <= j { a[j * m + i] } else { 0.0 })
 }
 
 /// The least-squares RSS of `terms` with term `k`'s nonlinear parameter at `t` (search
@@ -1377,6 +1600,71 @@ impl<'a> FixedRows<'a> {
             buf: vec![0.0; p],
             cov: Vec::new(),
         })
+    }
+
+    /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, each as its
+    /// design columns in the order `order` then its response (`order.len() + 1` values), and
+    /// adds each written value to `sums` (per original column) and its square to `colsq` (per
+    /// written position), row by row in log order: the arithmetic [`solve`]'s row-by-row loop
+    /// did. Returns how many rows it appended.
+    fn fill_ordered(
+        &mut self,
+        out: &mut Vec<f64>,
+        rows: usize,
+        order: &[usize],
+        sums: &mut [f64],
+        colsq: &mut [f64],
+    ) -> usize {
+        let mut xp = vec![0.0; order.len()];
+        self.each_ordered(rows, order, sums, colsq, &mut xp, |x, y| {
+            out.extend_from_slice(x);
+            out.push(y);
+        })
+    }
+
+    /// [`FixedRows::fill_ordered`] handing each row (its columns in `order`, in the scratch
+    /// `xp`, then its response) to `each` instead of a buffer.
+    fn each_ordered(
+        &mut self,
+        rows: usize,
+        order: &[usize],
+        sums: &mut [f64],
+        colsq: &mut [f64],
+        xp: &mut [f64],
+        mut each: impl FnMut(&[f64], f64),
+    ) -> usize {
+        let p = order.len();
+        let mut n = 0;
+        while n < rows {
+            let Some((_, row, f)) = self.replay.next() else {
+                break;
+            };
+            let seek = Seek {
+                features: &f,
+                covariates: row.covariates.gather(&mut self.cov),
+            };
+            if let Some(y) = row.bias {
+                for (k, s) in self.states.iter().enumerate() {
+                    s.basis(
+                        &seek,
+                        &mut self.buf[self.off[k]..self.off[k] + self.widths[k]],
+                    );
+                }
+                for (q, &c) in order.iter().enumerate() {
+                    let v = self.buf[c];
+                    xp[q] = v;
+                    sums[c] += v;
+                    colsq[q] += v * v;
+                }
+                colsq[p] += y * y;
+                each(xp, y);
+                n += 1;
+            }
+            for s in &mut self.states {
+                s.update(&seek, None);
+            }
+        }
+        n
     }
 
     /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, row-major;
@@ -2032,11 +2320,17 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
     let data = FitData::with_direction(log, &direction)?;
     let reversals = reversal_count(&direction, &sampling, &data);
     let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);
-    let mut terms = spec
-        .terms
-        .iter()
-        .map(|t| t.prepare(&data))
-        .collect::<Result<Vec<_>, _>>()?;
+    // Each term prepares on its own replays (knots, centring, …), so they run in parallel;
+    // the first error in spec order is the one reported, whatever the thread count.
+    let mut terms = {
+        use rayon::prelude::*;
+        spec.terms
+            .par_iter()
+            .map(|t| t.prepare(&data))
+            .collect::<Vec<_>>()
+            .into_iter()
+            .collect::<Result<Vec<_>, _>>()?
+    };
     if !terms.iter().any(|t| t.provides_intercept()) {
         terms.insert(0, Arc::new(InterceptTerm));
     }
@@ -2351,6 +2645,176 @@ mod tests {
             }
             // (n = 3: an interpolation, the RSS is rounding; relative to ‖y‖².)
             assert!((sa - sb).abs() <= 1e-12 * (sb + cb[3]), "{n} {tiny}");
+        }
+    }
+
+    /// [`solve`]'s re-factorisation after dropping a column ([`refactor_kept`]) on the `R` of
+    /// `[1, x, x (a duplicate, dropped), t, y]` where `t`'s values are tiny (1e-158 … 1e-300).
+    /// Reference: the same design with `t` multiplied by 2^600 (exact), an ordinary problem:
+    /// the coefficient of `t` must be the reference's times 2^600, the others and the RSS the
+    /// reference's (1e-12 relative: both are backward-stable QR solutions of problems that
+    /// differ only by an exact power-of-two scaling of one column, so they agree to rounding);
+    /// and nothing zero or NaN. nalgebra's `qr()`, used before, failed this: at 1e-170 and
+    /// below its `‖v‖²` underflowed to 0, it gave a zero diagonal and the triangular solve gave
+    /// up (`solve` then reported all coefficients 0); at 1e-158 its coefficients were off by 6e-9
+    /// relative (subnormal arithmetic). Both measured when this test was written.
+    #[test]
+    fn refactor_of_kept_columns_scales_a_column_of_tiny_values() {
+        let mut rng = SimRng::new(17);
+        let big = 2f64.powi(600);
+        let solve_r = |r: &DMatrix<f64>| {
+            let k = r.ncols() - 1;
+            let b = r
+                .view((0, 0), (k, k))
+                .clone_owned()
+                .solve_upper_triangular(&r.view((0, k), (k, 1)).clone_owned())
+                .expect("a non-singular triangle");
+            (b.iter().copied().collect::<Vec<f64>>(), r[(k, k)].powi(2))
+        };
+        for (n, tiny) in [
+            (40usize, 1e-158),
+            (300, 1e-170),
+            (2000, 1e-200),
+            (6, 1e-300),
+        ] {
+            let mut a = StreamingQr::new(4);
+            let mut b = StreamingQr::new(4);
+            for _ in 0..n {
+                let x = rng.normal();
+                let t = tiny * (0.5 + rng.uniform());
+                let y = 1.0 + 2.0 * x + 3.0 * t / tiny + 0.1 * rng.normal();
+                a.push(&[1.0, x, x, t], y);
+                b.push(&[1.0, x, x, t * big], y);
+            }
+            let keep = [0, 1, 3];
+            let ra = refactor_kept(&a.finish().0, &keep);
+            let rb = refactor_kept(&b.finish().0, &keep);
+            assert!(ra.iter().all(|v| v.is_finite()), "{n} {tiny}");
+            assert!((0..3).all(|i| ra[(i, i)].abs() > 0.0), "{n} {tiny}");
+            let (ba, sa) = solve_r(&ra);
+            let (bb, sb) = solve_r(&rb);
+            for (q, (u, w)) in ba.iter().zip(&bb).enumerate() {
+                let u = if q == 2 { u / big } else { *u };
+                assert!(
+                    (u - w).abs() <= 1e-12 * w.abs().max(1.0),
+                    "{n} {tiny} {q}: {u} {w}"
+                );
+            }
+            assert!(
+                (sa - sb).abs() <= 1e-12 * sb.max(1e-300),
+                "{n} {tiny}: {sa} {sb}"
+            );
+        }
+    }
+
+    /// [`solve`] on a log of several chunks ([`solve_chunk_rows`]: 100,000 seeks, the
+    /// `calibration` preset, three chunks): the fitted model is the same bit for bit on 1, 2
+    /// and 4 threads (1: every chunk straight into its factorisation; 2 and 4: buffered and
+    /// factorised beside the replay of the next — the chunk boundaries and the merge order are
+    /// the same), and equals the dense reference (every chunk on all columns, [`DENSE_SOLVE`],
+    /// [`StreamingQr`] merged densely) to 1e-10 relative in every parameter (of its value, or
+    /// absolute below 1): both are backward-stable QR solutions of one well-conditioned
+    /// problem, the rows combined in another order (measured: below 1e-12).
+    #[test]
+    fn chunked_solve_is_the_same_on_any_thread_count_and_equals_the_dense_one() {
+        let log = crate::sim::random_log(100_000, 29);
+        let spec = ModelSpec::preset("calibration").unwrap();
+        let opts = FitOptions::default().check().unwrap();
+        let (_, p) = {
+            let data = FitData::new(&log);
+            let terms: Vec<Arc<dyn Term>> = spec
+                .terms
+                .iter()
+                .map(|t| t.prepare(&data).unwrap())
+                .collect();
+            offsets(&terms)
+        };
+        assert!(
+            log.measured_count() > 2 * solve_chunk_rows(p),
+            "several chunks"
+        );
+        let params = |m: &FittedModel| -> Vec<(String, f64)> {
+            m.params().map(|p| (p.name.clone(), p.value)).collect()
+        };
+        let run = |threads: usize, dense: bool| {
+            crate::with_threads(threads, || {
+                DENSE_SOLVE.set(dense);
+                let m = fit(&spec, &log, &opts);
+                DENSE_SOLVE.set(false);
+                m
+            })
+            .unwrap()
+            .unwrap()
+        };
+        let one = run(1, false);
+        for threads in [2, 4] {
+            let other = run(threads, false);
+            let (a, b) = (params(&one), params(&other));
+            assert_eq!(a.len(), b.len());
+            for ((na, va), (nb, vb)) in a.iter().zip(&b) {
+                assert_eq!(na, nb);
+                assert_eq!(va.to_bits(), vb.to_bits(), "{threads} threads: {na}");
+            }
+            assert_eq!(
+                one.fit.ls_rss.to_bits(),
+                other.fit.ls_rss.to_bits(),
+                "{threads}"
+            );
+        }
+        let dense = run(2, true);
+        let mut worst = 0.0f64;
+        for ((na, va), (_, vb)) in params(&one).iter().zip(&params(&dense)) {
+            assert!(va.is_finite(), "{na}");
+            let rel = (va - vb).abs() / vb.abs().max(1.0);
+            worst = worst.max(rel);
+            assert!(rel <= 1e-10, "{na}: {va} {vb}");
+        }
+        eprintln!("chunked vs dense: worst relative difference {worst:e}");
+    }
+
+    /// [`solve`]'s chunk merge on the designs of
+    /// `pattern_qr_solves_rank_deficient_and_nearly_collinear_designs_as_dense` (exactly
+    /// rank-deficient hat columns; a nearly collinear column; a column of 1e-160 values on a
+    /// few rows of their own pattern; patterns with fewer rows than columns): the rows cut into
+    /// chunks of 700 (short chunks: some patterns have a row or two per chunk), each chunk
+    /// factorised by its own [`PatternQr::compact`], the groups' `R` merged in chunk order
+    /// ([`PatternQr::merging`]). Reference: [`StreamingQr`] over all rows at once. Same
+    /// dropped columns, RSS within 1e-10, coefficients within 1e-10 of the largest (1e-5 in the
+    /// nearly collinear case, condition number ~1e7), nothing NaN.
+    #[test]
+    fn chunk_merge_solves_rank_deficient_tiny_and_short_chunk_designs_as_dense() {
+        let mut rng = SimRng::new(23);
+        for case in 0..4 {
+            let (p, rows) = hinge_design(case, &mut rng);
+            let mut dense = StreamingQr::new(p);
+            let mut merged = PatternQr::merging(p);
+            let mut colsq = vec![0.0; p + 1];
+            for chunk in rows.chunks(700) {
+                let mut qr = PatternQr::compact(p, false);
+                for (x, y) in chunk {
+                    dense.push(x, *y);
+                    qr.place_row(x, *y);
+                    for (s, v) in colsq.iter_mut().zip(x.iter().chain([y])) {
+                        *s += v * v;
+                    }
+                }
+                for (cols, r) in &qr.finish_groups() {
+                    merged.place_group_r(cols, r);
+                }
+            }
+            let (rd, cd) = dense.finish();
+            let (rm, _) = merged.finish();
+            assert!(rm.iter().all(|v| v.is_finite()), "{case}");
+            let (dd, bd, sd) = ls_of_r(&rd, &cd);
+            let (dm, bm, sm) = ls_of_r(&rm, &colsq);
+            assert_eq!(dd, dm, "{case}");
+            assert!(!dd.is_empty(), "{case}: the design is rank-deficient");
+            assert!((sd - sm).abs() <= 1e-10 * sd, "{case}: {sd} {sm}");
+            let scale = bd.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+            let tol = if case == 1 { 1e-5 } else { 1e-10 };
+            for (q, (a, b)) in bd.iter().zip(&bm).enumerate() {
+                assert!((a - b).abs() <= tol * scale, "{case} {q}: {a} {b}");
+            }
         }
     }
 
@@ -2912,6 +3376,46 @@ mod tests {
         assert_eq!(fast, 8);
     }
 
+    /// The rows `(x, y)` of the rank-deficient designs of
+    /// `pattern_qr_solves_rank_deficient_and_nearly_collinear_designs_as_dense` (`case` 0–3)
+    /// and their column count.
+    fn hinge_design(case: usize, rng: &mut SimRng) -> (usize, Vec<(Vec<f64>, f64)>) {
+        let knots = 6;
+        // intercept, the hats, a duplicate of hat 2, x, (x + 1e-7 noise | tiny | nothing)
+        let p = 1 + knots + 1 + 1 + 1;
+        let n = if case == 3 { 40 } else { 3000 };
+        let mut rows = Vec::with_capacity(n);
+        for i in 0..n {
+            let mut x = vec![0.0; p];
+            x[0] = 1.0;
+            let u = if case == 3 {
+                // Few rows per interval, some exactly on a knot (one hat non-zero).
+                (i % 11) as f64 * 0.5
+            } else {
+                rng.uniform() * (knots - 1) as f64
+            };
+            let k = (u.floor() as usize).min(knots - 2);
+            let f = u - k as f64;
+            x[1 + k] = 1.0 - f;
+            x[2 + k] = f;
+            x[1 + knots] = x[3];
+            let z = if rng.uniform() < 0.3 {
+                rng.normal()
+            } else {
+                0.0
+            };
+            x[2 + knots] = z;
+            x[3 + knots] = match case {
+                1 => z + 1e-7 * rng.normal(),
+                2 if i % 97 == 0 => 1e-160 * (1.0 + rng.uniform()),
+                _ => 0.0,
+            };
+            let y = 2.0 + x[1] - x[4] + 0.5 * z + 0.1 * rng.normal();
+            rows.push((x, y));
+        }
+        (p, rows)
+    }
+
     /// Reference: the dense [`StreamingQr`] of the same rows (one factorisation of all
     /// columns). On designs whose rows are sparse in recurring patterns (hinge-like blocks, one
     /// of four active per row, as `seek` and `memory` give; and random patterns over 40
@@ -2933,40 +3437,12 @@ mod tests {
     fn pattern_qr_solves_rank_deficient_and_nearly_collinear_designs_as_dense() {
         let mut rng = SimRng::new(23);
         for case in 0..4 {
-            let knots = 6;
-            // intercept, the hats, a duplicate of hat 2, x, (x + 1e-7 noise | tiny | nothing)
-            let p = 1 + knots + 1 + 1 + 1;
-            let n = if case == 3 { 40 } else { 3000 };
+            let (p, rows) = hinge_design(case, &mut rng);
             let mut dense = StreamingQr::new(p);
             let mut pattern = PatternQr::new(p);
-            for i in 0..n {
-                let mut x = vec![0.0; p];
-                x[0] = 1.0;
-                let u = if case == 3 {
-                    // Few rows per interval, some exactly on a knot (one hat non-zero).
-                    (i % 11) as f64 * 0.5
-                } else {
-                    rng.uniform() * (knots - 1) as f64
-                };
-                let k = (u.floor() as usize).min(knots - 2);
-                let f = u - k as f64;
-                x[1 + k] = 1.0 - f;
-                x[2 + k] = f;
-                x[1 + knots] = x[3];
-                let z = if rng.uniform() < 0.3 {
-                    rng.normal()
-                } else {
-                    0.0
-                };
-                x[2 + knots] = z;
-                x[3 + knots] = match case {
-                    1 => z + 1e-7 * rng.normal(),
-                    2 if i % 97 == 0 => 1e-160 * (1.0 + rng.uniform()),
-                    _ => 0.0,
-                };
-                let y = 2.0 + x[1] - x[4] + 0.5 * z + 0.1 * rng.normal();
-                dense.push(&x, y);
-                pattern.push(&x, y);
+            for (x, y) in &rows {
+                dense.push(x, *y);
+                pattern.push(x, *y);
             }
             let (rd, cd) = dense.finish();
             let (rp, cp) = pattern.finish();
