@@ -1042,7 +1042,7 @@ impl<R: Read> LogReader<R> {
             positions: [f64::INFINITY, f64::NEG_INFINITY],
             times_s: [0.0, 0.0],
         };
-        while self.read_into(&mut row)? {
+        let mut take = |row: &Row| {
             if s.rows == 0 {
                 s.times_s[0] = row.time_s;
             }
@@ -1050,7 +1050,15 @@ impl<R: Read> LogReader<R> {
             s.rows += 1;
             s.measured += u64::from(row.bias.is_some());
             s.positions = [s.positions[0].min(row.track), s.positions[1].max(row.track)];
-            each(&row);
+            each(row);
+        };
+        let roles = self.roles();
+        loop {
+            self.plain_rows(&roles, &mut row, &mut take)?;
+            if !self.read_into(&mut row)? {
+                break;
+            }
+            take(&row);
         }
         Ok(s)
     }
@@ -1162,7 +1170,7 @@ impl<R: Read> LogReader<R> {
         let roles = fast.then(|| self.roles());
         loop {
             if let Some(roles) = &roles {
-                self.plain_rows(roles, &mut row, &mut log)?;
+                self.plain_rows(roles, &mut row, |row| log.push(row))?;
             }
             // The row the fast way left (not plain, an error to name, or the end).
             if !self.read_into(&mut row)? {
@@ -1194,14 +1202,19 @@ impl<R: Read> LogReader<R> {
             .collect()
     }
 
-    /// Reads rows into `log` the fast way while they are plain and valid: the line split and
+    /// Hands rows to `take` the fast way while they are plain and valid: the line split and
     /// its numbers converted in one pass ([`plain::parse_plain`]), straight from the read
     /// buffer. Returns at the end, at an error of the source, or at the first line it does not
     /// take — a quote, a carriage return, a byte beyond ASCII, another number of fields, a
     /// cell of another shape, a value out of range, time going backwards — without consuming
     /// it: [`LogReader::read_into`] then reads that line as every line was read before
     /// (the same row, or the same error).
-    fn plain_rows(&mut self, roles: &[Role], row: &mut Row, log: &mut Log) -> Result<(), LogError> {
+    fn plain_rows(
+        &mut self,
+        roles: &[Role],
+        row: &mut Row,
+        mut take: impl FnMut(&Row),
+    ) -> Result<(), LogError> {
         if !self.lookahead.is_empty() || self.pending.is_some() {
             return Ok(());
         }
@@ -1232,7 +1245,7 @@ impl<R: Read> LogReader<R> {
                         row.time_s = time_s;
                         row.track = track;
                         row.bias = bias;
-                        log.push(row);
+                        take(row);
                         self.prev_time = Some(time_s);
                         self.measured += u64::from(bias.is_some());
                         rows += 1;
@@ -2028,7 +2041,8 @@ mod tests {
         // Reference: every line through the csv crate's parser and every row through
         // `read_into` (the reader before the fast path). The plain lines (row by row) and the
         // fast rows must give the same log — values bit for bit, line numbers, notes — or the
-        // same error word for word, whatever pieces the source hands out.
+        // same error word for word, whatever pieces the source hands out; and so must the
+        // streaming summary (`check`'s read) and the rows it hands on.
         let mut rng = crate::numeric::rng::SimRng::new(1616);
         let map = ColumnMap::default();
         let read = |text: &[u8], plain: bool, fast: bool, max: usize, seed: u64| {
@@ -2077,6 +2091,42 @@ mod tests {
                         show()
                     ),
                 }
+            }
+            // The streaming summary (`check`'s read) with the rows it hands out, the same way.
+            let summarise = |plain: bool, seed: u64| {
+                let src = Pieces {
+                    data: &text,
+                    max,
+                    rng: crate::numeric::rng::SimRng::new(seed),
+                };
+                let mut r = LogReader::from_reader_source(
+                    "t.csv",
+                    src,
+                    &map,
+                    BiasColumn::Required,
+                    LOOKAHEAD_ROWS,
+                    plain,
+                )?;
+                let mut rows = Vec::new();
+                let bits = |x: f64| x.to_bits();
+                let summary = r.summarise_each(|row| {
+                    rows.push((
+                        row.line,
+                        bits(row.time_s),
+                        bits(row.track),
+                        row.bias.map(bits),
+                        row.covariates.iter().map(|&c| bits(c)).collect::<Vec<_>>(),
+                    ))
+                })?;
+                Ok::<_, LogError>((summary, rows))
+            };
+            match (
+                summarise(false, case as u64),
+                summarise(true, case as u64 + 2),
+            ) {
+                (Ok(a), Ok(b)) => assert!(a == b, "case {case}: summaries differ"),
+                (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "case {case}"),
+                (a, b) => panic!("case {case}: {:?} vs {:?}", a.is_ok(), b.is_ok()),
             }
             match reference {
                 Ok(_) => read_whole += 1,
