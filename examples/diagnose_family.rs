@@ -144,6 +144,18 @@ pub struct Outcome {
     pub verified_feature: Option<String>,
     /// Every scored edit in one line (`edit gain/z`, `*` = verified) and the rejected ones.
     pub verification: String,
+    /// The second verification round in one line (`on top of E: edit gain/z; …`), empty when
+    /// it did not run.
+    pub second_round: String,
+    /// The advice a user applies: the combined terms when an edit holds on top of the best
+    /// one (the second round), else the best verified edit's terms; `None` when nothing is
+    /// verified.
+    pub advice: Option<String>,
+    /// Residual std after refitting `advice` on the whole log (counts; `std_base` without one).
+    pub std_advice: f64,
+    /// Residual std with every effect's true term at once (counts; `None` unless two effects
+    /// with true terms).
+    pub std_all_true: Option<f64>,
 }
 
 impl Outcome {
@@ -151,6 +163,17 @@ impl Outcome {
     /// nothing is achievable).
     pub fn recovered(&self) -> Option<f64> {
         self.recovered_by(self.std_edit)
+    }
+
+    /// The same for the advice (`advice`): above 100 % when it holds two effects.
+    pub fn recovered_by_advice(&self) -> Option<f64> {
+        self.recovered_by(self.std_advice)
+    }
+
+    /// The advice's reduction over the reduction with every effect's true term at once.
+    pub fn recovered_of_all(&self) -> Option<f64> {
+        let achievable = self.std_base - self.std_all_true?;
+        (achievable > 0.0).then(|| (self.std_base - self.std_advice) / achievable)
     }
 
     /// The same for the first unverified suggestion (the scoring before #10's item 4).
@@ -225,6 +248,41 @@ pub fn run(drive: &FamilyDrive, effects: &[HiddenEffect], seed: u64, n: usize) -
             parts.join("; ")
         })
         .unwrap_or_default();
+    let fmt_edit = |e: &biasctl::VerifiedEdit| {
+        format!(
+            "{}{} {:.1} %/z {:.1}/w {:.1}",
+            if e.verified { "*" } else { "" },
+            e.edit,
+            100.0 * e.gain,
+            e.z,
+            100.0 * e.gain_within_folds
+        )
+    };
+    let round2 = d.verification.as_ref().and_then(|v| v.second_round.clone());
+    let second_round = round2
+        .as_ref()
+        .map(|r| {
+            let mut parts: Vec<String> = r.edits.iter().map(fmt_edit).collect();
+            parts.extend(r.rejected.iter().map(|x| format!("rejected {}", x.term)));
+            format!("on top of {}: {}", r.on_top_of, parts.join("; "))
+        })
+        .unwrap_or_default();
+    let advice = round2
+        .and_then(|r| r.combined)
+        .map(|c| c.terms)
+        .or_else(|| best.as_ref().map(|b| b.terms.clone()));
+    let std_advice = advice.as_ref().map_or(std_base, |t| {
+        let terms: Vec<String> = t.split(',').map(str::to_string).collect();
+        residual_std(&fit_terms(&terms, log), log)
+    });
+    let true_terms: Vec<&str> = effects.iter().filter_map(|e| e.true_term()).collect();
+    let std_all_true = (true_terms.len() > 1).then(|| {
+        let mut terms = base.clone();
+        for t in &true_terms {
+            terms = with_term(&terms, t);
+        }
+        residual_std(&fit_terms(&terms, log), log)
+    });
     let (edit, std_edit) = match &best {
         Some(b) => {
             let terms: Vec<String> = b.terms.split(',').map(str::to_string).collect();
@@ -265,6 +323,10 @@ pub fn run(drive: &FamilyDrive, effects: &[HiddenEffect], seed: u64, n: usize) -
         std_suggested,
         verified_feature,
         verification,
+        second_round,
+        advice,
+        std_advice,
+        std_all_true,
     }
 }
 
@@ -302,6 +364,13 @@ pub fn full_model_flags(
             .iter()
             .flat_map(|v| v.edits.iter().filter(|e| e.verified))
             .map(|e| format!("verified {}", e.edit)),
+    );
+    flags.extend(
+        d.verification
+            .iter()
+            .flat_map(|v| v.second_round.iter())
+            .flat_map(|r| r.edits.iter().filter(|e| e.verified))
+            .map(|e| format!("verified on top {}", e.edit)),
     );
     flags
 }
@@ -363,15 +432,27 @@ fn main() {
                 .collect();
             if only.is_some() {
                 for o in &outs {
+                    let pct = |x: Option<f64>| {
+                        x.map_or("-".to_string(), |r| format!("{:.0} %", 100.0 * r))
+                    };
                     println!(
                         "  seed {} first {:?} edit {:?} recovered {} | {}",
                         o.seed,
                         o.first,
                         o.edit,
-                        o.recovered()
-                            .map_or("-".to_string(), |r| format!("{:.0} %", 100.0 * r)),
+                        pct(o.recovered()),
                         o.verification
                     );
+                    if !o.second_round.is_empty() {
+                        println!(
+                            "    second round {} | advice {:?} recovers {} of the best single \
+                             true term, {} of all true terms",
+                            o.second_round,
+                            o.advice,
+                            pct(o.recovered_by_advice()),
+                            pct(o.recovered_of_all())
+                        );
+                    }
                 }
             }
             let right = outs.iter().filter(|o| o.right_first).count();
@@ -432,6 +513,22 @@ fn main() {
          {ge90}/{} runs",
         100.0 * mean_rec,
         rec.len()
+    );
+    let adv: Vec<f64> = all
+        .iter()
+        .filter_map(Outcome::recovered_by_advice)
+        .collect();
+    let ran = all.iter().filter(|o| !o.second_round.is_empty()).count();
+    let held = all
+        .iter()
+        .filter(|o| o.second_round.contains(": *") || o.second_round.contains("; *"))
+        .count();
+    println!(
+        "advice (both edits when one holds on top of the best): mean {:.0} %; ≥ 90 % in {}/{} \
+         runs; second round ran in {ran}/{total}, something held on top in {held}",
+        100.0 * adv.iter().sum::<f64>() / adv.len().max(1) as f64,
+        adv.iter().filter(|&&r| r >= 0.9).count(),
+        adv.len()
     );
     let sug: Vec<f64> = all
         .iter()

@@ -248,9 +248,9 @@ pub use control::settle::{
 };
 pub use control::{ExpmError, ServoError};
 pub use diagnose::{
-    Absorption, CurveBin, DERIVED_VELOCITY, DiagnoseError, DiscoverError, DiscoverStep, Discovery,
-    FeatureColumn, FeatureOrigin, GlobalCheck, Interaction, ModelDiagnosisError, RejectedEdit,
-    Shape, Verification, VerifiedEdit, Whiteness,
+    Absorption, CombinedEdit, CurveBin, DERIVED_VELOCITY, DiagnoseError, DiscoverError,
+    DiscoverStep, Discovery, FeatureColumn, FeatureOrigin, GlobalCheck, Interaction,
+    ModelDiagnosisError, RejectedEdit, SecondRound, Shape, Verification, VerifiedEdit, Whiteness,
 };
 pub use history::{DirectionError, Replay, RestMemory, Sampling};
 pub use log::{Covariates, LogSummary, Row, RowRef, Rows, UnitError};

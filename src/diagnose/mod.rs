@@ -128,8 +128,11 @@ pub use model::{
 };
 pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
-pub use verify::{CheckedVerifyConfig, RejectedEdit, Verification, VerifiedEdit, VerifyConfig};
-pub(crate) use verify::{candidates, edit_for, table_spacing, verify};
+pub use verify::{
+    CheckedVerifyConfig, CombinedEdit, RejectedEdit, SecondRound, Verification, VerifiedEdit,
+    VerifyConfig,
+};
+pub(crate) use verify::{candidates, edit_for, table_spacing, verify, verify_two_rounds};
 #[cfg(test)]
 use {absorbed::FAST_FORGETTING, advice::DAHL_TERM};
 

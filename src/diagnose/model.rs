@@ -134,14 +134,7 @@ pub fn diagnose_verified(
     let mut d = diagnose_model(model, log, config)?;
     let spec = model_spec(model)?;
     let cands = super::candidates(&d, verify_config.candidates);
-    let v = super::verify(
-        &spec,
-        log,
-        &cands,
-        d.null_block_len,
-        config.min_effect,
-        verify_config,
-    )?;
+    let v = super::verify_two_rounds(&d, &spec, log, &cands, config.min_effect, verify_config)?;
     promote_verified(&mut d, &v);
     d.verification = Some(v);
     d.summary = super::report::extend_summary(&d);

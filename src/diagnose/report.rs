@@ -440,15 +440,33 @@ fn is_skipped(f: &FeatureReport) -> bool {
     f.bins == 0
 }
 
-/// Marginal strength order: explained, then family-wise p, then raw p, then name; skipped
-/// last.
+/// Marginal strength order: explained (on the grid of [`EXPLAINED_TIE`]), then family-wise p,
+/// then raw p, then name; skipped last.
+///
+/// The permutation p-values are multiples of 1/(permutations + 1), so unflagged features often
+/// share one (p = 0.005), and features that bin alike (`elapsed_s` and `seek_index`, a lagged
+/// copy whose lag spans the whole log) explain the same share up to rounding. Compared exactly,
+/// such ties were ordered by the last bits of the fit, and a change of the fit at rounding level
+/// (the pattern-grouped QR) flipped the lower ranks. On the grid the order of a tie is decided
+/// by p, then by name: the same for any rounding of the fit (unless a share straddles a grid
+/// step, about one tie in 10⁴ per 1e-13 of change).
 pub(crate) fn compare(a: &FeatureReport, b: &FeatureReport) -> std::cmp::Ordering {
     is_skipped(a)
         .cmp(&is_skipped(b))
-        .then(b.explained.total_cmp(&a.explained))
+        .then(explained_key(b).total_cmp(&explained_key(a)))
         .then(a.p_value.total_cmp(&b.p_value))
         .then(a.p_value_raw.total_cmp(&b.p_value_raw))
         .then(a.name.cmp(&b.name))
+}
+
+/// Grid on which [`compare`] reads a feature's explained share: shares closer than this are a
+/// tie (rounding-level changes of a fit move a share by ~1e-13).
+pub(crate) const EXPLAINED_TIE: f64 = 1e-9;
+
+/// `f.explained` rounded to the grid of [`EXPLAINED_TIE`] (a total order: no tolerance
+/// comparison, which would not be transitive).
+fn explained_key(f: &FeatureReport) -> f64 {
+    (f.explained / EXPLAINED_TIE).round()
 }
 
 fn percent(x: f64) -> String {
@@ -572,6 +590,9 @@ fn model_sentences(d: &Diagnosis) -> Vec<String> {
             )),
             None => {}
         }
+        if let Some(r) = &v.second_round {
+            parts.extend(second_round_sentence(v, r, unit));
+        }
     }
     for a in &d.absorbed {
         parts.push(format!(
@@ -613,6 +634,44 @@ fn model_sentences(d: &Diagnosis) -> Vec<String> {
         ));
     }
     parts
+}
+
+/// The summary's sentence on the second verification round: what holds on top of the best
+/// edit and the two together as the model to fit, or that nothing does.
+fn second_round_sentence(
+    v: &super::Verification,
+    r: &super::SecondRound,
+    unit: &str,
+) -> Option<String> {
+    let e = r.edits.first()?;
+    Some(match &r.combined {
+        Some(c) => format!(
+            "On top of `{}`, `{}` ({}) holds too: refitted with both, the out-of-sample error \
+             std goes from {} to {} {unit} ({} of the variance left, z = {:.1}); together they \
+             take it from {} to {} {unit} ({} of the error variance): fit `{}`.",
+            r.on_top_of,
+            e.edit,
+            e.feature,
+            short(e.std_before),
+            short(e.std_after),
+            percent(e.gain),
+            e.z,
+            short(c.std_before),
+            short(c.std_after),
+            percent(c.gain),
+            c.terms
+        ),
+        None => format!(
+            "On top of `{}`, nothing else holds: the best, `{}` ({}), gains {} of the variance \
+             left (z = {:.1}): {}.",
+            r.on_top_of,
+            e.edit,
+            e.feature,
+            percent(e.gain),
+            e.z,
+            v.why_not_verified(e)
+        ),
+    })
 }
 
 /// The plain-words summary of a diagnosis.
@@ -712,6 +771,50 @@ impl Diagnosis {
     /// The report of feature `name`, if present.
     pub fn feature(&self, name: &str) -> Option<&FeatureReport> {
         self.features.iter().find(|f| f.name == name)
+    }
+
+    /// The text block of the second verification round: each edit scored on top of the best
+    /// one, what could not be applied, and the combined advice.
+    fn second_round_text(&self, v: &super::Verification, r: &super::SecondRound) -> String {
+        let unit = &self.units.bias;
+        let mut out = format!(
+            "\nSecond round, on top of `{}` (error std out of sample {}; stricter bar):\n",
+            r.on_top_of,
+            short(r.std_before)
+        );
+        for e in &r.edits {
+            out.push_str(&format!(
+                "  {:<32} {:<24} std {} → {} {unit}, gain {}, z {:.1}{}\n",
+                e.edit,
+                format!("({})", e.feature),
+                short(e.std_before),
+                short(e.std_after),
+                percent(e.gain),
+                e.z,
+                if e.verified {
+                    String::new()
+                } else {
+                    format!("  (not verified: {})", v.why_not_verified(e))
+                }
+            ));
+        }
+        for x in &r.rejected {
+            out.push_str(&format!(
+                "  `{}` for `{}` cannot be applied on top: {}\n",
+                x.term, x.feature, x.why
+            ));
+        }
+        if let Some(c) = &r.combined {
+            out.push_str(&format!(
+                "  both hold: {} → std {} → {} {unit} ({} of the error variance); fit `{}`\n",
+                c.edits.join(" + "),
+                short(c.std_before),
+                short(c.std_after),
+                percent(c.gain),
+                c.terms
+            ));
+        }
+        out
     }
 
     /// A human-readable rendering: the ranking table, advice for every flagged feature, the
@@ -817,6 +920,9 @@ impl Diagnosis {
                     "  `{}` for `{}` cannot be applied: {}\n",
                     r.term, r.feature, r.why
                 ));
+            }
+            if let Some(r) = &v.second_round {
+                out.push_str(&self.second_round_text(v, r));
             }
         }
         if !self.absorbed.is_empty() || !self.warnings.is_empty() {

@@ -908,3 +908,227 @@ fn a_physical_edit_close_to_drift_is_ranked_before_it() {
     super::verify::prefer_physics_to_drift(&mut e);
     assert_eq!(order(&e), ["add col:temp_c", "add lag:temp_c"]);
 }
+
+/// Tied unflagged features (equal permutation p, shares equal up to rounding: `elapsed_s`,
+/// `seek_index` and a lagged copy spanning the log, as on a family log) are ordered by
+/// `report::compare` the same way whatever the last bits of their shares: explained on the
+/// 1e-9 grid (descending), then p, then name. Reference: that rule written out by hand for the
+/// five features below; each share is moved by up to ±1e-13 (what a rounding-level change of
+/// the fit does) in 200 draws, and the order must never change. The exact comparison (the
+/// order before) flips under the same draws: that is what shows the test can fail.
+#[test]
+fn tied_features_are_ordered_by_share_then_name_whatever_the_rounding() {
+    let table = seek_table(5, 400);
+    let mut rng = SimRng::new(11);
+    let residual: Vec<f64> = (0..400).map(|_| rng.normal()).collect();
+    let d = diagnose(&table, &residual, &CheckedDiagnoseConfig::default()).unwrap();
+    let template = d.features.iter().find(|f| f.bins > 0).unwrap().clone();
+    let feature = |name: &str, explained: f64, p: f64| FeatureReport {
+        name: name.into(),
+        explained,
+        p_value: p,
+        p_value_raw: p,
+        ..template.clone()
+    };
+    let base = vec![
+        feature("warmup@lag16.4s", 0.099, 0.005),
+        feature("seek_index", 0.099, 0.005),
+        feature("alpha", 0.05, 0.005),
+        feature("elapsed_s", 0.099, 0.005),
+        feature("zeta", 0.2, 0.5),
+        feature("tied_but_larger_p", 0.099, 0.01),
+    ];
+    let expected = [
+        "zeta",
+        "elapsed_s",
+        "seek_index",
+        "warmup@lag16.4s",
+        "tied_but_larger_p",
+        "alpha",
+    ];
+    let names = |v: &[FeatureReport]| -> Vec<String> { v.iter().map(|f| f.name.clone()).collect() };
+    let exact = |a: &FeatureReport, b: &FeatureReport| {
+        b.explained
+            .total_cmp(&a.explained)
+            .then(a.p_value.total_cmp(&b.p_value))
+            .then(a.name.cmp(&b.name))
+    };
+    let mut exact_flipped = false;
+    for _ in 0..200 {
+        let mut v = base.clone();
+        for f in &mut v {
+            f.explained += 1e-13 * rng.range(-1.0, 1.0);
+        }
+        let mut by_grid = v.clone();
+        by_grid.sort_by(super::report::compare);
+        assert_eq!(names(&by_grid), expected);
+        let mut by_exact = v;
+        by_exact.sort_by(exact);
+        exact_flipped |= names(&by_exact) != expected;
+    }
+    assert!(
+        exact_flipped,
+        "the exact order never flipped: the test cannot fail"
+    );
+}
+
+/// A log with two effects of comparable size the model `poly2` lacks: a position bump (height
+/// 10, width 25 tracks, variance ≈ 8 counts²) and 0.55 count/°C of a logged temperature (±5 °C
+/// white, variance ≈ 7.6 counts²), noise σ = 1; `noise_c` has no effect.
+fn two_effects_log(seed: u64) -> Log {
+    let mut rng = SimRng::new(seed);
+    let mut text = String::from("time_s,track,bias,temp_c,noise_c\n");
+    for i in 0..1500 {
+        let pos = rng.below(300) as f64;
+        let temp = 40.0 + 5.0 * rng.normal();
+        let bump = 10.0 * (-((pos - 150.0) / 25.0).powi(2)).exp();
+        let bias = 20.0 + bump + 0.55 * (temp - 40.0) + rng.normal();
+        text.push_str(&format!(
+            "{},{pos},{bias:.4},{temp:.4},{:.3}\n",
+            0.3 * i as f64,
+            rng.normal()
+        ));
+    }
+    Log::from_reader("two.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
+}
+
+/// The second verification round. Two comparable effects: the first round's best edit holds
+/// one, the round refits the other on top of it, it holds, and the combined advice names both
+/// and fits. References: (1) the round's gain on top is recomputed the slow obvious way —
+/// `cv_residuals` of the model with both edits against those of the model with the best one,
+/// refitted from scratch — and the combined gain against the model as it is, to 1e-12; (2) the
+/// bias is built from exactly these two effects plus σ = 1 noise, so the combined out-of-sample
+/// std must be near 1 (below 1.3) while the best edit alone leaves more than 1.5. A log with one
+/// effect must not run the round, and its JSON must not have the key (outputs where the round
+/// does not run are unchanged).
+#[test]
+fn a_second_effect_is_verified_on_top_of_the_best_edit() {
+    let log = two_effects_log(31);
+    let model = fit_terms("poly2", &log);
+    let d = verified(&model, &log);
+    let v = d.verification.as_ref().unwrap();
+    let text = d.to_text();
+    let best = v.best().expect("a verified edit");
+    assert!(best.std_after > 1.5, "{text}");
+    let r = v.second_round.as_ref().expect("the second round runs");
+    assert_eq!(r.on_top_of, best.edit);
+    assert_eq!(r.base_terms, best.terms);
+    let on_top = r
+        .edits
+        .first()
+        .filter(|e| e.verified)
+        .expect("an edit holds on top");
+    let both: Vec<&str> = [best.edit.as_str(), on_top.edit.as_str()].to_vec();
+    assert!(both.iter().any(|e| e.contains("col:temp_c")), "{text}");
+    assert!(
+        both.iter()
+            .any(|e| e.contains("table") || e.contains("bump") || e.contains("position")),
+        "{text}"
+    );
+    assert!(!on_top.edit.contains("noise_c"), "{text}");
+    let c = r.combined.as_ref().expect("combined advice");
+    assert!(c.std_after < 1.3, "{text}");
+    assert_eq!(c.edits, [best.edit.clone(), on_top.edit.clone()]);
+    // Slow reference: refit from scratch on the same folds.
+    let opts = CheckedFitOptions::default();
+    let cv = |terms: &str| {
+        super::verify::cv_residuals(&ModelSpec::parse(terms).unwrap(), &log, 3, &opts).unwrap()
+    };
+    let mse = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64;
+    let (m0, m1, m2) = (
+        mse(&cv(&model.spec.to_string())),
+        mse(&cv(&best.terms)),
+        mse(&cv(&on_top.terms)),
+    );
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(1.0);
+    assert!(
+        close(on_top.gain, 1.0 - m2 / m1),
+        "{} {}",
+        on_top.gain,
+        1.0 - m2 / m1
+    );
+    assert!(close(c.gain, 1.0 - m2 / m0), "{} {}", c.gain, 1.0 - m2 / m0);
+    // The advice fits as given.
+    let spec = ModelSpec::parse(&c.terms).unwrap();
+    fit(&spec, &log, &opts).unwrap();
+    assert!(text.contains("Second round, on top of"), "{text}");
+    assert!(
+        d.summary.contains(&format!("fit `{}`", c.terms)),
+        "{}",
+        d.summary
+    );
+    let json = d.to_json().unwrap();
+    assert!(json.contains("\"second_round\""));
+
+    // One effect: nothing can pay, the round does not run, the JSON has no such key.
+    let one = covariate_log(4, 1500, 1.0, 60.0);
+    let d = verified(&fit_terms("poly2", &one), &one);
+    let v = d.verification.as_ref().unwrap();
+    assert!(v.best().is_some(), "{}", d.to_text());
+    assert!(v.second_round.is_none(), "{}", d.to_text());
+    assert!(!d.to_json().unwrap().contains("second_round"));
+}
+
+/// Which first-round edits the second round refits ([`super::verify::second_round_candidates`]):
+/// those verified or promising (z ≥ 1, practical gains) with at least half the best edit's
+/// gain, one per source, the best's own source left out; nothing without a verified best.
+/// Reference: the rule applied by hand to the gains below.
+#[test]
+fn the_second_round_refits_only_candidates_that_can_pay() {
+    let one = covariate_log(4, 600, 1.0, 60.0);
+    let d = diagnose_model(
+        &fit_terms("poly2", &one),
+        &one,
+        &CheckedDiagnoseConfig::default(),
+    )
+    .unwrap();
+    let edit = |feature: &str, term: &str, gain: f64, z: f64, verified: bool| VerifiedEdit {
+        feature: feature.into(),
+        edit: format!("add {term}"),
+        terms: format!("poly2,{term}"),
+        std_before: 1.0,
+        std_after: (1.0 - gain).sqrt(),
+        gain,
+        gain_within_folds: gain,
+        z,
+        verified,
+        model_edit: Some(crate::model::ModelEdit::Add(
+            crate::model::terms::parse_term(term).unwrap(),
+        )),
+    };
+    let v = |edits: Vec<VerifiedEdit>| Verification {
+        folds: 3,
+        min_effect: 0.02,
+        edits,
+        ..Verification::default()
+    };
+    let picked = |v: &Verification| -> Vec<String> {
+        super::verify::second_round_candidates(&d, &[], v, 3)
+            .into_iter()
+            .map(|c| c.terms.join("|"))
+            .collect()
+    };
+    let first = |g| edit("a_col", "col:a_col", g, 8.0, true);
+    // Verified at ≥ half the best's gain, promising (z 1.5, not verified) likewise: both.
+    let e = v(vec![
+        first(0.30),
+        edit("b_col", "col:b_col", 0.16, 6.0, true),
+        edit("c_col", "col:c_col", 0.15, 1.5, false),
+    ]);
+    assert_eq!(picked(&e), ["col:b_col", "col:c_col"]);
+    // Below half the best's gain, below z 1, below the practical minimum, or the best's own
+    // source (a lagged copy of its column): none.
+    let e = v(vec![
+        first(0.30),
+        edit("b_col", "col:b_col", 0.14, 6.0, true),
+        edit("c_col", "col:c_col", 0.2, 0.9, false),
+        edit("a_col@lag4s", "lag:a_col", 0.29, 9.0, true),
+    ]);
+    assert!(picked(&e).is_empty());
+    // No verified best: no round.
+    let e = v(vec![
+        edit("a_col", "col:a_col", 0.3, 1.5, false),
+        edit("b_col", "col:b_col", 0.2, 1.5, false),
+    ]);
+    assert!(picked(&e).is_empty());
+}

@@ -30,6 +30,19 @@
 //! feature). Their edits need z ≥ `min_z` + [`STRICT_EXTRA_Z`] and a lower loss in every fold;
 //! [`super::diagnose_verified`] then ranks by verified gain, moving the feature of the best
 //! verified edit to the front (flagged, with a note when the screen alone did not flag it).
+//!
+//! ## The second round: on top of the best edit
+//! With two effects of comparable size the first round's best edit holds one of them (on
+//! `bw1-sine-tar` with a lag beside a position × direction effect, 54–88 % of the best single
+//! true term in 3 of 5 seeds), and the other may not even have had a slot. So, as `discover`
+//! does, [`verify_two_rounds`] puts the best verified edit into the model and refits the other
+//! candidates that can pay on top of it ([`second_round_candidates`]: edits verified or
+//! promising with at least [`SECOND_ROUND_SHARE`] of the best gain, then features that got no
+//! slot), scored on the same folds against the best edit's out-of-sample residual (kept, not
+//! refitted) and judged at the strict bar. What holds on top is reported with the two edits
+//! together ([`CombinedEdit`]); the first round's list, its best edit and the features' ranking
+//! are left as they were. Where no candidate can pay the round does not run (no cost, no new
+//! key in the JSON).
 
 use std::collections::HashMap;
 
@@ -187,6 +200,49 @@ pub struct Verification {
     /// ([`super::DiagnoseConfig::min_effect`]).
     #[serde(default)]
     pub min_effect: f64,
+    /// The second round: the edits verified **on top of** the best one (see the module docs);
+    /// left out of the JSON when the round did not run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub second_round: Option<SecondRound>,
+}
+
+/// The second verification round of a diagnosis (see the module docs): the best verified edit
+/// is put into the model, and the other candidates that can pay are refitted and scored out of
+/// sample on top of it, on the same folds.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SecondRound {
+    /// The best verified edit of the first round, put into the model first.
+    pub on_top_of: String,
+    /// The model's terms with it: the model every edit below is applied to.
+    pub base_terms: String,
+    /// Out-of-sample error std of that model (the best edit's `std_after`; bias unit).
+    pub std_before: f64,
+    /// Every edit scored on top, largest verified gain first; their `std_before`, `gain` and
+    /// `z` are against the model with the best edit. All are judged at the stricter bar of the
+    /// unflagged features (z ≥ [`VerifyConfig::min_z`] + 1, a lower loss in every fold).
+    pub edits: Vec<VerifiedEdit>,
+    /// Suggestions that could not be applied on top or fitted.
+    pub rejected: Vec<RejectedEdit>,
+    /// When an edit holds on top: the two edits together, the advice a user applies.
+    pub combined: Option<CombinedEdit>,
+}
+
+/// Two verified edits applied together (the first round's best and the best that holds on top
+/// of it): the model spec to fit (`biasctl fit --terms`, `biasctl discover --start`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CombinedEdit {
+    /// The edits, in the order they are applied.
+    pub edits: Vec<String>,
+    /// The model's terms with both (a `bump`/`step` with the centre or threshold it finds on
+    /// the whole log).
+    pub terms: String,
+    /// Out-of-sample error std of the model as it is (bias unit).
+    pub std_before: f64,
+    /// Out-of-sample error std with both edits (bias unit).
+    pub std_after: f64,
+    /// Their gain together: 1 − MSE_after / MSE_before, i.e. `1 − (1 − g₁)(1 − g₂)` of the two
+    /// verified gains.
+    pub gain: f64,
 }
 
 impl Verification {
@@ -722,10 +778,12 @@ pub(super) fn judge(
 
 /// What the verification keeps of one refit's out-of-sample residuals: their std and the
 /// verdict against the model as it is, for a plain (`judged[0]`) and a strict (`judged[1]`)
-/// candidate ([`judge`]).
+/// candidate ([`judge`]); the residuals themselves only for an edit verified at either bar
+/// (the second round starts from them).
 struct Scored {
     std_after: f64,
     judged: [Judgement; 2],
+    residual: Option<Vec<f64>>,
 }
 
 fn std_of(r: &[f64]) -> f64 {
@@ -744,6 +802,34 @@ pub(crate) fn verify(
     min_effect: f64,
     config: &CheckedVerifyConfig,
 ) -> Result<Verification, ModelDiagnosisError> {
+    let (mut v, _) = verify_round(spec, log, cands, block_len, min_effect, config, None)?;
+    name_verified(&mut v, spec, log, config);
+    Ok(v)
+}
+
+/// What a round keeps for the next one: the out-of-sample residuals of the model it started
+/// from and of each verified edit (keyed by the edit's terms before [`name_verified`]), with
+/// the edit as scored (a `bump`/`step` still searched by every fold's refit).
+#[derive(Debug, Default)]
+struct RoundResiduals {
+    before: Vec<f64>,
+    verified: HashMap<String, (Vec<f64>, ModelEdit)>,
+}
+
+/// One round of [`verify`] on `spec`, the edits not yet named ([`name_verified`]). `given` is
+/// the out-of-sample residual of `spec` when a round before has it (it is not refitted then);
+/// with it every edit is judged at the strict bar (the second round).
+fn verify_round(
+    spec: &ModelSpec,
+    log: &Log,
+    cands: &[Candidate],
+    block_len: usize,
+    min_effect: f64,
+    config: &CheckedVerifyConfig,
+    given: Option<Vec<f64>>,
+) -> Result<(Verification, RoundResiduals), ModelDiagnosisError> {
+    let strict_all = given.is_some();
+    let mut keep = RoundResiduals::default();
     let mut v = Verification {
         folds: config.folds,
         block_len,
@@ -756,7 +842,10 @@ pub(crate) fn verify(
     let score = |s: &ModelSpec| {
         cv_residuals(s, log, config.folds, &config.fit).map_err(|e| error_chain(&e))
     };
-    let mut wanted: Vec<ModelSpec> = vec![spec.clone()];
+    let mut wanted: Vec<ModelSpec> = Vec::new();
+    if given.is_none() {
+        wanted.push(spec.clone());
+    }
     for c in cands {
         let mut groups = c.terms.iter().map(|t| {
             variants(t, spec, c.table_spacing)
@@ -785,29 +874,35 @@ pub(crate) fn verify(
         }
         new
     });
-    // The model as it is first (`wanted[0]`): every other refit is judged against it as
-    // soon as it is made, and only its verdicts are kept — not one residual vector per
-    // refit (8 B a row each) until the loop reads it.
-    let before = match score(spec) {
+    // The model as it is first (`wanted[0]`, unless a round before gave its residual): every
+    // other refit is judged against it as soon as it is made, and only its verdicts are kept —
+    // not one residual vector per refit (8 B a row each) until the loop reads it.
+    let first = usize::from(!strict_all);
+    let before = match given.map_or_else(|| score(spec), Ok) {
         Ok(r) => r,
         Err(e) => {
             v.not_run = Some(format!(
                 "the model `{spec}` cannot be refitted on this log, so no suggestion was \
                  verified: {e}"
             ));
-            return Ok(v);
+            return Ok((v, keep));
         }
     };
     let assess = |s: &ModelSpec| {
-        score(s).map(|after| Scored {
-            std_after: std_of(&after),
-            judged: [false, true].map(|strict| judge(&before, &after, min_effect, strict, config)),
+        score(s).map(|after| {
+            let judged =
+                [false, true].map(|strict| judge(&before, &after, min_effect, strict, config));
+            Scored {
+                std_after: std_of(&after),
+                judged,
+                residual: judged.iter().any(|j| j.verified).then_some(after),
+            }
         })
     };
     let mut cache: HashMap<String, Result<Scored, String>> = keys
         .into_iter()
-        .skip(1)
-        .zip(wanted[1..].par_iter().map(assess).collect::<Vec<_>>())
+        .skip(first)
+        .zip(wanted[first..].par_iter().map(assess).collect::<Vec<_>>())
         .collect();
     let mut scored = |s: &ModelSpec| cache.remove(&s.to_string()).unwrap_or_else(|| assess(s));
     v.std_before = std_of(&before);
@@ -844,10 +939,11 @@ pub(crate) fn verify(
             super::advice::step_screen(&v, c).is_some()
         })
     };
-    let extra = defect_candidate(spec, defect.is_some(), cands);
+    // The second round scores only the candidates it was given (its cost stays bounded).
+    let extra = defect_candidate(spec, defect.is_some(), cands).filter(|_| !strict_all);
     let mut seen: Vec<String> = Vec::new();
     for c in cands.iter().chain(&extra) {
-        let mut best: Option<VerifiedEdit> = None;
+        let mut best: Option<(VerifiedEdit, Scored)> = None;
         for term in &c.terms {
             let mut fitted = false;
             for (k, variant) in variants(term, spec, c.table_spacing).iter().enumerate() {
@@ -895,7 +991,7 @@ pub(crate) fn verify(
                 };
                 fitted = true;
                 seen.push(next.to_string());
-                let j = after.judged[usize::from(c.strict)];
+                let j = after.judged[usize::from(c.strict || strict_all)];
                 let e = VerifiedEdit {
                     feature: c.feature.clone(),
                     edit: edit.to_string(),
@@ -908,21 +1004,31 @@ pub(crate) fn verify(
                     verified: j.verified,
                     model_edit: Some(edit),
                 };
-                if best.as_ref().is_none_or(|b| e.gain > b.gain) {
-                    best = Some(e);
+                if best.as_ref().is_none_or(|b| e.gain > b.0.gain) {
+                    best = Some((e, after));
                 }
             }
             if fitted && !c.try_all {
                 break;
             }
         }
-        v.edits.extend(best);
+        if let Some((e, after)) = best {
+            if let (true, Some(m), Some(r)) = (e.verified, &e.model_edit, after.residual) {
+                keep.verified.insert(e.terms.clone(), (r, m.clone()));
+            }
+            v.edits.push(e);
+        }
     }
     v.edits
         .sort_by(|a, b| b.verified.cmp(&a.verified).then(b.gain.total_cmp(&a.gain)));
     prefer_physics_to_drift(&mut v.edits);
-    // A verified `add bump` (`add step:COL`) names the centre and width (the threshold) it
-    // finds on the whole log.
+    keep.before = before;
+    Ok((v, keep))
+}
+
+/// A verified `add bump` (`add step:COL`) names the centre and width (the threshold) it finds
+/// on the whole log, fitted on `spec`.
+fn name_verified(v: &mut Verification, spec: &ModelSpec, log: &Log, config: &CheckedVerifyConfig) {
     for e in v.edits.iter_mut().filter(|e| e.verified) {
         let named = e
             .model_edit
@@ -934,6 +1040,173 @@ pub(crate) fn verify(
             e.model_edit = Some(edit);
         }
     }
+}
+
+/// Share of the best verified edit's gain (of its feature's explained share, for a feature the
+/// first round did not score) another candidate must reach for the second round to refit it on
+/// top of the best edit ([`second_round_candidates`]): an effect of comparable size, which the
+/// best edit alone leaves whole. A candidate below it changes the advice little (the best edit
+/// holds at least two thirds of the two together) and stays listed, verified or not, against
+/// the model as it is.
+pub(crate) const SECOND_ROUND_SHARE: f64 = 0.5;
+
+/// Smallest z-score of a first-round edit that is not verified but *promising* (its gains out
+/// of sample and within folds practical): such an edit is refitted on top of the best one too,
+/// since an effect the best edit's refit confounded can clear the bar on top of it.
+pub(crate) const PROMISING_Z: f64 = 1.0;
+
+/// Most raw permutation p-value of a feature the first round gave no slot for the second round
+/// to score it (at the strict bar): looser than [`UNFLAGGED_P`] because a second effect's
+/// screen ran on a residual that still held the first (a lagged temperature at p = 0.015 beside
+/// a position × direction effect).
+pub(crate) const SECOND_ROUND_P: f64 = 0.05;
+
+/// The term an edit puts into the model (`add T`, `replace O by T`: `T`).
+fn added_term(e: &ModelEdit) -> Option<String> {
+    match e {
+        ModelEdit::Add(t) | ModelEdit::Replace { new: t, .. } => Some(t.name()),
+        _ => None,
+    }
+}
+
+/// The candidates of the second round, at most `max`, when the first round (`v`, from the
+/// candidates `first` of diagnosis `d`) verified an edit: (1) every other first-round edit that
+/// is verified or promising ([`PROMISING_Z`]) with at least [`SECOND_ROUND_SHARE`] of the best
+/// edit's gain, as scored (its winning term); (2) then the features the first round gave no
+/// slot (no candidate of their source): flagged, or at raw p ≤ [`SECOND_ROUND_P`], with at
+/// least [`SECOND_ROUND_SHARE`] of the best feature's explained share, largest share first.
+/// One per source, none of the best edit's source, no time feature (what `drift` would fit).
+/// Empty (the round does not run) when nothing can pay.
+pub(crate) fn second_round_candidates(
+    d: &Diagnosis,
+    first: &[Candidate],
+    v: &Verification,
+    max: usize,
+) -> Vec<Candidate> {
+    let Some(best) = v.best() else {
+        return Vec::new();
+    };
+    let src = |name: &str| {
+        d.feature(name).map_or_else(
+            || {
+                super::features::lagged_column(name)
+                    .unwrap_or(name)
+                    .to_string()
+            },
+            source_of,
+        )
+    };
+    let mut sources = vec![src(&best.feature)];
+    let mut out = Vec::new();
+    for e in v.edits.iter().skip(1) {
+        let pays = e.gain >= v.min_effect
+            && e.gain_within_folds >= v.min_effect
+            && (e.verified || e.z >= PROMISING_Z)
+            && e.gain >= SECOND_ROUND_SHARE * best.gain;
+        let Some(term) = e.model_edit.as_ref().and_then(added_term) else {
+            continue;
+        };
+        let s = src(&e.feature);
+        if out.len() >= max || !pays || sources.contains(&s) {
+            continue;
+        }
+        sources.push(s);
+        out.push(Candidate {
+            feature: e.feature.clone(),
+            terms: vec![term],
+            try_all: false,
+            table_spacing: None,
+            strict: true,
+        });
+    }
+    let Some(bar) = d
+        .feature(&best.feature)
+        .map(|f| SECOND_ROUND_SHARE * f.explained)
+    else {
+        return out;
+    };
+    sources.extend(first.iter().map(|c| src(&c.feature)));
+    let mut pool: Vec<&FeatureReport> = d
+        .features
+        .iter()
+        .filter(|f| f.flagged || f.p_value_raw <= SECOND_ROUND_P)
+        .filter(|f| f.suggested_term.as_deref().is_some_and(|t| t != "drift"))
+        .filter(|f| f.explained >= bar)
+        .collect();
+    pool.sort_by(|a, b| super::report::compare(a, b));
+    for f in pool {
+        let s = source_of(f);
+        if out.len() >= max || sources.contains(&s) {
+            continue;
+        }
+        sources.push(s);
+        out.push(feature_candidate(f, true));
+    }
+    out
+}
+
+/// [`verify`], then the second round (see the module docs) when [`second_round_candidates`]
+/// finds a candidate that can pay: the best verified edit is put into the model, its
+/// out-of-sample residual (kept from the first round: no refit) is the new baseline, and the
+/// candidates are refitted on top of it on the same folds and judged at the strict bar; what
+/// holds on top is reported with both edits together ([`CombinedEdit`]). `d` is the diagnosis
+/// the candidates `cands` came from.
+pub(crate) fn verify_two_rounds(
+    d: &Diagnosis,
+    spec: &ModelSpec,
+    log: &Log,
+    cands: &[Candidate],
+    min_effect: f64,
+    config: &CheckedVerifyConfig,
+) -> Result<Verification, ModelDiagnosisError> {
+    let block_len = d.null_block_len;
+    let (mut v, mut keep) = verify_round(spec, log, cands, block_len, min_effect, config, None)?;
+    let second = second_round_candidates(d, cands, &v, config.candidates);
+    let base = v
+        .best()
+        .filter(|_| !second.is_empty())
+        .and_then(|b| keep.verified.remove(&b.terms));
+    keep.verified.clear();
+    name_verified(&mut v, spec, log, config);
+    let (Some((after, raw)), Some(best)) = (base, v.best().cloned()) else {
+        return Ok(v);
+    };
+    let Ok(base_spec) = spec.apply(&raw) else {
+        return Ok(v);
+    };
+    let (mut v2, _) = verify_round(
+        &base_spec,
+        log,
+        &second,
+        block_len,
+        min_effect,
+        config,
+        Some(after),
+    )?;
+    name_verified(&mut v2, &base_spec, log, config);
+    let combined = v2.best().map(|e2| {
+        let terms = best
+            .model_edit
+            .as_ref()
+            .zip(e2.model_edit.as_ref())
+            .and_then(|(m1, m2)| spec.apply(m1).and_then(|s| s.apply(m2)).ok())
+            .map_or_else(|| e2.terms.clone(), |s| s.to_string());
+        CombinedEdit {
+            edits: vec![best.edit.clone(), e2.edit.clone()],
+            terms,
+            std_before: best.std_before,
+            std_after: e2.std_after,
+            gain: 1.0 - (1.0 - best.gain) * (1.0 - e2.gain),
+        }
+    });
+    v.second_round = Some(SecondRound {
+        on_top_of: best.edit.clone(),
+        base_terms: best.terms.clone(),
+        std_before: best.std_after,
+        edits: v2.edits,
+        rejected: v2.rejected,
+        combined,
+    });
     Ok(v)
 }
 
