@@ -652,6 +652,9 @@ impl<R: Read> Source<R> {
     /// Hands the rest of the source, from the current line on, to the csv parser: started at
     /// a line's start as the parser that read the lines before would have been.
     fn switch_to_csv(&mut self) {
+        if !matches!(self, Source::Plain { .. }) {
+            return;
+        }
         let Source::Plain {
             lines,
             delimiter,
