@@ -541,8 +541,9 @@ pub const STDIN_PATH: &str = "-";
 pub(crate) const STDIN_NAME: &str = "<stdin>";
 
 /// What the CSV parser of a [`LogReader`] reads: bytes already read (the header line, or the
-/// buffered rest from the first line that is not plain), then the rest of the source.
-type CsvSource<R> = io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>;
+/// buffered rest from the first line that is not plain), then the rest of the source, with the
+/// physical line of each line's first byte noted ([`plain::LineStarts`]).
+type CsvSource<R> = plain::LineStarts<io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>>;
 
 /// Where a [`LogReader`]'s records come from.
 enum Source<R: Read> {
@@ -558,8 +559,6 @@ enum Source<R: Read> {
     /// plain, or from the first line that is not plain to the end.
     Csv {
         csv: csv::Reader<CsvSource<R>>,
-        /// Lines before the parser's first line.
-        line_offset: u64,
         /// Bytes before the parser's first byte, from the header's first byte.
         byte_offset: u64,
         /// Fields a record must have, when the parser started after the header (it does not
@@ -613,20 +612,26 @@ impl<R: Read> Source<R> {
                 }
                 Source::Csv {
                     csv,
-                    line_offset,
                     byte_offset,
                     columns,
                 } => {
-                    let (line_offset, byte_offset) = (*line_offset, *byte_offset);
-                    let line_of =
-                        |p: Option<&csv::Position>| p.map(|p| p.line() + line_offset).unwrap_or(0);
-                    let more = csv
-                        .read_byte_record(record)
-                        .map_err(|e| malformed(file, line_of(e.position()), &e))?;
+                    let byte_offset = *byte_offset;
+                    // The parser's own line numbers count from where it starts reading a
+                    // record: before the blank lines it skips, before the `\n` of a CRLF line
+                    // end (so one line early). The physical line of the record's first byte
+                    // is the one noted at or after that start.
+                    let more = match csv.read_byte_record(record) {
+                        Ok(more) => more,
+                        Err(e) => {
+                            let line = e.position().map_or(0, |p| csv.get_mut().line_at(p.byte()));
+                            return Err(malformed(file, line, &e));
+                        }
+                    };
                     if let Some(p) = record.position() {
                         let mut p = p.clone();
-                        let (line, byte) = (p.line(), p.byte());
-                        p.set_line(line + line_offset).set_byte(byte + byte_offset);
+                        let byte = p.byte();
+                        p.set_line(csv.get_mut().line_at(byte))
+                            .set_byte(byte + byte_offset);
                         record.set_position(Some(p));
                     }
                     if more
@@ -673,10 +678,12 @@ impl<R: Read> Source<R> {
             .flexible(true)
             .delimiter(delimiter)
             .buffer_capacity(1 << 16)
-            .from_reader(io::Cursor::new(rest).chain(src));
+            .from_reader(plain::LineStarts::new(
+                io::Cursor::new(rest).chain(src),
+                line,
+            ));
         *self = Source::Csv {
             csv,
-            line_offset: line - 1,
             byte_offset: byte,
             columns: Some(columns),
         };
@@ -868,14 +875,16 @@ impl<R: Read> LogReader<R> {
             };
             (headers, source)
         } else {
-            let mut csv = builder().from_reader(io::Cursor::new(header.into_bytes()).chain(buf));
+            let mut csv = builder().from_reader(plain::LineStarts::new(
+                io::Cursor::new(header.into_bytes()).chain(buf),
+                header_line,
+            ));
             let headers = csv
                 .headers()
                 .map_err(|e| malformed(file, header_line, &e))?
                 .clone();
             let source = Source::Csv {
                 csv,
-                line_offset: line_no,
                 byte_offset: 0,
                 columns: None,
             };
@@ -1633,6 +1642,198 @@ mod tests {
         }
     }
 
+    /// The physical line of byte `at` of `text`: 1 + the `\n` bytes before it (what an editor
+    /// shows; a lone `\r` does not end a line). The slow, obvious reference for line numbers.
+    fn physical_line(text: &[u8], at: usize) -> u64 {
+        1 + text[..at].iter().filter(|&&b| b == b'\n').count() as u64
+    }
+
+    #[test]
+    fn errors_name_the_physical_line_after_blank_lines_crlf_and_quoted_newlines() {
+        // Reference: each bad cell is marked `x` (or `@` for a row of the wrong length); its
+        // line is counted by hand in the raw bytes (`physical_line`), its column is the field.
+        // Read every way: all through the csv parser (reference), plain lines row by row, fast
+        // rows, the streaming summary (`check`), from sources handing out 1, 3 or all bytes.
+        let cases: &[(&str, &str)] = &[
+            // Blank lines before the bad row (the csv fallback).
+            (
+                "time_s,track,bias\n0,1,1\n\n\n1,x,1\n",
+                "line 5, column 2 (`track`)",
+            ),
+            // Blank lines after it.
+            (
+                "time_s,track,bias\n0,1,1\n1,1,x\n\n\n2,1,1\n",
+                "line 3, column 3 (`bias`)",
+            ),
+            // Blank lines before and after, then a later bad row.
+            (
+                "time_s,track,bias\n\n0,1,1\n\n1,1,1\n\n\n2,x,1\n\n",
+                "line 8, column 2 (`track`)",
+            ),
+            // Blank lines right after the header.
+            (
+                "time_s,track,bias\n\n\n0,1,x\n",
+                "line 4, column 3 (`bias`)",
+            ),
+            // CRLF: the bad value on line k = 2, 3, 4.
+            (
+                "time_s,track,bias\r\n0,x,1\r\n1,1,1\r\n",
+                "line 2, column 2 (`track`)",
+            ),
+            (
+                "time_s,track,bias\r\n0,1,1\r\n1,1,x\r\n",
+                "line 3, column 3 (`bias`)",
+            ),
+            (
+                "time_s,track,bias\r\n0,1,1\r\n1,1,1\r\n2,x,1\r\n",
+                "line 4, column 2 (`track`)",
+            ),
+            // A plain header and plain rows, then CRLF (the switch to the csv parser).
+            (
+                "time_s,track,bias\n0,1,1\n1,1,1\r\n2,1,1\r\n3,x,1\r\n",
+                "line 5, column 2 (`track`)",
+            ),
+            // CRLF with blank CRLF lines.
+            (
+                "time_s,track,bias\r\n\r\n0,1,1\r\n\r\n\r\n1,1,x\r\n",
+                "line 6, column 3 (`bias`)",
+            ),
+            // Lone CR: no `\n`, so every row is on line 1 (as the bytes count lines).
+            (
+                "time_s,track,bias\r0,1,1\r1,x,1\r",
+                "line 1, column 2 (`track`)",
+            ),
+            // A quoted cell with an embedded newline before the bad row.
+            (
+                "time_s,track,bias,note\n0,1,1,\"a\nb\"\n1,x,1,c\n",
+                "line 4, column 2 (`track`)",
+            ),
+            (
+                "time_s,track,bias,note\n0,1,1,\"a\r\nb\r\nc\"\r\n1,1,x,c\r\n",
+                "line 5, column 3 (`bias`)",
+            ),
+            // A quoted header, blank lines, then the bad row.
+            (
+                "\"time_s\",track,bias\n0,1,1\n\n1,1,x\n",
+                "line 4, column 3 (`bias`)",
+            ),
+            // Metadata and blank lines before the header.
+            (
+                "# a\n\n# b\r\n\ntime_s,track,bias\n\n0,1,1\n\n1,x,1\n",
+                "line 9, column 2 (`track`)",
+            ),
+            // Time backwards after blank lines.
+            (
+                "time_s,track,bias\n1,1,1\n\n0,1,1\n",
+                "line 4, column 1 (`time_s`): time goes backwards",
+            ),
+            // A row of the wrong length after blank lines / in CRLF (no column: the row).
+            (
+                "time_s,track,bias\n0,1,1\n\n\n1,1,1,1\n",
+                "line 5: 4 fields",
+            ),
+            (
+                "\"time_s\",track,bias\r\n0,1,1\r\n1,1\r\n",
+                "line 3: 2 fields",
+            ),
+            (
+                "time_s,track,bias\r\n0,1,1\r\n\r\n1,1\r\n",
+                "line 4: 2 fields",
+            ),
+        ];
+        let map = ColumnMap::default();
+        for (text, want) in cases {
+            // The hand count agrees with the raw bytes: the marked row's line.
+            let bad = text.find(['x', '@']).unwrap_or(text.len() - 2);
+            if want.contains("column 2") || want.contains("column 3") {
+                assert!(
+                    want.starts_with(&format!("line {}", physical_line(text.as_bytes(), bad))),
+                    "{text:?}: {want}"
+                );
+            }
+            for name in ["t.csv", STDIN_NAME] {
+                for (plain, fast) in [(false, false), (true, false), (true, true)] {
+                    for max in [1, 3, 1 << 16] {
+                        let src = Pieces {
+                            data: text.as_bytes(),
+                            max,
+                            rng: crate::numeric::rng::SimRng::new(max as u64),
+                        };
+                        let err = LogReader::from_reader_source(
+                            name,
+                            src,
+                            &map,
+                            BiasColumn::Required,
+                            LOOKAHEAD_ROWS,
+                            plain,
+                        )
+                        .and_then(|r| r.read_all_with(0, fast))
+                        .expect_err(text)
+                        .to_string();
+                        let full = format!("{name}: {want}");
+                        assert!(
+                            err.starts_with(&full),
+                            "{text:?} ({plain}, {fast}, {max}): got `{err}`, want `{full}`"
+                        );
+                    }
+                    let mut r = LogReader::from_reader_source(
+                        name,
+                        text.as_bytes(),
+                        &map,
+                        BiasColumn::Required,
+                        LOOKAHEAD_ROWS,
+                        plain,
+                    )
+                    .unwrap();
+                    let err = r.summarise_each(|_| ()).expect_err(text).to_string();
+                    assert!(
+                        err.starts_with(&format!("{name}: {want}")),
+                        "summary {text:?}: `{err}`"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rows_carry_the_physical_line() {
+        // Reference: the line of each row's first byte counted in the raw bytes.
+        let text = "# m\r\n\r\ntime_s,track,bias,note\r\n\r\n0,1,1,\"a\r\nb\"\r\n\r\n1,2,2,c\r\n2,3,3,d\n\n3,4,4,\"\"\n";
+        let log = read(text).unwrap();
+        let starts: Vec<u64> = ["0,1", "1,2", "2,3", "3,4"]
+            .iter()
+            .map(|s| physical_line(text.as_bytes(), text.find(s).unwrap()))
+            .collect();
+        assert_eq!(starts, [5, 8, 9, 11]);
+        let lines: Vec<u64> = (0..log.len()).map(|i| log.row(i).line).collect();
+        assert_eq!(lines, starts);
+    }
+
+    #[test]
+    fn header_problems_name_the_header_line() {
+        let cases: &[(&str, &str)] = &[
+            (
+                "# a\n\ntime_s,track,bias,track\n0,1,1,1\n",
+                "t.csv: line 3: column `track` appears twice",
+            ),
+            (
+                "# a\r\n\r\ntime_s,track\r\n0,1\r\n",
+                "t.csv: line 3: missing required column `bias`",
+            ),
+            (
+                "\n\n\"time_s\",track\n0,1\n",
+                "t.csv: line 3: missing required column `bias`",
+            ),
+        ];
+        for (text, want) in cases {
+            let err = read(text).expect_err(text).to_string();
+            assert!(
+                err.starts_with(want),
+                "{text:?}: got `{err}`, want `{want}`"
+            );
+        }
+    }
+
     #[test]
     fn a_plan_may_lack_the_bias_column_or_every_measurement() {
         // Reference: the rows as written; with BiasColumn::Optional nothing is measured and
@@ -2096,7 +2297,7 @@ mod tests {
                 }
             }
             // The streaming summary (`check`'s read) with the rows it hands out, the same way.
-            let summarise = |plain: bool, seed: u64| {
+            let summarise = |plain: bool, seed: u64, rows: &mut Vec<_>| {
                 let src = Pieces {
                     data: &text,
                     max,
@@ -2110,7 +2311,6 @@ mod tests {
                     LOOKAHEAD_ROWS,
                     plain,
                 )?;
-                let mut rows = Vec::new();
                 let bits = |x: f64| x.to_bits();
                 let summary = r.summarise_each(|row| {
                     rows.push((
@@ -2121,13 +2321,56 @@ mod tests {
                         row.covariates.iter().map(|&c| bits(c)).collect::<Vec<_>>(),
                     ))
                 })?;
-                Ok::<_, LogError>((summary, rows))
+                Ok::<_, LogError>(summary)
             };
-            match (
-                summarise(false, case as u64),
-                summarise(true, case as u64 + 2),
-            ) {
-                (Ok(a), Ok(b)) => assert!(a == b, "case {case}: summaries differ"),
+            let (mut rows_a, mut rows_b) = (Vec::new(), Vec::new());
+            let (sa, sb) = (
+                summarise(false, case as u64, &mut rows_a),
+                summarise(true, case as u64 + 2, &mut rows_b),
+            );
+            // Line numbers against the raw bytes, the slow obvious way: the csv crate parses
+            // the whole text (metadata line and header as records too) for the records'
+            // bounds; a record's line is 1 + the `\n`s before its first byte, found by
+            // skipping the line ends from where the parser began it.
+            let delimiter = [b';', b'\t']
+                .into_iter()
+                .find(|d| text.split(|&b| b == b'\n').nth(1).unwrap().contains(d))
+                .unwrap_or(b',');
+            let mut raw = csv::ReaderBuilder::new()
+                .has_headers(false)
+                .flexible(true)
+                .delimiter(delimiter)
+                .from_reader(&text[..]);
+            let mut record_lines = Vec::new();
+            for record in raw.byte_records() {
+                let Ok(record) = record else { break };
+                let mut at = record.position().unwrap().byte() as usize;
+                while at < text.len() && (text[at] == b'\n' || text[at] == b'\r') {
+                    at += 1;
+                }
+                record_lines.push(physical_line(&text, at));
+            }
+            let record_lines = &record_lines[2..]; // after `# seed = 1` and the header
+            // Rows handed on before an error are the records before the bad one.
+            let lines_a: Vec<u64> = rows_a.iter().map(|r| r.0).collect();
+            assert_eq!(lines_a, record_lines[..lines_a.len()], "case {case}");
+            if let Err(e) = &sa
+                && let Some(rest) = e.to_string().split(": line ").nth(1)
+            {
+                let n: u64 = rest
+                    .split(|c: char| !c.is_ascii_digit())
+                    .next()
+                    .unwrap()
+                    .parse()
+                    .unwrap();
+                assert_eq!(n, record_lines[lines_a.len()], "case {case}: {e}");
+            }
+            assert!(rows_a == rows_b, "case {case}: rows differ");
+            match (sa, sb) {
+                (Ok(a), Ok(b)) => {
+                    assert!(a == b, "case {case}: summaries differ");
+                    assert_eq!(lines_a, record_lines, "case {case}");
+                }
                 (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "case {case}"),
                 (a, b) => panic!("case {case}: {:?} vs {:?}", a.is_ok(), b.is_ok()),
             }

@@ -215,3 +215,66 @@ pub(super) fn parse_plain(line: &[u8], mut i: usize) -> Option<(f64, usize)> {
     let v = m as f64 / POW10[decimals];
     Some((if neg { -v } else { v }, i))
 }
+
+/// A source for the csv parser that notes the physical line (1-based, counting every `\n`, as an
+/// editor shows it; a lone `\r` ends a record but not a line) of each line's first byte that
+/// is not itself a line end: where any record the parser reads starts. The parser names the
+/// byte where it started reading a record, before the blank lines it skips and the `\n` of a
+/// CRLF line end it had not yet read; the record starts at the first noted byte from there
+/// ([`LineStarts::line_at`]).
+pub(super) struct LineStarts<R> {
+    src: R,
+    /// Bytes handed out so far.
+    byte: u64,
+    /// Physical line of the next byte handed out.
+    line: u64,
+    /// Whether the last byte handed out was a line end (`\n` or `\r`), or none was yet.
+    after_end: bool,
+    /// Byte offset and line of each line start handed out that the parser has not passed.
+    starts: std::collections::VecDeque<(u64, u64)>,
+}
+
+impl<R> LineStarts<R> {
+    /// `src`, whose first byte starts physical line `line`.
+    pub(super) fn new(src: R, line: u64) -> Self {
+        Self {
+            src,
+            byte: 0,
+            line,
+            after_end: true,
+            starts: std::collections::VecDeque::new(),
+        }
+    }
+
+    /// The physical line of the first line start at or after byte `at` of this source (the
+    /// parser's position when it began a record): the record's own line. Starts before `at`
+    /// are forgotten (the parser reads on), so memory stays within what the parser buffers.
+    pub(super) fn line_at(&mut self, at: u64) -> u64 {
+        while self.starts.front().is_some_and(|&(b, _)| b < at) {
+            self.starts.pop_front();
+        }
+        self.starts.front().map_or(self.line, |&(_, line)| line)
+    }
+}
+
+impl<R: io::Read> io::Read for LineStarts<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.src.read(buf)?;
+        for &b in &buf[..n] {
+            match b {
+                b'\n' => {
+                    self.line += 1;
+                    self.after_end = true;
+                }
+                b'\r' => self.after_end = true,
+                _ if self.after_end => {
+                    self.starts.push_back((self.byte, self.line));
+                    self.after_end = false;
+                }
+                _ => {}
+            }
+            self.byte += 1;
+        }
+        Ok(n)
+    }
+}
