@@ -26,6 +26,48 @@ fn check_summarises_a_valid_log_with_renamed_columns() {
 }
 
 #[test]
+fn check_names_the_physical_line_after_blank_lines_and_in_crlf_files() {
+    // Reference: the line an editor shows, counted by hand (1 + the `\n` before the bad row),
+    // for a file and for standard input.
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "time_s,track,bias\n0,1,2\n\n\n1,x,2\n",
+            "line 5, column 2 (`track`)",
+        ),
+        (
+            "time_s,track,bias\r\n0,1,2\r\n1,2,2\r\n2,3,NaN\r\n",
+            "line 4, column 3 (`bias`)",
+        ),
+        (
+            "time_s,track,bias,note\n0,1,2,\"a\nb\"\n1,x,2,c\n",
+            "line 4, column 2 (`track`)",
+        ),
+    ];
+    for (i, (text, want)) in cases.iter().enumerate() {
+        let f = write(dir.path(), &format!("bad{i}.csv"), text);
+        let name = format!("bad{i}.csv: {want}");
+        fails_with(&["check", "--data", &f], &[&name]);
+        let r = {
+            use std::io::Write;
+            use std::process::{Command, Stdio};
+            let mut c = Command::new(env!("CARGO_BIN_EXE_biasctl"))
+                .args(["check", "--data", "-"])
+                .stdin(Stdio::piped())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap();
+            c.stdin.take().unwrap().write_all(text.as_bytes()).unwrap();
+            c.wait_with_output().unwrap()
+        };
+        assert_eq!(r.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains(&format!("<stdin>: {want}")), "{err}");
+    }
+}
+
+#[test]
 fn check_reports_line_and_column_of_bad_values_with_exit_2() {
     let dir = tempfile::tempdir().unwrap();
     let f = write(dir.path(), "bad.csv", "time_s,track,bias\n0,1,2\n1,2,NaN\n");
