@@ -138,7 +138,9 @@ use crate::numeric::rng::SimRng;
 use crate::numeric::stats;
 use crate::render::OutputError;
 use rayon::prelude::*;
-use smoother::{Binned, BlockLane, FTest, LANES, Permuted, SlotTable, Unusable};
+use smoother::{
+    Binned, BlockLane, FTest, LANES, Permuted, SlotTable, Unusable, sst_of_sums, sst_one_pass,
+};
 
 /// Smallest number of measured rows per cross-validation fold.
 pub(crate) const MIN_ROWS_PER_FOLD: usize = 10;
@@ -659,10 +661,18 @@ pub fn diagnose(
     drop(signed_residuals);
     drop(signed);
     drop(y);
-    let (interactions, global) = pairs::screen(table, &forward.left, &ctx, config);
-    let whiteness = Whiteness::of(residuals, config.ljung_box_lags, config.alpha);
-    let bimodality = stats::bimodality_coefficient(residuals).filter(|b| b.is_finite());
-    let dip = stats::dip_test(residuals);
+    // The residual's own statistics (one thread each: a sort for the dip test, the
+    // Ljung–Box sums) run beside the pair screen instead of after it.
+    let ((interactions, global), (whiteness, bimodality, dip)) = rayon::join(
+        || pairs::screen(table, &forward.left, &ctx, config),
+        || {
+            (
+                Whiteness::of(residuals, config.ljung_box_lags, config.alpha),
+                stats::bimodality_coefficient(residuals).filter(|b| b.is_finite()),
+                stats::dip_test(residuals),
+            )
+        },
+    );
     let mut d = Diagnosis {
         residual_std,
         features: reports,
@@ -1140,6 +1150,7 @@ fn perm_groups(
     fused: bool,
 ) -> Vec<PermGroup> {
     (0..lengths)
+        .into_par_iter()
         .map(|length| {
             let mut features: Vec<usize> =
                 (0..usable.len()).filter(|&k| which[k] == length).collect();
@@ -1155,7 +1166,7 @@ fn perm_groups(
             }
         })
         .filter(|g| !g.features.is_empty())
-        .collect()
+        .collect::<Vec<_>>()
 }
 
 /// One thread's buffers and hit counts of the permutation test (one slot per usable feature).
@@ -1252,7 +1263,7 @@ impl PermWorker {
                         }
                     });
                     let d = p.direction.filter(|_| table.signed() > 0).unwrap_or(&[]);
-                    let sum = table.accumulate_lanes(
+                    let (sum, sq) = table.accumulate_lanes(
                         p.y,
                         len,
                         &lanes,
@@ -1261,11 +1272,9 @@ impl PermWorker {
                         &mut self.acc_lanes,
                         &mut self.acc_signed_lanes,
                     );
-                    let sst_signed = if d.is_empty() {
-                        [0.0; LANES]
-                    } else {
-                        SlotTable::signed_sst_lanes(p.y, len, &lanes, d, sum, &mut self.chunk)
-                    };
+                    // The signed sum of squares from the pass's own sums (no second gather).
+                    let sst_signed: [f64; LANES] =
+                        std::array::from_fn(|l| sst_of_sums(sum[l], sq[l], n));
                     for l in 0..count {
                         self.acc.clear();
                         self.acc.extend(self.acc_lanes.iter().map(|a| a[l]));
@@ -1342,13 +1351,9 @@ impl PermWorker {
                 self.acc.resize(table.len(), 0.0);
                 self.acc_signed.resize(table.len(), 0.0);
                 let d = p.direction.filter(|_| table.signed() > 0).unwrap_or(&[]);
-                let sum =
+                let (sum, sq) =
                     table.accumulate_permuted(&permuted, d, &mut self.acc, &mut self.acc_signed);
-                let sst_signed = if d.is_empty() {
-                    0.0
-                } else {
-                    permuted.signed_sst(d, sum)
-                };
+                let sst_signed = sst_of_sums(sum, sq, n);
                 for (j, &k) in g.features.iter().enumerate() {
                     let (t, a) = (&mut self.tests[k], p.usable[k].1);
                     stat[k] = t.min_p_of_sums(&a.binned, table.sums(&self.acc, j), n, sst);
@@ -1366,7 +1371,7 @@ impl PermWorker {
                     self.signed.clear();
                     self.signed
                         .extend(self.perm.iter().zip(d).map(|(p, d)| p * d));
-                    sst_signed = stats::sum_sq_about_mean(&self.signed);
+                    sst_signed = sst_one_pass(&self.signed);
                 }
                 for &k in &g.features {
                     let (t, a) = (&mut self.tests[k], p.usable[k].1);
@@ -1411,7 +1416,10 @@ fn permutation_test(
             .map(|&(j, _)| lengths.binary_search(&blocks[j]).unwrap_or(0))
             .collect();
         let groups = perm_groups(&usable, lengths.len(), &which, direction.is_some(), fused);
-        let tests: Vec<FTest> = usable.iter().map(|(_, a)| FTest::new(&a.binned)).collect();
+        let tests: Vec<FTest> = usable
+            .par_iter()
+            .map(|(_, a)| FTest::new(&a.binned))
+            .collect();
         // Every permutation draws from its own seeded streams and the counts are integers, so
         // the p-values are the same for any number of threads.
         let k = usable.len();

@@ -14,7 +14,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::smoother::Binned;
+use super::smoother::{Binned, order_statistics, smallest_distinct};
 use super::{Ctx, DiagnoseConfig, FeatureColumn, FeatureOrigin, FeatureTable, gain};
 use crate::history::Feature;
 
@@ -61,17 +61,7 @@ fn levels(col: &FeatureColumn) -> Option<Vec<u8>> {
     if defined.len() < 2 * LEVELS {
         return None;
     }
-    defined.sort_by(f64::total_cmp);
-    defined.dedup();
-    let cuts: Vec<f64> = if defined.len() <= LEVELS {
-        defined.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect()
-    } else {
-        let mut all: Vec<f64> = col.iter().flatten().collect();
-        all.sort_by(f64::total_cmp);
-        let mut c: Vec<f64> = (1..LEVELS).map(|q| all[q * all.len() / LEVELS]).collect();
-        c.dedup_by(|a, b| a.total_cmp(b).is_eq());
-        c
-    };
+    let cuts = level_cuts(&mut defined);
     if cuts.is_empty() {
         return None;
     }
@@ -85,23 +75,69 @@ fn levels(col: &FeatureColumn) -> Option<Vec<u8>> {
     )
 }
 
+/// The cut points of [`levels`] for the defined values `x` (reordered): midway between
+/// consecutive distinct values when there are at most [`LEVELS`] of them, else the quartiles
+/// (duplicates dropped). By scanning and selection, without a sort: the same values as
+/// sorting `x` by `total_cmp` and deduplicating ([`level_cuts_reference`], tested).
+fn level_cuts(x: &mut [f64]) -> Vec<f64> {
+    let distinct = smallest_distinct(x, LEVELS + 1);
+    if distinct.len() <= LEVELS {
+        return distinct.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect();
+    }
+    let ranks: Vec<usize> = (1..LEVELS).map(|q| q * x.len() / LEVELS).collect();
+    let mut c = order_statistics(x, &ranks);
+    c.dedup_by(|a, b| a.total_cmp(b).is_eq());
+    c
+}
+
+/// [`level_cuts`] by sorting (the slow, obvious reference it is tested against).
+#[cfg(test)]
+fn level_cuts_reference(x: &[f64]) -> Vec<f64> {
+    let mut defined = x.to_vec();
+    defined.sort_by(f64::total_cmp);
+    defined.dedup();
+    if defined.len() <= LEVELS {
+        return defined.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect();
+    }
+    let mut all = x.to_vec();
+    all.sort_by(f64::total_cmp);
+    let mut c: Vec<f64> = (1..LEVELS).map(|q| all[q * all.len() / LEVELS]).collect();
+    c.dedup_by(|a, b| a.total_cmp(b).is_eq());
+    c
+}
+
+/// The cells of `parts` (levels `0..=LEVELS` each, at most three parts): the combination of
+/// a row's levels in base `LEVELS + 1`, below 125.
+fn cells(parts: &[&Vec<u8>], rows: usize) -> Vec<u8> {
+    let base = (LEVELS + 1) as u8;
+    let mut cell = vec![0u8; rows];
+    for p in parts {
+        for (c, &l) in cell.iter_mut().zip(p.iter()) {
+            *c = *c * base + l;
+        }
+    }
+    cell
+}
+
 /// The cross-validated gain of the cells made of `parts` on `r`.
 fn cells_gain(parts: &[&Vec<u8>], r: &[f64], ctx: &Ctx, config: &DiagnoseConfig) -> f64 {
-    let base = LEVELS + 1;
-    let cell: Vec<f64> = (0..r.len())
-        .map(|i| {
-            parts
-                .iter()
-                .fold(0usize, |acc, p| acc * base + usize::from(p[i])) as f64
-        })
-        .collect();
-    let max_cells = base.pow(parts.len() as u32);
-    match Binned::new(
-        &cell,
-        config.max_bins,
-        config.min_bin_rows,
-        max_cells.min(256),
-    ) {
+    let max_cells = (LEVELS + 1).pow(parts.len() as u32);
+    // The cells binned from their codes by counting: the same bins as `Binned::new` of the
+    // codes as numbers with `max_cells` discrete values (tested).
+    let binned = if max_cells <= 256 {
+        Binned::from_codes(&cells(parts, r.len()), config.min_bin_rows)
+    } else {
+        let base = LEVELS + 1;
+        let cell: Vec<f64> = (0..r.len())
+            .map(|i| {
+                parts
+                    .iter()
+                    .fold(0usize, |acc, p| acc * base + usize::from(p[i])) as f64
+            })
+            .collect();
+        Binned::new(&cell, config.max_bins, config.min_bin_rows, 256)
+    };
+    match binned {
         Ok(b) => gain(&b, false, r, None, ctx.fold, ctx.folds, ctx.variance).explained,
         Err(_) => 0.0,
     }
@@ -185,4 +221,83 @@ pub(crate) fn screen(
         remains: joint - best_single >= config.min_effect.max(1e-9),
     };
     (found, Some(global))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numeric::rng::SimRng;
+
+    /// Reference: [`level_cuts_reference`], sorting and deduplicating as `levels` did. The
+    /// selection must give the same cut bits: few distinct values (1 to 5), ties, −0 and +0,
+    /// many distinct values with heavy ties at the quartiles.
+    #[test]
+    fn level_cuts_by_selection_equal_the_sorted_ones() {
+        let mut rng = SimRng::new(16);
+        for n in [8usize, 9, 40, 1001] {
+            for distinct in [1u64, 2, 4, 5, 7, 1 << 30] {
+                for _ in 0..4 {
+                    let x: Vec<f64> = (0..n)
+                        .map(|_| match rng.below(distinct) {
+                            0 if rng.below(2) == 0 => -0.0,
+                            0 => 0.0,
+                            k => k as f64 * 0.5 - 3.0,
+                        })
+                        .collect();
+                    let fast = level_cuts(&mut x.clone());
+                    let slow = level_cuts_reference(&x);
+                    let bits = |v: &[f64]| v.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&fast), bits(&slow), "n {n} distinct {distinct}");
+                }
+            }
+        }
+    }
+
+    /// Reference: `Binned::new` of the cell codes as numbers (every row defined, at most
+    /// `max_cells` discrete values), as `cells_gain` called it before: the same fine bins,
+    /// counts of bins and levels, or the same reason for no bins, for one to three parts
+    /// of uneven levels (rare cells pooled, a single populated cell, one dominant cell).
+    #[test]
+    fn cells_from_codes_bin_as_the_numbers_do() {
+        let mut rng = SimRng::new(17);
+        for rows in [30usize, 200, 5000] {
+            for parts in 1..=3usize {
+                for skew in [0u64, 1, 3, 40] {
+                    let make = |rng: &mut SimRng| -> Vec<u8> {
+                        (0..rows)
+                            .map(|_| {
+                                let v = rng.below(LEVELS as u64 + 1 + skew);
+                                v.min(LEVELS as u64) as u8
+                            })
+                            .collect()
+                    };
+                    let cols: Vec<Vec<u8>> = (0..parts).map(|_| make(&mut rng)).collect();
+                    let refs: Vec<&Vec<u8>> = cols.iter().collect();
+                    let max_cells = (LEVELS + 1).pow(parts as u32);
+                    let codes = cells(&refs, rows);
+                    let numbers: Vec<f64> = codes.iter().map(|&c| f64::from(c)).collect();
+                    for min_bin_rows in [2usize, 10, 60] {
+                        let fast = Binned::from_codes(&codes, min_bin_rows);
+                        let slow = Binned::new(&numbers, 64, min_bin_rows, max_cells.min(256));
+                        match (fast, slow) {
+                            (Ok(f), Ok(s)) => {
+                                assert_eq!(f.fine, s.fine);
+                                assert_eq!(f.n_fine, s.n_fine);
+                                assert_eq!(f.kind, s.kind);
+                                assert_eq!(f.levels, s.levels);
+                            }
+                            (f, s) => assert_eq!(f.err(), s.err(), "rows {rows} parts {parts}"),
+                        }
+                    }
+                }
+            }
+        }
+        // A constant cell column.
+        let one = vec![3u8; 50];
+        let numbers = vec![3.0; 50];
+        assert_eq!(
+            Binned::from_codes(&one, 10).err(),
+            Binned::new(&numbers, 64, 10, 5).err()
+        );
+    }
 }

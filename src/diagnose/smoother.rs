@@ -173,6 +173,69 @@ impl Binned {
         })
     }
 
+    /// [`Binned::new`] of byte codes, every row defined (the numbers `codes[i] as f64`,
+    /// with `max_discrete` at least the number of distinct codes, so the bins are
+    /// discrete): the distinct values and their rows counted in one pass over the bytes
+    /// instead of scanning for distinct values. The same bins, or the same reason for none,
+    /// as [`Binned::new`] of those numbers (tested): each value is its own bin, a value seen
+    /// in fewer than `min_bin_rows` rows pooled with the next larger one (the largest with
+    /// the one below).
+    pub(super) fn from_codes(codes: &[u8], min_bin_rows: usize) -> Result<Binned, Unusable> {
+        let mut by_code = [0usize; 256];
+        for &c in codes {
+            by_code[c as usize] += 1;
+        }
+        // The distinct values ascending, and their counts.
+        let present: Vec<usize> = (0..by_code.len()).filter(|&c| by_code[c] > 0).collect();
+        let counts: Vec<usize> = present.iter().map(|&c| by_code[c]).collect();
+        match present.len() {
+            0 => return Err(Unusable::AllMissing),
+            1 => return Err(Unusable::Constant(present[0] as f64)),
+            _ => {}
+        }
+        // As `Binned::new`'s discrete path with no undefined rows.
+        let mut label = vec![0u16; present.len()];
+        let mut next = 0u16;
+        let mut pending = 0usize;
+        for (k, &c) in counts.iter().enumerate() {
+            label[k] = next;
+            pending += c;
+            if pending >= min_bin_rows {
+                next += 1;
+                pending = 0;
+            }
+        }
+        if pending > 0 && next > 0 {
+            for l in label.iter_mut().filter(|l| **l == next) {
+                *l = next - 1;
+            }
+        } else if pending > 0 {
+            next = 1;
+        }
+        let n_fine = next.max(1) as usize;
+        if n_fine == 1 {
+            let (k, &most) = counts
+                .iter()
+                .enumerate()
+                .max_by_key(|(_, c)| **c)
+                .unwrap_or((0, &0));
+            return Err(Unusable::NearlyConstant {
+                value: present[k] as f64,
+                others: codes.len() - most,
+            });
+        }
+        let mut fine_of = [0u16; 256];
+        for (&c, &l) in present.iter().zip(&label) {
+            fine_of[c] = l;
+        }
+        Ok(Binned {
+            fine: codes.iter().map(|&c| fine_of[c as usize]).collect(),
+            n_fine,
+            kind: BinKind::Discrete,
+            levels: vec![ONE_BIN, 0],
+        })
+    }
+
     /// Number of slots (non-missing bins, then the missing bin) at level `shift`.
     pub(super) fn slots(&self, shift: u32) -> usize {
         self.defined_bins(shift) + 1
@@ -600,38 +663,47 @@ impl Permuted<'_> {
             }
         }
     }
+}
 
-    /// Σ(w − w̄)² of the signed permuted residual w = permuted × `direction`, given Σw
-    /// (`signed_sum`, from [`SlotTable::accumulate_permuted`]): the very bits of
-    /// `stats::sum_sq_about_mean` of that product (the same sums in the same order).
-    pub(crate) fn signed_sst(&self, direction: &[f64], signed_sum: f64) -> f64 {
-        let m = signed_sum / direction.len() as f64;
-        let mut ss = -0.0;
-        self.for_each_run(|k, run| {
-            ss = sq_dev_sum(run, &direction[k..k + run.len()], m, ss);
-        });
-        ss
-    }
+/// Σ(w − w̄)² of `n` values from their sum and their sum of squares: Σw² − (Σw)²/n (never
+/// below 0). The permutation test's signed sum of squares, from the sums the fused pass
+/// takes as it reads the permuted residual ([`SlotTable::accumulate_permuted`],
+/// [`SlotTable::accumulate_lanes`]) instead of a second pass for the deviations from the
+/// mean: the same value as `stats::sum_sq_about_mean` up to rounding — within 1e-12
+/// relative wherever the mean is small against the spread, as it is for a permuted
+/// residual (the residual is centred, so the signed mean is a sum of ± terms; tested) — not
+/// the same bits.
+#[inline]
+pub(crate) fn sst_of_sums(sum: f64, sq: f64, n: usize) -> f64 {
+    (sq - sum * sum / n as f64).max(0.0)
+}
+
+/// [`sst_of_sums`] of `w`, its sums taken in row order as the fused pass takes them (Σw
+/// from −0, Σw² from 0): the statistic of a materialised signed residual.
+pub(crate) fn sst_one_pass(w: &[f64]) -> f64 {
+    let (sum, sq) = w.iter().fold((-0.0, 0.0), |(s, q), &x| (s + x, q + x * x));
+    sst_of_sums(sum, sq, w.len())
 }
 
 impl SlotTable {
     /// [`SlotTable::accumulate`] of a permuted residual read in place, the signed residual
     /// being the permuted one times `direction` (unused, and may be empty, when no feature is
-    /// signed). Returns Σ of the signed residual in row order (−0 when none is signed). The
-    /// same additions in the same order as [`SlotTable::accumulate`] of the materialised
-    /// permutation and its product (tested).
+    /// signed). Returns Σ of the signed residual in row order (−0 when none is signed) and
+    /// Σ of its squares (0 when none is signed; for [`sst_of_sums`]). The same additions in
+    /// the same order as [`SlotTable::accumulate`] of the materialised permutation and its
+    /// product (tested).
     pub(crate) fn accumulate_permuted(
         &self,
         y: &Permuted<'_>,
         direction: &[f64],
         acc: &mut [f64],
         acc_signed: &mut [f64],
-    ) -> f64 {
+    ) -> (f64, f64) {
         acc.iter_mut().for_each(|a| *a = 0.0);
         let m = self.m;
-        let mut signed_sum = -0.0;
+        let mut signed = (-0.0, 0.0);
         if m == 0 {
-            return signed_sum;
+            return signed;
         }
         let offset = &self.offset[..m];
         let ms = self.signed;
@@ -646,7 +718,7 @@ impl SlotTable {
             } else if ms == 0 {
                 add_rows(rows, m, offset, run, acc);
             } else if self.steady {
-                signed_sum = add_rows_signed_held(
+                signed = add_rows_signed_held(
                     rows,
                     m,
                     ms,
@@ -655,10 +727,10 @@ impl SlotTable {
                     &direction[k..k + run.len()],
                     acc,
                     acc_signed,
-                    signed_sum,
+                    signed,
                 );
             } else {
-                signed_sum = add_rows_signed(
+                signed = add_rows_signed(
                     rows,
                     m,
                     ms,
@@ -667,11 +739,11 @@ impl SlotTable {
                     &direction[k..k + run.len()],
                     acc,
                     acc_signed,
-                    signed_sum,
+                    signed,
                 );
             }
         });
-        signed_sum
+        signed
     }
 
     /// Features whose sums of the signed residual are taken.
@@ -802,6 +874,16 @@ fn scale_lanes(v: &[f64; LANES], d: f64) -> [f64; LANES] {
     w
 }
 
+/// `a[l]·b[l]` for every lane (one vector multiplication).
+#[inline(always)]
+fn mul_lanes(a: &[f64; LANES], b: &[f64; LANES]) -> [f64; LANES] {
+    let mut w = [0.0; LANES];
+    for l in 0..LANES {
+        w[l] = a[l] * b[l];
+    }
+    w
+}
+
 /// `a[l] += v[l]` for every lane (one vector addition; each lane its own IEEE sum).
 #[inline(always)]
 fn add_lanes(a: &mut [f64; LANES], v: &[f64; LANES]) {
@@ -815,7 +897,7 @@ impl SlotTable {
     /// rows > 1) at once: `acc[s][l]` is lane `l`'s sum of slot `s`, `acc_signed` the same
     /// for the signed residual (permuted × `direction`; unused, and may be empty, when no
     /// feature is signed). Returns each lane's Σ of the signed residual in row order (−0 when
-    /// none is signed). Each lane's sums take the same additions in the same order as
+    /// none is signed) and Σ of its squares (0 when none is signed). Each lane's sums take the same additions in the same order as
     /// [`SlotTable::accumulate_permuted`] of that lane's permutation, so they are the same
     /// bits (tested); the lanes of one row are added by one vector instruction. Runs the
     /// AVX2 copy when the CPU has it (lane-wise additions and products, no fused
@@ -830,7 +912,7 @@ impl SlotTable {
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> [f64; LANES] {
+    ) -> ([f64; LANES], [f64; LANES]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
@@ -857,7 +939,7 @@ impl SlotTable {
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> [f64; LANES] {
+    ) -> ([f64; LANES], [f64; LANES]) {
         self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
     }
 
@@ -873,13 +955,14 @@ impl SlotTable {
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> [f64; LANES] {
+    ) -> ([f64; LANES], [f64; LANES]) {
         let m = self.m;
         let mut sum = [-0.0; LANES];
+        let mut sq = [0.0; LANES];
         acc.clear();
         acc.resize(self.len(), [0.0; LANES]);
         if m == 0 {
-            return sum;
+            return (sum, sq);
         }
         let ms = self.signed;
         if ms > 0 {
@@ -908,6 +991,7 @@ impl SlotTable {
                     let v = *v;
                     let w = scale_lanes(&v, dt);
                     add_lanes(&mut sum, &w);
+                    add_lanes(&mut sq, &mul_lanes(&w, &w));
                     for (&c, &o) in row.iter().zip(offset) {
                         add_lanes(&mut acc[o + c as usize], &v);
                     }
@@ -917,70 +1001,8 @@ impl SlotTable {
                 }
             }
         }
-        sum
+        (sum, sq)
     }
-
-    /// [`Permuted::signed_sst`] of [`LANES`] block permutations at once (`signed_sum`: each
-    /// lane's Σ from [`SlotTable::accumulate_lanes`]): each lane the very bits of
-    /// `stats::sum_sq_about_mean` of its signed residual (tested).
-    pub(crate) fn signed_sst_lanes(
-        y: &[f64],
-        block: usize,
-        lanes: &[BlockLane<'_>; LANES],
-        direction: &[f64],
-        signed_sum: [f64; LANES],
-        buf: &mut Vec<[f64; LANES]>,
-    ) -> [f64; LANES] {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { signed_sst_lanes_avx2(y, block, lanes, direction, signed_sum, buf) };
-        }
-        signed_sst_lanes_portable(y, block, lanes, direction, signed_sum, buf)
-    }
-}
-
-/// [`SlotTable::signed_sst_lanes`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn signed_sst_lanes_avx2(
-    y: &[f64],
-    block: usize,
-    lanes: &[BlockLane<'_>; LANES],
-    direction: &[f64],
-    signed_sum: [f64; LANES],
-    buf: &mut Vec<[f64; LANES]>,
-) -> [f64; LANES] {
-    signed_sst_lanes_portable(y, block, lanes, direction, signed_sum, buf)
-}
-
-/// [`SlotTable::signed_sst_lanes`] for any CPU: per lane, `ss += (w − m)·(w − m)` in row
-/// order from −0, as [`sq_dev_sum`].
-#[inline(always)]
-fn signed_sst_lanes_portable(
-    y: &[f64],
-    block: usize,
-    lanes: &[BlockLane<'_>; LANES],
-    direction: &[f64],
-    signed_sum: [f64; LANES],
-    buf: &mut Vec<[f64; LANES]>,
-) -> [f64; LANES] {
-    let mean = signed_sum.map(|s| s / direction.len() as f64);
-    let mut ss = [-0.0; LANES];
-    buf.resize(CHUNK, [0.0; LANES]);
-    let mut chunks = Chunks::new(y, block, lanes);
-    while let Some((k, c)) = chunks.next(buf) {
-        for (v, &dt) in buf[..c].iter().zip(&direction[k..k + c]) {
-            for l in 0..LANES {
-                let w = v[l] * dt;
-                ss[l] += (w - mean[l]) * (w - mean[l]);
-            }
-        }
-    }
-    ss
 }
 
 /// Most features [`add_rows_held`] takes.
@@ -1038,7 +1060,8 @@ fn add_rows(codes: &[u8], m: usize, offset: &[usize], run: &[f64], acc: &mut [f6
 }
 
 /// [`add_rows`], and `run[t]·d[t]` into `acc_signed` for the first `ms` features; returns
-/// `sum` plus every `run[t]·d[t]` in row order (a local chain, kept in a register).
+/// `(sum, sq)` plus every `run[t]·d[t]` and its square in row order (local chains, kept in
+/// registers).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn add_rows_signed(
@@ -1050,11 +1073,12 @@ fn add_rows_signed(
     d: &[f64],
     acc: &mut [f64],
     acc_signed: &mut [f64],
-    mut sum: f64,
-) -> f64 {
+    (mut sum, mut sq): (f64, f64),
+) -> (f64, f64) {
     for (t, (&v, &dt)) in run.iter().zip(d).enumerate() {
         let w = v * dt;
         sum += w;
+        sq += w * w;
         let row = &codes[t * m..(t + 1) * m];
         for (&c, &o) in row.iter().zip(offset) {
             acc[o + c as usize] += v;
@@ -1063,7 +1087,7 @@ fn add_rows_signed(
             acc_signed[o + c as usize] += w;
         }
     }
-    sum
+    (sum, sq)
 }
 
 /// [`add_rows_signed`] (m ≤ [`HELD_MAX`]) with each feature's current slots (plain and
@@ -1078,8 +1102,8 @@ fn add_rows_signed_held(
     d: &[f64],
     acc: &mut [f64],
     acc_signed: &mut [f64],
-    sum: f64,
-) -> f64 {
+    sum: (f64, f64),
+) -> (f64, f64) {
     let f = match m {
         1 => add_rows_signed_held_m::<1>,
         2 => add_rows_signed_held_m::<2>,
@@ -1101,10 +1125,10 @@ fn add_rows_signed_held_m<const M: usize>(
     d: &[f64],
     acc: &mut [f64],
     acc_signed: &mut [f64],
-    mut sum: f64,
-) -> f64 {
+    (mut sum, mut sq): (f64, f64),
+) -> (f64, f64) {
     if run.is_empty() {
-        return sum;
+        return (sum, sq);
     }
     let off: [usize; M] = std::array::from_fn(|j| offset[j]);
     let mut slot: [usize; M] = std::array::from_fn(|j| off[j] + codes[j] as usize);
@@ -1114,6 +1138,7 @@ fn add_rows_signed_held_m<const M: usize>(
     for ((row, &v), &dt) in codes.chunks_exact(M).zip(run).zip(d) {
         let w = v * dt;
         sum += w;
+        sq += w * w;
         for j in 0..M {
             let s = off[j] + row[j] as usize;
             if s != slot[j] {
@@ -1137,17 +1162,7 @@ fn add_rows_signed_held_m<const M: usize>(
             acc_signed[slot[j]] = held_s[j];
         }
     }
-    sum
-}
-
-/// `ss` plus Σ(run[t]·d[t] − m)² in row order (a local chain, kept in a register).
-#[inline]
-fn sq_dev_sum(run: &[f64], d: &[f64], m: f64, mut ss: f64) -> f64 {
-    for (&v, &dt) in run.iter().zip(d) {
-        let w = v * dt;
-        ss += (w - m) * (w - m);
-    }
-    ss
+    (sum, sq)
 }
 
 /// p-value of a one-way ANOVA with between-group sum of squares `ssb`, total `sst`, `groups`
@@ -1189,7 +1204,7 @@ pub(crate) fn f_test_ln_p(ssb: f64, sst: f64, groups: usize, n: usize) -> f64 {
 /// `total_cmp` and keeping each value greater than the last kept gives (values equal as
 /// numbers, −0 and +0, count once, as the first of them in that order). Found in one pass
 /// with a small sorted list for finite values; a sort otherwise (`x` is then left sorted).
-fn smallest_distinct(x: &mut [f64], limit: usize) -> Vec<f64> {
+pub(super) fn smallest_distinct(x: &mut [f64], limit: usize) -> Vec<f64> {
     if limit == 0 || x.iter().any(|v| v.is_nan()) {
         return sorted_distinct_reference(x, limit);
     }
@@ -1232,7 +1247,7 @@ fn sorted_distinct_reference(x: &mut [f64], limit: usize) -> Vec<f64> {
 
 /// The values at `ranks` (ascending, each < `x.len()`) of `x` sorted by `total_cmp`, by
 /// nested selection (`x` is reordered): O(n·log(ranks)) instead of a sort, the same values.
-fn order_statistics(x: &mut [f64], ranks: &[usize]) -> Vec<f64> {
+pub(super) fn order_statistics(x: &mut [f64], ranks: &[usize]) -> Vec<f64> {
     /// Fills `out[i]` with the value at rank `ranks[i]` (distinct, ascending) of `x`, whose
     /// first element has rank `base`.
     fn select(x: &mut [f64], base: usize, ranks: &[usize], out: &mut [f64]) {

@@ -834,12 +834,14 @@ fn shuffle_rows_equals_the_plain_shuffle() {
 }
 
 /// Reference: the fused pass over a materialised permutation ([`SlotTable::accumulate`] of
-/// [`block_permute_reference`]'s output and its product with the direction) and
-/// `stats::sum_sq_about_mean` of that product. Reading the permutation in place
+/// [`block_permute_reference`]'s output and its product with the direction), and the sum and
+/// sum of squares of that product in row order. Reading the permutation in place
 /// ([`SlotTable::accumulate_permuted`] over [`Permuted`] runs, with prefetching, the signed
-/// residual multiplied as it is read) must give the same sums and the same signed sum of
+/// residual multiplied as it is read) must give the same sums, signed sum and signed sum of
 /// squares bit for bit, for row and block permutations, blocks that do and do not divide the
-/// length, and a length past the prefetch distance.
+/// length, and a length past the prefetch distance; the signed sum of squares about the mean
+/// from them ([`sst_of_sums`]) is within 1e-12 relative of the two-pass
+/// `stats::sum_sq_about_mean`.
 #[test]
 fn permutation_read_in_place_equals_the_materialised_one() {
     let t = table(23, 4001);
@@ -888,19 +890,14 @@ fn permutation_read_in_place_equals_the_materialised_one() {
                 };
                 let (mut got, mut got_s) = (vec![f64::NAN; table.len()], vec![0.0; table.len()]);
                 let d: &[f64] = if signed > 0 { &dir } else { &[] };
-                let sum = table.accumulate_permuted(&permuted, d, &mut got, &mut got_s);
+                let (sum, sq) = table.accumulate_permuted(&permuted, d, &mut got, &mut got_s);
                 let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&got), bits(&want), "block {block} seed {seed}");
                 if signed > 0 {
                     // The signed features' slots come first.
                     let end: usize = bins[..signed].iter().map(|b| b.n_fine + 1).sum();
                     assert_eq!(bits(&got_s[..end]), bits(&want_s[..end]), "signed {block}");
-                    let sst = permuted.signed_sst(&dir, sum);
-                    assert_eq!(
-                        sst.to_bits(),
-                        stats::sum_sq_about_mean(&product).to_bits(),
-                        "block {block} seed {seed}"
-                    );
+                    assert_signed_sums(&product, sum, sq, &format!("block {block} seed {seed}"));
                 }
             }
         }
@@ -947,7 +944,7 @@ fn held_slots_equal_the_accumulator_pass() {
                 let (mut got, mut got_s) =
                     (vec![f64::NAN; table.len()], vec![f64::NAN; table.len()]);
                 let d: &[f64] = if signed > 0 { &dir } else { &[] };
-                let sum =
+                let (sum, sq) =
                     table.accumulate_permuted(&Permuted::Rows(&rows), d, &mut got, &mut got_s);
                 let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 let what = format!("{} features, {signed} signed, seed {seed}", refs.len());
@@ -955,8 +952,7 @@ fn held_slots_equal_the_accumulator_pass() {
                 if signed > 0 {
                     let end: usize = refs[..signed].iter().map(|b| b.n_fine + 1).sum();
                     assert_eq!(bits(&got_s[..end]), bits(&want_s[..end]), "{what}");
-                    let serial = product.iter().fold(-0.0, |a, x| a + x);
-                    assert_eq!(sum.to_bits(), serial.to_bits(), "{what}");
+                    assert_signed_sums(&product, sum, sq, &what);
                 }
             }
         }
@@ -965,11 +961,11 @@ fn held_slots_equal_the_accumulator_pass() {
 
 /// Reference: the fused pass over each materialised permutation ([`SlotTable::accumulate`] of
 /// [`block_permute_reference`]'s output and its product with the direction) and
-/// `stats::sum_sq_about_mean` of that product. [`SlotTable::accumulate_lanes`] — four block
-/// permutations gathered chunk by chunk and summed side by side in the lanes of one vector —
-/// and [`SlotTable::signed_sst_lanes`] must give every lane the same sums and signed sum of
-/// squares bit for bit, for blocks that do and do not divide the length, blocks longer than a
-/// chunk, a length that is not a whole number of chunks, with and without signed features.
+/// the sum and sum of squares of that product in row order. [`SlotTable::accumulate_lanes`] —
+/// four block permutations gathered chunk by chunk and summed side by side in the lanes of
+/// one vector — must give every lane the same sums, signed sum and signed sum of squares bit
+/// for bit, for blocks that do and do not divide the length, blocks longer than a chunk, a
+/// length that is not a whole number of chunks, with and without signed features.
 #[test]
 fn lanes_of_block_permutations_equal_the_materialised_ones() {
     let t = table(29, 4001);
@@ -1003,13 +999,8 @@ fn lanes_of_block_permutations_equal_the_materialised_ones() {
                 });
                 let d: &[f64] = if signed > 0 { &dir } else { &[] };
                 let (mut buf, mut acc, mut acc_s) = (Vec::new(), Vec::new(), Vec::new());
-                let sum =
+                let (sum, sq) =
                     table.accumulate_lanes(&r, block, &lanes, d, &mut buf, &mut acc, &mut acc_s);
-                let sst = if signed > 0 {
-                    SlotTable::signed_sst_lanes(&r, block, &lanes, &dir, sum, &mut buf)
-                } else {
-                    [0.0; LANES]
-                };
                 for l in 0..LANES {
                     let mut materialised = vec![0.0; n];
                     block_permute_reference(&r, block, &mut materialised, &mut stream(l));
@@ -1027,18 +1018,72 @@ fn lanes_of_block_permutations_equal_the_materialised_ones() {
                         let end: usize = bins[..signed].iter().map(|b| b.n_fine + 1).sum();
                         let got_s: Vec<f64> = acc_s[..end].iter().map(|a| a[l]).collect();
                         assert_eq!(bits(&got_s), bits(&want_s[..end]), "signed {block} {l}");
-                        let want_sum = product.iter().fold(-0.0, |s, w| s + w);
-                        assert_eq!(sum[l].to_bits(), want_sum.to_bits(), "sum {block} {l}");
-                        assert_eq!(
-                            sst[l].to_bits(),
-                            stats::sum_sq_about_mean(&product).to_bits(),
-                            "sst block {block} seed {seed} lane {l}"
-                        );
+                        let what = format!("block {block} seed {seed} lane {l}");
+                        assert_signed_sums(&product, sum[l], sq[l], &what);
                     }
                 }
             }
         }
     }
+}
+
+/// The signed sums a fused pass returned for the signed residual `product` (materialised):
+/// Σw from −0 and Σw² from 0 in row order, bit for bit; and the sum of squares about the mean
+/// from them ([`sst_of_sums`], what the permutation test uses) within 1e-12 relative of the
+/// two-pass `stats::sum_sq_about_mean` (the reference), and equal to [`sst_one_pass`].
+fn assert_signed_sums(product: &[f64], sum: f64, sq: f64, what: &str) {
+    let want_sum = product.iter().fold(-0.0, |s, w| s + w);
+    let want_sq = product.iter().fold(0.0, |s, w| s + w * w);
+    assert_eq!(sum.to_bits(), want_sum.to_bits(), "sum {what}");
+    assert_eq!(sq.to_bits(), want_sq.to_bits(), "sum of squares {what}");
+    let one = sst_of_sums(sum, sq, product.len());
+    assert_eq!(one.to_bits(), sst_one_pass(product).to_bits(), "{what}");
+    let two = stats::sum_sq_about_mean(product);
+    assert!((one - two).abs() <= 1e-12 * two, "{what}: {one} vs {two}");
+}
+
+/// Reference: the two-pass `stats::sum_sq_about_mean` (the mean first, then the squared
+/// deviations) of each permuted signed residual. The one-pass value the permutation test
+/// takes from the fused pass's sums, Σw² − (Σw)²/n ([`sst_one_pass`]), must be within 1e-12
+/// relative of it on 200,000 rows of a residual with a direction offset and slow drift, for
+/// row and block permutations, and on the unpermuted signed residual (mean 0.4 of a spread
+/// of about 1). The largest relative difference seen is printed (`--nocapture`).
+#[test]
+fn one_pass_signed_sum_of_squares_is_within_1e_12_of_the_two_pass() {
+    let n = 200_000;
+    let mut rng = SimRng::new(31);
+    let dir: Vec<f64> = (0..n)
+        .map(|i| {
+            if i < 3 {
+                0.0
+            } else {
+                [1.0, -1.0][rng.below(2) as usize]
+            }
+        })
+        .collect();
+    let r: Vec<f64> = (0..n)
+        .map(|i| 0.4 * dir[i] + (i as f64 * 1e-4).sin() + rng.normal())
+        .collect();
+    let mean = stats::mean(&r).unwrap_or(0.0);
+    let y: Vec<f64> = r.iter().map(|v| v - mean).collect();
+    let mut worst = 0.0f64;
+    let mut check = |w: &[f64]| {
+        let (one, two) = (sst_one_pass(w), stats::sum_sq_about_mean(w));
+        let rel = (one - two).abs() / two;
+        assert!(rel <= 1e-12, "{one} vs {two}: {rel:e}");
+        worst = worst.max(rel);
+    };
+    let signed: Vec<f64> = y.iter().zip(&dir).map(|(a, b)| a * b).collect();
+    check(&signed);
+    let mut out = vec![0.0; n];
+    for block in [1, 8, 200] {
+        for seed in 0..10 {
+            block_permute(&y, block, &mut out, &mut SimRng::substream(seed, 3));
+            let w: Vec<f64> = out.iter().zip(&dir).map(|(a, b)| a * b).collect();
+            check(&w);
+        }
+    }
+    println!("largest relative difference one-pass vs two-pass: {worst:e}");
 }
 
 /// Reference: the clip as first written, with the median and the MAD read from sorted

@@ -73,22 +73,52 @@ impl SimRng {
 
     /// `below(k + 1)` for k = `hi`, `hi` − 1, …, `lo` (in that order, `lo` ≤ `hi`), appended to
     /// `out`: the same values and the same generator state afterwards as those calls one by
-    /// one (tested). The draws come first and the reductions `v mod (k + 1)` after, in a loop
-    /// without divisions where k + 1 ≥ 2¹⁶ (an exact quotient from a floating-point estimate,
-    /// vectorised on a CPU with AVX-512), which is what a shuffle's long run of draws costs.
+    /// one (tested). The draws come first, in bulk (the generator's output copied as bytes:
+    /// the same `u64`s, little-endian, as one `next_u64` after another), and the reductions
+    /// `v mod (k + 1)` after, in a loop without divisions where k + 1 ≥ 2¹⁶ (an exact quotient
+    /// from a floating-point estimate, vectorised on a CPU with AVX-512), which is what a
+    /// shuffle's long run of draws costs.
     pub(crate) fn below_descending(&mut self, lo: u64, hi: u64, out: &mut Vec<u64>) {
         let start = out.len();
-        for k in (lo..=hi).rev() {
-            let n = k + 1;
-            loop {
-                let v = self.inner.next_u64();
-                if accept(v, n) {
-                    out.push(v);
-                    break;
+        let count = (hi - lo + 1) as usize;
+        out.resize(start + count, 0);
+        self.fill_u64(&mut out[start..]);
+        // Every draw at most u64::MAX − (hi + 1) is accepted for every modulus ≤ hi + 1; a
+        // larger one (probability about hi / 2⁶⁴ a draw) may be rejected: then the drawn
+        // values are taken one by one as the loop of `below` calls takes them, the stream
+        // continuing after them where more are needed.
+        let sure = u64::MAX - (hi + 1);
+        if out[start..].iter().any(|&v| v > sure) {
+            let mut drawn = out.drain(start..).collect::<Vec<u64>>().into_iter();
+            for k in (lo..=hi).rev() {
+                let n = k + 1;
+                loop {
+                    let v = drawn.next().unwrap_or_else(|| self.inner.next_u64());
+                    if accept(v, n) {
+                        out.push(v);
+                        break;
+                    }
                 }
             }
         }
         reduce_descending(&mut out[start..], hi + 1);
+    }
+
+    /// Fills `out` with the next `out.len()` raw draws: the same values and the same
+    /// generator state afterwards as that many [`SimRng::next_u64`] calls (the generator's
+    /// 32-bit words taken in pairs, low word first, which is how its byte output orders
+    /// them; tested).
+    fn fill_u64(&mut self, out: &mut [u64]) {
+        let mut bytes = [0u8; 512];
+        for chunk in out.chunks_mut(bytes.len() / 8) {
+            let b = &mut bytes[..chunk.len() * 8];
+            self.inner.fill_bytes(b);
+            for (v, le) in chunk.iter_mut().zip(b.chunks_exact(8)) {
+                let mut w = [0u8; 8];
+                w.copy_from_slice(le);
+                *v = u64::from_le_bytes(w);
+            }
+        }
     }
 }
 
@@ -228,11 +258,15 @@ mod tests {
                 assert_eq!(a.below(n), below_reference(&mut b, n), "n {n}");
             }
         }
+        // The last two: moduli near 2⁶³ and 2⁶², where a quarter to a half of the draws
+        // are rejected (the bulk draw's one-by-one path).
         for (lo, hi) in [
             (0u64, 10u64),
             (1, 70_000),
             (65_530, 65_540),
             (999_000, 1_000_000),
+            (u64::MAX / 2 - 40, u64::MAX / 2),
+            (u64::MAX / 4 + 1, u64::MAX / 4 + 60),
         ] {
             let (mut a, mut b) = (SimRng::substream(3, lo), SimRng::substream(3, lo));
             let mut fast = vec![7];
@@ -242,6 +276,20 @@ mod tests {
                 .collect();
             assert_eq!(fast, slow, "{lo}..={hi}");
             assert_eq!(a.next_u64(), b.next_u64());
+        }
+        // The bulk draw alone, from every offset in the generator's buffer of words (an odd
+        // one too: a pair of words across two of its blocks).
+        for skip in 0..70u64 {
+            let (mut a, mut b) = (SimRng::new(skip), SimRng::new(skip));
+            for _ in 0..skip {
+                let _ = a.inner.next_u32();
+                let _ = b.inner.next_u32();
+            }
+            let mut bulk = vec![0u64; 1000 + skip as usize];
+            a.fill_u64(&mut bulk);
+            let one_by_one: Vec<u64> = (0..bulk.len()).map(|_| b.next_u64()).collect();
+            assert_eq!(bulk, one_by_one, "skip {skip}");
+            assert_eq!(a.next_u64(), b.next_u64(), "skip {skip}");
         }
         // The reduction alone, at the ends of the range of v and of n.
         let mut r = SimRng::new(11);
