@@ -86,17 +86,18 @@ pub(crate) fn keep_needed(model: &FittedModel, prediction: &mut Prediction) {
 /// For every adaptive term of `model`: diagnose residual + its contribution (replayed in
 /// `prediction`, rows aligned with `table`) against every non-time candidate, and report the
 /// flagged ones that explain at least `config.min_effect` of it and clearly more than of the
-/// residual alone.
+/// residual alone. The sum is made in place of the contribution (taken from `prediction`,
+/// which keeps an empty vector there), so no third vector of the log's length is held.
 pub(crate) fn absorbed(
     model: &FittedModel,
     table: &FeatureTable,
-    prediction: &Prediction,
+    prediction: &mut Prediction,
     config: &CheckedDiagnoseConfig,
 ) -> Result<Vec<Absorption>, DiagnoseError> {
     let mut out = Vec::new();
     let reduced = table.without(|c| super::is_time(c.origin));
     for (t, name) in prediction.term_names.iter().enumerate() {
-        let Some(contribution) = prediction.contributions.get(t) else {
+        let Some(contribution) = prediction.contributions.get_mut(t) else {
             continue;
         };
         let Some(term) = model.terms.iter().find(|f| f.term.name() == *name) else {
@@ -105,12 +106,11 @@ pub(crate) fn absorbed(
         if !adaptive(contribution, &term.term.param_names()) {
             continue;
         }
-        let y: Vec<f64> = prediction
-            .residual
-            .iter()
-            .zip(contribution)
-            .map(|(r, c)| r + c)
-            .collect();
+        // residual + contribution (`c + r` is `r + c` bit for bit: IEEE addition commutes).
+        let mut y = std::mem::take(contribution);
+        y.iter_mut()
+            .zip(&prediction.residual)
+            .for_each(|(c, r)| *c += r);
         let with = diagnose(&reduced, &y, config)?;
         let plain = diagnose(&reduced, &prediction.residual, config)?;
         for f in with.features.iter().filter(|f| f.flagged) {

@@ -137,7 +137,8 @@ impl Narrow for f64 {
     }
 }
 
-/// A column's stored values ([`FeatureColumn`]): the narrowest exact type.
+/// A column's stored values ([`FeatureColumn`]): the narrowest exact type, or a time
+/// feature made from the measured rows' times on demand ([`Times`]).
 #[derive(Debug, Clone)]
 enum Values {
     I8(Arc<[i8]>),
@@ -145,9 +146,44 @@ enum Values {
     I32(Arc<[i32]>),
     F32(Arc<[f32]>),
     F64(Arc<[f64]>),
+    /// `elapsed_s` or `dwell_s` of the shared times.
+    Time(Arc<Times>, TimeKind),
 }
 
-/// Dispatches `$body` on the stored slice `$v` of a [`Values`] or [`Builder`] (same variants).
+/// The times of the measured rows, shared by `elapsed_s` and `dwell_s` (8 B a row for both
+/// instead of 8 each): `elapsed_s` of row `i` is `t[i] − start`, `dwell_s` is
+/// `t[i] − t[i − 1]` (`first_dwell` for row 0, whose previous row may be an unmeasured one).
+/// Used only where every row's value equals the replay's bit for bit (checked as the table
+/// is built; a log with unmeasured rows between measured ones keeps `dwell_s` stored).
+#[derive(Debug)]
+struct Times {
+    t: Vec<f64>,
+    start: f64,
+    first_dwell: f64,
+}
+
+/// Which time feature a [`Values::Time`] column is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TimeKind {
+    Elapsed,
+    Dwell,
+}
+
+impl Times {
+    #[inline]
+    fn value(&self, kind: TimeKind, i: usize) -> Option<f64> {
+        let t = *self.t.get(i)?;
+        Some(match kind {
+            TimeKind::Elapsed => t - self.start,
+            TimeKind::Dwell => match i.checked_sub(1) {
+                Some(p) => t - self.t[p],
+                None => self.first_dwell,
+            },
+        })
+    }
+}
+
+/// Dispatches `$body` on the stored slice `$v` of a [`Builder`].
 macro_rules! each {
     ($e:expr, $ty:ident, $v:ident => $body:expr) => {
         match $e {
@@ -160,33 +196,50 @@ macro_rules! each {
     };
 }
 
+/// [`each!`] for a [`Values`]: `$time` for a [`Values::Time`] column (`$t`: its times,
+/// `$k`: its kind).
+macro_rules! each_value {
+    ($e:expr, $v:ident => $body:expr, ($t:ident, $k:ident) => $time:expr) => {
+        match $e {
+            Values::I8($v) => $body,
+            Values::I16($v) => $body,
+            Values::I32($v) => $body,
+            Values::F32($v) => $body,
+            Values::F64($v) => $body,
+            Values::Time($t, $k) => $time,
+        }
+    };
+}
+
 impl Values {
     fn len(&self) -> usize {
-        each!(self, Values, v => v.len())
+        each_value!(self, v => v.len(), (t, _k) => t.t.len())
     }
 
     /// The value at row `i` (NaN = undefined); `None` out of range.
     #[inline]
     fn at(&self, i: usize) -> Option<f64> {
-        each!(self, Values, v => v.get(i).map(|x| x.decode()))
+        each_value!(self, v => v.get(i).map(|x| x.decode()), (t, k) => t.value(*k, i))
     }
 
     /// Every value as `f64` (borrowed when stored as `f64`).
     fn to_f64(&self) -> std::borrow::Cow<'_, [f64]> {
         match self {
             Values::F64(v) => std::borrow::Cow::Borrowed(v),
-            other => std::borrow::Cow::Owned(
-                each!(other, Values, v => v.iter().map(|x| x.decode()).collect()),
-            ),
+            other => std::borrow::Cow::Owned(each_value!(
+                other,
+                v => v.iter().map(|x| x.decode()).collect(),
+                (t, k) => (0..t.t.len()).filter_map(|i| t.value(*k, i)).collect()
+            )),
         }
     }
 
-    /// Bytes a row.
+    /// Bytes a row (a time column: half of the shared 8 B of times, 4).
     fn width(&self) -> usize {
         match self {
             Values::I8(_) => 1,
             Values::I16(_) => 2,
-            Values::I32(_) | Values::F32(_) => 4,
+            Values::I32(_) | Values::F32(_) | Values::Time(..) => 4,
             Values::F64(_) => 8,
         }
     }
@@ -288,6 +341,80 @@ impl Builder {
             Builder::I32(v) => Values::I32(v.into()),
             Builder::F32(v) => Values::F32(v.into()),
             Builder::F64(v) => Values::F64(v.into()),
+        }
+    }
+}
+
+/// The measured rows' times and whether `elapsed_s` and `dwell_s` can be made from them
+/// ([`Times`]): each row's derived value is compared bit for bit with the replay's as the
+/// table is built.
+struct TimesBuilder {
+    times: Times,
+    elapsed: bool,
+    dwell: bool,
+}
+
+impl TimesBuilder {
+    /// For a log whose first row's time is `start` (`None`: no rows), with room for
+    /// `measured` rows.
+    fn new(start: Option<f64>, measured: usize) -> TimesBuilder {
+        TimesBuilder {
+            times: Times {
+                t: Vec::with_capacity(measured),
+                start: start.unwrap_or(0.0),
+                first_dwell: 0.0,
+            },
+            elapsed: start.is_some(),
+            dwell: true,
+        }
+    }
+
+    /// The next measured row: its time and the replay's `elapsed_s` and `dwell_s` (NaN:
+    /// undefined, which no derived value matches).
+    #[inline]
+    fn push(&mut self, time: f64, elapsed: f64, dwell: f64) {
+        if !(self.elapsed || self.dwell) {
+            return;
+        }
+        let t = &mut self.times;
+        if t.t.is_empty() {
+            t.first_dwell = dwell;
+        }
+        t.t.push(time);
+        let i = t.t.len() - 1;
+        let same = |kind, want: f64| {
+            t.value(kind, i)
+                .is_some_and(|v| v.to_bits() == want.to_bits() && !want.is_nan())
+        };
+        self.elapsed &= same(TimeKind::Elapsed, elapsed);
+        self.dwell &= same(TimeKind::Dwell, dwell);
+    }
+
+    fn finish(self) -> FinishedTimes {
+        let TimesBuilder {
+            mut times,
+            elapsed,
+            dwell,
+        } = self;
+        if !(elapsed || dwell) {
+            return FinishedTimes(None);
+        }
+        times.t.shrink_to_fit();
+        FinishedTimes(Some((Arc::new(times), elapsed, dwell)))
+    }
+}
+
+/// The shared times and which of `elapsed_s`, `dwell_s` they make ([`TimesBuilder::finish`]).
+struct FinishedTimes(Option<(Arc<Times>, bool, bool)>);
+
+impl FinishedTimes {
+    /// The values of `feature` made from the times, if it is a time feature they make.
+    fn values(&self, feature: Feature) -> Option<Values> {
+        let (times, elapsed, dwell) = self.0.as_ref()?;
+        match feature {
+            Feature::ElapsedS if *elapsed => Some(Values::Time(times.clone(), TimeKind::Elapsed)),
+            Feature::DwellS if *dwell => Some(Values::Time(times.clone(), TimeKind::Dwell)),
+            _ => None,
         }
     }
 }
@@ -540,11 +667,17 @@ impl FeatureTable {
         let mut lines = LinesBuilder::default();
         let dense = crate::history::sampling(log.times(), log.tracks()).dense;
         let mut velocity = Builder::with_capacity(if dense { measured } else { 0 });
+        let mut times = TimesBuilder::new(log.times().first().copied(), measured);
         for (_, row, f) in history {
             if row.bias.is_none() {
                 continue;
             }
             lines.push(row.line);
+            times.push(
+                row.time_s,
+                stored(f.value(Feature::ElapsedS)),
+                stored(f.value(Feature::DwellS)),
+            );
             if dense {
                 // The rule of `viscous::velocity` without a column: 0 at a zero dwell or a
                 // quotient that is not finite.
@@ -561,13 +694,14 @@ impl FeatureTable {
                 col.push(stored(row.covariates.get(k).filter(|v| v.is_finite())));
             }
         }
+        let times = times.finish();
         let mut columns: Vec<FeatureColumn> = Feature::ALL
             .iter()
             .zip(builtin)
             .map(|(&feature, values)| FeatureColumn {
                 name: feature.name().to_string(),
                 origin: FeatureOrigin::BuiltIn(feature),
-                values: values.finish(),
+                values: times.values(feature).unwrap_or_else(|| values.finish()),
             })
             .collect();
         if dense {
@@ -784,6 +918,42 @@ mod storage_tests {
             check(&ints);
             let reals: Vec<f64> = (0..500).map(|_| rng.range(-1.0, 1.0) * scale).collect();
             check(&reals);
+        }
+    }
+
+    /// Reference: the seek-history replay's own `elapsed_s` and `dwell_s` at every measured
+    /// row. The table makes them from the shared times where every row matches bit for bit
+    /// (4 B a row each) and stores them otherwise: a log whose every row is measured makes
+    /// both; one with unmeasured rows between measured ones (and an unmeasured first row)
+    /// makes `elapsed_s` only.
+    #[test]
+    fn time_features_made_from_the_times_equal_the_replays() {
+        let full = crate::sim::random_log(3000, 5);
+        let mut gaps = full.clone();
+        for i in (0..3000).step_by(7) {
+            gaps.set_bias(i, None);
+        }
+        for (log, dwell_made) in [(&full, true), (&gaps, false)] {
+            let table = FeatureTable::from_log(log);
+            let want: Vec<(u64, u64)> = crate::history::replay(log)
+                .filter(|(_, r, _)| r.bias.is_some())
+                .map(|(_, _, f)| {
+                    let v = |x: Feature| f.value(x).expect("always defined").to_bits();
+                    (v(Feature::ElapsedS), v(Feature::DwellS))
+                })
+                .collect();
+            assert_eq!(want.len(), table.len());
+            let col = |name: &str| table.column(name).expect("a time feature");
+            let (elapsed, dwell) = (col("elapsed_s"), col("dwell_s"));
+            assert_eq!(elapsed.bytes_per_row(), 4);
+            assert_eq!(dwell.bytes_per_row(), if dwell_made { 4 } else { 8 });
+            let raw = (elapsed.raw(), dwell.raw());
+            for (i, &(e, d)) in want.iter().enumerate() {
+                assert_eq!(elapsed.get(i).map(f64::to_bits), Some(e), "row {i}");
+                assert_eq!(dwell.get(i).map(f64::to_bits), Some(d), "row {i}");
+                assert_eq!((raw.0[i].to_bits(), raw.1[i].to_bits()), (e, d), "row {i}");
+            }
+            assert_eq!(elapsed.get(want.len()), None);
         }
     }
 

@@ -539,6 +539,8 @@ pub fn diagnose(
             })
         })
         .collect();
+    // The signed residual served only the observed statistics.
+    drop(signed);
 
     let null_block = config
         .null_block
@@ -659,7 +661,6 @@ pub fn diagnose(
     // diagnosis's peak of memory otherwise).
     drop(analysed);
     drop(signed_residuals);
-    drop(signed);
     drop(y);
     // The residual's own statistics (one thread each: a sort for the dip test, the
     // Ljung–Box sums) run beside the pair screen instead of after it.
@@ -753,9 +754,10 @@ fn gain(
         by_direction: false,
     };
     if let Some(d) = direction.filter(|_| signable) {
-        let s = Signed::new(r, d);
-        let cv = smoother::cross_validate(b, &s.y, fold, folds);
-        let e = frac(s.sst / n, cv.mse);
+        // r × direction row by row, never stored (the values `Signed::new` would hold).
+        let signed = || r.iter().zip(d).map(|(v, d)| v * d);
+        let cv = smoother::cross_validate_rows(b, signed(), fold, folds);
+        let e = frac(sum_sq_about_mean_rows(signed) / n, cv.mse);
         if e > g.explained * (1.0 + NEAR_TIE) {
             g = Gain {
                 explained: e,
@@ -767,8 +769,36 @@ fn gain(
     g
 }
 
-/// `r` minus the out-of-fold prediction of `b`'s smoother as chosen by `g`.
+/// `r` minus the out-of-fold prediction of `b`'s smoother as chosen by `g`. Only the result
+/// is a vector: the signed residual and the predictions are read row by row
+/// ([`smoother::cv_fold_means`]; the same values as [`remove_reference`], tested).
 fn remove(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
+    let cell = |m: usize, i: usize| smoother::cv_cell(b, g.shift, ctx.fold, m, i);
+    match ctx.direction.filter(|_| g.by_direction) {
+        Some(d) => {
+            let s = r.iter().zip(d).map(|(v, d)| v * d);
+            let (p, m) = smoother::cv_fold_means(b, g.shift, s, ctx.fold, ctx.folds);
+            r.iter()
+                .zip(d)
+                .enumerate()
+                .map(|(i, (v, d))| v - d * p[cell(m, i)])
+                .collect()
+        }
+        None => {
+            let (p, m) =
+                smoother::cv_fold_means(b, g.shift, r.iter().copied(), ctx.fold, ctx.folds);
+            r.iter()
+                .enumerate()
+                .map(|(i, v)| v - p[cell(m, i)])
+                .collect()
+        }
+    }
+}
+
+/// [`remove`] as it was written with the signed residual and the predictions stored (the
+/// plain reference it is tested against).
+#[cfg(test)]
+fn remove_reference(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
     match ctx.direction.filter(|_| g.by_direction) {
         Some(d) => {
             let s: Vec<f64> = r.iter().zip(d).map(|(v, d)| v * d).collect();
@@ -784,6 +814,18 @@ fn remove(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
             r.iter().zip(p).map(|(v, p)| v - p).collect()
         }
     }
+}
+
+/// [`stats::sum_sq_about_mean`] of the values `rows()` gives (twice: the mean, then the
+/// squares), the same sums in the same order, so the same bits, without storing them.
+fn sum_sq_about_mean_rows<I: ExactSizeIterator<Item = f64>>(rows: impl Fn() -> I) -> f64 {
+    let n = rows().len();
+    let m = if n == 0 {
+        0.0
+    } else {
+        rows().sum::<f64>() / n as f64
+    };
+    rows().map(|v| (v - m) * (v - m)).sum()
 }
 
 /// A near-tied candidate, its gain, the largest fraction of another tied candidate's gain

@@ -99,7 +99,7 @@ pub fn diagnose_model(
     for t in model_terms(model) {
         config.add_existing_term(t);
     }
-    d.absorbed = super::absorbed(model, &table, &prediction, &config)?;
+    d.absorbed = super::absorbed(model, &table, &mut prediction, &config)?;
     d.warnings = super::rate_warnings(model);
     d.summary = super::report::extend_summary(&d);
     Ok(d)

@@ -312,19 +312,31 @@ fn held_out_mean(sum: f64, cnt: f64, fold_sum: f64, fold_cnt: f64, empty: f64) -
 /// `fold` (0..folds). The prediction for a held-out row is the mean of the training rows in its
 /// bin, or the training mean when its bin has no training rows.
 pub(crate) fn cross_validate(b: &Binned, y: &[f64], fold: &[u32], folds: usize) -> CvResult {
+    cross_validate_rows(b, y.iter().copied(), fold, folds)
+}
+
+/// [`cross_validate`] of the residual given row by row (`y`: one value per row, in row
+/// order), so a derived residual (the direction-signed one) need not be stored: the same
+/// sums in the same order, so the same result bit for bit.
+pub(crate) fn cross_validate_rows(
+    b: &Binned,
+    y: impl ExactSizeIterator<Item = f64>,
+    fold: &[u32],
+    folds: usize,
+) -> CvResult {
     let n_slots = b.n_fine + 1;
+    let total_cnt = y.len() as f64;
     // (sum, sum of squares, count) per fold and fine slot.
     let mut sum = vec![0.0; folds * n_slots];
     let mut sq = vec![0.0; folds * n_slots];
     let mut cnt = vec![0.0; folds * n_slots];
-    for (i, &v) in y.iter().enumerate() {
+    for (i, v) in y.enumerate() {
         let k = fold[i] as usize * n_slots + b.fine_slot(i);
         sum[k] += v;
         sq[k] += v * v;
         cnt[k] += 1.0;
     }
     let total_sum: f64 = sum.iter().sum();
-    let total_cnt = y.len() as f64;
     let fold_sum: Vec<f64> = (0..folds)
         .map(|f| sum[f * n_slots..(f + 1) * n_slots].iter().sum())
         .collect();
@@ -1311,6 +1323,7 @@ pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[f64], y: &[f64]) -> Vec<Bi
 /// the mean of `y` over the training rows (other folds) in its bin, or the training mean when
 /// its bin has none there. Removing these from `y` takes out what the feature explains without
 /// letting a row's own noise leak into its prediction.
+#[cfg(test)]
 pub(crate) fn cv_predict(
     b: &Binned,
     shift: u32,
@@ -1318,10 +1331,33 @@ pub(crate) fn cv_predict(
     fold: &[u32],
     folds: usize,
 ) -> Vec<f64> {
+    let (pred, m) = cv_fold_means(b, shift, y.iter().copied(), fold, folds);
+    (0..y.len())
+        .map(|i| pred[cv_cell(b, shift, fold, m, i)])
+        .collect()
+}
+
+/// The cell of row `i` in the table of [`cv_fold_means`] (`m`: slots at level `shift`).
+#[inline]
+pub(crate) fn cv_cell(b: &Binned, shift: u32, fold: &[u32], m: usize, i: usize) -> usize {
+    fold[i] as usize * m + b.coarse_of_fine_slot(b.fine_slot(i), shift)
+}
+
+/// The out-of-fold prediction of every (fold, slot) cell of [`cv_predict`] and the number of
+/// slots `m`: row `i`'s prediction is `table[cv_cell(b, shift, fold, m, i)]`. The residual is
+/// given row by row (`y`, in row order), so neither it nor the predictions need a vector of
+/// their own (the same sums in the same order as `cv_predict`'s, so the same bits).
+pub(crate) fn cv_fold_means(
+    b: &Binned,
+    shift: u32,
+    y: impl Iterator<Item = f64>,
+    fold: &[u32],
+    folds: usize,
+) -> (Vec<f64>, usize) {
     let m = b.slots(shift);
     let mut cs = vec![0.0; folds * m];
     let mut cc = vec![0.0; folds * m];
-    for (i, &v) in y.iter().enumerate() {
+    for (i, v) in y.enumerate() {
         let k = fold[i] as usize * m + b.coarse_of_fine_slot(b.fine_slot(i), shift);
         cs[k] += v;
         cc[k] += 1.0;
@@ -1349,9 +1385,7 @@ pub(crate) fn cv_predict(
             pred[k] = held_out_mean(bin_sum[s], bin_cnt[s], cs[k], cc[k], train_mean);
         }
     }
-    (0..y.len())
-        .map(|i| pred[fold[i] as usize * m + b.coarse_of_fine_slot(b.fine_slot(i), shift)])
-        .collect()
+    (pred, m)
 }
 
 #[cfg(test)]

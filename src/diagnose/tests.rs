@@ -1173,3 +1173,69 @@ fn feature_null_block_in_place_matches_the_copying_one() {
         }
     }
 }
+
+/// Reference: [`remove_reference`] (the signed residual and the out-of-fold predictions stored
+/// as vectors, [`smoother::cv_predict`]) and, for the gain, [`Signed::new`]'s stored product
+/// with [`smoother::cross_validate`] and `stats::sum_sq_about_mean`. [`remove`] and [`gain`]
+/// read the product and the predictions row by row and must give the same bits, plain and
+/// direction-signed, on every level of quantile and discrete features (missing rows too).
+#[test]
+fn row_by_row_remove_and_gain_equal_the_stored_vectors() {
+    let t = table(31, 3001);
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|v| v.unwrap_or(0.0))
+        .collect();
+    let r = residuals(&t, 4, 1.0, |i| 0.4 * dir[i] + (i as f64 * 1e-2).sin());
+    let n = r.len();
+    let folds = 5;
+    let fold = assign_folds(n, 20, folds, 3);
+    let variance = stats::sum_sq_about_mean(&r) / n as f64;
+    let ctx = Ctx {
+        direction: Some(&dir),
+        fold: &fold,
+        folds,
+        variance,
+    };
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let mut checked = 0;
+    for col in t.columns() {
+        let Ok(b) = Binned::new(&col.raw(), 64, 10, 12) else {
+            continue;
+        };
+        for &shift in &b.levels {
+            for by_direction in [false, true] {
+                let g = Gain {
+                    explained: 0.5,
+                    shift,
+                    by_direction,
+                };
+                let got = remove(&b, g, &r, &ctx);
+                let want = remove_reference(&b, g, &r, &ctx);
+                assert_eq!(bits(&got), bits(&want), "{} shift {shift}", col.name);
+                checked += 1;
+            }
+        }
+        // The gain's signed analysis against the stored product.
+        let s = Signed::new(&r, &dir);
+        let cv = smoother::cross_validate(&b, &s.y, &fold, folds);
+        let cv_rows =
+            smoother::cross_validate_rows(&b, r.iter().zip(&dir).map(|(v, d)| v * d), &fold, folds);
+        assert_eq!(cv.shift, cv_rows.shift, "{}", col.name);
+        assert_eq!(cv.mse.to_bits(), cv_rows.mse.to_bits(), "{}", col.name);
+        let sst_rows = sum_sq_about_mean_rows(|| r.iter().zip(&dir).map(|(v, d)| v * d));
+        assert_eq!(sst_rows.to_bits(), s.sst.to_bits());
+        let g = gain(&b, true, &r, Some(&dir), &fold, folds, variance);
+        let plain = smoother::cross_validate(&b, &r, &fold, folds);
+        let frac = |base: f64, mse: f64| ((base - mse) / variance).clamp(0.0, 1.0);
+        let e_plain = frac(stats::sum_sq_about_mean(&r) / n as f64, plain.mse);
+        let e_signed = frac(s.sst / n as f64, cv.mse);
+        let want = if e_signed > e_plain * (1.0 + NEAR_TIE) {
+            e_signed
+        } else {
+            e_plain
+        };
+        assert_eq!(g.explained.to_bits(), want.to_bits(), "{}", col.name);
+    }
+    assert!(checked >= 20, "{checked} removals checked");
+}

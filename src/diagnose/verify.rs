@@ -41,7 +41,7 @@ use super::{Diagnosis, FeatureReport};
 use crate::fit::{CheckedFitOptions, fit};
 use crate::log::Log;
 use crate::model::terms::parse_term;
-use crate::model::{ModelEdit, ModelSpec, SpecError};
+use crate::model::{Feedback, ModelEdit, ModelSpec, SpecError};
 
 /// Settings of the verification refits.
 #[derive(Debug, Clone, PartialEq)]
@@ -439,8 +439,25 @@ pub(super) fn cv_residuals(
                 file: log.schema.file.clone(),
                 source: Box::new(source),
             })?;
-            let p = super::replay_model(&model, log)?;
-            Ok(p.residual[a..b].to_vec())
+            // The masked copy served the fit only; the replay keeps this fold's residuals and
+            // nothing else per row (`replay_model` would hold every row's prediction, the
+            // terms' contributions and the residual of the whole log: the same subtraction,
+            // so the same bits).
+            drop(masked);
+            let mut part = Vec::with_capacity(b - a);
+            let mut k = 0usize;
+            model
+                .replay_measured(log, Feedback::EveryRow, |row, predicted, _| {
+                    if (a..b).contains(&k) {
+                        part.push(row.measured - predicted);
+                    }
+                    k += 1;
+                })
+                .map_err(|source| ModelDiagnosisError::Replay {
+                    file: log.schema.file.clone(),
+                    source,
+                })?;
+            Ok(part)
         })
         .collect();
     let mut out = Vec::with_capacity(n);
@@ -703,6 +720,14 @@ pub(super) fn judge(
     }
 }
 
+/// What the verification keeps of one refit's out-of-sample residuals: their std and the
+/// verdict against the model as it is, for a plain (`judged[0]`) and a strict (`judged[1]`)
+/// candidate ([`judge`]).
+struct Scored {
+    std_after: f64,
+    judged: [Judgement; 2],
+}
+
 fn std_of(r: &[f64]) -> f64 {
     crate::numeric::stats::std_dev(r).unwrap_or(0.0)
 }
@@ -760,12 +785,10 @@ pub(crate) fn verify(
         }
         new
     });
-    let mut cache: HashMap<String, Result<Vec<f64>, String>> = keys
-        .into_iter()
-        .zip(wanted.par_iter().map(score).collect::<Vec<_>>())
-        .collect();
-    let mut scored = |s: &ModelSpec| cache.remove(&s.to_string()).unwrap_or_else(|| score(s));
-    let before = match scored(spec) {
+    // The model as it is first (`wanted[0]`): every other refit is judged against it as
+    // soon as it is made, and only its verdicts are kept — not one residual vector per
+    // refit (8 B a row each) until the loop reads it.
+    let before = match score(spec) {
         Ok(r) => r,
         Err(e) => {
             v.not_run = Some(format!(
@@ -775,6 +798,18 @@ pub(crate) fn verify(
             return Ok(v);
         }
     };
+    let assess = |s: &ModelSpec| {
+        score(s).map(|after| Scored {
+            std_after: std_of(&after),
+            judged: [false, true].map(|strict| judge(&before, &after, min_effect, strict, config)),
+        })
+    };
+    let mut cache: HashMap<String, Result<Scored, String>> = keys
+        .into_iter()
+        .skip(1)
+        .zip(wanted[1..].par_iter().map(assess).collect::<Vec<_>>())
+        .collect();
+    let mut scored = |s: &ModelSpec| cache.remove(&s.to_string()).unwrap_or_else(|| assess(s));
     v.std_before = std_of(&before);
     let defect = {
         let data = crate::model::data::FitData::new(log);
@@ -860,13 +895,13 @@ pub(crate) fn verify(
                 };
                 fitted = true;
                 seen.push(next.to_string());
-                let j = judge(&before, &after, min_effect, c.strict, config);
+                let j = after.judged[usize::from(c.strict)];
                 let e = VerifiedEdit {
                     feature: c.feature.clone(),
                     edit: edit.to_string(),
                     terms: next.to_string(),
                     std_before: v.std_before,
-                    std_after: std_of(&after),
+                    std_after: after.std_after,
                     gain: j.gain,
                     gain_within_folds: j.within,
                     z: j.z,
