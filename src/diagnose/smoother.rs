@@ -25,12 +25,61 @@ pub(crate) enum BinKind {
     Quantile,
 }
 
+/// The fine slot of each row of a feature (`0..n_fine` its fine bin, `n_fine` undefined):
+/// one byte a row when the feature has at most 255 fine bins (discrete features of up to 255
+/// values, quantile bins up to 128), else two (at most 4096 quantile bins and the undefined
+/// slot).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum FineSlots {
+    /// One byte a row.
+    Narrow(Vec<u8>),
+    /// Two bytes a row.
+    Wide(Vec<u16>),
+}
+
+impl FineSlots {
+    /// The slots of `fine` (fine bins, [`MISSING`] for an undefined value) of a feature with
+    /// `n_fine` fine bins, one byte a row when the `n_fine + 1` slots fit.
+    fn of_bins(fine: impl ExactSizeIterator<Item = u16>, n_fine: usize) -> FineSlots {
+        let slot = |f: u16| if f == MISSING { n_fine } else { f as usize };
+        if n_fine < 256 {
+            FineSlots::Narrow(fine.map(|f| slot(f) as u8).collect())
+        } else {
+            FineSlots::Wide(fine.map(|f| slot(f) as u16).collect())
+        }
+    }
+
+    /// Rows.
+    pub(crate) fn len(&self) -> usize {
+        match self {
+            FineSlots::Narrow(c) => c.len(),
+            FineSlots::Wide(c) => c.len(),
+        }
+    }
+
+    /// Slot of row `i`.
+    #[inline(always)]
+    pub(crate) fn get(&self, i: usize) -> usize {
+        match self {
+            FineSlots::Narrow(c) => c[i] as usize,
+            FineSlots::Wide(c) => c[i] as usize,
+        }
+    }
+
+    /// The one-byte slots, when the feature has them.
+    pub(crate) fn narrow(&self) -> Option<&[u8]> {
+        match self {
+            FineSlots::Narrow(c) => Some(c),
+            FineSlots::Wide(_) => None,
+        }
+    }
+}
+
 /// A feature prepared for smoothing.
 #[derive(Debug, Clone)]
 pub(crate) struct Binned {
-    /// Fine bin of each row; [`MISSING`] for an undefined value. Two bytes a row: there
-    /// are at most 4096 quantile bins and 256 discrete values.
-    pub fine: Vec<u16>,
+    /// Fine slot of each row (the fine bin; `n_fine` for an undefined value).
+    pub fine: FineSlots,
     /// Number of fine (non-missing) bins, ≥ 1.
     pub n_fine: usize,
     /// Discrete or quantile bins.
@@ -123,14 +172,14 @@ impl Binned {
                     others: values.len() - most,
                 });
             }
-            let fine = values
-                .iter()
-                .map(|&v| match defined(v) {
+            let fine = FineSlots::of_bins(
+                values.iter().map(|&v| match defined(v) {
                     Some(x) => label[distinct_values.partition_point(|&d| d < x)],
                     None if pool_missing => n_fine as u16 - 1,
                     None => MISSING,
-                })
-                .collect();
+                }),
+                n_fine,
+            );
             let levels = if n_fine > 1 {
                 vec![ONE_BIN, 0]
             } else {
@@ -155,14 +204,14 @@ impl Binned {
         // Too few undefined rows for a bin of their own join the top bin (as above).
         let missing = values.len() - n;
         let pool_missing = missing > 0 && missing < min_bin_rows;
-        let fine = values
-            .iter()
-            .map(|&v| match defined(v) {
+        let fine = FineSlots::of_bins(
+            values.iter().map(|&v| match defined(v) {
                 Some(x) => cuts.partition_point(|&c| c <= x) as u16,
                 None if pool_missing => (k_max - 1) as u16,
                 None => MISSING,
-            })
-            .collect();
+            }),
+            k_max,
+        );
         let top = k_max.trailing_zeros();
         let levels = (0..=top).rev().collect();
         Ok(Binned {
@@ -229,7 +278,7 @@ impl Binned {
             fine_of[c] = l;
         }
         Ok(Binned {
-            fine: codes.iter().map(|&c| fine_of[c as usize]).collect(),
+            fine: FineSlots::of_bins(codes.iter().map(|&c| fine_of[c as usize]), n_fine),
             n_fine,
             kind: BinKind::Discrete,
             levels: vec![ONE_BIN, 0],
@@ -250,18 +299,6 @@ impl Binned {
         }
     }
 
-    /// Slot of fine bin `f` at level `shift`.
-    #[inline]
-    pub(super) fn slot(&self, f: u16, shift: u32) -> usize {
-        if f == MISSING {
-            self.defined_bins(shift)
-        } else if shift >= ONE_BIN {
-            0
-        } else {
-            (f as usize) >> shift
-        }
-    }
-
     /// Slot of fine slot index `fs` (0..n_fine, n_fine = missing) at level `shift`.
     #[inline]
     fn coarse_of_fine_slot(&self, fs: usize, shift: u32) -> usize {
@@ -277,12 +314,7 @@ impl Binned {
     /// Fine slot of row `i` (missing → `n_fine`).
     #[inline]
     pub(super) fn fine_slot(&self, i: usize) -> usize {
-        let f = self.fine[i];
-        if f == MISSING {
-            self.n_fine
-        } else {
-            f as usize
-        }
+        self.fine.get(i)
     }
 }
 
@@ -389,6 +421,14 @@ pub(crate) fn cross_validate_rows(
     best
 }
 
+/// Adds `y[i]` into `sums[codes[i]]` for every row, in row order.
+#[inline]
+fn add_by_slot<T: Copy + Into<usize>>(codes: &[T], y: &[f64], sums: &mut [f64]) {
+    for (&c, &v) in codes.iter().zip(y) {
+        sums[c.into()] += v;
+    }
+}
+
 /// Counts of rows per fine slot (invariant under permutation of the residuals).
 pub(crate) fn fine_counts(b: &Binned) -> Vec<f64> {
     let mut cnt = vec![0.0; b.n_fine + 1];
@@ -436,8 +476,10 @@ impl FTest {
     pub(super) fn min_p(&mut self, b: &Binned, y: &[f64], sst: f64) -> f64 {
         let mut fine_sum = std::mem::take(&mut self.fine_sum);
         fine_sum.iter_mut().for_each(|s| *s = 0.0);
-        for (i, &v) in y.iter().enumerate() {
-            fine_sum[b.fine_slot(i)] += v;
+        // One loop per width (no test of the width per row).
+        match &b.fine {
+            FineSlots::Narrow(c) => add_by_slot(c, y, &mut fine_sum),
+            FineSlots::Wide(c) => add_by_slot(c, y, &mut fine_sum),
         }
         let p = self.min_p_of_sums(b, &fine_sum, y.len(), sst);
         self.fine_sum = fine_sum;
@@ -1306,7 +1348,7 @@ pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[f64], y: &[f64]) -> Vec<Bi
         b.slots(shift)
     ];
     for (i, (&xv, &yv)) in x.iter().zip(y).enumerate() {
-        let a = &mut acc[b.slot(b.fine[i], shift)];
+        let a = &mut acc[b.coarse_of_fine_slot(b.fine_slot(i), shift)];
         a.count += 1;
         a.y_sum += yv;
         a.y_sq += yv * yv;
@@ -1445,6 +1487,79 @@ mod tests {
         // Too many slots for a byte: no table (the caller falls back to `min_p`).
         let wide = Binned::new(&columns[0], 512, 1, 10).expect("usable");
         assert!(SlotTable::new(&[&wide], 0).is_none());
+    }
+
+    /// Reference: the plain definition of a row's fine slot, by a full sort — quantile bins:
+    /// the number of cuts ≤ the value, the cuts being the sorted defined values at ranks
+    /// `k·n/k_max`; discrete bins: the rank of the value among the distinct values; undefined
+    /// rows in slot `n_fine`. One byte a row up to 256 slots, two bytes beyond, the same slot
+    /// either way (and [`FTest::min_p`]'s per-width loops the same bits as the row-by-row
+    /// sum through `fine_slot`).
+    #[test]
+    fn narrow_and_wide_fine_slots_equal_the_sorted_definition() {
+        let n = 12_000;
+        let mut rng = SimRng::new(11);
+        let column: Vec<f64> = (0..n)
+            .map(|i| {
+                if i % 97 == 0 {
+                    f64::NAN
+                } else {
+                    rng.range(-5.0, 5.0)
+                }
+            })
+            .collect();
+        let y: Vec<f64> = (0..n).map(|_| rng.normal()).collect();
+        let sst: f64 = y.iter().map(|v| v * v).sum();
+        let mut defined: Vec<f64> = column.iter().copied().filter(|x| !x.is_nan()).collect();
+        defined.sort_by(f64::total_cmp);
+        let m = defined.len();
+        for (max_bins, wide) in [(64, false), (128, false), (256, true), (4096, true)] {
+            let b = Binned::new(&column, max_bins, 1, 10).expect("usable");
+            assert_eq!(b.kind, BinKind::Quantile);
+            assert_eq!(b.n_fine, max_bins);
+            assert_eq!(b.fine.narrow().is_none(), wide, "{max_bins} bins");
+            assert_eq!(b.fine.len(), n);
+            let cuts: Vec<f64> = (1..max_bins)
+                .map(|k| defined[(k * m / max_bins).min(m - 1)])
+                .collect();
+            for (i, &x) in column.iter().enumerate() {
+                let want = if x.is_nan() {
+                    max_bins
+                } else {
+                    cuts.iter().filter(|&&c| c <= x).count()
+                };
+                assert_eq!(b.fine_slot(i), want, "{max_bins} bins, row {i}");
+            }
+            let mut by_row = vec![0.0; b.n_fine + 1];
+            for (i, &v) in y.iter().enumerate() {
+                by_row[b.fine_slot(i)] += v;
+            }
+            let mut t = FTest::new(&b);
+            let reference = t.min_p_of_sums(&b, &by_row, n, sst);
+            let own = FTest::new(&b).min_p(&b, &y, sst);
+            assert_eq!(own.to_bits(), reference.to_bits(), "{max_bins} bins");
+        }
+        // Discrete: 255 values and the undefined slot fill a byte; 256 values need two.
+        let values: Vec<f64> = (0..n).map(|i| ((i * 37) % 255) as f64).collect();
+        let mut holed = values.clone();
+        holed[5] = f64::NAN;
+        let h = Binned::new(&holed, 64, 1, 256).expect("usable");
+        assert_eq!((h.kind, h.n_fine), (BinKind::Discrete, 255));
+        assert!(h.fine.narrow().is_some());
+        for i in 0..n {
+            let want = if i == 5 { 255 } else { values[i] as usize };
+            assert_eq!(h.fine_slot(i), want);
+        }
+        let values: Vec<f64> = (0..n).map(|i| ((i * 37) % 256) as f64).collect();
+        let b = Binned::new(&values, 64, 1, 256).expect("usable");
+        assert_eq!((b.kind, b.n_fine), (BinKind::Discrete, 256));
+        assert!(b.fine.narrow().is_none());
+        for i in 0..n {
+            assert_eq!(b.fine_slot(i), values[i] as usize);
+        }
+        // `from_codes` stores the same slots as `new` of the same numbers.
+        let codes: Vec<u8> = values.iter().map(|&v| v as u8).collect();
+        assert_eq!(Binned::from_codes(&codes, 1).expect("usable").fine, b.fine);
     }
 
     /// Reference: a sort by `total_cmp` ([`sorted_distinct_reference`], and indexing the
