@@ -502,7 +502,7 @@ pub fn diagnose(
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
     // Columns are independent (no random draws): in parallel, collected in table order.
-    let analysed: Vec<Result<Analysed, Unusable>> = table
+    let mut analysed: Vec<Result<Analysed, Unusable>> = table
         .columns()
         .par_iter()
         .map(|col| {
@@ -560,7 +560,7 @@ pub fn diagnose(
         })
         .collect();
     let (p_raw, p_adj) = permutation_test(
-        &analysed,
+        &mut analysed,
         &y,
         sst,
         direction.as_deref(),
@@ -1183,32 +1183,78 @@ struct PermGroup {
 }
 
 /// The groups of the fused permutation pass: one per distinct block length (`which[k]`: the
-/// length of usable feature `k`), signable features first when the residual is signed.
+/// length of usable feature `k`), signable features first when the residual is signed. Each
+/// group's [`SlotTable`] takes its features' one-byte slots from `analysed` (`usable[k]`:
+/// the index of usable feature `k` there); [`give_back`] returns them.
 fn perm_groups(
-    usable: &[(usize, &Analysed)],
+    analysed: &mut [Result<Analysed, Unusable>],
+    usable: &[usize],
     lengths: usize,
     which: &[usize],
     signed: bool,
     fused: bool,
 ) -> Vec<PermGroup> {
-    (0..lengths)
-        .into_par_iter()
+    let is_signed = |a: &Analysed| signed && a.signable;
+    let mut groups: Vec<(PermGroup, Vec<&mut Binned>)> = (0..lengths)
         .map(|length| {
-            let mut features: Vec<usize> =
-                (0..usable.len()).filter(|&k| which[k] == length).collect();
-            let is_signed = |k: usize| signed && usable[k].1.signable;
-            // Stable: signable first, each part in usable order.
-            features.sort_by_key(|&k| !is_signed(k));
-            let n_signed = features.iter().filter(|&&k| is_signed(k)).count();
-            let bins: Vec<&Binned> = features.iter().map(|&k| &usable[k].1.binned).collect();
-            PermGroup {
+            let group = PermGroup {
                 length,
-                table: SlotTable::new(&bins, n_signed).filter(|_| fused),
-                features,
-            }
+                features: Vec::new(),
+                table: None,
+            };
+            (group, Vec::new())
         })
+        .collect();
+    // Signable first, each part in usable order (the mutable borrows are handed out in
+    // usable order, then each group's are reordered alike).
+    let mut usable_at = vec![usize::MAX; analysed.len()];
+    for (k, &j) in usable.iter().enumerate() {
+        usable_at[j] = k;
+    }
+    let mut members: Vec<Vec<(bool, usize, &mut Binned)>> =
+        (0..lengths).map(|_| Vec::new()).collect();
+    for (j, a) in analysed.iter_mut().enumerate() {
+        if let (Ok(a), Some(&k)) = (a.as_mut(), usable_at.get(j).filter(|&&k| k != usize::MAX)) {
+            let s = is_signed(a);
+            members[which[k]].push((!s, k, &mut a.binned));
+        }
+    }
+    for ((g, bins), mut ms) in groups.iter_mut().zip(members) {
+        // Stable: signable first, each part in usable order.
+        ms.sort_by_key(|&(unsigned, k, _)| (unsigned, k));
+        let n_signed = ms.iter().filter(|(unsigned, _, _)| !unsigned).count();
+        g.features = ms.iter().map(|&(_, k, _)| k).collect();
+        bins.extend(ms.into_iter().map(|(_, _, b)| b));
+        g.table = if fused {
+            SlotTable::take(bins, n_signed)
+        } else {
+            None
+        };
+    }
+    groups
+        .into_iter()
+        .map(|(g, _)| g)
         .filter(|g| !g.features.is_empty())
-        .collect::<Vec<_>>()
+        .collect()
+}
+
+/// Returns the slots the groups' tables took ([`perm_groups`]) to the features of
+/// `analysed` (`usable[k]`: the index of usable feature `k` there), freeing the tables.
+fn give_back(groups: Vec<PermGroup>, analysed: &mut [Result<Analysed, Unusable>], usable: &[usize]) {
+    let mut bins: Vec<Option<&mut Binned>> = analysed
+        .iter_mut()
+        .map(|a| a.as_mut().ok().map(|a| &mut a.binned))
+        .collect();
+    for g in groups {
+        if let Some(table) = g.table {
+            let mut mine: Vec<&mut Binned> = g
+                .features
+                .iter()
+                .filter_map(|&k| bins[usable[k]].take())
+                .collect();
+            table.give_back(&mut mine);
+        }
+    }
 }
 
 /// One thread's buffers and hit counts of the permutation test (one slot per usable feature).
@@ -1433,7 +1479,7 @@ impl PermWorker {
 /// one pass over each permuted residual ([`SlotTable`]); else each feature's own pass
 /// ([`FTest::min_p`], the slow reference — the results are bit-identical, tested).
 fn permutation_test(
-    analysed: &[Result<Analysed, Unusable>],
+    analysed: &mut [Result<Analysed, Unusable>],
     y: &[f64],
     sst: f64,
     direction: Option<&[f64]>,
@@ -1444,23 +1490,33 @@ fn permutation_test(
     let m = analysed.len();
     let mut raw_count = vec![0usize; m];
     let mut adj_count = vec![0usize; m];
-    let usable: Vec<(usize, &Analysed)> = analysed
-        .iter()
-        .enumerate()
-        .filter_map(|(j, a)| a.as_ref().ok().map(|a| (j, a)))
-        .collect();
-    if sst > 0.0 && !usable.is_empty() {
-        let mut lengths: Vec<usize> = usable.iter().map(|&(j, _)| blocks[j]).collect();
+    let usable_idx: Vec<usize> = (0..m).filter(|&j| analysed[j].is_ok()).collect();
+    if sst > 0.0 && !usable_idx.is_empty() {
+        let mut lengths: Vec<usize> = usable_idx.iter().map(|&j| blocks[j]).collect();
         lengths.sort_unstable();
         lengths.dedup();
-        let which: Vec<usize> = usable
+        let which: Vec<usize> = usable_idx
             .iter()
-            .map(|&(j, _)| lengths.binary_search(&blocks[j]).unwrap_or(0))
+            .map(|&j| lengths.binary_search(&blocks[j]).unwrap_or(0))
             .collect();
-        let groups = perm_groups(&usable, lengths.len(), &which, direction.is_some(), fused);
-        let tests: Vec<FTest> = usable
+        // The counts before the slot tables take the features' slots.
+        let tests: Vec<FTest> = usable_idx
             .par_iter()
-            .map(|(_, a)| FTest::new(&a.binned))
+            .filter_map(|&j| analysed[j].as_ref().ok())
+            .map(|a| FTest::new(&a.binned))
+            .collect();
+        let groups = perm_groups(
+            analysed,
+            &usable_idx,
+            lengths.len(),
+            &which,
+            direction.is_some(),
+            fused,
+        );
+        let usable: Vec<(usize, &Analysed)> = analysed
+            .iter()
+            .enumerate()
+            .filter_map(|(j, a)| a.as_ref().ok().map(|a| (j, a)))
             .collect();
         // Every permutation draws from its own seeded streams and the counts are integers, so
         // the p-values are the same for any number of threads.
@@ -1493,12 +1549,15 @@ fn permutation_test(
                     (r, a)
                 },
             );
-        for (k, &(j, _)) in usable.iter().enumerate() {
+        drop(usable);
+        give_back(groups, analysed, &usable_idx);
+        for (k, &j) in usable_idx.iter().enumerate() {
             raw_count[j] = raw[k];
             adj_count[j] = adj[k];
         }
     }
     let b = config.permutations as f64 + 1.0;
+    let analysed = &*analysed;
     let p = |counts: Vec<usize>| -> Vec<f64> {
         counts
             .iter()

@@ -73,6 +73,14 @@ impl FineSlots {
             FineSlots::Wide(_) => None,
         }
     }
+
+    /// Takes the one-byte slots out, leaving none (0 rows) until they are put back.
+    fn take_narrow(&mut self) -> Option<Vec<u8>> {
+        match self {
+            FineSlots::Narrow(c) => Some(std::mem::take(c)),
+            FineSlots::Wide(_) => None,
+        }
+    }
 }
 
 /// A feature prepared for smoothing.
@@ -548,9 +556,11 @@ const STEADY_ROWS: usize = 64;
 
 impl SlotTable {
     /// The table of `bins` (the first `signed` of them also summed for the signed residual);
-    /// `None` when a feature has more than 256 fine slots (then use [`FTest::min_p`]).
+    /// `None` when a feature has more than 256 fine slots (then use [`FTest::min_p`]). The
+    /// features keep their own slots (a copy): the reference of [`SlotTable::take`].
+    #[cfg(test)]
     pub(crate) fn new(bins: &[&Binned], signed: usize) -> Option<SlotTable> {
-        if bins.iter().any(|b| b.n_fine + 1 > 256) {
+        if bins.iter().any(|b| b.fine.narrow().is_none()) {
             return None;
         }
         let m = bins.len();
@@ -561,6 +571,47 @@ impl SlotTable {
                 row[j] = b.fine_slot(i) as u8;
             }
         }
+        Some(Self::of_codes(codes, bins, signed))
+    }
+
+    /// [`SlotTable::new`] of `bins` that takes their one-byte slots instead of copying them:
+    /// each feature's slots are moved into the table column by column (freed as they are
+    /// copied in, so the table and the features' slots are not held twice), and the
+    /// features hold no slots (0 rows) until [`SlotTable::give_back`] returns them. `None`
+    /// (nothing taken) when a feature has more than 256 fine slots.
+    pub(crate) fn take(bins: &mut [&mut Binned], signed: usize) -> Option<SlotTable> {
+        if bins.iter().any(|b| b.fine.narrow().is_none()) {
+            return None;
+        }
+        let m = bins.len();
+        let n = bins.first().map_or(0, |b| b.fine.len());
+        let mut codes = vec![0u8; n * m];
+        for (j, b) in bins.iter_mut().enumerate() {
+            let col = b.fine.take_narrow().unwrap_or_default();
+            for (row, &c) in codes.chunks_exact_mut(m).zip(&col) {
+                row[j] = c;
+            }
+        }
+        let shared: Vec<&Binned> = bins.iter().map(|b| &**b).collect();
+        Some(Self::of_codes(codes, &shared, signed))
+    }
+
+    /// Puts the slots [`SlotTable::take`] took back into `bins` (the same features in the
+    /// same order), freeing the table.
+    pub(crate) fn give_back(self, bins: &mut [&mut Binned]) {
+        let m = self.m;
+        let mut codes = self.codes;
+        for (j, b) in bins.iter_mut().enumerate().take(m) {
+            b.fine = FineSlots::Narrow(codes.iter().skip(j).step_by(m).copied().collect());
+        }
+        codes.clear();
+        codes.shrink_to_fit();
+    }
+
+    /// The table of the interleaved `codes` of `bins`.
+    fn of_codes(codes: Vec<u8>, bins: &[&Binned], signed: usize) -> SlotTable {
+        let m = bins.len();
+        let n = codes.len() / m.max(1);
         let mut offset = vec![0usize];
         for b in bins {
             offset.push(offset.last().copied().unwrap_or(0) + b.n_fine + 1);
@@ -572,13 +623,13 @@ impl SlotTable {
             })
             .max()
             .unwrap_or(0);
-        Some(SlotTable {
+        SlotTable {
             steady: m <= HELD_MAX && changes * STEADY_ROWS <= n,
             codes,
             m,
             signed: signed.min(m),
             offset,
-        })
+        }
     }
 
     /// Whether a row-permuted residual is summed by [`add_rows_held`].
@@ -1435,7 +1486,8 @@ mod tests {
     use super::*;
     use crate::numeric::rng::SimRng;
 
-    /// Reference: [`FTest::min_p`], one feature's own pass over the rows. The fused pass of
+    /// Reference: [`FTest::min_p`], one feature's own pass over the rows (and, for
+    /// [`SlotTable::take`], [`SlotTable::new`]'s copy). The fused pass of
     /// [`SlotTable`] over several features (quantile and discrete bins, missing values in a
     /// slot of their own and pooled, a signed second residual for the first features) must
     /// give the same statistic bit for bit.
@@ -1484,9 +1536,36 @@ mod tests {
                 }
             }
         }
-        // Too many slots for a byte: no table (the caller falls back to `min_p`).
+        // `take` (the features' slots moved in, not copied) makes the same table as `new`
+        // (the same sums, bit for bit), and `give_back` returns the same slots.
+        let refs: Vec<&Binned> = bins.iter().collect();
+        let copied = SlotTable::new(&refs, 2).expect("few slots");
+        let mut lent = bins.clone();
+        let mut muts: Vec<&mut Binned> = lent.iter_mut().collect();
+        let taken = SlotTable::take(&mut muts, 2).expect("few slots");
+        assert!(muts.iter().all(|b| b.fine.len() == 0));
+        let mut sums = [vec![f64::NAN; copied.len()], vec![f64::NAN; copied.len()]];
+        let mut sums_taken = sums.clone();
+        let [a, b] = &mut sums;
+        copied.accumulate(&y, &ys, a, b);
+        let [a, b] = &mut sums_taken;
+        taken.accumulate(&y, &ys, a, b);
+        let bits = |v: &[Vec<f64>; 2]| v.concat().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&sums), bits(&sums_taken));
+        assert_eq!(copied.steady(), taken.steady());
+        taken.give_back(&mut muts);
+        for (l, b) in lent.iter().zip(&bins) {
+            assert_eq!(l.fine, b.fine);
+        }
+        // Too many slots for a byte: no table (the caller falls back to `min_p`), and
+        // nothing taken.
         let wide = Binned::new(&columns[0], 512, 1, 10).expect("usable");
         assert!(SlotTable::new(&[&wide], 0).is_none());
+        let mut pair = [bins[2].clone(), wide.clone()];
+        let [p0, p1] = &mut pair;
+        assert!(SlotTable::take(&mut [p0, p1], 0).is_none());
+        assert_eq!(pair[0].fine, bins[2].fine);
+        assert_eq!(pair[1].fine, wide.fine);
     }
 
     /// Reference: the plain definition of a row's fine slot, by a full sort — quantile bins:

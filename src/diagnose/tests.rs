@@ -767,7 +767,7 @@ fn fused_permutation_test_equals_the_per_feature_reference() {
     let y: Vec<f64> = r.iter().map(|v| v - mean).collect();
     let sst: f64 = y.iter().map(|v| v * v).sum();
     let direction: Vec<f64> = dir.iter().map(|v| v.unwrap_or(0.0)).collect();
-    let analysed: Vec<Result<Analysed, Unusable>> = t
+    let mut analysed: Vec<Result<Analysed, Unusable>> = t
         .columns()
         .iter()
         .map(|col| {
@@ -787,9 +787,34 @@ fn fused_permutation_test_equals_the_per_feature_reference() {
         .collect();
     assert!(analysed.iter().filter(|a| a.is_ok()).count() >= 8);
     let blocks: Vec<usize> = (0..analysed.len()).map(|j| [1, 4, 16][j % 3]).collect();
-    let fused = permutation_test(&analysed, &y, sst, Some(&direction), &blocks, &config, true);
+    let slots = |a: &[Result<Analysed, Unusable>]| -> Vec<Option<smoother::FineSlots>> {
+        a.iter()
+            .map(|a| a.as_ref().ok().map(|a| a.binned.fine.clone()))
+            .collect()
+    };
+    let before = slots(&analysed);
+    assert!(
+        before
+            .iter()
+            .flatten()
+            .filter(|f| f.narrow().is_some())
+            .count()
+            >= 8
+    );
+    let fused = permutation_test(
+        &mut analysed,
+        &y,
+        sst,
+        Some(&direction),
+        &blocks,
+        &config,
+        true,
+    );
+    // The slot tables gave the features' slots back as they took them (and the reference
+    // below reads them).
+    assert_eq!(slots(&analysed), before);
     let reference = permutation_test(
-        &analysed,
+        &mut analysed,
         &y,
         sst,
         Some(&direction),
