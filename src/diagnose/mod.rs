@@ -417,13 +417,28 @@ struct Signed {
 }
 
 impl Signed {
-    fn new(y: &[f64], direction: &[f64]) -> Signed {
-        let y: Vec<f64> = y.iter().zip(direction).map(|(r, d)| r * d).collect();
+    fn new(y: &[f64], direction: &[i8]) -> Signed {
+        let y: Vec<f64> = y
+            .iter()
+            .zip(direction)
+            .map(|(r, &d)| r * f64::from(d))
+            .collect();
         Signed {
             sst: stats::sum_sq_about_mean(&y),
             y,
         }
     }
+}
+
+/// The direction values `d` (−1, 0, +1) as bytes; `None` (no direction-signed analysis)
+/// if a value is not one of those (a built-in `direction` column never has another).
+fn direction_bytes(d: impl Iterator<Item = f64>) -> Option<Vec<i8>> {
+    let byte = |x: f64| -> Option<i8> {
+        [-1i8, 0, 1]
+            .into_iter()
+            .find(|&b| f64::from(b).to_bits() == x.to_bits())
+    };
+    d.map(byte).collect()
 }
 
 /// Whether the direction-signed analysis applies to `col`: every feature but `direction`
@@ -493,11 +508,12 @@ pub fn diagnose(
     let residual_std = stats::std_dev(residuals).unwrap_or(0.0);
     let fold = assign_folds(n, block_len, config.folds, config.seed);
 
-    // The direction of the last move, for the direction-signed analysis (see the module docs).
-    let direction: Option<Vec<f64>> = table
+    // The direction of the last move, for the direction-signed analysis (see the module docs):
+    // one byte a row (−1, +1; 0 before the first move), read as the same `f64`s.
+    let direction: Option<Vec<i8>> = table
         .column(Feature::Direction.name())
         .filter(|c| c.origin == FeatureOrigin::BuiltIn(Feature::Direction))
-        .map(|c| c.iter().map(|v| v.unwrap_or(0.0)).collect());
+        .and_then(|c| direction_bytes(c.iter().map(|v| v.unwrap_or(0.0))));
     let signed = direction.as_ref().map(|d| Signed::new(&y, d));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
@@ -584,9 +600,17 @@ pub fn diagnose(
         .collect();
     let forward = forward_pass(&analysed, &significant, &y, &ctx);
 
-    let signed_residuals: Option<Vec<f64>> = direction
+    let signed_residuals: Option<Vec<f64>> = direction.as_ref().map(|d| {
+        residuals
+            .iter()
+            .zip(d)
+            .map(|(r, &d)| r * f64::from(d))
+            .collect()
+    });
+    // The reports read the direction as numbers.
+    let direction_values: Option<Vec<f64>> = direction
         .as_ref()
-        .map(|d| residuals.iter().zip(d).map(|(r, d)| r * d).collect());
+        .map(|d| d.iter().map(|&d| f64::from(d)).collect());
     // One report per column, independent of the others: in parallel, in column order.
     let mut reports: Vec<(usize, FeatureReport)> = table
         .columns()
@@ -607,7 +631,7 @@ pub fn diagnose(
                         _ => residuals,
                     },
                     a.by_direction,
-                    direction.as_deref(),
+                    direction_values.as_deref(),
                     residual_std,
                     config,
                 ),
@@ -661,6 +685,7 @@ pub fn diagnose(
     // diagnosis's peak of memory otherwise).
     drop(analysed);
     drop(signed_residuals);
+    drop(direction_values);
     drop(y);
     // The residual's own statistics (one thread each: a sort for the dip test, the
     // Ljung–Box sums) run beside the pair screen instead of after it.
@@ -708,7 +733,7 @@ const MAX_TIED: usize = 4;
 
 /// What is shared by every gain evaluation of one diagnosis.
 struct Ctx<'a> {
-    direction: Option<&'a [f64]>,
+    direction: Option<&'a [i8]>,
     fold: &'a [u32],
     folds: usize,
     /// Variance of the (clipped, centred) residuals: every gain is a fraction of it.
@@ -734,7 +759,7 @@ fn gain(
     b: &Binned,
     signable: bool,
     r: &[f64],
-    direction: Option<&[f64]>,
+    direction: Option<&[i8]>,
     fold: &[u32],
     folds: usize,
     variance: f64,
@@ -755,7 +780,7 @@ fn gain(
     };
     if let Some(d) = direction.filter(|_| signable) {
         // r × direction row by row, never stored (the values `Signed::new` would hold).
-        let signed = || r.iter().zip(d).map(|(v, d)| v * d);
+        let signed = || r.iter().zip(d).map(|(v, &d)| v * f64::from(d));
         let cv = smoother::cross_validate_rows(b, signed(), fold, folds);
         let e = frac(sum_sq_about_mean_rows(signed) / n, cv.mse);
         if e > g.explained * (1.0 + NEAR_TIE) {
@@ -776,12 +801,12 @@ fn remove(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
     let cell = |m: usize, i: usize| smoother::cv_cell(b, g.shift, ctx.fold, m, i);
     match ctx.direction.filter(|_| g.by_direction) {
         Some(d) => {
-            let s = r.iter().zip(d).map(|(v, d)| v * d);
+            let s = r.iter().zip(d).map(|(v, &d)| v * f64::from(d));
             let (p, m) = smoother::cv_fold_means(b, g.shift, s, ctx.fold, ctx.folds);
             r.iter()
                 .zip(d)
                 .enumerate()
-                .map(|(i, (v, d))| v - d * p[cell(m, i)])
+                .map(|(i, (v, &d))| v - f64::from(d) * p[cell(m, i)])
                 .collect()
         }
         None => {
@@ -801,10 +826,11 @@ fn remove(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
 fn remove_reference(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
     match ctx.direction.filter(|_| g.by_direction) {
         Some(d) => {
-            let s: Vec<f64> = r.iter().zip(d).map(|(v, d)| v * d).collect();
+            let d: Vec<f64> = d.iter().map(|&d| f64::from(d)).collect();
+            let s: Vec<f64> = r.iter().zip(&d).map(|(v, d)| v * d).collect();
             let p = smoother::cv_predict(b, g.shift, &s, ctx.fold, ctx.folds);
             r.iter()
-                .zip(d)
+                .zip(&d)
                 .zip(p)
                 .map(|((v, d), p)| v - d * p)
                 .collect()
@@ -1286,7 +1312,7 @@ struct PermInput<'a, 'b> {
     usable: &'a [(usize, &'b Analysed)],
     y: &'a [f64],
     sst: f64,
-    direction: Option<&'a [f64]>,
+    direction: Option<&'a [i8]>,
     lengths: &'a [usize],
     groups: &'a [PermGroup],
     seed: u64,
@@ -1458,7 +1484,7 @@ impl PermWorker {
                 if let Some(d) = p.direction {
                     self.signed.clear();
                     self.signed
-                        .extend(self.perm.iter().zip(d).map(|(p, d)| p * d));
+                        .extend(self.perm.iter().zip(d).map(|(p, &d)| p * f64::from(d)));
                     sst_signed = sst_one_pass(&self.signed);
                 }
                 for &k in &g.features {
@@ -1482,7 +1508,7 @@ fn permutation_test(
     analysed: &mut [Result<Analysed, Unusable>],
     y: &[f64],
     sst: f64,
-    direction: Option<&[f64]>,
+    direction: Option<&[i8]>,
     blocks: &[usize],
     config: &DiagnoseConfig,
     fused: bool,

@@ -800,7 +800,7 @@ impl SlotTable {
     pub(crate) fn accumulate_permuted(
         &self,
         y: &Permuted<'_>,
-        direction: &[f64],
+        direction: &[i8],
         acc: &mut [f64],
         acc_signed: &mut [f64],
     ) -> (f64, f64) {
@@ -1013,7 +1013,7 @@ impl SlotTable {
         y: &[f64],
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
-        direction: &[f64],
+        direction: &[i8],
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
@@ -1040,7 +1040,7 @@ impl SlotTable {
         y: &[f64],
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
-        direction: &[f64],
+        direction: &[i8],
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
@@ -1056,7 +1056,7 @@ impl SlotTable {
         y: &[f64],
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
-        direction: &[f64],
+        direction: &[i8],
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
@@ -1094,7 +1094,7 @@ impl SlotTable {
                 let d = &direction[k..k + chunk.len()];
                 for ((row, v), &dt) in rows.chunks_exact(m).zip(chunk).zip(d) {
                     let v = *v;
-                    let w = scale_lanes(&v, dt);
+                    let w = scale_lanes(&v, f64::from(dt));
                     add_lanes(&mut sum, &w);
                     add_lanes(&mut sq, &mul_lanes(&w, &w));
                     for (&c, &o) in row.iter().zip(offset) {
@@ -1175,13 +1175,13 @@ fn add_rows_signed(
     ms: usize,
     offset: &[usize],
     run: &[f64],
-    d: &[f64],
+    d: &[i8],
     acc: &mut [f64],
     acc_signed: &mut [f64],
     (mut sum, mut sq): (f64, f64),
 ) -> (f64, f64) {
     for (t, (&v, &dt)) in run.iter().zip(d).enumerate() {
-        let w = v * dt;
+        let w = v * f64::from(dt);
         sum += w;
         sq += w * w;
         let row = &codes[t * m..(t + 1) * m];
@@ -1204,7 +1204,7 @@ fn add_rows_signed_held(
     ms: usize,
     offset: &[usize],
     run: &[f64],
-    d: &[f64],
+    d: &[i8],
     acc: &mut [f64],
     acc_signed: &mut [f64],
     sum: (f64, f64),
@@ -1227,7 +1227,7 @@ fn add_rows_signed_held_m<const M: usize>(
     ms: usize,
     offset: &[usize],
     run: &[f64],
-    d: &[f64],
+    d: &[i8],
     acc: &mut [f64],
     acc_signed: &mut [f64],
     (mut sum, mut sq): (f64, f64),
@@ -1241,7 +1241,7 @@ fn add_rows_signed_held_m<const M: usize>(
     let mut held_s: [f64; M] =
         std::array::from_fn(|j| if j < ms { acc_signed[slot[j]] } else { 0.0 });
     for ((row, &v), &dt) in codes.chunks_exact(M).zip(run).zip(d) {
-        let w = v * dt;
+        let w = v * f64::from(dt);
         sum += w;
         sq += w * w;
         for j in 0..M {
