@@ -522,8 +522,8 @@ pub fn diagnose(
         .columns()
         .par_iter()
         .map(|col| {
-            Binned::new(
-                &col.raw(),
+            Binned::of_column(
+                col,
                 config.max_bins,
                 config.min_bin_rows,
                 config.max_discrete,
