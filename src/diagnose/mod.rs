@@ -1266,7 +1266,11 @@ fn perm_groups(
 
 /// Returns the slots the groups' tables took ([`perm_groups`]) to the features of
 /// `analysed` (`usable[k]`: the index of usable feature `k` there), freeing the tables.
-fn give_back(groups: Vec<PermGroup>, analysed: &mut [Result<Analysed, Unusable>], usable: &[usize]) {
+fn give_back(
+    groups: Vec<PermGroup>,
+    analysed: &mut [Result<Analysed, Unusable>],
+    usable: &[usize],
+) {
     let mut bins: Vec<Option<&mut Binned>> = analysed
         .iter_mut()
         .map(|a| a.as_mut().ok().map(|a| &mut a.binned))
