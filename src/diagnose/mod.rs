@@ -599,6 +599,9 @@ pub fn diagnose(
         })
         .collect();
     let forward = forward_pass(&analysed, &significant, &y, &ctx);
+    // The clipped residual served the screen and the forward pass; the reports read the
+    // residuals as given (freed before them: the reports' own buffers are the peak there).
+    drop(y);
 
     let signed_residuals: Option<Vec<f64>> = direction.as_ref().map(|d| {
         residuals
@@ -686,7 +689,6 @@ pub fn diagnose(
     drop(analysed);
     drop(signed_residuals);
     drop(direction_values);
-    drop(y);
     // The residual's own statistics (one thread each: a sort for the dip test, the
     // Ljung–Box sums) run beside the pair screen instead of after it.
     let ((interactions, global), (whiteness, bimodality, dip)) = rayon::join(

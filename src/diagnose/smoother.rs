@@ -1659,16 +1659,16 @@ mod tests {
         let h = Binned::new(&holed, 64, 1, 256).expect("usable");
         assert_eq!((h.kind, h.n_fine), (BinKind::Discrete, 255));
         assert!(h.fine.narrow().is_some());
-        for i in 0..n {
-            let want = if i == 5 { 255 } else { values[i] as usize };
+        for (i, &v) in values.iter().enumerate() {
+            let want = if i == 5 { 255 } else { v as usize };
             assert_eq!(h.fine_slot(i), want);
         }
         let values: Vec<f64> = (0..n).map(|i| ((i * 37) % 256) as f64).collect();
         let b = Binned::new(&values, 64, 1, 256).expect("usable");
         assert_eq!((b.kind, b.n_fine), (BinKind::Discrete, 256));
         assert!(b.fine.narrow().is_none());
-        for i in 0..n {
-            assert_eq!(b.fine_slot(i), values[i] as usize);
+        for (i, &v) in values.iter().enumerate() {
+            assert_eq!(b.fine_slot(i), v as usize);
         }
         // `from_codes` stores the same slots as `new` of the same numbers.
         let codes: Vec<u8> = values.iter().map(|&v| v as u8).collect();
