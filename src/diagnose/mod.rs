@@ -420,13 +420,28 @@ struct Signed {
 }
 
 impl Signed {
-    fn new(y: &[f64], direction: &[f64]) -> Signed {
-        let y: Vec<f64> = y.iter().zip(direction).map(|(r, d)| r * d).collect();
+    fn new(y: &[f64], direction: &[i8]) -> Signed {
+        let y: Vec<f64> = y
+            .iter()
+            .zip(direction)
+            .map(|(r, &d)| r * f64::from(d))
+            .collect();
         Signed {
             sst: stats::sum_sq_about_mean(&y),
             y,
         }
     }
+}
+
+/// The direction values `d` (−1, 0, +1) as bytes; `None` (no direction-signed analysis)
+/// if a value is not one of those (a built-in `direction` column never has another).
+fn direction_bytes(d: impl Iterator<Item = f64>) -> Option<Vec<i8>> {
+    let byte = |x: f64| -> Option<i8> {
+        [-1i8, 0, 1]
+            .into_iter()
+            .find(|&b| f64::from(b).to_bits() == x.to_bits())
+    };
+    d.map(byte).collect()
 }
 
 /// Whether the direction-signed analysis applies to `col`: every feature but `direction`
@@ -496,21 +511,22 @@ pub fn diagnose(
     let residual_std = stats::std_dev(residuals).unwrap_or(0.0);
     let fold = assign_folds(n, block_len, config.folds, config.seed);
 
-    // The direction of the last move, for the direction-signed analysis (see the module docs).
-    let direction: Option<Vec<f64>> = table
+    // The direction of the last move, for the direction-signed analysis (see the module docs):
+    // one byte a row (−1, +1; 0 before the first move), read as the same `f64`s.
+    let direction: Option<Vec<i8>> = table
         .column(Feature::Direction.name())
         .filter(|c| c.origin == FeatureOrigin::BuiltIn(Feature::Direction))
-        .map(|c| c.iter().map(|v| v.unwrap_or(0.0)).collect());
+        .and_then(|c| direction_bytes(c.iter().map(|v| v.unwrap_or(0.0))));
     let signed = direction.as_ref().map(|d| Signed::new(&y, d));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
     // Columns are independent (no random draws): in parallel, collected in table order.
-    let analysed: Vec<Result<Analysed, Unusable>> = table
+    let mut analysed: Vec<Result<Analysed, Unusable>> = table
         .columns()
         .par_iter()
         .map(|col| {
-            Binned::new(
-                &col.raw(),
+            Binned::of_column(
+                col,
                 config.max_bins,
                 config.min_bin_rows,
                 config.max_discrete,
@@ -563,7 +579,7 @@ pub fn diagnose(
         })
         .collect();
     let (p_raw, p_adj) = permutation_test(
-        &analysed,
+        &mut analysed,
         &y,
         sst,
         direction.as_deref(),
@@ -586,10 +602,21 @@ pub fn diagnose(
         })
         .collect();
     let forward = forward_pass(&analysed, &significant, &y, &ctx);
+    // The clipped residual served the screen and the forward pass; the reports read the
+    // residuals as given (freed before them: the reports' own buffers are the peak there).
+    drop(y);
 
-    let signed_residuals: Option<Vec<f64>> = direction
+    let signed_residuals: Option<Vec<f64>> = direction.as_ref().map(|d| {
+        residuals
+            .iter()
+            .zip(d)
+            .map(|(r, &d)| r * f64::from(d))
+            .collect()
+    });
+    // The reports read the direction as numbers.
+    let direction_values: Option<Vec<f64>> = direction
         .as_ref()
-        .map(|d| residuals.iter().zip(d).map(|(r, d)| r * d).collect());
+        .map(|d| d.iter().map(|&d| f64::from(d)).collect());
     // One report per column, independent of the others: in parallel, in column order.
     let mut reports: Vec<(usize, FeatureReport)> = table
         .columns()
@@ -610,7 +637,7 @@ pub fn diagnose(
                         _ => residuals,
                     },
                     a.by_direction,
-                    direction.as_deref(),
+                    direction_values.as_deref(),
                     residual_std,
                     config,
                 ),
@@ -664,7 +691,7 @@ pub fn diagnose(
     // diagnosis's peak of memory otherwise).
     drop(analysed);
     drop(signed_residuals);
-    drop(y);
+    drop(direction_values);
     // The residual's own statistics (one thread each: a sort for the dip test, the
     // Ljung–Box sums) run beside the pair screen instead of after it.
     let ((interactions, global), (whiteness, bimodality, dip)) = rayon::join(
@@ -711,7 +738,7 @@ const MAX_TIED: usize = 4;
 
 /// What is shared by every gain evaluation of one diagnosis.
 struct Ctx<'a> {
-    direction: Option<&'a [f64]>,
+    direction: Option<&'a [i8]>,
     fold: &'a [u32],
     folds: usize,
     /// Variance of the (clipped, centred) residuals: every gain is a fraction of it.
@@ -737,7 +764,7 @@ fn gain(
     b: &Binned,
     signable: bool,
     r: &[f64],
-    direction: Option<&[f64]>,
+    direction: Option<&[i8]>,
     fold: &[u32],
     folds: usize,
     variance: f64,
@@ -758,7 +785,7 @@ fn gain(
     };
     if let Some(d) = direction.filter(|_| signable) {
         // r × direction row by row, never stored (the values `Signed::new` would hold).
-        let signed = || r.iter().zip(d).map(|(v, d)| v * d);
+        let signed = || r.iter().zip(d).map(|(v, &d)| v * f64::from(d));
         let cv = smoother::cross_validate_rows(b, signed(), fold, folds);
         let e = frac(sum_sq_about_mean_rows(signed) / n, cv.mse);
         if e > g.explained * (1.0 + NEAR_TIE) {
@@ -779,12 +806,12 @@ fn remove(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
     let cell = |m: usize, i: usize| smoother::cv_cell(b, g.shift, ctx.fold, m, i);
     match ctx.direction.filter(|_| g.by_direction) {
         Some(d) => {
-            let s = r.iter().zip(d).map(|(v, d)| v * d);
+            let s = r.iter().zip(d).map(|(v, &d)| v * f64::from(d));
             let (p, m) = smoother::cv_fold_means(b, g.shift, s, ctx.fold, ctx.folds);
             r.iter()
                 .zip(d)
                 .enumerate()
-                .map(|(i, (v, d))| v - d * p[cell(m, i)])
+                .map(|(i, (v, &d))| v - f64::from(d) * p[cell(m, i)])
                 .collect()
         }
         None => {
@@ -804,10 +831,11 @@ fn remove(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
 fn remove_reference(b: &Binned, g: Gain, r: &[f64], ctx: &Ctx) -> Vec<f64> {
     match ctx.direction.filter(|_| g.by_direction) {
         Some(d) => {
-            let s: Vec<f64> = r.iter().zip(d).map(|(v, d)| v * d).collect();
+            let d: Vec<f64> = d.iter().map(|&d| f64::from(d)).collect();
+            let s: Vec<f64> = r.iter().zip(&d).map(|(v, d)| v * d).collect();
             let p = smoother::cv_predict(b, g.shift, &s, ctx.fold, ctx.folds);
             r.iter()
-                .zip(d)
+                .zip(&d)
                 .zip(p)
                 .map(|((v, d), p)| v - d * p)
                 .collect()
@@ -1186,32 +1214,82 @@ struct PermGroup {
 }
 
 /// The groups of the fused permutation pass: one per distinct block length (`which[k]`: the
-/// length of usable feature `k`), signable features first when the residual is signed.
+/// length of usable feature `k`), signable features first when the residual is signed. Each
+/// group's [`SlotTable`] takes its features' one-byte slots from `analysed` (`usable[k]`:
+/// the index of usable feature `k` there); [`give_back`] returns them.
 fn perm_groups(
-    usable: &[(usize, &Analysed)],
+    analysed: &mut [Result<Analysed, Unusable>],
+    usable: &[usize],
     lengths: usize,
     which: &[usize],
     signed: bool,
     fused: bool,
 ) -> Vec<PermGroup> {
-    (0..lengths)
-        .into_par_iter()
+    let is_signed = |a: &Analysed| signed && a.signable;
+    let mut groups: Vec<(PermGroup, Vec<&mut Binned>)> = (0..lengths)
         .map(|length| {
-            let mut features: Vec<usize> =
-                (0..usable.len()).filter(|&k| which[k] == length).collect();
-            let is_signed = |k: usize| signed && usable[k].1.signable;
-            // Stable: signable first, each part in usable order.
-            features.sort_by_key(|&k| !is_signed(k));
-            let n_signed = features.iter().filter(|&&k| is_signed(k)).count();
-            let bins: Vec<&Binned> = features.iter().map(|&k| &usable[k].1.binned).collect();
-            PermGroup {
+            let group = PermGroup {
                 length,
-                table: SlotTable::new(&bins, n_signed).filter(|_| fused),
-                features,
-            }
+                features: Vec::new(),
+                table: None,
+            };
+            (group, Vec::new())
         })
+        .collect();
+    // Signable first, each part in usable order (the mutable borrows are handed out in
+    // usable order, then each group's are reordered alike).
+    let mut usable_at = vec![usize::MAX; analysed.len()];
+    for (k, &j) in usable.iter().enumerate() {
+        usable_at[j] = k;
+    }
+    let mut members: Vec<Vec<(bool, usize, &mut Binned)>> =
+        (0..lengths).map(|_| Vec::new()).collect();
+    for (j, a) in analysed.iter_mut().enumerate() {
+        if let (Ok(a), Some(&k)) = (a.as_mut(), usable_at.get(j).filter(|&&k| k != usize::MAX)) {
+            let s = is_signed(a);
+            members[which[k]].push((!s, k, &mut a.binned));
+        }
+    }
+    for ((g, bins), mut ms) in groups.iter_mut().zip(members) {
+        // Stable: signable first, each part in usable order.
+        ms.sort_by_key(|&(unsigned, k, _)| (unsigned, k));
+        let n_signed = ms.iter().filter(|(unsigned, _, _)| !unsigned).count();
+        g.features = ms.iter().map(|&(_, k, _)| k).collect();
+        bins.extend(ms.into_iter().map(|(_, _, b)| b));
+        g.table = if fused {
+            SlotTable::take(bins, n_signed)
+        } else {
+            None
+        };
+    }
+    groups
+        .into_iter()
+        .map(|(g, _)| g)
         .filter(|g| !g.features.is_empty())
-        .collect::<Vec<_>>()
+        .collect()
+}
+
+/// Returns the slots the groups' tables took ([`perm_groups`]) to the features of
+/// `analysed` (`usable[k]`: the index of usable feature `k` there), freeing the tables.
+fn give_back(
+    groups: Vec<PermGroup>,
+    analysed: &mut [Result<Analysed, Unusable>],
+    usable: &[usize],
+) {
+    let mut bins: Vec<Option<&mut Binned>> = analysed
+        .iter_mut()
+        .map(|a| a.as_mut().ok().map(|a| &mut a.binned))
+        .collect();
+    for g in groups {
+        if let Some(table) = g.table {
+            let mut mine: Vec<&mut Binned> = g
+                .features
+                .iter()
+                .filter_map(|&k| bins[usable[k]].take())
+                .collect();
+            table.give_back(&mut mine);
+        }
+    }
 }
 
 /// One thread's buffers and hit counts of the permutation test (one slot per usable feature).
@@ -1243,7 +1321,7 @@ struct PermInput<'a, 'b> {
     usable: &'a [(usize, &'b Analysed)],
     y: &'a [f64],
     sst: f64,
-    direction: Option<&'a [f64]>,
+    direction: Option<&'a [i8]>,
     lengths: &'a [usize],
     groups: &'a [PermGroup],
     seed: u64,
@@ -1415,7 +1493,7 @@ impl PermWorker {
                 if let Some(d) = p.direction {
                     self.signed.clear();
                     self.signed
-                        .extend(self.perm.iter().zip(d).map(|(p, d)| p * d));
+                        .extend(self.perm.iter().zip(d).map(|(p, &d)| p * f64::from(d)));
                     sst_signed = sst_one_pass(&self.signed);
                 }
                 for &k in &g.features {
@@ -1436,10 +1514,10 @@ impl PermWorker {
 /// one pass over each permuted residual ([`SlotTable`]); else each feature's own pass
 /// ([`FTest::min_p`], the slow reference — the results are bit-identical, tested).
 fn permutation_test(
-    analysed: &[Result<Analysed, Unusable>],
+    analysed: &mut [Result<Analysed, Unusable>],
     y: &[f64],
     sst: f64,
-    direction: Option<&[f64]>,
+    direction: Option<&[i8]>,
     blocks: &[usize],
     config: &DiagnoseConfig,
     fused: bool,
@@ -1447,23 +1525,33 @@ fn permutation_test(
     let m = analysed.len();
     let mut raw_count = vec![0usize; m];
     let mut adj_count = vec![0usize; m];
-    let usable: Vec<(usize, &Analysed)> = analysed
-        .iter()
-        .enumerate()
-        .filter_map(|(j, a)| a.as_ref().ok().map(|a| (j, a)))
-        .collect();
-    if sst > 0.0 && !usable.is_empty() {
-        let mut lengths: Vec<usize> = usable.iter().map(|&(j, _)| blocks[j]).collect();
+    let usable_idx: Vec<usize> = (0..m).filter(|&j| analysed[j].is_ok()).collect();
+    if sst > 0.0 && !usable_idx.is_empty() {
+        let mut lengths: Vec<usize> = usable_idx.iter().map(|&j| blocks[j]).collect();
         lengths.sort_unstable();
         lengths.dedup();
-        let which: Vec<usize> = usable
+        let which: Vec<usize> = usable_idx
             .iter()
-            .map(|&(j, _)| lengths.binary_search(&blocks[j]).unwrap_or(0))
+            .map(|&j| lengths.binary_search(&blocks[j]).unwrap_or(0))
             .collect();
-        let groups = perm_groups(&usable, lengths.len(), &which, direction.is_some(), fused);
-        let tests: Vec<FTest> = usable
+        // The counts before the slot tables take the features' slots.
+        let tests: Vec<FTest> = usable_idx
             .par_iter()
-            .map(|(_, a)| FTest::new(&a.binned))
+            .filter_map(|&j| analysed[j].as_ref().ok())
+            .map(|a| FTest::new(&a.binned))
+            .collect();
+        let groups = perm_groups(
+            analysed,
+            &usable_idx,
+            lengths.len(),
+            &which,
+            direction.is_some(),
+            fused,
+        );
+        let usable: Vec<(usize, &Analysed)> = analysed
+            .iter()
+            .enumerate()
+            .filter_map(|(j, a)| a.as_ref().ok().map(|a| (j, a)))
             .collect();
         // Every permutation draws from its own seeded streams and the counts are integers, so
         // the p-values are the same for any number of threads.
@@ -1496,12 +1584,15 @@ fn permutation_test(
                     (r, a)
                 },
             );
-        for (k, &(j, _)) in usable.iter().enumerate() {
+        drop(usable);
+        give_back(groups, analysed, &usable_idx);
+        for (k, &j) in usable_idx.iter().enumerate() {
             raw_count[j] = raw[k];
             adj_count[j] = adj[k];
         }
     }
     let b = config.permutations as f64 + 1.0;
+    let analysed = &*analysed;
     let p = |counts: Vec<usize>| -> Vec<f64> {
         counts
             .iter()

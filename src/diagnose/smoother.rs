@@ -10,7 +10,7 @@
 //! bin per value and two candidates: all values, or one bin. Missing values always form a bin of
 //! their own, also in the one-bin candidate, so "undefined" can itself be an effect.
 
-use super::features::defined;
+use super::features::{FeatureColumn, defined};
 use crate::numeric::stats::reg_inc_beta;
 
 /// Fine-bin index of a missing value.
@@ -25,12 +25,69 @@ pub(crate) enum BinKind {
     Quantile,
 }
 
+/// The fine slot of each row of a feature (`0..n_fine` its fine bin, `n_fine` undefined):
+/// one byte a row when the feature has at most 255 fine bins (discrete features of up to 255
+/// values, quantile bins up to 128), else two (at most 4096 quantile bins and the undefined
+/// slot).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum FineSlots {
+    /// One byte a row.
+    Narrow(Vec<u8>),
+    /// Two bytes a row.
+    Wide(Vec<u16>),
+}
+
+impl FineSlots {
+    /// The slots of `fine` (fine bins, [`MISSING`] for an undefined value) of a feature with
+    /// `n_fine` fine bins, one byte a row when the `n_fine + 1` slots fit.
+    fn of_bins(fine: impl ExactSizeIterator<Item = u16>, n_fine: usize) -> FineSlots {
+        let slot = |f: u16| if f == MISSING { n_fine } else { f as usize };
+        if n_fine < 256 {
+            FineSlots::Narrow(fine.map(|f| slot(f) as u8).collect())
+        } else {
+            FineSlots::Wide(fine.map(|f| slot(f) as u16).collect())
+        }
+    }
+
+    /// Rows.
+    pub(crate) fn len(&self) -> usize {
+        match self {
+            FineSlots::Narrow(c) => c.len(),
+            FineSlots::Wide(c) => c.len(),
+        }
+    }
+
+    /// Slot of row `i`.
+    #[inline(always)]
+    pub(crate) fn get(&self, i: usize) -> usize {
+        match self {
+            FineSlots::Narrow(c) => c[i] as usize,
+            FineSlots::Wide(c) => c[i] as usize,
+        }
+    }
+
+    /// The one-byte slots, when the feature has them.
+    pub(crate) fn narrow(&self) -> Option<&[u8]> {
+        match self {
+            FineSlots::Narrow(c) => Some(c),
+            FineSlots::Wide(_) => None,
+        }
+    }
+
+    /// Takes the one-byte slots out, leaving none (0 rows) until they are put back.
+    fn take_narrow(&mut self) -> Option<Vec<u8>> {
+        match self {
+            FineSlots::Narrow(c) => Some(std::mem::take(c)),
+            FineSlots::Wide(_) => None,
+        }
+    }
+}
+
 /// A feature prepared for smoothing.
 #[derive(Debug, Clone)]
 pub(crate) struct Binned {
-    /// Fine bin of each row; [`MISSING`] for an undefined value. Two bytes a row: there
-    /// are at most 4096 quantile bins and 256 discrete values.
-    pub fine: Vec<u16>,
+    /// Fine slot of each row (the fine bin; `n_fine` for an undefined value).
+    pub fine: FineSlots,
     /// Number of fine (non-missing) bins, ≥ 1.
     pub n_fine: usize,
     /// Discrete or quantile bins.
@@ -68,10 +125,44 @@ impl Binned {
         min_bin_rows: usize,
         max_discrete: usize,
     ) -> Result<Binned, Unusable> {
+        Self::of_rows(
+            || values.iter().copied(),
+            max_bins,
+            min_bin_rows,
+            max_discrete,
+        )
+    }
+
+    /// [`Binned::new`] of a feature column read in place: its values decoded row by row as
+    /// they are read (twice), not into a vector of their own (8 B/row per thread for a
+    /// column stored narrower than `f64`). The same bins as [`Binned::new`] of
+    /// [`FeatureColumn::raw`] (tested).
+    pub(super) fn of_column(
+        col: &FeatureColumn,
+        max_bins: usize,
+        min_bin_rows: usize,
+        max_discrete: usize,
+    ) -> Result<Binned, Unusable> {
+        Self::of_rows(
+            || col.iter().map(|v| v.unwrap_or(f64::NAN)),
+            max_bins,
+            min_bin_rows,
+            max_discrete,
+        )
+    }
+
+    /// [`Binned::new`] of the values `rows()` gives in row order (NaN = undefined).
+    fn of_rows<I: ExactSizeIterator<Item = f64>>(
+        rows: impl Fn() -> I,
+        max_bins: usize,
+        min_bin_rows: usize,
+        max_discrete: usize,
+    ) -> Result<Binned, Unusable> {
+        let n_rows = rows().len();
         // The defined values; no sort: the distinct values and the quantile cuts below are
         // found by scanning and selection (the same values a sort gives, tested).
-        let mut sorted: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
-        let has_missing = sorted.len() < values.len();
+        let mut sorted: Vec<f64> = rows().filter(|x| !x.is_nan()).collect();
+        let has_missing = sorted.len() < n_rows;
         if sorted.is_empty() {
             return Err(Unusable::AllMissing);
         }
@@ -90,7 +181,7 @@ impl Binned {
             for &v in &sorted {
                 counts[distinct_values.partition_point(|&d| d < v)] += 1;
             }
-            let missing = values.len() - sorted.len();
+            let missing = n_rows - sorted.len();
             let mut label = vec![0u16; distinct_values.len()];
             let mut next = 0u16;
             let mut pending = 0usize;
@@ -120,17 +211,17 @@ impl Binned {
                     .unwrap_or((0, &0));
                 return Err(Unusable::NearlyConstant {
                     value: distinct_values[k],
-                    others: values.len() - most,
+                    others: n_rows - most,
                 });
             }
-            let fine = values
-                .iter()
-                .map(|&v| match defined(v) {
+            let fine = FineSlots::of_bins(
+                rows().map(|v| match defined(v) {
                     Some(x) => label[distinct_values.partition_point(|&d| d < x)],
                     None if pool_missing => n_fine as u16 - 1,
                     None => MISSING,
-                })
-                .collect();
+                }),
+                n_fine,
+            );
             let levels = if n_fine > 1 {
                 vec![ONE_BIN, 0]
             } else {
@@ -153,16 +244,16 @@ impl Binned {
         let ranks: Vec<usize> = (1..k_max).map(|k| (k * n / k_max).min(n - 1)).collect();
         let cuts = order_statistics(&mut sorted, &ranks);
         // Too few undefined rows for a bin of their own join the top bin (as above).
-        let missing = values.len() - n;
+        let missing = n_rows - n;
         let pool_missing = missing > 0 && missing < min_bin_rows;
-        let fine = values
-            .iter()
-            .map(|&v| match defined(v) {
+        let fine = FineSlots::of_bins(
+            rows().map(|v| match defined(v) {
                 Some(x) => cuts.partition_point(|&c| c <= x) as u16,
                 None if pool_missing => (k_max - 1) as u16,
                 None => MISSING,
-            })
-            .collect();
+            }),
+            k_max,
+        );
         let top = k_max.trailing_zeros();
         let levels = (0..=top).rev().collect();
         Ok(Binned {
@@ -229,7 +320,7 @@ impl Binned {
             fine_of[c] = l;
         }
         Ok(Binned {
-            fine: codes.iter().map(|&c| fine_of[c as usize]).collect(),
+            fine: FineSlots::of_bins(codes.iter().map(|&c| fine_of[c as usize]), n_fine),
             n_fine,
             kind: BinKind::Discrete,
             levels: vec![ONE_BIN, 0],
@@ -250,18 +341,6 @@ impl Binned {
         }
     }
 
-    /// Slot of fine bin `f` at level `shift`.
-    #[inline]
-    pub(super) fn slot(&self, f: u16, shift: u32) -> usize {
-        if f == MISSING {
-            self.defined_bins(shift)
-        } else if shift >= ONE_BIN {
-            0
-        } else {
-            (f as usize) >> shift
-        }
-    }
-
     /// Slot of fine slot index `fs` (0..n_fine, n_fine = missing) at level `shift`.
     #[inline]
     fn coarse_of_fine_slot(&self, fs: usize, shift: u32) -> usize {
@@ -277,12 +356,7 @@ impl Binned {
     /// Fine slot of row `i` (missing → `n_fine`).
     #[inline]
     pub(super) fn fine_slot(&self, i: usize) -> usize {
-        let f = self.fine[i];
-        if f == MISSING {
-            self.n_fine
-        } else {
-            f as usize
-        }
+        self.fine.get(i)
     }
 }
 
@@ -389,6 +463,14 @@ pub(crate) fn cross_validate_rows(
     best
 }
 
+/// Adds `y[i]` into `sums[codes[i]]` for every row, in row order.
+#[inline]
+fn add_by_slot<T: Copy + Into<usize>>(codes: &[T], y: &[f64], sums: &mut [f64]) {
+    for (&c, &v) in codes.iter().zip(y) {
+        sums[c.into()] += v;
+    }
+}
+
 /// Counts of rows per fine slot (invariant under permutation of the residuals).
 pub(crate) fn fine_counts(b: &Binned) -> Vec<f64> {
     let mut cnt = vec![0.0; b.n_fine + 1];
@@ -436,8 +518,10 @@ impl FTest {
     pub(super) fn min_p(&mut self, b: &Binned, y: &[f64], sst: f64) -> f64 {
         let mut fine_sum = std::mem::take(&mut self.fine_sum);
         fine_sum.iter_mut().for_each(|s| *s = 0.0);
-        for (i, &v) in y.iter().enumerate() {
-            fine_sum[b.fine_slot(i)] += v;
+        // One loop per width (no test of the width per row).
+        match &b.fine {
+            FineSlots::Narrow(c) => add_by_slot(c, y, &mut fine_sum),
+            FineSlots::Wide(c) => add_by_slot(c, y, &mut fine_sum),
         }
         let p = self.min_p_of_sums(b, &fine_sum, y.len(), sst);
         self.fine_sum = fine_sum;
@@ -506,9 +590,11 @@ const STEADY_ROWS: usize = 64;
 
 impl SlotTable {
     /// The table of `bins` (the first `signed` of them also summed for the signed residual);
-    /// `None` when a feature has more than 256 fine slots (then use [`FTest::min_p`]).
+    /// `None` when a feature has more than 256 fine slots (then use [`FTest::min_p`]). The
+    /// features keep their own slots (a copy): the reference of [`SlotTable::take`].
+    #[cfg(test)]
     pub(crate) fn new(bins: &[&Binned], signed: usize) -> Option<SlotTable> {
-        if bins.iter().any(|b| b.n_fine + 1 > 256) {
+        if bins.iter().any(|b| b.fine.narrow().is_none()) {
             return None;
         }
         let m = bins.len();
@@ -519,6 +605,47 @@ impl SlotTable {
                 row[j] = b.fine_slot(i) as u8;
             }
         }
+        Some(Self::of_codes(codes, bins, signed))
+    }
+
+    /// [`SlotTable::new`] of `bins` that takes their one-byte slots instead of copying them:
+    /// each feature's slots are moved into the table column by column (freed as they are
+    /// copied in, so the table and the features' slots are not held twice), and the
+    /// features hold no slots (0 rows) until [`SlotTable::give_back`] returns them. `None`
+    /// (nothing taken) when a feature has more than 256 fine slots.
+    pub(crate) fn take(bins: &mut [&mut Binned], signed: usize) -> Option<SlotTable> {
+        if bins.iter().any(|b| b.fine.narrow().is_none()) {
+            return None;
+        }
+        let m = bins.len();
+        let n = bins.first().map_or(0, |b| b.fine.len());
+        let mut codes = vec![0u8; n * m];
+        for (j, b) in bins.iter_mut().enumerate() {
+            let col = b.fine.take_narrow().unwrap_or_default();
+            for (row, &c) in codes.chunks_exact_mut(m).zip(&col) {
+                row[j] = c;
+            }
+        }
+        let shared: Vec<&Binned> = bins.iter().map(|b| &**b).collect();
+        Some(Self::of_codes(codes, &shared, signed))
+    }
+
+    /// Puts the slots [`SlotTable::take`] took back into `bins` (the same features in the
+    /// same order), freeing the table.
+    pub(crate) fn give_back(self, bins: &mut [&mut Binned]) {
+        let m = self.m;
+        let mut codes = self.codes;
+        for (j, b) in bins.iter_mut().enumerate().take(m) {
+            b.fine = FineSlots::Narrow(codes.iter().skip(j).step_by(m).copied().collect());
+        }
+        codes.clear();
+        codes.shrink_to_fit();
+    }
+
+    /// The table of the interleaved `codes` of `bins`.
+    fn of_codes(codes: Vec<u8>, bins: &[&Binned], signed: usize) -> SlotTable {
+        let m = bins.len();
+        let n = codes.len() / m.max(1);
         let mut offset = vec![0usize];
         for b in bins {
             offset.push(offset.last().copied().unwrap_or(0) + b.n_fine + 1);
@@ -530,13 +657,13 @@ impl SlotTable {
             })
             .max()
             .unwrap_or(0);
-        Some(SlotTable {
+        SlotTable {
             steady: m <= HELD_MAX && changes * STEADY_ROWS <= n,
             codes,
             m,
             signed: signed.min(m),
             offset,
-        })
+        }
     }
 
     /// Whether a row-permuted residual is summed by [`add_rows_held`].
@@ -707,7 +834,7 @@ impl SlotTable {
     pub(crate) fn accumulate_permuted(
         &self,
         y: &Permuted<'_>,
-        direction: &[f64],
+        direction: &[i8],
         acc: &mut [f64],
         acc_signed: &mut [f64],
     ) -> (f64, f64) {
@@ -920,7 +1047,7 @@ impl SlotTable {
         y: &[f64],
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
-        direction: &[f64],
+        direction: &[i8],
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
@@ -947,7 +1074,7 @@ impl SlotTable {
         y: &[f64],
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
-        direction: &[f64],
+        direction: &[i8],
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
@@ -963,7 +1090,7 @@ impl SlotTable {
         y: &[f64],
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
-        direction: &[f64],
+        direction: &[i8],
         buf: &mut Vec<[f64; LANES]>,
         acc: &mut Vec<[f64; LANES]>,
         acc_signed: &mut Vec<[f64; LANES]>,
@@ -1001,7 +1128,7 @@ impl SlotTable {
                 let d = &direction[k..k + chunk.len()];
                 for ((row, v), &dt) in rows.chunks_exact(m).zip(chunk).zip(d) {
                     let v = *v;
-                    let w = scale_lanes(&v, dt);
+                    let w = scale_lanes(&v, f64::from(dt));
                     add_lanes(&mut sum, &w);
                     add_lanes(&mut sq, &mul_lanes(&w, &w));
                     for (&c, &o) in row.iter().zip(offset) {
@@ -1082,13 +1209,13 @@ fn add_rows_signed(
     ms: usize,
     offset: &[usize],
     run: &[f64],
-    d: &[f64],
+    d: &[i8],
     acc: &mut [f64],
     acc_signed: &mut [f64],
     (mut sum, mut sq): (f64, f64),
 ) -> (f64, f64) {
     for (t, (&v, &dt)) in run.iter().zip(d).enumerate() {
-        let w = v * dt;
+        let w = v * f64::from(dt);
         sum += w;
         sq += w * w;
         let row = &codes[t * m..(t + 1) * m];
@@ -1111,7 +1238,7 @@ fn add_rows_signed_held(
     ms: usize,
     offset: &[usize],
     run: &[f64],
-    d: &[f64],
+    d: &[i8],
     acc: &mut [f64],
     acc_signed: &mut [f64],
     sum: (f64, f64),
@@ -1134,7 +1261,7 @@ fn add_rows_signed_held_m<const M: usize>(
     ms: usize,
     offset: &[usize],
     run: &[f64],
-    d: &[f64],
+    d: &[i8],
     acc: &mut [f64],
     acc_signed: &mut [f64],
     (mut sum, mut sq): (f64, f64),
@@ -1148,7 +1275,7 @@ fn add_rows_signed_held_m<const M: usize>(
     let mut held_s: [f64; M] =
         std::array::from_fn(|j| if j < ms { acc_signed[slot[j]] } else { 0.0 });
     for ((row, &v), &dt) in codes.chunks_exact(M).zip(run).zip(d) {
-        let w = v * dt;
+        let w = v * f64::from(dt);
         sum += w;
         sq += w * w;
         for j in 0..M {
@@ -1306,7 +1433,7 @@ pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[f64], y: &[f64]) -> Vec<Bi
         b.slots(shift)
     ];
     for (i, (&xv, &yv)) in x.iter().zip(y).enumerate() {
-        let a = &mut acc[b.slot(b.fine[i], shift)];
+        let a = &mut acc[b.coarse_of_fine_slot(b.fine_slot(i), shift)];
         a.count += 1;
         a.y_sum += yv;
         a.y_sq += yv * yv;
@@ -1393,7 +1520,8 @@ mod tests {
     use super::*;
     use crate::numeric::rng::SimRng;
 
-    /// Reference: [`FTest::min_p`], one feature's own pass over the rows. The fused pass of
+    /// Reference: [`FTest::min_p`], one feature's own pass over the rows (and, for
+    /// [`SlotTable::take`], [`SlotTable::new`]'s copy). The fused pass of
     /// [`SlotTable`] over several features (quantile and discrete bins, missing values in a
     /// slot of their own and pooled, a signed second residual for the first features) must
     /// give the same statistic bit for bit.
@@ -1442,9 +1570,135 @@ mod tests {
                 }
             }
         }
-        // Too many slots for a byte: no table (the caller falls back to `min_p`).
+        // `take` (the features' slots moved in, not copied) makes the same table as `new`
+        // (the same sums, bit for bit), and `give_back` returns the same slots.
+        let refs: Vec<&Binned> = bins.iter().collect();
+        let copied = SlotTable::new(&refs, 2).expect("few slots");
+        let mut lent = bins.clone();
+        let mut muts: Vec<&mut Binned> = lent.iter_mut().collect();
+        let taken = SlotTable::take(&mut muts, 2).expect("few slots");
+        assert!(muts.iter().all(|b| b.fine.len() == 0));
+        let mut sums = [vec![f64::NAN; copied.len()], vec![f64::NAN; copied.len()]];
+        let mut sums_taken = sums.clone();
+        let [a, b] = &mut sums;
+        copied.accumulate(&y, &ys, a, b);
+        let [a, b] = &mut sums_taken;
+        taken.accumulate(&y, &ys, a, b);
+        let bits = |v: &[Vec<f64>; 2]| v.concat().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&sums), bits(&sums_taken));
+        assert_eq!(copied.steady(), taken.steady());
+        taken.give_back(&mut muts);
+        for (l, b) in lent.iter().zip(&bins) {
+            assert_eq!(l.fine, b.fine);
+        }
+        // Too many slots for a byte: no table (the caller falls back to `min_p`), and
+        // nothing taken.
         let wide = Binned::new(&columns[0], 512, 1, 10).expect("usable");
         assert!(SlotTable::new(&[&wide], 0).is_none());
+        let mut pair = [bins[2].clone(), wide.clone()];
+        let [p0, p1] = &mut pair;
+        assert!(SlotTable::take(&mut [p0, p1], 0).is_none());
+        assert_eq!(pair[0].fine, bins[2].fine);
+        assert_eq!(pair[1].fine, wide.fine);
+    }
+
+    /// Reference: the plain definition of a row's fine slot, by a full sort — quantile bins:
+    /// the number of cuts ≤ the value, the cuts being the sorted defined values at ranks
+    /// `k·n/k_max`; discrete bins: the rank of the value among the distinct values; undefined
+    /// rows in slot `n_fine`. One byte a row up to 256 slots, two bytes beyond, the same slot
+    /// either way (and [`FTest::min_p`]'s per-width loops the same bits as the row-by-row
+    /// sum through `fine_slot`).
+    #[test]
+    fn narrow_and_wide_fine_slots_equal_the_sorted_definition() {
+        let n = 12_000;
+        let mut rng = SimRng::new(11);
+        let column: Vec<f64> = (0..n)
+            .map(|i| {
+                if i % 97 == 0 {
+                    f64::NAN
+                } else {
+                    rng.range(-5.0, 5.0)
+                }
+            })
+            .collect();
+        let y: Vec<f64> = (0..n).map(|_| rng.normal()).collect();
+        let sst: f64 = y.iter().map(|v| v * v).sum();
+        let mut defined: Vec<f64> = column.iter().copied().filter(|x| !x.is_nan()).collect();
+        defined.sort_by(f64::total_cmp);
+        let m = defined.len();
+        for (max_bins, wide) in [(64, false), (128, false), (256, true), (4096, true)] {
+            let b = Binned::new(&column, max_bins, 1, 10).expect("usable");
+            assert_eq!(b.kind, BinKind::Quantile);
+            assert_eq!(b.n_fine, max_bins);
+            assert_eq!(b.fine.narrow().is_none(), wide, "{max_bins} bins");
+            assert_eq!(b.fine.len(), n);
+            let cuts: Vec<f64> = (1..max_bins)
+                .map(|k| defined[(k * m / max_bins).min(m - 1)])
+                .collect();
+            for (i, &x) in column.iter().enumerate() {
+                let want = if x.is_nan() {
+                    max_bins
+                } else {
+                    cuts.iter().filter(|&&c| c <= x).count()
+                };
+                assert_eq!(b.fine_slot(i), want, "{max_bins} bins, row {i}");
+            }
+            let mut by_row = vec![0.0; b.n_fine + 1];
+            for (i, &v) in y.iter().enumerate() {
+                by_row[b.fine_slot(i)] += v;
+            }
+            let mut t = FTest::new(&b);
+            let reference = t.min_p_of_sums(&b, &by_row, n, sst);
+            let own = FTest::new(&b).min_p(&b, &y, sst);
+            assert_eq!(own.to_bits(), reference.to_bits(), "{max_bins} bins");
+        }
+        // Discrete: 255 values and the undefined slot fill a byte; 256 values need two.
+        let values: Vec<f64> = (0..n).map(|i| ((i * 37) % 255) as f64).collect();
+        let mut holed = values.clone();
+        holed[5] = f64::NAN;
+        let h = Binned::new(&holed, 64, 1, 256).expect("usable");
+        assert_eq!((h.kind, h.n_fine), (BinKind::Discrete, 255));
+        assert!(h.fine.narrow().is_some());
+        for (i, &v) in values.iter().enumerate() {
+            let want = if i == 5 { 255 } else { v as usize };
+            assert_eq!(h.fine_slot(i), want);
+        }
+        let values: Vec<f64> = (0..n).map(|i| ((i * 37) % 256) as f64).collect();
+        let b = Binned::new(&values, 64, 1, 256).expect("usable");
+        assert_eq!((b.kind, b.n_fine), (BinKind::Discrete, 256));
+        assert!(b.fine.narrow().is_none());
+        for (i, &v) in values.iter().enumerate() {
+            assert_eq!(b.fine_slot(i), v as usize);
+        }
+        // `from_codes` stores the same slots as `new` of the same numbers.
+        let codes: Vec<u8> = values.iter().map(|&v| v as u8).collect();
+        assert_eq!(Binned::from_codes(&codes, 1).expect("usable").fine, b.fine);
+    }
+
+    /// Reference: [`Binned::new`] of the decoded column ([`FeatureColumn::raw`]). Binning a
+    /// column read in place ([`Binned::of_column`]) must give the same bins (slots, kind,
+    /// levels) or the same reason for none, for every feature of a simulated table (narrow
+    /// integer, `f32`, `f64` and time columns, undefined rows).
+    #[test]
+    fn binning_a_column_in_place_equals_binning_its_decoded_values() {
+        let table = crate::diagnose::tests::table(21, 3000);
+        let mut widths = std::collections::BTreeSet::new();
+        for col in table.columns() {
+            widths.insert(col.bytes_per_row());
+            for (max_bins, min_rows, max_discrete) in [(64, 10, 12), (512, 1, 256), (8, 400, 3)] {
+                let plain = Binned::new(&col.raw(), max_bins, min_rows, max_discrete);
+                let in_place = Binned::of_column(col, max_bins, min_rows, max_discrete);
+                match (plain, in_place) {
+                    (Ok(a), Ok(b)) => {
+                        assert_eq!(a.fine, b.fine, "{}", col.name);
+                        assert_eq!((a.n_fine, a.kind, &a.levels), (b.n_fine, b.kind, &b.levels));
+                    }
+                    (Err(a), Err(b)) => assert_eq!(format!("{a:?}"), format!("{b:?}")),
+                    (a, b) => panic!("{}: {a:?} vs {b:?}", col.name),
+                }
+            }
+        }
+        assert!(widths.len() >= 3, "{widths:?}");
     }
 
     /// Reference: a sort by `total_cmp` ([`sorted_distinct_reference`], and indexing the

@@ -29,7 +29,7 @@ fn synthetic_log(seed: u64, rows: usize) -> Log {
     Log::from_reader("synthetic.csv", text.as_slice(), &ColumnMap::default()).expect("valid log")
 }
 
-fn table(seed: u64, rows: usize) -> FeatureTable {
+pub(super) fn table(seed: u64, rows: usize) -> FeatureTable {
     FeatureTable::from_log(&synthetic_log(seed, rows))
 }
 
@@ -766,8 +766,8 @@ fn fused_permutation_test_equals_the_per_feature_reference() {
     let mean = stats::mean(&r).unwrap_or(0.0);
     let y: Vec<f64> = r.iter().map(|v| v - mean).collect();
     let sst: f64 = y.iter().map(|v| v * v).sum();
-    let direction: Vec<f64> = dir.iter().map(|v| v.unwrap_or(0.0)).collect();
-    let analysed: Vec<Result<Analysed, Unusable>> = t
+    let direction: Vec<i8> = dir.iter().map(|v| v.unwrap_or(0.0) as i8).collect();
+    let mut analysed: Vec<Result<Analysed, Unusable>> = t
         .columns()
         .iter()
         .map(|col| {
@@ -787,9 +787,34 @@ fn fused_permutation_test_equals_the_per_feature_reference() {
         .collect();
     assert!(analysed.iter().filter(|a| a.is_ok()).count() >= 8);
     let blocks: Vec<usize> = (0..analysed.len()).map(|j| [1, 4, 16][j % 3]).collect();
-    let fused = permutation_test(&analysed, &y, sst, Some(&direction), &blocks, &config, true);
+    let slots = |a: &[Result<Analysed, Unusable>]| -> Vec<Option<smoother::FineSlots>> {
+        a.iter()
+            .map(|a| a.as_ref().ok().map(|a| a.binned.fine.clone()))
+            .collect()
+    };
+    let before = slots(&analysed);
+    assert!(
+        before
+            .iter()
+            .flatten()
+            .filter(|f| f.narrow().is_some())
+            .count()
+            >= 8
+    );
+    let fused = permutation_test(
+        &mut analysed,
+        &y,
+        sst,
+        Some(&direction),
+        &blocks,
+        &config,
+        true,
+    );
+    // The slot tables gave the features' slots back as they took them (and the reference
+    // below reads them).
+    assert_eq!(slots(&analysed), before);
     let reference = permutation_test(
-        &analysed,
+        &mut analysed,
         &y,
         sst,
         Some(&direction),
@@ -849,6 +874,8 @@ fn permutation_read_in_place_equals_the_materialised_one() {
         .iter()
         .map(|v| v.unwrap_or(0.0))
         .collect();
+    // The direction as the diagnosis holds it (bytes); `dir` is the plain reference.
+    let dir8: Vec<i8> = dir.iter().map(|&d| d as i8).collect();
     let r = residuals(&t, 5, 1.0, |i| 0.3 * dir[i]);
     let bins: Vec<Binned> = t
         .columns()
@@ -889,7 +916,7 @@ fn permutation_read_in_place_equals_the_materialised_one() {
                     }
                 };
                 let (mut got, mut got_s) = (vec![f64::NAN; table.len()], vec![0.0; table.len()]);
-                let d: &[f64] = if signed > 0 { &dir } else { &[] };
+                let d: &[i8] = if signed > 0 { &dir8 } else { &[] };
                 let (sum, sq) = table.accumulate_permuted(&permuted, d, &mut got, &mut got_s);
                 let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&got), bits(&want), "block {block} seed {seed}");
@@ -919,6 +946,8 @@ fn held_slots_equal_the_accumulator_pass() {
         .iter()
         .map(|v| v.unwrap_or(0.0))
         .collect();
+    // The direction as the diagnosis holds it (bytes); `dir` is the plain reference.
+    let dir8: Vec<i8> = dir.iter().map(|&d| d as i8).collect();
     let bin = |name: &str| {
         Binned::new(&t.column(name).expect("feature present").raw(), 64, 10, 12).expect("binned")
     };
@@ -943,7 +972,7 @@ fn held_slots_equal_the_accumulator_pass() {
                 table.accumulate(&rows, &product, &mut want, &mut want_s);
                 let (mut got, mut got_s) =
                     (vec![f64::NAN; table.len()], vec![f64::NAN; table.len()]);
-                let d: &[f64] = if signed > 0 { &dir } else { &[] };
+                let d: &[i8] = if signed > 0 { &dir8 } else { &[] };
                 let (sum, sq) =
                     table.accumulate_permuted(&Permuted::Rows(&rows), d, &mut got, &mut got_s);
                 let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
@@ -973,6 +1002,8 @@ fn lanes_of_block_permutations_equal_the_materialised_ones() {
         .iter()
         .map(|v| v.unwrap_or(0.0))
         .collect();
+    // The direction as the diagnosis holds it (bytes); `dir` is the plain reference.
+    let dir8: Vec<i8> = dir.iter().map(|&d| d as i8).collect();
     let r = residuals(&t, 6, 1.0, |i| 0.3 * dir[i]);
     let bins: Vec<Binned> = t
         .columns()
@@ -997,7 +1028,7 @@ fn lanes_of_block_permutations_equal_the_materialised_ones() {
                     offset: offsets[l],
                     order: &orders[l],
                 });
-                let d: &[f64] = if signed > 0 { &dir } else { &[] };
+                let d: &[i8] = if signed > 0 { &dir8 } else { &[] };
                 let (mut buf, mut acc, mut acc_s) = (Vec::new(), Vec::new(), Vec::new());
                 let (sum, sq) =
                     table.accumulate_lanes(&r, block, &lanes, d, &mut buf, &mut acc, &mut acc_s);
@@ -1186,13 +1217,15 @@ fn row_by_row_remove_and_gain_equal_the_stored_vectors() {
         .iter()
         .map(|v| v.unwrap_or(0.0))
         .collect();
+    // The direction as the diagnosis holds it (bytes); `dir` is the plain reference.
+    let dir8: Vec<i8> = dir.iter().map(|&d| d as i8).collect();
     let r = residuals(&t, 4, 1.0, |i| 0.4 * dir[i] + (i as f64 * 1e-2).sin());
     let n = r.len();
     let folds = 5;
     let fold = assign_folds(n, 20, folds, 3);
     let variance = stats::sum_sq_about_mean(&r) / n as f64;
     let ctx = Ctx {
-        direction: Some(&dir),
+        direction: Some(&dir8),
         fold: &fold,
         folds,
         variance,
@@ -1217,7 +1250,7 @@ fn row_by_row_remove_and_gain_equal_the_stored_vectors() {
             }
         }
         // The gain's signed analysis against the stored product.
-        let s = Signed::new(&r, &dir);
+        let s = Signed::new(&r, &dir8);
         let cv = smoother::cross_validate(&b, &s.y, &fold, folds);
         let cv_rows =
             smoother::cross_validate_rows(&b, r.iter().zip(&dir).map(|(v, d)| v * d), &fold, folds);
@@ -1225,7 +1258,7 @@ fn row_by_row_remove_and_gain_equal_the_stored_vectors() {
         assert_eq!(cv.mse.to_bits(), cv_rows.mse.to_bits(), "{}", col.name);
         let sst_rows = sum_sq_about_mean_rows(|| r.iter().zip(&dir).map(|(v, d)| v * d));
         assert_eq!(sst_rows.to_bits(), s.sst.to_bits());
-        let g = gain(&b, true, &r, Some(&dir), &fold, folds, variance);
+        let g = gain(&b, true, &r, Some(&dir8), &fold, folds, variance);
         let plain = smoother::cross_validate(&b, &r, &fold, folds);
         let frac = |base: f64, mse: f64| ((base - mse) / variance).clamp(0.0, 1.0);
         let e_plain = frac(stats::sum_sq_about_mean(&r) / n as f64, plain.mse);
@@ -1238,4 +1271,23 @@ fn row_by_row_remove_and_gain_equal_the_stored_vectors() {
         assert_eq!(g.explained.to_bits(), want.to_bits(), "{}", col.name);
     }
     assert!(checked >= 20, "{checked} removals checked");
+}
+
+/// Reference: the `f64` direction values themselves. The bytes the diagnosis keeps read
+/// back as the same bits (−1, 0, +1), and a value that is not one of those (a fraction, −0)
+/// gives no bytes (no direction-signed analysis) instead of a changed number.
+#[test]
+fn direction_bytes_read_back_as_the_same_numbers() {
+    let t = table(21, 500);
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|v| v.unwrap_or(0.0))
+        .collect();
+    assert!(dir.iter().any(|&d| d > 0.0) && dir.iter().any(|&d| d < 0.0));
+    let bytes = direction_bytes(dir.iter().copied()).expect("a built-in direction");
+    for (&b, &d) in bytes.iter().zip(&dir) {
+        assert_eq!(f64::from(b).to_bits(), d.to_bits());
+    }
+    assert!(direction_bytes([1.0, 0.5].into_iter()).is_none());
+    assert!(direction_bytes([1.0, -0.0].into_iter()).is_none());
 }
