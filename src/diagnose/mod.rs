@@ -525,8 +525,8 @@ pub fn diagnose(
         .columns()
         .par_iter()
         .map(|col| {
-            Binned::of_column(
-                col,
+            Binned::new(
+                &col.raw(),
                 config.max_bins,
                 config.min_bin_rows,
                 config.max_discrete,

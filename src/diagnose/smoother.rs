@@ -10,7 +10,7 @@
 //! bin per value and two candidates: all values, or one bin. Missing values always form a bin of
 //! their own, also in the one-bin candidate, so "undefined" can itself be an effect.
 
-use super::features::{FeatureColumn, defined};
+use super::features::defined;
 use crate::numeric::stats::reg_inc_beta;
 
 /// Fine-bin index of a missing value.
@@ -125,44 +125,10 @@ impl Binned {
         min_bin_rows: usize,
         max_discrete: usize,
     ) -> Result<Binned, Unusable> {
-        Self::of_rows(
-            || values.iter().copied(),
-            max_bins,
-            min_bin_rows,
-            max_discrete,
-        )
-    }
-
-    /// [`Binned::new`] of a feature column read in place: its values decoded row by row as
-    /// they are read (twice), not into a vector of their own (8 B/row per thread for a
-    /// column stored narrower than `f64`). The same bins as [`Binned::new`] of
-    /// [`FeatureColumn::raw`] (tested).
-    pub(super) fn of_column(
-        col: &FeatureColumn,
-        max_bins: usize,
-        min_bin_rows: usize,
-        max_discrete: usize,
-    ) -> Result<Binned, Unusable> {
-        Self::of_rows(
-            || col.iter().map(|v| v.unwrap_or(f64::NAN)),
-            max_bins,
-            min_bin_rows,
-            max_discrete,
-        )
-    }
-
-    /// [`Binned::new`] of the values `rows()` gives in row order (NaN = undefined).
-    fn of_rows<I: ExactSizeIterator<Item = f64>>(
-        rows: impl Fn() -> I,
-        max_bins: usize,
-        min_bin_rows: usize,
-        max_discrete: usize,
-    ) -> Result<Binned, Unusable> {
-        let n_rows = rows().len();
         // The defined values; no sort: the distinct values and the quantile cuts below are
         // found by scanning and selection (the same values a sort gives, tested).
-        let mut sorted: Vec<f64> = rows().filter(|x| !x.is_nan()).collect();
-        let has_missing = sorted.len() < n_rows;
+        let mut sorted: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
+        let has_missing = sorted.len() < values.len();
         if sorted.is_empty() {
             return Err(Unusable::AllMissing);
         }
@@ -181,7 +147,7 @@ impl Binned {
             for &v in &sorted {
                 counts[distinct_values.partition_point(|&d| d < v)] += 1;
             }
-            let missing = n_rows - sorted.len();
+            let missing = values.len() - sorted.len();
             let mut label = vec![0u16; distinct_values.len()];
             let mut next = 0u16;
             let mut pending = 0usize;
@@ -211,11 +177,11 @@ impl Binned {
                     .unwrap_or((0, &0));
                 return Err(Unusable::NearlyConstant {
                     value: distinct_values[k],
-                    others: n_rows - most,
+                    others: values.len() - most,
                 });
             }
             let fine = FineSlots::of_bins(
-                rows().map(|v| match defined(v) {
+                values.iter().map(|&v| match defined(v) {
                     Some(x) => label[distinct_values.partition_point(|&d| d < x)],
                     None if pool_missing => n_fine as u16 - 1,
                     None => MISSING,
@@ -244,10 +210,10 @@ impl Binned {
         let ranks: Vec<usize> = (1..k_max).map(|k| (k * n / k_max).min(n - 1)).collect();
         let cuts = order_statistics(&mut sorted, &ranks);
         // Too few undefined rows for a bin of their own join the top bin (as above).
-        let missing = n_rows - n;
+        let missing = values.len() - n;
         let pool_missing = missing > 0 && missing < min_bin_rows;
         let fine = FineSlots::of_bins(
-            rows().map(|v| match defined(v) {
+            values.iter().map(|&v| match defined(v) {
                 Some(x) => cuts.partition_point(|&c| c <= x) as u16,
                 None if pool_missing => (k_max - 1) as u16,
                 None => MISSING,
@@ -1673,32 +1639,6 @@ mod tests {
         // `from_codes` stores the same slots as `new` of the same numbers.
         let codes: Vec<u8> = values.iter().map(|&v| v as u8).collect();
         assert_eq!(Binned::from_codes(&codes, 1).expect("usable").fine, b.fine);
-    }
-
-    /// Reference: [`Binned::new`] of the decoded column ([`FeatureColumn::raw`]). Binning a
-    /// column read in place ([`Binned::of_column`]) must give the same bins (slots, kind,
-    /// levels) or the same reason for none, for every feature of a simulated table (narrow
-    /// integer, `f32`, `f64` and time columns, undefined rows).
-    #[test]
-    fn binning_a_column_in_place_equals_binning_its_decoded_values() {
-        let table = crate::diagnose::tests::table(21, 3000);
-        let mut widths = std::collections::BTreeSet::new();
-        for col in table.columns() {
-            widths.insert(col.bytes_per_row());
-            for (max_bins, min_rows, max_discrete) in [(64, 10, 12), (512, 1, 256), (8, 400, 3)] {
-                let plain = Binned::new(&col.raw(), max_bins, min_rows, max_discrete);
-                let in_place = Binned::of_column(col, max_bins, min_rows, max_discrete);
-                match (plain, in_place) {
-                    (Ok(a), Ok(b)) => {
-                        assert_eq!(a.fine, b.fine, "{}", col.name);
-                        assert_eq!((a.n_fine, a.kind, &a.levels), (b.n_fine, b.kind, &b.levels));
-                    }
-                    (Err(a), Err(b)) => assert_eq!(format!("{a:?}"), format!("{b:?}")),
-                    (a, b) => panic!("{}: {a:?} vs {b:?}", col.name),
-                }
-            }
-        }
-        assert!(widths.len() >= 3, "{widths:?}");
     }
 
     /// Reference: a sort by `total_cmp` ([`sorted_distinct_reference`], and indexing the

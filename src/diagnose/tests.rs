@@ -29,7 +29,7 @@ fn synthetic_log(seed: u64, rows: usize) -> Log {
     Log::from_reader("synthetic.csv", text.as_slice(), &ColumnMap::default()).expect("valid log")
 }
 
-pub(super) fn table(seed: u64, rows: usize) -> FeatureTable {
+fn table(seed: u64, rows: usize) -> FeatureTable {
     FeatureTable::from_log(&synthetic_log(seed, rows))
 }
 
