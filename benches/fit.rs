@@ -2,7 +2,9 @@
 //! timed loop): the `calibration` preset (poly2+direction+seek+memory+drift, eq. 1; issue #16's
 //! goal ≤ 150 ms) and the `dahl` preset (a 1-D search over the Dahl rate by variable
 //! projection, its candidates replayed eight side by side through `Term::search_basis`, then
-//! four full solves; goal ≤ 0.5 s). `BIASCTL_BENCH_CPU=1` measures thread CPU time.
+//! four full solves; goal ≤ 0.5 s). `BIASCTL_BENCH_CPU=process` measures the
+//! process's CPU time (the solve factorises row chunks on rayon's pool as well, which the
+//! thread CPU time of `BIASCTL_BENCH_CPU=1` would not count).
 
 use biasctl::History;
 use biasctl::ModelSpec;
