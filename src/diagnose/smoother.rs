@@ -115,6 +115,32 @@ pub(crate) enum Unusable {
 /// Shift that maps every fine bin to bin 0.
 const ONE_BIN: u32 = 31;
 
+/// Groups consecutive distinct values (`counts[k]` rows of the k-th smallest) into slots of at
+/// least `min_bin_rows` rows, in order; a short tail joins the slot before it. Returns each
+/// distinct value's slot and the number of slots (at least 1).
+fn pool_counts(counts: &[usize], min_bin_rows: usize) -> (Vec<u16>, usize) {
+    let mut label = vec![0u16; counts.len()];
+    let mut next = 0u16;
+    let mut pending = 0usize;
+    for (k, &c) in counts.iter().enumerate() {
+        label[k] = next;
+        pending += c;
+        if pending >= min_bin_rows {
+            next += 1;
+            pending = 0;
+        }
+    }
+    if pending > 0 && next > 0 {
+        // The small tail joins the previous group.
+        for l in label.iter_mut().filter(|l| **l == next) {
+            *l = next - 1;
+        }
+    } else if pending > 0 {
+        next = 1;
+    }
+    (label, next.max(1) as usize)
+}
+
 impl Binned {
     /// Bins `values`: discrete if at most `max_discrete` distinct values, else `k_max` quantile
     /// bins, where `k_max` is the largest power of two ≤ `max_bins` leaving at least
@@ -148,26 +174,7 @@ impl Binned {
                 counts[distinct_values.partition_point(|&d| d < v)] += 1;
             }
             let missing = values.len() - sorted.len();
-            let mut label = vec![0u16; distinct_values.len()];
-            let mut next = 0u16;
-            let mut pending = 0usize;
-            for (k, &c) in counts.iter().enumerate() {
-                label[k] = next;
-                pending += c;
-                if pending >= min_bin_rows {
-                    next += 1;
-                    pending = 0;
-                }
-            }
-            if pending > 0 && next > 0 {
-                // The small tail joins the previous group.
-                for l in label.iter_mut().filter(|l| **l == next) {
-                    *l = next - 1;
-                }
-            } else if pending > 0 {
-                next = 1;
-            }
-            let n_fine = next.max(1) as usize;
+            let (label, n_fine) = pool_counts(&counts, min_bin_rows);
             let pool_missing = missing > 0 && missing < min_bin_rows;
             if n_fine == 1 && (missing == 0 || pool_missing) {
                 let (k, &most) = counts
@@ -251,25 +258,7 @@ impl Binned {
             _ => {}
         }
         // As `Binned::new`'s discrete path with no undefined rows.
-        let mut label = vec![0u16; present.len()];
-        let mut next = 0u16;
-        let mut pending = 0usize;
-        for (k, &c) in counts.iter().enumerate() {
-            label[k] = next;
-            pending += c;
-            if pending >= min_bin_rows {
-                next += 1;
-                pending = 0;
-            }
-        }
-        if pending > 0 && next > 0 {
-            for l in label.iter_mut().filter(|l| **l == next) {
-                *l = next - 1;
-            }
-        } else if pending > 0 {
-            next = 1;
-        }
-        let n_fine = next.max(1) as usize;
+        let (label, n_fine) = pool_counts(&counts, min_bin_rows);
         if n_fine == 1 {
             let (k, &most) = counts
                 .iter()
