@@ -775,6 +775,26 @@ impl Diagnosis {
 
     /// The text block of the second verification round: each edit scored on top of the best
     /// one, what could not be applied, and the combined advice.
+    /// One verified (or refused) edit as a line of the text output: the edit, its feature, the
+    /// error std before → after, the gain and z, and why it is not verified when it is not.
+    fn edit_line(&self, v: &super::Verification, e: &super::VerifiedEdit) -> String {
+        format!(
+            "  {:<32} {:<24} std {} → {} {}, gain {}, z {:.1}{}\n",
+            e.edit,
+            format!("({})", e.feature),
+            short(e.std_before),
+            short(e.std_after),
+            self.units.bias,
+            percent(e.gain),
+            e.z,
+            if e.verified {
+                String::new()
+            } else {
+                format!("  (not verified: {})", v.why_not_verified(e))
+            }
+        )
+    }
+
     fn second_round_text(&self, v: &super::Verification, r: &super::SecondRound) -> String {
         let unit = &self.units.bias;
         let mut out = format!(
@@ -783,20 +803,7 @@ impl Diagnosis {
             short(r.std_before)
         );
         for e in &r.edits {
-            out.push_str(&format!(
-                "  {:<32} {:<24} std {} → {} {unit}, gain {}, z {:.1}{}\n",
-                e.edit,
-                format!("({})", e.feature),
-                short(e.std_before),
-                short(e.std_after),
-                percent(e.gain),
-                e.z,
-                if e.verified {
-                    String::new()
-                } else {
-                    format!("  (not verified: {})", v.why_not_verified(e))
-                }
-            ));
+            out.push_str(&self.edit_line(v, e));
         }
         for x in &r.rejected {
             out.push_str(&format!(
@@ -896,21 +903,7 @@ impl Diagnosis {
                 short(v.std_before)
             ));
             for e in &v.edits {
-                out.push_str(&format!(
-                    "  {:<32} {:<24} std {} → {} {}, gain {}, z {:.1}{}\n",
-                    e.edit,
-                    format!("({})", e.feature),
-                    short(e.std_before),
-                    short(e.std_after),
-                    self.units.bias,
-                    percent(e.gain),
-                    e.z,
-                    if e.verified {
-                        String::new()
-                    } else {
-                        format!("  (not verified: {})", v.why_not_verified(e))
-                    }
-                ));
+                out.push_str(&self.edit_line(v, e));
             }
             if let Some(why) = &v.not_run {
                 out.push_str(&format!("  {why}\n"));
