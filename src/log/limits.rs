@@ -88,8 +88,9 @@ pub fn read_text(path: &Path) -> io::Result<String> {
     Ok(text)
 }
 
-/// A reader that fails with `InvalidData` once a line (bytes since the last `\n`) grows beyond
-/// [`MAX_LINE_BYTES`], so that a log with one endless line cannot fill memory.
+/// A reader that fails with `InvalidData` once a line (bytes since the last `\n` or `\r`, the
+/// line ends of [`super::lines`]) grows beyond [`MAX_LINE_BYTES`], so that a log with one
+/// endless line cannot fill memory, and a log with lone-`\r` line ends reads whatever its size.
 pub(crate) struct LineLimit<R> {
     inner: R,
     run: u64,
@@ -123,14 +124,14 @@ impl<R: Read> Read for LineLimit<R> {
         // No line can pass the limit within this chunk: only the run after its last newline
         // matters (found from the end, a line's length away), not a scan of every byte.
         if self.run + n as u64 <= MAX_LINE_BYTES {
-            self.run = match buf[..n].iter().rposition(|&b| b == b'\n') {
+            self.run = match memchr::memrchr2(b'\n', b'\r', &buf[..n]) {
                 Some(i) => (n - 1 - i) as u64,
                 None => self.run + n as u64,
             };
             return Ok(n);
         }
         for &b in &buf[..n] {
-            if b == b'\n' {
+            if b == b'\n' || b == b'\r' {
                 self.run = 0;
             } else {
                 self.run += 1;
@@ -160,6 +161,15 @@ mod tests {
             .unwrap();
         let long = vec![b'a'; MAX_LINE_BYTES as usize + 1];
         let e = LineLimit::new(long.as_slice())
+            .read_to_end(&mut Vec::new())
+            .unwrap_err();
+        assert_eq!(e.kind(), io::ErrorKind::InvalidData);
+        // A lone `\r` ends a line too (old Mac files): lines of the limit, then one past it.
+        let mac = [ok.as_slice(), b"\r", ok.as_slice(), b"\r\n", ok.as_slice()].concat();
+        LineLimit::new(mac.as_slice())
+            .read_to_end(&mut out)
+            .unwrap();
+        let e = LineLimit::new([mac.as_slice(), b"a"].concat().as_slice())
             .read_to_end(&mut Vec::new())
             .unwrap_err();
         assert_eq!(e.kind(), io::ErrorKind::InvalidData);

@@ -43,6 +43,7 @@
 
 mod columns;
 pub(crate) mod limits;
+pub(crate) mod lines;
 mod plain;
 
 pub use columns::{Covariates, Log, RowRef, Rows};
@@ -542,8 +543,8 @@ pub(crate) const STDIN_NAME: &str = "<stdin>";
 
 /// What the CSV parser of a [`LogReader`] reads: bytes already read (the header line, or the
 /// buffered rest from the first line that is not plain), then the rest of the source, with the
-/// physical line of each line's first byte noted ([`plain::LineStarts`]).
-type CsvSource<R> = plain::LineStarts<io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>>;
+/// physical line of each line's first byte noted ([`lines::LineStarts`]).
+type CsvSource<R> = lines::LineStarts<io::Chain<io::Cursor<Vec<u8>>, BufReader<LineLimit<R>>>>;
 
 /// Where a [`LogReader`]'s records come from.
 enum Source<R: Read> {
@@ -604,7 +605,7 @@ impl<R: Read> Source<R> {
                         return Err(LogError::Malformed {
                             file: file.into(),
                             line: line_no,
-                            message: unequal_lengths(record.len(), *columns),
+                            message: lines::unequal_lengths(record.len(), *columns),
                         });
                     }
                     check_utf8(record, file)?;
@@ -641,7 +642,7 @@ impl<R: Read> Source<R> {
                         return Err(LogError::Malformed {
                             file: file.into(),
                             line: record.position().map_or(0, |p| p.line()),
-                            message: unequal_lengths(record.len(), columns),
+                            message: lines::unequal_lengths(record.len(), columns),
                         });
                     }
                     if more {
@@ -678,7 +679,7 @@ impl<R: Read> Source<R> {
             .flexible(true)
             .delimiter(delimiter)
             .buffer_capacity(1 << 16)
-            .from_reader(plain::LineStarts::new(
+            .from_reader(lines::LineStarts::new(
                 io::Cursor::new(rest).chain(src),
                 line,
             ));
@@ -806,15 +807,34 @@ impl<R: Read> LogReader<R> {
         }
         let mut metadata = Vec::new();
         let mut line_no = 0u64;
+        // A line read whole as text, ended by `\n`, `\r\n` or a lone `\r` (an old Mac file's
+        // lines: [`lines::read_line`]).
+        let read_line = |buf: &mut BufReader<LineLimit<R>>| {
+            let mut line = Vec::new();
+            lines::read_line(buf, &mut line).map_err(io_err)?;
+            String::from_utf8(line).map_err(|_| {
+                io_err(io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    "stream did not contain valid UTF-8",
+                ))
+            })
+        };
         // Metadata: lines starting with '#' (blank lines are allowed) before the header.
+        let mut after_cr = false;
         loop {
             let bytes = buf.fill_buf().map_err(io_err)?;
             if bytes.is_empty() {
                 return Err(LogError::Empty { file: file.into() });
             }
+            if after_cr && bytes[0] == b'\n' {
+                // The `\n` of a CRLF line end: that line is counted.
+                buf.consume(1);
+                after_cr = false;
+                continue;
+            }
             if bytes[0] == b'#' || bytes[0] == b'\n' || bytes[0] == b'\r' {
-                let mut line = String::new();
-                buf.read_line(&mut line).map_err(io_err)?;
+                let line = read_line(&mut buf)?;
+                after_cr = line.ends_with('\r');
                 line_no += 1;
                 let text = line.trim_end_matches(['\n', '\r']);
                 if let Some(rest) = text.strip_prefix('#') {
@@ -824,8 +844,7 @@ impl<R: Read> LogReader<R> {
                 break;
             }
         }
-        let mut header = String::new();
-        buf.read_line(&mut header).map_err(io_err)?;
+        let header = read_line(&mut buf)?;
         let delimiter = map.delimiter.unwrap_or_else(|| sniff_delimiter(&header));
         let decimal_comma = delimiter != b',';
         let mut notes = Vec::new();
@@ -875,7 +894,7 @@ impl<R: Read> LogReader<R> {
             };
             (headers, source)
         } else {
-            let mut csv = builder().from_reader(plain::LineStarts::new(
+            let mut csv = builder().from_reader(lines::LineStarts::new(
                 io::Cursor::new(header.into_bytes()).chain(buf),
                 header_line,
             ));
@@ -1398,23 +1417,11 @@ fn source_failed(file: &str, e: &io::Error) -> LogError {
     }
 }
 
-/// The message of a record with `len` fields where the header has `expected` (the csv
-/// parser's `UnequalLengths`, as [`malformed`] words it).
-fn unequal_lengths(len: usize, expected: usize) -> String {
-    format!("{len} fields, but the header has {expected}")
-}
-
 fn malformed(file: &str, line: u64, e: &csv::Error) -> LogError {
-    let message = match e.kind() {
-        csv::ErrorKind::UnequalLengths {
-            expected_len, len, ..
-        } => format!("{len} fields, but the header has {expected_len}"),
-        _ => e.to_string(),
-    };
     LogError::Malformed {
         file: file.into(),
         line,
-        message,
+        message: lines::csv_problem(e),
     }
 }
 
@@ -1642,10 +1649,12 @@ mod tests {
         }
     }
 
-    /// The physical line of byte `at` of `text`: 1 + the `\n` bytes before it (what an editor
-    /// shows; a lone `\r` does not end a line). The slow, obvious reference for line numbers.
+    /// The physical line of byte `at` of `text`: 1 + the line ends before it, as an editor
+    /// shows them (`\n`, a lone `\r`, and `\r\n` as one, counted at its `\n`). The slow,
+    /// obvious reference for line numbers.
     fn physical_line(text: &[u8], at: usize) -> u64 {
-        1 + text[..at].iter().filter(|&&b| b == b'\n').count() as u64
+        let lone_cr = |i: usize| text[i] == b'\r' && text.get(i + 1) != Some(&b'\n');
+        1 + (0..at).filter(|&i| text[i] == b'\n' || lone_cr(i)).count() as u64
     }
 
     #[test]
@@ -1698,11 +1707,21 @@ mod tests {
                 "time_s,track,bias\r\n\r\n0,1,1\r\n\r\n\r\n1,1,x\r\n",
                 "line 6, column 3 (`bias`)",
             ),
-            // Lone CR: no `\n`, so every row is on line 1 (as the bytes count lines).
+            // Lone CR (old Mac): each `\r` ends a line, as an editor shows it.
             (
                 "time_s,track,bias\r0,1,1\r1,x,1\r",
-                "line 1, column 2 (`track`)",
+                "line 3, column 2 (`track`)",
             ),
+            (
+                "# a\r\r# b\rtime_s,track,bias\r\r0,1,1\r\r1,1,x\r",
+                "line 8, column 3 (`bias`)",
+            ),
+            // Mixed: LF rows, then lone CR, then CRLF (a plain start handing over).
+            (
+                "time_s,track,bias\n0,1,1\n1,1,1\r2,1,1\r\n\r3,x,1\n",
+                "line 6, column 2 (`track`)",
+            ),
+            ("time_s,track,bias\r0,1,1\r\r1,1\r", "line 4: 2 fields"),
             // A quoted cell with an embedded newline before the bad row.
             (
                 "time_s,track,bias,note\n0,1,1,\"a\nb\"\n1,x,1,c\n",
@@ -1796,6 +1815,66 @@ mod tests {
     }
 
     #[test]
+    fn lone_cr_rows_after_a_plain_start_are_not_read_whole() {
+        // A log whose header and first 200 rows end in `\n` and whose 4 MiB of rows after them
+        // end in a lone `\r` (no `\n`): the plain lines hand over to the csv parser at the
+        // first `\r` rather than read on looking for a `\n`, row by row and in the fast rows.
+        // Reference: the bytes asked of the source when the first lone-CR row comes out stay
+        // within the buffers' sizes (far below 4 MiB); the rows are the ones written, on the
+        // lines counted while writing them.
+        struct Counted<'a>(&'a [u8], std::rc::Rc<std::cell::Cell<usize>>);
+        impl Read for Counted<'_> {
+            fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+                let n = self.0.len().min(buf.len());
+                buf[..n].copy_from_slice(&self.0[..n]);
+                self.0 = &self.0[n..];
+                self.1.set(self.1.get() + n);
+                Ok(n)
+            }
+        }
+        const PLAIN: u64 = 200;
+        let mut text = String::from("time_s,track,bias\n");
+        let mut rows = 0u64;
+        while text.len() < 4 << 20 {
+            let end = if rows < PLAIN { '\n' } else { '\r' };
+            text.push_str(&format!("{rows},{},2.5{end}", rows % 1000));
+            rows += 1;
+        }
+        for fast in [false, true] {
+            let read = std::rc::Rc::new(std::cell::Cell::new(0));
+            let mut r = LogReader::from_reader_source(
+                "t.csv",
+                Counted(text.as_bytes(), read.clone()),
+                &ColumnMap::default(),
+                BiasColumn::Required,
+                LOOKAHEAD_ROWS,
+                true,
+            )
+            .unwrap();
+            let (mut n, mut read_at_first_cr) = (0u64, 0);
+            let mut each = |row: &Row| {
+                assert_eq!((row.track, row.line), ((n % 1000) as f64, n + 2), "{fast}");
+                if n == PLAIN {
+                    read_at_first_cr = read.get();
+                }
+                n += 1;
+            };
+            if fast {
+                r.summarise_each(&mut each).unwrap();
+            } else {
+                for row in r {
+                    each(&row.unwrap());
+                }
+            }
+            assert_eq!(n, rows);
+            assert!(
+                read_at_first_cr < 1 << 20,
+                "{fast}: {read_at_first_cr} bytes read"
+            );
+        }
+    }
+
+    #[test]
     fn rows_carry_the_physical_line() {
         // Reference: the line of each row's first byte counted in the raw bytes.
         let text = "# m\r\n\r\ntime_s,track,bias,note\r\n\r\n0,1,1,\"a\r\nb\"\r\n\r\n1,2,2,c\r\n2,3,3,d\n\n3,4,4,\"\"\n";
@@ -1822,6 +1901,14 @@ mod tests {
             ),
             (
                 "\n\n\"time_s\",track\n0,1\n",
+                "t.csv: line 3: missing required column `bias`",
+            ),
+            (
+                "# a\r\rtime_s,track\r0,1\r",
+                "t.csv: line 3: missing required column `bias`",
+            ),
+            (
+                "# a\r\n\rtime_s,track\r\n0,1\r\n",
                 "t.csv: line 3: missing required column `bias`",
             ),
         ];
@@ -2214,7 +2301,7 @@ mod tests {
                     "99999999",
                 ];
                 match rng.below(8) {
-                    0 => end = "\r\n",
+                    0 => end = ["\r\n", "\r"][rng.below(2) as usize],
                     1 => end = "\n\n",
                     2 => cells.push("1".into()),
                     3 => {

@@ -22,7 +22,8 @@ pub(super) struct PlainLines<R> {
     start: usize,
     /// End of the bytes read into `buf`.
     end: usize,
-    /// End of the current line (its `\n`, or `end` for a last line without one), once peeked.
+    /// End of the current line (its `\n`, or `end` for a last line without one, or just past
+    /// its first `\r`), once peeked.
     line_end: Option<usize>,
     /// End of the last whole line (just past its `\n`) in `buf[..end]`, or at most `start`
     /// when none is buffered.
@@ -66,8 +67,12 @@ impl<R: Read> PlainLines<R> {
             if let Some(e) = self.line_end {
                 return Ok(Some(&self.buf[self.start..e]));
             }
-            if let Some(k) = memchr::memchr(b'\n', &self.buf[self.start..self.end]) {
-                self.line_end = Some(self.start + k);
+            if let Some(k) = memchr::memchr2(b'\n', b'\r', &self.buf[self.start..self.end]) {
+                // A `\r` ends the search too, kept in the line: a line with one is not plain
+                // (the caller hands it to the csv parser, never advancing past it), and a file
+                // with lone-`\r` line ends is not read whole looking for a `\n`.
+                let e = self.start + k;
+                self.line_end = Some(e + usize::from(self.buf[e] == b'\r'));
                 continue;
             }
             if self.eof {
@@ -93,11 +98,17 @@ impl<R: Read> PlainLines<R> {
     }
 
     /// The whole lines buffered from the current one on, each ending in `\n` (reading more
-    /// when none is); empty at the end of the source, after it failed, or when only a last
-    /// line without a `\n` is left ([`PlainLines::peek`] returns that one).
+    /// when none is); empty at the end of the source, after it failed, when only a last
+    /// line without a `\n` is left, or when the bytes buffered without a `\n` hold a `\r`
+    /// (lone-`\r` line ends: not read on looking for a `\n`; [`PlainLines::peek`] returns
+    /// that line).
     #[inline]
     pub(super) fn ready(&mut self) -> io::Result<&[u8]> {
-        while self.complete <= self.start && !self.eof && !self.failed {
+        while self.complete <= self.start
+            && !self.eof
+            && !self.failed
+            && memchr::memchr(b'\r', &self.buf[self.start..self.end]).is_none()
+        {
             self.fill()?;
         }
         if self.failed || self.complete <= self.start {
@@ -214,67 +225,4 @@ pub(super) fn parse_plain(line: &[u8], mut i: usize) -> Option<(f64, usize)> {
     }
     let v = m as f64 / POW10[decimals];
     Some((if neg { -v } else { v }, i))
-}
-
-/// A source for the csv parser that notes the physical line (1-based, counting every `\n`, as an
-/// editor shows it; a lone `\r` ends a record but not a line) of each line's first byte that
-/// is not itself a line end: where any record the parser reads starts. The parser names the
-/// byte where it started reading a record, before the blank lines it skips and the `\n` of a
-/// CRLF line end it had not yet read; the record starts at the first noted byte from there
-/// ([`LineStarts::line_at`]).
-pub(super) struct LineStarts<R> {
-    src: R,
-    /// Bytes handed out so far.
-    byte: u64,
-    /// Physical line of the next byte handed out.
-    line: u64,
-    /// Whether the last byte handed out was a line end (`\n` or `\r`), or none was yet.
-    after_end: bool,
-    /// Byte offset and line of each line start handed out that the parser has not passed.
-    starts: std::collections::VecDeque<(u64, u64)>,
-}
-
-impl<R> LineStarts<R> {
-    /// `src`, whose first byte starts physical line `line`.
-    pub(super) fn new(src: R, line: u64) -> Self {
-        Self {
-            src,
-            byte: 0,
-            line,
-            after_end: true,
-            starts: std::collections::VecDeque::new(),
-        }
-    }
-
-    /// The physical line of the first line start at or after byte `at` of this source (the
-    /// parser's position when it began a record): the record's own line. Starts before `at`
-    /// are forgotten (the parser reads on), so memory stays within what the parser buffers.
-    pub(super) fn line_at(&mut self, at: u64) -> u64 {
-        while self.starts.front().is_some_and(|&(b, _)| b < at) {
-            self.starts.pop_front();
-        }
-        self.starts.front().map_or(self.line, |&(_, line)| line)
-    }
-}
-
-impl<R: io::Read> io::Read for LineStarts<R> {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        let n = self.src.read(buf)?;
-        for &b in &buf[..n] {
-            match b {
-                b'\n' => {
-                    self.line += 1;
-                    self.after_end = true;
-                }
-                b'\r' => self.after_end = true,
-                _ if self.after_end => {
-                    self.starts.push_back((self.byte, self.line));
-                    self.after_end = false;
-                }
-                _ => {}
-            }
-            self.byte += 1;
-        }
-        Ok(n)
-    }
 }

@@ -207,10 +207,14 @@ pub enum ScriptError {
         source: std::io::Error,
     },
     /// The header lacks a required column.
-    #[error("{file}: line 1: missing column `{column}` (a script needs `track,dwell_s[,measure]`)")]
+    #[error(
+        "{file}: line {line}: missing column `{column}` (a script needs `track,dwell_s[,measure]`)"
+    )]
     MissingColumn {
         /// The script file.
         file: String,
+        /// 1-based line of the header.
+        line: u64,
         /// The missing column.
         column: &'static str,
     },
@@ -271,33 +275,51 @@ pub(crate) fn read_script(path: &Path, max_track: f64) -> Result<Vec<Step>, Scri
     parse_script(&file, &text, max_track)
 }
 
-/// Parses script text (see [`read_script`]); `file` names it in messages.
+/// Parses script text (see [`read_script`]); `file` names it in messages, with the line an
+/// editor shows (`\n`, `\r\n` and a lone `\r` each end one; blank lines and line breaks in
+/// quoted cells count), as the log reader names it ([`crate::log::lines`]).
 pub(crate) fn parse_script(
     file: &str,
     text: &str,
     max_track: f64,
 ) -> Result<Vec<Step>, ScriptError> {
+    use crate::log::lines::{LineStarts, csv_problem};
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
-        .from_reader(text.as_bytes());
-    let malformed = |e: csv::Error| ScriptError::Malformed {
-        file: file.into(),
-        line: e.position().map_or(0, |p| p.line()),
-        message: e.to_string(),
+        .from_reader(LineStarts::new(text.as_bytes(), 1));
+    // The parser's own line numbers count from where it began a record (before blank lines,
+    // within a CRLF); the record's physical line is the line start noted at or after that.
+    let malformed =
+        |rdr: &mut csv::Reader<LineStarts<&[u8]>>, e: csv::Error| ScriptError::Malformed {
+            file: file.into(),
+            line: e.position().map_or(0, |p| rdr.get_mut().line_at(p.byte())),
+            message: csv_problem(&e),
+        };
+    let headers = match rdr.headers() {
+        Ok(h) => h.clone(),
+        Err(e) => return Err(malformed(&mut rdr, e)),
     };
-    let headers = rdr.headers().map_err(malformed)?.clone();
+    let header_line = rdr.get_mut().line_at(0);
     let col = |name: &'static str| headers.iter().position(|h| h == name);
     let missing = |column| ScriptError::MissingColumn {
         file: file.into(),
+        line: header_line,
         column,
     };
     let ti = col("track").ok_or_else(|| missing("track"))?;
     let di = col("dwell_s").ok_or_else(|| missing("dwell_s"))?;
     let mi = col("measure");
     let mut steps = Vec::new();
-    for rec in rdr.records() {
-        let rec = rec.map_err(malformed)?;
-        let line = rec.position().map_or(0, |p| p.line());
+    let mut rec = csv::StringRecord::new();
+    loop {
+        match rdr.read_record(&mut rec) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => return Err(malformed(&mut rdr, e)),
+        }
+        let line = rec
+            .position()
+            .map_or(0, |p| rdr.get_mut().line_at(p.byte()));
         let bad = |idx: usize, problem: String| ScriptError::BadValue {
             file: file.into(),
             line,
@@ -431,7 +453,24 @@ mod tests {
                 "column 3 (`measure`)",
             ),
             ("track,dwell_s\n", "no rows"),
-            ("track,dwell_s\n1,2,3\n", "line 2"),
+            (
+                "track,dwell_s\n1,2,3\n",
+                "line 2: 3 fields, but the header has 2",
+            ),
+            // Blank lines, CRLF and lone-CR line ends: the line an editor shows.
+            (
+                "track,dwell_s\n\n10,0.1\n\n20,x\n",
+                "line 5, column 2 (`dwell_s`)",
+            ),
+            (
+                "track,dwell_s\r\n10,0.1\r\n\r\n20,x\r\n",
+                "line 4, column 2 (`dwell_s`)",
+            ),
+            (
+                "track,dwell_s\r10,0.1\r20,x\r",
+                "line 3, column 2 (`dwell_s`)",
+            ),
+            ("\r\n\r\ntrack\r\n1\r\n", "line 3: missing column `dwell_s`"),
             (
                 "track,dwell_s,measure\n10,0.1,0\n20,0.2,no\n",
                 "no row of the script is measured",

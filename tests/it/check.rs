@@ -1,6 +1,6 @@
 //! `biasctl check`: the log format contract and its error messages.
 
-use crate::common::{fails_with, ok, write};
+use crate::common::{editor_line, fails_with, ok, with_line_ends, write};
 
 #[test]
 fn check_summarises_a_valid_log_with_renamed_columns() {
@@ -69,6 +69,115 @@ fn check_names_the_physical_line_after_blank_lines_and_in_crlf_files() {
         assert_eq!(r.status.code(), Some(2));
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(err.contains(&format!("<stdin>: {want}")), "{err}");
+    }
+}
+
+#[test]
+fn check_names_the_same_line_an_editor_shows_whatever_the_line_ends() {
+    // Reference: the line of the bad cell `x` counted in the raw text (`editor_line`: `\r\n`,
+    // `\n` and a lone `\r` each end a line). Each text is written with LF, CRLF, lone-CR (old
+    // Mac, as Excel's "CSV (Macintosh)") and mixed line ends, read from a file and from
+    // standard input: the same line each time, exit 2.
+    let dir = tempfile::tempdir().unwrap();
+    let cases: &[(&str, &str)] = &[
+        (
+            "time_s,track,bias\n0,1,2\n1,2,2\n2,x,2\n",
+            "column 2 (`track`)",
+        ),
+        (
+            "time_s,track,bias\n0,1,2\n\n\n1,x,2\n",
+            "column 2 (`track`)",
+        ),
+        (
+            "# rig 4\n\n# a\ntime_s,track,bias\n\n0,1,2\n1,2,x\n",
+            "column 3 (`bias`)",
+        ),
+        (
+            "time_s,track,bias,note\n0,1,2,\"a\nb\"\n1,x,2,c\n",
+            "column 2 (`track`)",
+        ),
+    ];
+    let mut k = 0;
+    for (text, want) in cases {
+        let mixed = {
+            let mut m = String::new();
+            for (i, line) in text.split('\n').enumerate() {
+                if i > 0 {
+                    m.push_str(["\n", "\r\n", "\r"][i % 3]);
+                }
+                m.push_str(line);
+            }
+            m
+        };
+        let mut lines = Vec::new();
+        for text in [
+            text.to_string(),
+            with_line_ends(text, "\r\n"),
+            with_line_ends(text, "\r"),
+            mixed,
+        ] {
+            let line = editor_line(&text, text.find('x').unwrap());
+            lines.push(line);
+            k += 1;
+            let name = format!("bad{k}.csv");
+            let f = write(dir.path(), &name, &text);
+            fails_with(
+                &["check", "--data", &f],
+                &[&format!("{name}: line {line}, {want}")],
+            );
+            if text.contains('"') {
+                // Standard input has no look-ahead: the text column fails first (see above).
+                continue;
+            }
+            let r = {
+                use std::io::Write;
+                use std::process::{Command, Stdio};
+                let mut c = Command::new(env!("CARGO_BIN_EXE_biasctl"))
+                    .args(["check", "--data", "-"])
+                    .stdin(Stdio::piped())
+                    .stdout(Stdio::piped())
+                    .stderr(Stdio::piped())
+                    .spawn()
+                    .unwrap();
+                c.stdin.take().unwrap().write_all(text.as_bytes()).unwrap();
+                c.wait_with_output().unwrap()
+            };
+            let err = String::from_utf8_lossy(&r.stderr);
+            assert_eq!(r.status.code(), Some(2), "{text:?}: {err}");
+            assert!(
+                err.contains(&format!("<stdin>: line {line}, {want}")),
+                "{text:?}: {err}"
+            );
+        }
+        // LF, CRLF and lone CR keep every line: the same line number each way.
+        assert!(
+            lines[..3].iter().all(|&l| l == lines[0]),
+            "{text:?}: {lines:?}"
+        );
+    }
+}
+
+#[test]
+fn a_lone_cr_log_larger_than_the_line_limit_reads() {
+    // A 1M-row log is tens of MB: with lone-CR line ends (no `\n` anywhere) it is still made of
+    // short lines, not one line over the 1 MiB limit. Reference: the rows written.
+    let dir = tempfile::tempdir().unwrap();
+    let mut rows = String::new();
+    for i in 0..100_000 {
+        rows.push_str(&format!("{i},{},1.5\r", i % 1000));
+    }
+    assert!(rows.len() > 1 << 20);
+    // All lone CR, and a plain (`\n`) start handing over to lone-CR rows.
+    for (name, head) in [
+        ("mac.csv", "# rig 4\rtime_s,track,bias\r"),
+        ("mixed.csv", "# rig 4\ntime_s,track,bias\n"),
+    ] {
+        let f = write(dir.path(), name, &format!("{head}{rows}"));
+        let out = ok(&["check", "--data", &f]);
+        assert!(
+            out.contains("100000 rows, 100000 measured"),
+            "{name}: {out}"
+        );
     }
 }
 

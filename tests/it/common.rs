@@ -98,3 +98,17 @@ pub fn simulate_random_args<'a>(n: &'a str, seed: &'a str, out: &'a str) -> [&'a
         out,
     ]
 }
+
+/// The line an editor shows for byte `at` of `text`: 1 + the line ends before it, where `\r\n`,
+/// `\n` and a lone `\r` each end one line. The reference for line numbers in error messages.
+pub fn editor_line(text: &str, at: usize) -> usize {
+    1 + text[..at]
+        .replace("\r\n", "\n")
+        .matches(['\n', '\r'])
+        .count()
+}
+
+/// `text` with each `\n` line end written `end` instead (`\r\n`, `\r`, or `\n` itself).
+pub fn with_line_ends(text: &str, end: &str) -> String {
+    text.replace('\n', end)
+}

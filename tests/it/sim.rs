@@ -1,7 +1,7 @@
 //! `biasctl simulate` and `biasctl demo`: byte-identical output per seed, metadata, truth file,
 //! flag validation with exit 2, nothing half-written on error.
 
-use crate::common::{data, fails_with, ok, write};
+use crate::common::{data, editor_line, fails_with, ok, with_line_ends, write};
 
 fn sim(dir: &std::path::Path, name: &str, extra: &[&str]) -> (String, String) {
     let out = dir.join(name).display().to_string();
@@ -147,6 +147,82 @@ fn script_sequence_runs_and_bad_rows_name_line_and_column() {
         ],
         &["--script", "bad.csv", "line 3", "column 2", "`dwell_s`"],
     );
+}
+
+#[test]
+fn script_errors_name_the_line_an_editor_shows() {
+    // Reference: the line of the bad cell (marked `x`, or the row marked `@`) counted in the raw
+    // text (`editor_line`: `\r\n`, `\n` and a lone `\r` each end a line), for blank lines,
+    // a quoted line break, a header after blank lines, and the same texts with CRLF, lone-CR
+    // (old Mac) and mixed line ends. Every case exits 2 and writes no log.
+    let dir = tempfile::tempdir().unwrap();
+    let cases: &[(&str, &str)] = &[
+        (
+            "track,dwell_s\n10,0.1\n\n\n20,x\n",
+            "column 2 (`dwell_s`): not a number",
+        ),
+        (
+            "track,dwell_s\n10,0.1\n20,0.1\n30,x\n",
+            "column 2 (`dwell_s`): not a number",
+        ),
+        (
+            "\n\ntrack,dwell_s\n\n10,0.1\nx,0.1\n",
+            "column 1 (`track`): not a number",
+        ),
+        (
+            "track,dwell_s,note\n10,0.1,\"a\nb\"\n\n20,x,c\n",
+            "column 2 (`dwell_s`): not a number",
+        ),
+        (
+            "track,dwell_s\n10,0.1\n\n@20,0.1,3\n",
+            "3 fields, but the header has 2",
+        ),
+        ("\n\ntrack,dwell\n10,0.1\n", "missing column `dwell_s`"),
+    ];
+    let out = dir.path().join("o.csv");
+    let mut k = 0;
+    for (text, want) in cases {
+        let mixed = {
+            // `\n`, `\r\n` and `\r` in turn.
+            let mut m = String::new();
+            for (i, line) in text.split('\n').enumerate() {
+                if i > 0 {
+                    m.push_str(["\n", "\r\n", "\r"][i % 3]);
+                }
+                m.push_str(line);
+            }
+            m
+        };
+        for text in [
+            text.to_string(),
+            with_line_ends(text, "\r\n"),
+            with_line_ends(text, "\r"),
+            mixed,
+        ] {
+            let at = text
+                .find(['x', '@'])
+                .unwrap_or_else(|| text.find("track").unwrap());
+            let line = editor_line(&text, at);
+            let text = text.replace('@', "");
+            k += 1;
+            let name = format!("bad{k}.csv");
+            let f = write(dir.path(), &name, &text);
+            let err = fails_with(
+                &[
+                    "simulate",
+                    "--sequence",
+                    "script",
+                    "--script",
+                    &f,
+                    "--out",
+                    &out.display().to_string(),
+                ],
+                &[&format!("{name}: line {line}")],
+            );
+            assert!(err.contains(want), "{text:?}: {err}");
+            assert!(!out.exists(), "{text:?}: a log was written");
+        }
+    }
 }
 
 #[test]
