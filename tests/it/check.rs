@@ -1,6 +1,8 @@
 //! `biasctl check`: the log format contract and its error messages.
 
-use crate::common::{editor_line, fails_with, ok, with_line_ends, write};
+use crate::common::{
+    biasctl_stdin, editor_line, fails_with, mixed_line_ends, ok, with_line_ends, write,
+};
 
 #[test]
 fn check_summarises_a_valid_log_with_renamed_columns() {
@@ -53,22 +55,13 @@ fn check_names_the_physical_line_after_blank_lines_and_in_crlf_files() {
             // cell (line 2) before the bad row; the file's case is the one for this count.
             continue;
         }
-        let r = {
-            use std::io::Write;
-            use std::process::{Command, Stdio};
-            let mut c = Command::new(env!("CARGO_BIN_EXE_biasctl"))
-                .args(["check", "--data", "-"])
-                .stdin(Stdio::piped())
-                .stdout(Stdio::piped())
-                .stderr(Stdio::piped())
-                .spawn()
-                .unwrap();
-            c.stdin.take().unwrap().write_all(text.as_bytes()).unwrap();
-            c.wait_with_output().unwrap()
-        };
-        assert_eq!(r.status.code(), Some(2));
-        let err = String::from_utf8_lossy(&r.stderr);
-        assert!(err.contains(&format!("<stdin>: {want}")), "{err}");
+        let r = biasctl_stdin(&["check", "--data", "-"], text.as_bytes());
+        assert_eq!(r.code, 2, "{}", r.stderr);
+        assert!(
+            r.stderr.contains(&format!("<stdin>: {want}")),
+            "{}",
+            r.stderr
+        );
     }
 }
 
@@ -99,22 +92,12 @@ fn check_names_the_same_line_an_editor_shows_whatever_the_line_ends() {
     ];
     let mut k = 0;
     for (text, want) in cases {
-        let mixed = {
-            let mut m = String::new();
-            for (i, line) in text.split('\n').enumerate() {
-                if i > 0 {
-                    m.push_str(["\n", "\r\n", "\r"][i % 3]);
-                }
-                m.push_str(line);
-            }
-            m
-        };
         let mut lines = Vec::new();
         for text in [
             text.to_string(),
             with_line_ends(text, "\r\n"),
             with_line_ends(text, "\r"),
-            mixed,
+            mixed_line_ends(text),
         ] {
             let line = editor_line(&text, text.find('x').unwrap());
             lines.push(line);
@@ -129,24 +112,12 @@ fn check_names_the_same_line_an_editor_shows_whatever_the_line_ends() {
                 // Standard input has no look-ahead: the text column fails first (see above).
                 continue;
             }
-            let r = {
-                use std::io::Write;
-                use std::process::{Command, Stdio};
-                let mut c = Command::new(env!("CARGO_BIN_EXE_biasctl"))
-                    .args(["check", "--data", "-"])
-                    .stdin(Stdio::piped())
-                    .stdout(Stdio::piped())
-                    .stderr(Stdio::piped())
-                    .spawn()
-                    .unwrap();
-                c.stdin.take().unwrap().write_all(text.as_bytes()).unwrap();
-                c.wait_with_output().unwrap()
-            };
-            let err = String::from_utf8_lossy(&r.stderr);
-            assert_eq!(r.status.code(), Some(2), "{text:?}: {err}");
+            let r = biasctl_stdin(&["check", "--data", "-"], text.as_bytes());
+            assert_eq!(r.code, 2, "{text:?}: {}", r.stderr);
             assert!(
-                err.contains(&format!("<stdin>: line {line}, {want}")),
-                "{text:?}: {err}"
+                r.stderr.contains(&format!("<stdin>: line {line}, {want}")),
+                "{text:?}: {}",
+                r.stderr
             );
         }
         // LF, CRLF and lone CR keep every line: the same line number each way.

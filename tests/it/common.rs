@@ -25,8 +25,30 @@ pub fn biasctl_in(dir: &Path, args: &[&str]) -> Run {
     )
 }
 
+/// Runs `biasctl` with `args`, `input` written to its standard input, and captures its output.
+pub fn biasctl_stdin(args: &[&str], input: &[u8]) -> Run {
+    use std::io::Write;
+    use std::process::Stdio;
+    let mut c = Command::new(env!("CARGO_BIN_EXE_biasctl"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run biasctl");
+    // biasctl may stop reading at an error before the input's end: a closed pipe is its answer.
+    match c.stdin.take().expect("stdin").write_all(input) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
+        r => r.expect("write stdin"),
+    }
+    run_of(c.wait_with_output().expect("run biasctl"))
+}
+
 fn capture(cmd: &mut Command) -> Run {
-    let out = cmd.output().expect("run biasctl");
+    run_of(cmd.output().expect("run biasctl"))
+}
+
+fn run_of(out: std::process::Output) -> Run {
     Run {
         code: out.status.code().unwrap_or(-1),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
@@ -111,4 +133,17 @@ pub fn editor_line(text: &str, at: usize) -> usize {
 /// `text` with each `\n` line end written `end` instead (`\r\n`, `\r`, or `\n` itself).
 pub fn with_line_ends(text: &str, end: &str) -> String {
     text.replace('\n', end)
+}
+
+/// `text` with its `\n` line ends written `\n`, `\r\n` and `\r` in turn (a file edited on
+/// several systems).
+pub fn mixed_line_ends(text: &str) -> String {
+    let mut m = String::new();
+    for (i, line) in text.split('\n').enumerate() {
+        if i > 0 {
+            m.push_str(["\n", "\r\n", "\r"][i % 3]);
+        }
+        m.push_str(line);
+    }
+    m
 }

@@ -1,7 +1,7 @@
 //! `biasctl simulate` and `biasctl demo`: byte-identical output per seed, metadata, truth file,
 //! flag validation with exit 2, nothing half-written on error.
 
-use crate::common::{data, editor_line, fails_with, ok, with_line_ends, write};
+use crate::common::{data, editor_line, fails_with, mixed_line_ends, ok, with_line_ends, write};
 
 fn sim(dir: &std::path::Path, name: &str, extra: &[&str]) -> (String, String) {
     let out = dir.join(name).display().to_string();
@@ -182,22 +182,11 @@ fn script_errors_name_the_line_an_editor_shows() {
     let out = dir.path().join("o.csv");
     let mut k = 0;
     for (text, want) in cases {
-        let mixed = {
-            // `\n`, `\r\n` and `\r` in turn.
-            let mut m = String::new();
-            for (i, line) in text.split('\n').enumerate() {
-                if i > 0 {
-                    m.push_str(["\n", "\r\n", "\r"][i % 3]);
-                }
-                m.push_str(line);
-            }
-            m
-        };
         for text in [
             text.to_string(),
             with_line_ends(text, "\r\n"),
             with_line_ends(text, "\r"),
-            mixed,
+            mixed_line_ends(text),
         ] {
             let at = text
                 .find(['x', '@'])
