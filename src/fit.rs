@@ -566,6 +566,27 @@ impl StreamingQr {
         }
     }
 
+    /// [`StreamingQr::compact`] in the storage `block` of a finished one
+    /// ([`StreamingQr::finish_keeping`]; of any size and contents): only the rows of `R` are
+    /// cleared (the other rows are written before they are read), so the same `R` bit for bit as
+    /// a fresh one, without zeroing (and faulting in) a new block.
+    fn compact_in(p: usize, mut block: Vec<f64>) -> Self {
+        let cols = p + 1;
+        let m = cols + COMPACT_CHUNK;
+        block.resize(m * cols, 0.0);
+        for j in 0..cols {
+            block[j * m..j * m + cols].fill(0.0);
+        }
+        Self {
+            cols,
+            block,
+            fill: 0,
+            colsq: vec![0.0; cols],
+            compact: true,
+            chunk: COMPACT_CHUNK,
+        }
+    }
+
     /// Adds one row `x` (length p) with response `y`.
     pub(crate) fn push(&mut self, x: &[f64], y: f64) {
         let p = x.len();
@@ -625,14 +646,25 @@ impl StreamingQr {
 
     /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms².
     pub(crate) fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
+        let r = self.final_r();
+        (r, self.colsq)
+    }
+
+    /// The final `R` (as [`StreamingQr::finish`]) and the block's storage, for
+    /// [`StreamingQr::compact_in`].
+    fn finish_keeping(mut self) -> (DMatrix<f64>, Vec<f64>) {
+        let r = self.final_r();
+        (r, self.block)
+    }
+
+    fn final_r(&mut self) -> DMatrix<f64> {
         self.fold();
         let (n, m) = (self.cols, self.cols + self.chunk);
-        let r = DMatrix::from_fn(
+        DMatrix::from_fn(
             n,
             n,
             |i, j| if i <= j { self.block[j * m + i] } else { 0.0 },
-        );
-        (r, self.colsq)
+        )
     }
 }
 
@@ -683,6 +715,9 @@ pub(crate) struct PatternQr {
     colsq: Vec<f64>,
     #[cfg_attr(not(test), allow(dead_code))]
     rows: usize,
+    /// Storage of finished factorisations for new groups and the probe
+    /// ([`PatternQr::compact_reusing`]).
+    spare: Vec<Vec<f64>>,
 }
 
 impl PatternQr {
@@ -700,6 +735,7 @@ impl PatternQr {
             compact: false,
             colsq: vec![0.0; p + 1],
             rows: 0,
+            spare: Vec::new(),
         }
     }
 
@@ -722,10 +758,38 @@ impl PatternQr {
         }
     }
 
+    /// [`PatternQr::compact`] whose groups and probe take their storage from `spare` (the
+    /// storage [`PatternQr::finish_groups_keeping`] gave back: [`solve`]'s chunks reuse the
+    /// previous chunks' blocks; the same `R` bit for bit, [`StreamingQr::compact_in`]).
+    fn compact_reusing(p: usize, dense: bool, spare: Vec<Vec<f64>>) -> Self {
+        let mut qr = Self {
+            spare,
+            ..Self::compact(p, dense)
+        };
+        if qr.probe.is_some()
+            && let Some(mut buf) = qr.take_spare(PATTERN_PROBE * (p + 1))
+        {
+            buf.clear();
+            qr.probe = Some(buf);
+        }
+        qr
+    }
+
+    /// The spare storage of the least capacity that holds `len` values, if any.
+    fn take_spare(&mut self, len: usize) -> Option<Vec<f64>> {
+        let i = (0..self.spare.len())
+            .filter(|&i| self.spare[i].capacity() >= len)
+            .min_by_key(|&i| self.spare[i].capacity())?;
+        Some(self.spare.swap_remove(i))
+    }
+
     /// A group's factorisation of `k` columns.
-    fn group_qr(&self, k: usize) -> StreamingQr {
+    fn group_qr(&mut self, k: usize) -> StreamingQr {
         if self.compact {
-            StreamingQr::compact(k)
+            match self.take_spare((k + 1 + COMPACT_CHUNK) * (k + 1)) {
+                Some(block) => StreamingQr::compact_in(k, block),
+                None => StreamingQr::compact(k),
+            }
         } else {
             StreamingQr::new(k)
         }
@@ -820,6 +884,7 @@ impl PatternQr {
         for r in buf.chunks_exact(w) {
             self.route(&r[..self.p], r[self.p]);
         }
+        self.spare.push(buf);
     }
 
     /// Adds one row to its group (the dense one unless [`PatternQr::decide`] chose patterns).
@@ -857,15 +922,30 @@ impl PatternQr {
         }
     }
 
+    /// Each group's columns and its `R` ([`PatternQr::finish_groups_keeping`] without the
+    /// storage).
+    #[cfg(test)]
+    fn finish_groups(self) -> Vec<(Vec<usize>, DMatrix<f64>)> {
+        self.finish_groups_keeping().0
+    }
+
     /// Each group's columns and its `R` ((k+1) × (k+1), the response last), in the order the
     /// groups were made (the order their patterns first occur in the rows): the factorisation
-    /// before [`PatternQr::finish`] stacks the groups.
-    fn finish_groups(mut self) -> Vec<(Vec<usize>, DMatrix<f64>)> {
+    /// before [`PatternQr::finish`] stacks the groups; and the storage of its groups, probe and
+    /// spare blocks (for [`PatternQr::compact_reusing`]).
+    fn finish_groups_keeping(mut self) -> (Groups, Vec<Vec<f64>>) {
         self.decide();
-        self.groups
+        let mut spare = std::mem::take(&mut self.spare);
+        let groups = self
+            .groups
             .into_iter()
-            .map(|(cols, qr)| (cols, qr.finish().0))
-            .collect()
+            .map(|(cols, qr)| {
+                let (r, block) = qr.finish_keeping();
+                spare.push(block);
+                (cols, r)
+            })
+            .collect();
+        (groups, spare)
     }
 
     /// Adds the `k + 1` rows of `r`, a group's `R` over the design columns `cols`
@@ -916,6 +996,9 @@ impl PatternQr {
         (r, self.colsq)
     }
 }
+
+/// Per group of a [`PatternQr`]: its columns and its `R` ([`PatternQr::finish_groups_keeping`]).
+type Groups = Vec<(Vec<usize>, DMatrix<f64>)>;
 
 /// The least-squares solution of one design.
 #[derive(Debug, Clone)]
@@ -1014,19 +1097,59 @@ fn solve_chunk_rows(p: usize) -> usize {
     (SOLVE_CHUNK_BYTES / 8 / (p + 1)).max(1).div_ceil(CHUNK) * CHUNK
 }
 
-/// The row-major `[X y]` rows `rows` (`p + 1` values each) factorised by `qr`: its groups'
-/// columns and `R` factors ([`PatternQr::finish_groups`]).
-fn factorise_rows(mut qr: PatternQr, rows: &[f64], p: usize) -> Vec<(Vec<usize>, DMatrix<f64>)> {
+/// The row-major `[X y]` rows `rows` (`p + 1` values each, the design columns in [`solve`]'s
+/// order) factorised by `qr`: its groups' columns and `R` factors, and its storage
+/// ([`PatternQr::finish_groups_keeping`]). Adds each column value to `sums_q` and its square
+/// (and the response's) to `colsq`, per position, row by row: the sums of
+/// [`FixedRows::each_ordered`] (whose `sums` is `sums_q` by original column), bit for bit,
+/// where the rows of each call follow those of the previous one in the log.
+fn factorise_rows(
+    mut qr: PatternQr,
+    rows: &[f64],
+    p: usize,
+    sums_q: &mut [f64],
+    colsq: &mut [f64],
+) -> (Groups, Vec<Vec<f64>>) {
+    let (sums_q, colsq, ysq) = {
+        let (c, y) = colsq.split_at_mut(p);
+        (&mut sums_q[..p], c, &mut y[0])
+    };
     for row in rows.chunks_exact(p + 1) {
-        qr.place_row(&row[..p], row[p]);
+        let (x, y) = (&row[..p], row[p]);
+        for ((&v, s), sq) in x.iter().zip(sums_q.iter_mut()).zip(colsq.iter_mut()) {
+            *s += v;
+            *sq += v * v;
+        }
+        *ysq += y * y;
+        qr.place_row(x, y);
     }
-    qr.finish_groups()
+    qr.finish_groups_keeping()
 }
 
 fn solve(
     terms: &[Arc<dyn Term>],
     data: &FitData<'_>,
     opts: &CheckedFitOptions,
+) -> Result<Solution, FitError> {
+    solve_marking(terms, data, opts, None)
+}
+
+/// Where one of [`solve`]'s chunks of measured rows begins in its replay: the history and
+/// every term's state just before the chunk's first measured row (after the previous chunk's
+/// last row was learnt from), so that the chunk's rows can be replayed on their own, in
+/// parallel with the others ([`static_predictions_chunked`]).
+struct ChunkStart<'a> {
+    replay: crate::history::Replay<'a>,
+    states: Vec<Box<dyn crate::model::term::TermState>>,
+}
+
+/// [`solve`], which also records in `starts` where each of its chunks of
+/// [`solve_chunk_rows`] measured rows begins ([`ChunkStart`]; one per chunk, in log order).
+fn solve_marking<'a>(
+    terms: &[Arc<dyn Term>],
+    data: &FitData<'a>,
+    opts: &CheckedFitOptions,
+    mut starts: Option<&mut Vec<ChunkStart<'a>>>,
 ) -> Result<Solution, FitError> {
     let (_, p) = offsets(terms);
     // Essential columns first, so that a dependency is blamed on a droppable hinge if possible.
@@ -1072,6 +1195,9 @@ fn solve(
         // One chunk: its factorisation, the ridge rows included (as before the chunks).
         let mut qr = new_qr(p);
         let mut scratch = vec![0.0; p];
+        if let Some(s) = starts.as_deref_mut() {
+            s.push(rows.start());
+        }
         n = rows.each_ordered(
             per_chunk,
             &order,
@@ -1093,14 +1219,35 @@ fn solve(
             PatternQr::merging(p)
         };
         if rayon::current_num_threads() > 1 {
+            // The replay fills the next chunk's rows while the pool sums and factorises the
+            // current one (chunk after chunk, so the sums are the one thread's bit for bit).
+            // `sums_q`: the column sums by position in `order`.
             let mut cur = Vec::with_capacity(per_chunk * w);
             let mut next = Vec::with_capacity(per_chunk * w);
-            n = rows.fill_ordered(&mut cur, per_chunk, &order, &mut sums, &mut colsq);
+            let mut sums_q = vec![0.0; p];
+            let mut fill = |rows: &mut FixedRows<'a>, out: &mut Vec<f64>| {
+                let start = starts.is_some().then(|| rows.start());
+                let got = rows.fill_ordered(out, per_chunk, &order);
+                if let (Some(s), Some(start)) = (starts.as_deref_mut(), start)
+                    && got > 0
+                {
+                    s.push(start);
+                }
+                got
+            };
+            n = fill(&mut rows, &mut cur);
+            // Each chunk's factorisation in the blocks of the one before (no fresh zeroed
+            // blocks to fault in).
+            let mut spare = Vec::new();
             while !cur.is_empty() {
-                let (groups, got) = rayon::join(
-                    || factorise_rows(PatternQr::compact(p, dense), &cur, p),
-                    || rows.fill_ordered(&mut next, per_chunk, &order, &mut sums, &mut colsq),
+                let ((groups, kept), got) = rayon::join(
+                    || {
+                        let qr = PatternQr::compact_reusing(p, dense, std::mem::take(&mut spare));
+                        factorise_rows(qr, &cur, p, &mut sums_q, &mut colsq)
+                    },
+                    || fill(&mut rows, &mut next),
                 );
+                spare = kept;
                 for (cols, r) in &groups {
                     merged.place_group_r(cols, r);
                 }
@@ -1108,12 +1255,17 @@ fn solve(
                 std::mem::swap(&mut cur, &mut next);
                 next.clear();
             }
+            for (q, &c) in order.iter().enumerate() {
+                sums[c] = sums_q[q];
+            }
         } else {
             // One thread: each chunk's rows straight into its factorisation (no buffer), the
             // same chunks, so the same `R` bit for bit.
             let mut scratch = vec![0.0; p];
+            let mut spare = Vec::new();
             loop {
-                let mut qr = PatternQr::compact(p, dense);
+                let mut qr = PatternQr::compact_reusing(p, dense, std::mem::take(&mut spare));
+                let start = starts.is_some().then(|| rows.start());
                 let got = rows.each_ordered(
                     per_chunk,
                     &order,
@@ -1125,7 +1277,12 @@ fn solve(
                 if got == 0 {
                     break;
                 }
-                for (cols, r) in &qr.finish_groups() {
+                if let (Some(s), Some(start)) = (starts.as_deref_mut(), start) {
+                    s.push(start);
+                }
+                let (groups, kept) = qr.finish_groups_keeping();
+                spare = kept;
+                for (cols, r) in &groups {
                     merged.place_group_r(cols, r);
                 }
                 n += got;
@@ -1602,24 +1759,43 @@ impl<'a> FixedRows<'a> {
         })
     }
 
+    /// Where the replay stands: the history and every term's state before the next row.
+    fn start(&self) -> ChunkStart<'a> {
+        ChunkStart {
+            replay: self.replay.clone(),
+            states: self.states.iter().map(|s| s.clone_box()).collect(),
+        }
+    }
+
     /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, each as its
-    /// design columns in the order `order` then its response (`order.len() + 1` values), and
-    /// adds each written value to `sums` (per original column) and its square to `colsq` (per
-    /// written position), row by row in log order: the arithmetic [`solve`]'s row-by-row loop
-    /// did. Returns how many rows it appended.
-    fn fill_ordered(
-        &mut self,
-        out: &mut Vec<f64>,
-        rows: usize,
-        order: &[usize],
-        sums: &mut [f64],
-        colsq: &mut [f64],
-    ) -> usize {
-        let mut xp = vec![0.0; order.len()];
-        self.each_ordered(rows, order, sums, colsq, &mut xp, |x, y| {
-            out.extend_from_slice(x);
-            out.push(y);
-        })
+    /// design columns in the order `order` then its response (`order.len() + 1` values): the
+    /// rows [`FixedRows::each_ordered`] hands on. Returns how many rows it appended.
+    fn fill_ordered(&mut self, out: &mut Vec<f64>, rows: usize, order: &[usize]) -> usize {
+        let mut n = 0;
+        while n < rows {
+            let Some((_, row, f)) = self.replay.next() else {
+                break;
+            };
+            let seek = Seek {
+                features: &f,
+                covariates: row.covariates.gather(&mut self.cov),
+            };
+            if let Some(y) = row.bias {
+                for (k, s) in self.states.iter().enumerate() {
+                    s.basis(
+                        &seek,
+                        &mut self.buf[self.off[k]..self.off[k] + self.widths[k]],
+                    );
+                }
+                out.extend(order.iter().map(|&c| self.buf[c]));
+                out.push(y);
+                n += 1;
+            }
+            for s in &mut self.states {
+                s.update(&seek, None);
+            }
+        }
+        n
     }
 
     /// [`FixedRows::fill_ordered`] handing each row (its columns in `order`, in the scratch
@@ -2176,7 +2352,7 @@ fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitErro
 /// Where the adaptive terms begin, if they all come after the others and read nothing but the
 /// residuals ([`Term::reads_only_residuals`]; `terms.len()` when there are none): then the
 /// fit's statistics replay only them ([`replay_tail`]) over the static prediction of the others
-/// ([`static_predictions`]) instead of the whole model over the log.
+/// ([`static_predictions_chunked`]) instead of the whole model over the log.
 fn adaptive_tail(terms: &[Arc<dyn Term>]) -> Option<usize> {
     let first = terms
         .iter()
@@ -2189,6 +2365,7 @@ fn adaptive_tail(terms: &[Arc<dyn Term>]) -> Option<usize> {
 }
 
 /// The measured bias of every measured row, in log order.
+#[cfg(test)]
 fn measured_bias(log: &Log) -> impl Iterator<Item = f64> + '_ {
     log.bias_raw().iter().copied().filter(|b| !b.is_nan())
 }
@@ -2197,7 +2374,9 @@ fn measured_bias(log: &Log) -> impl Iterator<Item = f64> + '_ {
 /// design's), each term's basis times its coefficients plus its offset, summed term by term
 /// in the order and the arithmetic of `Predictor::evaluate` (so the same bits as the
 /// predictor's running total before term `tail`; tested); and the range of the measured rows'
-/// finite positions. One replay of the history.
+/// finite positions. One replay of the history: the reference for
+/// [`static_predictions_chunked`], which [`fit`] uses.
+#[cfg(test)]
 fn static_predictions(
     terms: &[Arc<dyn Term>],
     tail: usize,
@@ -2245,15 +2424,110 @@ fn static_predictions(
     Ok((out, range))
 }
 
-/// The measured bias and the residual of every measured row when the adaptive terms `tail`
-/// (which read nothing but the residuals) follow the static prediction `statics` of the
+/// What [`static_predictions_chunked`] gives per measured row, in log order.
+struct Statics {
+    /// The prediction of the terms before the adaptive tail: per term, its basis times its
+    /// coefficients plus its offset, summed in the order and arithmetic of
+    /// `Predictor::evaluate`.
+    pred: Vec<f64>,
+    /// The measured bias.
+    measured: Vec<f64>,
+    /// `measured − pred` (for the adaptive terms' tuning; [`fit`] frees it after that).
+    residual: Vec<f64>,
+    /// The range of the measured rows' finite positions.
+    range: Option<[f64; 2]>,
+}
+
+/// The static predictions (`static_predictions`, the sequential replay the tests hold it to)
+/// from [`solve_marking`]'s chunk starts: each chunk of `per_chunk`
+/// measured rows replayed from its [`ChunkStart`] on its own, the chunks in parallel on
+/// rayon's pool (the same arithmetic per row as the one sequential replay, so the same bits;
+/// the ranges of the chunks merged in log order by the same `min`/`max`; tested). `starts`
+/// holds every term's state (of `terms`, the whole design); only those before `tail` are read.
+fn static_predictions_chunked(
+    terms: &[Arc<dyn Term>],
+    tail: usize,
+    starts: Vec<ChunkStart<'_>>,
+    per_chunk: usize,
+    measured: usize,
+    coef: &[f64],
+) -> Statics {
+    use rayon::prelude::*;
+    let (off, _) = offsets(terms);
+    let widths: Vec<usize> = terms[..tail].iter().map(|t| t.param_count()).collect();
+    let mut pred = vec![0.0; measured];
+    let mut meas = vec![0.0; measured];
+    let mut residual = vec![0.0; measured];
+    let ranges: Vec<(usize, Option<[f64; 2]>)> = pred
+        .par_chunks_mut(per_chunk)
+        .zip(meas.par_chunks_mut(per_chunk))
+        .zip(residual.par_chunks_mut(per_chunk))
+        .zip(starts.into_par_iter())
+        .map(|(((pred, meas), residual), start)| {
+            let ChunkStart { replay, mut states } = start;
+            states.truncate(tail);
+            let mut buf = vec![0.0; widths.iter().copied().max().unwrap_or(0)];
+            let mut cov = Vec::new();
+            let mut range: Option<[f64; 2]> = None;
+            let mut n = 0;
+            for (_, row, f) in replay {
+                if n == pred.len() {
+                    break;
+                }
+                let seek = Seek {
+                    features: &f,
+                    covariates: row.covariates.gather(&mut cov),
+                };
+                if let Some(y) = row.bias {
+                    let mut total = 0.0;
+                    for (k, s) in states.iter().enumerate() {
+                        let b = &mut buf[..widths[k]];
+                        s.basis(&seek, b);
+                        let c = &coef[off[k]..off[k] + widths[k]];
+                        total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + s.offset(&seek);
+                    }
+                    pred[n] = total;
+                    meas[n] = y;
+                    residual[n] = y - total;
+                    n += 1;
+                    let x = row.track;
+                    if x.is_finite() {
+                        range = Some(match range {
+                            None => [x, x],
+                            Some([lo, hi]) => [lo.min(x), hi.max(x)],
+                        });
+                    }
+                }
+                for s in &mut states {
+                    s.update(&seek, None);
+                }
+            }
+            (n, range)
+        })
+        .collect();
+    debug_assert!(ranges.iter().all(|&(n, _)| n > 0));
+    let range = ranges
+        .into_iter()
+        .filter_map(|(_, r)| r)
+        .reduce(|[lo, hi], [a, b]| [lo.min(a), hi.max(b)]);
+    Statics {
+        pred,
+        measured: meas,
+        residual,
+        range,
+    }
+}
+
+/// The residual of every measured row (measured bias `measured`) when the adaptive terms
+/// `tail` (which read nothing but the residuals) follow the static prediction `statics` of the
 /// others: each adds its offset to the running total and learns from the residual, as in
 /// `Predictor::step_detailed` (what [`replay_residuals`] gives, bit for bit; tested).
 fn replay_tail(
     tail: &[Arc<dyn Term>],
     log: &Log,
     statics: &[f64],
-) -> Result<(Vec<f64>, Vec<f64>), FitError> {
+    measured: &[f64],
+) -> Result<Vec<f64>, FitError> {
     let mut states = tail
         .iter()
         .map(|t| t.start(&log.schema.covariates))
@@ -2277,9 +2551,8 @@ fn replay_tail(
         features: &none,
         covariates: &[],
     };
-    let measured: Vec<f64> = measured_bias(log).collect();
     let mut residual = Vec::with_capacity(measured.len());
-    for (&s, &y) in statics.iter().zip(&measured) {
+    for (&s, &y) in statics.iter().zip(measured) {
         let mut total = s;
         for st in &states {
             total += std::iter::empty::<f64>().sum::<f64>() + st.offset(&seek);
@@ -2290,7 +2563,7 @@ fn replay_tail(
         }
         residual.push(r);
     }
-    Ok((measured, residual))
+    Ok(residual)
 }
 
 /// Direction changes in the fit's replay of the history. `sampling` has counted them already
@@ -2422,35 +2695,49 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         }
     }
 
-    let sol = solve(&terms, &data, opts)?;
-
     // The prediction of every term before the adaptive ones, per measured row, where those
-    // read nothing but the residuals (`drift`): then they are replayed over it below.
+    // read nothing but the residuals (`drift`): then they are replayed over it below. The
+    // solve marks where its chunks begin in its replay; the static predictions replay the
+    // chunks from there in parallel.
     let tail = adaptive_tail(&terms);
-    let statics = match tail {
-        Some(t) => Some(static_predictions(&terms, t, &data, &sol.coef)?),
-        None => None,
-    };
+    let mut starts = Vec::new();
+    let sol = solve_marking(&terms, &data, opts, tail.map(|_| &mut starts))?;
+    let mut statics = tail.map(|t| {
+        static_predictions_chunked(
+            &terms,
+            t,
+            std::mem::take(&mut starts),
+            solve_chunk_rows(p),
+            measured,
+            &sol.coef,
+        )
+    });
 
     // Causal offsets tuned on the static residuals.
     if terms.iter().any(|t| t.param_count() == 0) {
-        let residuals: Vec<f64> = match &statics {
-            Some((st, _)) => measured_bias(log).zip(st).map(|(y, s)| y - s).collect(),
+        let design_residuals;
+        let residuals: &[f64] = match &statics {
+            Some(st) => &st.residual,
             None => {
                 let mut residuals = Vec::with_capacity(sol.n);
                 design_pass(&terms, &data, |x, y| {
                     residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
                 })?;
-                residuals
+                design_residuals = residuals;
+                &design_residuals
             }
         };
         for t in &mut terms {
-            if let Some(tuned) = t.tune_on_residuals(&residuals) {
+            if let Some(tuned) = t.tune_on_residuals(residuals) {
                 *t = tuned;
             }
         }
     }
 
+    // The static residuals served the tuning alone: freed before the tail's replay.
+    if let Some(st) = statics.as_mut() {
+        st.residual = Vec::new();
+    }
     let (off, _) = offsets(&terms);
     let mut warnings = Vec::new();
     let mut fitted = Vec::with_capacity(terms.len());
@@ -2543,9 +2830,9 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
         });
     }
     let (measured_bias, residual, position_range) = match (tail, statics) {
-        (Some(t), Some((st, range))) => {
-            let (measured, residual) = replay_tail(&terms[t..], log, &st)?;
-            (measured, residual, range)
+        (Some(t), Some(st)) => {
+            let residual = replay_tail(&terms[t..], log, &st.pred, &st.measured)?;
+            (st.measured, residual, st.range)
         }
         _ => replay_residuals(&model, log)?,
     };
@@ -2759,6 +3046,18 @@ mod tests {
                 one.fit.ls_rss.to_bits(),
                 other.fit.ls_rss.to_bits(),
                 "{threads}"
+            );
+            // The statistics from the static predictions, replayed chunk by chunk in parallel.
+            for (a, b) in [
+                (one.fit.residual_std, other.fit.residual_std),
+                (one.fit.residual_rms, other.fit.residual_rms),
+                (one.fit.r2, other.fit.r2),
+            ] {
+                assert_eq!(a.to_bits(), b.to_bits(), "{threads} threads");
+            }
+            assert_eq!(
+                one.fit.position_range.map(|r| r.map(f64::to_bits)),
+                other.fit.position_range.map(|r| r.map(f64::to_bits))
             );
         }
         let dense = run(2, true);
@@ -3361,7 +3660,8 @@ mod tests {
                 fast += 1;
                 let data = FitData::with_direction(log, &model.direction).unwrap();
                 let (st, range) = static_predictions(&terms, tail, &data, &coef).unwrap();
-                let (measured, residual) = replay_tail(&terms[tail..], log, &st).unwrap();
+                let measured: Vec<f64> = measured_bias(log).collect();
+                let residual = replay_tail(&terms[tail..], log, &st, &measured).unwrap();
                 let pred = model.predict_log(log).unwrap();
                 let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&measured), bits(&pred.measured), "{text}");
@@ -3374,6 +3674,70 @@ mod tests {
             }
         }
         assert_eq!(fast, 8);
+    }
+
+    /// [`static_predictions_chunked`] against the one sequential replay of
+    /// [`static_predictions`] (the slow reference) and the measured bias against
+    /// [`measured_bias`]: bit for bit, on 1, 2 and 3 threads, on logs of several of
+    /// [`solve`]'s chunks (every seventh row unmeasured, so chunks end before unmeasured rows
+    /// and begin after them), for the head terms of three designs (with and without the
+    /// history's direction and memory terms); the residual is the measured bias minus the
+    /// prediction, the range the reference's, bit for bit.
+    #[test]
+    fn chunked_static_predictions_equal_the_sequential_replay() {
+        let mut log = crate::sim::random_log(60_000, 11);
+        for i in (3..log.len()).step_by(7) {
+            log.set_bias(i, None);
+        }
+        let opts = FitOptions::default().check().unwrap();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let measured: Vec<f64> = measured_bias(&log).collect();
+        for text in [
+            "calibration",
+            "poly2,seek,drift:0.05",
+            "poly2,direction,memory",
+        ] {
+            let spec = ModelSpec::preset(text)
+                .or_else(|_| ModelSpec::parse(text))
+                .unwrap();
+            let model = fit(&spec, &log, &opts).unwrap();
+            let terms: Vec<Arc<dyn Term>> = model.terms.iter().map(|t| t.term.clone()).collect();
+            let coef: Vec<f64> = model
+                .terms
+                .iter()
+                .flat_map(|t| t.coefficients.iter().copied())
+                .collect();
+            let tail = adaptive_tail(&terms).unwrap();
+            let data = FitData::with_direction(&log, &model.direction).unwrap();
+            let (want, want_range) = static_predictions(&terms, tail, &data, &coef).unwrap();
+            let per_chunk = solve_chunk_rows(offsets(&terms).1);
+            assert!(measured.len() > per_chunk, "{text}: two chunks at least");
+            for threads in [1, 2, 3] {
+                let got = crate::with_threads(threads, || {
+                    let mut starts = Vec::new();
+                    solve_marking(&terms, &data, &opts, Some(&mut starts)).unwrap();
+                    assert_eq!(starts.len(), measured.len().div_ceil(per_chunk));
+                    static_predictions_chunked(
+                        &terms,
+                        tail,
+                        starts,
+                        per_chunk,
+                        measured.len(),
+                        &coef,
+                    )
+                })
+                .unwrap();
+                assert_eq!(bits(&got.pred), bits(&want), "{text}, {threads} threads");
+                assert_eq!(bits(&got.measured), bits(&measured), "{text}");
+                let residual: Vec<f64> = measured.iter().zip(&want).map(|(y, s)| y - s).collect();
+                assert_eq!(bits(&got.residual), bits(&residual), "{text}");
+                assert_eq!(
+                    got.range.map(|r| r.map(f64::to_bits)),
+                    want_range.map(|r| r.map(f64::to_bits)),
+                    "{text}"
+                );
+            }
+        }
     }
 
     /// The rows `(x, y)` of the rank-deficient designs of
