@@ -5,7 +5,7 @@
 
 use super::term::{Seek, Term};
 use super::{ModelError, SpecError};
-use crate::history::{DirectionSource, HistoryColumns, Replay, SeekFeatures};
+use crate::history::{DirectionSource, Replay, SeekFeatures};
 use crate::log::Log;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -157,14 +157,10 @@ pub struct FitReport {
 }
 
 /// The training data as terms see it while they prepare: the log, and its seek history
-/// replayed on demand ([`FitData::replay`]). A log of at most 2¹⁸ rows keeps the features of
-/// its first full replay (at most 27 MB) and serves the later ones from them; a longer log
-/// keeps only the features that depend on the history, compactly (13 B/row,
-/// `HistoryColumns`: direction, reversal, and the rows whose targets are the turning point
-/// and the nearest rest positions), and steps the rest from its columns. Either way the same
-/// values, bit for bit, as stepping the history (tested); a fit replays a long log three
-/// times (the memory knots, the solve, the static prediction), and only the first steps the
-/// direction tracker and the rest memory.
+/// replayed on demand ([`FitData::replay`]). On a log of more than 2¹⁸ rows nothing per row is
+/// held beyond the log itself: each question about the seek features streams one replay; a
+/// shorter log keeps the features of its first replay (at most 27 MB) and serves the later
+/// ones from them (the same values, bit for bit).
 #[derive(Debug, Clone)]
 pub struct FitData<'a> {
     log: &'a Log,
@@ -176,9 +172,6 @@ pub struct FitData<'a> {
     /// and the many small refits of `diagnose`'s verification read them instead of stepping
     /// the history again.
     cache: std::sync::OnceLock<Option<Arc<[SeekFeatures]>>>,
-    /// The history features of a log of more than [`FEATURE_CACHE_ROWS`] rows, kept after
-    /// its first full replay (13 B/row).
-    columns: std::sync::OnceLock<Option<Arc<HistoryColumns>>>,
 }
 
 /// Logs of at most this many rows keep their replayed seek features in [`FitData`]
@@ -194,7 +187,6 @@ impl<'a> FitData<'a> {
             direction: DirectionSource::Steps,
             velocity: None,
             cache: std::sync::OnceLock::new(),
-            columns: std::sync::OnceLock::new(),
         }
     }
 
@@ -207,7 +199,6 @@ impl<'a> FitData<'a> {
             direction: direction.clone(),
             velocity,
             cache: std::sync::OnceLock::new(),
-            columns: std::sync::OnceLock::new(),
         })
     }
 
@@ -253,29 +244,11 @@ impl<'a> FitData<'a> {
             !reads_history,
         );
         // A short log reads its cached features (a full replay's, which include the light
-        // ones bit for bit); a light replay of a long log steps the light history, a full one
-        // reads the history columns.
+        // ones bit for bit); a light replay of a long log steps the light history.
         match self.cached() {
             Some(c) => replay.reading_cache(c),
-            None if reads_history => match self.history_columns() {
-                Some(c) => replay.reading_columns(c, self.log),
-                None => replay,
-            },
             None => replay,
         }
-    }
-
-    /// The history columns of a log longer than [`FEATURE_CACHE_ROWS`], built by one full
-    /// replay on first use; `None` for a shorter log (or one `HistoryColumns::build` refuses).
-    fn history_columns(&self) -> Option<Arc<HistoryColumns>> {
-        self.columns
-            .get_or_init(|| {
-                (self.log.len() > FEATURE_CACHE_ROWS)
-                    .then(|| HistoryColumns::build(self.log, &self.direction, self.velocity))
-                    .flatten()
-                    .map(Arc::new)
-            })
-            .clone()
     }
 
     /// Standard deviation of the measured bias (the log's bias unit; 0 with fewer than two).
@@ -432,15 +405,5 @@ mod tests {
         let data = FitData::new(&long);
         assert_eq!(data.replay().count(), FEATURE_CACHE_ROWS + 1);
         assert!(data.cache.get().is_some_and(|c| c.is_none()));
-        // Above the bound the history columns serve the full replays: the same features as
-        // stepping, bit for bit; a light replay does not build them.
-        let light = FitData::new(&long);
-        assert_eq!(light.replay_reading(false).count(), FEATURE_CACHE_ROWS + 1);
-        assert!(light.columns.get().is_none());
-        assert!(data.columns.get().is_some_and(|c| c.is_some()));
-        let stepped = crate::history::replay_checked(&long, &DirectionSource::Steps, None, false);
-        for ((_, _, a), (_, _, b)) in stepped.zip(data.replay()) {
-            assert_eq!(format!("{a:?}"), format!("{b:?}"));
-        }
     }
 }
