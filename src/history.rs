@@ -210,6 +210,37 @@ impl RestMemory {
         }
     }
 
+    /// [`RestMemory::nearest_after_move`] and then [`RestMemory::apply_move`] in one: the
+    /// nearest uncrossed rest positions on the OD and ID sides of `target` after a move from
+    /// `source`, before `source` is remembered, and the memory updated. The same values as the
+    /// two calls (tested): the positions the move crosses are popped off the stack ahead
+    /// first, and the one left on top is the nearest beyond `target` (what the scan found);
+    /// the crossed positions are visited once instead of twice.
+    #[inline(always)]
+    pub(crate) fn move_and_nearest(
+        &mut self,
+        source: f64,
+        target: f64,
+    ) -> (Option<f64>, Option<f64>) {
+        if target > source {
+            while self.above.last().is_some_and(|&p| p <= target) {
+                self.above.pop();
+            }
+            let near = (self.below.last().copied(), self.above.last().copied());
+            self.below.push(source);
+            near
+        } else if target < source {
+            while self.below.last().is_some_and(|&p| p >= target) {
+                self.below.pop();
+            }
+            let near = (self.below.last().copied(), self.above.last().copied());
+            self.above.push(source);
+            near
+        } else {
+            (self.below.last().copied(), self.above.last().copied())
+        }
+    }
+
     /// Reserves room for `per_side` positions on each side, so that remembering up to that many
     /// allocates nothing.
     pub fn reserve(&mut self, per_side: usize) {
@@ -468,7 +499,49 @@ impl History {
 
     /// As [`History::step`], with the direction of the move from `moved` when `Some` (see
     /// [`History::peek_moved`]).
+    ///
+    /// The same features as [`History::peek_moved`] followed by the update (kept as
+    /// [`History::step_moved_reference`] and tested equal bit for bit), with the direction
+    /// tracker asked once and the rest memory walked once ([`RestMemory::move_and_nearest`]).
     pub fn step_moved(&mut self, time_s: f64, target: f64, moved: Option<i8>) -> SeekFeatures {
+        let first = self.position.is_none();
+        let source = self.position.unwrap_or(target);
+        let turn = self.turns.peek(target, moved);
+        let (od, id) = self.memory.move_and_nearest(source, target);
+        let f = SeekFeatures {
+            seek_index: self.seeks,
+            time_s,
+            elapsed_s: if first { 0.0 } else { time_s - self.start_time },
+            dwell_s: if first { 0.0 } else { time_s - self.last_time },
+            source,
+            target,
+            seek_length: target - source,
+            direction: turn.direction,
+            direction_change: turn.reversal,
+            since_reversal: turn.since_reversal,
+            rest_distance_od: od.map(|p| target - p),
+            rest_distance_id: id.map(|p| p - target),
+        };
+        if first {
+            self.start_time = time_s;
+        }
+        self.position = Some(target);
+        self.last_time = time_s;
+        self.seeks += 1;
+        self.turns.commit(target, &turn);
+        f
+    }
+
+    /// The slow, obvious [`History::step_moved`]: [`History::peek_moved`], then the update
+    /// (the rest memory scanned by `peek` and again by [`RestMemory::apply_move`], the
+    /// direction tracker asked twice). The reference the fused step is tested against.
+    #[cfg(test)]
+    pub(crate) fn step_moved_reference(
+        &mut self,
+        time_s: f64,
+        target: f64,
+        moved: Option<i8>,
+    ) -> SeekFeatures {
         let f = self.peek_moved(time_s, target, moved);
         if self.position.is_none() {
             self.start_time = time_s;
@@ -588,11 +661,9 @@ impl DirectionSetting {
     }
 }
 
-/// [`sampling`] of every row of `log`.
+/// [`sampling`] of every row of `log` (its time and position columns, read in place).
 pub fn log_sampling(log: &crate::log::Log) -> Sampling {
-    let times: Vec<f64> = log.rows().map(|r| r.time_s).collect();
-    let positions: Vec<f64> = log.rows().map(|r| r.track).collect();
-    sampling(&times, &positions)
+    sampling(log.times(), log.tracks())
 }
 
 impl DirectionSource {
@@ -746,7 +817,85 @@ pub struct Sampling {
 /// Describes how `positions` (in row order, position unit) sample the motion; `times_s` are the
 /// rows' times. A seek log (each row a seek: irregular times, or a median step ≥ 1 % of the
 /// travel) keeps deadband 0.
+///
+/// The times' quantiles and the raw reversal count run beside the positions' quantiles
+/// (`rayon::join`, each side with its own scratch buffer), and the 5 % and 95 % quantiles of
+/// the positions come from one nested selection ([`percentiles_select`]): the same bits as
+/// the one-buffer, one-quantile-at-a-time [`sampling_reference`] (tested), on any thread count.
+///
+/// [`percentiles_select`]: crate::numeric::stats::percentiles_select
 pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
+    use crate::numeric::stats::{percentile_select, percentiles_select};
+    // Every quantile is found by selection in a scratch buffer (O(n), no sort); it equals
+    // `percentile_sorted(&sorted(v), p)` bit for bit (tested against it).
+    let median = |scratch: &mut Vec<f64>, values: &mut dyn Iterator<Item = f64>| {
+        scratch.clear();
+        scratch.extend(values);
+        percentile_select(scratch, 50.0).unwrap_or(0.0)
+    };
+    let times_side = || {
+        let mut scratch = Vec::with_capacity(times_s.len());
+        let dt = median(&mut scratch, &mut times_s.windows(2).map(|w| w[1] - w[0]));
+        let dt_dev = median(
+            &mut scratch,
+            &mut times_s.windows(2).map(|w| ((w[1] - w[0]) - dt).abs()),
+        );
+        (dt, dt_dev, count_reversals(positions, 0.0))
+    };
+    let positions_side = || {
+        let mut scratch = Vec::with_capacity(positions.len());
+        let median_step = median(
+            &mut scratch,
+            &mut positions.windows(2).map(|w| (w[1] - w[0]).abs()),
+        );
+        scratch.clear();
+        scratch.extend_from_slice(positions);
+        let (p95, p5) = match percentiles_select(&mut scratch, &[95.0, 5.0]) {
+            Some(q) => (q[0], q[1]),
+            None => (0.0, 0.0),
+        };
+        let mad = median(
+            &mut scratch,
+            &mut positions
+                .windows(3)
+                .map(|w| second_difference(w[0], w[1], w[2])),
+        );
+        (median_step, p95, p5, mad)
+    };
+    let ((dt, dt_dev, raw), (median_step, p95, p5, mad)) = rayon::join(times_side, positions_side);
+    let q = Quantiles {
+        regular_clock: regular_clock(dt, dt_dev),
+        median_step,
+        p95,
+        p5,
+        mad,
+    };
+    let span = match (times_s.first(), times_s.last()) {
+        (Some(a), Some(b)) if b > a => Some(b - a),
+        _ => None,
+    };
+    q.sampling(positions.len(), span, raw, |d| {
+        count_reversals(positions, d)
+    })
+}
+
+/// Direction reversals of `positions` with deadband `d` ([`DirectionTracker`]).
+fn count_reversals(positions: &[f64], d: f64) -> usize {
+    let mut t = DirectionTracker::new(d);
+    positions
+        .iter()
+        .filter(|&&x| {
+            let s = t.peek(x, None);
+            t.commit(x, &s);
+            s.reversal
+        })
+        .count()
+}
+
+/// The slow, obvious [`sampling`]: one scratch buffer, every quantile selected on its own in
+/// turn, on one thread. The reference the parallel, nested one is tested against.
+#[cfg(test)]
+pub(crate) fn sampling_reference(times_s: &[f64], positions: &[f64]) -> Sampling {
     // Every quantile is found by selection in one reused scratch buffer (O(n), no sort); it
     // equals `percentile_sorted(&sorted(v), p)` bit for bit (tested against it).
     let mut scratch: Vec<f64> = Vec::with_capacity(positions.len().max(times_s.len()));
@@ -1384,6 +1533,93 @@ mod tests {
         assert_eq!(percentile_select(&mut [], 50.0), None);
     }
 
+    /// Reference: [`sampling_reference`] (one buffer, each quantile selected alone, one
+    /// thread). The parallel sampling with the nested 5/95 % selection gives the same
+    /// `Sampling`, every float bit for bit, on dense sine logs (the deadband count runs), seek
+    /// logs, ties and signed zeros, jittered clocks and logs of 0–3 rows, on 1 and 2 threads.
+    #[test]
+    fn parallel_sampling_equals_the_reference_bit_for_bit() {
+        let mut rng = SimRng::new(29);
+        let bits = |s: &Sampling| {
+            (
+                s.rows_per_s.map(f64::to_bits),
+                [s.median_step, s.travel, s.noise, s.deadband].map(f64::to_bits),
+                (s.regular_clock, s.dense, s.raw_reversals, s.reversals),
+            )
+        };
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let mut dense = 0;
+        for case in 0..120 {
+            let n = match case % 8 {
+                0 => rng.below(4) as usize,
+                1 => 30_000,
+                _ => 1 + rng.below(4000) as usize,
+            };
+            let dt = [1e-3, 0.01, 0.5][rng.below(3) as usize];
+            let (t, x): (Vec<f64>, Vec<f64>) = (0..n)
+                .map(|i| {
+                    let ti = i as f64 * dt;
+                    match case % 5 {
+                        0 | 1 => (ti, 100.0 * (0.002 * i as f64).sin() + 0.05 * rng.normal()),
+                        2 => (
+                            ti + rng.range(0.0, 0.9) * dt,
+                            [0.0, -0.0, -3.0, 7.5][rng.below(4) as usize],
+                        ),
+                        3 => (
+                            ti + rng.range(-0.01, 0.01) * dt,
+                            rng.range(-500.0, 500.0).round(),
+                        ),
+                        _ => (ti, rng.below(1001) as f64 * 0.37),
+                    }
+                })
+                .unzip();
+            let want = sampling_reference(&t, &x);
+            dense += usize::from(want.dense && want.deadband > 0.0);
+            assert_eq!(bits(&sampling(&t, &x)), bits(&want), "case {case}, n {n}");
+            assert_eq!(bits(&one.install(|| sampling(&t, &x))), bits(&want));
+        }
+        assert!(dense > 10, "the deadband count ran on {dense} logs");
+    }
+
+    /// Reference: sort a copy and index it (`sorted`, `percentile_sorted`). Nested selection
+    /// of several ranks (repeats, neighbours, both ends) and several percentiles from one
+    /// selection give the same bits as the sorted copy, on values with ties and signed zeros.
+    #[test]
+    fn nested_order_statistics_equal_sorted_ones_bit_for_bit() {
+        use crate::numeric::stats::{
+            order_statistics, percentile_sorted, percentiles_select, sorted,
+        };
+        let mut rng = SimRng::new(11);
+        for case in 0..600 {
+            let n = 1 + rng.below(300) as usize;
+            let v = awkward_values(&mut rng, case, n);
+            let s = sorted(&v);
+            let mut ranks: Vec<usize> = (0..rng.below(9) as usize)
+                .map(|_| match rng.below(4) {
+                    0 => 0,
+                    1 => n - 1,
+                    _ => rng.below(n as u64) as usize,
+                })
+                .collect();
+            ranks.sort_unstable();
+            let mut out = vec![f64::NAN; ranks.len()];
+            order_statistics(&mut v.clone(), &ranks, &mut out);
+            for (r, o) in ranks.iter().zip(&out) {
+                assert_eq!(o.to_bits(), s[*r].to_bits(), "case {case}, rank {r}, n {n}");
+            }
+            let ps = [95.0, 5.0, 50.0, 37.5, 0.0, 100.0, 99.9];
+            let got = percentiles_select(&mut v.clone(), &ps).unwrap();
+            for (p, g) in ps.iter().zip(&got) {
+                let want = percentile_sorted(&s, *p).unwrap();
+                assert_eq!(g.to_bits(), want.to_bits(), "case {case}, p {p}, n {n}");
+            }
+        }
+        assert_eq!(percentiles_select(&mut [], &[50.0]), None);
+    }
+
     /// Values with ties, signed zeros, negatives, near-equal clusters (a clock's Δt differing
     /// in the last bits) and wide spreads, by `case`.
     fn awkward_values(rng: &mut SimRng, case: usize, n: usize) -> Vec<f64> {
@@ -1659,6 +1895,53 @@ mod tests {
                 (l.since_reversal, l.rest_distance_od, l.rest_distance_id),
                 (0.0, None, None)
             );
+        }
+    }
+
+    /// Reference: [`History::step_moved_reference`] (peek, then the update: the rest memory
+    /// scanned twice, the direction tracker asked twice). The fused step gives every feature
+    /// bit for bit and leaves the same state, with position steps, a deadband and a velocity
+    /// sign (including 0 and disagreeing signs), on repeated, tied and non-integer positions.
+    #[test]
+    fn fused_step_equals_peek_then_update_bit_for_bit() {
+        for (seed, deadband) in [(1, 0.0), (2, 0.0), (3, 2.5), (4, 40.0)] {
+            let mut rng = SimRng::new(seed);
+            let (mut fast, mut slow) = (
+                History::with_deadband(deadband),
+                History::with_deadband(deadband),
+            );
+            let mut t = 0.0;
+            let mut x = 500.0;
+            for k in 0..20_000 {
+                x = match rng.below(4) {
+                    0 => x,
+                    1 => (x + rng.below(41) as f64 - 20.0).clamp(0.0, 1000.0),
+                    2 => rng.below(1001) as f64,
+                    _ => rng.below(100_000) as f64 * 0.0137,
+                };
+                t += [0.0, 0.5, 1.0 / 3.0][rng.below(3) as usize];
+                let moved = match (seed, rng.below(4)) {
+                    (1 | 3, _) => None,
+                    (_, 0) => Some(0),
+                    (_, 1) => Some(1),
+                    (_, 2) => Some(-1),
+                    _ => Some(crate::history::sign(rng.normal())),
+                };
+                let (f, g) = (
+                    fast.step_moved(t, x, moved),
+                    slow.step_moved_reference(t, x, moved),
+                );
+                assert_eq!(format!("{f:?}"), format!("{g:?}"), "seed {seed} row {k}");
+                assert_eq!(
+                    (f.since_reversal.to_bits(), f.seek_length.to_bits()),
+                    (g.since_reversal.to_bits(), g.seek_length.to_bits())
+                );
+                assert_eq!(fast.turns, slow.turns);
+                assert_eq!(
+                    (fast.memory.below.clone(), fast.memory.above.clone()),
+                    (slow.memory.below.clone(), slow.memory.above.clone())
+                );
+            }
         }
     }
 

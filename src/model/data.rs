@@ -275,9 +275,10 @@ impl<'a> FitData<'a> {
         out
     }
 
-    /// The defined values of `f` over the measured rows; one replay.
+    /// The defined values of `f` over the measured rows; one replay (into a vector sized for
+    /// every measured row at once: no regrowth).
     pub fn measured_values(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
-        let mut out = Vec::new();
+        let mut out = Vec::with_capacity(self.log.measured_count());
         self.each_measured(false, |s| out.extend(f(s)));
         out
     }
@@ -287,7 +288,7 @@ impl<'a> FitData<'a> {
     /// `seek_length`; see [`Term::reads_history`]) and the covariates: the same values, from a
     /// replay without the direction tracker and rest memory.
     pub fn measured_positional(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
-        let mut out = Vec::new();
+        let mut out = Vec::with_capacity(self.log.measured_count());
         self.each_measured(true, |s| out.extend(f(s)));
         out
     }

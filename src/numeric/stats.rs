@@ -72,6 +72,66 @@ pub(crate) fn percentile_select(v: &mut [f64], p: f64) -> Option<f64> {
     Some(a + (b - a) * frac)
 }
 
+/// The order statistics of `v` at `ranks` (0-based, non-decreasing, each `< v.len()`), into
+/// `out` (one per rank): `out[j]` is `sorted(v)[ranks[j]]` bit for bit (under `total_cmp`
+/// equal elements are identical bits). Nested selection: the middle rank over all of `v`,
+/// then the lower ranks in the part before it and the higher ones in the part after, so k
+/// ranks cost about n·log₂(k + 1) steps instead of the k·n of selecting each over the whole
+/// slice. `v` is reordered.
+pub(crate) fn order_statistics(v: &mut [f64], ranks: &[usize], out: &mut [f64]) {
+    debug_assert_eq!(ranks.len(), out.len());
+    nested_select(v, 0, ranks, out);
+}
+
+/// [`order_statistics`] of the sub-slice `v` that holds the ranks from `base` on.
+fn nested_select(v: &mut [f64], base: usize, ranks: &[usize], out: &mut [f64]) {
+    if ranks.is_empty() || v.is_empty() {
+        return;
+    }
+    let mid = ranks.len() / 2;
+    let r = ranks[mid];
+    let (left, &mut q, right) = v.select_nth_unstable_by(r - base, f64::total_cmp);
+    // Ranks equal to `r` (repeats) take its value; those below live in `left`, those above in
+    // `right`, which starts at rank r + 1.
+    let below = ranks[..mid].partition_point(|&x| x < r);
+    let above = mid + 1 + ranks[mid + 1..].partition_point(|&x| x == r);
+    out[below..above].fill(q);
+    nested_select(left, base, &ranks[..below], &mut out[..below]);
+    nested_select(right, r + 1, &ranks[above..], &mut out[above..]);
+}
+
+/// [`percentile_select`] of each of `ps` (0–100, any order) over the same values, each the
+/// same bits as `percentile_select` (the same order statistics and interpolation; tested),
+/// from one [`order_statistics`] call. `None` for an empty slice. `v` is reordered.
+pub(crate) fn percentiles_select(v: &mut [f64], ps: &[f64]) -> Option<Vec<f64>> {
+    if v.is_empty() {
+        return None;
+    }
+    let n = v.len();
+    let at: Vec<(usize, usize, f64)> = ps
+        .iter()
+        .map(|p| {
+            let pos = (p.clamp(0.0, 100.0) / 100.0) * (n - 1) as f64;
+            let lo = pos.floor() as usize;
+            (lo, pos.ceil() as usize, pos - lo as f64)
+        })
+        .collect();
+    let mut ranks: Vec<usize> = at.iter().flat_map(|&(lo, hi, _)| [lo, hi]).collect();
+    ranks.sort_unstable();
+    ranks.dedup();
+    let mut os = vec![0.0; ranks.len()];
+    order_statistics(v, &ranks, &mut os);
+    let stat = |r: usize| os[ranks.partition_point(|&x| x < r)];
+    Some(
+        at.iter()
+            .map(|&(lo, hi, frac)| {
+                let (a, b) = (stat(lo), stat(hi));
+                a + (b - a) * frac
+            })
+            .collect(),
+    )
+}
+
 /// The key of `x` in `f64::total_cmp` order as an unsigned integer (negative values have all
 /// bits flipped, the rest their sign bit set): `key(a) < key(b)` exactly when `a` sorts before
 /// `b`, and `from_key` inverts it bit for bit.

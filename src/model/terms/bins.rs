@@ -17,7 +17,7 @@
 //! scale and parameter names as `bins` on the same feature.
 
 use super::covariate_position;
-use super::knots::{interior_knots, label};
+use super::knots::{interior_knots_owned, label};
 use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
@@ -80,8 +80,8 @@ impl TermSpec for BinsSpec {
             covariate,
             centre,
             scale: if sd > 0.0 { sd } else { 1.0 },
-            knots: interior_knots(&defined, self.knots),
             indicator: !defined.is_empty() && defined.len() < values.len(),
+            knots: interior_knots_owned(defined, self.knots),
             by_direction: self.by_direction,
         }))
     }

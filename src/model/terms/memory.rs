@@ -13,7 +13,9 @@
 //! error of 28 counts instead of 8.) **No rest position ahead is represented as an infinite
 //! distance: the contribution is 0** (the same as a rest position too far away to matter).
 
-use super::knots::{curve_hinges, curve_param_names, direction_side, interior_knots, spec_name};
+use super::knots::{
+    curve_hinges, curve_param_names, direction_side, interior_knots_owned, spec_name,
+};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -38,7 +40,7 @@ impl TermSpec for MemorySpec {
         let d = data.measured_values(|s| s.features.rest_distance_ahead());
         Ok(Arc::new(MemoryTerm {
             name: self.name(),
-            knots: interior_knots(&d, self.knots),
+            knots: interior_knots_owned(d, self.knots),
         }))
     }
 }

@@ -14,7 +14,9 @@
 //! direction at `a = 0`; the first seek (no direction yet) contributes 0. Coefficients in counts
 //! (the curve's value at `a = 0` is the sum of its coefficients weighted by `k_j/k_max`).
 
-use super::knots::{curve_hinges, curve_param_names, direction_side, interior_knots, spec_name};
+use super::knots::{
+    curve_hinges, curve_param_names, direction_side, interior_knots_owned, spec_name,
+};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -40,7 +42,7 @@ impl TermSpec for SeekSpec {
             data.measured_positional(|s| Some(s.features.seek_length.abs()).filter(|&a| a > 0.0));
         Ok(Arc::new(SeekTerm {
             name: self.name(),
-            knots: interior_knots(&a, self.knots),
+            knots: interior_knots_owned(a, self.knots),
         }))
     }
 }
