@@ -990,7 +990,7 @@ mod storage_tests {
         let mut lists: Vec<Vec<f64>> = vec![
             vec![nan; 40],
             vec![3.0; 40],
-            vec![1.0, -0.0, 0.0, -0.0, 2.0, 0.0, nan, 1.0].repeat(10),
+            [1.0, -0.0, 0.0, -0.0, 2.0, 0.0, nan, 1.0].repeat(10),
             [vec![7.0; 38], vec![nan, 2.0]].concat(),
         ];
         for scale in [1.0, 100.0, 1e4, 1e9] {

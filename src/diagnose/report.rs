@@ -250,7 +250,9 @@ fn sign_follows_direction(x: &[f64], direction: &[i8]) -> bool {
             && d != 0
         {
             both += 1;
-            agree += usize::from(x.signum() == f64::from(d.signum()));
+            // x is neither 0 nor NaN, d is ±1: the signs agree when both are positive or
+            // both negative.
+            agree += usize::from((x > 0.0) == (d > 0));
         }
     }
     both > 0 && (agree as f64) >= 0.9 * both as f64
