@@ -9,6 +9,7 @@ use crate::model::terms::lag::FirstOrderLag;
 use crate::model::terms::memsum::MemsumState;
 
 use super::DiagnoseError;
+use super::smoother::{Binned, Key, Unusable};
 
 /// Where a candidate feature comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -136,6 +137,45 @@ impl Narrow for f64 {
         self
     }
 }
+
+macro_rules! key_int {
+    ($t:ty) => {
+        impl Key for $t {
+            #[inline]
+            fn num(self) -> f64 {
+                self.decode()
+            }
+            /// `MIN` (undefined, NaN) above every value, as `total_cmp` puts NaN; the
+            /// integers in their own order (the order of their `f64`s).
+            #[inline]
+            fn order(&self, other: &Self) -> std::cmp::Ordering {
+                (*self == <$t>::MIN, *self).cmp(&(*other == <$t>::MIN, *other))
+            }
+        }
+    };
+}
+key_int!(i8);
+key_int!(i16);
+key_int!(i32);
+
+macro_rules! key_float {
+    ($t:ty) => {
+        impl Key for $t {
+            #[inline]
+            fn num(self) -> f64 {
+                self.decode()
+            }
+            /// `total_cmp` in the stored type: an `f32`'s order is its `f64`'s (the widening
+            /// is exact and keeps sign and NaN ordering).
+            #[inline]
+            fn order(&self, other: &Self) -> std::cmp::Ordering {
+                self.total_cmp(other)
+            }
+        }
+    };
+}
+key_float!(f32);
+key_float!(f64);
 
 /// A column's stored values ([`FeatureColumn`]): the narrowest exact type, or a time
 /// feature made from the measured rows' times on demand ([`Times`]).
@@ -477,12 +517,50 @@ impl FeatureColumn {
         self.values.width()
     }
 
+    /// `v`'s pass over the column's values as `f64`s (NaN = undefined), decoded as they are
+    /// read: one loop per stored type, no decoded copy of the column.
+    pub(crate) fn visit<V: Visit>(&self, v: V) -> V::Out {
+        each_value!(
+            &self.values,
+            s => v.rows(s.iter().map(|x| x.decode())),
+            (t, k) => v.rows((0..t.t.len()).map(move |i| stored(t.value(*k, i))))
+        )
+    }
+
+    /// [`Binned::new`] of the column's values, read in their stored type (no decoded `f64`
+    /// copy per call: [`Binned::of_keys`]); a time column's values made row by row.
+    pub(crate) fn binned(
+        &self,
+        max_bins: usize,
+        min_bin_rows: usize,
+        max_discrete: usize,
+    ) -> Result<Binned, Unusable> {
+        each_value!(
+            &self.values,
+            v => Binned::of_keys(|| v.iter().copied(), max_bins, min_bin_rows, max_discrete),
+            (t, k) => Binned::of_keys(
+                || (0..t.t.len()).map(|i| stored(t.value(*k, i))),
+                max_bins,
+                min_bin_rows,
+                max_discrete,
+            )
+        )
+    }
+
     /// The values as `f64`, NaN = undefined (never passed on to an output): borrowed when
     /// stored as `f64`, else decoded into a new vector that lives as long as the caller
     /// keeps it.
     pub(crate) fn raw(&self) -> std::borrow::Cow<'_, [f64]> {
         self.values.to_f64()
     }
+}
+
+/// A pass over a column's values ([`FeatureColumn::visit`]), compiled once per stored type.
+pub(crate) trait Visit {
+    /// What the pass gives.
+    type Out;
+    /// The pass over `x`, every row's value as `f64` in row order (NaN = undefined).
+    fn rows<I: ExactSizeIterator<Item = f64> + Clone>(self, x: I) -> Self::Out;
 }
 
 /// Candidate features aligned with the measured rows of a log.
@@ -885,6 +963,91 @@ mod storage_tests {
             col.defined_count(),
             values.iter().filter(|x| !x.is_nan()).count()
         );
+    }
+
+    /// A pass that collects what it reads ([`FeatureColumn::visit`]).
+    struct Collect;
+
+    impl Visit for Collect {
+        type Out = Vec<u64>;
+        fn rows<I: ExactSizeIterator<Item = f64> + Clone>(self, x: I) -> Vec<u64> {
+            let n = x.len();
+            let v: Vec<u64> = x.map(f64::to_bits).collect();
+            assert_eq!(v.len(), n);
+            v
+        }
+    }
+
+    /// Reference: the decoded column (`raw`) — the values `visit` reads, bit for bit, and
+    /// `Binned::new` of them, which `binned` (the column read in its stored type, compared
+    /// in that type) must equal: the same fine slots, bins and levels, or the same reason
+    /// for none. Every stored type, with and without undefined rows, discrete and quantile
+    /// bins, pooled and unpooled undefined rows, −0 beside +0.
+    #[test]
+    fn binning_and_passes_in_the_stored_type_equal_the_decoded_columns() {
+        let nan = f64::NAN;
+        let mut rng = SimRng::new(11);
+        let mut lists: Vec<Vec<f64>> = vec![
+            vec![nan; 40],
+            vec![3.0; 40],
+            [1.0, -0.0, 0.0, -0.0, 2.0, 0.0, nan, 1.0].repeat(10),
+            [vec![7.0; 38], vec![nan, 2.0]].concat(),
+        ];
+        for scale in [1.0, 100.0, 1e4, 1e9] {
+            for holes in [0usize, 3, 200] {
+                let mut ints: Vec<f64> = (0..2000)
+                    .map(|_| (rng.range(-1.0, 1.0) * scale).round())
+                    .collect();
+                let mut reals: Vec<f64> = (0..2000).map(|_| rng.range(-1.0, 1.0) * scale).collect();
+                let mut halves: Vec<f64> = (0..2000)
+                    .map(|_| f64::from((rng.range(-1.0, 1.0) * scale) as f32))
+                    .collect();
+                for _ in 0..holes {
+                    let i = rng.below(2000) as usize;
+                    ints[i] = nan;
+                    reals[i] = nan;
+                    halves[i] = nan;
+                }
+                lists.extend([ints, reals, halves]);
+            }
+        }
+        let mut widths = std::collections::BTreeSet::new();
+        for values in &lists {
+            let col = FeatureColumn {
+                name: "x".into(),
+                origin: FeatureOrigin::Covariate,
+                values: Values::from(values.clone()),
+            };
+            widths.insert(col.bytes_per_row());
+            let raw = col.raw();
+            let want: Vec<u64> = raw.iter().map(|x| x.to_bits()).collect();
+            assert_eq!(col.visit(Collect), want);
+            for (max_bins, min_rows, max_discrete) in [(64, 30, 10), (512, 1, 10), (8, 5, 300)] {
+                let slow = Binned::new(&raw, max_bins, min_rows, max_discrete);
+                let fast = col.binned(max_bins, min_rows, max_discrete);
+                match (slow, fast) {
+                    (Ok(a), Ok(b)) => {
+                        assert_eq!(a.fine, b.fine);
+                        assert_eq!((a.n_fine, a.kind, &a.levels), (b.n_fine, b.kind, &b.levels));
+                    }
+                    (Err(a), Err(b)) => assert_eq!(format!("{a:?}"), format!("{b:?}")),
+                    (a, b) => panic!("{a:?} against {b:?}"),
+                }
+            }
+        }
+        assert_eq!(widths.into_iter().collect::<Vec<_>>(), [1, 2, 4, 8]);
+        // The time columns, made row by row.
+        let table = FeatureTable::from_log(&crate::sim::random_log(3000, 5));
+        for name in ["elapsed_s", "dwell_s"] {
+            let col = table.column(name).expect("a time feature");
+            let raw = col.raw();
+            let want: Vec<u64> = raw.iter().map(|x| x.to_bits()).collect();
+            assert_eq!(col.visit(Collect), want);
+            let slow = Binned::new(&raw, 64, 30, 10).expect("usable");
+            let fast = col.binned(64, 30, 10).expect("usable");
+            assert_eq!(slow.fine, fast.fine);
+            assert_eq!(slow.levels, fast.levels);
+        }
     }
 
     #[test]

@@ -412,13 +412,16 @@ struct Analysed {
     origin: FeatureOrigin,
 }
 
-/// The residuals multiplied by the direction of the last move (0 before the first move).
+/// The residuals multiplied by the direction of the last move (0 before the first move),
+/// stored: the reference of the row-by-row products the diagnosis makes instead.
+#[cfg(test)]
 struct Signed {
     y: Vec<f64>,
     /// Sum of squares of `y` about its mean.
     sst: f64,
 }
 
+#[cfg(test)]
 impl Signed {
     fn new(y: &[f64], direction: &[i8]) -> Signed {
         let y: Vec<f64> = y
@@ -517,7 +520,11 @@ pub fn diagnose(
         .column(Feature::Direction.name())
         .filter(|c| c.origin == FeatureOrigin::BuiltIn(Feature::Direction))
         .and_then(|c| direction_bytes(c.iter().map(|v| v.unwrap_or(0.0))));
-    let signed = direction.as_ref().map(|d| Signed::new(&y, d));
+    // The direction-signed residual's sum of squares about its mean; its values are made
+    // row by row where they are read (`FTest::min_p_signed`), never stored.
+    let signed_sst: Option<f64> = direction
+        .as_ref()
+        .map(|d| sum_sq_about_mean_rows(|| y.iter().zip(d).map(|(r, &d)| r * f64::from(d))));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
     // Columns are independent (no random draws): in parallel, collected in table order.
@@ -525,41 +532,35 @@ pub fn diagnose(
         .columns()
         .par_iter()
         .map(|col| {
-            Binned::new(
-                &col.raw(),
-                config.max_bins,
-                config.min_bin_rows,
-                config.max_discrete,
-            )
-            .map(|binned| {
-                let can_sign = signed.is_some() && signable(col);
-                let g = gain(
-                    &binned,
-                    can_sign,
-                    &y,
-                    direction.as_deref(),
-                    &fold,
-                    config.folds,
-                    variance,
-                );
-                let mut observed = FTest::new(&binned).min_p(&binned, &y, sst);
-                if let Some(s) = signed.as_ref().filter(|_| can_sign) {
-                    observed = observed.min(FTest::new(&binned).min_p(&binned, &s.y, s.sst));
-                }
-                Analysed {
-                    binned,
-                    shift: g.shift,
-                    explained: g.explained,
-                    observed,
-                    by_direction: g.by_direction,
-                    signable: can_sign,
-                    origin: col.origin,
-                }
-            })
+            col.binned(config.max_bins, config.min_bin_rows, config.max_discrete)
+                .map(|binned| {
+                    let can_sign = signed_sst.is_some() && signable(col);
+                    let g = gain(
+                        &binned,
+                        can_sign,
+                        &y,
+                        direction.as_deref(),
+                        &fold,
+                        config.folds,
+                        variance,
+                    );
+                    let mut observed = FTest::new(&binned).min_p(&binned, &y, sst);
+                    if let (Some(sst), Some(d)) = (signed_sst.filter(|_| can_sign), &direction) {
+                        observed =
+                            observed.min(FTest::new(&binned).min_p_signed(&binned, &y, d, sst));
+                    }
+                    Analysed {
+                        binned,
+                        shift: g.shift,
+                        explained: g.explained,
+                        observed,
+                        by_direction: g.by_direction,
+                        signable: can_sign,
+                        origin: col.origin,
+                    }
+                })
         })
         .collect();
-    // The signed residual served only the observed statistics.
-    drop(signed);
 
     let null_block = config
         .null_block
@@ -613,10 +614,6 @@ pub fn diagnose(
             .map(|(r, &d)| r * f64::from(d))
             .collect()
     });
-    // The reports read the direction as numbers.
-    let direction_values: Option<Vec<f64>> = direction
-        .as_ref()
-        .map(|d| d.iter().map(|&d| f64::from(d)).collect());
     // One report per column, independent of the others: in parallel, in column order.
     let mut reports: Vec<(usize, FeatureReport)> = table
         .columns()
@@ -637,7 +634,7 @@ pub fn diagnose(
                         _ => residuals,
                     },
                     a.by_direction,
-                    direction_values.as_deref(),
+                    direction.as_deref(),
                     residual_std,
                     config,
                 ),
@@ -691,7 +688,6 @@ pub fn diagnose(
     // diagnosis's peak of memory otherwise).
     drop(analysed);
     drop(signed_residuals);
-    drop(direction_values);
     // The residual's own statistics (one thread each: a sort for the dip test, the
     // Ljung–Box sums) run beside the pair screen instead of after it.
     let ((interactions, global), (whiteness, bimodality, dip)) = rayon::join(
@@ -739,7 +735,7 @@ const MAX_TIED: usize = 4;
 /// What is shared by every gain evaluation of one diagnosis.
 struct Ctx<'a> {
     direction: Option<&'a [i8]>,
-    fold: &'a [u32],
+    fold: &'a [u8],
     folds: usize,
     /// Variance of the (clipped, centred) residuals: every gain is a fraction of it.
     variance: f64,
@@ -765,7 +761,7 @@ fn gain(
     signable: bool,
     r: &[f64],
     direction: Option<&[i8]>,
-    fold: &[u32],
+    fold: &[u8],
     folds: usize,
     variance: f64,
 ) -> Gain {
@@ -1026,14 +1022,15 @@ fn winsorize(residuals: &[f64]) -> Vec<f64> {
     }
 }
 
-/// Deals contiguous blocks of `block_len` rows to `folds` folds at random, balanced.
-fn assign_folds(n: usize, block_len: usize, folds: usize, seed: u64) -> Vec<u32> {
+/// Deals contiguous blocks of `block_len` rows to `folds` folds at random, balanced. One
+/// byte a row: `folds` is at most 50 ([`DiagnoseConfig::folds`]).
+fn assign_folds(n: usize, block_len: usize, folds: usize, seed: u64) -> Vec<u8> {
     let n_blocks = n.div_ceil(block_len);
     let mut order: Vec<usize> = (0..n_blocks).collect();
     shuffle(&mut order, &mut SimRng::substream(seed, 1));
-    let mut block_fold = vec![0u32; n_blocks];
+    let mut block_fold = vec![0u8; n_blocks];
     for (pos, &b) in order.iter().enumerate() {
-        block_fold[b] = (pos % folds) as u32;
+        block_fold[b] = u8::try_from(pos % folds).unwrap_or(u8::MAX);
     }
     (0..n).map(|i| block_fold[i / block_len]).collect()
 }

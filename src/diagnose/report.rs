@@ -10,8 +10,8 @@ use crate::render::write_atomic;
 
 use super::advice::{self, Point, Shape, short};
 use super::features::defined;
-use super::features::{FeatureColumn, FeatureOrigin};
-use super::smoother::{BinKind, Binned, Unusable, accumulate};
+use super::features::{FeatureColumn, FeatureOrigin, Visit};
+use super::smoother::{BinAcc, BinKind, Binned, Unusable, accumulate};
 use super::{DiagnoseConfig, DiagnoseError};
 
 /// The result of [`super::diagnose`]. Serialises to the JSON contract
@@ -183,9 +183,37 @@ fn finite(x: f64) -> Option<f64> {
     x.is_finite().then_some(x)
 }
 
+/// The bins' sums of a curve ([`accumulate`]), the column read in place.
+struct CurveSums<'a> {
+    b: &'a Binned,
+    shift: u32,
+    y: &'a [f64],
+}
+
+impl Visit for CurveSums<'_> {
+    type Out = Vec<BinAcc>;
+    fn rows<I: ExactSizeIterator<Item = f64> + Clone>(self, x: I) -> Vec<BinAcc> {
+        accumulate(self.b, self.shift, x, self.y)
+    }
+}
+
+/// [`stats::linear_trend_of`] of the defined rows' (value, residual) pairs, the column read
+/// in place.
+struct TrendOf<'a>(&'a [f64]);
+
+impl Visit for TrendOf<'_> {
+    type Out = Option<stats::Trend>;
+    fn rows<I: ExactSizeIterator<Item = f64> + Clone>(self, x: I) -> Option<stats::Trend> {
+        stats::linear_trend_of(
+            x.zip(self.0.iter().copied())
+                .filter_map(|(x, y)| defined(x).map(|x| (x, y))),
+        )
+    }
+}
+
 /// Curve of the residual `y` against `col` at level `shift`.
 fn curve(b: &Binned, shift: u32, col: &FeatureColumn, y: &[f64]) -> Vec<CurveBin> {
-    let acc = accumulate(b, shift, &col.raw(), y);
+    let acc = col.visit(CurveSums { b, shift, y });
     let defined = b.defined_bins(shift);
     acc.iter()
         .enumerate()
@@ -213,15 +241,18 @@ fn curve(b: &Binned, shift: u32, col: &FeatureColumn, y: &[f64]) -> Vec<CurveBin
 
 /// Whether a covariate's sign is the direction's on at least 90 % of the rows where both are
 /// non-zero (a velocity).
-fn sign_follows_direction(x: &[f64], direction: &[f64]) -> bool {
+/// `direction` is −1, 0 or +1 per row (bytes: a nonzero one is its own sign).
+fn sign_follows_direction(x: &[f64], direction: &[i8]) -> bool {
     let (mut agree, mut both) = (0usize, 0usize);
     for (&x, &d) in x.iter().zip(direction) {
         if let Some(x) = defined(x)
             && x != 0.0
-            && d != 0.0
+            && d != 0
         {
             both += 1;
-            agree += usize::from(x.signum() == d.signum());
+            // x is neither 0 nor NaN, d is ±1: the signs agree when both are positive or
+            // both negative.
+            agree += usize::from((x > 0.0) == (d > 0));
         }
     }
     both > 0 && (agree as f64) >= 0.9 * both as f64
@@ -297,21 +328,14 @@ pub(crate) fn feature_report(
     p_adj: f64,
     residuals: &[f64],
     by_direction: bool,
-    direction: Option<&[f64]>,
+    direction: Option<&[i8]>,
     residual_std: f64,
     config: &DiagnoseConfig,
 ) -> FeatureReport {
     let chosen = curve(b, shift, col, residuals);
-    // The defined rows' (value, residual) pairs, read in place from the column decoded once
-    // (no copy of the pairs; `linear_trend_of` runs over them several times).
-    let values = col.raw();
-    let trend = stats::linear_trend_of(
-        values
-            .iter()
-            .zip(residuals)
-            .filter_map(|(&x, &y)| defined(x).map(|x| (x, y))),
-    );
-    drop(values);
+    // The defined rows' (value, residual) pairs, read in place from the stored column (no
+    // decoded copy, no copy of the pairs; `linear_trend_of` runs over them several times).
+    let trend = col.visit(TrendOf(residuals));
     let r2_bins = binned_r2(&chosen);
     let linear = trend.is_some_and(|t| r2_bins > 0.0 && t.r2 >= 0.85 * r2_bins);
     let (shape, shape_at) = if explained > 0.0 {

@@ -83,6 +83,15 @@ impl FineSlots {
     }
 }
 
+/// A stored value type of a feature column ([`Binned::of_keys`]): the number it stands for
+/// (NaN for an undefined row), and an order that is `total_cmp` of those numbers.
+pub(crate) trait Key: Copy + Send + Sync {
+    /// The number (bit for bit the column's decoded `f64`; NaN = undefined).
+    fn num(self) -> f64;
+    /// `self.num().total_cmp(&other.num())`, computed in the stored type where it can be.
+    fn order(&self, other: &Self) -> std::cmp::Ordering;
+}
+
 /// A feature prepared for smoothing.
 #[derive(Debug, Clone)]
 pub(crate) struct Binned {
@@ -151,14 +160,36 @@ impl Binned {
         min_bin_rows: usize,
         max_discrete: usize,
     ) -> Result<Binned, Unusable> {
+        Binned::of_keys(
+            || values.iter().copied(),
+            max_bins,
+            min_bin_rows,
+            max_discrete,
+        )
+    }
+
+    /// [`Binned::new`] of the numbers `rows()` gives as their stored type `T` ([`Key::num`]
+    /// each, NaN = undefined): the same bins, with no `f64` copy of a narrow column — the
+    /// defined values are gathered in `T` (1–4 bytes a row for a narrow column instead of 8
+    /// for its decoded copy and 8 for the defined values) and compared as the `f64`s they
+    /// stand for.
+    pub(super) fn of_keys<T: Key, I: ExactSizeIterator<Item = T>>(
+        rows: impl Fn() -> I,
+        max_bins: usize,
+        min_bin_rows: usize,
+        max_discrete: usize,
+    ) -> Result<Binned, Unusable> {
+        let len = rows().len();
         // The defined values; no sort: the distinct values and the quantile cuts below are
-        // found by scanning and selection (the same values a sort gives, tested).
-        let mut sorted: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
-        let has_missing = sorted.len() < values.len();
+        // found by scanning and selection (the same values a sort gives, tested). Room for
+        // every row at once (no doubling of the buffer as it fills).
+        let mut sorted: Vec<T> = Vec::with_capacity(len);
+        sorted.extend(rows().filter(|x| !x.num().is_nan()));
+        let has_missing = sorted.len() < len;
         if sorted.is_empty() {
             return Err(Unusable::AllMissing);
         }
-        let distinct_values = smallest_distinct(&mut sorted, max_discrete + 1);
+        let distinct_values = distinct_keys(&sorted, max_discrete + 1);
         if distinct_values.len() == 1 && !has_missing {
             return Err(Unusable::Constant(distinct_values[0]));
         }
@@ -171,9 +202,10 @@ impl Binned {
             // position, i.e. farther than any).
             let mut counts = vec![0usize; distinct_values.len()];
             for &v in &sorted {
+                let v = v.num();
                 counts[distinct_values.partition_point(|&d| d < v)] += 1;
             }
-            let missing = values.len() - sorted.len();
+            let missing = len - sorted.len();
             let (label, n_fine) = pool_counts(&counts, min_bin_rows);
             let pool_missing = missing > 0 && missing < min_bin_rows;
             if n_fine == 1 && (missing == 0 || pool_missing) {
@@ -184,11 +216,12 @@ impl Binned {
                     .unwrap_or((0, &0));
                 return Err(Unusable::NearlyConstant {
                     value: distinct_values[k],
-                    others: values.len() - most,
+                    others: len - most,
                 });
             }
+            drop(sorted);
             let fine = FineSlots::of_bins(
-                values.iter().map(|&v| match defined(v) {
+                rows().map(|v| match defined(v.num()) {
                     Some(x) => label[distinct_values.partition_point(|&d| d < x)],
                     None if pool_missing => n_fine as u16 - 1,
                     None => MISSING,
@@ -216,11 +249,12 @@ impl Binned {
         // A cut between ranks pos−1 and pos: values ≥ the cut go to the upper bin.
         let ranks: Vec<usize> = (1..k_max).map(|k| (k * n / k_max).min(n - 1)).collect();
         let cuts = order_statistics(&mut sorted, &ranks);
+        drop(sorted);
         // Too few undefined rows for a bin of their own join the top bin (as above).
-        let missing = values.len() - n;
+        let missing = len - n;
         let pool_missing = missing > 0 && missing < min_bin_rows;
         let fine = FineSlots::of_bins(
-            values.iter().map(|&v| match defined(v) {
+            rows().map(|v| match defined(v.num()) {
                 Some(x) => cuts.partition_point(|&c| c <= x) as u16,
                 None if pool_missing => (k_max - 1) as u16,
                 None => MISSING,
@@ -340,7 +374,7 @@ fn held_out_mean(sum: f64, cnt: f64, fold_sum: f64, fold_cnt: f64, empty: f64) -
 /// Cross-validates the binned-mean smoother of `b` on centred residuals `y` with fold labels
 /// `fold` (0..folds). The prediction for a held-out row is the mean of the training rows in its
 /// bin, or the training mean when its bin has no training rows.
-pub(crate) fn cross_validate(b: &Binned, y: &[f64], fold: &[u32], folds: usize) -> CvResult {
+pub(crate) fn cross_validate(b: &Binned, y: &[f64], fold: &[u8], folds: usize) -> CvResult {
     cross_validate_rows(b, y.iter().copied(), fold, folds)
 }
 
@@ -350,7 +384,7 @@ pub(crate) fn cross_validate(b: &Binned, y: &[f64], fold: &[u32], folds: usize) 
 pub(crate) fn cross_validate_rows(
     b: &Binned,
     y: impl ExactSizeIterator<Item = f64>,
-    fold: &[u32],
+    fold: &[u8],
     folds: usize,
 ) -> CvResult {
     let n_slots = b.n_fine + 1;
@@ -426,6 +460,19 @@ fn add_by_slot<T: Copy + Into<usize>>(codes: &[T], y: &[f64], sums: &mut [f64]) 
     }
 }
 
+/// Adds `y[i] × direction[i]` into `sums[codes[i]]` for every row, in row order.
+#[inline]
+fn add_by_slot_signed<T: Copy + Into<usize>>(
+    codes: &[T],
+    y: &[f64],
+    direction: &[i8],
+    sums: &mut [f64],
+) {
+    for ((&c, &v), &d) in codes.iter().zip(y).zip(direction) {
+        sums[c.into()] += v * f64::from(d);
+    }
+}
+
 /// Counts of rows per fine slot (invariant under permutation of the residuals).
 pub(crate) fn fine_counts(b: &Binned) -> Vec<f64> {
     let mut cnt = vec![0.0; b.n_fine + 1];
@@ -471,14 +518,35 @@ impl FTest {
     /// serially correlated logs do not all tie at p = 0 (see [`f_test_ln_p`]). 0 when no level
     /// has two non-empty bins.
     pub(super) fn min_p(&mut self, b: &Binned, y: &[f64], sst: f64) -> f64 {
+        // One loop per width (no test of the width per row).
+        self.min_p_with(b, y.len(), sst, |fine_sum| match &b.fine {
+            FineSlots::Narrow(c) => add_by_slot(c, y, fine_sum),
+            FineSlots::Wide(c) => add_by_slot(c, y, fine_sum),
+        })
+    }
+
+    /// [`FTest::min_p`] of the residuals `y[i] × direction[i]` (their sum of squares about
+    /// their mean `sst`), each product made as it is added: the same sums in the same order
+    /// as of the stored products, so the same bits, without an 8 B/row copy.
+    pub(super) fn min_p_signed(
+        &mut self,
+        b: &Binned,
+        y: &[f64],
+        direction: &[i8],
+        sst: f64,
+    ) -> f64 {
+        self.min_p_with(b, y.len(), sst, |fine_sum| match &b.fine {
+            FineSlots::Narrow(c) => add_by_slot_signed(c, y, direction, fine_sum),
+            FineSlots::Wide(c) => add_by_slot_signed(c, y, direction, fine_sum),
+        })
+    }
+
+    /// The statistic of `n` rows whose sums per fine slot `fill` adds into zeroed sums.
+    fn min_p_with(&mut self, b: &Binned, n: usize, sst: f64, fill: impl FnOnce(&mut [f64])) -> f64 {
         let mut fine_sum = std::mem::take(&mut self.fine_sum);
         fine_sum.iter_mut().for_each(|s| *s = 0.0);
-        // One loop per width (no test of the width per row).
-        match &b.fine {
-            FineSlots::Narrow(c) => add_by_slot(c, y, &mut fine_sum),
-            FineSlots::Wide(c) => add_by_slot(c, y, &mut fine_sum),
-        }
-        let p = self.min_p_of_sums(b, &fine_sum, y.len(), sst);
+        fill(&mut fine_sum);
+        let p = self.min_p_of_sums(b, &fine_sum, n, sst);
         self.fine_sum = fine_sum;
         p
     }
@@ -1302,8 +1370,14 @@ pub(super) fn smallest_distinct(x: &mut [f64], limit: usize) -> Vec<f64> {
     if limit == 0 || x.iter().any(|v| v.is_nan()) {
         return sorted_distinct_reference(x, limit);
     }
+    distinct_keys(x, limit)
+}
+
+/// [`smallest_distinct`] of the numbers of `x` ([`Key::num`], none NaN, `limit` ≥ 1): one
+/// pass with a small sorted list.
+fn distinct_keys<T: Key>(x: &[T], limit: usize) -> Vec<f64> {
     let mut out: Vec<f64> = Vec::with_capacity(limit + 1);
-    for &v in x.iter() {
+    for v in x.iter().map(|k| k.num()) {
         if out.len() == limit && out.last().is_some_and(|&l| v > l) {
             continue;
         }
@@ -1341,17 +1415,20 @@ fn sorted_distinct_reference(x: &mut [f64], limit: usize) -> Vec<f64> {
 
 /// The values at `ranks` (ascending, each < `x.len()`) of `x` sorted by `total_cmp`, by
 /// nested selection (`x` is reordered): O(n·log(ranks)) instead of a sort, the same values.
-pub(super) fn order_statistics(x: &mut [f64], ranks: &[usize]) -> Vec<f64> {
+///
+/// Generic over the stored type `T` of a column: the values of its numbers ([`Key::num`]),
+/// ranked by `total_cmp` of those numbers (a narrow type's order is its numbers' order).
+pub(super) fn order_statistics<T: Key>(x: &mut [T], ranks: &[usize]) -> Vec<f64> {
     /// Fills `out[i]` with the value at rank `ranks[i]` (distinct, ascending) of `x`, whose
     /// first element has rank `base`.
-    fn select(x: &mut [f64], base: usize, ranks: &[usize], out: &mut [f64]) {
+    fn select<T: Key>(x: &mut [T], base: usize, ranks: &[usize], out: &mut [f64]) {
         if ranks.is_empty() {
             return;
         }
         let mid = ranks.len() / 2;
         let r = ranks[mid] - base;
-        let (left, &mut v, right) = x.select_nth_unstable_by(r, f64::total_cmp);
-        out[mid] = v;
+        let (left, &mut v, right) = x.select_nth_unstable_by(r, T::order);
+        out[mid] = v.num();
         let (lo_out, hi_out) = out.split_at_mut(mid);
         select(left, base, &ranks[..mid], lo_out);
         select(right, base + r + 1, &ranks[mid + 1..], &mut hi_out[1..]);
@@ -1378,7 +1455,12 @@ pub(crate) struct BinAcc {
 }
 
 /// Per-slot accumulators of (x, y) at level `shift`.
-pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[f64], y: &[f64]) -> Vec<BinAcc> {
+pub(crate) fn accumulate(
+    b: &Binned,
+    shift: u32,
+    x: impl Iterator<Item = f64>,
+    y: &[f64],
+) -> Vec<BinAcc> {
     let mut acc = vec![
         BinAcc {
             x_min: f64::INFINITY,
@@ -1387,7 +1469,7 @@ pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[f64], y: &[f64]) -> Vec<Bi
         };
         b.slots(shift)
     ];
-    for (i, (&xv, &yv)) in x.iter().zip(y).enumerate() {
+    for (i, (xv, &yv)) in x.zip(y).enumerate() {
         let a = &mut acc[b.coarse_of_fine_slot(b.fine_slot(i), shift)];
         a.count += 1;
         a.y_sum += yv;
@@ -1406,13 +1488,7 @@ pub(crate) fn accumulate(b: &Binned, shift: u32, x: &[f64], y: &[f64]) -> Vec<Bi
 /// its bin has none there. Removing these from `y` takes out what the feature explains without
 /// letting a row's own noise leak into its prediction.
 #[cfg(test)]
-pub(crate) fn cv_predict(
-    b: &Binned,
-    shift: u32,
-    y: &[f64],
-    fold: &[u32],
-    folds: usize,
-) -> Vec<f64> {
+pub(crate) fn cv_predict(b: &Binned, shift: u32, y: &[f64], fold: &[u8], folds: usize) -> Vec<f64> {
     let (pred, m) = cv_fold_means(b, shift, y.iter().copied(), fold, folds);
     (0..y.len())
         .map(|i| pred[cv_cell(b, shift, fold, m, i)])
@@ -1421,7 +1497,7 @@ pub(crate) fn cv_predict(
 
 /// The cell of row `i` in the table of [`cv_fold_means`] (`m`: slots at level `shift`).
 #[inline]
-pub(crate) fn cv_cell(b: &Binned, shift: u32, fold: &[u32], m: usize, i: usize) -> usize {
+pub(crate) fn cv_cell(b: &Binned, shift: u32, fold: &[u8], m: usize, i: usize) -> usize {
     fold[i] as usize * m + b.coarse_of_fine_slot(b.fine_slot(i), shift)
 }
 
@@ -1433,7 +1509,7 @@ pub(crate) fn cv_fold_means(
     b: &Binned,
     shift: u32,
     y: impl Iterator<Item = f64>,
-    fold: &[u32],
+    fold: &[u8],
     folds: usize,
 ) -> (Vec<f64>, usize) {
     let m = b.slots(shift);
@@ -1474,6 +1550,38 @@ pub(crate) fn cv_fold_means(
 mod tests {
     use super::*;
     use crate::numeric::rng::SimRng;
+
+    /// Reference: [`FTest::min_p`] of the stored products `y[i] × direction[i]` (the
+    /// vector the diagnosis held before). `min_p_signed` makes each product as it adds it:
+    /// the same statistic bit for bit, for one-byte and two-byte fine slots and undefined
+    /// rows.
+    #[test]
+    fn signed_statistic_made_row_by_row_equals_the_stored_products() {
+        let n = 4001;
+        let mut rng = SimRng::new(5);
+        let y: Vec<f64> = (0..n).map(|_| rng.normal()).collect();
+        let d: Vec<i8> = (0..n).map(|i| [-1i8, 1, 0][(i * 7 + i / 3) % 3]).collect();
+        let stored: Vec<f64> = y.iter().zip(&d).map(|(r, &d)| r * f64::from(d)).collect();
+        let sst = crate::numeric::stats::sum_sq_about_mean(&stored);
+        let x: Vec<f64> = (0..n)
+            .map(|i| {
+                if i % 13 == 0 {
+                    f64::NAN
+                } else {
+                    rng.range(0.0, 50.0)
+                }
+            })
+            .collect();
+        let levels: Vec<f64> = (0..n).map(|i| (i % 9) as f64).collect();
+        for (values, max_bins) in [(&x, 64), (&x, 1024), (&levels, 64)] {
+            let b = Binned::new(values, max_bins, 1, 10).expect("usable");
+            let want = FTest::new(&b).min_p(&b, &stored, sst);
+            let got = FTest::new(&b).min_p_signed(&b, &y, &d, sst);
+            assert_eq!(got.to_bits(), want.to_bits());
+        }
+        let wide = Binned::new(&x, 1024, 1, 10).expect("usable");
+        assert!(wide.fine.narrow().is_none());
+    }
 
     /// Reference: [`FTest::min_p`], one feature's own pass over the rows (and, for
     /// [`SlotTable::take`], [`SlotTable::new`]'s copy). The fused pass of
