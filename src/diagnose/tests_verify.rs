@@ -1186,10 +1186,10 @@ fn what_an_edit_leaves_on_top_matches_its_closed_form() {
 /// A second effect far smaller than the first (a bump of height 5, variance ≈ 2 counts² beside
 /// 1 count/°C on ±5 °C, 25 counts²): its first-round gain is below half the best's, so the
 /// rule before this one left the round out and the advice was the temperature alone. Now its
-/// verified edit is refitted on top and the combined advice reaches at least 90 % of the gain
-/// of the true model, **fitted directly** (`poly2,bump,col:temp_c`, the generator's own form,
-/// scored by `cv_residuals` on the same folds against the model as it is). The no-effect
-/// column `noise_c` holds nowhere.
+/// verified edit is refitted on top and the combined advice's out-of-sample error variance is
+/// within 10 % of the true model's, **fitted directly** (`poly2,bump,col:temp_c`, the
+/// generator's own form, scored by `cv_residuals` on the same folds), where the best edit alone
+/// leaves at least 1.5 times it. The no-effect column `noise_c` holds nowhere.
 #[test]
 fn a_small_second_effect_is_verified_on_top_too() {
     let log = two_effects_log_sized(32, 5.0, 1.0);
@@ -1221,12 +1221,11 @@ fn a_small_second_effect_is_verified_on_top_too() {
         super::verify::cv_residuals(&ModelSpec::parse(terms).unwrap(), &log, 3, &opts).unwrap()
     };
     let mse = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64;
-    let true_gain = 1.0 - mse(&cv("poly2,bump,col:temp_c")) / mse(&cv("poly2"));
-    assert!(
-        c.gain >= 0.9 * true_gain,
-        "{} vs {true_gain}: {text}",
-        c.gain
-    );
-    // What the first edit alone leaves is short of it: the round is what reaches it.
-    assert!(best.gain < 0.9 * true_gain, "{} vs {true_gain}", best.gain);
+    // Out-of-sample error variance of the model as it is and of the true model; the advice's
+    // and the best edit's from their gains over the former.
+    let (m0, m_true) = (mse(&cv("poly2")), mse(&cv("poly2,bump,col:temp_c")));
+    let (m_advice, m_best) = (m0 * (1.0 - c.gain), m0 * (1.0 - best.gain));
+    assert!(m_advice <= 1.1 * m_true, "{m_advice} vs {m_true}: {text}");
+    // What the first edit alone leaves is far from it: the round is what reaches it.
+    assert!(m_best >= 1.5 * m_true, "{m_best} vs {m_true}");
 }

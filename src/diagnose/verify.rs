@@ -908,14 +908,20 @@ fn verify_round(
         .collect();
     let mut scored = |s: &ModelSpec| cache.remove(&s.to_string()).unwrap_or_else(|| assess(s));
     v.std_before = std_of(&before);
-    let defect = {
-        let data = crate::model::data::FitData::new(log);
-        let x: Vec<f64> = data
-            .measured_map(|s| Some(s.features.target))
-            .into_iter()
-            .map(|v| v.unwrap_or(f64::NAN))
-            .collect();
-        super::advice::defect_screen(&x, &before)
+    // The narrow-defect screen on the residual before, on first use: the first round always
+    // needs it (its extra `bump` candidate); the second only when a candidate has a `bump`
+    // variant (its cost, a scan of the whole log, is not paid for nothing).
+    let defect_cell = std::cell::OnceCell::new();
+    let defect = || {
+        defect_cell.get_or_init(|| {
+            let data = crate::model::data::FitData::new(log);
+            let x: Vec<f64> = data
+                .measured_map(|s| Some(s.features.target))
+                .into_iter()
+                .map(|v| v.unwrap_or(f64::NAN))
+                .collect();
+            super::advice::defect_screen(&x, &before)
+        })
     };
     // The step screen, per covariate column a `step:COL` variant is scored for (the clipped
     // residual and the measured rows computed once, on first use).
@@ -942,7 +948,11 @@ fn verify_round(
         })
     };
     // The second round scores only the candidates it was given (its cost stays bounded).
-    let extra = defect_candidate(spec, defect.is_some(), cands).filter(|_| !strict_all);
+    let extra = if strict_all {
+        None
+    } else {
+        defect_candidate(spec, defect().is_some(), cands)
+    };
     let mut seen: Vec<String> = Vec::new();
     for c in cands.iter().chain(&extra) {
         let mut best: Option<(VerifiedEdit, Scored)> = None;
@@ -950,7 +960,7 @@ fn verify_round(
             let mut fitted = false;
             for (k, variant) in variants(term, spec, c.table_spacing).iter().enumerate() {
                 if variant == super::advice::BUMP_TERM
-                    && !super::advice::worth_a_bump(defect.as_ref(), c.table_spacing)
+                    && !super::advice::worth_a_bump(defect().as_ref(), c.table_spacing)
                 {
                     continue;
                 }
