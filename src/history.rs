@@ -501,8 +501,8 @@ impl History {
     /// [`History::peek_moved`]).
     ///
     /// The same features as [`History::peek_moved`] followed by the update (kept as
-    /// [`History::step_moved_reference`] and tested equal bit for bit), with the direction
-    /// tracker asked once and the rest memory walked once ([`RestMemory::move_and_nearest`]).
+    /// `History::step_moved_reference` and tested equal bit for bit), with the direction
+    /// tracker asked once and the rest memory walked once (`RestMemory::move_and_nearest`).
     pub fn step_moved(&mut self, time_s: f64, target: f64, moved: Option<i8>) -> SeekFeatures {
         let first = self.position.is_none();
         let source = self.position.unwrap_or(target);
@@ -820,10 +820,8 @@ pub struct Sampling {
 ///
 /// The times' quantiles and the raw reversal count run beside the positions' quantiles
 /// (`rayon::join`, each side with its own scratch buffer), and the 5 % and 95 % quantiles of
-/// the positions come from one nested selection ([`percentiles_select`]): the same bits as
-/// the one-buffer, one-quantile-at-a-time [`sampling_reference`] (tested), on any thread count.
-///
-/// [`percentiles_select`]: crate::numeric::stats::percentiles_select
+/// the positions come from one nested selection (`numeric::stats::percentiles_select`): the same bits as
+/// the one-buffer, one-quantile-at-a-time `sampling_reference` (tested), on any thread count.
 pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
     use crate::numeric::stats::{percentile_select, percentiles_select};
     // Every quantile is found by selection in a scratch buffer (O(n), no sort); it equals
