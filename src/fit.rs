@@ -1767,10 +1767,12 @@ impl<'a> FixedRows<'a> {
         }
     }
 
-    /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, each as its
-    /// design columns in the order `order` then its response (`order.len() + 1` values): the
-    /// rows [`FixedRows::each_ordered`] hands on. Returns how many rows it appended.
-    fn fill_ordered(&mut self, out: &mut Vec<f64>, rows: usize, order: &[usize]) -> usize {
+    /// Replays the next `rows` measured rows (fewer where the log ends), handing each one's
+    /// design row (every column, in design order) and its response to `each`; every row,
+    /// measured or not, updates the term states. Returns how many measured rows it handed on.
+    /// The one replay loop behind [`FixedRows::fill_ordered`], [`FixedRows::each_ordered`]
+    /// and [`FixedRows::fill`].
+    fn measured_rows(&mut self, rows: usize, mut each: impl FnMut(&[f64], f64)) -> usize {
         let mut n = 0;
         while n < rows {
             let Some((_, row, f)) = self.replay.next() else {
@@ -1787,8 +1789,7 @@ impl<'a> FixedRows<'a> {
                         &mut self.buf[self.off[k]..self.off[k] + self.widths[k]],
                     );
                 }
-                out.extend(order.iter().map(|&c| self.buf[c]));
-                out.push(y);
+                each(&self.buf, y);
                 n += 1;
             }
             for s in &mut self.states {
@@ -1796,6 +1797,16 @@ impl<'a> FixedRows<'a> {
             }
         }
         n
+    }
+
+    /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, each as its
+    /// design columns in the order `order` then its response (`order.len() + 1` values): the
+    /// rows [`FixedRows::each_ordered`] hands on. Returns how many rows it appended.
+    fn fill_ordered(&mut self, out: &mut Vec<f64>, rows: usize, order: &[usize]) -> usize {
+        self.measured_rows(rows, |buf, y| {
+            out.extend(order.iter().map(|&c| buf[c]));
+            out.push(y);
+        })
     }
 
     /// [`FixedRows::fill_ordered`] handing each row (its columns in `order`, in the scratch
@@ -1810,66 +1821,22 @@ impl<'a> FixedRows<'a> {
         mut each: impl FnMut(&[f64], f64),
     ) -> usize {
         let p = order.len();
-        let mut n = 0;
-        while n < rows {
-            let Some((_, row, f)) = self.replay.next() else {
-                break;
-            };
-            let seek = Seek {
-                features: &f,
-                covariates: row.covariates.gather(&mut self.cov),
-            };
-            if let Some(y) = row.bias {
-                for (k, s) in self.states.iter().enumerate() {
-                    s.basis(
-                        &seek,
-                        &mut self.buf[self.off[k]..self.off[k] + self.widths[k]],
-                    );
-                }
-                for (q, &c) in order.iter().enumerate() {
-                    let v = self.buf[c];
-                    xp[q] = v;
-                    sums[c] += v;
-                    colsq[q] += v * v;
-                }
-                colsq[p] += y * y;
-                each(xp, y);
-                n += 1;
+        self.measured_rows(rows, |buf, y| {
+            for (q, &c) in order.iter().enumerate() {
+                let v = buf[c];
+                xp[q] = v;
+                sums[c] += v;
+                colsq[q] += v * v;
             }
-            for s in &mut self.states {
-                s.update(&seek, None);
-            }
-        }
-        n
+            colsq[p] += y * y;
+            each(xp, y);
+        })
     }
 
     /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, row-major;
     /// returns how many it appended.
     fn fill(&mut self, out: &mut Vec<f64>, rows: usize) -> usize {
-        let mut n = 0;
-        while n < rows {
-            let Some((_, row, f)) = self.replay.next() else {
-                break;
-            };
-            let seek = Seek {
-                features: &f,
-                covariates: row.covariates.gather(&mut self.cov),
-            };
-            if row.bias.is_some() {
-                for (k, s) in self.states.iter().enumerate() {
-                    s.basis(
-                        &seek,
-                        &mut self.buf[self.off[k]..self.off[k] + self.widths[k]],
-                    );
-                }
-                out.extend_from_slice(&self.buf);
-                n += 1;
-            }
-            for s in &mut self.states {
-                s.update(&seek, None);
-            }
-        }
-        n
+        self.measured_rows(rows, |buf, _| out.extend_from_slice(buf))
     }
 }
 
