@@ -919,22 +919,16 @@ pub(crate) fn sampling_reference(times_s: &[f64], positions: &[f64]) -> Sampling
             50.0,
         ),
     };
-    let count = |d: f64| {
-        let mut t = DirectionTracker::new(d);
-        positions
-            .iter()
-            .filter(|&&x| {
-                let s = t.peek(x, None);
-                t.commit(x, &s);
-                s.reversal
-            })
-            .count()
-    };
     let span = match (times_s.first(), times_s.last()) {
         (Some(a), Some(b)) if b > a => Some(b - a),
         _ => None,
     };
-    q.sampling(positions.len(), span, count(0.0), count)
+    q.sampling(
+        positions.len(),
+        span,
+        count_reversals(positions, 0.0),
+        |d| count_reversals(positions, d),
+    )
 }
 
 /// |x₂ − 2x₁ + x₀|, the second difference [`Sampling::noise`] is estimated from.
