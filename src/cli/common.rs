@@ -337,6 +337,31 @@ pub fn refuse_clashes(
     Ok(biasctl::check_paths(&ins, &outs)?)
 }
 
+/// Refuses, before anything runs, a file output (not `-`) that is an existing folder or whose
+/// folder does not exist: the write at the end would fail after all the work (biasctl makes
+/// the folders of a folder output, `--out DIR`, but not of a file).
+pub fn refuse_missing_folders(outputs: &[(&str, Option<&Path>)]) -> anyhow::Result<()> {
+    for &(flag, path) in outputs {
+        let Some(path) = path.filter(|p| p.as_os_str() != biasctl::STDIN_PATH) else {
+            continue;
+        };
+        let shown = biasctl::quote(&path.display().to_string());
+        if path.is_dir() {
+            anyhow::bail!("{flag} {shown} is a folder; give a file name");
+        }
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
+        if let Some(folder) = folder
+            && !folder.is_dir()
+        {
+            anyhow::bail!(
+                "{flag} {shown}: the folder {} does not exist (or is not a folder); create it first",
+                biasctl::quote(&folder.display().to_string())
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was
 /// fitted on: its position terms are extrapolated there and nothing else would show it.
 pub fn warn_outside_range(model: &biasctl::FittedModel, file: &str, positions: &[f64]) {

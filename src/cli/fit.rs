@@ -41,8 +41,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &[("--data", Some(args.log.data.as_path()))],
         &[("--out", Some(args.out.as_path()))],
     )?;
+    super::common::refuse_missing_folders(&[("--out", Some(args.out.as_path()))])?;
     let spec = match (&args.model, &args.terms) {
-        (Some(p), None) => ModelSpec::preset(p).context("--model")?,
+        (Some(p), None) => match ModelSpec::preset(p) {
+            Ok(spec) => spec,
+            // A term list given as a preset (as `plot --model` and `discover --start` take
+            // one): say where it goes.
+            Err(e) if p.contains(',') || ModelSpec::parse(p).is_ok() => {
+                return Err(anyhow::anyhow!(e).context(format!(
+                    "--model {}: `fit --model` takes a preset; a term list goes in --terms: \
+                     `--terms {}`",
+                    biasctl::quote(p),
+                    biasctl::quote(p)
+                )));
+            }
+            Err(e) => return Err(anyhow::anyhow!(e).context("--model")),
+        },
         (None, Some(t)) => ModelSpec::parse(t).context("--terms")?,
         _ => anyhow::bail!("give a model: --model PRESET or --terms T1,T2,..."),
     };

@@ -216,6 +216,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ],
         &[("--out", Some(args.out.as_path()))],
     )?;
+    super::common::refuse_missing_folders(&[("--out", Some(args.out.as_path()))])?;
     check_flags(&args)?;
     let svg = draw(&args)?;
     // The last guard before the file: no `NaN`/`inf` coordinate leaves (exit 2, nothing written).

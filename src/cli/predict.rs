@@ -101,6 +101,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ],
         &[("--out", Some(args.out.as_path()))],
     )?;
+    super::common::refuse_missing_folders(&[("--out", Some(args.out.as_path()))])?;
     let model = args.input.load_model()?;
     let start = match &args.handoff {
         Some(h) => Some(handoff_plan(&model, h, args.bias_uncertainty)?),

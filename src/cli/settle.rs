@@ -134,6 +134,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ("--response-out", args.response_out.as_deref()),
         ],
     )?;
+    super::common::refuse_missing_folders(&[
+        ("--bounds-out", args.bounds_out.as_deref()),
+        ("--response-out", args.response_out.as_deref()),
+    ])?;
     let mut spec = args.settle.spec()?;
     let link = predict_handoff(&args)?;
     if let Some(l) = &link {

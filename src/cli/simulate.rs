@@ -6,9 +6,10 @@ use std::path::PathBuf;
 /// Flags of `biasctl simulate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Sequence: table1..table7, random, dwell, script, calibration.
-    #[arg(long, value_name = "NAME")]
-    sequence: String,
+    /// Sequence: table1..table7, random, dwell, script, calibration (default `script` when
+    /// --script is given).
+    #[arg(long, value_name = "NAME", required_unless_present = "script")]
+    sequence: Option<String>,
     /// Seed; the same seed gives a byte-identical log.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -57,6 +58,20 @@ enum Measure {
     Slow,
 }
 
+/// The sequence asked for: `--sequence`, or `script` when only `--script` is given. A script
+/// beside another sequence would be silently unused: refused naming both flags.
+fn sequence(a: &Args) -> anyhow::Result<String> {
+    match (&a.sequence, &a.script) {
+        (Some(s), Some(script)) if s != "script" => anyhow::bail!(
+            "--script {} is read only by --sequence script, not --sequence {}: leave out one of them",
+            biasctl::quote(&script.display().to_string()),
+            biasctl::quote(s)
+        ),
+        (Some(s), _) => Ok(s.clone()),
+        (None, _) => Ok("script".into()),
+    }
+}
+
 /// Turns the flags into a validated [`SimConfig`].
 fn config(a: &Args) -> anyhow::Result<SimConfig> {
     let drive = match &a.drive {
@@ -78,7 +93,7 @@ fn config(a: &Args) -> anyhow::Result<SimConfig> {
     let disabled: Vec<&str> = a.disable.iter().map(String::as_str).collect();
     Ok(SimConfig::new(
         drive,
-        &a.sequence,
+        &sequence(a)?,
         &opts,
         a.seed,
         &disabled,
@@ -97,6 +112,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ("--truth", args.truth.as_deref()),
         ],
     )?;
+    super::common::refuse_missing_folders(&[
+        ("--out", Some(args.out.as_path())),
+        ("--truth", args.truth.as_deref()),
+    ])?;
     let cfg = config(&args)?;
     let s = simulate_to_files(&cfg, &args.out, args.truth.as_deref())?;
     outln!(

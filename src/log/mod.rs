@@ -118,7 +118,7 @@ pub(crate) fn sniff_delimiter(header: &str) -> u8 {
 
 /// Parses a cell as a number; with `decimal_comma` a cell holding a comma and no point is read
 /// with the comma as the decimal separator (`0,25` = 0.25).
-fn parse_cell(text: &str, decimal_comma: bool) -> Option<f64> {
+pub(crate) fn parse_cell(text: &str, decimal_comma: bool) -> Option<f64> {
     if decimal_comma && text.contains(',') && !text.contains('.') {
         text.replacen(',', ".", 1).parse().ok()
     } else {
@@ -176,12 +176,80 @@ fn closest_column<'a>(name: &str, columns: &'a [String]) -> Option<&'a str> {
         .map(|c| (name_distance(name, c), c))
         .filter(|(d, c)| {
             *d <= (name.chars().count() / 3).max(2) || {
+                // One name inside the other, neither of them a mere letter or two (`a` is in
+                // `track`).
                 let cl = c.to_lowercase();
-                cl.contains(&lower) || lower.contains(&cl)
+                cl.chars().count().min(lower.chars().count()) >= 3
+                    && (cl.contains(&lower) || lower.contains(&cl))
             }
         })
         .min_by_key(|(d, _)| *d)
         .map(|(_, c)| c.as_str())
+}
+
+/// Words that make a column name a likely holder of a role, for a "did you mean" when no name is
+/// close to the one looked for: a rig's `position_m` for the track, `force_N` for the bias.
+fn role_words(field: crate::field::Field) -> &'static [&'static str] {
+    use crate::field::Field;
+    match field {
+        Field::TimeColumn => &["time", "zeit", "temps"],
+        Field::TrackColumn => &[
+            "track", "pos", "angle", "theta", "enc", "displ", "stroke", "target",
+        ],
+        Field::BiasColumn => &[
+            "bias", "force", "current", "torque", "effort", "dac", "control",
+        ],
+        _ => &[],
+    }
+}
+
+/// The first column whose name holds one of `words` (ignoring case), not one of `taken` (the
+/// other roles' columns).
+fn column_by_role<'a>(words: &[&str], columns: &'a [String], taken: &[usize]) -> Option<&'a str> {
+    columns
+        .iter()
+        .enumerate()
+        .filter(|(i, c)| !c.is_empty() && !taken.contains(i))
+        .find(|(_, c)| {
+            let lower = c.to_lowercase();
+            words.iter().any(|w| lower.contains(w))
+        })
+        .map(|(_, c)| c.as_str())
+}
+
+/// The unit a column name states: the text in brackets or parentheses at its end (`position
+/// [um]`, `Force (N)`), if it is a usable label ([`check_unit_label`]).
+pub(crate) fn unit_in_name(name: &str) -> Option<&str> {
+    let name = name.trim();
+    let (open, close) = if name.ends_with(']') {
+        ('[', ']')
+    } else if name.ends_with(')') {
+        ('(', ')')
+    } else {
+        return None;
+    };
+    let inner = &name[name.rfind(open)? + 1..name.len() - close.len_utf8()];
+    check_unit_label(inner).ok()
+}
+
+/// The time unit a column name states other than seconds (`time_ms`, `t [ms]`, `Time (min)`),
+/// for a note: biasctl reads every time in seconds.
+fn time_unit_not_seconds(name: &str) -> Option<&'static str> {
+    let unit = unit_in_name(name)
+        .or_else(|| {
+            name.trim()
+                .rsplit_once(['_', ' ', '-', '.'])
+                .map(|(_, u)| u)
+        })?
+        .to_lowercase();
+    match unit.as_str() {
+        "ms" | "msec" | "millisecond" | "milliseconds" => Some("milliseconds"),
+        "us" | "µs" | "μs" | "usec" | "microsecond" | "microseconds" => Some("microseconds"),
+        "ns" => Some("nanoseconds"),
+        "min" | "mins" | "minute" | "minutes" => Some("minutes"),
+        "h" | "hr" | "hour" | "hours" => Some("hours"),
+        _ => None,
+    }
 }
 
 /// `; did you mean `x`?` or nothing (for [`LogError::MissingColumn`]).
@@ -285,7 +353,8 @@ impl Units {
                 (Some(l), _) => (l, field.to_string()),
                 (None, Some(m)) => (m, format!("{}: metadata `{key}`", schema.file)),
                 (None, None) if column == default_column => return Ok(default_unit.into()),
-                (None, None) => return Ok(column.into()),
+                // `position [um]` is in `um`; a name without a unit in brackets is its label.
+                (None, None) => return Ok(unit_in_name(column).unwrap_or(column).into()),
             };
             check_unit_label(label)
                 .map(str::to_string)
@@ -366,6 +435,24 @@ pub enum LogError {
         field: crate::field::Field,
         /// The header's column most like the one looked for, if any.
         suggestion: Option<String>,
+    },
+    /// Several required columns are not in the header: all are named at once, with the flags
+    /// that would name them (a rig's `time_s,position_m,force_N` needs two).
+    #[error(
+        "{file}: line {line}: missing required columns {missing} (columns found: {found}); name them: {hint}"
+    )]
+    MissingColumns {
+        /// The log file.
+        file: String,
+        /// Line of the header.
+        line: u64,
+        /// The columns looked for, quoted and listed (`` `track`, `bias` ``).
+        missing: String,
+        /// The columns the header holds.
+        found: String,
+        /// Each missing column's setting and the header's column that most likely holds it
+        /// (`ColumnMap::track position_m`), `NAME` where none does.
+        hint: String,
     },
     /// Two columns share a name.
     #[error("{file}: line {line}: column `{column}` appears twice in the header")]
@@ -798,26 +885,32 @@ impl<R: Read> LogReader<R> {
             source,
         };
         // A UTF-8 byte-order mark (as spreadsheet exports write) is not part of the first line.
-        if buf
-            .fill_buf()
-            .map_err(io_err)?
-            .starts_with(&[0xEF, 0xBB, 0xBF])
-        {
+        let start = buf.fill_buf().map_err(io_err)?;
+        if start.starts_with(&[0xEF, 0xBB, 0xBF]) {
             buf.consume(3);
+        } else if start.starts_with(&[0xFF, 0xFE]) || start.starts_with(&[0xFE, 0xFF]) {
+            // Excel's "Unicode Text" and Windows tools write UTF-16 with this mark: every other
+            // byte would be a NUL and no column would be found.
+            return Err(LogError::Malformed {
+                file: file.into(),
+                line: 1,
+                message: "the file is UTF-16 text (a byte-order mark FF FE or FE FF, as Excel's \
+                          \"Unicode Text\" writes); biasctl reads UTF-8: save it as \"CSV UTF-8\" \
+                          or convert it (`iconv -f UTF-16 -t UTF-8`)"
+                    .into(),
+            });
         }
         let mut metadata = Vec::new();
         let mut line_no = 0u64;
         // A line read whole as text, ended by `\n`, `\r\n` or a lone `\r` (an old Mac file's
         // lines: [`lines::read_line`]).
-        let read_line = |buf: &mut BufReader<LineLimit<R>>| {
+        // A line that is not UTF-8 (a Windows code page's `µ` or `°` in a header name) is
+        // refused naming its line and where in it.
+        let read_line = |buf: &mut BufReader<LineLimit<R>>, line_no: u64| {
             let mut line = Vec::new();
             lines::read_line(buf, &mut line).map_err(io_err)?;
-            String::from_utf8(line).map_err(|_| {
-                io_err(io::Error::new(
-                    io::ErrorKind::InvalidData,
-                    "stream did not contain valid UTF-8",
-                ))
-            })
+            String::from_utf8(line)
+                .map_err(|e| not_utf8(file, line_no, e.as_bytes(), e.utf8_error()))
         };
         // Metadata: lines starting with '#' (blank lines are allowed) before the header.
         let mut after_cr = false;
@@ -833,7 +926,7 @@ impl<R: Read> LogReader<R> {
                 continue;
             }
             if bytes[0] == b'#' || bytes[0] == b'\n' || bytes[0] == b'\r' {
-                let line = read_line(&mut buf)?;
+                let line = read_line(&mut buf, line_no + 1)?;
                 after_cr = line.ends_with('\r');
                 line_no += 1;
                 let text = line.trim_end_matches(['\n', '\r']);
@@ -844,7 +937,7 @@ impl<R: Read> LogReader<R> {
                 break;
             }
         }
-        let header = read_line(&mut buf)?;
+        let header = read_line(&mut buf, line_no + 1)?;
         let delimiter = map.delimiter.unwrap_or_else(|| sniff_delimiter(&header));
         let decimal_comma = delimiter != b',';
         let mut notes = Vec::new();
@@ -933,6 +1026,7 @@ impl<R: Read> LogReader<R> {
         }
         // A required column: its exact name, else the one name equal to it ignoring case and
         // surrounding spaces.
+        let mut case_notes: Vec<String> = Vec::new();
         let mut find = |name: &str, field: crate::field::Field| {
             let wanted = name.trim();
             if let Some(i) = columns.iter().position(|c| c == wanted) {
@@ -942,28 +1036,128 @@ impl<R: Read> LogReader<R> {
                 .filter(|&i| columns[i].to_lowercase() == wanted.to_lowercase())
                 .collect();
             if let [i] = same[..] {
-                notes.push(format!(
+                case_notes.push(format!(
                     "{file}: column `{}` used as `{wanted}` (matched ignoring case)",
                     columns[i]
                 ));
                 return Ok(i);
             }
+            // A header read as one column that holds a delimiter: the file is separated by
+            // another one than the reader used (a `--delimiter` that does not fit, or `|`).
+            if let [only] = &columns[..]
+                && let Some(d) = only.chars().find(|c| [',', ';', '\t', '|'].contains(c))
+            {
+                return Err(LogError::Malformed {
+                    file: file.into(),
+                    line: header_line,
+                    message: format!(
+                        "missing required column `{wanted}`: the header is one column, `{}`, \
+                         that holds `{}`, so the fields are not separated by `{}`{}",
+                        crate::render::quote(only),
+                        d.escape_default(),
+                        (delimiter as char).escape_default(),
+                        if map.delimiter.is_some() {
+                            " (--delimiter): leave the flag out to sniff the delimiter"
+                        } else {
+                            "; biasctl reads `,`, `;` or tab"
+                        }
+                    ),
+                });
+            }
+            // No name close to it: a column whose name says it holds the role (`position_m`
+            // for the track), not one of the other required columns.
+            let others: Vec<String> = [&map.time, &map.track, &map.bias]
+                .iter()
+                .map(|n| n.trim().to_lowercase())
+                .collect();
+            let taken: Vec<usize> = (0..columns.len())
+                .filter(|&i| others.contains(&columns[i].to_lowercase()))
+                .collect();
             Err(LogError::MissingColumn {
                 file: file.into(),
                 line: header_line,
                 column: wanted.into(),
                 found: columns.join(", "),
                 field,
-                suggestion: closest_column(wanted, &columns).map(str::to_string),
+                suggestion: closest_column(wanted, &columns)
+                    .or_else(|| column_by_role(role_words(field), &columns, &taken))
+                    .map(str::to_string),
             })
         };
         use crate::field::Field;
+        let roles = [
+            (&map.time, Field::TimeColumn),
+            (&map.track, Field::TrackColumn),
+            (&map.bias, Field::BiasColumn),
+        ];
+        let need = if bias_column == BiasColumn::Optional {
+            2
+        } else {
+            3
+        };
+        let missing: Vec<(String, Field, Option<String>)> = roles[..need]
+            .iter()
+            .filter_map(|&(name, field)| match find(name, field) {
+                Err(LogError::MissingColumn {
+                    column, suggestion, ..
+                }) => Some((column, field, suggestion)),
+                _ => None,
+            })
+            .collect();
+        if missing.len() > 1 {
+            let shell = |s: &str| {
+                if !s.is_empty()
+                    && s.chars()
+                        .all(|c| c.is_alphanumeric() || "_.-/+".contains(c))
+                {
+                    s.to_string()
+                } else {
+                    format!("'{}'", s.replace('\'', "'\\''"))
+                }
+            };
+            return Err(LogError::MissingColumns {
+                file: file.into(),
+                line: header_line,
+                missing: missing
+                    .iter()
+                    .map(|(c, _, _)| format!("`{c}`"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                found: columns.join(", "),
+                hint: missing
+                    .iter()
+                    .enumerate()
+                    .map(|(i, (_, f, s))| {
+                        // A column suggested for an earlier role is not suggested again.
+                        let s = s
+                            .as_deref()
+                            .filter(|s| !missing[..i].iter().any(|m| m.2.as_deref() == Some(s)));
+                        format!("{f} {}", s.map_or("NAME".into(), shell))
+                    })
+                    .collect::<Vec<_>>()
+                    .join(" "),
+            });
+        }
         let time_idx = find(&map.time, Field::TimeColumn)?;
         let track_idx = find(&map.track, Field::TrackColumn)?;
         let bias_idx = match bias_column {
             BiasColumn::Optional => find(&map.bias, Field::BiasColumn).ok(),
             _ => Some(find(&map.bias, Field::BiasColumn)?),
         };
+        // Once each (the columns were looked for twice when one was missing).
+        for n in case_notes {
+            if !notes.contains(&n) {
+                notes.push(n);
+            }
+        }
+        if let Some(unit) = time_unit_not_seconds(&columns[time_idx]) {
+            notes.push(format!(
+                "{file}: column `{}` is read in seconds, biasctl's time unit, but its name says \
+                 {unit}: convert it to seconds, else every time biasctl prints or fits (dwell_s, \
+                 rows/s, a lag's tau, a velocity) is off by that factor",
+                columns[time_idx]
+            ));
+        }
         // Read ahead to classify the other columns: a column is a numeric covariate unless it has
         // no name and no values, or no values, or a value that is not a number in these rows.
         let mut lookahead = std::collections::VecDeque::with_capacity(lookahead_rows);
@@ -1406,6 +1600,23 @@ fn check_utf8(record: &csv::ByteRecord, file: &str) -> Result<(), LogError> {
         });
     }
     Ok(())
+}
+
+/// A metadata or header line that is not UTF-8: names the line, the character where the text
+/// stops being UTF-8 and the byte there, and how to save the file.
+fn not_utf8(file: &str, line: u64, bytes: &[u8], e: std::str::Utf8Error) -> LogError {
+    let at = e.valid_up_to();
+    let column = String::from_utf8_lossy(&bytes[..at]).chars().count() + 1;
+    LogError::Malformed {
+        file: file.into(),
+        line,
+        message: format!(
+            "character {column} (byte 0x{:02X}) is not UTF-8 text; the file is likely in a \
+             Windows code page (Excel's plain \"CSV\" writes `µ` as 0xB5): save it as \
+             \"CSV UTF-8\" or convert it (`iconv -f CP1252 -t UTF-8`)",
+            bytes.get(at).copied().unwrap_or(0)
+        ),
+    }
 }
 
 /// An I/O error of the source while reading rows, as the csv parser reported it: no line.
@@ -2533,15 +2744,159 @@ mod tests {
     }
 
     #[test]
+    fn a_rig_header_names_every_missing_column_and_the_flags_at_once() {
+        // Reference: the header itself; each role's column is the one a reader would pick.
+        let e = read("time_s,position_m,force_N,velocity_m_s\n0,1,2,3\n")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "t.csv: line 1: missing required columns `track`, `bias` (columns found: time_s, \
+             position_m, force_N, velocity_m_s); name them: ColumnMap::track position_m \
+             ColumnMap::bias force_N"
+        );
+        // Names with spaces are quoted for the shell; a column is offered for one role only;
+        // no column for a role: NAME.
+        let e = read("time [s],position [um],bias [counts]\n0,1,2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.ends_with(
+                "name them: ColumnMap::time 'time [s]' ColumnMap::track 'position [um]' \
+                 ColumnMap::bias 'bias [counts]'"
+            ),
+            "{e}"
+        );
+        let e = read("a,b,c\n1,2,3\n").unwrap_err().to_string();
+        assert!(
+            e.ends_with("ColumnMap::time NAME ColumnMap::track NAME ColumnMap::bias NAME"),
+            "{e}"
+        );
+        // One missing column keeps its own message (and a plan needs no bias column).
+        let plan = Log::from_reader_with(
+            "p.csv",
+            "t,position_m\n0,1\n".as_bytes(),
+            &ColumnMap::default(),
+            BiasColumn::Optional,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            plan.contains("missing required columns `time_s`, `track`"),
+            "{plan}"
+        );
+        // A header that is one column holding a delimiter: the delimiter is named.
+        let e = read("time_s|track|bias\n0|1|2\n").unwrap_err().to_string();
+        assert!(
+            e.contains("line 1: missing required column `time_s`: the header is one column")
+                && e.contains("that holds `|`"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_unit_in_brackets_is_the_label_and_a_time_column_in_ms_is_told() {
+        let map = ColumnMap {
+            time: "t (ms)".into(),
+            track: "position [um]".into(),
+            bias: "Force (N)".into(),
+            delimiter: None,
+        };
+        let log = Log::from_reader(
+            "u.csv",
+            "t (ms),position [um],Force (N)\n0,1,2\n".as_bytes(),
+            &map,
+        )
+        .unwrap();
+        assert_eq!(
+            log.schema.units,
+            Units {
+                bias: "N".into(),
+                position: "um".into()
+            }
+        );
+        assert!(
+            log.schema.notes.iter().any(|n| n
+                .contains("column `t (ms)` is read in seconds, biasctl's time unit, but its name says milliseconds")),
+            "{:?}",
+            log.schema.notes
+        );
+        // Metadata and flags still win over the bracket; a name without one is its own label;
+        // seconds raise no note.
+        let mut schema = log.schema.clone();
+        schema.set_units(Some("mN"), None).unwrap();
+        assert_eq!(schema.units.bias, "mN");
+        assert_eq!(unit_in_name("position_m"), None);
+        assert_eq!(unit_in_name("x []"), None);
+        assert_eq!(unit_in_name(" angle (rad) "), Some("rad"));
+        for name in ["time_s", "time [s]", "t", "timestamp", "time_sec"] {
+            assert_eq!(time_unit_not_seconds(name), None, "{name}");
+        }
+        for (name, unit) in [
+            ("time_ms", "milliseconds"),
+            ("t [us]", "microseconds"),
+            ("Time (min)", "minutes"),
+            ("time_h", "hours"),
+        ] {
+            assert_eq!(time_unit_not_seconds(name), Some(unit), "{name}");
+        }
+    }
+
+    #[test]
+    fn text_that_is_not_utf8_names_its_line_and_how_to_save_it() {
+        // Excel's "Unicode Text": UTF-16 with its byte-order mark.
+        let utf16: Vec<u8> = "\u{feff}time_s\ttrack\tbias\r\n0\t1\t2\r\n"
+            .encode_utf16()
+            .flat_map(u16::to_le_bytes)
+            .collect();
+        let e = Log::from_reader("u.txt", &utf16[..], &ColumnMap::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("u.txt: line 1: the file is UTF-16 text"),
+            "{e}"
+        );
+        // A Windows code page's `µ` (0xB5) in the header, after a metadata line: line 2,
+        // character 24.
+        let cp1252 = b"# rig 3\ntime_s,track,position [\xb5m],bias\n0,1,1,2\n";
+        let e = Log::from_reader("c.csv", &cp1252[..], &ColumnMap::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("c.csv: line 2: character 24 (byte 0xB5) is not UTF-8 text"),
+            "{e}"
+        );
+        let meta = b"# temperature in \xb0C\ntime_s,track,bias\n0,1,2\n";
+        let e = Log::from_reader("m.csv", &meta[..], &ColumnMap::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("m.csv: line 1: character 18 (byte 0xB0)"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn missing_column_suggests_the_closest_name() {
         let e = read("time,trk,bais\n0,1,2\n").unwrap_err().to_string();
-        assert!(e.contains("did you mean `time`?"), "{e}");
-        let e = read("time_s,trk,bais\n0,1,2\n").unwrap_err().to_string();
+        assert!(
+            e.ends_with(
+                "name them: ColumnMap::time time ColumnMap::track trk ColumnMap::bias bais"
+            ),
+            "{e}"
+        );
+        let e = read("time_s,trk,bias\n0,1,2\n").unwrap_err().to_string();
         assert!(
             e.contains("missing required column `track`") && e.contains("did you mean `trk`?"),
             "{e}"
         );
+        // No name is close to `bias`, but `force` says it holds the role.
         let e = read("time_s,track,force\n0,1,2\n").unwrap_err().to_string();
+        assert!(e.contains("did you mean `force`?"), "{e}");
+        let e = read("time_s,track,note\n0,1,2\n").unwrap_err().to_string();
+        assert!(!e.contains("did you mean"), "{e}");
+        // A one- or two-letter name is not "in" the name looked for (`a` in `track`).
+        let e = read("time_s,a,bias\n0,1,2\n").unwrap_err().to_string();
         assert!(!e.contains("did you mean"), "{e}");
         assert_eq!(sniff_delimiter("a;b,c;d"), b';');
         assert_eq!(sniff_delimiter("\"a;b\",c"), b',');

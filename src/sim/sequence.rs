@@ -244,6 +244,14 @@ pub enum ScriptError {
         /// What is wrong.
         message: String,
     },
+    /// The file is empty or holds only blank lines: no header row.
+    #[error(
+        "{file}: the script is empty (expected a header row `track,dwell_s[,measure]`, then one row per seek)"
+    )]
+    NoHeader {
+        /// The script file.
+        file: String,
+    },
     /// No rows.
     #[error("{file}: the script has no rows")]
     Empty {
@@ -265,7 +273,9 @@ pub enum ScriptError {
 
 /// Reads a script: CSV with header `track,dwell_s` and an optional `measure` column
 /// (`1`/`0`/`true`/`false`/`yes`/`no`; default 1). Targets must lie in `0..=max_track`, dwell
-/// times must be finite and ≥ 0.
+/// times must be finite and ≥ 0. The spreadsheet dialects of a log are read as the log reader
+/// reads them: a UTF-8 byte-order mark, the delimiter sniffed from the header (`,` `;` or tab;
+/// with `;` or tab a decimal comma), header names ignoring case and surrounding spaces.
 pub(crate) fn read_script(path: &Path, max_track: f64) -> Result<Vec<Step>, ScriptError> {
     let file = path.display().to_string();
     let text = crate::log::limits::read_text(path).map_err(|source| ScriptError::Io {
@@ -284,8 +294,22 @@ pub(crate) fn parse_script(
     max_track: f64,
 ) -> Result<Vec<Step>, ScriptError> {
     use crate::log::lines::{LineStarts, csv_problem};
+    // A byte-order mark (spreadsheet exports write one) is not part of the header.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    // Empty or blank lines only: there is no header line to name (the csv parser would place
+    // the missing header after the last line).
+    if text.trim().is_empty() {
+        return Err(ScriptError::NoHeader { file: file.into() });
+    }
+    let header = text
+        .split(['\n', '\r'])
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("");
+    let delimiter = crate::log::sniff_delimiter(header);
+    let decimal_comma = delimiter != b',';
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
+        .delimiter(delimiter)
         .from_reader(LineStarts::new(text.as_bytes(), 1));
     // The parser's own line numbers count from where it began a record (before blank lines,
     // within a CRLF); the record's physical line is the line start noted at or after that.
@@ -300,7 +324,15 @@ pub(crate) fn parse_script(
         Err(e) => return Err(malformed(&mut rdr, e)),
     };
     let header_line = rdr.get_mut().line_at(0);
-    let col = |name: &'static str| headers.iter().position(|h| h == name);
+    // The exact name, else the one name equal to it ignoring case (`Track`, `DWELL_S`).
+    let col = |name: &'static str| {
+        headers.iter().position(|h| h == name).or_else(|| {
+            let same: Vec<usize> = (0..headers.len())
+                .filter(|&i| headers[i].eq_ignore_ascii_case(name))
+                .collect();
+            if let [i] = same[..] { Some(i) } else { None }
+        })
+    };
     let missing = |column| ScriptError::MissingColumn {
         file: file.into(),
         line: header_line,
@@ -329,11 +361,8 @@ pub(crate) fn parse_script(
             problem,
         };
         let num = |idx: usize| -> Result<f64, ScriptError> {
-            let v: f64 = rec
-                .get(idx)
-                .unwrap_or("")
-                .parse()
-                .map_err(|_| bad(idx, "not a number".into()))?;
+            let v: f64 = crate::log::parse_cell(rec.get(idx).unwrap_or(""), decimal_comma)
+                .ok_or_else(|| bad(idx, "not a number".into()))?;
             if v.is_finite() {
                 Ok(v)
             } else {
@@ -428,6 +457,35 @@ mod tests {
     }
 
     #[test]
+    fn spreadsheet_scripts_read_as_the_plain_one() {
+        // Reference: the plain comma script; the same seeks saved by a spreadsheet (byte-order
+        // mark, `;` or tab with decimal commas, CRLF or lone CR, quoted and capitalised
+        // header names) must give the same steps.
+        let plain = parse_script(
+            "s.csv",
+            "track,dwell_s,measure\n10,0.25,1\n20,1.5,no\n",
+            99.0,
+        )
+        .unwrap();
+        for text in [
+            "\u{feff}track;dwell_s;measure\r\n10;0,25;1\r\n20;1,5;no\r\n",
+            "\"Track\";\"Dwell_s\";\"Measure\"\r10;0,25;1\r20;1,5;no\r",
+            "track\tdwell_s\tmeasure\n10\t0,25\t1\n20\t1.5\tno\n",
+            "\n TRACK , DWELL_S ,measure\n10,2.5E-01,1\n20,1.5,no\n",
+        ] {
+            let got = parse_script("s.csv", text, 99.0).unwrap();
+            assert_eq!(got.len(), plain.len(), "{text:?}");
+            for (a, b) in got.iter().zip(&plain) {
+                assert_eq!(
+                    (a.target, a.dwell_s, a.measure),
+                    (b.target, b.dwell_s, b.measure),
+                    "{text:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn script_errors_name_line_and_column() {
         let ok = parse_script(
             "s.csv",
@@ -474,6 +532,17 @@ mod tests {
             (
                 "track,dwell_s,measure\n10,0.1,0\n20,0.2,no\n",
                 "no row of the script is measured",
+            ),
+            // Empty, or blank lines only: no header, and no line past the end is named
+            // (it named line 3 of a two-line blank file).
+            ("", "the script is empty"),
+            ("\n\n", "the script is empty"),
+            ("\r\n \r\n\t\n", "the script is empty"),
+            ("\u{feff}", "the script is empty"),
+            // A spreadsheet's `;`-separated script with decimal commas still names the line.
+            (
+                "\u{feff}Track;Dwell_s\r\n10;0,5\r\n20;x\r\n",
+                "line 3, column 2 (`Dwell_s`)",
             ),
         ];
         for (text, want) in cases {
