@@ -7,6 +7,7 @@ mod diagnose;
 mod export;
 mod extend;
 mod family;
+mod first_use;
 mod fuzz;
 mod invariance;
 mod model;
