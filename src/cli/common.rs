@@ -297,7 +297,11 @@ impl SettleArgs {
                 toml::from_str::<SettleSpec>(&text)
                     .with_context(|| format!("invalid plant file {}", path.display()))?
             }
-            None => SettleSpec::preset(self.preset.as_deref().unwrap_or("paper1997"))?,
+            None => {
+                let name = self.preset.as_deref().unwrap_or("paper1997");
+                SettleSpec::preset(name)
+                    .with_context(|| format!("--preset {}", biasctl::quote(name)))?
+            }
         };
         let overrides = [
             (self.step_um, &mut spec.step_um),

@@ -2,6 +2,8 @@
 //! (and, with `--handoff`, the integrator start value of every seek).
 
 use super::common::{DirectionArgs, LogArgs, SettleArgs};
+use anyhow::Context;
+use biasctl::SettleSpec;
 use biasctl::write_atomic;
 use biasctl::{BiasColumn, Log, LogReader, STDIN_PATH};
 use biasctl::{FittedModel, ReplaySummary, StartValues, write_predictions_csv};
@@ -74,6 +76,15 @@ pub fn handoff_plan(
     delta_b: Option<f64>,
 ) -> anyhow::Result<StartValues> {
     let is_file = handoff.ends_with(".toml") || Path::new(handoff).is_file();
+    if !is_file {
+        // Named as the flag it came from (`SettleArgs` would call it --preset).
+        SettleSpec::preset(handoff).with_context(|| {
+            format!(
+                "--handoff {}: not a plant file (FILE.toml) and not a preset",
+                biasctl::quote(handoff)
+            )
+        })?;
+    }
     let settle = SettleArgs {
         preset: (!is_file).then(|| handoff.to_string()),
         plant: is_file.then(|| PathBuf::from(handoff)),

@@ -106,6 +106,15 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
             )
         );
     }
+    if let Some(t) = args.target
+        && !(t.is_finite() && t.abs() <= 1e15)
+    {
+        // A target is a position as a log holds one: finite, within the log reader's range
+        // (±1e15, `log::MAX_ABS_VALUE`).
+        anyhow::bail!(
+            "--target {t}: give a finite position within ±1e15 (the log's position unit)"
+        );
+    }
     let next = predict_next(&model, &log, args.target)
         .with_context(|| format!("predicting the handoff bias from {}", data.display()))?;
     super::common::warn_outside_range(&model, &log.schema.file, &[next.target]);

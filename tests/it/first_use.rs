@@ -262,3 +262,58 @@ fn first_run_flag_mistakes_are_refused_before_the_work() {
     }
     assert!(!missing.parent().unwrap().exists());
 }
+
+/// Flags that a library error named wrongly or not at all: `settle --target nan` said
+/// "bias (--bias) must be within ±1e9 counts, got NaN" (the NaN target's prediction), an
+/// unknown `--preset` / `--handoff` preset was named without its flag.
+#[test]
+fn settle_and_handoff_flags_are_named_as_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("r.csv").display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "60",
+        "--out",
+        &log,
+    ]);
+    let model = dir.path().join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &model,
+    ]);
+    for bad in ["nan", "inf", "2e15"] {
+        let err = fails_with(
+            &["settle", "--model", &model, "--data", &log, "--target", bad],
+            &["--target", "finite position within ±1e15"],
+        );
+        assert!(!err.contains("--bias"), "{err}");
+    }
+    fails_with(
+        &["settle", "--preset", "paper1998"],
+        &["--preset paper1998", "unknown preset"],
+    );
+    let out = dir.path().join("p.csv");
+    fails_with(
+        &[
+            "predict",
+            "--model",
+            &model,
+            "--data",
+            &log,
+            "--out",
+            &out.display().to_string(),
+            "--handoff",
+            "paper1998",
+        ],
+        &["--handoff paper1998", "not a plant file"],
+    );
+    assert!(!out.exists());
+}
