@@ -366,6 +366,16 @@ pub fn refuse_missing_folders(outputs: &[(&str, Option<&Path>)]) -> anyhow::Resu
     Ok(())
 }
 
+/// The staging folder of a folder output `--out DIR` ([`biasctl::StagedDir`]), made before the
+/// work so that a path that is a file or cannot be written fails at once, named as the flag.
+pub fn stage_out(dir: &Path) -> anyhow::Result<biasctl::StagedDir> {
+    let shown = biasctl::quote(&dir.display().to_string());
+    if dir.exists() && !dir.is_dir() {
+        anyhow::bail!("--out {shown}: is a file; --out takes a directory");
+    }
+    biasctl::StagedDir::create(dir).with_context(|| format!("--out {shown}"))
+}
+
 /// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was
 /// fitted on: its position terms are extrapolated there and nothing else would show it.
 pub fn warn_outside_range(model: &biasctl::FittedModel, file: &str, positions: &[f64]) {

@@ -79,6 +79,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ],
         &[("--out diagnosis.json", json_out.as_deref())],
     )?;
+    // The output folder is staged before the work, so that a path that cannot be written
+    // fails at once (it failed after the whole diagnosis, naming only the staging folder).
+    let staged = match &args.out {
+        Some(dir) => Some(super::common::stage_out(dir)?),
+        None => None,
+    };
     let log = args.input.log.columns.read_log(&args.input.log.data)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());
     let d = if args.no_verify {
@@ -92,15 +98,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         Vec::new()
     };
-    if let Some(dir) = &args.out {
-        if dir.exists() && !dir.is_dir() {
-            anyhow::bail!(
-                "--out {}: is a file; --out takes a directory",
-                dir.display()
-            );
-        }
-        // Built in a staging folder beside `dir` and moved in whole: no partial output.
-        let staged = biasctl::StagedDir::create(dir)?;
+    if let Some(staged) = staged {
+        // Built in a staging folder beside `--out` and moved in whole: no partial output.
         let json = d.to_json()?;
         write_atomic(&staged.path("diagnosis.json"), |w| writeln!(w, "{json}"))?;
         d.write_feature_csvs(&staged.path(""))?;

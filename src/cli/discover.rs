@@ -2,9 +2,9 @@
 
 use super::common::ColumnArgs;
 use anyhow::Context;
+use biasctl::write_atomic;
 use biasctl::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
 use biasctl::{FittedModel, ModelSpec};
-use biasctl::{StagedDir, write_atomic};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -104,15 +104,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .collect::<Vec<_>>(),
     )?;
     let start = start_spec(&args.start)?;
+    // Staged before the work: a folder that cannot be written fails at once.
+    let staged = match &args.out {
+        Some(dir) => Some(super::common::stage_out(dir)?),
+        None => None,
+    };
     let train = args.columns.read_log(&args.data).context("--data")?;
     let test = match &args.test {
         Some(p) => Some(args.columns.read_log(p).context("--test")?),
         None => None,
     };
     let (d, model) = discover(&start, &train, test.as_ref(), &config)?;
-    if let Some(dir) = &args.out {
-        // Built in a staging folder beside `dir` and moved in whole: all three files or none.
-        let staged = StagedDir::create(dir)?;
+    if let Some(staged) = staged {
+        // Built in a staging folder beside `--out` and moved in whole: all three files or none.
         let json = d.to_json()?;
         write_atomic(&staged.path("discover.json"), |w| writeln!(w, "{json}"))?;
         let text = d.to_string();

@@ -317,3 +317,72 @@ fn settle_and_handoff_flags_are_named_as_given() {
     );
     assert!(!out.exists());
 }
+
+/// A folder output that cannot be made (here: inside a file) failed only after the whole
+/// diagnosis or discovery, naming the hidden staging folder and not the flag. Now it is staged
+/// before the work and named as `--out`; nothing is printed or left behind.
+#[test]
+fn a_folder_output_that_cannot_be_made_is_named_as_out_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("r.csv").display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "80",
+        "--out",
+        &log,
+    ]);
+    let model = dir.path().join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &model,
+    ]);
+    let inside_a_file = format!("{log}/diag");
+    for args in [
+        vec![
+            "diagnose",
+            "--model",
+            &model,
+            "--data",
+            &log,
+            "--out",
+            &inside_a_file,
+        ],
+        vec![
+            "discover",
+            "--data",
+            &log,
+            "--max-steps",
+            "1",
+            "--out",
+            &inside_a_file,
+        ],
+    ] {
+        let r = biasctl(&args);
+        assert_eq!(r.code, 2, "{args:?}: {}", r.stderr);
+        assert!(
+            r.stderr
+                .starts_with(&format!("error: --out {inside_a_file}")),
+            "{args:?}: {}",
+            r.stderr
+        );
+        assert!(r.stdout.is_empty(), "{args:?}: {}", r.stdout);
+    }
+    fails_with(
+        &["diagnose", "--model", &model, "--data", &log, "--out", &log],
+        &["--out", "is a file; --out takes a directory"],
+    );
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("partial"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
