@@ -938,6 +938,24 @@ impl<R: Read> LogReader<R> {
             }
         }
         let header = read_line(&mut buf, line_no + 1)?;
+        // A model file or a TOML given as a log: say what it is rather than list its `{` as
+        // the columns found.
+        if let Some(c) = header
+            .trim_start()
+            .chars()
+            .next()
+            .filter(|c| ['{', '['].contains(c))
+        {
+            return Err(LogError::Malformed {
+                file: file.into(),
+                line: line_no + 1,
+                message: format!(
+                    "this is not a CSV log: its first line starts with `{c}`, as a JSON file (a \
+                     biasctl model file) or a TOML file (a drive or plant) does; a log starts \
+                     with a header row such as `time_s,track,bias`"
+                ),
+            });
+        }
         let delimiter = map.delimiter.unwrap_or_else(|| sniff_delimiter(&header));
         let decimal_comma = delimiter != b',';
         let mut notes = Vec::new();
@@ -2840,6 +2858,19 @@ mod tests {
         ] {
             assert_eq!(time_unit_not_seconds(name), Some(unit), "{name}");
         }
+    }
+
+    #[test]
+    fn a_json_or_toml_file_given_as_a_log_is_named_as_such() {
+        for text in [
+            "{\n  \"format\": \"biasctl-model\"\n}\n",
+            "# drive\n[servo]\nts_s = 1e-4\n",
+        ] {
+            let e = read(text).unwrap_err().to_string();
+            assert!(e.contains("this is not a CSV log"), "{e}");
+        }
+        let e = read("# drive\n[servo]\n").unwrap_err().to_string();
+        assert!(e.starts_with("t.csv: line 2:"), "{e}");
     }
 
     #[test]
