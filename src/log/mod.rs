@@ -508,6 +508,12 @@ pub enum LogError {
         /// The CSV parser's description.
         message: String,
     },
+    /// The log has a header but no row under it.
+    #[error("{file}: no rows under the header (a log holds one row per seek)")]
+    NoRows {
+        /// The log file.
+        file: String,
+    },
     /// The log has rows but none with a measured bias.
     #[error("{file}: no measured rows: every `{column}` cell is empty")]
     NoMeasuredRows {
@@ -1320,6 +1326,11 @@ impl<R: Read> LogReader<R> {
             self.source.read_record(&mut self.record, file)?
         };
         if !more {
+            if self.prev_time.is_none() && self.bias_column == BiasColumn::Required {
+                // A header alone: "every bias cell is empty" would speak of cells that are not
+                // there.
+                return Err(LogError::NoRows { file: file.clone() });
+            }
             if self.measured == 0 && self.bias_column == BiasColumn::Required {
                 return Err(LogError::NoMeasuredRows {
                     file: file.clone(),
@@ -1860,7 +1871,7 @@ mod tests {
                 "line 3, column 1 (`time_s`): time goes backwards",
             ),
             ("time_s,track,bias\n0,1,\n1,2,\n", "no measured rows"),
-            ("time_s,track,bias\n", "no measured rows"),
+            ("time_s,track,bias\n", "no rows under the header"),
             ("time_s,track,bias\n0,1,1,5\n", "line 2: 4 fields"),
             (
                 "time_s,track,bias\n0,,1\n",
@@ -2858,6 +2869,25 @@ mod tests {
         ] {
             assert_eq!(time_unit_not_seconds(name), Some(unit), "{name}");
         }
+    }
+
+    #[test]
+    fn a_header_without_rows_is_told_apart_from_rows_without_a_bias() {
+        let e = read("# m\ntime_s,track,bias\n\n").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "t.csv: no rows under the header (a log holds one row per seek)"
+        );
+        let e = read("time_s,track,bias\n0,1,\n").unwrap_err().to_string();
+        assert_eq!(e, "t.csv: no measured rows: every `bias` cell is empty");
+        // A plan may be a header alone.
+        let plan = Log::from_reader_with(
+            "p.csv",
+            "time_s,track\n".as_bytes(),
+            &ColumnMap::default(),
+            BiasColumn::Optional,
+        );
+        assert!(plan.is_ok(), "{plan:?}");
     }
 
     #[test]
