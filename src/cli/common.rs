@@ -118,7 +118,7 @@ pub struct ColumnArgs {
     pub track_unit: Option<String>,
     /// Field delimiter: `,` `;` or `tab` (also `comma`, `semicolon`, `\t`); default: sniffed
     /// from the header. With `;` or tab a number may use a decimal comma (`0,25`).
-    #[arg(long, value_name = "CHAR", value_parser = delimiter)]
+    #[arg(allow_negative_numbers = true, long, value_name = "CHAR", value_parser = delimiter)]
     pub delimiter: Option<u8>,
 }
 
@@ -264,10 +264,10 @@ pub struct SettleArgs {
     #[arg(long, value_name = "DB", allow_negative_numbers = true)]
     pub bias_uncertainty: Option<f64>,
     /// Horizon N in samples.
-    #[arg(long, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, value_name = "N")]
     pub horizon: Option<usize>,
     /// Samples M that must lie in the window at the end of the horizon.
-    #[arg(long, value_name = "M")]
+    #[arg(allow_negative_numbers = true, long, value_name = "M")]
     pub hold: Option<usize>,
 }
 

@@ -13,10 +13,10 @@ pub struct Args {
     #[arg(long, default_value = "out/demo", value_name = "DIR")]
     out: PathBuf,
     /// Seed for every run.
-    #[arg(long, default_value_t = 1)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     seed: u64,
     /// Random seeks of the test and calibration runs.
-    #[arg(long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
     seeks: u64,
 }
 

@@ -22,27 +22,32 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Family-wise significance level for flagging a feature, in (0, 0.5].
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 0.01)]
     alpha: f64,
     /// Permutations of the significance test (at least 1/alpha − 1).
-    #[arg(long, default_value_t = 199)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 199)]
     permutations: usize,
     /// Seed of the fold assignment and the permutations.
-    #[arg(long, default_value_t = 1)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     seed: u64,
     /// Cross-validation folds, 2..=50.
-    #[arg(long, default_value_t = 5)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 5)]
     folds: usize,
     /// Follow the advice N times: add the top feature's suggested term, refit on --data,
     /// diagnose again; prints the path (and adds a `path` key to the JSON).
-    #[arg(long, value_name = "N", default_value_t = 0)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "N",
+        default_value_t = 0
+    )]
     path: usize,
     /// Skip the verification refits (the leading suggestions applied, refitted on --data and
     /// scored on held-out folds of consecutive seeks).
     #[arg(long)]
     no_verify: bool,
     /// Folds of consecutive seeks of the verification refits, 2..=20.
-    #[arg(long, default_value_t = 3)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 3)]
     verify_folds: usize,
 }
 

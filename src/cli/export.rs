@@ -36,7 +36,12 @@ struct CArgs {
     #[arg(long, value_name = "PRESET|PLANT.toml")]
     handoff: Option<String>,
     /// Δb in counts for --handoff instead of the model's error std (the fit's residual_std).
-    #[arg(long, value_name = "DB", requires = "handoff")]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "DB",
+        requires = "handoff"
+    )]
     bias_uncertainty: Option<f64>,
 }
 

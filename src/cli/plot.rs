@@ -70,7 +70,7 @@ pub struct Args {
     )]
     terms: String,
     /// Top features of the `diagnose` plot.
-    #[arg(long, default_value_t = biasctl::plot::views::DEFAULT_TOP, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, default_value_t = biasctl::plot::views::DEFAULT_TOP, value_name = "N")]
     top: usize,
     #[command(flatten)]
     settle: SettleArgs,

@@ -23,10 +23,10 @@ pub struct Args {
     #[arg(long, value_name = "MODEL.json", requires = "data")]
     pub model: Option<PathBuf>,
     /// Seed of the simulations and the diagnosis (printed in the report).
-    #[arg(long, default_value_t = 1)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     pub seed: u64,
     /// Random seeks of the built-in drive's test and calibration runs.
-    #[arg(long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
     pub seeks: u64,
 }
 

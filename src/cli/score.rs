@@ -17,7 +17,12 @@ pub struct Args {
     json: bool,
     /// In the free-run figure of a model with an adaptive term (`drift`), show it the measured
     /// bias every N measured rows (0: never, the default).
-    #[arg(long, value_name = "N", default_value_t = 0)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "N",
+        default_value_t = 0
+    )]
     feedback_every: u64,
 }
 

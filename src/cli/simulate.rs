@@ -11,7 +11,7 @@ pub struct Args {
     #[arg(long, value_name = "NAME", required_unless_present = "script")]
     sequence: Option<String>,
     /// Seed; the same seed gives a byte-identical log.
-    #[arg(long, default_value_t = 1)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     seed: u64,
     /// Drive description (TOML); default the built-in `paper1997`.
     #[arg(long, value_name = "FILE.toml")]
@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, value_name = "EFFECT,...", value_delimiter = ',')]
     disable: Vec<String>,
     /// Number of random seeks (random, calibration); default 2000.
-    #[arg(long)]
+    #[arg(allow_negative_numbers = true, long)]
     n: Option<u64>,
     /// Width of the random range, tracks; default 250.
     #[arg(long, value_name = "TRACKS", allow_negative_numbers = true)]

@@ -386,3 +386,39 @@ fn a_folder_output_that_cannot_be_made_is_named_as_out_before_the_work() {
         .collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+/// A negative number given to a whole-number flag was taken for an unknown flag ("unexpected
+/// argument '-5' found", no flag named). Now the flag and the value are named.
+#[test]
+fn a_negative_count_names_its_flag() {
+    for (args, flag) in [
+        (
+            vec![
+                "simulate",
+                "--sequence",
+                "random",
+                "--n",
+                "-5",
+                "--out",
+                "x.csv",
+            ],
+            "'--n <N>'",
+        ),
+        (
+            vec![
+                "simulate",
+                "--sequence",
+                "random",
+                "--seed",
+                "-1",
+                "--out",
+                "x.csv",
+            ],
+            "'--seed <SEED>'",
+        ),
+        (vec!["settle", "--horizon", "-3"], "'--horizon <N>'"),
+        (vec!["--threads", "-1", "settle"], "'--threads <N>'"),
+    ] {
+        fails_with(&args, &["invalid value '-", flag]);
+    }
+}
