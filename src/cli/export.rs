@@ -1,6 +1,7 @@
 //! `biasctl export c`: a fitted model as C99 source for the drive's firmware.
 
 use super::predict::handoff_plan;
+use anyhow::Context;
 use biasctl::FittedModel;
 use biasctl::{C_FILES, CHandoff, COptions, CPrecision, c_source};
 use std::path::PathBuf;
@@ -77,7 +78,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         handoff: start.as_ref().map(|s| CHandoff { start: s }),
     };
     let src = c_source(&model, &opts)?;
-    src.write(&a.out)?;
+    src.write(&a.out)
+        .with_context(|| format!("--out {}", biasctl::quote(&a.out.display().to_string())))?;
     outln!(
         "exported `{}` ({}) to {}: bias_model.h, bias_model.c, replay.c; build with cc -std=c99 -O2 {}/*.c -lm",
         model.spec,
