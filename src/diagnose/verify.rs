@@ -1200,7 +1200,6 @@ fn verify_round(
     v.edits
         .sort_by(|a, b| b.verified.cmp(&a.verified).then(b.gain.total_cmp(&a.gain)));
     prefer_physics_to_drift(&mut v.edits);
-    drop(scored);
     keep.before = base.r;
     Ok((v, keep))
 }
