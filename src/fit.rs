@@ -1675,7 +1675,7 @@ fn accumulate_one_portable(acc: &mut [f64], xf: &[f64], y: &[f64], d: &[f64]) {
 /// [`Projection`] keeps its fixed block row by row up to this many bytes (64 MiB); a larger
 /// one is replayed from its terms on every pass ([`FixedRows`]) instead: the same rows and the
 /// same bits, for the CPU time of a replay of the fixed terms per pass.
-const STORED_FIXED_BYTES: usize = 64 << 20;
+pub(crate) const STORED_FIXED_BYTES: usize = 64 << 20;
 
 /// [`Projection`]'s fixed block.
 enum FixedBlock {
@@ -1882,7 +1882,7 @@ impl<'d, 'a> Projection<'d, 'a> {
         data: &'d FitData<'a>,
         opts: &CheckedFitOptions,
     ) -> Option<Self> {
-        Self::with_budget(terms, k, data, opts, STORED_FIXED_BYTES)
+        Self::with_budget(terms, k, data, opts, data.fixed_budget())
     }
 
     /// [`Projection::new`], storing the fixed block only if it takes at most `budget` bytes
@@ -2555,9 +2555,55 @@ fn reversal_count(
 
 /// Fits `spec` to the measured rows of `log`.
 pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
-    let sampling = crate::history::log_sampling(log);
+    fit_sharing(spec, log, opts, &Refits::default())
+}
+
+/// What many refits of one log's rows share (`diagnose`'s verification: every candidate on
+/// every fold, the folds differing in which biases are blanked): the log's sampling and its
+/// replayed features (a history reads times, positions and covariates, never the bias), and
+/// the fixed-block budget of their variable-projection searches (several refits run at once).
+#[derive(Debug, Clone)]
+pub(crate) struct Refits {
+    /// [`crate::history::log_sampling`] of the log.
+    pub sampling: Option<crate::history::Sampling>,
+    /// The features replayed with this direction source ([`FitData::sharing_features`]).
+    pub features: Option<(
+        crate::history::DirectionSource,
+        Arc<[crate::history::SeekFeatures]>,
+    )>,
+    /// [`FitData::with_fixed_budget`].
+    pub fixed_budget: usize,
+}
+
+impl Default for Refits {
+    /// Nothing shared, the default budget: [`fit`].
+    fn default() -> Self {
+        Self {
+            sampling: None,
+            features: None,
+            fixed_budget: STORED_FIXED_BYTES,
+        }
+    }
+}
+
+/// [`fit`], taking what `shared` holds instead of computing it again: the same model bit for
+/// bit (tested in `diagnose::tests_verify`).
+pub(crate) fn fit_sharing(
+    spec: &ModelSpec,
+    log: &Log,
+    opts: &CheckedFitOptions,
+    shared: &Refits,
+) -> Result<FittedModel, FitError> {
+    let sampling = shared
+        .sampling
+        .unwrap_or_else(|| crate::history::log_sampling(log));
     let direction = opts.direction.resolve_with(log, &sampling)?;
-    let data = FitData::with_direction(log, &direction)?;
+    let mut data = FitData::with_direction(log, &direction)?.with_fixed_budget(shared.fixed_budget);
+    if let Some((d, f)) = &shared.features
+        && *d == direction
+    {
+        data = data.sharing_features(f);
+    }
     let reversals = reversal_count(&direction, &sampling, &data);
     let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);
     // Each term prepares on its own replays (knots, centring, …), so they run in parallel;

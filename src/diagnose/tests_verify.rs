@@ -1229,3 +1229,193 @@ fn a_small_second_effect_is_verified_on_top_too() {
     // What the first edit alone leaves is far from it: the round is what reaches it.
     assert!(m_best >= 1.5 * m_true, "{m_best} vs {m_true}");
 }
+
+/// A log of `rows` random seeks (0..300) with a covariate `temp_c`, a bias from the position,
+/// the direction, the covariate and unit noise, and every seventh row (and the first and last
+/// few) left unmeasured: the verification's refits see gaps where a fold begins or ends.
+fn gappy_log(seed: u64, rows: usize) -> Log {
+    let mut rng = SimRng::new(seed);
+    let mut text = String::from("time_s,track,bias,temp_c\n");
+    let (mut t, mut prev, mut temp) = (0.0, 150.0, 40.0);
+    for i in 0..rows {
+        t += rng.range(0.05, 2.0);
+        let pos = rng.below(300) as f64;
+        let dir = if pos >= prev { 1.0 } else { -1.0 };
+        prev = pos;
+        temp += 0.2 * rng.normal();
+        let bias = 20.0
+            + 6.0 * (-((pos - 150.0) / 30.0).powi(2)).exp()
+            + 0.8 * (temp - 40.0)
+            + 3.0 * dir
+            + rng.normal();
+        let gap = i % 7 == 3 || i < 3 || i + 2 >= rows;
+        let b = if gap {
+            String::new()
+        } else {
+            format!("{bias}")
+        };
+        text.push_str(&format!("{t},{pos},{b},{temp}\n"));
+    }
+    Log::from_reader("gappy.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
+}
+
+/// The out-of-sample residuals as `cv_residuals` made them before the refits shared anything
+/// (the slow reference of `cv_residuals_sharing`): an index of every measured row, each fold
+/// blanked through it, fitted by `fit` on its own (its own sampling, its own replay of the
+/// history, the default fixed-block budget).
+fn cv_residuals_reference(
+    spec: &ModelSpec,
+    log: &Log,
+    folds: usize,
+    opts: &CheckedFitOptions,
+) -> Vec<f64> {
+    let measured = super::verify::measured_rows(log);
+    let n = measured.len();
+    let mut out = Vec::with_capacity(n);
+    for k in 0..folds {
+        let (a, b) = (k * n / folds, (k + 1) * n / folds);
+        if a == b {
+            continue;
+        }
+        let mut masked = log.clone();
+        for &i in &measured[a..b] {
+            masked.set_bias(i, None);
+        }
+        let model = fit(spec, &masked, opts).unwrap();
+        let mut seen = 0usize;
+        model
+            .replay_measured(
+                log,
+                crate::model::Feedback::EveryRow,
+                |row, predicted, _| {
+                    if (a..b).contains(&seen) {
+                        out.push(row.measured - predicted);
+                    }
+                    seen += 1;
+                },
+            )
+            .unwrap();
+    }
+    out
+}
+
+/// `fold_starts` cuts the measured rows where an index of them does (the reference): every
+/// fold count, logs with gaps at the ends and inside, and fewer measured rows than folds.
+#[test]
+fn fold_starts_cut_where_the_measured_index_does() {
+    for rows in [8usize, 9, 40, 301] {
+        let log = gappy_log(rows as u64, rows);
+        let measured = super::verify::measured_rows(&log);
+        let n = measured.len();
+        for folds in 2..=7 {
+            let starts = super::verify::fold_starts(&log, folds);
+            assert_eq!(starts.len(), folds + 1);
+            for k in 0..folds {
+                let (a, b) = (k * n / folds, (k + 1) * n / folds);
+                let blanked: Vec<usize> = (starts[k]..starts[k + 1])
+                    .filter(|&i| log.bias(i).is_some())
+                    .collect();
+                assert_eq!(
+                    blanked,
+                    measured[a..b],
+                    "rows {rows} folds {folds} fold {k}"
+                );
+            }
+        }
+    }
+}
+
+/// The verification's refits sharing the log's sampling, its replayed features and a small
+/// fixed-block budget give the same out-of-sample residuals bit for bit as the reference
+/// that shares nothing (`cv_residuals_reference`): a linear model, a fine table, a covariate
+/// with its lag searched by full solves, `memsum` likewise, and `dahl`'s rate searched by
+/// variable projection with its fixed block stored and, at a zero budget, replayed per pass.
+#[test]
+fn shared_refits_equal_the_reference_bit_for_bit() {
+    let log = gappy_log(11, 1500);
+    let opts = CheckedFitOptions::default();
+    let mut shared = super::verify::refits_of(&log, &opts);
+    assert!(shared.features.is_some(), "a short log shares its features");
+    for terms in [
+        "poly2,direction",
+        "table:20,direction",
+        "poly2,direction,lag:temp_c",
+        "poly2,direction,memsum",
+        "poly2,dahl",
+        "poly2,dahl,col:temp_c",
+    ] {
+        let spec = ModelSpec::parse(terms).unwrap();
+        let reference = cv_residuals_reference(&spec, &log, 3, &opts);
+        for budget in [super::verify::REFIT_FIXED_BYTES, 0] {
+            shared.fixed_budget = budget;
+            let fast = super::verify::cv_residuals_sharing(&spec, &log, 3, &opts, &shared).unwrap();
+            assert_eq!(fast.len(), reference.len(), "{terms}");
+            let same = fast
+                .iter()
+                .zip(&reference)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "{terms} at budget {budget}");
+        }
+        // The public path (nothing shared) is the same too.
+        let plain = super::verify::cv_residuals(&spec, &log, 3, &opts).unwrap();
+        assert!(
+            plain
+                .iter()
+                .zip(&reference)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
+    }
+}
+
+/// A round's baseline judges every edit as `judge` does at each bar (the reference: the Huber
+/// constant, the sums within folds and every verdict computed afresh per edit and bar), bit
+/// for bit, on residuals with an effect, with none, with outliers and with re-levelled folds;
+/// `ss_within_folds` is the sum of squares of `within_folds`' copy.
+#[test]
+fn baseline_judges_as_judge_does() {
+    let mut rng = SimRng::new(5);
+    let n = 2000;
+    let before: Vec<f64> = (0..n)
+        .map(|i| {
+            let spike = if i % 97 == 0 { 15.0 } else { 0.0 };
+            rng.normal() + (i as f64 / 300.0).sin() + spike
+        })
+        .collect();
+    let afters: Vec<Vec<f64>> = vec![
+        before.iter().map(|b| 0.5 * b).collect(),
+        before.iter().map(|b| b + 0.1 * rng.normal()).collect(),
+        before
+            .iter()
+            .enumerate()
+            .map(|(i, b)| b - if i < n / 3 { 0.4 } else { -0.2 })
+            .collect(),
+        before.iter().map(|b| 0.97 * b + 0.02).collect(),
+    ];
+    for folds in [2, 3, 5] {
+        let reference: f64 = super::verify::within_folds(&before, folds)
+            .iter()
+            .map(|v| v * v)
+            .sum();
+        assert_eq!(
+            super::verify::ss_within_folds(&before, folds).to_bits(),
+            reference.to_bits()
+        );
+        let config = VerifyConfig {
+            folds,
+            ..VerifyConfig::default()
+        };
+        let base = super::verify::Baseline::new(before.clone(), folds);
+        for (k, after) in afters.iter().enumerate() {
+            for min_effect in [0.0, 0.02, 0.5] {
+                let both = base.judge_both(after, min_effect, &config);
+                for (strict, j) in [false, true].into_iter().zip(both) {
+                    let r = super::verify::judge(&before, after, min_effect, strict, &config);
+                    assert_eq!(j.gain.to_bits(), r.gain.to_bits(), "{k}");
+                    assert_eq!(j.within.to_bits(), r.within.to_bits(), "{k}");
+                    assert_eq!(j.z.to_bits(), r.z.to_bits(), "{k}");
+                    assert_eq!(j.verified, r.verified, "{k} {strict} {min_effect}");
+                }
+            }
+        }
+    }
+}

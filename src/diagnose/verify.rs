@@ -53,7 +53,7 @@ use serde::{Deserialize, Serialize};
 
 use super::model::ModelDiagnosisError;
 use super::{Diagnosis, FeatureReport};
-use crate::fit::{CheckedFitOptions, fit};
+use crate::fit::{CheckedFitOptions, Refits, fit_sharing};
 use crate::log::Log;
 use crate::model::terms::parse_term;
 use crate::model::{Feedback, ModelEdit, ModelSpec, SpecError};
@@ -470,14 +470,82 @@ pub(super) fn measured_rows(log: &Log) -> Vec<usize> {
 /// Out-of-sample residuals of `spec` on `log`, one per measured row in log order: fitted with
 /// each of `folds` contiguous stretches of measured rows blanked, replayed over the whole log,
 /// scored on the blanked stretch (see the module docs).
+// The reference of its fast path (used by the tests and by nothing else).
+#[cfg_attr(not(test), allow(dead_code))]
 pub(super) fn cv_residuals(
     spec: &ModelSpec,
     log: &Log,
     folds: usize,
     opts: &CheckedFitOptions,
 ) -> Result<Vec<f64>, ModelDiagnosisError> {
-    let measured = measured_rows(log);
-    let n = measured.len();
+    cv_residuals_sharing(spec, log, folds, opts, &Refits::default())
+}
+
+/// Most bytes one verification refit's variable-projection search stores of its fixed block
+/// (`fit`'s own budget is 64 MiB): several refits run at once, and on a long log the stored
+/// block was the largest part of `diagnose`'s peak (a fold of a 1M-row log, 11 fixed columns:
+/// 53 MB per refit). Beyond it the block is replayed per pass — the same rows, the same bits
+/// (`crate::fit`'s stored-against-streamed test) — so the budget moves only time and memory;
+/// the 100k-row bench's blocks (≤ 6 MB) stay stored.
+pub(crate) const REFIT_FIXED_BYTES: usize = 16 << 20;
+
+/// What every refit of a round shares ([`Refits`]): `log`'s sampling, its replayed features
+/// (a short log's, read as `opts` reads direction; the masked copies differ only in bias,
+/// which no history reads) and [`REFIT_FIXED_BYTES`].
+pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
+    let sampling = crate::history::log_sampling(log);
+    let features = opts
+        .direction
+        .resolve_with(log, &sampling)
+        .ok()
+        .and_then(|d| {
+            let f = crate::model::data::FitData::with_direction(log, &d)
+                .ok()?
+                .features()?;
+            Some((d, f))
+        });
+    Refits {
+        sampling: Some(sampling),
+        features,
+        fixed_budget: REFIT_FIXED_BYTES,
+    }
+}
+
+/// The first log row of each of `folds` contiguous stretches of measured rows (cut as
+/// [`cv_residuals`] cuts them: stretch `k` holds measured rows `k·n/folds .. (k+1)·n/folds`),
+/// then `log.len()`: stretch `k`'s measured rows are the measured rows from `starts[k]` up to
+/// `starts[k + 1]`. No index per row is kept (8 B a row per refit in flight).
+pub(super) fn fold_starts(log: &Log, folds: usize) -> Vec<usize> {
+    let n = log.measured_count();
+    let mut starts = Vec::with_capacity(folds + 1);
+    let mut next = 0usize;
+    let mut m = 0usize;
+    for i in 0..log.len() {
+        if log.bias(i).is_none() {
+            continue;
+        }
+        while starts.len() < folds && next == m {
+            starts.push(i);
+            next = (starts.len()) * n / folds;
+        }
+        m += 1;
+    }
+    starts.resize(folds + 1, log.len());
+    starts
+}
+
+/// [`cv_residuals`] with what the refits share given (`shared`, from [`refits_of`]): the same
+/// residuals bit for bit (tested against the reference that shares nothing and keeps an index
+/// per row, `tests_verify`).
+pub(super) fn cv_residuals_sharing(
+    spec: &ModelSpec,
+    log: &Log,
+    folds: usize,
+    opts: &CheckedFitOptions,
+    shared: &Refits,
+) -> Result<Vec<f64>, ModelDiagnosisError> {
+    let n = log.measured_count();
+    let starts = fold_starts(log, folds);
     let terms = spec.to_string();
     // The folds are independent fits (no random draws): in parallel, in fold order.
     let parts: Vec<Result<Vec<f64>, ModelDiagnosisError>> = (0..folds)
@@ -488,14 +556,16 @@ pub(super) fn cv_residuals(
                 return Ok(Vec::new());
             }
             let mut masked = log.clone();
-            for &i in &measured[a..b] {
+            for i in starts[k]..starts[k + 1] {
                 masked.set_bias(i, None);
             }
-            let model = fit(spec, &masked, opts).map_err(|source| ModelDiagnosisError::Fit {
-                step: k,
-                terms: terms.clone(),
-                file: log.schema.file.clone(),
-                source: Box::new(source),
+            let model = fit_sharing(spec, &masked, opts, shared).map_err(|source| {
+                ModelDiagnosisError::Fit {
+                    step: k,
+                    terms: terms.clone(),
+                    file: log.schema.file.clone(),
+                    source: Box::new(source),
+                }
             })?;
             // The masked copy served the fit only; the replay keeps this fold's residuals and
             // nothing else per row (`replay_model` would hold every row's prediction, the
@@ -592,13 +662,25 @@ pub(super) fn variants(term: &str, spec: &ModelSpec, spacing: Option<f64>) -> Ve
 /// spread and hide a real gain (6.6 % out of sample at z = 1.3 on a threshold run); the Huber
 /// loss keeps about 95 % of the squared error's efficiency under Gaussian noise and bounds
 /// each outlier's weight.
+// The reference of its fast path (used by the tests and by nothing else).
+#[cfg_attr(not(test), allow(dead_code))]
 pub(super) fn paired_gain(before: &[f64], after: &[f64]) -> (f64, f64) {
+    paired_gain_at(before, after, huber_c(before))
+}
+
+/// [`paired_gain`] with the Huber constant `c` of `before` given ([`huber_c`]).
+fn paired_gain_at(before: &[f64], after: &[f64], c: f64) -> (f64, f64) {
     let n = before.len();
     let mse = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>() / n.max(1) as f64;
     let (mb, ma) = (mse(before), mse(after));
     let gain = if mb > 0.0 { 1.0 - ma / mb } else { 0.0 };
-    let c = HUBER_K * robust_scale(before);
     (gain, conditional_z(before, after, c))
+}
+
+/// The Huber constant of the verification's loss for the residual `before` the edit:
+/// [`HUBER_K`] robust standard deviations.
+pub(super) fn huber_c(before: &[f64]) -> f64 {
+    HUBER_K * robust_scale(before)
 }
 
 /// The z-score of the paired Huber-loss difference `L(b) − L(a)` (`L` = [`huber`] at `c`):
@@ -669,14 +751,44 @@ pub(super) fn noise_part(before: &[f64], after: &[f64], c: f64) -> Vec<f64> {
 /// a drift), so an edit must also reach the practical minimum within folds; a physical effect
 /// varies inside a stretch and keeps most of its gain there (a lagged temperature: 57.8 % →
 /// 45.0 %; a slow covariate with 1.5 cycles per log, a threshold, a defect likewise).
+// The reference of its fast path (used by the tests and by nothing else).
+#[cfg_attr(not(test), allow(dead_code))]
 pub(super) fn gain_within_folds(before: &[f64], after: &[f64], folds: usize) -> f64 {
     let ss = |r: &[f64]| -> f64 { within_folds(r, folds).iter().map(|v| v * v).sum() };
-    let sb = ss(before);
-    if sb > 0.0 { 1.0 - ss(after) / sb } else { 0.0 }
+    gain_within_folds_of(ss(before), after, folds)
+}
+
+/// [`gain_within_folds`] from `before`'s sum of squares within folds (`sb`), `after`'s taken
+/// without a copy ([`ss_within_folds`]).
+fn gain_within_folds_of(sb: f64, after: &[f64], folds: usize) -> f64 {
+    if sb > 0.0 {
+        1.0 - ss_within_folds(after, folds) / sb
+    } else {
+        0.0
+    }
+}
+
+/// The sum of squares of [`within_folds`]`(r, folds)`, row by row in the same order (the same
+/// bits, tested) without the copy.
+pub(super) fn ss_within_folds(r: &[f64], folds: usize) -> f64 {
+    let n = r.len();
+    let folds = folds.max(1);
+    (0..folds)
+        .flat_map(|k| {
+            let (a, b) = (k * n / folds, (k + 1) * n / folds);
+            let m = crate::numeric::stats::mean(&r[a..b]);
+            r[a..b].iter().map(move |&v| {
+                let d = m.map_or(v, |m| v - m);
+                d * d
+            })
+        })
+        .sum()
 }
 
 /// `r` with the mean of each of `folds` contiguous stretches (cut as [`cv_residuals`] cuts
 /// them) taken out.
+// The reference of its fast path (used by the tests and by nothing else).
+#[cfg_attr(not(test), allow(dead_code))]
 pub(super) fn within_folds(r: &[f64], folds: usize) -> Vec<f64> {
     let n = r.len();
     let folds = folds.max(1);
@@ -722,9 +834,15 @@ fn robust_scale(r: &[f64]) -> f64 {
 /// random-walk column and a slow residual) pays in one stretch and costs in another, yet can
 /// reach a high block z-score when the stretches are few. Required of the strict
 /// (unflagged-feature) edits only.
+// The reference of its fast path (used by the tests and by nothing else).
+#[cfg_attr(not(test), allow(dead_code))]
 pub(super) fn gains_in_every_fold(before: &[f64], after: &[f64], folds: usize) -> bool {
+    gains_in_every_fold_at(before, after, folds, huber_c(before))
+}
+
+/// [`gains_in_every_fold`] with `before`'s Huber constant given ([`huber_c`]).
+fn gains_in_every_fold_at(before: &[f64], after: &[f64], folds: usize, c: f64) -> bool {
     let n = before.len();
-    let c = HUBER_K * robust_scale(before);
     let loss = |r: f64| huber(c, r);
     (0..folds).all(|k| {
         let (a, b) = (k * n / folds, (k + 1) * n / folds);
@@ -754,6 +872,8 @@ pub(super) struct Judgement {
 /// Judges an edit from the residuals before and after it on the same folds (see the module
 /// docs): verified when its gain and its gain within folds both reach `min_effect` and its
 /// z-score the bar (`strict`: the unflagged-feature bar).
+// The reference of its fast path (used by the tests and by nothing else).
+#[cfg_attr(not(test), allow(dead_code))]
 pub(super) fn judge(
     before: &[f64],
     after: &[f64],
@@ -775,6 +895,48 @@ pub(super) fn judge(
         within,
         z,
         verified,
+    }
+}
+
+/// What every edit of a round is judged against: the residual before the edits, with its
+/// Huber constant ([`huber_c`]) and its sum of squares within folds computed once per round
+/// (not once per edit and bar: two sorts of the whole residual each).
+pub(super) struct Baseline {
+    /// The out-of-sample residual of the model before the edits.
+    pub r: Vec<f64>,
+    c: f64,
+    ss_within: f64,
+}
+
+impl Baseline {
+    /// The baseline of residual `r`, cut into `folds` as [`cv_residuals`] cuts it.
+    pub(super) fn new(r: Vec<f64>, folds: usize) -> Self {
+        let c = huber_c(&r);
+        let ss_within = ss_within_folds(&r, folds);
+        Self { r, c, ss_within }
+    }
+
+    /// [`judge`] of `after` at the plain bar (`[0]`) and the strict one (`[1]`): the same
+    /// verdicts bit for bit (tested), the shared parts computed once.
+    pub(super) fn judge_both(
+        &self,
+        after: &[f64],
+        min_effect: f64,
+        config: &VerifyConfig,
+    ) -> [Judgement; 2] {
+        let (gain, z) = paired_gain_at(&self.r, after, self.c);
+        let within = gain_within_folds_of(self.ss_within, after, config.folds);
+        let practical = gain >= min_effect && within >= min_effect;
+        let plain = practical && z >= config.min_z;
+        let strict = practical
+            && z >= config.min_z + STRICT_EXTRA_Z
+            && gains_in_every_fold_at(&self.r, after, config.folds, self.c);
+        [plain, strict].map(|verified| Judgement {
+            gain,
+            within,
+            z,
+            verified,
+        })
     }
 }
 
@@ -841,8 +1003,11 @@ fn verify_round(
     // The refits the loop below will score (the model as it is; each candidate's first term
     // that applies, every term of a `try_all` candidate) run in parallel first; the loop then
     // reads them, so the result is the same for any number of threads.
+    // Every refit of the round reads the log's sampling and replayed features from here.
+    let shared = refits_of(log, &config.fit);
     let score = |s: &ModelSpec| {
-        cv_residuals(s, log, config.folds, &config.fit).map_err(|e| error_chain(&e))
+        cv_residuals_sharing(s, log, config.folds, &config.fit, &shared)
+            .map_err(|e| error_chain(&e))
     };
     let mut wanted: Vec<ModelSpec> = Vec::new();
     if given.is_none() {
@@ -890,10 +1055,11 @@ fn verify_round(
             return Ok((v, keep));
         }
     };
+    let base = Baseline::new(before, config.folds);
+    let before = &base.r;
     let assess = |s: &ModelSpec| {
         score(s).map(|after| {
-            let judged =
-                [false, true].map(|strict| judge(&before, &after, min_effect, strict, config));
+            let judged = base.judge_both(&after, min_effect, config);
             Scored {
                 std_after: std_of(&after),
                 judged,
@@ -907,7 +1073,7 @@ fn verify_round(
         .zip(wanted[first..].par_iter().map(assess).collect::<Vec<_>>())
         .collect();
     let mut scored = |s: &ModelSpec| cache.remove(&s.to_string()).unwrap_or_else(|| assess(s));
-    v.std_before = std_of(&before);
+    v.std_before = std_of(before);
     // The narrow-defect screen on the residual before, on first use: the first round always
     // needs it (its extra `bump` candidate); the second only when a candidate has a `bump`
     // variant (its cost, a scan of the whole log, is not paid for nothing).
@@ -920,7 +1086,7 @@ fn verify_round(
                 .into_iter()
                 .map(|v| v.unwrap_or(f64::NAN))
                 .collect();
-            super::advice::defect_screen(&x, &before)
+            super::advice::defect_screen(&x, before)
         })
     };
     // The step screen, per covariate column a `step:COL` variant is scored for (the clipped
@@ -934,7 +1100,7 @@ fn verify_round(
             let Some(k) = log.schema.covariate_index(col) else {
                 return false;
             };
-            let Some(c) = clipped.get_or_insert_with(|| super::advice::clipped_residual(&before))
+            let Some(c) = clipped.get_or_insert_with(|| super::advice::clipped_residual(before))
             else {
                 return false;
             };
@@ -1034,7 +1200,7 @@ fn verify_round(
     v.edits
         .sort_by(|a, b| b.verified.cmp(&a.verified).then(b.gain.total_cmp(&a.gain)));
     prefer_physics_to_drift(&mut v.edits);
-    keep.before = before;
+    keep.before = base.r;
     Ok((v, keep))
 }
 

@@ -172,6 +172,9 @@ pub struct FitData<'a> {
     /// and the many small refits of `diagnose`'s verification read them instead of stepping
     /// the history again.
     cache: std::sync::OnceLock<Option<Arc<[SeekFeatures]>>>,
+    /// Most bytes a variable-projection search may hold of the fixed block's columns
+    /// (`crate::fit`'s `Projection`; beyond it they are replayed per pass: the same bits).
+    fixed_budget: usize,
 }
 
 /// Logs of at most this many rows keep their replayed seek features in [`FitData`]
@@ -187,6 +190,7 @@ impl<'a> FitData<'a> {
             direction: DirectionSource::Steps,
             velocity: None,
             cache: std::sync::OnceLock::new(),
+            fixed_budget: crate::fit::STORED_FIXED_BYTES,
         }
     }
 
@@ -199,7 +203,39 @@ impl<'a> FitData<'a> {
             direction: direction.clone(),
             velocity,
             cache: std::sync::OnceLock::new(),
+            fixed_budget: crate::fit::STORED_FIXED_BYTES,
         })
+    }
+
+    /// This data reading the replayed features `features` of another log with the same rows'
+    /// times, positions and covariates (only the bias may differ: a history never reads it),
+    /// replayed with the same direction source, instead of replaying its own: where its own
+    /// would be kept (at most [`FEATURE_CACHE_ROWS`] rows) and the row count matches, else
+    /// unchanged. The same features bit for bit, so the same fit (tested in
+    /// `diagnose::tests_verify`).
+    pub(crate) fn sharing_features(self, features: &Arc<[SeekFeatures]>) -> Self {
+        if self.log.len() <= FEATURE_CACHE_ROWS && features.len() == self.log.len() {
+            let _ = self.cache.set(Some(features.clone()));
+        }
+        self
+    }
+
+    /// This data with the fixed-block budget of a variable-projection search set to `bytes`
+    /// (see the field).
+    pub(crate) fn with_fixed_budget(mut self, bytes: usize) -> Self {
+        self.fixed_budget = bytes;
+        self
+    }
+
+    /// Most bytes a variable-projection search may store of its fixed block.
+    pub(crate) fn fixed_budget(&self) -> usize {
+        self.fixed_budget
+    }
+
+    /// Every row's replayed features (the cache a short log keeps, [`FEATURE_CACHE_ROWS`]),
+    /// `None` for a longer log: what [`FitData::sharing_features`] takes.
+    pub(crate) fn features(&self) -> Option<Arc<[SeekFeatures]>> {
+        self.cached()
     }
 
     /// The log.
