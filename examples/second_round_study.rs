@@ -4,7 +4,11 @@
 //! ```sh
 //! cargo run --release --example second_round_study -- 80 2 2000 > study.jsonl
 //! ```
-//! (first seed, seeds, seeks per log). For every drive (the three family members, the held-out
+//! (first seed, seeds, seeks per log; the README's runs add `all rotate`: every scenario once
+//! per seed on a rotating drive, 40 runs a seed, 5–15 s each on 2 threads of a loaded
+//! machine; `all rotate,singles` runs only the one-effect and no-effect scenarios, the
+//! false-alarm half; a 6th argument `drive/effect+effect/scale/seed;…` reruns only the runs
+//! named). For every drive (the three family members, the held-out
 //! drive of `diagnose_family` and three more drives with other hysteresis, trend and noise),
 //! every effect pair below with the second effect at 100 %, 60 % and 35 % of its size, every
 //! single effect and no effect at all, and every seed: generate the log, fit the user's model
@@ -17,7 +21,11 @@
 //! - the first round's edits and the second round's, each with whether its feature names an
 //!   effect of the log (`HiddenEffect::is_right_feature`): a verified edit on top that names
 //!   none, or names the effect the first edit already holds, is a false alarm;
-//! - the no-effect columns flagged.
+//! - the no-effect columns flagged;
+//! - `truth_features`: what the screen said of each feature that names an effect (rank,
+//!   flagged, explained, raw p, direction-signed, suggested term), and `second_tried`: every
+//!   edit the second round scored (where a second effect's own term was never a candidate,
+//!   these say why).
 //!
 //! A second effect is scaled by subtracting `(1 − scale)` × its truth column
 //! (`FamilyRun::truth`) from the bias, so its size varies while everything else stays the

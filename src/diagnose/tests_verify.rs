@@ -1242,8 +1242,8 @@ fn masked_second_effect_log(seed: u64, k: f64, a: f64) -> Log {
         let dir = if pos >= prev { 1.0 } else { -1.0 };
         prev = pos;
         let temp = 40.0 + 5.0 * rng.normal();
-        let bias = 20.0 + 3.0 * dir + k * (temp - 40.0) + a * dir * (pos - 150.0) / 150.0
-            + rng.normal();
+        let bias =
+            20.0 + 3.0 * dir + k * (temp - 40.0) + a * dir * (pos - 150.0) / 150.0 + rng.normal();
         text.push_str(&format!(
             "{},{pos},{bias:.4},{temp:.4},{:.3}\n",
             0.3 * i as f64,
@@ -1306,7 +1306,12 @@ fn a_second_effect_the_first_hid_is_found_by_the_rescreen() {
     );
     let (m1, m2) = (mse(&cv(&best.terms)), mse(&cv(&on_top.terms)));
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(1.0);
-    assert!(close(on_top.gain, 1.0 - m2 / m1), "{} {}", on_top.gain, 1.0 - m2 / m1);
+    assert!(
+        close(on_top.gain, 1.0 - m2 / m1),
+        "{} {}",
+        on_top.gain,
+        1.0 - m2 / m1
+    );
     let (m_advice, m_best) = (m0 * (1.0 - c.gain), m0 * (1.0 - best.gain));
     assert!(m_advice <= 1.1 * m_true, "{m_advice} vs {m_true}: {text}");
     assert!(m_best >= 1.2 * m_true, "{m_best} vs {m_true}");

@@ -40,7 +40,10 @@
 //! promising with at least [`SECOND_ROUND_SHARE`] of the best gain, edits verified at any gain
 //! whose change of the prediction can still explain the practical minimum of the residual the
 //! best edit leaves ([`left_on_top`], from residuals the first round kept: no refit), then
-//! features that got no slot), scored on the same folds against the best edit's out-of-sample residual (kept, not
+//! features that got no slot; then the features flagged by a **re-screen** of the residual the
+//! best edit leaves, [`rescreen_candidates`]: a second effect's own feature, hidden on the
+//! user's residual by the first effect, flags there and brings its own term), scored on the
+//! same folds against the best edit's out-of-sample residual (kept, not
 //! refitted) and judged at the strict bar. What holds on top is reported with the two edits
 //! together ([`CombinedEdit`]); the first round's list, its best edit and the features' ranking
 //! are left as they were. Where no candidate can pay the round does not run (no cost, no new
@@ -1173,7 +1176,7 @@ pub(crate) type Rescreen<'a> =
 /// The features of `d` worth screening again on the residual the best edit leaves (see
 /// [`rescreen_candidates`]): raw p ≤ [`SECOND_ROUND_P`] on the first screen (some evidence of
 /// an effect even while the first effect hid it), not the best edit's source.
-fn rescreen_columns(d: &Diagnosis, best: &VerifiedEdit) -> Vec<String> {
+pub(crate) fn rescreen_columns(d: &Diagnosis, best: &VerifiedEdit) -> Vec<String> {
     let best_src = d.feature(&best.feature).map_or_else(
         || {
             super::features::lagged_column(&best.feature)
@@ -1250,7 +1253,10 @@ pub(crate) fn left_on_top(before: &[f64], best: &[f64], other: &[f64]) -> f64 {
 /// out-of-sample residual (kept from the first round: no refit) is the new baseline, and the
 /// candidates are refitted on top of it on the same folds and judged at the strict bar; what
 /// holds on top is reported with both edits together ([`CombinedEdit`]). `d` is the diagnosis
-/// the candidates `cands` came from.
+/// the candidates `cands` came from. `rescreen` (when given) diagnoses the best edit's
+/// out-of-sample residual against the features [`rescreen_columns`] names; its flagged
+/// features join the round's candidates ([`rescreen_candidates`], up to
+/// [`VerifyConfig::candidates`] more), and the round runs when one of them can pay too.
 pub(crate) fn verify_two_rounds(
     d: &Diagnosis,
     spec: &ModelSpec,
@@ -1290,15 +1296,12 @@ pub(crate) fn verify_two_rounds(
                 )
             })
             .collect();
-        if std::env::var("CANDS2_DEBUG").is_ok() {
-            eprintln!("RESCREEN cols {columns:?} taken {taken:?}");
-            for f in &r.features {
-                eprintln!("  {} fl {} sig {} ex {:.3} beyond {:?} p {:.3} praw {:.3} dir {} sug {:?} alt {:?} note {:?}", f.name, f.flagged, f.significant, f.explained, f.explained_beyond_previous, f.p_value, f.p_value_raw, f.by_direction, f.suggested_term, f.alternatives, f.note);
-            }
-        }
         Some(rescreen_candidates(&r, &taken, config.candidates))
     });
-    let second: Vec<Candidate> = second.into_iter().chain(rescreened.into_iter().flatten()).collect();
+    let second: Vec<Candidate> = second
+        .into_iter()
+        .chain(rescreened.into_iter().flatten())
+        .collect();
     let base = v
         .best()
         .filter(|_| !second.is_empty())
