@@ -4,7 +4,11 @@
 //! ```sh
 //! cargo run --release --example second_round_study -- 80 2 2000 > study.jsonl
 //! ```
-//! (first seed, seeds, seeks per log). For every drive (the three family members, the held-out
+//! (first seed, seeds, seeks per log; the README's runs add `all rotate`: every scenario once
+//! per seed on a rotating drive, 40 runs a seed, 5–15 s each on 2 threads of a loaded
+//! machine; `all rotate,singles` runs only the one-effect and no-effect scenarios, the
+//! false-alarm half; a 6th argument `drive/effect+effect/scale/seed;…` reruns only the runs
+//! named). For every drive (the three family members, the held-out
 //! drive of `diagnose_family` and three more drives with other hysteresis, trend and noise),
 //! every effect pair below with the second effect at 100 %, 60 % and 35 % of its size, every
 //! single effect and no effect at all, and every seed: generate the log, fit the user's model
@@ -17,7 +21,11 @@
 //! - the first round's edits and the second round's, each with whether its feature names an
 //!   effect of the log (`HiddenEffect::is_right_feature`): a verified edit on top that names
 //!   none, or names the effect the first edit already holds, is a false alarm;
-//! - the no-effect columns flagged.
+//! - the no-effect columns flagged;
+//! - `truth_features`: what the screen said of each feature that names an effect (rank,
+//!   flagged, explained, raw p, direction-signed, suggested term), and `second_tried`: every
+//!   edit the second round scored (where a second effect's own term was never a candidate,
+//!   these say why).
 //!
 //! A second effect is scaled by subtracting `(1 − scale)` × its truth column
 //! (`FamilyRun::truth`) from the bias, so its size varies while everything else stays the
@@ -164,6 +172,11 @@ fn main() {
     if args.get(5).is_some_and(|a| a.contains("singles")) {
         scenarios.retain(|(e, _)| e.len() < 2);
     }
+    // Optional 6th argument: only the runs named in it, `;`-separated, each
+    // `drive/effect+effect/scale/seed` as the JSON lines print them (to look at a few runs again).
+    let picked: Option<Vec<String>> = args
+        .get(6)
+        .map(|a| a.split(';').map(str::to_string).collect());
     let mut runs: Vec<(&FamilyDrive, &Vec<HiddenEffect>, f64, u64)> = Vec::new();
     for seed in from..from + seeds {
         for (i, (effects, scale)) in scenarios.iter().enumerate() {
@@ -175,6 +188,11 @@ fn main() {
             }
         }
     }
+    runs.retain(|(d, e, s, seed)| {
+        let names: Vec<&str> = e.iter().map(|e| e.name()).collect();
+        let key = format!("{}/{}/{s}/{seed}", d.name, names.join("+"));
+        picked.as_ref().is_none_or(|p| p.contains(&key))
+    });
     {
         for (drive, effects, scale, seed) in runs {
             let scale = &scale;
@@ -286,6 +304,31 @@ fn main() {
                     .map(|f| f.name.as_str())
                     .collect();
                 let names: Vec<&str> = effects.iter().map(|e| e.name()).collect();
+                // What the screen said of the features that name an effect (where the second
+                // effect's term comes from, or why it does not).
+                let truth_features: Vec<serde_json::Value> = d
+                    .features
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, f)| effects.iter().any(|e| e.is_right_feature(&f.name)))
+                    .map(|(rank, f)| {
+                        serde_json::json!({
+                            "name": f.name, "rank": rank, "flagged": f.flagged,
+                            "explained": f.explained, "beyond": f.explained_beyond_previous,
+                            "p_raw": f.p_value_raw, "by_direction": f.by_direction,
+                            "suggested": f.suggested_term, "alternatives": f.alternatives,
+                        })
+                    })
+                    .collect();
+                let second_tried: Vec<String> = round
+                    .map(|r| {
+                        r.edits
+                            .iter()
+                            .map(|e| e.edit.clone())
+                            .chain(r.rejected.iter().map(|x| format!("rejected {}", x.term)))
+                            .collect()
+                    })
+                    .unwrap_or_default();
                 let line = serde_json::json!({
                     "drive": drive.name, "effects": names, "scale": scale, "seed": seed,
                     "std_base": std_base, "std_best": std_best, "std_advice": std_advice,
@@ -293,7 +336,8 @@ fn main() {
                     "best": best.as_ref().map(|b| b.edit.clone()),
                     "best_right": best_effect.is_some(),
                     "first": first, "round_ran": round.is_some(), "second": second,
-                    "no_effect_flagged": no_effect, "secs": t0.elapsed().as_secs_f64(),
+                    "no_effect_flagged": no_effect, "truth_features": truth_features,
+                    "second_tried": second_tried, "secs": t0.elapsed().as_secs_f64(),
                 });
                 println!("{line}");
             }

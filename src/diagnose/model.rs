@@ -134,7 +134,31 @@ pub fn diagnose_verified(
     let mut d = diagnose_model(model, log, config)?;
     let spec = model_spec(model)?;
     let cands = super::candidates(&d, verify_config.candidates);
-    let v = super::verify_two_rounds(&d, &spec, log, &cands, config.min_effect, verify_config)?;
+    // The second round's re-screen: the residual the best edit leaves against the features
+    // it names (the table made again, only those columns and `direction` kept: no table is
+    // held through the refits).
+    let rescreen = |r: &[f64], with: &ModelSpec, keep: &dyn Fn(&str) -> bool| {
+        // The direction column always: the direction-signed analysis reads it.
+        let direction = super::FeatureOrigin::BuiltIn(crate::history::Feature::Direction);
+        let table = model_table(model, log)
+            .without(|c| c.origin != direction && (super::is_time(c.origin) || !keep(&c.name)));
+        let mut config = config.clone();
+        for t in &with.terms {
+            config.add_existing_term(t.name());
+        }
+        (!table.columns().is_empty())
+            .then(|| diagnose(&table, r, &config).ok())
+            .flatten()
+    };
+    let v = super::verify_two_rounds(
+        &d,
+        &spec,
+        log,
+        &cands,
+        config.min_effect,
+        verify_config,
+        Some(&rescreen),
+    )?;
     promote_verified(&mut d, &v);
     d.verification = Some(v);
     d.summary = super::report::extend_summary(&d);

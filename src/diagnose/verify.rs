@@ -40,7 +40,10 @@
 //! promising with at least [`SECOND_ROUND_SHARE`] of the best gain, edits verified at any gain
 //! whose change of the prediction can still explain the practical minimum of the residual the
 //! best edit leaves ([`left_on_top`], from residuals the first round kept: no refit), then
-//! features that got no slot), scored on the same folds against the best edit's out-of-sample residual (kept, not
+//! features that got no slot; then the features flagged by a **re-screen** of the residual the
+//! best edit leaves, [`rescreen_candidates`]: a second effect's own feature, hidden on the
+//! user's residual by the first effect, flags there and brings its own term), scored on the
+//! same folds against the best edit's out-of-sample residual (kept, not
 //! refitted) and judged at the strict bar. What holds on top is reported with the two edits
 //! together ([`CombinedEdit`]); the first round's list, its best edit and the features' ranking
 //! are left as they were. Where no candidate can pay the round does not run (no cost, no new
@@ -1328,6 +1331,66 @@ pub(crate) fn second_round_candidates(
     out
 }
 
+/// The re-screen of the second round ([`verify_two_rounds`]): the diagnosis of `residual` (the
+/// out-of-sample residual the best verified edit leaves, one per measured row in log order)
+/// for the model `spec` (the user's model with that edit: its terms are not suggested again)
+/// against the log's feature columns that `keep` admits by name (time features never);
+/// `None` when it cannot run.
+pub(crate) type Rescreen<'a> =
+    dyn Fn(&[f64], &ModelSpec, &dyn Fn(&str) -> bool) -> Option<Diagnosis> + 'a;
+
+/// The features of `d` worth screening again on the residual the best edit leaves (see
+/// [`rescreen_candidates`]): raw p ≤ [`SECOND_ROUND_P`] on the first screen (some evidence of
+/// an effect even while the first effect hid it), not the best edit's source.
+pub(crate) fn rescreen_columns(d: &Diagnosis, best: &VerifiedEdit) -> Vec<String> {
+    let best_src = d.feature(&best.feature).map_or_else(
+        || {
+            super::features::lagged_column(&best.feature)
+                .unwrap_or(&best.feature)
+                .to_string()
+        },
+        source_of,
+    );
+    d.features
+        .iter()
+        .filter(|f| f.p_value_raw <= SECOND_ROUND_P)
+        .filter(|f| source_of(f) != best_src)
+        .map(|f| f.name.clone())
+        .collect()
+}
+
+/// The second round's candidates from the **re-screen** of the residual the best edit leaves
+/// (`r`, [`Rescreen`]): its flagged features with a suggested term (no time feature), in its
+/// order, one per source, none of a source in `taken` (the best edit's and the second round's
+/// other candidates), at most `max`. A second effect's screen on the user's residual is
+/// diluted by the first effect's variance and confounded with it (a position × direction
+/// effect at 2.5–10 % explained beside a slow covariate at 42–49 %, below the pool's share of
+/// the best feature; a logged column following the first effect's slow course taking the
+/// unflagged slots), and its shape can be read wrong (the effect's direction sign lost in the
+/// first effect's spread); on what the best edit leaves it stands alone, and the screen's own
+/// rule (family-wise significance, the practical minimum beyond the features before it) says
+/// whether it is there. Each is refitted on top of the best edit at the strict bar like the
+/// round's other candidates.
+pub(crate) fn rescreen_candidates(r: &Diagnosis, taken: &[String], max: usize) -> Vec<Candidate> {
+    let mut sources = taken.to_vec();
+    let mut out = Vec::new();
+    for f in r.features.iter().filter(|f| f.flagged) {
+        if out.len() >= max {
+            break;
+        }
+        if f.suggested_term.as_deref().is_none_or(|t| t == "drift") {
+            continue;
+        }
+        let s = source_of(f);
+        if sources.contains(&s) {
+            continue;
+        }
+        sources.push(s);
+        out.push(feature_candidate(f, true));
+    }
+    out
+}
+
 /// What an edit verified in the first round can still explain of the residual the best edit
 /// leaves: with `before`, `best` and `other` the out-of-sample residuals of the model as it is,
 /// with the best edit and with the other edit (same folds), the other edit's change of the
@@ -1356,7 +1419,10 @@ pub(crate) fn left_on_top(before: &[f64], best: &[f64], other: &[f64]) -> f64 {
 /// out-of-sample residual (kept from the first round: no refit) is the new baseline, and the
 /// candidates are refitted on top of it on the same folds and judged at the strict bar; what
 /// holds on top is reported with both edits together ([`CombinedEdit`]). `d` is the diagnosis
-/// the candidates `cands` came from.
+/// the candidates `cands` came from. `rescreen` (when given) diagnoses the best edit's
+/// out-of-sample residual against the features [`rescreen_columns`] names; its flagged
+/// features join the round's candidates ([`rescreen_candidates`], up to
+/// [`VerifyConfig::candidates`] more), and the round runs when one of them can pay too.
 pub(crate) fn verify_two_rounds(
     d: &Diagnosis,
     spec: &ModelSpec,
@@ -1364,6 +1430,7 @@ pub(crate) fn verify_two_rounds(
     cands: &[Candidate],
     min_effect: f64,
     config: &CheckedVerifyConfig,
+    rescreen: Option<&Rescreen<'_>>,
 ) -> Result<Verification, ModelDiagnosisError> {
     let block_len = d.null_block_len;
     let (mut v, mut keep) = verify_round(spec, log, cands, block_len, min_effect, config, None)?;
@@ -1376,6 +1443,31 @@ pub(crate) fn verify_two_rounds(
         };
         second_round_candidates(d, cands, &v, config.candidates, &left)
     };
+    // The re-screen of what the best edit leaves: features the first effect hid get their
+    // own candidates (up to `candidates` more, see `rescreen_candidates`).
+    let rescreened = v.best().and_then(|b| {
+        let (r1, m) = keep.verified.get(&b.terms)?;
+        let columns = rescreen_columns(d, b);
+        let r = rescreen?(r1, &spec.apply(m).ok()?, &|n: &str| {
+            columns.iter().any(|c| c == n)
+        })?;
+        let mut taken = vec![b.feature.clone()];
+        taken.extend(second.iter().map(|c| c.feature.clone()));
+        let taken: Vec<String> = taken
+            .iter()
+            .map(|n| {
+                d.feature(n).map_or_else(
+                    || super::features::lagged_column(n).unwrap_or(n).to_string(),
+                    source_of,
+                )
+            })
+            .collect();
+        Some(rescreen_candidates(&r, &taken, config.candidates))
+    });
+    let second: Vec<Candidate> = second
+        .into_iter()
+        .chain(rescreened.into_iter().flatten())
+        .collect();
     let base = v
         .best()
         .filter(|_| !second.is_empty())
