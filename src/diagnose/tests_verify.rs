@@ -1418,6 +1418,7 @@ fn baseline_judges_as_judge_does() {
             }
         }
     }
+}
 
 /// A log whose bias holds `k` count/°C of a white logged temperature (±5 °C) and a position ×
 /// direction effect `a`·direction·(position − 150)/150 (position uniform in 0..300, so its
