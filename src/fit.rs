@@ -2392,13 +2392,13 @@ fn static_predictions(
 }
 
 /// What [`static_predictions_chunked`] gives per measured row, in log order.
-struct Statics {
+struct Statics<'l> {
     /// The prediction of the terms before the adaptive tail: per term, its basis times its
     /// coefficients plus its offset, summed in the order and arithmetic of
     /// `Predictor::evaluate`.
     pred: Vec<f64>,
-    /// The measured bias.
-    measured: Vec<f64>,
+    /// The measured bias: the log's bias column itself where every row is measured (no copy).
+    measured: std::borrow::Cow<'l, [f64]>,
     /// `measured − pred` (for the adaptive terms' tuning; [`fit`] frees it after that).
     residual: Vec<f64>,
     /// The range of the measured rows' finite positions.
@@ -2411,26 +2411,33 @@ struct Statics {
 /// rayon's pool (the same arithmetic per row as the one sequential replay, so the same bits;
 /// the ranges of the chunks merged in log order by the same `min`/`max`; tested). `starts`
 /// holds every term's state (of `terms`, the whole design); only those before `tail` are read.
-fn static_predictions_chunked(
+fn static_predictions_chunked<'l>(
     terms: &[Arc<dyn Term>],
     tail: usize,
     starts: Vec<ChunkStart<'_>>,
     per_chunk: usize,
-    measured: usize,
+    log: &'l Log,
     coef: &[f64],
-) -> Statics {
+) -> Statics<'l> {
     use rayon::prelude::*;
+    let measured = log.measured_count();
     let (off, _) = offsets(terms);
     let widths: Vec<usize> = terms[..tail].iter().map(|t| t.param_count()).collect();
     let mut pred = vec![0.0; measured];
-    let mut meas = vec![0.0; measured];
+    // Every row measured: the bias column is the measured bias (no NaN in it), not copied.
+    let all = (measured == log.len()).then(|| log.bias_raw());
+    let mut meas = vec![0.0; if all.is_some() { 0 } else { measured }];
+    let meas_parts: Vec<Option<&mut [f64]>> = match all {
+        Some(_) => (0..measured.div_ceil(per_chunk)).map(|_| None).collect(),
+        None => meas.chunks_mut(per_chunk).map(Some).collect(),
+    };
     let mut residual = vec![0.0; measured];
     let ranges: Vec<(usize, Option<[f64; 2]>)> = pred
         .par_chunks_mut(per_chunk)
-        .zip(meas.par_chunks_mut(per_chunk))
+        .zip(meas_parts.into_par_iter())
         .zip(residual.par_chunks_mut(per_chunk))
         .zip(starts.into_par_iter())
-        .map(|(((pred, meas), residual), start)| {
+        .map(|(((pred, mut meas), residual), start)| {
             let ChunkStart { replay, mut states } = start;
             states.truncate(tail);
             let mut buf = vec![0.0; widths.iter().copied().max().unwrap_or(0)];
@@ -2454,7 +2461,9 @@ fn static_predictions_chunked(
                         total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + s.offset(&seek);
                     }
                     pred[n] = total;
-                    meas[n] = y;
+                    if let Some(m) = meas.as_deref_mut() {
+                        m[n] = y;
+                    }
                     residual[n] = y - total;
                     n += 1;
                     let x = row.track;
@@ -2479,7 +2488,10 @@ fn static_predictions_chunked(
         .reduce(|[lo, hi], [a, b]| [lo.min(a), hi.max(b)]);
     Statics {
         pred,
-        measured: meas,
+        measured: match all {
+            Some(b) => std::borrow::Cow::Borrowed(b),
+            None => std::borrow::Cow::Owned(meas),
+        },
         residual,
         range,
     }
@@ -2557,7 +2569,7 @@ fn reversal_count(
 pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
     let sampling = crate::history::log_sampling(log);
     let direction = opts.direction.resolve_with(log, &sampling)?;
-    let data = FitData::with_direction(log, &direction)?;
+    let mut data = FitData::with_direction(log, &direction)?;
     let reversals = reversal_count(&direction, &sampling, &data);
     let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);
     // Each term prepares on its own replays (knots, centring, …), so they run in parallel;
@@ -2573,6 +2585,10 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
     };
     if !terms.iter().any(|t| t.provides_intercept()) {
         terms.insert(0, Arc::new(InterceptTerm));
+    }
+    if !terms.iter().any(|t| t.reads_history()) {
+        // No later replay steps the history (`dahl`): the columns its preparation kept go.
+        data.forget_history_columns();
     }
     let file = log.schema.file.clone();
     for t in &terms {
@@ -2675,36 +2691,62 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             t,
             std::mem::take(&mut starts),
             solve_chunk_rows(p),
-            measured,
+            log,
             &sol.coef,
         )
     });
 
-    // Causal offsets tuned on the static residuals.
-    if terms.iter().any(|t| t.param_count() == 0) {
-        let design_residuals;
-        let residuals: &[f64] = match &statics {
-            Some(st) => &st.residual,
-            None => {
-                let mut residuals = Vec::with_capacity(sol.n);
-                design_pass(&terms, &data, |x, y| {
-                    residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
-                })?;
-                design_residuals = residuals;
-                &design_residuals
-            }
-        };
-        for t in &mut terms {
-            if let Some(tuned) = t.tune_on_residuals(residuals) {
-                *t = tuned;
+    // Causal offsets tuned on the static residuals. Beside the tuning (a sequential pass per
+    // zoom), the measured bias's statistics, which need no tuned term (from the static
+    // predictions' copy of it: `FitData::measured_bias_std` and `sum_sq_about_mean` of the
+    // same values in the same order, so the same bits; `None` where there is none).
+    let tune = |terms: &mut Vec<Arc<dyn Term>>| -> Result<(), FitError> {
+        if terms.iter().any(|t| t.param_count() == 0) {
+            let design_residuals;
+            let residuals: &[f64] = match &statics {
+                Some(st) => &st.residual,
+                None => {
+                    let mut residuals = Vec::with_capacity(sol.n);
+                    design_pass(terms, &data, |x, y| {
+                        residuals
+                            .push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
+                    })?;
+                    design_residuals = residuals;
+                    &design_residuals
+                }
+            };
+            for t in terms.iter_mut() {
+                if let Some(tuned) = t.tune_on_residuals(residuals) {
+                    *t = tuned;
+                }
             }
         }
-    }
+        Ok(())
+    };
+    let (tuned, measured_stats) = match &statics {
+        Some(st) => {
+            let (tuned, stats) = rayon::join(
+                || tune(&mut terms),
+                || {
+                    let b = &st.measured;
+                    (
+                        crate::numeric::stats::std_dev(b).unwrap_or(0.0),
+                        crate::numeric::stats::sum_sq_about_mean(b),
+                    )
+                },
+            );
+            (tuned, Some(stats))
+        }
+        None => (tune(&mut terms), None),
+    };
+    tuned?;
 
-    // The static residuals served the tuning alone: freed before the tail's replay.
+    // The static residuals served the tuning alone: freed before the tail's replay, as are
+    // the history columns (no replay of the history follows).
     if let Some(st) = statics.as_mut() {
         st.residual = Vec::new();
     }
+    data.forget_history_columns();
     let (off, _) = offsets(&terms);
     let mut warnings = Vec::new();
     let mut fitted = Vec::with_capacity(terms.len());
@@ -2756,7 +2798,11 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
     if !converged {
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
-    warnings.extend(self_check(&terms, &sol, data.measured_bias_std()));
+    let bias_std = match measured_stats {
+        Some((std, _)) => std,
+        None => data.measured_bias_std(),
+    };
+    warnings.extend(self_check(&terms, &sol, bias_std));
     warnings.extend(reversal_warning);
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
@@ -2801,13 +2847,26 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
             let residual = replay_tail(&terms[t..], log, &st.pred, &st.measured)?;
             (st.measured, residual, st.range)
         }
-        _ => replay_residuals(&model, log)?,
+        _ => {
+            let (m, r, range) = replay_residuals(&model, log)?;
+            (std::borrow::Cow::Owned(m), r, range)
+        }
     };
     model.fit.position_range = position_range;
-    let sst = crate::numeric::stats::sum_sq_about_mean(&measured_bias);
-    let sse: f64 = residual.iter().map(|e| e * e).sum();
-    model.fit.residual_std = crate::numeric::stats::std_dev(&residual).unwrap_or(0.0);
-    model.fit.residual_rms = crate::numeric::stats::rms(&residual).unwrap_or(0.0);
+    let sst = match measured_stats {
+        Some((_, sst)) => sst,
+        None => crate::numeric::stats::sum_sq_about_mean(&measured_bias),
+    };
+    // Three passes over the residuals, two of them beside the third.
+    let (residual_std, (sse, residual_rms)) = rayon::join(
+        || crate::numeric::stats::std_dev(&residual).unwrap_or(0.0),
+        || {
+            let sse: f64 = residual.iter().map(|e| e * e).sum();
+            (sse, crate::numeric::stats::rms(&residual).unwrap_or(0.0))
+        },
+    );
+    model.fit.residual_std = residual_std;
+    model.fit.residual_rms = residual_rms;
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
     let f = &model.fit;
     if ![f.residual_std, f.residual_rms, f.r2, sse, sst]
@@ -3643,6 +3702,44 @@ mod tests {
         assert_eq!(fast, 8);
     }
 
+    /// Reference: the same fit with the history stepped on every replay
+    /// (`FitData`'s `STEP_HISTORY`, the path of a log of any length before the history
+    /// columns). On a log longer than `FEATURE_CACHE_ROWS` (so the memory knots' replay builds
+    /// the columns and the solve and the chunked static predictions read them), with a
+    /// deadband direction source, the `calibration` fit gives the same model file byte for
+    /// byte on 1, 2 and 3 threads; `dahl`, whose preparation's one full replay builds no
+    /// columns, too.
+    #[test]
+    fn fit_reading_history_columns_equals_the_stepped_fit() {
+        use crate::model::data::tests::{STEP_HISTORY, STEP_LOCK};
+        use std::sync::atomic::Ordering;
+        let _only = STEP_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        let log =
+            crate::sim::random_log(crate::model::data::FEATURE_CACHE_ROWS as u64 + 40_000, 21);
+        let opts = FitOptions {
+            direction: crate::history::DirectionSetting::Deadband(3.0),
+            ..FitOptions::default()
+        }
+        .check()
+        .unwrap();
+        for preset in ["calibration", "dahl"] {
+            let spec = ModelSpec::preset(preset).unwrap();
+            let json = |m: &FittedModel| m.to_json().unwrap();
+            STEP_HISTORY.store(true, Ordering::Relaxed);
+            let want = crate::with_threads(2, || fit(&spec, &log, &opts))
+                .unwrap()
+                .unwrap();
+            STEP_HISTORY.store(false, Ordering::Relaxed);
+            let threads: &[usize] = if preset == "dahl" { &[2] } else { &[1, 2, 3] };
+            for &t in threads {
+                let got = crate::with_threads(t, || fit(&spec, &log, &opts))
+                    .unwrap()
+                    .unwrap();
+                assert_eq!(json(&got), json(&want), "{preset}, {t} threads");
+            }
+        }
+    }
+
     /// [`static_predictions_chunked`] against the one sequential replay of
     /// [`static_predictions`] (the slow reference) and the measured bias against
     /// [`measured_bias`]: bit for bit, on 1, 2 and 3 threads, on logs of several of
@@ -3652,22 +3749,33 @@ mod tests {
     /// prediction, the range the reference's, bit for bit.
     #[test]
     fn chunked_static_predictions_equal_the_sequential_replay() {
-        let mut log = crate::sim::random_log(60_000, 11);
-        for i in (3..log.len()).step_by(7) {
-            log.set_bias(i, None);
+        let full = crate::sim::random_log(60_000, 11);
+        let mut gaps = full.clone();
+        for i in (3..gaps.len()).step_by(7) {
+            gaps.set_bias(i, None);
         }
+        // Every row measured (the bias column itself is the measured bias) for one design.
+        for (log, designs) in [(&gaps, 3), (&full, 1)] {
+            statics_case(log, designs);
+        }
+    }
+
+    fn statics_case(log: &Log, designs: usize) {
         let opts = FitOptions::default().check().unwrap();
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        let measured: Vec<f64> = measured_bias(&log).collect();
+        let measured: Vec<f64> = measured_bias(log).collect();
         for text in [
             "calibration",
             "poly2,seek,drift:0.05",
             "poly2,direction,memory",
-        ] {
+        ]
+        .into_iter()
+        .take(designs)
+        {
             let spec = ModelSpec::preset(text)
                 .or_else(|_| ModelSpec::parse(text))
                 .unwrap();
-            let model = fit(&spec, &log, &opts).unwrap();
+            let model = fit(&spec, log, &opts).unwrap();
             let terms: Vec<Arc<dyn Term>> = model.terms.iter().map(|t| t.term.clone()).collect();
             let coef: Vec<f64> = model
                 .terms
@@ -3675,7 +3783,7 @@ mod tests {
                 .flat_map(|t| t.coefficients.iter().copied())
                 .collect();
             let tail = adaptive_tail(&terms).unwrap();
-            let data = FitData::with_direction(&log, &model.direction).unwrap();
+            let data = FitData::with_direction(log, &model.direction).unwrap();
             let (want, want_range) = static_predictions(&terms, tail, &data, &coef).unwrap();
             let per_chunk = solve_chunk_rows(offsets(&terms).1);
             assert!(measured.len() > per_chunk, "{text}: two chunks at least");
@@ -3684,14 +3792,7 @@ mod tests {
                     let mut starts = Vec::new();
                     solve_marking(&terms, &data, &opts, Some(&mut starts)).unwrap();
                     assert_eq!(starts.len(), measured.len().div_ceil(per_chunk));
-                    static_predictions_chunked(
-                        &terms,
-                        tail,
-                        starts,
-                        per_chunk,
-                        measured.len(),
-                        &coef,
-                    )
+                    static_predictions_chunked(&terms, tail, starts, per_chunk, log, &coef)
                 })
                 .unwrap();
                 assert_eq!(bits(&got.pred), bits(&want), "{text}, {threads} threads");
