@@ -1232,22 +1232,31 @@ fn solve_marking<'a>(
             n = fill(&mut rows, &mut cur);
             // Each chunk's factorisation in the blocks of the one before (no fresh zeroed
             // blocks to fault in).
+            // The previous chunk's groups go into the merge beside the factorisation of the
+            // current one (on the replay's side; still in chunk order).
             let mut spare = Vec::new();
+            let mut pending: Groups = Vec::new();
             while !cur.is_empty() {
                 let ((groups, kept), got) = rayon::join(
                     || {
                         let qr = PatternQr::compact_reusing(p, dense, std::mem::take(&mut spare));
                         factorise_rows(qr, &cur, p)
                     },
-                    || fill(&mut rows, &mut next),
+                    || {
+                        for (cols, r) in &pending {
+                            merged.place_group_r(cols, r);
+                        }
+                        fill(&mut rows, &mut next)
+                    },
                 );
                 spare = kept;
-                for (cols, r) in &groups {
-                    merged.place_group_r(cols, r);
-                }
+                pending = groups;
                 n += got;
                 std::mem::swap(&mut cur, &mut next);
                 next.clear();
+            }
+            for (cols, r) in &pending {
+                merged.place_group_r(cols, r);
             }
         } else {
             // One thread: each chunk's rows straight into its factorisation (no buffer), the
