@@ -164,7 +164,9 @@ pub struct FitReport {
 /// and the nearest rest positions), and steps the rest from its columns. Either way the same
 /// values, bit for bit, as stepping the history (tested); a fit replays a long log three
 /// times (the memory knots, the solve, the static prediction), and only the first steps the
-/// direction tracker and the rest memory.
+/// direction tracker and the rest memory. The columns are built by the fit's passes over the
+/// measured rows (`FitData::replay_reading`), never by a one-off [`FitData::replay`], and the
+/// fit frees them after its last full replay.
 #[derive(Debug, Clone)]
 pub struct FitData<'a> {
     log: &'a Log,
@@ -177,7 +179,7 @@ pub struct FitData<'a> {
     /// the history again.
     cache: std::sync::OnceLock<Option<Arc<[SeekFeatures]>>>,
     /// The history features of a log of more than [`FEATURE_CACHE_ROWS`] rows, kept after
-    /// its first full replay (13 B/row).
+    /// the first full replay of the fit's passes (13 B/row; [`FitData::replay_reading`]).
     columns: std::sync::OnceLock<Option<Arc<HistoryColumns>>>,
 }
 
