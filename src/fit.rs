@@ -1097,12 +1097,32 @@ fn solve_chunk_rows(p: usize) -> usize {
     (SOLVE_CHUNK_BYTES / 8 / (p + 1)).max(1).div_ceil(CHUNK) * CHUNK
 }
 
+/// Design columns from which [`solve`]'s replay, not its pool, sums the rows (and merges the
+/// chunks' groups): the factorisation's work grows as the square of the columns.
+const REPLAY_SIDE_COLUMNS: usize = 16;
+
 /// The row-major `[X y]` rows `rows` (`p + 1` values each, the design columns in [`solve`]'s
 /// order) factorised by `qr`: its groups' columns and `R` factors, and its storage
-/// ([`PatternQr::finish_groups_keeping`]).
-fn factorise_rows(mut qr: PatternQr, rows: &[f64], p: usize) -> (Groups, Vec<Vec<f64>>) {
+/// ([`PatternQr::finish_groups_keeping`]). With `sums`, adds each column value to the first
+/// and its square (and the response's) to the second, by position, row by row: the sums of
+/// [`FixedRows::each_ordered`], bit for bit, where the rows of each call follow those of the
+/// previous one in the log.
+fn factorise_rows(
+    mut qr: PatternQr,
+    rows: &[f64],
+    p: usize,
+    mut sums: Option<(&mut [f64], &mut [f64])>,
+) -> (Groups, Vec<Vec<f64>>) {
     for row in rows.chunks_exact(p + 1) {
-        qr.place_row(&row[..p], row[p]);
+        let (x, y) = (&row[..p], row[p]);
+        if let Some((s, sq)) = sums.as_mut() {
+            for ((&v, s), sq) in x.iter().zip(s.iter_mut()).zip(sq.iter_mut()) {
+                *s += v;
+                *sq += v * v;
+            }
+            sq[p] += y * y;
+        }
+        qr.place_row(x, y);
     }
     qr.finish_groups_keeping()
 }
@@ -1201,27 +1221,39 @@ fn solve_marking<'a>(
             PatternQr::merging(p)
         };
         if rayon::current_num_threads() > 1 {
-            // The replay fills (and sums) the next chunk's rows while the pool factorises the
-            // current one: the rows and sums of the one thread's `each_ordered`, bit for bit.
-            // (The sums sat on the factorising side while the replay stepped the history;
-            // reading the history columns, the replay is the lighter side: thread CPU 35 ms
-            // against 57 per 10⁶ rows.)
+            // The replay fills the next chunk's rows while the pool factorises the current one.
+            // The column sums (the one thread's `each_ordered` sums, bit for bit, either way) go
+            // to the lighter side: the replay's for a wide design (its factorisation is the
+            // heavier side: `calibration`, reading the history columns, thread CPU 57 ms
+            // against 35 per 10⁶ rows before), the pool's for a narrow one (`dahl`: a light
+            // factorisation beside its rate's state replay), and likewise the merge of the
+            // previous chunk's groups.
+            let on_replay = p >= REPLAY_SIDE_COLUMNS;
             let mut cur = Vec::with_capacity(per_chunk * w);
             let mut next = Vec::with_capacity(per_chunk * w);
             let mut scratch = vec![0.0; p];
+            let (mut fill_sums, mut fill_colsq) = (vec![0.0; p], vec![0.0; w]);
+            let (mut pool_sums, mut pool_colsq) = (vec![0.0; p], vec![0.0; w]);
             let mut fill = |rows: &mut FixedRows<'a>, out: &mut Vec<f64>| {
                 let start = starts.is_some().then(|| rows.start());
-                let got = rows.each_ordered(
-                    per_chunk,
-                    &order,
-                    &mut sums,
-                    &mut colsq,
-                    &mut scratch,
-                    |x, y| {
-                        out.extend_from_slice(x);
+                let got = if on_replay {
+                    rows.each_ordered(
+                        per_chunk,
+                        &order,
+                        &mut fill_sums,
+                        &mut fill_colsq,
+                        &mut scratch,
+                        |x, y| {
+                            out.extend_from_slice(x);
+                            out.push(y);
+                        },
+                    )
+                } else {
+                    rows.measured_rows(per_chunk, |buf, y| {
+                        out.extend(order.iter().map(|&c| buf[c]));
                         out.push(y);
-                    },
-                );
+                    })
+                };
                 if let (Some(s), Some(start)) = (starts.as_deref_mut(), start)
                     && got > 0
                 {
@@ -1232,15 +1264,15 @@ fn solve_marking<'a>(
             n = fill(&mut rows, &mut cur);
             // Each chunk's factorisation in the blocks of the one before (no fresh zeroed
             // blocks to fault in).
-            // The previous chunk's groups go into the merge beside the factorisation of the
-            // current one (on the replay's side; still in chunk order).
             let mut spare = Vec::new();
             let mut pending: Groups = Vec::new();
             while !cur.is_empty() {
                 let ((groups, kept), got) = rayon::join(
                     || {
                         let qr = PatternQr::compact_reusing(p, dense, std::mem::take(&mut spare));
-                        factorise_rows(qr, &cur, p)
+                        let sums =
+                            (!on_replay).then_some((&mut pool_sums[..], &mut pool_colsq[..]));
+                        factorise_rows(qr, &cur, p, sums)
                     },
                     || {
                         for (cols, r) in &pending {
@@ -1250,7 +1282,14 @@ fn solve_marking<'a>(
                     },
                 );
                 spare = kept;
-                pending = groups;
+                if on_replay {
+                    pending = groups;
+                } else {
+                    pending.clear();
+                    for (cols, r) in &groups {
+                        merged.place_group_r(cols, r);
+                    }
+                }
                 n += got;
                 std::mem::swap(&mut cur, &mut next);
                 next.clear();
@@ -1258,6 +1297,12 @@ fn solve_marking<'a>(
             for (cols, r) in &pending {
                 merged.place_group_r(cols, r);
             }
+            // Only one side summed: the other's sums are all zero.
+            (sums, colsq) = if on_replay {
+                (fill_sums, fill_colsq)
+            } else {
+                (pool_sums, pool_colsq)
+            };
         } else {
             // One thread: each chunk's rows straight into its factorisation (no buffer), the
             // same chunks, so the same `R` bit for bit.
