@@ -1097,30 +1097,31 @@ fn solve_chunk_rows(p: usize) -> usize {
     (SOLVE_CHUNK_BYTES / 8 / (p + 1)).max(1).div_ceil(CHUNK) * CHUNK
 }
 
+/// Design columns from which [`solve`]'s replay, not its pool, sums the rows (and merges the
+/// chunks' groups): the factorisation's work grows as the square of the columns.
+const REPLAY_SIDE_COLUMNS: usize = 16;
+
 /// The row-major `[X y]` rows `rows` (`p + 1` values each, the design columns in [`solve`]'s
 /// order) factorised by `qr`: its groups' columns and `R` factors, and its storage
-/// ([`PatternQr::finish_groups_keeping`]). Adds each column value to `sums_q` and its square
-/// (and the response's) to `colsq`, per position, row by row: the sums of
-/// [`FixedRows::each_ordered`] (whose `sums` is `sums_q` by original column), bit for bit,
-/// where the rows of each call follow those of the previous one in the log.
+/// ([`PatternQr::finish_groups_keeping`]). With `sums`, adds each column value to the first
+/// and its square (and the response's) to the second, by position, row by row: the sums of
+/// [`FixedRows::each_ordered`], bit for bit, where the rows of each call follow those of the
+/// previous one in the log.
 fn factorise_rows(
     mut qr: PatternQr,
     rows: &[f64],
     p: usize,
-    sums_q: &mut [f64],
-    colsq: &mut [f64],
+    mut sums: Option<(&mut [f64], &mut [f64])>,
 ) -> (Groups, Vec<Vec<f64>>) {
-    let (sums_q, colsq, ysq) = {
-        let (c, y) = colsq.split_at_mut(p);
-        (&mut sums_q[..p], c, &mut y[0])
-    };
     for row in rows.chunks_exact(p + 1) {
         let (x, y) = (&row[..p], row[p]);
-        for ((&v, s), sq) in x.iter().zip(sums_q.iter_mut()).zip(colsq.iter_mut()) {
-            *s += v;
-            *sq += v * v;
+        if let Some((s, sq)) = sums.as_mut() {
+            for ((&v, s), sq) in x.iter().zip(s.iter_mut()).zip(sq.iter_mut()) {
+                *s += v;
+                *sq += v * v;
+            }
+            sq[p] += y * y;
         }
-        *ysq += y * y;
         qr.place_row(x, y);
     }
     qr.finish_groups_keeping()
@@ -1169,6 +1170,7 @@ fn solve_marking<'a>(
     };
     let w = p + 1;
     let mut rows = FixedRows::new(terms, data)?;
+    // The column sums, by position in `order` (as `colsq`).
     let mut sums = vec![0.0; p];
     let mut colsq = vec![0.0; w];
     let per_chunk = solve_chunk_rows(p);
@@ -1219,15 +1221,39 @@ fn solve_marking<'a>(
             PatternQr::merging(p)
         };
         if rayon::current_num_threads() > 1 {
-            // The replay fills the next chunk's rows while the pool sums and factorises the
-            // current one (chunk after chunk, so the sums are the one thread's bit for bit).
-            // `sums_q`: the column sums by position in `order`.
+            // The replay fills the next chunk's rows while the pool factorises the current one.
+            // The column sums (the one thread's `each_ordered` sums, bit for bit, either way) go
+            // to the lighter side: the replay's for a wide design (its factorisation is the
+            // heavier side: `calibration`, reading the history columns, thread CPU 57 ms
+            // against 35 per 10⁶ rows before), the pool's for a narrow one (`dahl`: a light
+            // factorisation beside its rate's state replay), and likewise the merge of the
+            // previous chunk's groups.
+            let on_replay = p >= REPLAY_SIDE_COLUMNS;
             let mut cur = Vec::with_capacity(per_chunk * w);
             let mut next = Vec::with_capacity(per_chunk * w);
-            let mut sums_q = vec![0.0; p];
+            let mut scratch = vec![0.0; p];
+            let (mut fill_sums, mut fill_colsq) = (vec![0.0; p], vec![0.0; w]);
+            let (mut pool_sums, mut pool_colsq) = (vec![0.0; p], vec![0.0; w]);
             let mut fill = |rows: &mut FixedRows<'a>, out: &mut Vec<f64>| {
                 let start = starts.is_some().then(|| rows.start());
-                let got = rows.fill_ordered(out, per_chunk, &order);
+                let got = if on_replay {
+                    rows.each_ordered(
+                        per_chunk,
+                        &order,
+                        &mut fill_sums,
+                        &mut fill_colsq,
+                        &mut scratch,
+                        |x, y| {
+                            out.extend_from_slice(x);
+                            out.push(y);
+                        },
+                    )
+                } else {
+                    rows.measured_rows(per_chunk, |buf, y| {
+                        out.extend(order.iter().map(|&c| buf[c]));
+                        out.push(y);
+                    })
+                };
                 if let (Some(s), Some(start)) = (starts.as_deref_mut(), start)
                     && got > 0
                 {
@@ -1239,25 +1265,44 @@ fn solve_marking<'a>(
             // Each chunk's factorisation in the blocks of the one before (no fresh zeroed
             // blocks to fault in).
             let mut spare = Vec::new();
+            let mut pending: Groups = Vec::new();
             while !cur.is_empty() {
                 let ((groups, kept), got) = rayon::join(
                     || {
                         let qr = PatternQr::compact_reusing(p, dense, std::mem::take(&mut spare));
-                        factorise_rows(qr, &cur, p, &mut sums_q, &mut colsq)
+                        let sums =
+                            (!on_replay).then_some((&mut pool_sums[..], &mut pool_colsq[..]));
+                        factorise_rows(qr, &cur, p, sums)
                     },
-                    || fill(&mut rows, &mut next),
+                    || {
+                        for (cols, r) in &pending {
+                            merged.place_group_r(cols, r);
+                        }
+                        fill(&mut rows, &mut next)
+                    },
                 );
                 spare = kept;
-                for (cols, r) in &groups {
-                    merged.place_group_r(cols, r);
+                if on_replay {
+                    pending = groups;
+                } else {
+                    pending.clear();
+                    for (cols, r) in &groups {
+                        merged.place_group_r(cols, r);
+                    }
                 }
                 n += got;
                 std::mem::swap(&mut cur, &mut next);
                 next.clear();
             }
-            for (q, &c) in order.iter().enumerate() {
-                sums[c] = sums_q[q];
+            for (cols, r) in &pending {
+                merged.place_group_r(cols, r);
             }
+            // Only one side summed: the other's sums are all zero.
+            (sums, colsq) = if on_replay {
+                (fill_sums, fill_colsq)
+            } else {
+                (pool_sums, pool_colsq)
+            };
         } else {
             // One thread: each chunk's rows straight into its factorisation (no buffer), the
             // same chunks, so the same `R` bit for bit.
@@ -1296,7 +1341,7 @@ fn solve_marking<'a>(
         let mut v = vec![0.0; p];
         for (q, &c) in order.iter().enumerate() {
             let nf = n.max(1) as f64;
-            v[c] = (data_sq[q] - sums[c] * sums[c] / nf).max(0.0);
+            v[c] = (data_sq[q] - sums[q] * sums[q] / nf).max(0.0);
         }
         v
     };
@@ -1770,8 +1815,7 @@ impl<'a> FixedRows<'a> {
     /// Replays the next `rows` measured rows (fewer where the log ends), handing each one's
     /// design row (every column, in design order) and its response to `each`; every row,
     /// measured or not, updates the term states. Returns how many measured rows it handed on.
-    /// The one replay loop behind [`FixedRows::fill_ordered`], [`FixedRows::each_ordered`]
-    /// and [`FixedRows::fill`].
+    /// The one replay loop behind [`FixedRows::each_ordered`] and [`FixedRows::fill`].
     fn measured_rows(&mut self, rows: usize, mut each: impl FnMut(&[f64], f64)) -> usize {
         let mut n = 0;
         while n < rows {
@@ -1799,18 +1843,11 @@ impl<'a> FixedRows<'a> {
         n
     }
 
-    /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, each as its
-    /// design columns in the order `order` then its response (`order.len() + 1` values): the
-    /// rows [`FixedRows::each_ordered`] hands on. Returns how many rows it appended.
-    fn fill_ordered(&mut self, out: &mut Vec<f64>, rows: usize, order: &[usize]) -> usize {
-        self.measured_rows(rows, |buf, y| {
-            out.extend(order.iter().map(|&c| buf[c]));
-            out.push(y);
-        })
-    }
-
-    /// [`FixedRows::fill_ordered`] handing each row (its columns in `order`, in the scratch
-    /// `xp`, then its response) to `each` instead of a buffer.
+    /// Replays the next `rows` measured rows (fewer where the log ends), handing each one's
+    /// design columns in the order `order` (in the scratch `xp`) and its response to `each`;
+    /// adds each column value to `sums` and its square (and the response's) to `colsq`, by
+    /// position in `order`, row by row. Returns how many rows it
+    /// handed on.
     fn each_ordered(
         &mut self,
         rows: usize,
@@ -1822,11 +1859,13 @@ impl<'a> FixedRows<'a> {
     ) -> usize {
         let p = order.len();
         self.measured_rows(rows, |buf, y| {
-            for (q, &c) in order.iter().enumerate() {
-                let v = buf[c];
-                xp[q] = v;
-                sums[c] += v;
-                colsq[q] += v * v;
+            for (x, &c) in xp.iter_mut().zip(order) {
+                *x = buf[c];
+            }
+            // By position: one pass the compiler vectorises.
+            for ((&v, s), sq) in xp.iter().zip(sums.iter_mut()).zip(colsq.iter_mut()) {
+                *s += v;
+                *sq += v * v;
             }
             colsq[p] += y * y;
             each(xp, y);
@@ -2392,13 +2431,13 @@ fn static_predictions(
 }
 
 /// What [`static_predictions_chunked`] gives per measured row, in log order.
-struct Statics {
+struct Statics<'l> {
     /// The prediction of the terms before the adaptive tail: per term, its basis times its
     /// coefficients plus its offset, summed in the order and arithmetic of
     /// `Predictor::evaluate`.
     pred: Vec<f64>,
-    /// The measured bias.
-    measured: Vec<f64>,
+    /// The measured bias: the log's bias column itself where every row is measured (no copy).
+    measured: std::borrow::Cow<'l, [f64]>,
     /// `measured − pred` (for the adaptive terms' tuning; [`fit`] frees it after that).
     residual: Vec<f64>,
     /// The range of the measured rows' finite positions.
@@ -2411,26 +2450,33 @@ struct Statics {
 /// rayon's pool (the same arithmetic per row as the one sequential replay, so the same bits;
 /// the ranges of the chunks merged in log order by the same `min`/`max`; tested). `starts`
 /// holds every term's state (of `terms`, the whole design); only those before `tail` are read.
-fn static_predictions_chunked(
+fn static_predictions_chunked<'l>(
     terms: &[Arc<dyn Term>],
     tail: usize,
     starts: Vec<ChunkStart<'_>>,
     per_chunk: usize,
-    measured: usize,
+    log: &'l Log,
     coef: &[f64],
-) -> Statics {
+) -> Statics<'l> {
     use rayon::prelude::*;
+    let measured = log.measured_count();
     let (off, _) = offsets(terms);
     let widths: Vec<usize> = terms[..tail].iter().map(|t| t.param_count()).collect();
     let mut pred = vec![0.0; measured];
-    let mut meas = vec![0.0; measured];
+    // Every row measured: the bias column is the measured bias (no NaN in it), not copied.
+    let all = (measured == log.len()).then(|| log.bias_raw());
+    let mut meas = vec![0.0; if all.is_some() { 0 } else { measured }];
+    let meas_parts: Vec<Option<&mut [f64]>> = match all {
+        Some(_) => (0..measured.div_ceil(per_chunk)).map(|_| None).collect(),
+        None => meas.chunks_mut(per_chunk).map(Some).collect(),
+    };
     let mut residual = vec![0.0; measured];
     let ranges: Vec<(usize, Option<[f64; 2]>)> = pred
         .par_chunks_mut(per_chunk)
-        .zip(meas.par_chunks_mut(per_chunk))
+        .zip(meas_parts.into_par_iter())
         .zip(residual.par_chunks_mut(per_chunk))
         .zip(starts.into_par_iter())
-        .map(|(((pred, meas), residual), start)| {
+        .map(|(((pred, mut meas), residual), start)| {
             let ChunkStart { replay, mut states } = start;
             states.truncate(tail);
             let mut buf = vec![0.0; widths.iter().copied().max().unwrap_or(0)];
@@ -2454,7 +2500,9 @@ fn static_predictions_chunked(
                         total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + s.offset(&seek);
                     }
                     pred[n] = total;
-                    meas[n] = y;
+                    if let Some(m) = meas.as_deref_mut() {
+                        m[n] = y;
+                    }
                     residual[n] = y - total;
                     n += 1;
                     let x = row.track;
@@ -2479,7 +2527,10 @@ fn static_predictions_chunked(
         .reduce(|[lo, hi], [a, b]| [lo.min(a), hi.max(b)]);
     Statics {
         pred,
-        measured: meas,
+        measured: match all {
+            Some(b) => std::borrow::Cow::Borrowed(b),
+            None => std::borrow::Cow::Owned(meas),
+        },
         residual,
         range,
     }
@@ -2620,6 +2671,10 @@ pub(crate) fn fit_sharing(
     if !terms.iter().any(|t| t.provides_intercept()) {
         terms.insert(0, Arc::new(InterceptTerm));
     }
+    if !terms.iter().any(|t| t.reads_history()) {
+        // No later replay steps the history (`dahl`): the columns its preparation kept go.
+        data.forget_history_columns();
+    }
     let file = log.schema.file.clone();
     for t in &terms {
         t.start(&log.schema.covariates)?;
@@ -2721,36 +2776,62 @@ pub(crate) fn fit_sharing(
             t,
             std::mem::take(&mut starts),
             solve_chunk_rows(p),
-            measured,
+            log,
             &sol.coef,
         )
     });
 
-    // Causal offsets tuned on the static residuals.
-    if terms.iter().any(|t| t.param_count() == 0) {
-        let design_residuals;
-        let residuals: &[f64] = match &statics {
-            Some(st) => &st.residual,
-            None => {
-                let mut residuals = Vec::with_capacity(sol.n);
-                design_pass(&terms, &data, |x, y| {
-                    residuals.push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
-                })?;
-                design_residuals = residuals;
-                &design_residuals
-            }
-        };
-        for t in &mut terms {
-            if let Some(tuned) = t.tune_on_residuals(residuals) {
-                *t = tuned;
+    // Causal offsets tuned on the static residuals. Beside the tuning (a sequential pass per
+    // zoom), the measured bias's statistics, which need no tuned term (from the static
+    // predictions' copy of it: `FitData::measured_bias_std` and `sum_sq_about_mean` of the
+    // same values in the same order, so the same bits; `None` where there is none).
+    let tune = |terms: &mut Vec<Arc<dyn Term>>| -> Result<(), FitError> {
+        if terms.iter().any(|t| t.param_count() == 0) {
+            let design_residuals;
+            let residuals: &[f64] = match &statics {
+                Some(st) => &st.residual,
+                None => {
+                    let mut residuals = Vec::with_capacity(sol.n);
+                    design_pass(terms, &data, |x, y| {
+                        residuals
+                            .push(y - x.iter().zip(&sol.coef).map(|(a, b)| a * b).sum::<f64>());
+                    })?;
+                    design_residuals = residuals;
+                    &design_residuals
+                }
+            };
+            for t in terms.iter_mut() {
+                if let Some(tuned) = t.tune_on_residuals(residuals) {
+                    *t = tuned;
+                }
             }
         }
-    }
+        Ok(())
+    };
+    let (tuned, measured_stats) = match &statics {
+        Some(st) => {
+            let (tuned, stats) = rayon::join(
+                || tune(&mut terms),
+                || {
+                    let b = &st.measured;
+                    (
+                        crate::numeric::stats::std_dev(b).unwrap_or(0.0),
+                        crate::numeric::stats::sum_sq_about_mean(b),
+                    )
+                },
+            );
+            (tuned, Some(stats))
+        }
+        None => (tune(&mut terms), None),
+    };
+    tuned?;
 
-    // The static residuals served the tuning alone: freed before the tail's replay.
+    // The static residuals served the tuning alone: freed before the tail's replay, as are
+    // the history columns (no replay of the history follows).
     if let Some(st) = statics.as_mut() {
         st.residual = Vec::new();
     }
+    data.forget_history_columns();
     let (off, _) = offsets(&terms);
     let mut warnings = Vec::new();
     let mut fitted = Vec::with_capacity(terms.len());
@@ -2802,7 +2883,11 @@ pub(crate) fn fit_sharing(
     if !converged {
         warnings.push("a nonlinear parameter ended at the edge of its search interval".into());
     }
-    warnings.extend(self_check(&terms, &sol, data.measured_bias_std()));
+    let bias_std = match measured_stats {
+        Some((std, _)) => std,
+        None => data.measured_bias_std(),
+    };
+    warnings.extend(self_check(&terms, &sol, bias_std));
     warnings.extend(reversal_warning);
     let mut covariates: Vec<String> = terms.iter().flat_map(|t| t.covariates()).collect();
     covariates.dedup();
@@ -2847,13 +2932,26 @@ pub(crate) fn fit_sharing(
             let residual = replay_tail(&terms[t..], log, &st.pred, &st.measured)?;
             (st.measured, residual, st.range)
         }
-        _ => replay_residuals(&model, log)?,
+        _ => {
+            let (m, r, range) = replay_residuals(&model, log)?;
+            (std::borrow::Cow::Owned(m), r, range)
+        }
     };
     model.fit.position_range = position_range;
-    let sst = crate::numeric::stats::sum_sq_about_mean(&measured_bias);
-    let sse: f64 = residual.iter().map(|e| e * e).sum();
-    model.fit.residual_std = crate::numeric::stats::std_dev(&residual).unwrap_or(0.0);
-    model.fit.residual_rms = crate::numeric::stats::rms(&residual).unwrap_or(0.0);
+    let sst = match measured_stats {
+        Some((_, sst)) => sst,
+        None => crate::numeric::stats::sum_sq_about_mean(&measured_bias),
+    };
+    // Three passes over the residuals, two of them beside the third.
+    let (residual_std, (sse, residual_rms)) = rayon::join(
+        || crate::numeric::stats::std_dev(&residual).unwrap_or(0.0),
+        || {
+            let sse: f64 = residual.iter().map(|e| e * e).sum();
+            (sse, crate::numeric::stats::rms(&residual).unwrap_or(0.0))
+        },
+    );
+    model.fit.residual_std = residual_std;
+    model.fit.residual_rms = residual_rms;
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
     let f = &model.fit;
     if ![f.residual_std, f.residual_rms, f.r2, sse, sst]
@@ -3689,6 +3787,44 @@ mod tests {
         assert_eq!(fast, 8);
     }
 
+    /// Reference: the same fit with the history stepped on every replay
+    /// (`FitData`'s `STEP_HISTORY`, the path of a log of any length before the history
+    /// columns). On a log longer than `FEATURE_CACHE_ROWS` (so the memory knots' replay builds
+    /// the columns and the solve and the chunked static predictions read them), with a
+    /// deadband direction source, the `calibration` fit gives the same model file byte for
+    /// byte on 1, 2 and 3 threads; `dahl`, whose preparation's one full replay builds no
+    /// columns, too.
+    #[test]
+    fn fit_reading_history_columns_equals_the_stepped_fit() {
+        use crate::model::data::tests::{STEP_HISTORY, STEP_LOCK};
+        use std::sync::atomic::Ordering;
+        let _only = STEP_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        let log =
+            crate::sim::random_log(crate::model::data::FEATURE_CACHE_ROWS as u64 + 40_000, 21);
+        let opts = FitOptions {
+            direction: crate::history::DirectionSetting::Deadband(3.0),
+            ..FitOptions::default()
+        }
+        .check()
+        .unwrap();
+        for preset in ["calibration", "dahl"] {
+            let spec = ModelSpec::preset(preset).unwrap();
+            let json = |m: &FittedModel| m.to_json().unwrap();
+            STEP_HISTORY.store(true, Ordering::Relaxed);
+            let want = crate::with_threads(2, || fit(&spec, &log, &opts))
+                .unwrap()
+                .unwrap();
+            STEP_HISTORY.store(false, Ordering::Relaxed);
+            let threads: &[usize] = if preset == "dahl" { &[2] } else { &[1, 2, 3] };
+            for &t in threads {
+                let got = crate::with_threads(t, || fit(&spec, &log, &opts))
+                    .unwrap()
+                    .unwrap();
+                assert_eq!(json(&got), json(&want), "{preset}, {t} threads");
+            }
+        }
+    }
+
     /// [`static_predictions_chunked`] against the one sequential replay of
     /// [`static_predictions`] (the slow reference) and the measured bias against
     /// [`measured_bias`]: bit for bit, on 1, 2 and 3 threads, on logs of several of
@@ -3698,22 +3834,33 @@ mod tests {
     /// prediction, the range the reference's, bit for bit.
     #[test]
     fn chunked_static_predictions_equal_the_sequential_replay() {
-        let mut log = crate::sim::random_log(60_000, 11);
-        for i in (3..log.len()).step_by(7) {
-            log.set_bias(i, None);
+        let full = crate::sim::random_log(60_000, 11);
+        let mut gaps = full.clone();
+        for i in (3..gaps.len()).step_by(7) {
+            gaps.set_bias(i, None);
         }
+        // Every row measured (the bias column itself is the measured bias) for one design.
+        for (log, designs) in [(&gaps, 3), (&full, 1)] {
+            statics_case(log, designs);
+        }
+    }
+
+    fn statics_case(log: &Log, designs: usize) {
         let opts = FitOptions::default().check().unwrap();
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        let measured: Vec<f64> = measured_bias(&log).collect();
+        let measured: Vec<f64> = measured_bias(log).collect();
         for text in [
             "calibration",
             "poly2,seek,drift:0.05",
             "poly2,direction,memory",
-        ] {
+        ]
+        .into_iter()
+        .take(designs)
+        {
             let spec = ModelSpec::preset(text)
                 .or_else(|_| ModelSpec::parse(text))
                 .unwrap();
-            let model = fit(&spec, &log, &opts).unwrap();
+            let model = fit(&spec, log, &opts).unwrap();
             let terms: Vec<Arc<dyn Term>> = model.terms.iter().map(|t| t.term.clone()).collect();
             let coef: Vec<f64> = model
                 .terms
@@ -3721,7 +3868,7 @@ mod tests {
                 .flat_map(|t| t.coefficients.iter().copied())
                 .collect();
             let tail = adaptive_tail(&terms).unwrap();
-            let data = FitData::with_direction(&log, &model.direction).unwrap();
+            let data = FitData::with_direction(log, &model.direction).unwrap();
             let (want, want_range) = static_predictions(&terms, tail, &data, &coef).unwrap();
             let per_chunk = solve_chunk_rows(offsets(&terms).1);
             assert!(measured.len() > per_chunk, "{text}: two chunks at least");
@@ -3730,14 +3877,7 @@ mod tests {
                     let mut starts = Vec::new();
                     solve_marking(&terms, &data, &opts, Some(&mut starts)).unwrap();
                     assert_eq!(starts.len(), measured.len().div_ceil(per_chunk));
-                    static_predictions_chunked(
-                        &terms,
-                        tail,
-                        starts,
-                        per_chunk,
-                        measured.len(),
-                        &coef,
-                    )
+                    static_predictions_chunked(&terms, tail, starts, per_chunk, log, &coef)
                 })
                 .unwrap();
                 assert_eq!(bits(&got.pred), bits(&want), "{text}, {threads} threads");

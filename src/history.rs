@@ -764,6 +764,119 @@ pub(crate) fn replay_checked<'a>(
         velocity,
         light,
         cached: None,
+        columns: None,
+    }
+}
+
+/// The features of every row of a log that depend on its seek history (`direction`,
+/// `direction_change`, `since_reversal`, the rest distances), kept compactly after one full
+/// replay: 13 B/row, every position named by the row whose target it is (a rest position is
+/// the source of a seek, i.e. the previous row's target; a turning point is a row's target).
+/// A [`Replay`] reading them ([`Replay::reading_columns`]) gives every feature bit for bit as
+/// [`History::step_moved`] does (the distances are the same subtraction of the same two
+/// tracks; tested), without the branches of the direction tracker and the rest memory.
+#[derive(Debug)]
+pub(crate) struct HistoryColumns {
+    /// `direction + 1` (0, 1, 2) in bits 0–1, `direction_change` in bit 2.
+    flags: Vec<u8>,
+    /// The row whose target is the turning point `since_reversal` is measured from.
+    turn: Vec<u32>,
+    /// The row whose target is the nearest uncrossed rest position on the OD side
+    /// ([`NO_ROW`] for none); likewise on the ID side.
+    od: Vec<u32>,
+    id: Vec<u32>,
+}
+
+/// "No row" in [`HistoryColumns`].
+const NO_ROW: u32 = u32::MAX;
+
+impl HistoryColumns {
+    /// One full replay of `log` (direction as `source` says; `velocity` its checked column,
+    /// [`DirectionSource::column_index`]). `None` for a log of 2³² − 1 rows or more, or whose
+    /// first position is not finite (its `since_reversal` 0 is not `|x − x|`).
+    pub(crate) fn build(
+        log: &crate::log::Log,
+        source: &DirectionSource,
+        velocity: Option<usize>,
+    ) -> Option<Self> {
+        let x = log.tracks();
+        let n = x.len();
+        if n >= NO_ROW as usize || !x.first().is_none_or(|v| v.is_finite()) {
+            return None;
+        }
+        let vel = velocity.map(|k| log.covariate(k));
+        let mut tracker = source.history().turns;
+        let (mut below, mut above): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
+        let mut cols = Self {
+            flags: Vec::with_capacity(n),
+            turn: Vec::with_capacity(n),
+            od: Vec::with_capacity(n),
+            id: Vec::with_capacity(n),
+        };
+        // The rows whose targets are the tracker's extreme and turning point (the anchor is
+        // row 0's target): each new one is one of these or the current target, found by its
+        // bits (any row with the same bits names the same value).
+        let (mut ext, mut turn) = (0u32, 0u32);
+        for (i, &target) in x.iter().enumerate() {
+            let moved = vel.map(|v| DirectionSource::moved(Some(v[i])));
+            let s = tracker.peek(target, moved);
+            let find = |v: f64| {
+                [i as u32, ext, turn, 0]
+                    .into_iter()
+                    .find(|&j| x[j as usize].to_bits() == v.to_bits())
+            };
+            let (e, t) = (find(s.extreme)?, find(s.turn)?);
+            tracker.commit(target, &s);
+            (ext, turn) = (e, t);
+            let (od, id) = match i.checked_sub(1) {
+                None => (None, None),
+                Some(prev) => {
+                    let source = x[prev];
+                    // `RestMemory::move_and_nearest` on row numbers.
+                    if target > source {
+                        while above.last().is_some_and(|&p| x[p as usize] <= target) {
+                            above.pop();
+                        }
+                        let near = (below.last().copied(), above.last().copied());
+                        below.push(prev as u32);
+                        near
+                    } else if target < source {
+                        while below.last().is_some_and(|&p| x[p as usize] >= target) {
+                            below.pop();
+                        }
+                        let near = (below.last().copied(), above.last().copied());
+                        above.push(prev as u32);
+                        near
+                    } else {
+                        (below.last().copied(), above.last().copied())
+                    }
+                }
+            };
+            cols.flags
+                .push((s.direction + 1) as u8 | u8::from(s.reversal) << 2);
+            cols.turn.push(t);
+            cols.od.push(od.unwrap_or(NO_ROW));
+            cols.id.push(id.unwrap_or(NO_ROW));
+        }
+        Some(cols)
+    }
+
+    /// Fills the history features of row `i` into `f`, which holds its positional ones
+    /// ([`History::step_light`]); `x` is the log's tracks.
+    #[inline(always)]
+    fn fill(&self, i: usize, x: &[f64], f: &mut SeekFeatures) {
+        let flags = self.flags[i];
+        let target = f.target;
+        f.direction = (flags & 3) as i8 - 1;
+        f.direction_change = flags & 4 != 0;
+        f.since_reversal = if i == 0 {
+            0.0
+        } else {
+            (target - x[self.turn[i] as usize]).abs()
+        };
+        let (od, id) = (self.od[i], self.id[i]);
+        f.rest_distance_od = (od != NO_ROW).then(|| target - x[od as usize]);
+        f.rest_distance_id = (id != NO_ROW).then(|| x[id as usize] - target);
     }
 }
 
@@ -1430,6 +1543,7 @@ pub fn replay(log: &crate::log::Log) -> Replay<'_> {
         velocity: None,
         light: false,
         cached: None,
+        columns: None,
     }
 }
 
@@ -1444,6 +1558,9 @@ pub struct Replay<'a> {
     /// Every row's features, replayed before (`crate::model::FitData`'s bounded cache): read
     /// instead of stepping the history (the same values, bit for bit).
     cached: Option<std::sync::Arc<[SeekFeatures]>>,
+    /// The history features of every row, replayed before ([`HistoryColumns`]), and the log's
+    /// tracks they name: read instead of stepping the history (the same values, bit for bit).
+    columns: Option<(std::sync::Arc<HistoryColumns>, &'a [f64])>,
 }
 
 impl<'a> Replay<'a> {
@@ -1451,6 +1568,19 @@ impl<'a> Replay<'a> {
     /// the same direction source) instead of stepping the history.
     pub(crate) fn reading_cache(mut self, features: std::sync::Arc<[SeekFeatures]>) -> Self {
         self.cached = Some(features);
+        self
+    }
+
+    /// This full replay (not light) reading `columns` (built by [`HistoryColumns::build`]
+    /// from `log`, the log this replays, with the same direction source) for the history
+    /// features; the positional ones are stepped ([`History::step_light`]).
+    pub(crate) fn reading_columns(
+        mut self,
+        columns: std::sync::Arc<HistoryColumns>,
+        log: &'a crate::log::Log,
+    ) -> Self {
+        debug_assert_eq!(columns.flags.len(), log.len());
+        self.columns = (!self.light).then_some((columns, log.tracks()));
         self
     }
 }
@@ -1466,6 +1596,11 @@ impl<'a> Iterator for Replay<'a> {
         }
         if self.light {
             return Some((i, row, self.history.step_light(row.time_s, row.track)));
+        }
+        if let Some((c, x)) = &self.columns {
+            let mut f = self.history.step_light(row.time_s, row.track);
+            c.fill(i, x, &mut f);
+            return Some((i, row, f));
         }
         let moved = self
             .velocity
@@ -1887,6 +2022,76 @@ mod tests {
                 (l.since_reversal, l.rest_distance_od, l.rest_distance_id),
                 (0.0, None, None)
             );
+        }
+    }
+
+    /// Reference: the stepped replay ([`History::step_moved`] row by row, `replay_checked`).
+    /// A replay reading the history columns gives every feature of every row bit for bit,
+    /// with direction from position steps, a deadband and a velocity column (signs, zeros),
+    /// on repeated, tied, signed-zero and non-integer positions.
+    #[test]
+    fn replay_from_history_columns_equals_the_stepped_one_bit_for_bit() {
+        use crate::log::{ColumnMap, Log};
+        use std::sync::Arc;
+        for seed in 0..6 {
+            let mut rng = SimRng::new(40 + seed);
+            let mut text = String::from("time_s,track,bias,vel\n");
+            let mut x = 500.0;
+            for k in 0..5000 {
+                x = match rng.below(5) {
+                    0 => x,
+                    1 => (x + rng.below(41) as f64 - 20.0).clamp(0.0, 1000.0),
+                    2 => rng.below(1001) as f64,
+                    3 => [0.0, -0.0, 0.5][rng.below(3) as usize],
+                    _ => rng.below(100_000) as f64 * 0.0137,
+                };
+                let vel = [-1.5, 0.0, 2.0, 0.0][rng.below(4) as usize];
+                let bias = if k % 3 == 0 {
+                    String::new()
+                } else {
+                    "1".into()
+                };
+                text += &format!("{},{x:?},{bias},{vel}\n", k / 2);
+            }
+            let log = Log::from_reader("h.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+            for source in [
+                DirectionSource::Steps,
+                DirectionSource::Deadband { deadband: 3.0 },
+                DirectionSource::Velocity {
+                    column: "vel".into(),
+                },
+            ] {
+                let velocity = source
+                    .column_index(&log.schema.file, &log.schema.covariates)
+                    .unwrap();
+                let cols = Arc::new(HistoryColumns::build(&log, &source, velocity).unwrap());
+                let stepped = replay_checked(&log, &source, velocity, false);
+                let read = replay_checked(&log, &source, velocity, false)
+                    .reading_columns(cols.clone(), &log);
+                let mut rows = 0;
+                for ((i, _, f), (j, _, g)) in stepped.zip(read) {
+                    assert_eq!(i, j);
+                    assert_eq!(format!("{f:?}"), format!("{g:?}"), "{source:?} row {i}");
+                    let b = |h: &SeekFeatures| {
+                        [
+                            h.since_reversal,
+                            h.rest_distance_od.unwrap_or(f64::NAN),
+                            h.rest_distance_id.unwrap_or(f64::NAN),
+                            h.seek_length,
+                            h.elapsed_s,
+                        ]
+                        .map(f64::to_bits)
+                    };
+                    assert_eq!(b(&f), b(&g), "{source:?} row {i}");
+                    rows += 1;
+                }
+                assert_eq!(rows, log.len());
+                // A light replay ignores the columns (its features stay the light ones).
+                let light = replay_checked(&log, &source, velocity, true)
+                    .reading_columns(cols, &log)
+                    .all(|(_, _, f)| f.rest_distance_od.is_none() && f.direction == 0);
+                assert!(light);
+            }
         }
     }
 

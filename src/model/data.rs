@@ -5,7 +5,7 @@
 
 use super::term::{Seek, Term};
 use super::{ModelError, SpecError};
-use crate::history::{DirectionSource, Replay, SeekFeatures};
+use crate::history::{DirectionSource, HistoryColumns, Replay, SeekFeatures};
 use crate::log::Log;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -157,10 +157,16 @@ pub struct FitReport {
 }
 
 /// The training data as terms see it while they prepare: the log, and its seek history
-/// replayed on demand ([`FitData::replay`]). On a log of more than 2¹⁸ rows nothing per row is
-/// held beyond the log itself: each question about the seek features streams one replay; a
-/// shorter log keeps the features of its first replay (at most 27 MB) and serves the later
-/// ones from them (the same values, bit for bit).
+/// replayed on demand ([`FitData::replay`]). A log of at most 2¹⁸ rows keeps the features of
+/// its first full replay (at most 27 MB) and serves the later ones from them; a longer log
+/// keeps only the features that depend on the history, compactly (13 B/row,
+/// `HistoryColumns`: direction, reversal, and the rows whose targets are the turning point
+/// and the nearest rest positions), and steps the rest from its columns. Either way the same
+/// values, bit for bit, as stepping the history (tested); a fit replays a long log three
+/// times (the memory knots, the solve, the static prediction), and only the first steps the
+/// direction tracker and the rest memory. The columns are built by the fit's passes over the
+/// measured rows (`FitData::replay_reading`), never by a one-off [`FitData::replay`], and the
+/// fit frees them after its last full replay.
 #[derive(Debug, Clone)]
 pub struct FitData<'a> {
     log: &'a Log,
@@ -175,6 +181,9 @@ pub struct FitData<'a> {
     /// Most bytes a variable-projection search may hold of the fixed block's columns
     /// (`crate::fit`'s `Projection`; beyond it they are replayed per pass: the same bits).
     fixed_budget: usize,
+    /// The history features of a log of more than [`FEATURE_CACHE_ROWS`] rows, kept after
+    /// the first full replay of the fit's passes (13 B/row; [`FitData::replay_reading`]).
+    columns: std::sync::OnceLock<Option<Arc<HistoryColumns>>>,
 }
 
 /// Logs of at most this many rows keep their replayed seek features in [`FitData`]
@@ -191,6 +200,7 @@ impl<'a> FitData<'a> {
             velocity: None,
             cache: std::sync::OnceLock::new(),
             fixed_budget: crate::fit::STORED_FIXED_BYTES,
+            columns: std::sync::OnceLock::new(),
         }
     }
 
@@ -204,6 +214,7 @@ impl<'a> FitData<'a> {
             velocity,
             cache: std::sync::OnceLock::new(),
             fixed_budget: crate::fit::STORED_FIXED_BYTES,
+            columns: std::sync::OnceLock::new(),
         })
     }
 
@@ -245,8 +256,11 @@ impl<'a> FitData<'a> {
 
     /// One replay of the log's seek history (every row, measured or not, in log order), the
     /// direction read as this data's source says.
+    /// On a long log it reads the history columns where the fit's passes have built them, but
+    /// never builds them itself: a one-off replay (`reversal_amplitudes` in `dahl`'s
+    /// preparation) would hold their 13 B/row for nothing.
     pub fn replay(&self) -> Replay<'a> {
-        self.replay_reading(true)
+        self.replay_building(true, false)
     }
 
     /// The cached features of a short log ([`FEATURE_CACHE_ROWS`]), filled by one full replay
@@ -271,8 +285,17 @@ impl<'a> FitData<'a> {
     }
 
     /// A replay with the direction tracker and rest memory only if `reads_history` (else
-    /// [`crate::history::History::step_light`]: the positional features alone).
+    /// [`crate::history::History::step_light`]: the positional features alone). A full one of
+    /// a long log builds the history columns on first use and reads them: the passes of a fit
+    /// over its measured rows (a term's per-row question, the solve, the static predictions)
+    /// come three to a fit.
     pub(crate) fn replay_reading(&self, reads_history: bool) -> Replay<'a> {
+        self.replay_building(reads_history, true)
+    }
+
+    /// [`FitData::replay_reading`]; a full replay of a long log builds the history columns
+    /// only if `build` (else it reads them if they exist and steps the history if not).
+    fn replay_building(&self, reads_history: bool, build: bool) -> Replay<'a> {
         let replay = crate::history::replay_checked(
             self.log,
             &self.direction,
@@ -280,11 +303,45 @@ impl<'a> FitData<'a> {
             !reads_history,
         );
         // A short log reads its cached features (a full replay's, which include the light
-        // ones bit for bit); a light replay of a long log steps the light history.
+        // ones bit for bit); a light replay of a long log steps the light history, a full one
+        // reads the history columns.
         match self.cached() {
             Some(c) => replay.reading_cache(c),
+            None if reads_history => match if build {
+                self.history_columns()
+            } else {
+                self.columns.get().cloned().flatten()
+            } {
+                Some(c) => replay.reading_columns(c, self.log),
+                None => replay,
+            },
             None => replay,
         }
+    }
+
+    /// The history columns of a log longer than [`FEATURE_CACHE_ROWS`], built by one full
+    /// replay on first use; `None` for a shorter log (or one `HistoryColumns::build` refuses).
+    fn history_columns(&self) -> Option<Arc<HistoryColumns>> {
+        #[cfg(test)]
+        if tests::STEP_HISTORY.load(std::sync::atomic::Ordering::Relaxed) {
+            return None;
+        }
+        self.columns
+            .get_or_init(|| {
+                (self.log.len() > FEATURE_CACHE_ROWS)
+                    .then(|| HistoryColumns::build(self.log, &self.direction, self.velocity))
+                    .flatten()
+                    .map(Arc::new)
+            })
+            .clone()
+    }
+
+    /// Frees the history columns and keeps later replays from building them again (they step
+    /// the history): for a fit once no later replay reads them ([`crate::fit::fit`] calls it
+    /// after its last full replay, or after the terms' preparation when its solve reads no
+    /// history), so that their 13 B/row never add to a later peak.
+    pub(crate) fn forget_history_columns(&mut self) {
+        self.columns = std::sync::OnceLock::from(None);
     }
 
     /// Standard deviation of the measured bias (the log's bias unit; 0 with fewer than two).
@@ -388,8 +445,17 @@ impl<'a> FitData<'a> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// Makes every [`FitData`] step the history on every replay (no history columns): the
+    /// reference the columns are tested against. Other tests running meanwhile only replay
+    /// more slowly (the same values, bit for bit).
+    pub(crate) static STEP_HISTORY: std::sync::atomic::AtomicBool =
+        std::sync::atomic::AtomicBool::new(false);
+
+    /// Held by the tests that set [`STEP_HISTORY`] or look for the columns it turns off.
+    pub(crate) static STEP_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
     /// Reference: the uncached replays (`history::replay_checked`, full and light). A short
     /// log's replays read its cache after the first: every feature of the full replay equals
@@ -438,8 +504,28 @@ mod tests {
             text += &format!("{i},{},1\n", i % 97);
         }
         let long = Log::from_reader("long.csv", text.as_bytes(), &Default::default()).unwrap();
-        let data = FitData::new(&long);
+        let _only = STEP_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        let mut data = FitData::new(&long);
         assert_eq!(data.replay().count(), FEATURE_CACHE_ROWS + 1);
         assert!(data.cache.get().is_some_and(|c| c.is_none()));
+        // Above the bound the history columns serve the full replays of the fit's passes: the
+        // same features as stepping, bit for bit; a one-off replay (`replay`) and a light one
+        // do not build them, and none does after `forget_history_columns`.
+        assert!(data.columns.get().is_none());
+        let light = FitData::new(&long);
+        assert_eq!(light.replay_reading(false).count(), FEATURE_CACHE_ROWS + 1);
+        assert!(light.columns.get().is_none());
+        assert_eq!(data.replay_reading(true).count(), FEATURE_CACHE_ROWS + 1);
+        assert!(data.columns.get().is_some_and(|c| c.is_some()));
+        let stepped =
+            || crate::history::replay_checked(&long, &DirectionSource::Steps, None, false);
+        for ((_, _, a), (_, _, b)) in stepped().zip(data.replay()) {
+            assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        }
+        data.forget_history_columns();
+        for ((_, _, a), (_, _, b)) in stepped().zip(data.replay_reading(true)) {
+            assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        }
+        assert!(data.columns.get().is_some_and(|c| c.is_none()));
     }
 }

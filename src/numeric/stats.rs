@@ -96,9 +96,23 @@ fn nested_select(v: &mut [f64], base: usize, ranks: &[usize], out: &mut [f64]) {
     let below = ranks[..mid].partition_point(|&x| x < r);
     let above = mid + 1 + ranks[mid + 1..].partition_point(|&x| x == r);
     out[below..above].fill(q);
-    nested_select(left, base, &ranks[..below], &mut out[..below]);
-    nested_select(right, r + 1, &ranks[above..], &mut out[above..]);
+    let (out_left, rest) = out.split_at_mut(below);
+    let out_right = &mut rest[above - below..];
+    // The two sides are disjoint: on two threads where both are long (the same values either
+    // way: an order statistic is one value of the slice, whatever the order of the work).
+    let both = below > 0 && above < ranks.len() && left.len().min(right.len()) >= PARALLEL_SELECT;
+    let mut lower = move || nested_select(left, base, &ranks[..below], out_left);
+    let mut upper = move || nested_select(right, r + 1, &ranks[above..], out_right);
+    if both {
+        rayon::join(lower, upper);
+    } else {
+        lower();
+        upper();
+    }
 }
+
+/// Values on each side below which [`order_statistics`] selects both sides on one thread.
+const PARALLEL_SELECT: usize = 1 << 16;
 
 /// [`percentile_select`] of each of `ps` (0–100, any order) over the same values, each the
 /// same bits as `percentile_select` (the same order statistics and interpolation; tested),
