@@ -2622,6 +2622,12 @@ pub(crate) struct Refits {
         crate::history::DirectionSource,
         Arc<[crate::history::SeekFeatures]>,
     )>,
+    /// The history columns of a long log built with this direction source
+    /// ([`FitData::sharing_columns`]).
+    pub columns: Option<(
+        crate::history::DirectionSource,
+        Arc<crate::history::HistoryColumns>,
+    )>,
     /// [`FitData::with_fixed_budget`].
     pub fixed_budget: usize,
 }
@@ -2632,6 +2638,7 @@ impl Default for Refits {
         Self {
             sampling: None,
             features: None,
+            columns: None,
             fixed_budget: STORED_FIXED_BYTES,
         }
     }
@@ -2654,6 +2661,11 @@ pub(crate) fn fit_sharing(
         && *d == direction
     {
         data = data.sharing_features(f);
+    }
+    if let Some((d, c)) = &shared.columns
+        && *d == direction
+    {
+        data = data.sharing_columns(c);
     }
     let reversals = reversal_count(&direction, &sampling, &data);
     let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);

@@ -791,6 +791,11 @@ pub(crate) struct HistoryColumns {
 const NO_ROW: u32 = u32::MAX;
 
 impl HistoryColumns {
+    /// Rows held (the log's rows).
+    pub(crate) fn len(&self) -> usize {
+        self.flags.len()
+    }
+
     /// One full replay of `log` (direction as `source` says; `velocity` its checked column,
     /// [`DirectionSource::column_index`]). `None` for a log of 2³² − 1 rows or more, or whose
     /// first position is not finite (its `since_reversal` 0 is not `|x − x|`).

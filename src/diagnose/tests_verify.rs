@@ -1367,6 +1367,39 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
     }
 }
 
+/// On a log longer than the feature cache's bound (2^18 rows) the refits share one set of
+/// history columns, built once by `refits_of`, instead of each refit building its own: the
+/// same out-of-sample residuals bit for bit as the reference that shares nothing
+/// (`cv_residuals_reference`), for a model reading the history (`calibration`'s seek and
+/// memory terms) and for `dahl`.
+#[test]
+fn long_log_refits_sharing_history_columns_equal_the_reference() {
+    let rows = crate::model::data::FEATURE_CACHE_ROWS + 1_000;
+    let log = gappy_log(12, rows);
+    let opts = CheckedFitOptions::default();
+    let shared = super::verify::refits_of(&log, &opts);
+    assert!(
+        shared.features.is_none(),
+        "a long log keeps no feature cache"
+    );
+    assert!(
+        shared.columns.is_some(),
+        "a long log shares its history columns"
+    );
+    for terms in ["poly2,direction,seek,memory", "poly2,dahl"] {
+        let spec = ModelSpec::parse(terms).unwrap();
+        let reference = cv_residuals_reference(&spec, &log, 3, &opts);
+        let fast = super::verify::cv_residuals_sharing(&spec, &log, 3, &opts, &shared).unwrap();
+        assert_eq!(fast.len(), reference.len(), "{terms}");
+        assert!(
+            fast.iter()
+                .zip(&reference)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{terms}"
+        );
+    }
+}
+
 /// A round's baseline judges every edit as `judge` does at each bar (the reference: the Huber
 /// constant, the sums within folds and every verdict computed afresh per edit and bar), bit
 /// for bit, on residuals with an effect, with none, with outliers and with re-levelled folds;

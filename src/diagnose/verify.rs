@@ -497,19 +497,29 @@ pub(crate) const REFIT_FIXED_BYTES: usize = 16 << 20;
 /// which no history reads) and [`REFIT_FIXED_BYTES`].
 pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
     let sampling = crate::history::log_sampling(log);
-    let features = opts
+    // A short log's replayed features, or a long log's history columns (13 B/row once for
+    // every refit, not once per refit in flight): one of the two, by the log's length.
+    let data = opts
         .direction
         .resolve_with(log, &sampling)
         .ok()
         .and_then(|d| {
-            let f = crate::model::data::FitData::with_direction(log, &d)
-                .ok()?
-                .features()?;
-            Some((d, f))
+            Some((
+                crate::model::data::FitData::with_direction(log, &d).ok()?,
+                d,
+            ))
         });
+    let features = data
+        .as_ref()
+        .and_then(|(data, d)| Some((d.clone(), data.features()?)));
+    let columns = data
+        .as_ref()
+        .filter(|_| features.is_none())
+        .and_then(|(data, d)| Some((d.clone(), data.columns()?)));
     Refits {
         sampling: Some(sampling),
         features,
+        columns,
         fixed_budget: REFIT_FIXED_BYTES,
     }
 }

@@ -231,6 +231,26 @@ impl<'a> FitData<'a> {
         self
     }
 
+    /// This data reading the history columns `columns` built from another log with the same
+    /// rows' times, positions and covariates (only the bias may differ: a history never reads
+    /// it), with the same direction source, instead of building its own: where its own would
+    /// be built (more than [`FEATURE_CACHE_ROWS`] rows) and the row count matches, else
+    /// unchanged. The verification's refits of a long log share one set (13 B/row once, not
+    /// once per refit in flight); the same bits, so the same fit (tested in
+    /// `diagnose::tests_verify`).
+    pub(crate) fn sharing_columns(self, columns: &Arc<HistoryColumns>) -> Self {
+        if self.log.len() > FEATURE_CACHE_ROWS && columns.len() == self.log.len() {
+            let _ = self.columns.set(Some(columns.clone()));
+        }
+        self
+    }
+
+    /// The history columns of a long log (built now if not yet), `None` for a log of at most
+    /// [`FEATURE_CACHE_ROWS`] rows: what [`FitData::sharing_columns`] takes.
+    pub(crate) fn columns(&self) -> Option<Arc<HistoryColumns>> {
+        self.history_columns()
+    }
+
     /// This data with the fixed-block budget of a variable-projection search set to `bytes`
     /// (see the field).
     pub(crate) fn with_fixed_budget(mut self, bytes: usize) -> Self {
