@@ -4111,6 +4111,16 @@ mod tests {
     }
 
     #[test]
+    fn a_one_row_log_is_refused_in_the_singular() {
+        let text = "time_s,track,bias\n0,5,1\n";
+        let log = Log::from_reader("one.csv", text.as_bytes(), &Default::default()).unwrap();
+        let spec = ModelSpec::preset("calibration").unwrap();
+        let e = fit(&spec, &log, &CheckedFitOptions::default()).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("one.csv: 1 measured row, but"), "{msg}");
+    }
+
+    #[test]
     fn fit_options_check_names_the_bad_setting() {
         // Reference: the documented ranges; the default passes and equals the checked default.
         assert_eq!(

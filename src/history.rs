@@ -1507,7 +1507,9 @@ impl Sampling {
                 ));
             }
         } else {
-            let why = if self.regular_clock {
+            let why = if self.travel <= 0.0 {
+                "every row is at the same position: no motion to read a direction from".to_string()
+            } else if self.regular_clock {
                 format!(
                     "the median step, {} {unit}, is at least 1 % of the travel, {} {unit}",
                     g(self.median_step),
@@ -1640,6 +1642,19 @@ pub(crate) fn sign(x: f64) -> i8 {
 mod tests {
     use super::*;
     use crate::numeric::rng::SimRng;
+
+    /// A log whose every row is at one position says so in `check`'s mode line, instead of
+    /// comparing a zero median step with a zero travel.
+    #[test]
+    fn a_constant_position_log_is_described_as_such() {
+        let text = "time_s,track,bias\n0,5,1\n1,5,2\n2,5,3\n3,5,2\n";
+        let log =
+            crate::log::Log::from_reader("c.csv", text.as_bytes(), &Default::default()).unwrap();
+        let lines = log_sampling(&log).describe("tracks");
+        let mode = lines.iter().find(|l| l.starts_with("mode:")).unwrap();
+        assert!(mode.contains("every row is at the same position"), "{mode}");
+        assert!(!mode.contains("1 % of the travel"), "{mode}");
+    }
 
     /// Reference: sort a copy, then `percentile_sorted` (what `sampling` did before it selected).
     #[test]

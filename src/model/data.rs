@@ -22,7 +22,8 @@ pub enum FitError {
     Direction(#[from] crate::history::DirectionError),
     /// Fewer measured rows than the model needs.
     #[error(
-        "{file}: {measured} measured rows, but the model `{spec}` has {params} linear parameters and needs at least {needed} measured rows"
+        "{file}: {measured} measured {}, but the model `{spec}` has {params} linear parameters and needs at least {needed} measured rows",
+        if *.measured == 1 { "row" } else { "rows" }
     )]
     TooShort {
         /// The log file.
