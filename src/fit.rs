@@ -2617,19 +2617,20 @@ pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<Fitt
 pub(crate) struct Refits {
     /// [`crate::history::log_sampling`] of the log.
     pub sampling: Option<crate::history::Sampling>,
-    /// The features replayed with this direction source ([`FitData::sharing_features`]).
-    pub features: Option<(
-        crate::history::DirectionSource,
-        Arc<[crate::history::SeekFeatures]>,
-    )>,
-    /// The history columns of a long log built with this direction source
-    /// ([`FitData::sharing_columns`]).
-    pub columns: Option<(
-        crate::history::DirectionSource,
-        Arc<crate::history::HistoryColumns>,
-    )>,
+    /// The log's history replayed with this direction source.
+    pub history: Option<(crate::history::DirectionSource, SharedHistory)>,
     /// [`FitData::with_fixed_budget`].
     pub fixed_budget: usize,
+}
+
+/// A log's replayed history as refits of its rows share it: one of two by the log's length
+/// ([`crate::model::data::FEATURE_CACHE_ROWS`]).
+#[derive(Debug, Clone)]
+pub(crate) enum SharedHistory {
+    /// A short log's replayed features ([`FitData::sharing_features`]).
+    Features(Arc<[crate::history::SeekFeatures]>),
+    /// A long log's history columns, 13 B/row ([`FitData::sharing_columns`]).
+    Columns(Arc<crate::history::HistoryColumns>),
 }
 
 impl Default for Refits {
@@ -2637,8 +2638,7 @@ impl Default for Refits {
     fn default() -> Self {
         Self {
             sampling: None,
-            features: None,
-            columns: None,
+            history: None,
             fixed_budget: STORED_FIXED_BYTES,
         }
     }
@@ -2657,15 +2657,13 @@ pub(crate) fn fit_sharing(
         .unwrap_or_else(|| crate::history::log_sampling(log));
     let direction = opts.direction.resolve_with(log, &sampling)?;
     let mut data = FitData::with_direction(log, &direction)?.with_fixed_budget(shared.fixed_budget);
-    if let Some((d, f)) = &shared.features
+    if let Some((d, h)) = &shared.history
         && *d == direction
     {
-        data = data.sharing_features(f);
-    }
-    if let Some((d, c)) = &shared.columns
-        && *d == direction
-    {
-        data = data.sharing_columns(c);
+        data = match h {
+            SharedHistory::Features(f) => data.sharing_features(f),
+            SharedHistory::Columns(c) => data.sharing_columns(c),
+        };
     }
     let reversals = reversal_count(&direction, &sampling, &data);
     let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);

@@ -2,7 +2,7 @@
 //! gate, what adaptive terms absorb, and verified, always-applicable advice.
 
 use super::*;
-use crate::fit::{CheckedFitOptions, fit};
+use crate::fit::{CheckedFitOptions, SharedHistory, fit};
 use crate::log::{ColumnMap, Log};
 use crate::model::ModelSpec;
 
@@ -1335,7 +1335,10 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
     let log = gappy_log(11, 1500);
     let opts = CheckedFitOptions::default();
     let mut shared = super::verify::refits_of(&log, &opts);
-    assert!(shared.features.is_some(), "a short log shares its features");
+    assert!(
+        matches!(shared.history, Some((_, SharedHistory::Features(_)))),
+        "a short log shares its features"
+    );
     for terms in [
         "poly2,direction",
         "table:20,direction",
@@ -1379,12 +1382,8 @@ fn long_log_refits_sharing_history_columns_equal_the_reference() {
     let opts = CheckedFitOptions::default();
     let shared = super::verify::refits_of(&log, &opts);
     assert!(
-        shared.features.is_none(),
-        "a long log keeps no feature cache"
-    );
-    assert!(
-        shared.columns.is_some(),
-        "a long log shares its history columns"
+        matches!(shared.history, Some((_, SharedHistory::Columns(_)))),
+        "a long log keeps no feature cache and shares its history columns"
     );
     for terms in ["poly2,direction,seek,memory", "poly2,dahl"] {
         let spec = ModelSpec::parse(terms).unwrap();

@@ -56,7 +56,7 @@ use serde::{Deserialize, Serialize};
 
 use super::model::ModelDiagnosisError;
 use super::{Diagnosis, FeatureReport};
-use crate::fit::{CheckedFitOptions, Refits, fit_sharing};
+use crate::fit::{CheckedFitOptions, Refits, SharedHistory, fit_sharing};
 use crate::log::Log;
 use crate::model::terms::parse_term;
 use crate::model::{Feedback, ModelEdit, ModelSpec, SpecError};
@@ -492,34 +492,28 @@ pub(super) fn cv_residuals(
 /// the 100k-row bench's blocks (≤ 6 MB) stay stored.
 pub(crate) const REFIT_FIXED_BYTES: usize = 16 << 20;
 
-/// What every refit of a round shares ([`Refits`]): `log`'s sampling, its replayed features
-/// (a short log's, read as `opts` reads direction; the masked copies differ only in bias,
-/// which no history reads) and [`REFIT_FIXED_BYTES`].
+/// What every refit of a round shares ([`Refits`]): `log`'s sampling, its replayed history
+/// (a short log's features or a long log's history columns, read as `opts` reads direction;
+/// the masked copies differ only in bias, which no history reads) and [`REFIT_FIXED_BYTES`].
 pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
     let sampling = crate::history::log_sampling(log);
     // A short log's replayed features, or a long log's history columns (13 B/row once for
     // every refit, not once per refit in flight): one of the two, by the log's length.
-    let data = opts
+    let history = opts
         .direction
         .resolve_with(log, &sampling)
         .ok()
         .and_then(|d| {
-            Some((
-                crate::model::data::FitData::with_direction(log, &d).ok()?,
-                d,
-            ))
+            let data = crate::model::data::FitData::with_direction(log, &d).ok()?;
+            let h = match data.features() {
+                Some(f) => SharedHistory::Features(f),
+                None => SharedHistory::Columns(data.columns()?),
+            };
+            Some((d, h))
         });
-    let features = data
-        .as_ref()
-        .and_then(|(data, d)| Some((d.clone(), data.features()?)));
-    let columns = data
-        .as_ref()
-        .filter(|_| features.is_none())
-        .and_then(|(data, d)| Some((d.clone(), data.columns()?)));
     Refits {
         sampling: Some(sampling),
-        features,
-        columns,
+        history,
         fixed_budget: REFIT_FIXED_BYTES,
     }
 }
