@@ -211,7 +211,7 @@ pub struct DirectionArgs {
         long,
         value_name = "X",
         conflicts_with = "velocity_col",
-        allow_negative_numbers = true
+        allow_hyphen_values = true
     )]
     pub deadband: Option<f64>,
     /// Read the direction from the sign of this (velocity) column instead of position steps.
@@ -252,16 +252,16 @@ pub struct SettleArgs {
     #[arg(long, value_name = "FILE.toml")]
     pub plant: Option<PathBuf>,
     /// Step length in µm (handoff e0 = −step from rest).
-    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    #[arg(long, value_name = "X", allow_hyphen_values = true)]
     pub step_um: Option<f64>,
     /// Half-width δ of the settle window in µm.
-    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    #[arg(long, value_name = "D", allow_hyphen_values = true)]
     pub window_um: Option<f64>,
     /// Bias d in counts (sets the integrator's converged value).
-    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    #[arg(long, value_name = "B", allow_hyphen_values = true)]
     pub bias: Option<f64>,
     /// Bias uncertainty Δb in counts for the robust choice.
-    #[arg(long, value_name = "DB", allow_negative_numbers = true)]
+    #[arg(long, value_name = "DB", allow_hyphen_values = true)]
     pub bias_uncertainty: Option<f64>,
     /// Horizon N in samples.
     #[arg(allow_negative_numbers = true, long, value_name = "N")]

@@ -22,7 +22,7 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Family-wise significance level for flagging a feature, in (0, 0.5].
-    #[arg(allow_negative_numbers = true, long, default_value_t = 0.01)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 0.01)]
     alpha: f64,
     /// Permutations of the significance test (at least 1/alpha − 1).
     #[arg(allow_negative_numbers = true, long, default_value_t = 199)]

@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(allow_negative_numbers = true, long, default_value_t = 8)]
     max_steps: usize,
     /// Family-wise significance level for flagging a feature, in (0, 0.5].
-    #[arg(allow_negative_numbers = true, long, default_value_t = 0.01)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 0.01)]
     alpha: f64,
     /// Seed of the folds and permutations.
     #[arg(allow_negative_numbers = true, long, default_value_t = 1)]

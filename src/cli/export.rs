@@ -38,7 +38,7 @@ struct CArgs {
     handoff: Option<String>,
     /// Δb in counts for --handoff instead of the model's error std (the fit's residual_std).
     #[arg(
-        allow_negative_numbers = true,
+        allow_hyphen_values = true,
         long,
         value_name = "DB",
         requires = "handoff"

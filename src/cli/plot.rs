@@ -57,7 +57,7 @@ pub struct Args {
     #[arg(long, value_name = "MODEL")]
     model: Option<String>,
     /// The track of the `time` plot.
-    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
     track: Option<f64>,
     /// The test log of the `ladder` plot.
     #[arg(long, value_name = "TEST.csv")]
@@ -102,6 +102,9 @@ fn check_flags(a: &Args) -> anyhow::Result<()> {
     }
     if a.track.is_some() && a.kind != Kind::Time {
         bail!("plot {k}: --track is for `plot time`");
+    }
+    if let Some(t) = a.track.filter(|t| !t.is_finite()) {
+        bail!("--track {t}: give a finite position (the log's position unit)");
     }
     match (a.kind == Kind::Ladder, a.test.is_some()) {
         (true, false) => bail!("plot ladder needs --test TEST.csv"),

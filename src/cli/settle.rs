@@ -35,7 +35,7 @@ pub struct Args {
         long,
         value_name = "TRACK",
         requires = "model",
-        allow_negative_numbers = true
+        allow_hyphen_values = true
     )]
     target: Option<f64>,
     #[command(flatten)]

@@ -24,16 +24,16 @@ pub struct Args {
     #[arg(allow_negative_numbers = true, long)]
     n: Option<u64>,
     /// Width of the random range, tracks; default 250.
-    #[arg(long, value_name = "TRACKS", allow_negative_numbers = true)]
+    #[arg(long, value_name = "TRACKS", allow_hyphen_values = true)]
     span: Option<f64>,
     /// Centre of the random range, tables and dwell run, track; default mid-stroke.
-    #[arg(long, value_name = "TRACK", allow_negative_numbers = true)]
+    #[arg(long, value_name = "TRACK", allow_hyphen_values = true)]
     center: Option<f64>,
     /// Shortest random dwell, s (default 0.05).
-    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
     dwell_min: Option<f64>,
     /// Longest random dwell, s (default 0.5).
-    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
     dwell_max: Option<f64>,
     /// Script for `--sequence script`: CSV `track,dwell_s[,measure]`.
     #[arg(long, value_name = "FILE.csv")]

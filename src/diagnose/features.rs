@@ -459,6 +459,59 @@ impl FinishedTimes {
     }
 }
 
+/// Whether built-in `feature` is a length made by arithmetic on positions (a difference, a sum
+/// of seek lengths), so [`PositionGrid::snap`] applies to it.
+fn snaps(feature: Feature) -> bool {
+    matches!(
+        feature,
+        Feature::SeekLength
+            | Feature::SeekAbs
+            | Feature::SinceReversal
+            | Feature::RestDistanceOd
+            | Feature::RestDistanceId
+    )
+}
+
+/// Bits below the log's largest |position| that position-valued derived features keep
+/// ([`PositionGrid`]).
+const POSITION_GRID_BITS: i32 = 32;
+
+/// **The unit convention of derived position features.** Seek lengths, `since_reversal` and rest
+/// distances ([`snaps`], and the seek length inside [`DERIVED_VELOCITY`]) are differences and
+/// sums of positions; in a unit where positions are not exact binary numbers (tracks × 0.05,
+/// µm → mm) two lengths equal in tracks (100 − 50, 200 − 150) come out unequal in the last bits,
+/// and the quantile bins of the smoother broke those ties differently, so the diagnosis depended
+/// on the unit. Every such value is therefore rounded to a grid of spacing
+/// `q = 2^(⌈log₂ P⌉ − 32)`, P the log's largest |position| (a power of two, so the rounding is
+/// exact; q ≈ 2⁻³² P ≈ 2.3e−10 P): the rounding error of a difference or sum of positions is some
+/// 2⁻⁵² P, about 2⁻²⁰ of q, so lengths equal in one unit meet on the same grid point in any
+/// other (except with a chance of about 1e−6 per distinct value). Whole-track lengths (P < 2³²
+/// tracks) lie on the grid already and are unchanged; in other units a length moves by at most
+/// q/2. `None` (no snapping) for a log without a non-zero position.
+#[derive(Debug, Clone, Copy)]
+struct PositionGrid(Option<f64>);
+
+impl PositionGrid {
+    /// The grid of `log`'s positions.
+    fn of(log: &Log) -> PositionGrid {
+        let q = crate::numeric::stats::range(log.tracks())
+            .map(|[a, b]| a.abs().max(b.abs()))
+            .filter(|p| p.is_finite() && *p > 0.0)
+            .map(|p| 2f64.powi(p.log2().ceil() as i32 - POSITION_GRID_BITS))
+            .filter(|q| q.is_normal());
+        PositionGrid(q)
+    }
+
+    /// `v` rounded to the nearest grid point (NaN, undefined, stays NaN; a zero is `+0.0`).
+    #[inline]
+    fn snap(self, v: f64) -> f64 {
+        match self.0 {
+            Some(q) if !v.is_nan() => (v / q).round() * q + 0.0,
+            _ => v,
+        }
+    }
+}
+
 /// `Some(x)` unless `x` is NaN, the mark of an undefined value in a [`FeatureColumn`].
 #[inline]
 pub(crate) fn defined(x: f64) -> Option<f64> {
@@ -746,6 +799,8 @@ impl FeatureTable {
         let dense = crate::history::sampling(log.times(), log.tracks()).dense;
         let mut velocity = Builder::with_capacity(if dense { measured } else { 0 });
         let mut times = TimesBuilder::new(log.times().first().copied(), measured);
+        let grid = PositionGrid::of(log);
+        let snapped: Vec<bool> = Feature::ALL.iter().map(|&f| snaps(f)).collect();
         for (_, row, f) in history {
             if row.bias.is_none() {
                 continue;
@@ -759,14 +814,16 @@ impl FeatureTable {
             if dense {
                 // The rule of `viscous::velocity` without a column: 0 at a zero dwell or a
                 // quotient that is not finite.
-                let v = match (f.value(Feature::SeekLength), f.value(Feature::DwellS)) {
+                let l = f.value(Feature::SeekLength).map(|l| grid.snap(l));
+                let v = match (l, f.value(Feature::DwellS)) {
                     (Some(l), Some(d)) if d > 0.0 && (l / d).is_finite() => l / d,
                     _ => 0.0,
                 };
                 velocity.push(v);
             }
-            for (col, &feature) in builtin.iter_mut().zip(Feature::ALL.iter()) {
-                col.push(stored(f.value(feature)));
+            for ((col, &feature), &snap) in builtin.iter_mut().zip(&Feature::ALL).zip(&snapped) {
+                let v = stored(f.value(feature));
+                col.push(if snap { grid.snap(v) } else { v });
             }
             for (k, col) in covariates.iter_mut().enumerate() {
                 col.push(stored(row.covariates.get(k).filter(|v| v.is_finite())));

@@ -22,17 +22,20 @@ pub enum FitError {
     Direction(#[from] crate::history::DirectionError),
     /// Fewer measured rows than the model needs.
     #[error(
-        "{file}: {measured} measured {}, but the model `{spec}` has {params} linear parameters and needs at least {needed} measured rows",
-        if *.measured == 1 { "row" } else { "rows" }
+        "{file}: {measured} measured {}, but the model `{spec}` needs at least {needed} measured rows: it has {params} linear parameters on {} (a term whose size follows the data, such as `table` or `bins` with knots over the positions or values seen, has more on a log that spans more)",
+        if *.measured == 1 { "row" } else { "rows" },
+        if *.measured == 1 { "this row" } else { "these rows" }
     )]
     TooShort {
         /// The log file.
         file: String,
         /// Measured rows in the log.
         measured: usize,
-        /// Linear parameters of the model.
+        /// Linear parameters of the model as prepared on these rows (a term whose size follows
+        /// the data, such as `table`'s knots over the position range, may have more on a longer
+        /// log: `needed` is a lower bound).
         params: usize,
-        /// Rows needed.
+        /// Rows needed (at least).
         needed: usize,
         /// The model.
         spec: String,

@@ -422,3 +422,205 @@ fn a_negative_count_names_its_flag() {
         fails_with(&args, &["invalid value '-", flag]);
     }
 }
+
+/// A negative non-finite value for a real-number flag (`settle --target -inf`) was taken for an
+/// unknown flag ("unexpected argument '-inf' found"): only values clap reads as numbers passed.
+/// Now every real-number flag takes any value after it (`allow_hyphen_values`) and its check
+/// refuses the non-finite one naming the flag, exit 2, nothing written. Reference: the flag's
+/// documented range; a flag given no value (`--target --json`) is named too.
+#[test]
+fn a_negative_infinite_real_flag_is_refused_naming_its_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("r.csv").display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "60",
+        "--out",
+        &log,
+    ]);
+    let model = dir.path().join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &model,
+    ]);
+    let out = dir.path().join("out").display().to_string();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["settle", "--model", &model, "--data", &log, "--target"],
+            "--target -inf",
+        ),
+        (vec!["settle", "--bias"], "(--bias)"),
+        (vec!["settle", "--bias-uncertainty"], "(--bias-uncertainty)"),
+        (vec!["settle", "--step-um"], "(--step-um)"),
+        (vec!["settle", "--window-um"], "(--window-um)"),
+        (
+            vec!["diagnose", "--model", &model, "--data", &log, "--alpha"],
+            "--alpha",
+        ),
+        (vec!["discover", "--data", &log, "--alpha"], "--alpha"),
+        (
+            vec!["simulate", "--sequence", "random", "--out", &out, "--span"],
+            "--span -inf",
+        ),
+        (
+            vec![
+                "simulate",
+                "--sequence",
+                "random",
+                "--out",
+                &out,
+                "--center",
+            ],
+            "--center -inf",
+        ),
+        (
+            vec![
+                "simulate",
+                "--sequence",
+                "random",
+                "--out",
+                &out,
+                "--dwell-min",
+            ],
+            "--dwell-min -inf",
+        ),
+        (
+            vec!["plot", "time", "--data", &log, "--out", &out, "--track"],
+            "--track -inf",
+        ),
+        (
+            vec![
+                "fit",
+                "--data",
+                &log,
+                "--model",
+                "position-direction",
+                "--out",
+                &out,
+                "--deadband",
+            ],
+            "--deadband -inf",
+        ),
+        (
+            vec![
+                "predict",
+                "--model",
+                &model,
+                "--data",
+                &log,
+                "--out",
+                &out,
+                "--handoff",
+                "paper1997",
+                "--bias-uncertainty",
+            ],
+            "(--bias-uncertainty)",
+        ),
+        (
+            vec![
+                "export",
+                "c",
+                "--model",
+                &model,
+                "--out",
+                &out,
+                "--handoff",
+                "paper1997",
+                "--bias-uncertainty",
+            ],
+            "(--bias-uncertainty)",
+        ),
+    ];
+    for (mut args, flag) in cases {
+        args.push("-inf");
+        let err = fails_with(&args, &[flag]);
+        assert!(!err.contains("unexpected argument"), "{args:?}: {err}");
+        assert!(!std::path::Path::new(&out).exists(), "{args:?} wrote {out}");
+    }
+    // A negative finite value still reads as a number; a flag followed by another flag is
+    // named with what it got.
+    ok(&["settle", "--bias", "-3.5"]);
+    fails_with(
+        &["settle", "--target", "--json"],
+        &["invalid value '--json' for '--target <TRACK>'"],
+    );
+}
+
+/// `--terms step:col:abc` read `col:abc` as the column and said the log lacks column
+/// `col:abc`. A column name holds no `:` in the term grammar (as in `by:A:B`): now the
+/// threshold is named as what is wrong, before the log is read.
+#[test]
+fn a_step_threshold_that_is_no_number_is_named_as_the_threshold() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = write(
+        dir.path(),
+        "r.csv",
+        "time_s,track,bias,col\n0,1,1,0.1\n1,2,2,0.2\n2,3,1,0.3\n",
+    );
+    let out = dir.path().join("m.json").display().to_string();
+    let err = fails_with(
+        &[
+            "fit",
+            "--data",
+            &log,
+            "--terms",
+            "poly2,step:col:abc",
+            "--out",
+            &out,
+        ],
+        &[
+            "--terms",
+            "threshold T after `col:`",
+            "got `abc`",
+            "step:COL:T",
+        ],
+    );
+    assert!(!err.contains("col:abc`,"), "{err}");
+    assert!(!err.contains("lacks"), "{err}");
+    assert!(!std::path::Path::new(&out).exists());
+}
+
+/// A one-row log refused by `table,dahl` said the model "has 2 linear parameters and needs at
+/// least 4 measured rows", but `table`'s knots follow the position range (one knot on one
+/// position): four rows over several positions were refused again, needing 14. The message now
+/// says the count is of these rows and a lower bound. Reference: the four-row log's own
+/// refusal needs more than the one-row refusal said, as "at least" allows.
+#[test]
+fn a_too_short_log_gives_the_row_count_as_a_lower_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let one = write(dir.path(), "one.csv", "time_s,track,bias\n0,5,1\n");
+    let four = write(
+        dir.path(),
+        "four.csv",
+        "time_s,track,bias\n0,5,1\n1,7,2\n2,9,3\n3,4,1\n",
+    );
+    let out = dir.path().join("m.json").display().to_string();
+    let needed = |log: &str, rows: &str| -> usize {
+        let err = fails_with(
+            &["fit", "--data", log, "--terms", "table,dahl", "--out", &out],
+            &[
+                rows,
+                "needs at least",
+                "linear parameters on",
+                "has more on a log that spans more",
+            ],
+        );
+        let tail = err.split("needs at least ").nth(1).unwrap();
+        tail.split(' ').next().unwrap().parse().unwrap()
+    };
+    let (n1, n4) = (
+        needed(&one, "1 measured row,"),
+        needed(&four, "4 measured rows,"),
+    );
+    assert_eq!(n1, 4);
+    assert!(n4 > 4, "{n4}");
+    assert!(!std::path::Path::new(&out).exists());
+}

@@ -13,6 +13,7 @@ mod invariance;
 mod model;
 mod outputs;
 mod plot;
+mod position_unit;
 mod predict_plan;
 mod property;
 mod real;

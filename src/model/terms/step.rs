@@ -522,7 +522,7 @@ impl TermState for StepState {
 }
 
 /// Parses `step:COL` or `step:COL:T` (T in the column's unit, finite); the registry's parser.
-/// A last `:`-part that is not a number belongs to the column name.
+/// A column name holds no `:`: a last `:`-part that is not a finite number is refused as the threshold.
 pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, SpecError> {
     let usage = "`step` needs a covariate column and optionally a starting threshold in the \
                  column's unit: `step:COL` or `step:COL:T` (e.g. `step:load:0.6`)";
@@ -530,10 +530,15 @@ pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, SpecError> {
         return Err(t.bad(usage.into()));
     };
     let (column, start) = match arg.rsplit_once(':') {
+        // A column name holds no `:` (as in `by:A:B`): what follows one is the threshold.
         Some((c, v)) => match v.parse::<f64>() {
             Ok(x) if x.is_finite() => (c, Some(x)),
-            Ok(_) => return Err(t.bad(format!("{usage}; got `{arg}`"))),
-            Err(_) => (arg, None),
+            _ => {
+                return Err(t.bad(format!(
+                    "the starting threshold T after `{c}:` must be a finite number in the \
+                     column's unit, got `{v}` ({usage})"
+                )));
+            }
         },
         None => (arg, None),
     };
@@ -586,8 +591,6 @@ mod tests {
             ("step:load:0.6", "step:load:0.6"),
             ("step:load:-3.50", "step:load:-3.5"),
             ("step:load:1e-6", "step:load:0.000001"),
-            // A last part that is no number belongs to the column.
-            ("step:a:b", "step:a:b"),
         ] {
             let t = crate::model::terms::parse_term(ok).unwrap();
             assert_eq!(t.name(), name);
@@ -599,12 +602,21 @@ mod tests {
             "step::0.5",
             "step:load:nan",
             "step:load:inf",
+            "step:a:b",
         ] {
             let e = crate::model::terms::parse_term(bad)
                 .unwrap_err()
                 .to_string();
             assert!(e.contains("step:COL:T"), "{bad}: {e}");
         }
+        // A last part that is no number is named as the threshold, not read into the column.
+        let e = crate::model::terms::parse_term("step:col:abc")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("threshold T after `col:`") && e.contains("got `abc`"),
+            "{e}"
+        );
     }
 
     /// Reference: the truth of [`log_text`] (a step of 3 at load 0.6, logged to 0.001, so the
