@@ -7,7 +7,7 @@
 
 #[path = "../../examples/diagnose_family.rs"]
 #[allow(dead_code)]
-mod diagnose_family;
+pub(crate) mod diagnose_family;
 
 use biasctl::{family::FamilyDrive, family::HiddenEffect};
 use diagnose_family::{Outcome, full_model_flags, run, scenarios};

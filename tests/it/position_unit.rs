@@ -13,13 +13,9 @@
 //! changed counts and p-values); numbers inside names and sentences (`memsum_L15.0`) up to their
 //! printed digits. An exact scaling (× 4) is checked the same way.
 
-#[path = "../../examples/diagnose_family.rs"]
-#[allow(dead_code)]
-mod diagnose_family;
-
+use crate::family::diagnose_family::{config, fit_terms};
 use biasctl::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
 use biasctl::{CheckedVerifyConfig, FeatureTable, Log, diagnose_verified};
-use diagnose_family::{config, fit_terms};
 use serde_json::Value;
 
 /// The log with its positions × `k`.
