@@ -103,9 +103,6 @@ fn check_flags(a: &Args) -> anyhow::Result<()> {
     if a.track.is_some() && a.kind != Kind::Time {
         bail!("plot {k}: --track is for `plot time`");
     }
-    if let Some(t) = a.track.filter(|t| !t.is_finite()) {
-        bail!("--track {t}: give a finite position (the log's position unit)");
-    }
     match (a.kind == Kind::Ladder, a.test.is_some()) {
         (true, false) => bail!("plot ladder needs --test TEST.csv"),
         (false, true) => bail!("plot {k}: --test is for `plot ladder`"),

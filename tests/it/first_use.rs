@@ -494,7 +494,7 @@ fn a_negative_infinite_real_flag_is_refused_naming_its_flag() {
         ),
         (
             vec!["plot", "time", "--data", &log, "--out", &out, "--track"],
-            "--track -inf",
+            "no measured row at track -inf",
         ),
         (
             vec![
