@@ -476,18 +476,23 @@ fn snaps(feature: Feature) -> bool {
 /// ([`PositionGrid`]).
 const POSITION_GRID_BITS: i32 = 32;
 
+/// Bits below the log's travel they keep at least ([`PositionGrid`]).
+const TRAVEL_GRID_BITS: i32 = 24;
+
 /// **The unit convention of derived position features.** Seek lengths, `since_reversal` and rest
 /// distances ([`snaps`], and the seek length inside [`DERIVED_VELOCITY`]) are differences and
 /// sums of positions; in a unit where positions are not exact binary numbers (tracks × 0.05,
 /// µm → mm) two lengths equal in tracks (100 − 50, 200 − 150) come out unequal in the last bits,
 /// and the quantile bins of the smoother broke those ties differently, so the diagnosis depended
 /// on the unit. Every such value is therefore rounded to a grid of spacing
-/// `q = 2^(⌈log₂ P⌉ − 32)`, P the log's largest |position| (a power of two, so the rounding is
-/// exact; q ≈ 2⁻³² P ≈ 2.3e−10 P): the rounding error of a difference or sum of positions is some
-/// 2⁻⁵² P, about 2⁻²⁰ of q, so lengths equal in one unit meet on the same grid point in any
-/// other (except with a chance of about 1e−6 per distinct value). Whole-track lengths (P < 2³²
-/// tracks) lie on the grid already and are unchanged; in other units a length moves by at most
-/// q/2. `None` (no snapping) for a log without a non-zero position.
+/// `q = 2^⌈log₂ min(2⁻³² P, 2⁻²⁴ T)⌉`, P the log's largest |position| and T its travel (a power
+/// of two, so the rounding is exact). The rounding error of a difference or sum of positions is
+/// some 2⁻⁵² P, about 2⁻²⁰ of q, so lengths equal in one unit meet on the same grid point in any
+/// other (except with a chance of about 1e−6 per distinct value; more on a log whose positions
+/// sit more than 256 travels from zero, where q is held at 2⁻²⁴ T so lengths keep their
+/// resolution). Whole-track lengths (T < 2²⁴ tracks) lie on the grid already and are unchanged;
+/// in other units a length moves by at most q/2 (about 1e−10 P). `None` (no snapping) for a log
+/// that never moves.
 #[derive(Debug, Clone, Copy)]
 struct PositionGrid(Option<f64>);
 
@@ -495,9 +500,12 @@ impl PositionGrid {
     /// The grid of `log`'s positions.
     fn of(log: &Log) -> PositionGrid {
         let q = crate::numeric::stats::range(log.tracks())
-            .map(|[a, b]| a.abs().max(b.abs()))
-            .filter(|p| p.is_finite() && *p > 0.0)
-            .map(|p| 2f64.powi(p.log2().ceil() as i32 - POSITION_GRID_BITS))
+            .map(|[a, b]| {
+                let (p, t) = (a.abs().max(b.abs()), b - a);
+                (p * 2f64.powi(-POSITION_GRID_BITS)).min(t * 2f64.powi(-TRAVEL_GRID_BITS))
+            })
+            .filter(|q| q.is_finite() && *q > 0.0)
+            .map(|q| 2f64.powi(q.log2().ceil() as i32))
             .filter(|q| q.is_normal());
         PositionGrid(q)
     }

@@ -242,3 +242,25 @@ fn diagnose_report_is_the_same_in_any_position_unit() {
         );
     }
 }
+
+/// Positions far from zero (encoder counts near 1e12, a travel of 1e4) keep the lengths'
+/// resolution: the grid is held at 2⁻²⁴ of the travel, so whole-count seek lengths stay exact.
+/// Reference: the integer differences of the written positions.
+#[test]
+fn positions_far_from_zero_keep_their_lengths() {
+    let steps: [f64; 8] = [0.0, 1.0, 2.0, 3.0, 5000.0, 7.0, 9999.0, 4.0];
+    let mut text = String::from("time_s,track,bias\n");
+    for (i, s) in steps.iter().enumerate() {
+        text += &format!("{i},{},{}\n", 1e12 + s, i % 3);
+    }
+    let log = Log::from_reader("far.csv", text.as_bytes(), &Default::default()).unwrap();
+    let table = FeatureTable::from_log(&log);
+    let lengths: Vec<Option<f64>> = table.column("seek_abs").unwrap().iter().collect();
+    for (i, l) in lengths.iter().enumerate().skip(1) {
+        assert_eq!(
+            l.map(f64::to_bits),
+            Some((steps[i] - steps[i - 1]).abs().to_bits()),
+            "row {i}: {l:?}"
+        );
+    }
+}
