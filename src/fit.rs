@@ -2584,6 +2584,82 @@ fn replay_tail(
     Ok(residual)
 }
 
+/// The fit's statistics of its residuals.
+#[derive(Debug, Clone, Copy)]
+struct ResidualStats {
+    /// `stats::std_dev` (0 with fewer than two).
+    std: f64,
+    /// The sum of squares, summed in order.
+    sse: f64,
+    /// `stats::rms` (0 for none).
+    rms: f64,
+}
+
+impl ResidualStats {
+    /// The statistics of `residual`: three passes, two of them beside the third.
+    fn of(residual: &[f64]) -> Self {
+        let (std, (sse, rms)) = rayon::join(
+            || crate::numeric::stats::std_dev(residual).unwrap_or(0.0),
+            || {
+                let sse: f64 = residual.iter().map(|e| e * e).sum();
+                (sse, crate::numeric::stats::rms(residual).unwrap_or(0.0))
+            },
+        );
+        Self { std, sse, rms }
+    }
+}
+
+/// [`ResidualStats::of`] the residuals [`replay_tail`] gives. Where the tail is one term of
+/// exponential forgetting ([`Term::forgetting_factor`]: `drift`), its replay is one plain loop
+/// that also sums the residuals and their squares as it goes, in the order and arithmetic of
+/// the statistics' own passes ([`forgetting_tail_stats`]), which leaves one more pass (the
+/// squares about the mean) instead of a replay of the term's state and four (the same bits;
+/// tested against the replay and the three statistics).
+fn tail_stats(
+    tail: &[Arc<dyn Term>],
+    log: &Log,
+    statics: &[f64],
+    measured: &[f64],
+) -> Result<ResidualStats, FitError> {
+    if let [t] = tail
+        && let Some(alpha) = t.forgetting_factor()
+    {
+        return Ok(forgetting_tail_stats(alpha, statics, measured));
+    }
+    Ok(ResidualStats::of(&replay_tail(
+        tail, log, statics, measured,
+    )?))
+}
+
+/// [`tail_stats`] of a tail of one term of exponential forgetting with factor `alpha`: per
+/// row the residual `r = y − (s + m)` and the update `m += alpha · r` (`drift`'s state, as
+/// [`replay_tail`] runs it: its offset after the empty sum of no basis values), with the
+/// running sums of `r` and `r²` that `stats::mean` and the sum of squares add in the same
+/// order from the same start.
+fn forgetting_tail_stats(alpha: f64, statics: &[f64], measured: &[f64]) -> ResidualStats {
+    // The start of every `Iterator::sum` of f64 (and of `replay_tail`'s empty basis sum).
+    let zero = std::iter::empty::<f64>().sum::<f64>();
+    let mut residual = Vec::with_capacity(statics.len());
+    let (mut m, mut sum, mut sse) = (0.0, zero, zero);
+    for (&s, &y) in statics.iter().zip(measured) {
+        let r = y - (s + (zero + m));
+        m += alpha * r;
+        sum += r;
+        sse += r * r;
+        residual.push(r);
+    }
+    let n = residual.len();
+    let std = if n < 2 {
+        0.0
+    } else {
+        let mean = sum / n as f64;
+        let ss: f64 = residual.iter().map(|v| (v - mean) * (v - mean)).sum();
+        (ss / (n - 1) as f64).sqrt()
+    };
+    let rms = if n == 0 { 0.0 } else { (sse / n as f64).sqrt() };
+    ResidualStats { std, sse, rms }
+}
+
 /// Direction changes in the fit's replay of the history. `sampling` has counted them already
 /// (the same tracker over the same positions) when the direction comes from position steps
 /// with its deadband: then no replay is needed (tested equal to [`FitData::reversals`]).
@@ -2937,14 +3013,14 @@ pub(crate) fn fit_sharing(
             spread: (hi - lo).max(0.0),
         });
     }
-    let (measured_bias, residual, position_range) = match (tail, statics) {
+    let (measured_bias, stats, position_range) = match (tail, statics) {
         (Some(t), Some(st)) => {
-            let residual = replay_tail(&terms[t..], log, &st.pred, &st.measured)?;
-            (st.measured, residual, st.range)
+            let stats = tail_stats(&terms[t..], log, &st.pred, &st.measured)?;
+            (st.measured, stats, st.range)
         }
         _ => {
             let (m, r, range) = replay_residuals(&model, log)?;
-            (std::borrow::Cow::Owned(m), r, range)
+            (std::borrow::Cow::Owned(m), ResidualStats::of(&r), range)
         }
     };
     model.fit.position_range = position_range;
@@ -2952,14 +3028,11 @@ pub(crate) fn fit_sharing(
         Some((_, sst)) => sst,
         None => crate::numeric::stats::sum_sq_about_mean(&measured_bias),
     };
-    // Three passes over the residuals, two of them beside the third.
-    let (residual_std, (sse, residual_rms)) = rayon::join(
-        || crate::numeric::stats::std_dev(&residual).unwrap_or(0.0),
-        || {
-            let sse: f64 = residual.iter().map(|e| e * e).sum();
-            (sse, crate::numeric::stats::rms(&residual).unwrap_or(0.0))
-        },
-    );
+    let ResidualStats {
+        std: residual_std,
+        sse,
+        rms: residual_rms,
+    } = stats;
     model.fit.residual_std = residual_std;
     model.fit.residual_rms = residual_rms;
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
@@ -3795,6 +3868,42 @@ mod tests {
             }
         }
         assert_eq!(fast, 8);
+    }
+
+    /// Reference: [`replay_tail`] of a `drift` term (its state replayed through the `Term`
+    /// interface) and [`ResidualStats::of`] its residuals (`stats::std_dev`, the sum of
+    /// squares, `stats::rms`). The one-loop replay of exponential forgetting gives the same
+    /// three statistics bit for bit, for factors from 1e-4 to 1, on residuals with outliers
+    /// and runs of zeros, and on 0, 1, 2 and many rows.
+    #[test]
+    fn forgetting_tail_stats_equal_the_replay_and_the_statistics() {
+        let mut rng = SimRng::new(23);
+        let log = crate::sim::random_log(10, 1);
+        for (case, n) in [0usize, 1, 2, 3, 1000, 50_000].into_iter().enumerate() {
+            let statics: Vec<f64> = (0..n).map(|i| 3.0 * (i as f64 * 1e-3).sin()).collect();
+            let measured: Vec<f64> = (0..n)
+                .map(|i| match i % 89 {
+                    0 => 1e4 * rng.normal(),
+                    1..=4 => 0.0,
+                    _ => statics[i] + 0.5 + rng.normal(),
+                })
+                .collect();
+            for alpha in [1e-4, 3.7e-3, 0.05, 0.5, 1.0] {
+                let term: Arc<dyn Term> = Arc::new(crate::model::terms::drift::DriftTerm {
+                    name: "drift".into(),
+                    alpha,
+                    fixed: false,
+                });
+                assert_eq!(term.forgetting_factor(), Some(alpha));
+                let want = ResidualStats::of(
+                    &replay_tail(std::slice::from_ref(&term), &log, &statics, &measured).unwrap(),
+                );
+                let got =
+                    tail_stats(std::slice::from_ref(&term), &log, &statics, &measured).unwrap();
+                let bits = |s: ResidualStats| [s.std, s.sse, s.rms].map(f64::to_bits);
+                assert_eq!(bits(got), bits(want), "case {case}, alpha {alpha}");
+            }
+        }
     }
 
     /// Reference: the same fit with the history stepped on every replay

@@ -810,14 +810,34 @@ impl HistoryColumns {
             return None;
         }
         let vel = velocity.map(|k| log.covariate(k));
-        let mut tracker = source.history().turns;
-        let (mut below, mut above): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
-        let mut cols = Self {
-            flags: Vec::with_capacity(n),
-            turn: Vec::with_capacity(n),
-            od: Vec::with_capacity(n),
-            id: Vec::with_capacity(n),
+        // The direction tracker and the rest memory read the positions alone, never each
+        // other: each side walks the rows on its own (`rayon::join`), the same steps in the
+        // same order as one walk doing both.
+        let (turns, rests) = rayon::join(
+            || Self::direction_rows(x, vel, source),
+            || Self::rest_rows(x),
+        );
+        let ((flags, turn), (od, id)) = (turns?, rests);
+        let cols = Self {
+            flags,
+            turn,
+            od,
+            id,
         };
+        Some(cols)
+    }
+
+    /// [`HistoryColumns::build`]'s direction side: per row, the flags (direction and
+    /// direction change) and the row whose target is the turning point; `None` where a
+    /// tracker position names no row.
+    fn direction_rows(
+        x: &[f64],
+        vel: Option<&[f64]>,
+        source: &DirectionSource,
+    ) -> Option<(Vec<u8>, Vec<u32>)> {
+        let n = x.len();
+        let mut tracker = source.history().turns;
+        let (mut flags, mut turns) = (Vec::with_capacity(n), Vec::with_capacity(n));
         // The rows whose targets are the tracker's extreme and turning point (the anchor is
         // row 0's target): each new one is one of these or the current target, found by its
         // bits (any row with the same bits names the same value).
@@ -833,6 +853,19 @@ impl HistoryColumns {
             let (e, t) = (find(s.extreme)?, find(s.turn)?);
             tracker.commit(target, &s);
             (ext, turn) = (e, t);
+            flags.push((s.direction + 1) as u8 | u8::from(s.reversal) << 2);
+            turns.push(t);
+        }
+        Some((flags, turns))
+    }
+
+    /// [`HistoryColumns::build`]'s rest side: per row, the rows whose targets are the nearest
+    /// uncrossed rest positions on the OD and the ID side ([`NO_ROW`] for none).
+    fn rest_rows(x: &[f64]) -> (Vec<u32>, Vec<u32>) {
+        let n = x.len();
+        let (mut below, mut above): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
+        let (mut ods, mut ids) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for (i, &target) in x.iter().enumerate() {
             let (od, id) = match i.checked_sub(1) {
                 None => (None, None),
                 Some(prev) => {
@@ -857,13 +890,30 @@ impl HistoryColumns {
                     }
                 }
             };
-            cols.flags
-                .push((s.direction + 1) as u8 | u8::from(s.reversal) << 2);
-            cols.turn.push(t);
-            cols.od.push(od.unwrap_or(NO_ROW));
-            cols.id.push(id.unwrap_or(NO_ROW));
+            ods.push(od.unwrap_or(NO_ROW));
+            ids.push(id.unwrap_or(NO_ROW));
         }
-        Some(cols)
+        (ods, ids)
+    }
+
+    /// [`SeekFeatures::rest_distance_ahead`] of every row whose `bias` is not NaN (a measured
+    /// row), in log order, where `x` is the log's tracks: the features [`HistoryColumns::fill`]
+    /// gives those rows (the same subtraction of the same two tracks, so the same bits),
+    /// without stepping the positional history a [`Replay`] steps for every row.
+    pub(crate) fn measured_rest_distances_ahead(&self, x: &[f64], bias: &[f64]) -> Vec<f64> {
+        let mut out = Vec::with_capacity(bias.iter().filter(|b| !b.is_nan()).count());
+        for (i, (&target, b)) in x.iter().zip(bias).enumerate() {
+            if b.is_nan() {
+                continue;
+            }
+            let ahead = match (self.flags[i] & 3) as i8 - 1 {
+                1 => (self.id[i] != NO_ROW).then(|| x[self.id[i] as usize] - target),
+                -1 => (self.od[i] != NO_ROW).then(|| target - x[self.od[i] as usize]),
+                _ => None,
+            };
+            out.extend(ahead);
+        }
+        out
     }
 
     /// Fills the history features of row `i` into `f`, which holds its positional ones

@@ -145,6 +145,14 @@ pub trait Term: Debug + Send + Sync {
     fn reads_only_residuals(&self) -> bool {
         false
     }
+    /// For a [`Term::reads_only_residuals`] term that is exponential forgetting of the
+    /// residuals (`drift`): its factor `alpha`, where its state's offset is a running `m`
+    /// starting at 0 and its update with residual `e` is `m += alpha · e`. The fit then
+    /// replays it in one plain loop ([`crate::fit`]'s tail statistics; tested equal to the
+    /// replay of its state). Default `None`.
+    fn forgetting_factor(&self) -> Option<f64> {
+        None
+    }
     /// Number of linear parameters (basis values); the solver sizes the design by it.
     /// Default: the length of [`Term::param_names`].
     fn param_count(&self) -> usize {

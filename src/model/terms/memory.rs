@@ -37,7 +37,7 @@ impl TermSpec for MemorySpec {
         spec_name("memory", self.knots, DEFAULT_KNOTS)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let d = data.measured_values(|s| s.features.rest_distance_ahead());
+        let d = data.measured_rest_distances_ahead();
         Ok(Arc::new(MemoryTerm {
             name: self.name(),
             knots: interior_knots_owned(d, self.knots),
