@@ -986,8 +986,8 @@ pub struct Sampling {
 /// rows' times. A seek log (each row a seek: irregular times, or a median step ≥ 1 % of the
 /// travel) keeps deadband 0.
 ///
-/// The times' quantiles and the raw reversal count run beside the positions' quantiles
-/// (`rayon::join`, each side with its own scratch buffer), and the 5 % and 95 % quantiles of
+/// The times' quantiles, the median step and the raw reversal count run beside the positions'
+/// quantiles (`rayon::join`, each side with its own scratch buffer), and the 5 % and 95 % quantiles of
 /// the positions come from one nested selection (`numeric::stats::percentiles_select`): the same bits as
 /// the one-buffer, one-quantile-at-a-time `sampling_reference` (tested), on any thread count.
 pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
@@ -999,22 +999,23 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         scratch.extend(values);
         percentile_select(scratch, 50.0).unwrap_or(0.0)
     };
+    // The times' side also finds the median step (three selections and a pass each side,
+    // about: the positions' quantiles are two selections nested in one).
     let times_side = || {
-        let mut scratch = Vec::with_capacity(times_s.len());
+        let mut scratch = Vec::with_capacity(times_s.len().max(positions.len()));
         let dt = median(&mut scratch, &mut times_s.windows(2).map(|w| w[1] - w[0]));
         let dt_dev = median(
             &mut scratch,
             &mut times_s.windows(2).map(|w| ((w[1] - w[0]) - dt).abs()),
         );
-        (dt, dt_dev, count_reversals(positions, 0.0))
-    };
-    let positions_side = || {
-        let mut scratch = Vec::with_capacity(positions.len());
         let median_step = median(
             &mut scratch,
             &mut positions.windows(2).map(|w| (w[1] - w[0]).abs()),
         );
-        scratch.clear();
+        (dt, dt_dev, median_step, count_reversals(positions, 0.0))
+    };
+    let positions_side = || {
+        let mut scratch = Vec::with_capacity(positions.len());
         scratch.extend_from_slice(positions);
         let (p95, p5) = match percentiles_select(&mut scratch, &[95.0, 5.0]) {
             Some(q) => (q[0], q[1]),
@@ -1026,9 +1027,9 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
                 .windows(3)
                 .map(|w| second_difference(w[0], w[1], w[2])),
         );
-        (median_step, p95, p5, mad)
+        (p95, p5, mad)
     };
-    let ((dt, dt_dev, raw), (median_step, p95, p5, mad)) = rayon::join(times_side, positions_side);
+    let ((dt, dt_dev, median_step, raw), (p95, p5, mad)) = rayon::join(times_side, positions_side);
     let q = Quantiles {
         regular_clock: regular_clock(dt, dt_dev),
         median_step,
