@@ -1826,6 +1826,9 @@ impl FixedReader<'_, '_> {
 struct FixedRows<'a> {
     replay: crate::history::Replay<'a>,
     states: Vec<Box<dyn crate::model::term::TermState>>,
+    /// The states that are not [`TermState::constant`](crate::model::term::TermState::constant)
+    /// (the only ones a row updates).
+    moving: Vec<usize>,
     off: Vec<usize>,
     widths: Vec<usize>,
     buf: Vec<f64>,
@@ -1843,6 +1846,9 @@ impl<'a> FixedRows<'a> {
         let (off, p) = offsets(terms);
         Ok(Self {
             replay: data.replay_for(terms),
+            moving: (0..states.len())
+                .filter(|&k| !states[k].constant())
+                .collect(),
             states,
             off,
             widths: terms.iter().map(|t| t.param_count()).collect(),
@@ -1883,8 +1889,8 @@ impl<'a> FixedRows<'a> {
                 each(&self.buf, y);
                 n += 1;
             }
-            for s in &mut self.states {
-                s.update(&seek, None);
+            for &k in &self.moving {
+                self.states[k].update(&seek, None);
             }
         }
         n
@@ -2526,6 +2532,10 @@ fn static_predictions_chunked<'l>(
         .map(|(((pred, mut meas), residual), start)| {
             let ChunkStart { replay, mut states } = start;
             states.truncate(tail);
+            // Constant states add 0 and never change (`TermState::constant`): the same
+            // `+ 0.0` without the call, and no update.
+            let constant: Vec<bool> = states.iter().map(|s| s.constant()).collect();
+            let moving: Vec<usize> = (0..states.len()).filter(|&k| !constant[k]).collect();
             let mut buf = vec![0.0; widths.iter().copied().max().unwrap_or(0)];
             let mut cov = Vec::new();
             let mut range: Option<[f64; 2]> = None;
@@ -2544,7 +2554,8 @@ fn static_predictions_chunked<'l>(
                         let b = &mut buf[..widths[k]];
                         s.basis(&seek, b);
                         let c = &coef[off[k]..off[k] + widths[k]];
-                        total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + s.offset(&seek);
+                        let offset = if constant[k] { 0.0 } else { s.offset(&seek) };
+                        total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + offset;
                     }
                     pred[n] = total;
                     if let Some(m) = meas.as_deref_mut() {
@@ -2560,8 +2571,8 @@ fn static_predictions_chunked<'l>(
                         });
                     }
                 }
-                for s in &mut states {
-                    s.update(&seek, None);
+                for &k in &moving {
+                    states[k].update(&seek, None);
                 }
             }
             (n, range)

@@ -438,6 +438,14 @@ pub trait TermState: Debug + Send {
     fn offset(&self, _seek: &Seek<'_>) -> f64 {
         0.0
     }
+    /// Whether the state never changes and adds nothing: [`TermState::update`] leaves it as it
+    /// is and [`TermState::offset`] is always 0, so the basis is a function of the seek alone
+    /// (`poly2`, `direction`, `seek`, `memory`). The fit's hot replays then make neither call
+    /// (the same values; the fit's bit-for-bit tests against `Predictor` hold them to it).
+    /// Default `false`.
+    fn constant(&self) -> bool {
+        false
+    }
     /// Advances the state past `seek`; `residual` is measured − predicted bias of the whole model
     /// for this row, `None` when the row was not measured (and always `None` during the
     /// least-squares passes, so the basis must not depend on residuals).

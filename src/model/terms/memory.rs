@@ -76,6 +76,9 @@ impl Term for MemoryTerm {
 }
 
 impl TermState for MemoryTerm {
+    fn constant(&self) -> bool {
+        true
+    }
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         let f = seek.features;
         let at = direction_side(f.direction).zip(f.rest_distance_ahead());

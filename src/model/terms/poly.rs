@@ -116,6 +116,9 @@ impl Term for Poly2Term {
 }
 
 impl TermState for Poly2Term {
+    fn constant(&self) -> bool {
+        true
+    }
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         let u = (seek.features.target - self.centre) / self.scale;
         out[0] = 1.0;
