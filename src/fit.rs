@@ -895,13 +895,7 @@ impl PatternQr {
             self.groups[g].1.place(x.iter().copied(), y);
             return;
         }
-        let g = {
-            let mut mask = 0u64;
-            for (j, &v) in x.iter().enumerate() {
-                mask |= u64::from(v != 0.0) << j;
-            }
-            self.group(mask)
-        };
+        let g = self.group(nonzero_mask(x));
         let (cols, qr) = &mut self.groups[g];
         qr.place(cols.iter().map(|&j| x[j]), y);
     }
@@ -995,6 +989,59 @@ impl PatternQr {
         let (r, _) = all.finish();
         (r, self.colsq)
     }
+}
+
+/// The pattern of the non-zero values of `x` (at most 63 of them): bit `j` set where
+/// `x[j] != 0.0` (NaN included). Runs the AVX copy when the CPU has it (four comparisons to
+/// an instruction: the same bits, tested against [`nonzero_mask_portable`]).
+#[inline(always)]
+fn nonzero_mask(x: &[f64]) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: the CPU supports AVX (checked just above).
+        return unsafe { nonzero_mask_avx(x) };
+    }
+    nonzero_mask_portable(x)
+}
+
+/// [`nonzero_mask`] for any CPU, one value at a time.
+#[inline(always)]
+fn nonzero_mask_portable(x: &[f64]) -> u64 {
+    debug_assert!(x.len() < 64);
+    let mut mask = 0u64;
+    for (j, &v) in x.iter().enumerate() {
+        mask |= u64::from(v != 0.0) << j;
+    }
+    mask
+}
+
+/// [`nonzero_mask`] compiled for AVX: four values to a comparison (`!=` is the unordered
+/// not-equal, true for NaN as Rust's), the rest one at a time.
+///
+/// # Safety
+/// The CPU must support AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn nonzero_mask_avx(x: &[f64]) -> u64 {
+    use std::arch::x86_64::{
+        _CMP_NEQ_UQ, _mm256_cmp_pd, _mm256_loadu_pd, _mm256_movemask_pd, _mm256_setzero_pd,
+    };
+    debug_assert!(x.len() < 64);
+    let zero = _mm256_setzero_pd();
+    let mut mask = 0u64;
+    let quads = x.chunks_exact(4);
+    let rest = quads.remainder();
+    for (i, q) in quads.enumerate() {
+        // SAFETY: `q` holds four f64 (an unaligned load).
+        let v = unsafe { _mm256_loadu_pd(q.as_ptr()) };
+        let bits = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_NEQ_UQ>(v, zero)) as u64;
+        mask |= bits << (4 * i);
+    }
+    let base = x.len() - rest.len();
+    for (j, &v) in rest.iter().enumerate() {
+        mask |= u64::from(v != 0.0) << (base + j);
+    }
+    mask
 }
 
 /// Per group of a [`PatternQr`]: its columns and its `R` ([`PatternQr::finish_groups_keeping`]).
@@ -1779,6 +1826,9 @@ impl FixedReader<'_, '_> {
 struct FixedRows<'a> {
     replay: crate::history::Replay<'a>,
     states: Vec<Box<dyn crate::model::term::TermState>>,
+    /// The states that are not [`TermState::constant`](crate::model::term::TermState::constant)
+    /// (the only ones a row updates).
+    moving: Vec<usize>,
     off: Vec<usize>,
     widths: Vec<usize>,
     buf: Vec<f64>,
@@ -1796,6 +1846,9 @@ impl<'a> FixedRows<'a> {
         let (off, p) = offsets(terms);
         Ok(Self {
             replay: data.replay_for(terms),
+            moving: (0..states.len())
+                .filter(|&k| !states[k].constant())
+                .collect(),
             states,
             off,
             widths: terms.iter().map(|t| t.param_count()).collect(),
@@ -1836,8 +1889,8 @@ impl<'a> FixedRows<'a> {
                 each(&self.buf, y);
                 n += 1;
             }
-            for s in &mut self.states {
-                s.update(&seek, None);
+            for &k in &self.moving {
+                self.states[k].update(&seek, None);
             }
         }
         n
@@ -2479,6 +2532,10 @@ fn static_predictions_chunked<'l>(
         .map(|(((pred, mut meas), residual), start)| {
             let ChunkStart { replay, mut states } = start;
             states.truncate(tail);
+            // Constant states add 0 and never change (`TermState::constant`): the same
+            // `+ 0.0` without the call, and no update.
+            let constant: Vec<bool> = states.iter().map(|s| s.constant()).collect();
+            let moving: Vec<usize> = (0..states.len()).filter(|&k| !constant[k]).collect();
             let mut buf = vec![0.0; widths.iter().copied().max().unwrap_or(0)];
             let mut cov = Vec::new();
             let mut range: Option<[f64; 2]> = None;
@@ -2497,7 +2554,8 @@ fn static_predictions_chunked<'l>(
                         let b = &mut buf[..widths[k]];
                         s.basis(&seek, b);
                         let c = &coef[off[k]..off[k] + widths[k]];
-                        total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + s.offset(&seek);
+                        let offset = if constant[k] { 0.0 } else { s.offset(&seek) };
+                        total += b.iter().zip(c).map(|(b, c)| b * c).sum::<f64>() + offset;
                     }
                     pred[n] = total;
                     if let Some(m) = meas.as_deref_mut() {
@@ -2513,8 +2571,8 @@ fn static_predictions_chunked<'l>(
                         });
                     }
                 }
-                for s in &mut states {
-                    s.update(&seek, None);
+                for &k in &moving {
+                    states[k].update(&seek, None);
                 }
             }
             (n, range)
@@ -2582,6 +2640,82 @@ fn replay_tail(
         residual.push(r);
     }
     Ok(residual)
+}
+
+/// The fit's statistics of its residuals.
+#[derive(Debug, Clone, Copy)]
+struct ResidualStats {
+    /// `stats::std_dev` (0 with fewer than two).
+    std: f64,
+    /// The sum of squares, summed in order.
+    sse: f64,
+    /// `stats::rms` (0 for none).
+    rms: f64,
+}
+
+impl ResidualStats {
+    /// The statistics of `residual`: three passes, two of them beside the third.
+    fn of(residual: &[f64]) -> Self {
+        let (std, (sse, rms)) = rayon::join(
+            || crate::numeric::stats::std_dev(residual).unwrap_or(0.0),
+            || {
+                let sse: f64 = residual.iter().map(|e| e * e).sum();
+                (sse, crate::numeric::stats::rms(residual).unwrap_or(0.0))
+            },
+        );
+        Self { std, sse, rms }
+    }
+}
+
+/// [`ResidualStats::of`] the residuals [`replay_tail`] gives. Where the tail is one term of
+/// exponential forgetting ([`Term::forgetting_factor`]: `drift`), its replay is one plain loop
+/// that also sums the residuals and their squares as it goes, in the order and arithmetic of
+/// the statistics' own passes ([`forgetting_tail_stats`]), which leaves one more pass (the
+/// squares about the mean) instead of a replay of the term's state and four (the same bits;
+/// tested against the replay and the three statistics).
+fn tail_stats(
+    tail: &[Arc<dyn Term>],
+    log: &Log,
+    statics: &[f64],
+    measured: &[f64],
+) -> Result<ResidualStats, FitError> {
+    if let [t] = tail
+        && let Some(alpha) = t.forgetting_factor()
+    {
+        return Ok(forgetting_tail_stats(alpha, statics, measured));
+    }
+    Ok(ResidualStats::of(&replay_tail(
+        tail, log, statics, measured,
+    )?))
+}
+
+/// [`tail_stats`] of a tail of one term of exponential forgetting with factor `alpha`: per
+/// row the residual `r = y − (s + m)` and the update `m += alpha · r` (`drift`'s state, as
+/// [`replay_tail`] runs it: its offset after the empty sum of no basis values), with the
+/// running sums of `r` and `r²` that `stats::mean` and the sum of squares add in the same
+/// order from the same start.
+fn forgetting_tail_stats(alpha: f64, statics: &[f64], measured: &[f64]) -> ResidualStats {
+    // The start of every `Iterator::sum` of f64 (and of `replay_tail`'s empty basis sum).
+    let zero = std::iter::empty::<f64>().sum::<f64>();
+    let mut residual = Vec::with_capacity(statics.len());
+    let (mut m, mut sum, mut sse) = (0.0, zero, zero);
+    for (&s, &y) in statics.iter().zip(measured) {
+        let r = y - (s + (zero + m));
+        m += alpha * r;
+        sum += r;
+        sse += r * r;
+        residual.push(r);
+    }
+    let n = residual.len();
+    let std = if n < 2 {
+        0.0
+    } else {
+        let mean = sum / n as f64;
+        let ss: f64 = residual.iter().map(|v| (v - mean) * (v - mean)).sum();
+        (ss / (n - 1) as f64).sqrt()
+    };
+    let rms = if n == 0 { 0.0 } else { (sse / n as f64).sqrt() };
+    ResidualStats { std, sse, rms }
 }
 
 /// Direction changes in the fit's replay of the history. `sampling` has counted them already
@@ -2937,14 +3071,14 @@ pub(crate) fn fit_sharing(
             spread: (hi - lo).max(0.0),
         });
     }
-    let (measured_bias, residual, position_range) = match (tail, statics) {
+    let (measured_bias, stats, position_range) = match (tail, statics) {
         (Some(t), Some(st)) => {
-            let residual = replay_tail(&terms[t..], log, &st.pred, &st.measured)?;
-            (st.measured, residual, st.range)
+            let stats = tail_stats(&terms[t..], log, &st.pred, &st.measured)?;
+            (st.measured, stats, st.range)
         }
         _ => {
             let (m, r, range) = replay_residuals(&model, log)?;
-            (std::borrow::Cow::Owned(m), r, range)
+            (std::borrow::Cow::Owned(m), ResidualStats::of(&r), range)
         }
     };
     model.fit.position_range = position_range;
@@ -2952,14 +3086,11 @@ pub(crate) fn fit_sharing(
         Some((_, sst)) => sst,
         None => crate::numeric::stats::sum_sq_about_mean(&measured_bias),
     };
-    // Three passes over the residuals, two of them beside the third.
-    let (residual_std, (sse, residual_rms)) = rayon::join(
-        || crate::numeric::stats::std_dev(&residual).unwrap_or(0.0),
-        || {
-            let sse: f64 = residual.iter().map(|e| e * e).sum();
-            (sse, crate::numeric::stats::rms(&residual).unwrap_or(0.0))
-        },
-    );
+    let ResidualStats {
+        std: residual_std,
+        sse,
+        rms: residual_rms,
+    } = stats;
     model.fit.residual_std = residual_std;
     model.fit.residual_rms = residual_rms;
     model.fit.r2 = if sst > 0.0 { 1.0 - sse / sst } else { 0.0 };
@@ -3795,6 +3926,69 @@ mod tests {
             }
         }
         assert_eq!(fast, 8);
+    }
+
+    /// Reference: [`replay_tail`] of a `drift` term (its state replayed through the `Term`
+    /// interface) and [`ResidualStats::of`] its residuals (`stats::std_dev`, the sum of
+    /// squares, `stats::rms`). The one-loop replay of exponential forgetting gives the same
+    /// three statistics bit for bit, for factors from 1e-4 to 1, on residuals with outliers
+    /// and runs of zeros, and on 0, 1, 2 and many rows.
+    #[test]
+    fn forgetting_tail_stats_equal_the_replay_and_the_statistics() {
+        let mut rng = SimRng::new(23);
+        let log = crate::sim::random_log(10, 1);
+        for (case, n) in [0usize, 1, 2, 3, 1000, 50_000].into_iter().enumerate() {
+            let statics: Vec<f64> = (0..n).map(|i| 3.0 * (i as f64 * 1e-3).sin()).collect();
+            let measured: Vec<f64> = (0..n)
+                .map(|i| match i % 89 {
+                    0 => 1e4 * rng.normal(),
+                    1..=4 => 0.0,
+                    _ => statics[i] + 0.5 + rng.normal(),
+                })
+                .collect();
+            for alpha in [1e-4, 3.7e-3, 0.05, 0.5, 1.0] {
+                let term: Arc<dyn Term> = Arc::new(crate::model::terms::drift::DriftTerm {
+                    name: "drift".into(),
+                    alpha,
+                    fixed: false,
+                });
+                assert_eq!(term.forgetting_factor(), Some(alpha));
+                let want = ResidualStats::of(
+                    &replay_tail(std::slice::from_ref(&term), &log, &statics, &measured).unwrap(),
+                );
+                let got =
+                    tail_stats(std::slice::from_ref(&term), &log, &statics, &measured).unwrap();
+                let bits = |s: ResidualStats| [s.std, s.sse, s.rms].map(f64::to_bits);
+                assert_eq!(bits(got), bits(want), "case {case}, alpha {alpha}");
+            }
+        }
+    }
+
+    /// Reference: [`nonzero_mask_portable`], one comparison per value. The dispatched mask
+    /// (AVX where the CPU has it) is the same on rows of 0 to 63 values mixing zeros, negative
+    /// zeros, NaN, infinities, subnormals and ordinary values.
+    #[test]
+    fn nonzero_mask_equals_the_one_value_loop() {
+        let mut rng = SimRng::new(31);
+        let pick = [
+            0.0,
+            -0.0,
+            f64::NAN,
+            f64::INFINITY,
+            -f64::INFINITY,
+            5e-324,
+            -1.5,
+            2.0,
+        ];
+        for len in 0..64 {
+            for _ in 0..50 {
+                let x: Vec<f64> = (0..len)
+                    .map(|_| pick[rng.below(pick.len() as u64) as usize])
+                    .collect();
+                assert_eq!(nonzero_mask(&x), nonzero_mask_portable(&x), "{x:?}");
+            }
+        }
+        assert_eq!(nonzero_mask(&[0.0, 1.0, -0.0, f64::NAN, 0.0]), 0b01010);
     }
 
     /// Reference: the same fit with the history stepped on every replay

@@ -810,14 +810,34 @@ impl HistoryColumns {
             return None;
         }
         let vel = velocity.map(|k| log.covariate(k));
-        let mut tracker = source.history().turns;
-        let (mut below, mut above): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
-        let mut cols = Self {
-            flags: Vec::with_capacity(n),
-            turn: Vec::with_capacity(n),
-            od: Vec::with_capacity(n),
-            id: Vec::with_capacity(n),
+        // The direction tracker and the rest memory read the positions alone, never each
+        // other: each side walks the rows on its own (`rayon::join`), the same steps in the
+        // same order as one walk doing both.
+        let (turns, rests) = rayon::join(
+            || Self::direction_rows(x, vel, source),
+            || Self::rest_rows(x),
+        );
+        let ((flags, turn), (od, id)) = (turns?, rests);
+        let cols = Self {
+            flags,
+            turn,
+            od,
+            id,
         };
+        Some(cols)
+    }
+
+    /// [`HistoryColumns::build`]'s direction side: per row, the flags (direction and
+    /// direction change) and the row whose target is the turning point; `None` where a
+    /// tracker position names no row.
+    fn direction_rows(
+        x: &[f64],
+        vel: Option<&[f64]>,
+        source: &DirectionSource,
+    ) -> Option<(Vec<u8>, Vec<u32>)> {
+        let n = x.len();
+        let mut tracker = source.history().turns;
+        let (mut flags, mut turns) = (Vec::with_capacity(n), Vec::with_capacity(n));
         // The rows whose targets are the tracker's extreme and turning point (the anchor is
         // row 0's target): each new one is one of these or the current target, found by its
         // bits (any row with the same bits names the same value).
@@ -833,6 +853,19 @@ impl HistoryColumns {
             let (e, t) = (find(s.extreme)?, find(s.turn)?);
             tracker.commit(target, &s);
             (ext, turn) = (e, t);
+            flags.push((s.direction + 1) as u8 | u8::from(s.reversal) << 2);
+            turns.push(t);
+        }
+        Some((flags, turns))
+    }
+
+    /// [`HistoryColumns::build`]'s rest side: per row, the rows whose targets are the nearest
+    /// uncrossed rest positions on the OD and the ID side ([`NO_ROW`] for none).
+    fn rest_rows(x: &[f64]) -> (Vec<u32>, Vec<u32>) {
+        let n = x.len();
+        let (mut below, mut above): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
+        let (mut ods, mut ids) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for (i, &target) in x.iter().enumerate() {
             let (od, id) = match i.checked_sub(1) {
                 None => (None, None),
                 Some(prev) => {
@@ -857,13 +890,30 @@ impl HistoryColumns {
                     }
                 }
             };
-            cols.flags
-                .push((s.direction + 1) as u8 | u8::from(s.reversal) << 2);
-            cols.turn.push(t);
-            cols.od.push(od.unwrap_or(NO_ROW));
-            cols.id.push(id.unwrap_or(NO_ROW));
+            ods.push(od.unwrap_or(NO_ROW));
+            ids.push(id.unwrap_or(NO_ROW));
         }
-        Some(cols)
+        (ods, ids)
+    }
+
+    /// [`SeekFeatures::rest_distance_ahead`] of every row whose `bias` is not NaN (a measured
+    /// row), in log order, where `x` is the log's tracks: the features [`HistoryColumns::fill`]
+    /// gives those rows (the same subtraction of the same two tracks, so the same bits),
+    /// without stepping the positional history a [`Replay`] steps for every row.
+    pub(crate) fn measured_rest_distances_ahead(&self, x: &[f64], bias: &[f64]) -> Vec<f64> {
+        let mut out = Vec::with_capacity(bias.iter().filter(|b| !b.is_nan()).count());
+        for (i, (&target, b)) in x.iter().zip(bias).enumerate() {
+            if b.is_nan() {
+                continue;
+            }
+            let ahead = match (self.flags[i] & 3) as i8 - 1 {
+                1 => (self.id[i] != NO_ROW).then(|| x[self.id[i] as usize] - target),
+                -1 => (self.od[i] != NO_ROW).then(|| target - x[self.od[i] as usize]),
+                _ => None,
+            };
+            out.extend(ahead);
+        }
+        out
     }
 
     /// Fills the history features of row `i` into `f`, which holds its positional ones
@@ -936,8 +986,8 @@ pub struct Sampling {
 /// rows' times. A seek log (each row a seek: irregular times, or a median step ≥ 1 % of the
 /// travel) keeps deadband 0.
 ///
-/// The times' quantiles and the raw reversal count run beside the positions' quantiles
-/// (`rayon::join`, each side with its own scratch buffer), and the 5 % and 95 % quantiles of
+/// The times' quantiles, the median step and the raw reversal count run beside the positions'
+/// quantiles (`rayon::join`, each side with its own scratch buffer), and the 5 % and 95 % quantiles of
 /// the positions come from one nested selection (`numeric::stats::percentiles_select`): the same bits as
 /// the one-buffer, one-quantile-at-a-time `sampling_reference` (tested), on any thread count.
 pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
@@ -949,22 +999,23 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
         scratch.extend(values);
         percentile_select(scratch, 50.0).unwrap_or(0.0)
     };
+    // The times' side also finds the median step (three selections and a pass each side,
+    // about: the positions' quantiles are two selections nested in one).
     let times_side = || {
-        let mut scratch = Vec::with_capacity(times_s.len());
+        let mut scratch = Vec::with_capacity(times_s.len().max(positions.len()));
         let dt = median(&mut scratch, &mut times_s.windows(2).map(|w| w[1] - w[0]));
         let dt_dev = median(
             &mut scratch,
             &mut times_s.windows(2).map(|w| ((w[1] - w[0]) - dt).abs()),
         );
-        (dt, dt_dev, count_reversals(positions, 0.0))
-    };
-    let positions_side = || {
-        let mut scratch = Vec::with_capacity(positions.len());
         let median_step = median(
             &mut scratch,
             &mut positions.windows(2).map(|w| (w[1] - w[0]).abs()),
         );
-        scratch.clear();
+        (dt, dt_dev, median_step, count_reversals(positions, 0.0))
+    };
+    let positions_side = || {
+        let mut scratch = Vec::with_capacity(positions.len());
         scratch.extend_from_slice(positions);
         let (p95, p5) = match percentiles_select(&mut scratch, &[95.0, 5.0]) {
             Some(q) => (q[0], q[1]),
@@ -976,9 +1027,9 @@ pub fn sampling(times_s: &[f64], positions: &[f64]) -> Sampling {
                 .windows(3)
                 .map(|w| second_difference(w[0], w[1], w[2])),
         );
-        (median_step, p95, p5, mad)
+        (p95, p5, mad)
     };
-    let ((dt, dt_dev, raw), (median_step, p95, p5, mad)) = rayon::join(times_side, positions_side);
+    let ((dt, dt_dev, median_step, raw), (p95, p5, mad)) = rayon::join(times_side, positions_side);
     let q = Quantiles {
         regular_clock: regular_clock(dt, dt_dev),
         median_step,

@@ -400,6 +400,18 @@ impl<'a> FitData<'a> {
         out
     }
 
+    /// [`FitData::measured_values`] of [`SeekFeatures::rest_distance_ahead`]: the same values,
+    /// read straight from a long log's history columns (built now if not yet) where it has
+    /// them, without a replay ([`HistoryColumns::measured_rest_distances_ahead`]; tested).
+    pub(crate) fn measured_rest_distances_ahead(&self) -> Vec<f64> {
+        if self.cached().is_none()
+            && let Some(c) = self.history_columns()
+        {
+            return c.measured_rest_distances_ahead(self.log.tracks(), self.log.bias_raw());
+        }
+        self.measured_values(|s| s.features.rest_distance_ahead())
+    }
+
     /// [`FitData::measured_values`] of a function of the features a log's times and positions
     /// give row by row (`seek_index`, `time_s`, `elapsed_s`, `dwell_s`, `source`, `target`,
     /// `seek_length`; see [`Term::reads_history`]) and the covariates: the same values, from a
@@ -480,6 +492,46 @@ pub(crate) mod tests {
 
     /// Held by the tests that set [`STEP_HISTORY`] or look for the columns it turns off.
     pub(crate) static STEP_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+    /// Reference: the stepped full replay (`history::replay_checked`), its
+    /// `rest_distance_ahead` of every measured row. On a log longer than
+    /// [`FEATURE_CACHE_ROWS`] with unmeasured rows, read from the history columns
+    /// (`HistoryColumns::measured_rest_distances_ahead`), for position steps and a deadband,
+    /// they are the same values bit for bit; on a short log (the cached features) too.
+    #[test]
+    fn rest_distances_ahead_from_the_columns_equal_the_stepped_replay() {
+        let _lock = STEP_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        for (n, seed) in [(FEATURE_CACHE_ROWS as u64 + 3001, 4), (1500, 5)] {
+            let mut log = crate::sim::random_log(n, seed);
+            for i in (3..log.len()).step_by(7) {
+                log.set_bias(i, None);
+            }
+            for direction in [
+                DirectionSource::Steps,
+                DirectionSource::Deadband { deadband: 2.5 },
+            ] {
+                let want: Vec<u64> = crate::history::replay_checked(&log, &direction, None, false)
+                    .filter(|(_, row, _)| row.bias.is_some())
+                    .filter_map(|(_, _, f)| f.rest_distance_ahead())
+                    .map(f64::to_bits)
+                    .collect();
+                let data = FitData::with_direction(&log, &direction).unwrap();
+                let got: Vec<u64> = data
+                    .measured_rest_distances_ahead()
+                    .into_iter()
+                    .map(f64::to_bits)
+                    .collect();
+                assert!(want.len() > n as usize / 2);
+                assert_eq!(got, want, "{n} rows, {direction:?}");
+                let long = n as usize > FEATURE_CACHE_ROWS;
+                assert_eq!(
+                    data.columns.get().is_some_and(|c| c.is_some()),
+                    long,
+                    "{n} rows"
+                );
+            }
+        }
+    }
 
     /// Reference: the uncached replays (`history::replay_checked`, full and light). A short
     /// log's replays read its cache after the first: every feature of the full replay equals

@@ -145,6 +145,14 @@ pub trait Term: Debug + Send + Sync {
     fn reads_only_residuals(&self) -> bool {
         false
     }
+    /// For a [`Term::reads_only_residuals`] term that is exponential forgetting of the
+    /// residuals (`drift`): its factor `alpha`, where its state's offset is a running `m`
+    /// starting at 0 and its update with residual `e` is `m += alpha · e`. The fit then
+    /// replays it in one plain loop ([`crate::fit`]'s tail statistics; tested equal to the
+    /// replay of its state). Default `None`.
+    fn forgetting_factor(&self) -> Option<f64> {
+        None
+    }
     /// Number of linear parameters (basis values); the solver sizes the design by it.
     /// Default: the length of [`Term::param_names`].
     fn param_count(&self) -> usize {
@@ -429,6 +437,14 @@ pub trait TermState: Debug + Send {
     /// A contribution not scaled by any coefficient (a causal offset such as `drift`), counts.
     fn offset(&self, _seek: &Seek<'_>) -> f64 {
         0.0
+    }
+    /// Whether the state never changes and adds nothing: [`TermState::update`] leaves it as it
+    /// is and [`TermState::offset`] is always 0, so the basis is a function of the seek alone
+    /// (`poly2`, `direction`, `seek`, `memory`). The fit's hot replays then make neither call
+    /// (the same values; the fit's bit-for-bit tests against `Predictor` hold them to it).
+    /// Default `false`.
+    fn constant(&self) -> bool {
+        false
     }
     /// Advances the state past `seek`; `residual` is measured − predicted bias of the whole model
     /// for this row, `None` when the row was not measured (and always `None` during the

@@ -43,6 +43,9 @@ impl Term for DirectionTerm {
 struct DirectionState;
 
 impl TermState for DirectionState {
+    fn constant(&self) -> bool {
+        true
+    }
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         out[0] = f64::from(seek.features.direction);
     }

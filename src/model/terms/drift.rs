@@ -139,6 +139,10 @@ impl Term for DriftTerm {
     fn reads_only_residuals(&self) -> bool {
         true
     }
+    fn forgetting_factor(&self) -> Option<f64> {
+        // `DriftState`: offset `m` (from 0), update `m += alpha · e`.
+        Some(self.alpha)
+    }
     fn tune_on_residuals(&self, residuals: &[f64]) -> Option<Arc<dyn Term>> {
         if self.fixed || residuals.is_empty() {
             return None;

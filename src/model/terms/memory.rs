@@ -37,7 +37,7 @@ impl TermSpec for MemorySpec {
         spec_name("memory", self.knots, DEFAULT_KNOTS)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
-        let d = data.measured_values(|s| s.features.rest_distance_ahead());
+        let d = data.measured_rest_distances_ahead();
         Ok(Arc::new(MemoryTerm {
             name: self.name(),
             knots: interior_knots_owned(d, self.knots),
@@ -76,6 +76,9 @@ impl Term for MemoryTerm {
 }
 
 impl TermState for MemoryTerm {
+    fn constant(&self) -> bool {
+        true
+    }
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         let f = seek.features;
         let at = direction_side(f.direction).zip(f.rest_distance_ahead());

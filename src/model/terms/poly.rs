@@ -32,25 +32,25 @@ impl TermSpec for Poly2Spec {
 /// place instead of from a copy (8 B/row at the fit's busiest moment, the terms' parallel
 /// preparation).
 fn centre_and_half_range(log: &crate::log::Log) -> (f64, f64) {
-    let x = || {
-        log.tracks()
-            .iter()
-            .zip(log.bias_raw())
-            .filter(|(_, b)| !b.is_nan())
-            .map(|(&x, _)| x)
-    };
-    let n = x().count();
-    let centre = if n == 0 {
-        0.0
-    } else {
-        x().sum::<f64>() / n as f64
-    };
-    let range = x()
-        .filter(|v| v.is_finite())
-        .fold(None, |r: Option<[f64; 2]>, v| match r {
-            None => Some([v, v]),
-            Some([lo, hi]) => Some([lo.min(v), hi.max(v)]),
-        });
+    // One pass doing the three folds side by side: the count, the sum (from the start of
+    // every `Iterator::sum` of f64, in row order) and the range of the finite values.
+    let zero = std::iter::empty::<f64>().sum::<f64>();
+    let (mut n, mut sum) = (0usize, zero);
+    let mut range: Option<[f64; 2]> = None;
+    for (&x, b) in log.tracks().iter().zip(log.bias_raw()) {
+        if b.is_nan() {
+            continue;
+        }
+        n += 1;
+        sum += x;
+        if x.is_finite() {
+            range = Some(match range {
+                None => [x, x],
+                Some([lo, hi]) => [lo.min(x), hi.max(x)],
+            });
+        }
+    }
+    let centre = if n == 0 { 0.0 } else { sum / n as f64 };
     (centre, range.map_or(0.0, |[lo, hi]| 0.5 * (hi - lo)))
 }
 
@@ -116,6 +116,9 @@ impl Term for Poly2Term {
 }
 
 impl TermState for Poly2Term {
+    fn constant(&self) -> bool {
+        true
+    }
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         let u = (seek.features.target - self.centre) / self.scale;
         out[0] = 1.0;

@@ -90,6 +90,9 @@ impl Term for SeekTerm {
 }
 
 impl TermState for SeekTerm {
+    fn constant(&self) -> bool {
+        true
+    }
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         let at = Self::curve(seek).map(|c| (c, seek.features.seek_length.abs()));
         curve_hinges(&self.knots, at, out);
