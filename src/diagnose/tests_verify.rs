@@ -1328,8 +1328,11 @@ fn fold_starts_cut_where_the_measured_index_does() {
 /// The verification's refits sharing the log's sampling, its replayed features and a small
 /// fixed-block budget give the same out-of-sample residuals bit for bit as the reference
 /// that shares nothing (`cv_residuals_reference`): a linear model, a fine table, a covariate
-/// with its lag searched by full solves, `memsum` likewise, and `dahl`'s rate searched by
-/// variable projection with its fixed block stored and, at a zero budget, replayed per pass.
+/// with its lag searched by full solves, `memsum` likewise, `dahl`'s rate searched by
+/// variable projection with its fixed block stored and, at a zero budget, replayed per pass,
+/// and an adaptive `drift` fed every measured row. The reference replays each fold's model
+/// over the whole log; the fast path stops at the end of the fold's stretch (the replay is
+/// causal).
 #[test]
 fn shared_refits_equal_the_reference_bit_for_bit() {
     let log = gappy_log(11, 1500);
@@ -1346,6 +1349,7 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
         "poly2,direction,memsum",
         "poly2,dahl",
         "poly2,dahl,col:temp_c",
+        "poly2,direction,drift",
     ] {
         let spec = ModelSpec::parse(terms).unwrap();
         let reference = cv_residuals_reference(&spec, &log, 3, &opts);
