@@ -1555,3 +1555,36 @@ fn a_second_effect_the_first_hid_is_found_by_the_rescreen() {
         "{v0:?}"
     );
 }
+
+/// The narrow-defect screen reads each measured row's target from the log's tracks
+/// (`Log::measured_positions`) instead of a replay of the history: the same numbers bit for
+/// bit as the reference, the replay's `target` of every measured row (`FitData::measured_map`,
+/// what the screen read before), on a log with unmeasured rows at the ends and inside, short
+/// (the replay's feature cache) and longer than the cache's bound (its history columns).
+#[test]
+fn measured_positions_equal_the_replayed_targets() {
+    for (seed, rows) in [
+        (13, 1500),
+        (14, crate::model::data::FEATURE_CACHE_ROWS + 500),
+    ] {
+        let log = gappy_log(seed, rows);
+        let reference: Vec<f64> = crate::model::data::FitData::new(&log)
+            .measured_map(|s| Some(s.features.target))
+            .into_iter()
+            .map(|v| v.unwrap_or(f64::NAN))
+            .collect();
+        let fast = log.measured_positions();
+        assert_eq!(fast.len(), log.measured_count(), "rows {rows}");
+        assert!(
+            fast.len() < log.len(),
+            "rows {rows}: the log has unmeasured rows"
+        );
+        assert_eq!(fast.len(), reference.len(), "rows {rows}");
+        assert!(
+            fast.iter()
+                .zip(&reference)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "rows {rows}"
+        );
+    }
+}

@@ -1096,12 +1096,9 @@ fn verify_round(
     let defect_cell = std::cell::OnceCell::new();
     let defect = || {
         defect_cell.get_or_init(|| {
-            let data = crate::model::data::FitData::new(log);
-            let x: Vec<f64> = data
-                .measured_map(|s| Some(s.features.target))
-                .into_iter()
-                .map(|v| v.unwrap_or(f64::NAN))
-                .collect();
+            // Each measured row's target: its track as logged (what the history's `target`
+            // is, without a replay of the history that would hold every row's features).
+            let x = log.measured_positions();
             super::advice::defect_screen(&x, before)
         })
     };
