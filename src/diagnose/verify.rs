@@ -580,23 +580,17 @@ pub(super) fn cv_residuals_sharing(
             // so the same bits).
             drop(masked);
             // The replay is causal, so the rows after this stretch (from the next stretch's
-            // first row on) change none of its predictions: replayed over the log up to
-            // there only (a copy of that part, no larger than the masked copy just freed).
+            // first row on) change none of its predictions: replayed up to there only.
             let end = starts[k + 1];
-            let prefix = (end < log.len()).then(|| log.slice(0..end));
             let mut part = Vec::with_capacity(b - a);
             let mut k = 0usize;
             model
-                .replay_measured(
-                    prefix.as_ref().unwrap_or(log),
-                    Feedback::EveryRow,
-                    |row, predicted, _| {
-                        if (a..b).contains(&k) {
-                            part.push(row.measured - predicted);
-                        }
-                        k += 1;
-                    },
-                )
+                .replay_measured_until(log, end, Feedback::EveryRow, |row, predicted, _| {
+                    if (a..b).contains(&k) {
+                        part.push(row.measured - predicted);
+                    }
+                    k += 1;
+                })
                 .map_err(|source| ModelDiagnosisError::Replay {
                     file: log.schema.file.clone(),
                     source,
