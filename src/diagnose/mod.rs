@@ -467,6 +467,89 @@ pub fn diagnose(
     config: &CheckedDiagnoseConfig,
 ) -> Result<Diagnosis, DiagnoseError> {
     let n = table.len();
+    let s = screen(table, residuals, config, Reports::All)?;
+    let ctx = Ctx {
+        direction: s.direction.as_deref(),
+        fold: &s.fold,
+        folds: config.folds,
+        variance: s.variance,
+    };
+    // The residual's own statistics (one thread each: a sort for the dip test, the
+    // Ljung–Box sums) run beside the pair screen instead of after it.
+    let ((interactions, global), (whiteness, bimodality, dip)) = rayon::join(
+        || pairs::screen(table, &s.left, &ctx, config),
+        || {
+            (
+                Whiteness::of(residuals, config.ljung_box_lags, config.alpha),
+                stats::bimodality_coefficient(residuals).filter(|b| b.is_finite()),
+                stats::dip_test(residuals),
+            )
+        },
+    );
+    let mut d = Diagnosis {
+        residual_std: s.residual_std,
+        features: s.reports,
+        whiteness,
+        bimodality,
+        dip,
+        summary: String::new(),
+        units: table.units().clone(),
+        null_block_len: s.null_block,
+        absorbed: Vec::new(),
+        warnings: Vec::new(),
+        verification: None,
+        rows: n,
+        alpha: config.alpha,
+        interactions,
+        global,
+    };
+    d.summary = report::summary(&d, n, config.alpha);
+    Ok(d)
+}
+
+/// The flagged features of [`diagnose`]`(table, residuals, config)`, in its order, each
+/// report bit for bit as `diagnose` makes it (tested against it): the same screen, without
+/// the pair screen, the residual's own statistics, the summary and the reports of the
+/// features that are not flagged — what a caller reading only the flags (the verification's
+/// re-screen) would pay for nothing.
+pub(crate) fn flagged_features(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+) -> Result<Vec<FeatureReport>, DiagnoseError> {
+    Ok(screen(table, residuals, config, Reports::Flagged)?.reports)
+}
+
+/// Which feature reports [`screen`] makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reports {
+    /// Every column's ([`diagnose`]).
+    All,
+    /// The flagged columns' only ([`flagged_features`]).
+    Flagged,
+}
+
+/// What [`screen`] leaves for the rest of [`diagnose`].
+struct Screened {
+    reports: Vec<FeatureReport>,
+    residual_std: f64,
+    null_block: usize,
+    /// The residual left by the forward pass (the pair screen's input).
+    left: Vec<f64>,
+    fold: Vec<u8>,
+    direction: Option<Vec<i8>>,
+    variance: f64,
+}
+
+/// The one-dimensional screen of [`diagnose`]: every feature's smoother, the permutation
+/// test, the forward pass and the features' reports (`which`), strongest first.
+fn screen(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+    which: Reports,
+) -> Result<Screened, DiagnoseError> {
+    let n = table.len();
     if residuals.len() != n {
         return Err(DiagnoseError::LengthMismatch {
             residuals: residuals.len(),
@@ -607,20 +690,35 @@ pub fn diagnose(
     // residuals as given (freed before them: the reports' own buffers are the peak there).
     drop(y);
 
-    let signed_residuals: Option<Vec<f64>> = direction.as_ref().map(|d| {
-        residuals
-            .iter()
-            .zip(d)
-            .map(|(r, &d)| r * f64::from(d))
-            .collect()
-    });
-    // One report per column, independent of the others: in parallel, in column order.
-    let mut reports: Vec<(usize, FeatureReport)> = table
-        .columns()
+    // A column's flag from the screen alone (as its report sets it below).
+    let flagged = |j: usize| {
+        analysed[j].as_ref().is_ok_and(|a| {
+            significant.contains(&j)
+                && a.explained.min(forward.beyond[j].unwrap_or(0.0)) >= config.min_effect
+        })
+    };
+    let wanted: Vec<usize> = (0..analysed.len())
+        .filter(|&j| which == Reports::All || flagged(j))
+        .collect();
+    let signed_residuals: Option<Vec<f64>> = direction
+        .as_ref()
+        .filter(|_| {
+            wanted
+                .iter()
+                .any(|&j| analysed[j].as_ref().is_ok_and(|a| a.by_direction))
+        })
+        .map(|d| {
+            residuals
+                .iter()
+                .zip(d)
+                .map(|(r, &d)| r * f64::from(d))
+                .collect()
+        });
+    // One report per wanted column, independent of the others: in parallel, in column order.
+    let mut reports: Vec<(usize, FeatureReport)> = wanted
         .par_iter()
-        .zip(analysed.par_iter())
-        .enumerate()
-        .map(|(j, (col, a))| {
+        .map(|&j| {
+            let (col, a) = (&table.columns()[j], &analysed[j]);
             let mut r = match a {
                 Ok(a) => report::feature_report(
                     col,
@@ -688,37 +786,15 @@ pub fn diagnose(
     // diagnosis's peak of memory otherwise).
     drop(analysed);
     drop(signed_residuals);
-    // The residual's own statistics (one thread each: a sort for the dip test, the
-    // Ljung–Box sums) run beside the pair screen instead of after it.
-    let ((interactions, global), (whiteness, bimodality, dip)) = rayon::join(
-        || pairs::screen(table, &forward.left, &ctx, config),
-        || {
-            (
-                Whiteness::of(residuals, config.ljung_box_lags, config.alpha),
-                stats::bimodality_coefficient(residuals).filter(|b| b.is_finite()),
-                stats::dip_test(residuals),
-            )
-        },
-    );
-    let mut d = Diagnosis {
+    Ok(Screened {
+        reports,
         residual_std,
-        features: reports,
-        whiteness,
-        bimodality,
-        dip,
-        summary: String::new(),
-        units: table.units().clone(),
-        null_block_len: null_block,
-        absorbed: Vec::new(),
-        warnings: Vec::new(),
-        verification: None,
-        rows: n,
-        alpha: config.alpha,
-        interactions,
-        global,
-    };
-    d.summary = report::summary(&d, n, config.alpha);
-    Ok(d)
+        null_block,
+        left: forward.left,
+        fold,
+        direction,
+        variance,
+    })
 }
 
 /// Two candidates are near-tied when the weaker explains at least `1 − NEAR_TIE` of what the

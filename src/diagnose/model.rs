@@ -146,8 +146,9 @@ pub fn diagnose_verified(
         for t in &with.terms {
             config.add_existing_term(t.name());
         }
+        // Only the flags are read (`rescreen_candidates`): no pair screen, no summary.
         (!table.columns().is_empty())
-            .then(|| diagnose(&table, r, &config).ok())
+            .then(|| super::flagged_features(&table, r, &config).ok())
             .flatten()
     };
     let v = super::verify_two_rounds(

@@ -915,12 +915,13 @@ impl SlotTable {
 }
 
 /// Permutations summed side by side, one per lane of a vector, by
-/// [`SlotTable::accumulate_lanes`] (four `f64`: one 256-bit register with AVX2).
-pub(crate) const LANES: usize = 4;
+/// [`SlotTable::accumulate_lanes`] (eight `f64`: one 512-bit register with AVX-512, two
+/// 256-bit ones with AVX2).
+pub(crate) const LANES: usize = 8;
 
 /// Rows per chunk of [`SlotTable::accumulate_lanes`]: the lanes' permuted rows are gathered
 /// into a chunk of `CHUNK × LANES` values (32 KiB, in L1/L2) before they are summed.
-const CHUNK: usize = 1024;
+const CHUNK: usize = 512;
 
 /// One lane's block permutation, read in place: the residual rotated by `offset`, cut into
 /// blocks of `block` rows taken in `order` (as [`Permuted::Blocks`]).
@@ -1076,12 +1077,40 @@ impl SlotTable {
         acc_signed: &mut Vec<[f64; LANES]>,
     ) -> ([f64; LANES], [f64; LANES]) {
         #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F (checked just above).
+            return unsafe {
+                self.accumulate_lanes_avx512(y, block, lanes, direction, buf, acc, acc_signed)
+            };
+        }
+        #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
             return unsafe {
                 self.accumulate_lanes_avx2(y, block, lanes, direction, buf, acc, acc_signed)
             };
         }
+        self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
+    }
+
+    /// [`SlotTable::accumulate_lanes`] compiled for AVX-512F (the lanes' sums in one
+    /// register; each lane's additions the same, in the same order, as any other build's).
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn accumulate_lanes_avx512(
+        &self,
+        y: &[f64],
+        block: usize,
+        lanes: &[BlockLane<'_>; LANES],
+        direction: &[i8],
+        buf: &mut Vec<[f64; LANES]>,
+        acc: &mut Vec<[f64; LANES]>,
+        acc_signed: &mut Vec<[f64; LANES]>,
+    ) -> ([f64; LANES], [f64; LANES]) {
         self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
     }
 

@@ -1291,3 +1291,70 @@ fn direction_bytes_read_back_as_the_same_numbers() {
     assert!(direction_bytes([1.0, 0.5].into_iter()).is_none());
     assert!(direction_bytes([1.0, -0.0].into_iter()).is_none());
 }
+
+/// [`flagged_features`] (the re-screen's screen without pairs, residual statistics, summary
+/// and the reports of unflagged features) against its reference, the flagged features of the
+/// full [`diagnose`] in its order: equal report for report (every field, bit for bit), on
+/// residuals with several flagged features, a direction-signed one, model terms given, and
+/// none flagged.
+#[test]
+fn flagged_features_equal_the_flagged_part_of_the_full_diagnosis() {
+    let t = table(23, 3000);
+    let temp = values(&t, "temp_c");
+    let change = values(&t, "direction_change");
+    let dir = values(&t, "direction");
+    let pos = values(&t, "position");
+    let plain = DiagnoseConfig::default().check().unwrap();
+    let with_terms = DiagnoseConfig {
+        existing_terms: vec!["poly2".into(), "direction".into()],
+        ..DiagnoseConfig::default()
+    }
+    .check()
+    .unwrap();
+    let cases: Vec<(&str, Vec<f64>, &CheckedDiagnoseConfig, bool)> = vec![
+        (
+            "two effects",
+            residuals(&t, 1, 1.0, |i| {
+                0.2 * temp[i].unwrap_or(35.0) + 3.0 * change[i].unwrap_or(0.0)
+            }),
+            &plain,
+            false,
+        ),
+        (
+            "direction-signed",
+            residuals(&t, 2, 1.0, |i| {
+                3.0 * dir[i].unwrap_or(0.0) * (pos[i].unwrap_or(0.0) / 40.0).sin()
+            }),
+            &with_terms,
+            true,
+        ),
+        ("noise", residuals(&t, 3, 1.0, |_| 0.0), &plain, false),
+    ];
+    for (what, r, config, signed) in cases {
+        let full = diagnose(&t, &r, config).unwrap();
+        let reference: Vec<FeatureReport> = full
+            .features
+            .iter()
+            .filter(|f| f.flagged)
+            .cloned()
+            .collect();
+        let fast = flagged_features(&t, &r, config).unwrap();
+        assert_eq!(fast, reference, "{what}:\n{}", full.to_text());
+        if what == "noise" {
+            assert!(fast.is_empty(), "{what}:\n{}", full.to_text());
+        } else {
+            assert!(
+                !fast.is_empty(),
+                "{what}: nothing flagged\n{}",
+                full.to_text()
+            );
+        }
+        if signed {
+            assert!(
+                fast.iter().any(|f| f.by_direction),
+                "{what}: no direction-signed flag\n{}",
+                full.to_text()
+            );
+        }
+    }
+}

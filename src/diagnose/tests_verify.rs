@@ -1328,8 +1328,11 @@ fn fold_starts_cut_where_the_measured_index_does() {
 /// The verification's refits sharing the log's sampling, its replayed features and a small
 /// fixed-block budget give the same out-of-sample residuals bit for bit as the reference
 /// that shares nothing (`cv_residuals_reference`): a linear model, a fine table, a covariate
-/// with its lag searched by full solves, `memsum` likewise, and `dahl`'s rate searched by
-/// variable projection with its fixed block stored and, at a zero budget, replayed per pass.
+/// with its lag searched by full solves, `memsum` likewise, `dahl`'s rate searched by
+/// variable projection with its fixed block stored and, at a zero budget, replayed per pass,
+/// and an adaptive `drift` fed every measured row. The reference replays each fold's model
+/// over the whole log; the fast path stops at the end of the fold's stretch (the replay is
+/// causal).
 #[test]
 fn shared_refits_equal_the_reference_bit_for_bit() {
     let log = gappy_log(11, 1500);
@@ -1346,6 +1349,7 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
         "poly2,direction,memsum",
         "poly2,dahl",
         "poly2,dahl,col:temp_c",
+        "poly2,direction,drift",
     ] {
         let spec = ModelSpec::parse(terms).unwrap();
         let reference = cv_residuals_reference(&spec, &log, 3, &opts);
@@ -1550,4 +1554,37 @@ fn a_second_effect_the_first_hid_is_found_by_the_rescreen() {
             .is_none_or(|r| r.edits.iter().all(|e| e.feature != "position")),
         "{v0:?}"
     );
+}
+
+/// The narrow-defect screen reads each measured row's target from the log's tracks
+/// (`Log::measured_positions`) instead of a replay of the history: the same numbers bit for
+/// bit as the reference, the replay's `target` of every measured row (`FitData::measured_map`,
+/// what the screen read before), on a log with unmeasured rows at the ends and inside, short
+/// (the replay's feature cache) and longer than the cache's bound (its history columns).
+#[test]
+fn measured_positions_equal_the_replayed_targets() {
+    for (seed, rows) in [
+        (13, 1500),
+        (14, crate::model::data::FEATURE_CACHE_ROWS + 500),
+    ] {
+        let log = gappy_log(seed, rows);
+        let reference: Vec<f64> = crate::model::data::FitData::new(&log)
+            .measured_map(|s| Some(s.features.target))
+            .into_iter()
+            .map(|v| v.unwrap_or(f64::NAN))
+            .collect();
+        let fast = log.measured_positions();
+        assert_eq!(fast.len(), log.measured_count(), "rows {rows}");
+        assert!(
+            fast.len() < log.len(),
+            "rows {rows}: the log has unmeasured rows"
+        );
+        assert_eq!(fast.len(), reference.len(), "rows {rows}");
+        assert!(
+            fast.iter()
+                .zip(&reference)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "rows {rows}"
+        );
+    }
 }

@@ -579,10 +579,13 @@ pub(super) fn cv_residuals_sharing(
             // terms' contributions and the residual of the whole log: the same subtraction,
             // so the same bits).
             drop(masked);
+            // The replay is causal, so the rows after this stretch (from the next stretch's
+            // first row on) change none of its predictions: replayed up to there only.
+            let end = starts[k + 1];
             let mut part = Vec::with_capacity(b - a);
             let mut k = 0usize;
             model
-                .replay_measured(log, Feedback::EveryRow, |row, predicted, _| {
+                .replay_measured_until(log, end, Feedback::EveryRow, |row, predicted, _| {
                     if (a..b).contains(&k) {
                         part.push(row.measured - predicted);
                     }
@@ -1087,12 +1090,9 @@ fn verify_round(
     let defect_cell = std::cell::OnceCell::new();
     let defect = || {
         defect_cell.get_or_init(|| {
-            let data = crate::model::data::FitData::new(log);
-            let x: Vec<f64> = data
-                .measured_map(|s| Some(s.features.target))
-                .into_iter()
-                .map(|v| v.unwrap_or(f64::NAN))
-                .collect();
+            // Each measured row's target: its track as logged (what the history's `target`
+            // is, without a replay of the history that would hold every row's features).
+            let x = log.measured_positions();
             super::advice::defect_screen(&x, before)
         })
     };
@@ -1335,13 +1335,14 @@ pub(crate) fn second_round_candidates(
     out
 }
 
-/// The re-screen of the second round ([`verify_two_rounds`]): the diagnosis of `residual` (the
-/// out-of-sample residual the best verified edit leaves, one per measured row in log order)
-/// for the model `spec` (the user's model with that edit: its terms are not suggested again)
-/// against the log's feature columns that `keep` admits by name (time features never);
-/// `None` when it cannot run.
+/// The re-screen of the second round ([`verify_two_rounds`]): the flagged features, in the
+/// diagnosis's order, of the diagnosis of `residual` (the out-of-sample residual the best
+/// verified edit leaves, one per measured row in log order) for the model `spec` (the user's
+/// model with that edit: its terms are not suggested again) against the log's feature columns
+/// that `keep` admits by name (time features never) — nothing else of that diagnosis is read
+/// (`super::flagged_features`); `None` when it cannot run.
 pub(crate) type Rescreen<'a> =
-    dyn Fn(&[f64], &ModelSpec, &dyn Fn(&str) -> bool) -> Option<Diagnosis> + 'a;
+    dyn Fn(&[f64], &ModelSpec, &dyn Fn(&str) -> bool) -> Option<Vec<FeatureReport>> + 'a;
 
 /// The features of `d` worth screening again on the residual the best edit leaves (see
 /// [`rescreen_candidates`]): raw p ≤ [`SECOND_ROUND_P`] on the first screen (some evidence of
@@ -1364,7 +1365,7 @@ pub(crate) fn rescreen_columns(d: &Diagnosis, best: &VerifiedEdit) -> Vec<String
 }
 
 /// The second round's candidates from the **re-screen** of the residual the best edit leaves
-/// (`r`, [`Rescreen`]): its flagged features with a suggested term (no time feature), in its
+/// (`flagged`, [`Rescreen`]): its flagged features with a suggested term (no time feature), in its
 /// order, one per source, none of a source in `taken` (the best edit's and the second round's
 /// other candidates), at most `max`. A second effect's screen on the user's residual is
 /// diluted by the first effect's variance and confounded with it (a position × direction
@@ -1375,10 +1376,14 @@ pub(crate) fn rescreen_columns(d: &Diagnosis, best: &VerifiedEdit) -> Vec<String
 /// rule (family-wise significance, the practical minimum beyond the features before it) says
 /// whether it is there. Each is refitted on top of the best edit at the strict bar like the
 /// round's other candidates.
-pub(crate) fn rescreen_candidates(r: &Diagnosis, taken: &[String], max: usize) -> Vec<Candidate> {
+pub(crate) fn rescreen_candidates(
+    flagged: &[FeatureReport],
+    taken: &[String],
+    max: usize,
+) -> Vec<Candidate> {
     let mut sources = taken.to_vec();
     let mut out = Vec::new();
-    for f in r.features.iter().filter(|f| f.flagged) {
+    for f in flagged.iter().filter(|f| f.flagged) {
         if out.len() >= max {
             break;
         }

@@ -670,6 +670,18 @@ impl FittedModel {
         &self,
         log: &Log,
         feedback: Feedback,
+        each: impl FnMut(MeasuredRow, f64, &[f64]),
+    ) -> Result<(), ModelError> {
+        self.replay_measured_until(log, log.len(), feedback, each)
+    }
+
+    /// [`FittedModel::replay_measured`] of the log's first `end` rows only (the replay is
+    /// causal: the same predictions for those rows as the whole log's replay gives them).
+    pub(crate) fn replay_measured_until(
+        &self,
+        log: &Log,
+        end: usize,
+        feedback: Feedback,
         mut each: impl FnMut(MeasuredRow, f64, &[f64]),
     ) -> Result<(), ModelError> {
         self.check_log(log)?;
@@ -677,7 +689,7 @@ impl FittedModel {
         let mut contrib = vec![0.0; self.terms.len()];
         let mut seen = 0u64;
         let mut cov = Vec::with_capacity(log.schema.covariates.len());
-        for (i, row) in log.rows().enumerate() {
+        for (i, row) in log.rows().enumerate().take(end) {
             let shown = row.bias.filter(|_| {
                 seen += 1;
                 feedback.shows(seen - 1)
