@@ -106,17 +106,14 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
             )
         );
     }
-    if let Some(t) = args.target
-        && !(t.is_finite() && t.abs() <= 1e15)
-    {
-        // A target is a position as a log holds one: finite, within the log reader's range
-        // (±1e15, `log::MAX_ABS_VALUE`).
-        anyhow::bail!(
-            "--target {t}: give a finite position within ±1e15 (the log's position unit)"
-        );
-    }
-    let next = predict_next(&model, &log, args.target)
-        .with_context(|| format!("predicting the handoff bias from {}", data.display()))?;
+    // `predict_next` refuses a target that is no position (ModelError::BadTarget): named here.
+    let next = predict_next(&model, &log, args.target).with_context(|| match args.target {
+        Some(t) => format!(
+            "predicting the handoff bias at --target {t} from {}",
+            data.display()
+        ),
+        None => format!("predicting the handoff bias from {}", data.display()),
+    })?;
     super::common::warn_outside_range(&model, &log.schema.file, &[next.target]);
     let delta_b = args
         .settle

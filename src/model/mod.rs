@@ -157,6 +157,13 @@ pub enum ModelError {
         /// The log file.
         file: String,
     },
+    /// A seek target to predict at that is not a position a log can hold (NaN, infinite, or
+    /// beyond the reader's ±1e15).
+    #[error("target {target}: give a finite position within ±1e15 (the log's position unit)")]
+    BadTarget {
+        /// The target given.
+        target: f64,
+    },
     /// Writing the model file failed.
     #[error(transparent)]
     Output(#[from] OutputError),

@@ -421,12 +421,18 @@ pub struct NextPrediction {
 /// Replays `log` through `model` and predicts the bias of one more seek without using its
 /// measurement: with `target = None`, the seek of the log's **last row** (the rows before it are
 /// replayed with their measurements; the last row's own bias is not used); with
-/// `Some(t)`, a seek to `t` right after the last row (at the last row's time).
+/// `Some(t)`, a seek to `t` right after the last row (at the last row's time); `t` must be a
+/// position a log can hold (finite, within ±1e15), else [`ModelError::BadTarget`].
 pub fn predict_next(
     model: &FittedModel,
     log: &crate::log::Log,
     target: Option<f64>,
 ) -> Result<NextPrediction, ModelError> {
+    if let Some(t) = target
+        && !(t.is_finite() && t.abs() <= crate::log::MAX_ABS_VALUE)
+    {
+        return Err(ModelError::BadTarget { target: t });
+    }
     model.check_log(log)?;
     let mut p = Predictor::new(model, &log.schema.covariates)?;
     let replay = match target {

@@ -551,6 +551,36 @@ fn prediction_is_causal() {
     );
 }
 
+/// Reference: the log reader's range of a position (finite, within ±1e15). `predict_next`
+/// refuses a target outside it (it gave a NaN prediction for a NaN target) and predicts a
+/// finite bias at any target inside it.
+#[test]
+fn predict_next_refuses_a_target_that_is_no_position() {
+    let rows = tracks(9, 300, 300.0);
+    let (log, _) = synth(&rows, "poly2,direction", &coef_table, None, 1.0, 4);
+    let model = fit(
+        &ModelSpec::preset("position-direction").unwrap(),
+        &log,
+        &FitOptions::default().check().unwrap(),
+    )
+    .unwrap();
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 2e15, -1.5e15] {
+        let e = biasctl::predict_next(&model, &log, Some(bad)).unwrap_err();
+        assert!(
+            matches!(e, biasctl::ModelError::BadTarget { .. }),
+            "{bad}: {e}"
+        );
+        assert!(
+            e.to_string().contains("finite position within ±1e15"),
+            "{e}"
+        );
+    }
+    for good in [None, Some(0.0), Some(150.5), Some(-1e15), Some(1e15)] {
+        let next = biasctl::predict_next(&model, &log, good).unwrap();
+        assert!(next.bias.is_finite(), "{good:?}: {next:?}");
+    }
+}
+
 #[test]
 fn online_peek_equals_step() {
     // Reference: Predictor::step after peek for the same seek.
