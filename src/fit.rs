@@ -2752,19 +2752,12 @@ pub(crate) struct Refits {
     /// [`crate::history::log_sampling`] of the log.
     pub sampling: Option<crate::history::Sampling>,
     /// The log's history replayed with this direction source.
-    pub history: Option<(crate::history::DirectionSource, SharedHistory)>,
+    pub history: Option<(
+        crate::history::DirectionSource,
+        crate::model::data::SharedHistory,
+    )>,
     /// [`FitData::with_fixed_budget`].
     pub fixed_budget: usize,
-}
-
-/// A log's replayed history as refits of its rows share it: one of two by the log's length
-/// ([`crate::model::data::FEATURE_CACHE_ROWS`]).
-#[derive(Debug, Clone)]
-pub(crate) enum SharedHistory {
-    /// A short log's replayed features ([`FitData::sharing_features`]).
-    Features(Arc<[crate::history::SeekFeatures]>),
-    /// A long log's history columns, 13 B/row ([`FitData::sharing_columns`]).
-    Columns(Arc<crate::history::HistoryColumns>),
 }
 
 impl Default for Refits {
@@ -2794,10 +2787,7 @@ pub(crate) fn fit_sharing(
     if let Some((d, h)) = &shared.history
         && *d == direction
     {
-        data = match h {
-            SharedHistory::Features(f) => data.sharing_features(f),
-            SharedHistory::Columns(c) => data.sharing_columns(c),
-        };
+        data = data.sharing(h);
     }
     let reversals = reversal_count(&direction, &sampling, &data);
     let reversal_warning = direction.reversal_warning(reversals, log.len(), &sampling);

@@ -2,9 +2,10 @@
 //! gate, what adaptive terms absorb, and verified, always-applicable advice.
 
 use super::*;
-use crate::fit::{CheckedFitOptions, SharedHistory, fit};
+use crate::fit::{CheckedFitOptions, fit};
 use crate::log::{ColumnMap, Log};
 use crate::model::ModelSpec;
+use crate::model::data::SharedHistory;
 
 /// A random seek table (uniform targets in 0..250, random dwell) of `rows` rows.
 fn seek_table(seed: u64, rows: usize) -> FeatureTable {

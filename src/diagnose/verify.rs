@@ -56,7 +56,7 @@ use serde::{Deserialize, Serialize};
 
 use super::model::ModelDiagnosisError;
 use super::{Diagnosis, FeatureReport};
-use crate::fit::{CheckedFitOptions, Refits, SharedHistory, fit_sharing};
+use crate::fit::{CheckedFitOptions, Refits, fit_sharing};
 use crate::log::Log;
 use crate::model::terms::parse_term;
 use crate::model::{Feedback, ModelEdit, ModelSpec, SpecError};
@@ -504,11 +504,9 @@ pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
         .resolve_with(log, &sampling)
         .ok()
         .and_then(|d| {
-            let data = crate::model::data::FitData::with_direction(log, &d).ok()?;
-            let h = match data.features() {
-                Some(f) => SharedHistory::Features(f),
-                None => SharedHistory::Columns(data.columns()?),
-            };
+            let h = crate::model::data::FitData::with_direction(log, &d)
+                .ok()?
+                .shared_history()?;
             Some((d, h))
         });
     Refits {

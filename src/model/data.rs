@@ -160,6 +160,16 @@ pub struct FitReport {
     pub position_range: Option<[f64; 2]>,
 }
 
+/// A log's replayed history as refits of its rows share it ([`FitData::sharing`]): one of two
+/// by the log's length ([`FEATURE_CACHE_ROWS`]).
+#[derive(Debug, Clone)]
+pub(crate) enum SharedHistory {
+    /// A short log's replayed features.
+    Features(Arc<[SeekFeatures]>),
+    /// A long log's history columns, 13 B/row.
+    Columns(Arc<HistoryColumns>),
+}
+
 /// The training data as terms see it while they prepare: the log, and its seek history
 /// replayed on demand ([`FitData::replay`]). A log of at most 2¹⁸ rows keeps the features of
 /// its first full replay (at most 27 MB) and serves the later ones from them; a longer log
@@ -222,37 +232,35 @@ impl<'a> FitData<'a> {
         })
     }
 
-    /// This data reading the replayed features `features` of another log with the same rows'
+    /// This data reading `shared`, the replayed history of another log with the same rows'
     /// times, positions and covariates (only the bias may differ: a history never reads it),
-    /// replayed with the same direction source, instead of replaying its own: where its own
-    /// would be kept (at most [`FEATURE_CACHE_ROWS`] rows) and the row count matches, else
-    /// unchanged. The same features bit for bit, so the same fit (tested in
-    /// `diagnose::tests_verify`).
-    pub(crate) fn sharing_features(self, features: &Arc<[SeekFeatures]>) -> Self {
-        if self.log.len() <= FEATURE_CACHE_ROWS && features.len() == self.log.len() {
-            let _ = self.cache.set(Some(features.clone()));
+    /// replayed with the same direction source, instead of replaying its own: where it is the
+    /// kind this log would keep (a short log's features, a long log's history columns, by
+    /// [`FEATURE_CACHE_ROWS`]) and the row count matches, else unchanged. The verification's
+    /// refits share one (a long log's 13 B/row once, not once per refit in flight); the same
+    /// bits, so the same fit (tested in `diagnose::tests_verify`).
+    pub(crate) fn sharing(self, shared: &SharedHistory) -> Self {
+        let n = self.log.len();
+        match shared {
+            SharedHistory::Features(f) if n <= FEATURE_CACHE_ROWS && f.len() == n => {
+                let _ = self.cache.set(Some(f.clone()));
+            }
+            SharedHistory::Columns(c) if n > FEATURE_CACHE_ROWS && c.len() == n => {
+                let _ = self.columns.set(Some(c.clone()));
+            }
+            _ => {}
         }
         self
     }
 
-    /// This data reading the history columns `columns` built from another log with the same
-    /// rows' times, positions and covariates (only the bias may differ: a history never reads
-    /// it), with the same direction source, instead of building its own: where its own would
-    /// be built (more than [`FEATURE_CACHE_ROWS`] rows) and the row count matches, else
-    /// unchanged. The verification's refits of a long log share one set (13 B/row once, not
-    /// once per refit in flight); the same bits, so the same fit (tested in
-    /// `diagnose::tests_verify`).
-    pub(crate) fn sharing_columns(self, columns: &Arc<HistoryColumns>) -> Self {
-        if self.log.len() > FEATURE_CACHE_ROWS && columns.len() == self.log.len() {
-            let _ = self.columns.set(Some(columns.clone()));
+    /// This log's replayed history as [`FitData::sharing`] takes it: a short log's features or
+    /// a long log's history columns (built now if not yet); `None` where a long log has no
+    /// columns (`HistoryColumns::build` refused it).
+    pub(crate) fn shared_history(&self) -> Option<SharedHistory> {
+        match self.cached() {
+            Some(f) => Some(SharedHistory::Features(f)),
+            None => self.history_columns().map(SharedHistory::Columns),
         }
-        self
-    }
-
-    /// The history columns of a long log (built now if not yet), `None` for a log of at most
-    /// [`FEATURE_CACHE_ROWS`] rows: what [`FitData::sharing_columns`] takes.
-    pub(crate) fn columns(&self) -> Option<Arc<HistoryColumns>> {
-        self.history_columns()
     }
 
     /// This data with the fixed-block budget of a variable-projection search set to `bytes`
@@ -265,12 +273,6 @@ impl<'a> FitData<'a> {
     /// Most bytes a variable-projection search may store of its fixed block.
     pub(crate) fn fixed_budget(&self) -> usize {
         self.fixed_budget
-    }
-
-    /// Every row's replayed features (the cache a short log keeps, [`FEATURE_CACHE_ROWS`]),
-    /// `None` for a longer log: what [`FitData::sharing_features`] takes.
-    pub(crate) fn features(&self) -> Option<Arc<[SeekFeatures]>> {
-        self.cached()
     }
 
     /// The log.
