@@ -378,6 +378,19 @@ fn source_of(f: &FeatureReport) -> String {
     }
 }
 
+/// The source ([`source_of`]) of the feature named `name` in `d`; a name `d` holds no report
+/// of (an edit's feature) is its own column, a lagged copy counting as its column.
+fn source_of_name(d: &Diagnosis, name: &str) -> String {
+    d.feature(name).map_or_else(
+        || {
+            super::features::lagged_column(name)
+                .unwrap_or(name)
+                .to_string()
+        },
+        source_of,
+    )
+}
+
 /// Up to `room` features that are **not** flagged but whose raw permutation p-value is at
 /// most [`UNFLAGGED_P`], one per source (a lagged copy counts as its column, the time features
 /// as `drift`) not already in `taken`, the largest
@@ -1274,16 +1287,7 @@ pub(crate) fn second_round_candidates(
     let Some(best) = v.best() else {
         return Vec::new();
     };
-    let src = |name: &str| {
-        d.feature(name).map_or_else(
-            || {
-                super::features::lagged_column(name)
-                    .unwrap_or(name)
-                    .to_string()
-            },
-            source_of,
-        )
-    };
+    let src = |name: &str| source_of_name(d, name);
     let mut sources = vec![src(&best.feature)];
     let mut out = Vec::new();
     for e in v.edits.iter().skip(1) {
@@ -1346,14 +1350,7 @@ pub(crate) type Rescreen<'a> =
 /// [`rescreen_candidates`]): raw p ≤ [`SECOND_ROUND_P`] on the first screen (some evidence of
 /// an effect even while the first effect hid it), not the best edit's source.
 pub(crate) fn rescreen_columns(d: &Diagnosis, best: &VerifiedEdit) -> Vec<String> {
-    let best_src = d.feature(&best.feature).map_or_else(
-        || {
-            super::features::lagged_column(&best.feature)
-                .unwrap_or(&best.feature)
-                .to_string()
-        },
-        source_of,
-    );
+    let best_src = source_of_name(d, &best.feature);
     d.features
         .iter()
         .filter(|f| f.p_value_raw <= SECOND_ROUND_P)
@@ -1460,15 +1457,7 @@ pub(crate) fn verify_two_rounds(
         })?;
         let mut taken = vec![b.feature.clone()];
         taken.extend(second.iter().map(|c| c.feature.clone()));
-        let taken: Vec<String> = taken
-            .iter()
-            .map(|n| {
-                d.feature(n).map_or_else(
-                    || super::features::lagged_column(n).unwrap_or(n).to_string(),
-                    source_of,
-                )
-            })
-            .collect();
+        let taken: Vec<String> = taken.iter().map(|n| source_of_name(d, n)).collect();
         Some(rescreen_candidates(&r, &taken, config.candidates))
     });
     let second: Vec<Candidate> = second
