@@ -2631,7 +2631,7 @@ fn replay_tail(
     for (&s, &y) in statics.iter().zip(measured) {
         let mut total = s;
         for st in &states {
-            total += std::iter::empty::<f64>().sum::<f64>() + st.offset(&seek);
+            total += crate::numeric::stats::sum_start() + st.offset(&seek);
         }
         let r = y - total;
         for st in &mut states {
@@ -2654,15 +2654,28 @@ struct ResidualStats {
 }
 
 impl ResidualStats {
-    /// The statistics of `residual`: three passes, two of them beside the third.
+    /// The statistics of `residual`: one pass for its sum and sum of squares, one for the
+    /// squares about the mean ([`ResidualStats::from_sums`]).
     fn of(residual: &[f64]) -> Self {
-        let (std, (sse, rms)) = rayon::join(
-            || crate::numeric::stats::std_dev(residual).unwrap_or(0.0),
-            || {
-                let sse: f64 = residual.iter().map(|e| e * e).sum();
-                (sse, crate::numeric::stats::rms(residual).unwrap_or(0.0))
-            },
-        );
+        let zero = crate::numeric::stats::sum_start();
+        let (sum, sse) = residual
+            .iter()
+            .fold((zero, zero), |(s, q), &r| (s + r, q + r * r));
+        Self::from_sums(residual, sum, sse)
+    }
+
+    /// The statistics of `residual` from its sum and its sum of squares, each added in row
+    /// order from `stats::sum_start`: `std` as `stats::std_dev` (the mean `sum / n`, then the
+    /// squares about it), `rms` as `stats::rms` (`sqrt(sse / n)`), the same bits (tested).
+    fn from_sums(residual: &[f64], sum: f64, sse: f64) -> Self {
+        let n = residual.len();
+        let std = if n < 2 {
+            0.0
+        } else {
+            let ss = crate::numeric::stats::sum_sq_about(residual, sum / n as f64);
+            (ss / (n - 1) as f64).sqrt()
+        };
+        let rms = if n == 0 { 0.0 } else { (sse / n as f64).sqrt() };
         Self { std, sse, rms }
     }
 }
@@ -2695,8 +2708,8 @@ fn tail_stats(
 /// running sums of `r` and `r²` that `stats::mean` and the sum of squares add in the same
 /// order from the same start.
 fn forgetting_tail_stats(alpha: f64, statics: &[f64], measured: &[f64]) -> ResidualStats {
-    // The start of every `Iterator::sum` of f64 (and of `replay_tail`'s empty basis sum).
-    let zero = std::iter::empty::<f64>().sum::<f64>();
+    // Also the start of `replay_tail`'s empty basis sum.
+    let zero = crate::numeric::stats::sum_start();
     let mut residual = Vec::with_capacity(statics.len());
     let (mut m, mut sum, mut sse) = (0.0, zero, zero);
     for (&s, &y) in statics.iter().zip(measured) {
@@ -2706,16 +2719,7 @@ fn forgetting_tail_stats(alpha: f64, statics: &[f64], measured: &[f64]) -> Resid
         sse += r * r;
         residual.push(r);
     }
-    let n = residual.len();
-    let std = if n < 2 {
-        0.0
-    } else {
-        let mean = sum / n as f64;
-        let ss: f64 = residual.iter().map(|v| (v - mean) * (v - mean)).sum();
-        (ss / (n - 1) as f64).sqrt()
-    };
-    let rms = if n == 0 { 0.0 } else { (sse / n as f64).sqrt() };
-    ResidualStats { std, sse, rms }
+    ResidualStats::from_sums(&residual, sum, sse)
 }
 
 /// Direction changes in the fit's replay of the history. `sampling` has counted them already
@@ -3943,13 +3947,23 @@ mod tests {
                     fixed: false,
                 });
                 assert_eq!(term.forgetting_factor(), Some(alpha));
-                let want = ResidualStats::of(
-                    &replay_tail(std::slice::from_ref(&term), &log, &statics, &measured).unwrap(),
-                );
+                let r =
+                    replay_tail(std::slice::from_ref(&term), &log, &statics, &measured).unwrap();
+                let want = [
+                    crate::numeric::stats::std_dev(&r).unwrap_or(0.0),
+                    r.iter().map(|e| e * e).sum(),
+                    crate::numeric::stats::rms(&r).unwrap_or(0.0),
+                ]
+                .map(f64::to_bits);
                 let got =
                     tail_stats(std::slice::from_ref(&term), &log, &statics, &measured).unwrap();
                 let bits = |s: ResidualStats| [s.std, s.sse, s.rms].map(f64::to_bits);
-                assert_eq!(bits(got), bits(want), "case {case}, alpha {alpha}");
+                assert_eq!(bits(got), want, "case {case}, alpha {alpha}");
+                assert_eq!(
+                    bits(ResidualStats::of(&r)),
+                    want,
+                    "case {case}, alpha {alpha}"
+                );
             }
         }
     }

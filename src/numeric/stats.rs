@@ -19,7 +19,18 @@ pub fn mean(x: &[f64]) -> Option<f64> {
 
 /// Sum of squared deviations from the mean, Σ(x − x̄)²; 0 for an empty slice.
 pub(crate) fn sum_sq_about_mean(x: &[f64]) -> f64 {
-    let m = mean(x).unwrap_or(0.0);
+    sum_sq_about(x, mean(x).unwrap_or(0.0))
+}
+
+/// The start of every `Iterator::sum` of f64 (−0.0): a running sum begun here and added in
+/// the same order ends on the bits `sum()` gives.
+#[inline]
+pub(crate) fn sum_start() -> f64 {
+    std::iter::empty::<f64>().sum::<f64>()
+}
+
+/// Σ(x − m)² about a given centre `m`, added in order (a caller that has the mean already).
+pub(crate) fn sum_sq_about(x: &[f64], m: f64) -> f64 {
     x.iter().map(|v| (v - m) * (v - m)).sum()
 }
 
@@ -29,8 +40,7 @@ pub fn std_dev(x: &[f64]) -> Option<f64> {
         return None;
     }
     let m = mean(x)?;
-    let ss: f64 = x.iter().map(|v| (v - m) * (v - m)).sum();
-    Some((ss / (x.len() - 1) as f64).sqrt())
+    Some((sum_sq_about(x, m) / (x.len() - 1) as f64).sqrt())
 }
 
 /// Root mean square; `None` for an empty slice.

@@ -34,7 +34,7 @@ impl TermSpec for Poly2Spec {
 fn centre_and_half_range(log: &crate::log::Log) -> (f64, f64) {
     // One pass doing the three folds side by side: the count, the sum (from the start of
     // every `Iterator::sum` of f64, in row order) and the range of the finite values.
-    let zero = std::iter::empty::<f64>().sum::<f64>();
+    let zero = crate::numeric::stats::sum_start();
     let (mut n, mut sum) = (0usize, zero);
     let mut range: Option<[f64; 2]> = None;
     for (&x, b) in log.tracks().iter().zip(log.bias_raw()) {
