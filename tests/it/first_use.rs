@@ -269,26 +269,7 @@ fn first_run_flag_mistakes_are_refused_before_the_work() {
 #[test]
 fn settle_and_handoff_flags_are_named_as_given() {
     let dir = tempfile::tempdir().unwrap();
-    let log = dir.path().join("r.csv").display().to_string();
-    ok(&[
-        "simulate",
-        "--sequence",
-        "random",
-        "--n",
-        "60",
-        "--out",
-        &log,
-    ]);
-    let model = dir.path().join("m.json").display().to_string();
-    ok(&[
-        "fit",
-        "--data",
-        &log,
-        "--model",
-        "position-direction",
-        "--out",
-        &model,
-    ]);
+    let (log, model) = random_log_and_model(dir.path(), "60");
     for bad in ["nan", "inf", "2e15"] {
         let err = fails_with(
             &["settle", "--model", &model, "--data", &log, "--target", bad],
@@ -324,26 +305,7 @@ fn settle_and_handoff_flags_are_named_as_given() {
 #[test]
 fn a_folder_output_that_cannot_be_made_is_named_as_out_before_the_work() {
     let dir = tempfile::tempdir().unwrap();
-    let log = dir.path().join("r.csv").display().to_string();
-    ok(&[
-        "simulate",
-        "--sequence",
-        "random",
-        "--n",
-        "80",
-        "--out",
-        &log,
-    ]);
-    let model = dir.path().join("m.json").display().to_string();
-    ok(&[
-        "fit",
-        "--data",
-        &log,
-        "--model",
-        "position-direction",
-        "--out",
-        &model,
-    ]);
+    let (log, model) = random_log_and_model(dir.path(), "80");
     let inside_a_file = format!("{log}/diag");
     for args in [
         vec![
@@ -431,26 +393,7 @@ fn a_negative_count_names_its_flag() {
 #[test]
 fn a_negative_infinite_real_flag_is_refused_naming_its_flag() {
     let dir = tempfile::tempdir().unwrap();
-    let log = dir.path().join("r.csv").display().to_string();
-    ok(&[
-        "simulate",
-        "--sequence",
-        "random",
-        "--n",
-        "60",
-        "--out",
-        &log,
-    ]);
-    let model = dir.path().join("m.json").display().to_string();
-    ok(&[
-        "fit",
-        "--data",
-        &log,
-        "--model",
-        "position-direction",
-        "--out",
-        &model,
-    ]);
+    let (log, model) = random_log_and_model(dir.path(), "60");
     let out = dir.path().join("out").display().to_string();
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
@@ -623,4 +566,22 @@ fn a_too_short_log_gives_the_row_count_as_a_lower_bound() {
     assert_eq!(n1, 4);
     assert!(n4 > 4, "{n4}");
     assert!(!std::path::Path::new(&out).exists());
+}
+
+/// A random-seek log of `n` rows on the default drive (`r.csv` in `dir`) and the
+/// `position-direction` model fitted to it (`m.json`): the start of the tests that need both.
+fn random_log_and_model(dir: &std::path::Path, n: &str) -> (String, String) {
+    let log = dir.join("r.csv").display().to_string();
+    ok(&["simulate", "--sequence", "random", "--n", n, "--out", &log]);
+    let model = dir.join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &model,
+    ]);
+    (log, model)
 }
