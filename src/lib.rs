@@ -148,6 +148,7 @@ pub(crate) mod numeric;
 
 pub(crate) mod log;
 
+pub(crate) mod codegen;
 pub(crate) mod history;
 
 pub(crate) mod sim;
@@ -179,7 +180,7 @@ pub use control::settle::{
     handoff_state, settle_index, worst_case_settle,
 };
 pub use control::{
-    Controller, LqrWeights,
+    Controller, LqrWeights, StartValues,
     plant::{Plant, PlantSpec},
 };
 pub use diagnose::{
@@ -210,8 +211,8 @@ pub use model::term::{
 };
 pub use model::terms;
 pub use model::{
-    ColumnsUsed, Feedback, FittedModel, FittedTerm, ModelEdit, ModelError, ModelSpec,
-    NextPrediction, Prediction, Predictor, ReplaySummary, RowPrediction, SpecError, StartValues,
+    ColumnsUsed, Feedback, FittedModel, FittedTerm, IntegratorStart, ModelEdit, ModelError,
+    ModelSpec, NextPrediction, Prediction, Predictor, ReplaySummary, RowPrediction, SpecError,
     predict_next, replay_stream, write_predictions_csv,
 };
 /// The worker-thread count of the parallel parts (diagnosis permutations, cross-validation):

@@ -133,7 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Ok(write_predictions_csv(
             &model,
             &mut reader,
-            start.as_ref(),
+            start.as_ref().map(|s| s as &dyn biasctl::IntegratorStart),
             w,
             flush_each,
         )?)

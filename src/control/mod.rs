@@ -29,6 +29,8 @@ pub use expm::ExpmError;
 pub(crate) mod lqr;
 pub(crate) mod plant;
 pub(crate) mod settle;
+mod start;
+pub use start::StartValues;
 
 use lqr::{DareError, DareOptions, dare};
 use nalgebra::{DMatrix, DVector};

@@ -7,7 +7,7 @@
 //!   functions `bias_model_init`, `bias_model_step` and `bias_model_peek`, with the meaning of
 //!   [`crate::model::Predictor::new`], [`crate::model::Predictor::step`] and
 //!   [`crate::model::Predictor::peek`]; with a handoff plant, also
-//!   `bias_model_integrator_start` ([`crate::model::StartValues::integrator_start`]);
+//!   `bias_model_integrator_start` ([`crate::control::StartValues::integrator_start`]);
 //! - `bias_model.c`: the coefficients, scalings and the handoff table as `static const` data,
 //!   and the functions;
 //! - `replay.c`: a program that reads a log in biasctl's format on stdin (`#` metadata lines,
@@ -18,42 +18,23 @@
 //! `cc -std=c99 -O2 DIR/*.c -lm` builds the replay program.
 //!
 //! ## How a term describes itself
-//! Every term is written by [`crate::model::term::Term::export_c`], which returns a [`CTerm`]:
-//! C text with placeholders the generator fills in. The default implementation knows the
-//! built-in terms from their name and saved settings ([`builtin`]); a user's term (or a term
-//! added later) overrides it, or is refused with [`ExportError::NotExportable`] naming it.
-//! In the text, `$S` is the term's state member (a struct with the fields of [`CTerm::state`]),
-//! `$K` a prefix unique to the term for its constants, `$X0`, `$X1`, … the term's covariates
-//! (in the order of [`crate::model::term::Term::covariates`]); `f` is
-//! `const bias_model_features *` (the seek's history features), `b` the basis output
-//! (`bias_real b[n]`); in [`CTerm::update`], `measured` (int) and `resid` (`bias_real`, the row's
-//! measured − predicted bias when `measured`).
+//! Every term is written by [`crate::model::term::Term::export_c`], implemented in the term's
+//! own file, which returns a [`CTerm`]: C text with placeholders the generator fills in (see
+//! [`crate::codegen`](mod@crate::codegen)). A term that does not describe itself is refused
+//! with [`ExportError::NotExportable`] naming it.
 
-pub(crate) mod builtin;
-
+pub use crate::codegen::{CContext, CPrecision, CTerm};
 use crate::model::FittedModel;
 use crate::model::predictor::REST_CAPACITY;
 use crate::render::{OutputError, StagedDir, write_string_atomic};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// Floating-point type of the exported code.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[non_exhaustive]
-pub enum CPrecision {
-    /// `double` (IEEE binary64): agrees with the Rust predictor to rounding.
-    #[default]
-    Float64,
-    /// `float` (IEEE binary32) for targets without double precision; every constant and every
-    /// operation is single precision (see README for the measured error).
-    Float32,
-}
-
-/// The handoff table to export with the model ([`crate::model::StartValues`]).
+/// The handoff table to export with the model ([`crate::control::StartValues`]).
 #[derive(Debug, Clone, Copy)]
 pub struct CHandoff<'a> {
     /// The plant's start values for the model's Δb.
-    pub start: &'a crate::model::StartValues,
+    pub start: &'a crate::control::StartValues,
 }
 
 /// Options of [`c_source`].
@@ -63,86 +44,6 @@ pub struct COptions<'a> {
     pub precision: CPrecision,
     /// Emit the handoff table and `bias_model_integrator_start`.
     pub handoff: Option<CHandoff<'a>>,
-}
-
-/// A term as C code (see the module docs for the placeholders).
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-#[non_exhaustive]
-pub struct CTerm {
-    /// Member declarations of the term's state, e.g. `bias_real g[4];` (empty: stateless).
-    pub state: String,
-    /// File-scope constant declarations (`static const …`), named with the prefix `$K`.
-    pub constants: String,
-    /// Statements that set the state `$S` at the start of a log.
-    pub init: String,
-    /// Statements that write the term's basis values into `b[0 ..n)` (every one of them) from
-    /// `f`, the covariates `$X…` and the state `$S` (read only).
-    pub basis: String,
-    /// An expression for the causal offset (bias units) added to the term's contribution, or
-    /// empty for none.
-    pub offset: String,
-    /// Statements that advance the state `$S` past the seek (`f`, `$X…`, `measured`, `resid`).
-    pub update: String,
-}
-
-/// What the term's C code may use from the generator: number formatting in the exported
-/// precision and the history features by name.
-#[derive(Debug, Clone, Copy)]
-pub struct CContext {
-    precision: CPrecision,
-}
-
-impl CContext {
-    /// A context for `precision`.
-    pub fn new(precision: CPrecision) -> Self {
-        Self { precision }
-    }
-
-    /// A C literal of `x` in the exported precision that reads back exactly (`(-1.5e0)`,
-    /// `2.5e-1f`; `INFINITY` for +∞).
-    pub fn real(&self, x: f64) -> String {
-        if x.is_infinite() {
-            return if x > 0.0 { "INFINITY" } else { "(-INFINITY)" }.into();
-        }
-        let text = match self.precision {
-            CPrecision::Float64 => format!("{x:e}"),
-            CPrecision::Float32 => format!("{:e}f", x as f32),
-        };
-        // Always a floating literal: `1e0`, never `1`.
-        if text.starts_with('-') {
-            format!("({text})")
-        } else {
-            text
-        }
-    }
-
-    /// A brace-enclosed initialiser of `values` (`{1e0, 2e0}`); `{0}` when empty.
-    pub fn array(&self, values: &[f64]) -> String {
-        if values.is_empty() {
-            return "{0}".into();
-        }
-        let items: Vec<String> = values.iter().map(|&v| self.real(v)).collect();
-        format!("{{{}}}", items.join(", "))
-    }
-
-    /// The C expressions `(defined, value)` of the history feature called `name`
-    /// ([`crate::history::Feature`]), for `f` of type `const bias_model_features *`.
-    pub fn feature(&self, name: &str) -> Option<(&'static str, &'static str)> {
-        use crate::history::Feature as F;
-        Some(match F::from_name(name)? {
-            F::Position => ("1", "f->target"),
-            F::SeekLength => ("1", "f->seek_length"),
-            F::SeekAbs => ("1", "fabs(f->seek_length)"),
-            F::Direction => ("1", "(bias_real)f->direction"),
-            F::DirectionChange => ("1", "(bias_real)f->direction_change"),
-            F::SinceReversal => ("1", "f->since_reversal"),
-            F::RestDistanceOd => ("f->has_rest_od", "f->rest_od"),
-            F::RestDistanceId => ("f->has_rest_id", "f->rest_id"),
-            F::DwellS => ("1", "f->dwell_s"),
-            F::ElapsedS => ("1", "f->elapsed_s"),
-            F::SeekIndex => ("1", "f->seek_index"),
-        })
-    }
 }
 
 /// Why a model cannot be exported or written.
@@ -539,7 +440,7 @@ bias_real bias_model_step(bias_model_state *s, bias_real time_s, bias_real targe
 
 /// The handoff table and `bias_model_integrator_start` (a port of
 /// [`crate::control::settle::HandoffTable::solve`]'s robust choice for a step from rest).
-fn handoff_c(ctx: &CContext, start: &crate::model::StartValues) -> String {
+fn handoff_c(ctx: &CContext, start: &crate::control::StartValues) -> String {
     let table = start.table();
     let (rows, zeros) = table.export_rows();
     let col = |i: usize| -> Vec<f64> { rows.iter().map(|r| r[i]).collect() };

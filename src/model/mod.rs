@@ -17,7 +17,7 @@ pub(crate) mod term;
 pub mod terms;
 
 pub use predictor::{
-    NextPrediction, Predictor, ReplaySummary, RowPrediction, StartValues, predict_next,
+    IntegratorStart, NextPrediction, Predictor, ReplaySummary, RowPrediction, predict_next,
     replay_stream, write_predictions_csv,
 };
 

@@ -13,7 +13,6 @@
 
 use super::term::{Seek, TermState};
 use super::{FittedModel, ModelError, RangeWarning};
-use crate::control::settle::{AnalyseError, HandoffTable, SettleConfig, Window};
 use crate::history::{History, SeekFeatures};
 use crate::log::{LogError, LogReader, Row};
 use std::cell::RefCell;
@@ -153,94 +152,12 @@ impl Predictor {
     }
 }
 
-/// The settle-optimal integrator start value of every planned seek (`predict --handoff`): the
-/// robust choice of eq. 14–16 for the plant's handoff (a step from rest) and a bias known to
-/// ±Δb, made absolute with the seek's predicted bias.
-///
-/// `integrator_start(b̂) = ∂z/∂d·b̂ + ζ_robust` in µm·samples: the value the firmware loads into
-/// the integrator, i.e. the converged value for the predicted bias b̂ (counts) plus the robust
-/// start value relative to it, which `biasctl settle --bias B --bias-uncertainty DB` reports as
-/// `z_converged` and `robust.ff`. Allocation-free per call.
-///
-/// ```
-/// use biasctl::StartValues;
-/// use biasctl::{SettleSpec, analyse};
-/// let mut spec = SettleSpec::preset("paper1997").unwrap();
-/// let starts = StartValues::new(&spec.check().unwrap(), 8.0).unwrap();
-/// let z = starts.integrator_start(30.0).unwrap();
-/// // What `biasctl settle --bias 30 --bias-uncertainty 8` reports:
-/// spec.bias = 30.0;
-/// spec.bias_uncertainty = 8.0;
-/// let r = analyse(&spec.check().unwrap()).unwrap();
-/// assert!((z - (r.z_converged + r.robust.unwrap().ff)).abs() < 1e-9);
-/// ```
-#[derive(Debug, Clone)]
-pub struct StartValues {
-    table: HandoffTable,
-    window: Window,
-    step_um: f64,
-    delta_b: f64,
-}
-
-impl StartValues {
-    /// Designs the controller of `cfg` (its plant, weights, step, window and horizon; its bias
-    /// is ignored) for a bias uncertainty `delta_b` (counts, finite, ≥ 0: the model's error std).
-    pub fn new(cfg: &SettleConfig, delta_b: f64) -> Result<Self, AnalyseError> {
-        if !delta_b.is_finite() || delta_b < 0.0 {
-            return Err(crate::control::settle::SettleError::Invalid {
-                field: crate::field::Field::BiasUncertainty,
-                what: "finite and ≥ 0 (the model's residual_std when none is given)",
-                value: delta_b,
-            }
-            .into());
-        }
-        let ctl = crate::control::Controller::design(&cfg.plant, &cfg.weights)?;
-        Ok(Self {
-            table: HandoffTable::new(&ctl, cfg.scenario.horizon)?,
-            window: cfg.scenario.window,
-            step_um: cfg.scenario.step_um,
-            delta_b,
-        })
-    }
-
-    /// Δb in counts.
-    pub fn delta_b(&self) -> f64 {
-        self.delta_b
-    }
-
-    /// The precomputed handoff table.
-    pub fn table(&self) -> &HandoffTable {
-        &self.table
-    }
-
-    /// The settle window.
-    pub fn window(&self) -> &Window {
-        &self.window
-    }
-
-    /// Step length in µm (the handoff starts at e0 = −step from rest).
-    pub fn step_um(&self) -> f64 {
-        self.step_um
-    }
-
-    /// The absolute integrator start value (µm·samples) for a seek whose predicted bias is
-    /// `bias` (counts); `None` when no start value settles every bias within ±Δb inside the
-    /// horizon, or the bias is not finite.
-    pub fn integrator_start(&self, bias: f64) -> Option<f64> {
-        if !bias.is_finite() {
-            return None;
-        }
-        let h = crate::control::settle::Handoff {
-            e0_um: -self.step_um,
-            v0_um_s: 0.0,
-            u_prev_counts: bias,
-            bias_counts: bias,
-        };
-        let sol = self.table.solve(&h, &self.window, self.delta_b);
-        let zeta = sol.robust?.choice(sol.shift);
-        let z = self.table.dz_dbias() * bias + zeta;
-        z.is_finite().then_some(z)
-    }
+/// What gives a seek's integrator start value from its predicted bias (`predict --handoff`):
+/// [`crate::control::StartValues`] implements it for the settle-optimal start values.
+pub trait IntegratorStart {
+    /// The absolute integrator start value for a seek whose predicted bias is `bias`; `None`
+    /// when none exists.
+    fn integrator_start(&self, bias: f64) -> Option<f64>;
 }
 
 /// One row of a replayed plan or log.
@@ -251,7 +168,7 @@ pub struct RowPrediction {
     pub predicted: f64,
     /// measured − predicted, `None` where the row was not measured.
     pub residual: Option<f64>,
-    /// The integrator start value for this seek ([`StartValues::integrator_start`]), when
+    /// The integrator start value for this seek ([`IntegratorStart::integrator_start`]), when
     /// start values were asked for and one settles.
     pub integrator_start: Option<f64>,
 }
@@ -291,7 +208,7 @@ pub enum ReplayError {
 pub fn replay_stream<R: Read>(
     model: &FittedModel,
     reader: &mut LogReader<R>,
-    start: Option<&StartValues>,
+    start: Option<&dyn IntegratorStart>,
     mut sink: impl FnMut(&Row, &RowPrediction, &[f64]) -> std::io::Result<()>,
 ) -> Result<ReplaySummary, ReplayError> {
     let schema = reader.schema().clone();
@@ -358,7 +275,7 @@ pub fn replay_stream<R: Read>(
 pub fn write_predictions_csv<R: Read>(
     model: &FittedModel,
     reader: &mut LogReader<R>,
-    start: Option<&StartValues>,
+    start: Option<&dyn IntegratorStart>,
     out: &mut dyn std::io::Write,
     flush_each: bool,
 ) -> Result<ReplaySummary, ReplayError> {

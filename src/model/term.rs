@@ -60,6 +60,7 @@
 //! assert!((k.value - 0.01).abs() < 1e-9);
 //! ```
 
+use crate::codegen::{CContext, CTerm};
 use crate::history::SeekFeatures;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
@@ -273,12 +274,12 @@ pub trait Term: Debug + Send + Sync {
     fn settings(&self) -> serde_json::Value {
         serde_json::Value::Null
     }
-    /// The term as C code for the firmware export (`biasctl export c`, `crate::export`);
-    /// `None`: not exportable (the export then refuses, naming the term). The default knows the
-    /// built-in terms by name and [`Term::settings`] (`crate::export::builtin::builtin_term`);
-    /// a user's term overrides it to export itself.
-    fn export_c(&self, ctx: &crate::export::CContext) -> Option<crate::export::CTerm> {
-        crate::export::builtin::builtin_term(&self.name(), &self.settings(), ctx)
+    /// The term as C code for the firmware export (`biasctl export c`, `crate::export`),
+    /// written with the helpers of [`crate::codegen`](mod@crate::codegen); `None` (the
+    /// default): not exportable (the export then refuses, naming the term). Each built-in term
+    /// that can be exported implements it in its own file from its fitted settings.
+    fn export_c(&self, _ctx: &CContext) -> Option<CTerm> {
+        None
     }
 }
 

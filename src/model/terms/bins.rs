@@ -18,6 +18,7 @@
 
 use super::covariate_position;
 use super::knots::{interior_knots_owned, label};
+use crate::codegen::{CContext, CTerm, zero};
 use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
@@ -154,6 +155,46 @@ impl Term for BinsTerm {
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
+        let by_direction = self.name.split(':').next() == Some("dbins");
+        let (defined, value) = if self.covariate {
+            ("1", "$X0")
+        } else {
+            ctx.feature(&self.source)?
+        };
+        let k = self.knots.len();
+        let n = 1 + k + usize::from(self.indicator);
+        let mut t = CTerm::default();
+        if k > 0 {
+            t.constants = format!(
+                "static const bias_real $K_KNOTS[{k}] = {};\n",
+                ctx.array(&self.knots)
+            );
+        }
+        t.basis = zero(n);
+        t.basis += &format!(
+            "if ({defined}) {{ bias_real v_ = {value}; b[0] = (v_ - {c}) / {s};",
+            c = ctx.real(self.centre),
+            s = ctx.real(self.scale)
+        );
+        if k > 0 {
+            t.basis += &format!(
+                " {{ int j_; for (j_ = 0; j_ < {k}; j_++) {{ bias_real h_ = v_ - $K_KNOTS[j_]; b[1 + j_] = (h_ > 0 ? h_ : 0) / {s}; }} }}",
+                s = ctx.real(self.scale)
+            );
+        }
+        t.basis += " }";
+        if self.indicator {
+            t.basis += &format!(" else {{ b[{}] = 1; }}", k + 1);
+        }
+        t.basis.push('\n');
+        if by_direction {
+            t.basis += &format!(
+                "{{ int i_; for (i_ = 0; i_ < {n}; i_++) b[i_] *= (bias_real)f->direction; }}\n"
+            );
+        }
+        Some(t)
     }
 }
 

@@ -34,7 +34,7 @@
 //! from the curvature of the RSS along each, the other parameters at their fitted values).
 //! Exportable to C (`export c`).
 
-use crate::export::{CContext, CTerm};
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::registry::TermText;

@@ -5,6 +5,7 @@
 
 use super::covariate_position;
 use super::lag::{FirstOrderLag, LagStage};
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
@@ -119,6 +120,20 @@ impl Term for ColTerm {
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    /// `col:NAME` only: a lag stage is not exported.
+    fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
+        if self.lag.is_some() {
+            return None;
+        }
+        Some(CTerm {
+            basis: format!(
+                "b[0] = ($X0 - {}) / {};\n",
+                ctx.real(self.centre),
+                ctx.real(self.scale)
+            ),
+            ..CTerm::default()
+        })
     }
 }
 

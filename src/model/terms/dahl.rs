@@ -16,6 +16,7 @@
 //! overshoot/undershoot eq. 8 cannot. O(N) state. Both ranges come from the data, so a log in
 //! metres and the same log in micrometres give the same predictions.
 
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{
@@ -531,6 +532,22 @@ impl Term for DahlTerm {
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
+        let n = self.rates.len();
+        let ln_r: Vec<f64> = self.rates.iter().map(|r| r.ln()).collect();
+        // G = s + (G − s)·r^|dx| (eq. 8 / Fc), unchanged for dx = 0.
+        let peek = "bias_real dx_ = f->seek_length, d_ = exp($K_LNR[j_] * fabs(dx_)), g_ = $S.g[j_];\n      g_ = dx_ > 0 ? 1 + (g_ - 1) * d_ : (dx_ < 0 ? -1 + (g_ + 1) * d_ : g_);";
+        Some(CTerm {
+            state: format!("bias_real g[{n}];"),
+            constants: format!(
+                "static const bias_real $K_LNR[{n}] = {};\n",
+                ctx.array(&ln_r)
+            ),
+            basis: format!("{{ int j_; for (j_ = 0; j_ < {n}; j_++) {{ {peek} b[j_] = g_; }} }}\n"),
+            update: format!("int j_; for (j_ = 0; j_ < {n}; j_++) {{ {peek} $S.g[j_] = g_; }}"),
+            ..CTerm::default()
+        })
     }
 }
 

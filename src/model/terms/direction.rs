@@ -2,6 +2,7 @@
 //! −Fc after an outbound one, 0 before the head has moved). Fc in counts: half the gap between
 //! the inbound and outbound curves of the paper's Fig. 3.
 
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -36,6 +37,12 @@ impl Term for DirectionTerm {
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(DirectionState))
+    }
+    fn export_c(&self, _ctx: &CContext) -> Option<CTerm> {
+        Some(CTerm {
+            basis: "b[0] = (bias_real)f->direction;\n".into(),
+            ..CTerm::default()
+        })
     }
 }
 

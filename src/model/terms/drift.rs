@@ -8,6 +8,7 @@
 //! `ln alpha ∈ [ln 1e-4, 0]` (16-point grid, then five zooms around the best), minimising the one-step-ahead squared error
 //! of the other terms' residuals. It has no standard error (reported as `null`).
 
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState};
@@ -163,6 +164,14 @@ impl Term for DriftTerm {
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
+        Some(CTerm {
+            state: "bias_real m;".into(),
+            offset: "$S.m".into(),
+            update: format!("if (measured) $S.m += {} * resid;", ctx.real(self.alpha)),
+            ..CTerm::default()
+        })
     }
 }
 

@@ -1,5 +1,6 @@
 //! `intercept`: a constant, counts. Added automatically when no other term spans a constant.
 
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -38,6 +39,12 @@ impl Term for InterceptTerm {
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(Constant))
+    }
+    fn export_c(&self, _ctx: &CContext) -> Option<CTerm> {
+        Some(CTerm {
+            basis: "b[0] = 1;\n".into(),
+            ..CTerm::default()
+        })
     }
 }
 

@@ -16,6 +16,7 @@
 use super::knots::{
     curve_hinges, curve_param_names, direction_side, interior_knots_owned, spec_name,
 };
+use crate::codegen::{CContext, CTerm, SIDE, c_curve_hinges};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -72,6 +73,20 @@ impl Term for MemoryTerm {
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    /// The hinge curves of `knots::curve_hinges` in the distance to the rest position on the
+    /// side the head moves towards (none without one).
+    fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
+        let curve = format!(
+            "((f->direction == 1 && f->has_rest_id) || (f->direction == -1 && f->has_rest_od) ? {SIDE} : -1)"
+        );
+        Some(c_curve_hinges(
+            ctx,
+            &self.knots,
+            2,
+            &curve,
+            "(f->direction == 1 ? f->rest_id : f->rest_od)",
+        ))
     }
 }
 

@@ -5,6 +5,7 @@
 //! on raw track numbers; the reported `c0, c1, c2` are converted back to tracks, with standard
 //! errors carried through the exact linear map.
 
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
@@ -112,6 +113,16 @@ impl Term for Poly2Term {
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
+        Some(CTerm {
+            basis: format!(
+                "{{ bias_real u_ = (f->target - {}) / {}; b[0] = 1; b[1] = u_; b[2] = u_ * u_; }}\n",
+                ctx.real(self.centre),
+                ctx.real(self.scale)
+            ),
+            ..CTerm::default()
+        })
     }
 }
 

@@ -280,7 +280,7 @@ impl Term for ScaleTerm {
         .unwrap_or_default()
     }
     /// Not exportable: `export c` refuses it by name.
-    fn export_c(&self, _ctx: &crate::export::CContext) -> Option<crate::export::CTerm> {
+    fn export_c(&self, _ctx: &crate::codegen::CContext) -> Option<crate::codegen::CTerm> {
         None
     }
 }

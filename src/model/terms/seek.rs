@@ -17,6 +17,7 @@
 use super::knots::{
     curve_hinges, curve_param_names, direction_side, interior_knots_owned, spec_name,
 };
+use crate::codegen::{CContext, CTerm, SIDE, c_curve_hinges};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -86,6 +87,18 @@ impl Term for SeekTerm {
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    /// The hinge curves of `knots::curve_hinges`, the curve chosen from the side and the
+    /// direction change.
+    fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
+        let curve = format!("({SIDE} < 0 ? -1 : 2 * f->direction_change + {SIDE})");
+        Some(c_curve_hinges(
+            ctx,
+            &self.knots,
+            CURVES.len(),
+            &curve,
+            "fabs(f->seek_length)",
+        ))
     }
 }
 

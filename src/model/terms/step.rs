@@ -51,7 +51,7 @@
 //! within float rounding of `T` may fall on the other side.
 
 use super::covariate_position;
-use crate::export::{CContext, CTerm};
+use crate::codegen::{CContext, CTerm};
 use crate::model::data::{FitData, FitError};
 use crate::model::registry::TermText;
 use crate::model::term::{

@@ -23,7 +23,7 @@
 
 use super::positive_finite;
 use super::viscous::{c_velocity, column_index, training_velocities, velocity};
-use crate::export::{CContext, CTerm};
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::registry::TermText;

@@ -3,6 +3,7 @@
 //! knots. Its values (counts) are the parameters; the hat basis sums to 1, so it spans the
 //! intercept.
 
+use crate::codegen::{CContext, CTerm, zero};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
@@ -89,6 +90,23 @@ impl Term for TableTerm {
     }
     fn settings(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
+        let mut t = CTerm::default();
+        if self.knots == 1 {
+            t.basis = "b[0] = 1;\n".into();
+        } else {
+            let top = (self.knots - 1) as f64;
+            t.basis = zero(self.knots);
+            t.basis += &format!(
+                "{{ bias_real u_ = (f->target - {x0}) / {h}; int i_; bias_real fr_;\n  u_ = u_ < 0 ? 0 : (u_ > {top} ? {top} : u_);\n  i_ = (int)floor(u_); if (i_ > {last}) i_ = {last};\n  fr_ = u_ - (bias_real)i_; b[i_] = 1 - fr_; b[i_ + 1] = fr_; }}\n",
+                x0 = ctx.real(self.x0),
+                h = ctx.real(self.spacing),
+                top = ctx.real(top),
+                last = self.knots - 2
+            );
+        }
+        Some(t)
     }
 }
 

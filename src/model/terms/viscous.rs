@@ -16,7 +16,7 @@
 //! column of order one whatever the units; predictions do not depend on that scale.
 
 use super::covariate_position;
-use crate::export::{CContext, CTerm};
+use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::registry::TermText;
