@@ -148,8 +148,9 @@ pub(crate) mod numeric;
 
 pub(crate) mod log;
 
-pub(crate) mod codegen;
 pub(crate) mod history;
+
+pub(crate) mod codegen;
 
 pub(crate) mod sim;
 
