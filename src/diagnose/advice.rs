@@ -3,14 +3,13 @@
 use serde::{Deserialize, Serialize};
 
 use crate::history::Feature;
+use crate::model::registry::{self, Cue, Law};
 
 use super::features::FeatureOrigin;
 
-/// The term suggested for the state-space (Dahl) model: `dahl:4`, four elements with rates on a
-/// grid. One element (`dahl:1`, eq. 8) only moves monotonically between the two curves, so it
-/// cannot make the overshoot/undershoot of P4/P5; fast and slow elements of opposite sign can,
-/// and four is what the P4/P5 acceptance test needs to reach the error of the full model.
-pub(super) const DAHL_TERM: &str = "dahl:4";
+/// The term suggested for the state-space (Dahl) model
+/// ([`crate::model::terms::dahl`]'s suggestion: four elements).
+pub(super) const DAHL_TERM: &str = crate::model::terms::dahl::SUGGESTED;
 
 /// The term suggested for hysteresis that spans the reversal amplitudes: `play`, Prandtl–
 /// Ishlinskii play elements with thresholds spread over the log's reversal amplitudes
@@ -20,7 +19,7 @@ pub(super) const DAHL_TERM: &str = "dahl:4";
 /// a loop whose shape changes with the reversal amplitude, which a few Dahl rates and a
 /// direction offset cannot express. The verification scores it beside `dahl:4` and keeps
 /// the better.
-pub(crate) const PLAY_TERM: &str = "play";
+pub(crate) const PLAY_TERM: &str = crate::model::terms::play::HEAD;
 
 /// Shape of the residual's binned curve against a feature.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -197,80 +196,39 @@ pub(crate) fn candidate_terms(
     odd_linear: bool,
     velocity_sign: bool,
 ) -> Vec<String> {
-    let bins = format!("bins:{name}");
-    if by_direction {
-        // Hysteresis-like: the effect flips sign with the approach direction. `bins` would fit
-        // an even curve and miss it, so it is never suggested here; a feature without a
-        // dedicated term gets `dbins:FEATURE` (direction × piecewise-linear in the feature).
-        return match origin {
-            FeatureOrigin::BuiltIn(f) => match f {
-                Feature::SeekLength
-                | Feature::SeekAbs
-                | Feature::SinceReversal
-                | Feature::DirectionChange => {
-                    vec![DAHL_TERM.into(), PLAY_TERM.into(), "seek".into()]
-                }
-                Feature::RestDistanceOd | Feature::RestDistanceId => vec!["memory".into()],
-                Feature::Direction => vec!["direction".into()],
-                Feature::ElapsedS | Feature::SeekIndex => vec!["drift".into()],
-                // No dedicated term: direction × piecewise-linear in the feature.
-                Feature::Position | Feature::DwellS => vec![format!("dbins:{name}")],
-            },
-            FeatureOrigin::Covariate if odd_linear => {
-                vec![
-                    format!("viscous:{name}"),
-                    format!("col:{name}"),
-                    format!("dbins:{name}"),
-                ]
-            }
-            FeatureOrigin::Covariate if velocity_sign => {
-                vec![format!("stribeck:{name}"), format!("dbins:{name}")]
-            }
-            FeatureOrigin::Covariate => vec![format!("dbins:{name}")],
-            // Summed memory × direction: the nearest rest *ahead* of the approach matters, and
-            // that is `memory` (one curve per approach direction); `memsum` has no direction.
-            FeatureOrigin::SummedMemory => vec!["memory".into(), "memsum".into()],
-            FeatureOrigin::Lagged => lag_terms(name),
-            FeatureOrigin::DerivedVelocity => velocity_terms(odd_linear, velocity_sign, linear),
-        };
-    }
-    match origin {
-        FeatureOrigin::BuiltIn(f) => match f {
-            Feature::Position => vec!["table".into(), bins],
-            Feature::SeekLength | Feature::SeekAbs | Feature::DirectionChange => {
-                vec!["seek".into(), DAHL_TERM.into(), bins]
-            }
-            Feature::SinceReversal => {
-                vec![DAHL_TERM.into(), PLAY_TERM.into(), "seek".into(), bins]
-            }
-            Feature::RestDistanceOd | Feature::RestDistanceId => vec!["memory".into(), bins],
-            Feature::ElapsedS | Feature::SeekIndex => vec!["drift".into(), bins],
-            Feature::Direction => vec!["direction".into(), DAHL_TERM.into(), bins],
-            Feature::DwellS => vec![bins],
-        },
+    // Hysteresis-like (`by_direction`): the effect flips sign with the approach direction. An
+    // even curve would miss it, so only the terms that flip with the direction answer it.
+    let cue = match origin {
+        FeatureOrigin::BuiltIn(f) => Cue::Feature(f, by_direction),
         FeatureOrigin::Covariate => {
-            let col = format!("col:{name}");
-            // A logged temperature often leads its effect: the first-order lagged covariate
-            // (when this build has the `lag` term) is verified beside `col:`.
-            let lag = format!("lag:{name}");
-            let lag = crate::model::terms::parse_term(&lag).is_ok().then_some(lag);
-            let mut v = if odd_linear {
-                vec![format!("viscous:{name}"), col, bins]
-            } else if velocity_sign && !linear {
-                vec![format!("stribeck:{name}"), bins, col]
-            } else if linear {
-                vec![col, bins]
+            let law = if odd_linear {
+                Law::OddLinear
+            } else if velocity_sign && (by_direction || !linear) {
+                Law::Velocity
+            } else if linear && !by_direction {
+                Law::Linear
             } else {
-                vec![bins, col]
+                Law::Other
             };
-            v.extend(lag);
-            v
+            Cue::Covariate(law, by_direction)
         }
-        // `bins` cannot compute a summed-memory feature, so it is no fallback here.
-        FeatureOrigin::SummedMemory => vec!["memsum".into(), "memory".into()],
-        FeatureOrigin::Lagged => lag_terms(name),
-        FeatureOrigin::DerivedVelocity => velocity_terms(odd_linear, velocity_sign, linear),
-    }
+        FeatureOrigin::SummedMemory => Cue::SummedMemory(by_direction),
+        FeatureOrigin::Lagged => {
+            let col = super::features::lagged_column(name).unwrap_or(name);
+            return registry::candidates(Cue::Lagged, col);
+        }
+        FeatureOrigin::DerivedVelocity => {
+            // The law whose curve the residual follows first: a line unless the friction falls
+            // off from a breakaway level at low speed.
+            let law = if odd_linear || !velocity_sign || linear {
+                Law::OddLinear
+            } else {
+                Law::Velocity
+            };
+            Cue::DerivedVelocity(law)
+        }
+    };
+    registry::candidates(cue, name)
 }
 
 /// `scale:COL:TERM` for a covariate column whose effect flips with the direction of the last
@@ -290,55 +248,22 @@ pub(crate) fn scale_terms(
     if origin != FeatureOrigin::Covariate || !by_direction || velocity_sign {
         return Vec::new();
     }
-    let signed_state = |t: &str| {
-        t == "direction"
-            || t == "dahl"
-            || t.starts_with("dahl:")
-            || t == PLAY_TERM
-            || t.starts_with("play:")
-    };
     existing
         .iter()
         .map(|t| t.trim())
-        .filter(|t| signed_state(t))
-        .map(|t| format!("scale:{name}:{t}"))
+        .filter(|t| registry::is_signed_state(t))
+        .map(|t| format!("{}:{name}:{t}", crate::model::terms::scale::HEAD))
         .filter(|s| !existing.iter().any(|e| e.trim() == s))
         .collect()
-}
-
-/// Velocity friction from the derived velocity (no column): `viscous` (a line in the signed
-/// velocity) and `stribeck` (friction falling off from a breakaway level at low speed), the
-/// one whose law the residual's curve follows first; both are verified by refit.
-fn velocity_terms(odd_linear: bool, velocity_sign: bool, linear: bool) -> Vec<String> {
-    if odd_linear || !velocity_sign || linear {
-        vec!["viscous".into(), "stribeck".into()]
-    } else {
-        vec!["stribeck".into(), "viscous".into()]
-    }
-}
-
-/// `lag:COL` (then `col:COL`) for a lagged covariate feature `<COL>@lag<τ>s`.
-fn lag_terms(name: &str) -> Vec<String> {
-    let col = super::features::lagged_column(name).unwrap_or(name);
-    vec![format!("lag:{col}"), format!("col:{col}")]
 }
 
 /// Whether the model's term list `existing` already holds `term` (any `dahl:N` counts as a Dahl
 /// term).
 fn has_term(existing: &[String], term: &str) -> bool {
     // `dahl` is one element; `dahl:N` has N. A Dahl term is covered by one with at least as
-    // many elements (one element cannot make the overshoot that `dahl:4` can).
-    let elements = |t: &str| match t {
-        "dahl" => Some(1usize),
-        _ => t.strip_prefix("dahl:").and_then(|n| n.parse().ok()),
-    };
-    // Any `play:N` holds the play family: the suggestion is `play` (the default count).
-    let play = |t: &str| t == PLAY_TERM || t.starts_with("play:");
-    existing.iter().any(|e| {
-        e.trim() == term
-            || (play(term) && play(e.trim()))
-            || matches!((elements(term), elements(e.trim())), (Some(want), Some(have)) if have >= want)
-    })
+    // many elements (one element cannot make the overshoot that `dahl:4` can); any `play:N`
+    // holds the play family (the suggestion is `play`, the default count).
+    existing.iter().any(|e| registry::covers(e.trim(), term))
 }
 
 /// The note for a residual that still steps with the direction although the model has the
@@ -347,14 +272,18 @@ fn has_term(existing: &[String], term: &str) -> bool {
 /// offset there is not the training log's: the classic case is the 1997 practice of calibrating
 /// on far seeks (Table I) and predicting short ones, which stop inside the far curves.
 pub(crate) fn offset_note(origin: FeatureOrigin, existing: &[String]) -> Option<String> {
-    (origin == FeatureOrigin::BuiltIn(Feature::Direction) && has_term(existing, "direction")).then(
+    // The term that answers a step with the direction (`direction`).
+    let offset = registry::candidates(Cue::Feature(Feature::Direction, true), "");
+    let offset = offset.first()?;
+    (origin == FeatureOrigin::BuiltIn(Feature::Direction) && has_term(existing, offset)).then(
         || {
-            "the model already has `direction`, which leaves no inbound/outbound step on the \
-             log it was fitted on: a step here means this log's offset differs from that log's \
-             (e.g. calibrated on far seeks, applied to short ones). Refit on data like this, or \
-             add the effect that moves the offset with the seek history (the seek-length, \
-             reversal and rest-distance features ranked here); `dahl:4` is the state-space way"
-                .to_string()
+            format!(
+                "the model already has `{offset}`, which leaves no inbound/outbound step on the \
+                 log it was fitted on: a step here means this log's offset differs from that log's \
+                 (e.g. calibrated on far seeks, applied to short ones). Refit on data like this, or \
+                 add the effect that moves the offset with the seek history (the seek-length, \
+                 reversal and rest-distance features ranked here); `{DAHL_TERM}` is the state-space way"
+            )
         },
     )
 }
@@ -399,12 +328,7 @@ pub(crate) fn suggest(
 /// effect left there gets `bins:seek_length`, which fits beside `seek`), and a state-space model
 /// is not given `seek`.
 fn conflicts(existing: &[String], term: &str) -> bool {
-    let is_dahl = |t: &str| t == "dahl" || t.starts_with("dahl:");
-    let has_seek = existing
-        .iter()
-        .any(|e| e == "seek" || e.starts_with("seek:"));
-    let has_dahl = existing.iter().any(|e| is_dahl(e));
-    (is_dahl(term) && has_seek) || ((term == "seek" || term.starts_with("seek:")) && has_dahl)
+    existing.iter().any(|e| registry::conflicts(e, term))
 }
 
 /// The candidates after `chosen` that the model does not have and that do not conflict with
@@ -438,12 +362,16 @@ fn list(terms: &[&String]) -> String {
 /// that close over the whole span, or three parameters of a bump; the out-of-sample refit
 /// decides which resolves it better. Every fold's refit searches the centre and width on its
 /// own training rows (bare `bump`), so the held-out rows never choose where the bump goes.
-pub(crate) const BUMP_TERM: &str = "bump";
+pub(crate) const BUMP_TERM: &str = crate::model::terms::bump::HEAD;
 
 /// The position terms whose verification also scores [`BUMP_TERM`]: `table` and
 /// `bins:position`.
 pub(crate) fn tries_bump(term: &str) -> bool {
-    term == "table" || term == "bins:position"
+    // The terms that answer an even curve in position.
+    let position = Feature::Position;
+    registry::candidates(Cue::Feature(position, false), position.name())
+        .iter()
+        .any(|t| t == term)
 }
 
 /// [`BUMP_TERM`], unless the model `spec` already has a term of that name.
@@ -502,7 +430,8 @@ pub(crate) fn name_searched(
     let ModelEdit::Add(t) = edit else { return None };
     let name = t.name();
     let column = name
-        .strip_prefix("step:")
+        .strip_prefix(STEP_HEAD)
+        .and_then(|r| r.strip_prefix(':'))
         .filter(|c| !c.is_empty() && !c.contains(':'));
     if name != BUMP_TERM && column.is_none() {
         return None;
@@ -586,7 +515,7 @@ pub(crate) fn clipped_residual(r: &[f64]) -> Option<(Vec<f64>, f64)> {
 /// packed around it (16 knots spread over the column to place a few there), or two
 /// parameters of a step. The out-of-sample refit decides which pays, and each fold's refit
 /// searches the threshold on its own training rows (bare `step:COL`).
-pub(crate) const STEP_HEAD: &str = "step";
+pub(crate) const STEP_HEAD: &str = crate::model::terms::step::HEAD;
 
 /// Whether `term` is a `step:` term.
 pub(crate) fn is_step(term: &str) -> bool {
@@ -596,7 +525,10 @@ pub(crate) fn is_step(term: &str) -> bool {
 /// `step:COL` for a `bins:COL` suggestion without a knot count on a covariate column (not a
 /// built-in feature), unless the model `spec` already has a step in that column.
 pub(crate) fn step_variant(term: &str, spec: &crate::model::ModelSpec) -> Option<String> {
-    let col = term.strip_prefix("bins:").filter(|c| !c.contains(':'))?;
+    let col = term
+        .strip_prefix(crate::model::terms::bins::HEAD)
+        .and_then(|r| r.strip_prefix(':'))
+        .filter(|c| !c.contains(':'))?;
     if Feature::from_name(col).is_some() {
         return None;
     }

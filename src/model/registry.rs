@@ -22,6 +22,7 @@ use super::terms::{
     scale, seek, step, stribeck, table, viscous,
 };
 use super::{ModelError, SpecError};
+use crate::history::Feature;
 use std::sync::Arc;
 
 /// Parses the argument of a term (`None` for a bare head).
@@ -42,6 +43,115 @@ pub(crate) struct BuiltinTerm {
     pub parse: ParseFn,
     /// The restorer of its fitted form.
     pub restore: RestoreBuiltinFn,
+    /// The spec text the diagnosis suggests for a pattern the term answers without naming a
+    /// column (its head, or a richer default such as `dahl:4`).
+    pub suggest: &'static str,
+    /// The residual patterns the term answers ([`Cue`]), declared in the term's file.
+    pub answers: AnswersFn,
+    /// Heads of the terms of another model family it is not suggested beside (either way).
+    pub conflicts: &'static [&'static str],
+    /// When a model's term covers a suggestion of this term ([`Cover`]).
+    pub cover: Cover,
+    /// Whether it is a direction-signed state term whose force a covariate may scale
+    /// (`scale:COL:TERM`).
+    pub signed_state: bool,
+    /// Whether its fitted form writes itself as C ([`Term::export_c`]); the export refuses the
+    /// others by name.
+    pub exports_c: bool,
+}
+
+/// The residual patterns a term answers: its rank among the terms that answer `cue`, and how
+/// the suggestion is written; `None` for a pattern it does not answer.
+pub(crate) type AnswersFn = fn(Cue) -> Option<Answer>;
+
+/// The law a residual's curve against a covariate (or the derived velocity) follows, the first
+/// that applies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Law {
+    /// A line in the signed value whose sign is the direction's (viscous friction).
+    OddLinear,
+    /// Its sign is the direction's but the law is not that line (friction falling off from a
+    /// breakaway level at low speed).
+    Velocity,
+    /// A line.
+    Linear,
+    /// Any other curve.
+    Other,
+}
+
+/// A residual pattern the diagnosis finds, for which the registry names the terms that answer
+/// it ([`candidates`]). `signed`: the residual follows the value times the direction of the
+/// last move (the effect flips with the approach direction).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Cue {
+    /// A history feature.
+    Feature(Feature, bool),
+    /// A covariate column, its curve following a [`Law`].
+    Covariate(Law, bool),
+    /// The summed rest-memory feature.
+    SummedMemory(bool),
+    /// A covariate column seen through a first-order lag (the name is the column).
+    Lagged,
+    /// The velocity derived from the positions and times, its curve following a [`Law`]
+    /// ([`Law::Velocity`]: the friction falls off at low speed; any other: a line first).
+    DerivedVelocity(Law),
+}
+
+/// How a term answers a [`Cue`]: its rank among the terms that answer it (lowest first) and
+/// whether the suggestion names the feature or column (`HEAD:NAME`) or is the term's
+/// [`BuiltinTerm::suggest`] text.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Answer {
+    /// Rank among the terms answering the same cue; distinct per cue.
+    pub rank: u8,
+    /// `HEAD:NAME` (else the term's suggestion text).
+    pub named: bool,
+    /// Offered only when its spec text parses.
+    pub parsed: bool,
+}
+
+impl Answer {
+    /// The term's suggestion text, at `rank`.
+    pub(crate) const fn fixed(rank: u8) -> Option<Self> {
+        Some(Self {
+            rank,
+            named: false,
+            parsed: false,
+        })
+    }
+    /// `HEAD:NAME`, at `rank`.
+    pub(crate) const fn named(rank: u8) -> Option<Self> {
+        Some(Self {
+            rank,
+            named: true,
+            parsed: false,
+        })
+    }
+    /// `HEAD:NAME`, at `rank`, offered only when it parses.
+    pub(crate) const fn named_if_parses(rank: u8) -> Option<Self> {
+        Some(Self {
+            rank,
+            named: true,
+            parsed: true,
+        })
+    }
+}
+
+/// When a model's term `e` covers a suggested term `t` of the same head.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Cover {
+    /// Only the same text.
+    Exact,
+    /// Any term of the head covers any other (`play:N` holds the play family).
+    Family,
+    /// The head's argument counts elements (none: one) and `e` covers `t` with at least as
+    /// many (`dahl:4` covers `dahl`).
+    Count,
+}
+
+/// A term that answers no pattern.
+fn answers_none(_: Cue) -> Option<Answer> {
+    None
 }
 
 /// Every built-in term, in the order [`builtin_names`] lists them.
@@ -51,98 +161,133 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
         Some("poly2"),
         poly::parse,
         restore_as::<poly::Poly2Term>,
-    ),
+    )
+    .exports_c(),
     row(
         "table",
         Some("table[:SPACING]"),
         table::parse,
         restore_as::<table::TableTerm>,
-    ),
+    )
+    .answering(table::answers)
+    .exports_c(),
     row(
         "direction",
         Some("direction"),
         direction::parse,
         direction::restore,
-    ),
+    )
+    .answering(direction::answers)
+    .signed_state()
+    .exports_c(),
     row(
         "seek",
         Some("seek[:KNOTS]"),
         seek::parse,
         restore_as::<seek::SeekTerm>,
-    ),
+    )
+    .answering(seek::answers)
+    .conflicting(&["dahl"])
+    .exports_c(),
     row(
         "memory",
         Some("memory[:KNOTS]"),
         memory::parse,
         restore_as::<memory::MemoryTerm>,
-    ),
+    )
+    .answering(memory::answers)
+    .exports_c(),
     row(
         "drift",
         Some("drift[:ALPHA]"),
         drift::parse,
         restore_as::<drift::DriftTerm>,
-    ),
+    )
+    .answering(drift::answers)
+    .exports_c(),
     row(
         "dahl",
         Some("dahl, dahl:N"),
         dahl::parse,
         restore_as::<dahl::DahlTerm>,
-    ),
+    )
+    .answering(dahl::answers)
+    .suggesting(dahl::SUGGESTED)
+    .conflicting(&["seek"])
+    .covered(Cover::Count)
+    .signed_state()
+    .exports_c(),
     row(
         "play",
         Some("play[:N]"),
         play::parse,
         restore_as::<play::PlayTerm>,
-    ),
+    )
+    .answering(play::answers)
+    .covered(Cover::Family)
+    .signed_state(),
     row(
         "col",
         Some("col:NAME"),
         covariate::parse,
         restore_as::<covariate::ColTerm>,
-    ),
-    row("lag", Some("lag:NAME"), lag::parse, lag::restore),
+    )
+    .answering(covariate::answers)
+    .exports_c(),
+    row("lag", Some("lag:NAME"), lag::parse, lag::restore).answering(lag::answers),
     row(
         "memsum",
         Some("memsum"),
         memsum::parse,
         restore_as::<memsum::MemsumTerm>,
-    ),
+    )
+    .answering(memsum::answers),
     row(
         "viscous",
         Some("viscous[:COL]"),
         viscous::parse,
         restore_as::<viscous::ViscousTerm>,
-    ),
+    )
+    .answering(viscous::answers)
+    .exports_c(),
     row(
         "stribeck",
         Some("stribeck[:COL][:DELTA]"),
         stribeck::parse,
         stribeck::restore,
-    ),
+    )
+    .answering(stribeck::answers)
+    .exports_c(),
     row(
         "bins",
         Some("bins:FEATURE[:KNOTS]"),
         bins::parse,
         bins::restore,
-    ),
+    )
+    .answering(bins::answers)
+    .exports_c(),
     row(
         "dbins",
         Some("dbins:FEATURE[:KNOTS]"),
         bins::parse,
         bins::restore,
-    ),
+    )
+    .answering(bins::answers_by_direction)
+    .exports_c(),
     row(
         "bump",
         Some("bump[:CENTRE:WIDTH]"),
         bump::parse,
         restore_as::<bump::BumpTerm>,
-    ),
+    )
+    .exports_c(),
     row(
         "step",
         Some("step:COL[:T]"),
         step::parse,
         restore_as::<step::StepTerm>,
-    ),
+    )
+    .exports_c(),
     row("by", Some("by:A:B"), by::parse, restore_as::<by::ByTerm>),
     row(
         "scale",
@@ -150,7 +295,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
         scale::parse,
         scale::restore,
     ),
-    row("intercept", None, intercept::parse, intercept::restore),
+    row("intercept", None, intercept::parse, intercept::restore).exports_c(),
 ];
 
 const fn row(
@@ -164,7 +309,112 @@ const fn row(
         syntax,
         parse,
         restore,
+        suggest: head,
+        answers: answers_none,
+        conflicts: &[],
+        cover: Cover::Exact,
+        signed_state: false,
+        exports_c: false,
     }
+}
+
+impl BuiltinTerm {
+    /// The row answering the patterns of `answers`.
+    const fn answering(self, answers: AnswersFn) -> Self {
+        Self { answers, ..self }
+    }
+    /// The row suggested as `text` where it names no column.
+    const fn suggesting(self, suggest: &'static str) -> Self {
+        Self { suggest, ..self }
+    }
+    /// The row not suggested beside the heads `conflicts`.
+    const fn conflicting(self, conflicts: &'static [&'static str]) -> Self {
+        Self { conflicts, ..self }
+    }
+    /// The row covered as `cover` says.
+    const fn covered(self, cover: Cover) -> Self {
+        Self { cover, ..self }
+    }
+    /// The row of a direction-signed state term.
+    const fn signed_state(self) -> Self {
+        Self {
+            signed_state: true,
+            ..self
+        }
+    }
+    /// The row of a term that writes itself as C.
+    const fn exports_c(self) -> Self {
+        Self {
+            exports_c: true,
+            ..self
+        }
+    }
+
+    /// How many elements spec text `t` of this head asks for ([`Cover::Count`]).
+    fn count(t: &str) -> Option<usize> {
+        match t.split_once(':') {
+            None => Some(1),
+            Some((_, n)) => n.parse().ok(),
+        }
+    }
+}
+
+/// The terms that answer `cue`, best first, as spec text (`HEAD:name` where the term names
+/// the feature or column `name`).
+pub(crate) fn candidates(cue: Cue, name: &str) -> Vec<String> {
+    let mut hits: Vec<(u8, String)> = BUILTINS
+        .iter()
+        .filter_map(|b| {
+            let a = (b.answers)(cue)?;
+            let text = if a.named {
+                format!("{}:{name}", b.head)
+            } else {
+                b.suggest.to_string()
+            };
+            if a.parsed && super::terms::parse_term(&text).is_err() {
+                return None;
+            }
+            Some((a.rank, text))
+        })
+        .collect();
+    hits.sort_by_key(|h| h.0);
+    hits.into_iter().map(|h| h.1).collect()
+}
+
+/// The head of spec text `t` (before the first `:`).
+fn head(t: &str) -> &str {
+    t.split(':').next().unwrap_or("")
+}
+
+/// Whether the model's term `have` covers the suggested term `want` (the same text, or the
+/// same head as its row's [`Cover`] allows).
+pub(crate) fn covers(have: &str, want: &str) -> bool {
+    if have == want {
+        return true;
+    }
+    match lookup(want) {
+        Some(b) if head(have) == b.head && head(want) == b.head => match b.cover {
+            Cover::Exact => false,
+            Cover::Family => true,
+            Cover::Count => matches!(
+                (BuiltinTerm::count(want), BuiltinTerm::count(have)),
+                (Some(w), Some(h)) if h >= w
+            ),
+        },
+        _ => false,
+    }
+}
+
+/// Whether `term` belongs to another model family than the model's term `have`
+/// ([`BuiltinTerm::conflicts`]).
+pub(crate) fn conflicts(have: &str, term: &str) -> bool {
+    lookup(term).is_some_and(|b| head(term) == b.head && b.conflicts.contains(&head(have)))
+}
+
+/// Whether the model's term `t` is a direction-signed state term
+/// ([`BuiltinTerm::signed_state`]).
+pub(crate) fn is_signed_state(t: &str) -> bool {
+    lookup(t).is_some_and(|b| b.signed_state)
 }
 
 /// The built-in term of spec text or model-file name `text` (looked up by its head).

@@ -22,6 +22,7 @@ use crate::codegen::{CContext, CTerm, zero};
 use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue, Law};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -310,3 +311,34 @@ pub(crate) fn restore(
         ..t
     }))
 }
+
+/// The patterns `bins:NAME` answers: an even curve in any history feature (after its
+/// dedicated term) or in a covariate (its place set by the curve's law).
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Feature(_, false) => Answer::named(9),
+        Cue::Covariate(law, false) => Answer::named(match law {
+            Law::OddLinear => 2,
+            Law::Velocity | Law::Linear => 1,
+            Law::Other => 0,
+        }),
+        _ => None,
+    }
+}
+
+/// The patterns `dbins:NAME` answers: a curve that flips with the direction, in a history
+/// feature without a dedicated term or in a covariate (after its velocity-friction terms).
+pub(crate) fn answers_by_direction(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Feature(Feature::Position | Feature::DwellS, true) => Answer::named(0),
+        Cue::Covariate(law, true) => Answer::named(match law {
+            Law::OddLinear => 2,
+            Law::Velocity => 1,
+            Law::Linear | Law::Other => 0,
+        }),
+        _ => None,
+    }
+}
+
+/// The head of the even term's spec text (`bins:NAME`), for the diagnosis.
+pub(crate) const HEAD: &str = "bins";

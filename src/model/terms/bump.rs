@@ -497,6 +497,9 @@ pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, SpecError> {
     }
 }
 
+/// The head of the term's spec text, for the diagnosis that suggests it.
+pub(crate) const HEAD: &str = "bump";
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,6 +8,7 @@ use super::lag::{FirstOrderLag, LagStage};
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue, Law};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -178,5 +179,18 @@ pub(crate) fn parse(
             column: name.to_string(),
         })),
         _ => Err(t.bad("`col` needs a column name: `col:NAME`".into())),
+    }
+}
+
+/// The patterns `col:NAME` answers: a covariate's line (first when the curve is one), and
+/// the column of a lagged covariate after `lag:NAME`.
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Covariate(Law::OddLinear, _) => Answer::named(1),
+        Cue::Covariate(Law::Velocity, false) => Answer::named(2),
+        Cue::Covariate(Law::Linear, false) => Answer::named(0),
+        Cue::Covariate(Law::Other, false) => Answer::named(1),
+        Cue::Lagged => Answer::named(1),
+        _ => None,
     }
 }

@@ -5,6 +5,7 @@
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use std::sync::Arc;
 
@@ -75,4 +76,12 @@ pub(crate) fn restore(
     _settings: &serde_json::Value,
 ) -> Result<Arc<dyn Term>, ModelError> {
     Ok(Arc::new(DirectionTerm))
+}
+
+/// The pattern `direction` answers: a step with the direction of the last move.
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Feature(crate::history::Feature::Direction, _) => Answer::fixed(0),
+        _ => None,
+    }
 }

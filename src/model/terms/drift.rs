@@ -11,6 +11,7 @@
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -212,6 +213,15 @@ pub(crate) fn parse(
         },
     };
     Ok(Arc::new(DriftSpec { alpha }))
+}
+
+/// The patterns `drift` answers: a residual that moves with time or the seek count.
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    use crate::history::Feature::{ElapsedS, SeekIndex};
+    match cue {
+        Cue::Feature(ElapsedS | SeekIndex, _) => Answer::fixed(0),
+        _ => None,
+    }
 }
 
 #[cfg(test)]

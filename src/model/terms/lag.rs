@@ -17,6 +17,7 @@
 use super::covariate::ColTerm;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Term, TermSpec};
 use crate::numeric::stats::percentile_select;
 use serde::{Deserialize, Serialize};
@@ -212,6 +213,16 @@ pub(crate) fn parse(
             column: name.to_string(),
         })),
         _ => Err(t.bad("`lag` needs a column name: `lag:NAME`".into())),
+    }
+}
+
+/// The patterns `lag:NAME` answers: a lagged covariate (first), and any even covariate
+/// effect last (a logged temperature often leads its effect).
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Covariate(_, false) => Answer::named_if_parses(9),
+        Cue::Lagged => Answer::named(0),
+        _ => None,
     }
 }
 

@@ -17,8 +17,10 @@ use super::knots::{
     curve_hinges, curve_param_names, direction_side, interior_knots_owned, spec_name,
 };
 use crate::codegen::{CContext, CTerm, SIDE, c_curve_hinges};
+use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -112,4 +114,14 @@ pub(crate) fn parse(
     Ok(Arc::new(MemorySpec {
         knots: t.knots_or(DEFAULT_KNOTS)?,
     }))
+}
+
+/// The patterns `memory` answers: the distance to the rest position ahead, and the summed
+/// memory (first when it flips with the direction: the nearest rest ahead of the approach).
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Feature(Feature::RestDistanceOd | Feature::RestDistanceId, _) => Answer::fixed(0),
+        Cue::SummedMemory(signed) => Answer::fixed(if signed { 0 } else { 1 }),
+        _ => None,
+    }
 }

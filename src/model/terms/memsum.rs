@@ -24,6 +24,7 @@
 
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -216,6 +217,14 @@ pub(crate) fn parse(
     t: &crate::model::registry::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(MemsumSpec))
+}
+
+/// The pattern `memsum` answers: the summed memory (first when even; it has no direction).
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::SummedMemory(signed) => Answer::fixed(if signed { 1 } else { 0 }),
+        _ => None,
+    }
 }
 
 #[cfg(test)]

@@ -380,6 +380,23 @@ pub(crate) fn parse(
     }))
 }
 
+/// The patterns `play` answers: hysteresis whose loop changes with the reversal amplitude,
+/// after the Dahl term (the verification scores both and keeps the better).
+pub(crate) fn answers(cue: crate::model::registry::Cue) -> Option<crate::model::registry::Answer> {
+    use crate::history::Feature::{DirectionChange, SeekAbs, SeekLength, SinceReversal};
+    use crate::model::registry::{Answer, Cue};
+    match cue {
+        Cue::Feature(SinceReversal, false) => Answer::fixed(1),
+        Cue::Feature(SeekLength | SeekAbs | SinceReversal | DirectionChange, true) => {
+            Answer::fixed(1)
+        }
+        _ => None,
+    }
+}
+
+/// The head of the term's spec text, for the diagnosis that suggests it.
+pub(crate) const HEAD: &str = "play";
+
 #[cfg(test)]
 mod tests {
     use super::*;

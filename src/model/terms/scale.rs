@@ -41,7 +41,7 @@ use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
 /// The head of the term (`scale`).
-const HEAD: &str = "scale";
+pub(crate) const HEAD: &str = "scale";
 
 /// Parses `scale:COL:TERM` (registry entry); `TERM` is any built-in term spec but `scale`.
 pub(crate) fn parse(

@@ -18,8 +18,10 @@ use super::knots::{
     curve_hinges, curve_param_names, direction_side, interior_knots_owned, spec_name,
 };
 use crate::codegen::{CContext, CTerm, SIDE, c_curve_hinges};
+use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -123,4 +125,18 @@ pub(crate) fn parse(
     Ok(Arc::new(SeekSpec {
         knots: t.knots_or(DEFAULT_KNOTS)?,
     }))
+}
+
+/// The patterns `seek` answers: the seek curves, first for an even seek-length effect, after
+/// the Dahl and play state terms for a reversal effect or one that flips with the direction.
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    use Feature::{DirectionChange, SeekAbs, SeekLength, SinceReversal};
+    match cue {
+        Cue::Feature(SeekLength | SeekAbs | DirectionChange, false) => Answer::fixed(0),
+        Cue::Feature(SinceReversal, false) => Answer::fixed(2),
+        Cue::Feature(SeekLength | SeekAbs | SinceReversal | DirectionChange, true) => {
+            Answer::fixed(2)
+        }
+        _ => None,
+    }
 }

@@ -551,6 +551,9 @@ pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, SpecError> {
     }))
 }
 
+/// The head of the term's spec text, for the diagnosis that suggests it.
+pub(crate) const HEAD: &str = "step";
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -27,6 +27,7 @@ use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::registry::TermText;
+use crate::model::registry::{Answer, Cue, Law};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use crate::numeric::stats;
 use serde::{Deserialize, Serialize};
@@ -315,6 +316,17 @@ pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model:
         column,
         delta: delta.unwrap_or(DEFAULT_DELTA),
     }))
+}
+
+/// The patterns `stribeck` answers: velocity friction falling off from a breakaway level at
+/// low speed, named by its column or from the derived velocity.
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Covariate(Law::Velocity, _) => Answer::named(0),
+        Cue::DerivedVelocity(Law::Velocity) => Answer::fixed(0),
+        Cue::DerivedVelocity(_) => Answer::fixed(1),
+        _ => None,
+    }
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@
 use crate::codegen::{CContext, CTerm, zero};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -146,4 +147,12 @@ pub(crate) fn parse(
         },
     };
     Ok(Arc::new(TableSpec { spacing }))
+}
+
+/// The pattern `table` answers: an even curve in position.
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Feature(crate::history::Feature::Position, false) => Answer::fixed(0),
+        _ => None,
+    }
 }

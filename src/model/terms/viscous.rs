@@ -20,6 +20,7 @@ use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
 use crate::model::registry::TermText;
+use crate::model::registry::{Answer, Cue, Law};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -185,6 +186,17 @@ pub(crate) fn parse(t: &TermText<'_>) -> Result<Arc<dyn TermSpec>, crate::model:
         Some(c) => Err(t.bad(format!(
             "`viscous` takes at most a velocity column name (`viscous:NAME`), got `{c}`"
         ))),
+    }
+}
+
+/// The patterns `viscous` answers: a line in a signed velocity, named by its column or from
+/// the derived velocity (first unless the curve falls off at low speed).
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    match cue {
+        Cue::Covariate(Law::OddLinear, _) => Answer::named(0),
+        Cue::DerivedVelocity(Law::Velocity) => Answer::fixed(1),
+        Cue::DerivedVelocity(_) => Answer::fixed(0),
+        _ => None,
     }
 }
 

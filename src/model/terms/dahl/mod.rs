@@ -19,8 +19,10 @@
 mod search;
 
 use crate::codegen::{CContext, CTerm};
+use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
+use crate::model::registry::{Answer, Cue};
 use crate::model::term::{
     Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermSpec, TermState, se_from_cov,
 };
@@ -629,6 +631,27 @@ pub(crate) fn parse(
             .map(|a| t.count(a, "the number of Dahl elements", 16))
             .transpose()?,
     }))
+}
+
+/// The spec text the diagnosis suggests: four elements. One element (`dahl:1`, eq. 8) only
+/// moves monotonically between the two curves, so it cannot make the overshoot/undershoot of
+/// P4/P5; fast and slow elements of opposite sign can, and four is what the P4/P5 acceptance
+/// test needs to reach the error of the full model.
+pub(crate) const SUGGESTED: &str = "dahl:4";
+
+/// The patterns `dahl` answers: hysteresis in the seek history (first for the distance since
+/// the last reversal and for any history effect that flips with the direction), after `seek`
+/// for an even seek-length effect and after `direction` for a direction step.
+pub(crate) fn answers(cue: Cue) -> Option<Answer> {
+    use Feature::{Direction, DirectionChange, SeekAbs, SeekLength, SinceReversal};
+    match cue {
+        Cue::Feature(SeekLength | SeekAbs | DirectionChange | Direction, false) => Answer::fixed(1),
+        Cue::Feature(SinceReversal, false) => Answer::fixed(0),
+        Cue::Feature(SeekLength | SeekAbs | SinceReversal | DirectionChange, true) => {
+            Answer::fixed(0)
+        }
+        _ => None,
+    }
 }
 
 #[cfg(test)]
