@@ -56,7 +56,8 @@ pub(crate) struct BuiltinTerm {
     /// (`scale:COL:TERM`).
     pub signed_state: bool,
     /// Whether its fitted form writes itself as C ([`Term::export_c`]); the export refuses the
-    /// others by name.
+    /// others by name. Held to it by this module's test.
+    #[cfg_attr(not(test), allow(dead_code))]
     pub exports_c: bool,
 }
 
@@ -499,6 +500,101 @@ impl<'a> TermText<'a> {
         match self.arg {
             None => Ok(spec),
             Some(a) => Err(self.bad(format!("`{}` takes no argument, got `{a}`", self.head))),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codegen::{CContext, CPrecision};
+    use crate::log::{ColumnMap, Log};
+    use crate::model::data::FitData;
+    use crate::numeric::rng::SimRng;
+
+    /// A random seek log with a covariate `temp_c`.
+    fn log() -> Log {
+        let mut rng = SimRng::new(7);
+        let mut text = String::from("time_s,track,bias,temp_c\n");
+        let mut x = 500.0;
+        for i in 0..400 {
+            x = (x + (rng.below(201) as f64) - 100.0).clamp(0.0, 1000.0);
+            let v = 20.0 + rng.below(1000) as f64 / 100.0;
+            text += &format!("{i},{x},{},{v}\n", rng.below(100));
+        }
+        Log::from_reader("r.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
+    }
+
+    /// A spec text of the row `b`: its head with the arguments its syntax asks for.
+    fn example(b: &BuiltinTerm) -> String {
+        let syntax = b.syntax.unwrap_or(b.head);
+        match syntax.matches(':').count() {
+            _ if syntax.contains("COL:TERM") => format!("{}:temp_c:direction", b.head),
+            _ if syntax.contains("A:B") => format!("{}:temp_c:position", b.head),
+            _ if syntax.contains(":NAME") || syntax.contains(":COL") => {
+                format!("{}:temp_c", b.head)
+            }
+            _ if syntax.contains(":FEATURE") => format!("{}:dwell_s", b.head),
+            _ => b.head.to_string(),
+        }
+    }
+
+    /// Every registry row's term, prepared on a log, either writes itself as C (the rows that
+    /// say so) or refuses, and then the export names it: its name has the row's head. A row
+    /// whose flag disagrees with its term's `export_c` fails here: fix the row's `exports_c()`
+    /// or the term's `Term::export_c`.
+    #[test]
+    fn every_term_exports_to_c_or_refuses_by_name() {
+        let log = log();
+        let data = FitData::new(&log);
+        let ctx = CContext::new(CPrecision::Float64);
+        for b in BUILTINS {
+            let text = example(b);
+            let spec = (b.parse)(&TermText::new(&text)).unwrap_or_else(|e| panic!("{text}: {e}"));
+            let term = spec
+                .prepare(&data)
+                .unwrap_or_else(|e| panic!("{text}: {e}"));
+            let c = term.export_c(&ctx);
+            assert_eq!(
+                c.is_some(),
+                b.exports_c,
+                "{text}: export_c vs the row's exports_c"
+            );
+            if c.is_none() {
+                assert_eq!(head(&term.name()), b.head, "{text}: refused under its name");
+            }
+        }
+    }
+
+    /// Within each pattern the ranks of the terms that answer it are distinct (the candidate
+    /// order is theirs alone).
+    #[test]
+    fn answer_ranks_are_distinct_per_cue() {
+        let mut cues = Vec::new();
+        for f in Feature::ALL {
+            cues.extend([Cue::Feature(f, false), Cue::Feature(f, true)]);
+        }
+        for law in [Law::OddLinear, Law::Velocity, Law::Linear, Law::Other] {
+            cues.extend([
+                Cue::Covariate(law, false),
+                Cue::Covariate(law, true),
+                Cue::DerivedVelocity(law),
+            ]);
+        }
+        cues.extend([
+            Cue::SummedMemory(false),
+            Cue::SummedMemory(true),
+            Cue::Lagged,
+        ]);
+        for cue in cues {
+            let mut ranks: Vec<u8> = BUILTINS
+                .iter()
+                .filter_map(|b| (b.answers)(cue).map(|a| a.rank))
+                .collect();
+            let n = ranks.len();
+            ranks.sort_unstable();
+            ranks.dedup();
+            assert_eq!(ranks.len(), n, "{cue:?}");
         }
     }
 }
