@@ -419,7 +419,8 @@ impl BumpTerm {
             );
             if b > a {
                 let f = |t: f64| rss(&self.at(t, lw));
-                let (t, _, ev) = crate::fit::golden_min(&f, a, b, REFINE_GRID, REFINE_STEPS);
+                let (t, _, ev) =
+                    crate::numeric::search::golden_min(&f, a, b, REFINE_GRID, REFINE_STEPS);
                 evaluations += ev;
                 c = t;
             }
@@ -429,7 +430,8 @@ impl BumpTerm {
             );
             if b > a {
                 let f = |t: f64| rss(&self.at(c, t));
-                let (t, _, ev) = crate::fit::golden_min(&f, a, b, REFINE_GRID, REFINE_STEPS);
+                let (t, _, ev) =
+                    crate::numeric::search::golden_min(&f, a, b, REFINE_GRID, REFINE_STEPS);
                 evaluations += ev;
                 lw = t;
             }
