@@ -77,10 +77,11 @@ pub(super) fn ridge_of(terms: &[Arc<dyn Term>], col: usize) -> f64 {
     0.0
 }
 
-/// Where one of [`solve`](super::solve::solve)'s chunks of measured rows begins in its replay: the history and
-/// every term's state just before the chunk's first measured row (after the previous chunk's
-/// last row was learnt from), so that the chunk's rows can be replayed on their own, in
-/// parallel with the others ([`static_predictions_chunked`](super::statistics::static_predictions_chunked)).
+/// Where one of [`solve`](super::solve::solve)'s chunks of measured rows begins in its replay: the
+/// history and every term's state just before the chunk's first measured row (after the previous
+/// chunk's last row was learnt from), so that the chunk's rows can be replayed on their own, in
+/// parallel with the others
+/// ([`static_predictions_chunked`](super::statistics::static_predictions_chunked)).
 pub(super) struct ChunkStart<'a> {
     pub(super) replay: crate::history::Replay<'a>,
     pub(super) states: Vec<Box<dyn crate::model::term::TermState>>,

@@ -69,14 +69,16 @@ impl Blocked {
     }
 }
 
-/// Candidate values whose columns [`Projection`](super::projection::Projection) takes from one replay.
+/// Candidate values whose columns [`Projection`](super::projection::Projection) takes from one
+/// replay.
 pub(super) const SEARCH_BATCH: usize = 8;
 
-/// Adds measured rows to the lane-interleaved sums of [`Projection::sums_many`](super::projection::Projection::sums_many) for a
-/// one-column term, row after row: `G[a] += x[a]·d`, `H += d·d`, `e += d·y` per lane (the
-/// per-lane arithmetic of [`Projection::fast_rss`](super::projection::Projection::fast_rss)); `xf` holds the rows' fixed columns
-/// (row-major), `y` their responses and `d` their columns (`SEARCH_BATCH` per row). Compiled
-/// for AVX2 when the CPU has it (no fused multiply-add).
+/// Adds measured rows to the lane-interleaved sums of
+/// [`Projection::sums_many`](super::projection::Projection::sums_many) for a one-column term, row
+/// after row: `G[a] += x[a]·d`, `H += d·d`, `e += d·y` per lane (the per-lane arithmetic of
+/// [`Projection::fast_rss`](super::projection::Projection::fast_rss)); `xf` holds the rows' fixed
+/// columns (row-major), `y` their responses and `d` their columns (`SEARCH_BATCH` per row).
+/// Compiled for AVX2 when the CPU has it (no fused multiply-add).
 pub(super) fn accumulate_one(acc: &mut [f64], xf: &[f64], y: &[f64], d: &[f64]) {
     // The sums live in registers for a fixed block of up to 6 columns (a width known to the
     // compiler); a wider one keeps them in memory.

@@ -7,9 +7,10 @@
 //!    of the measured rows are streamed through a chunked Householder QR (TSQR: the running
 //!    `R` factor stacked on 1024 new rows, re-factorised), so memory is O(p²) and nothing like
 //!    normal equations is ever formed; rows sparse in recurring patterns are factorised per
-//!    pattern on their non-zero columns (`numeric::qr::PatternQr`). Terms supply centred/scaled columns (`poly2` uses
-//!    `(x − centre)/scale`, hinges are divided by their largest knot). Columns whose `R`
-//!    diagonal falls below `rank_tolerance` × their norm cannot be determined from the log:
+//!    pattern on their non-zero columns (`numeric::qr::PatternQr`). Terms supply
+//!    centred/scaled columns (`poly2` uses `(x − centre)/scale`, hinges are divided by their
+//!    largest knot). Columns whose `R` diagonal falls below `rank_tolerance` × their norm
+//!    cannot be determined from the log:
 //!    for hinge terms they are fixed at 0 with a warning, otherwise the fit fails naming the
 //!    parameter. Covariance `s²·R⁻¹R⁻ᵀ`, `s² = RSS/(n − rank)`.
 //! 3. **Variable projection** for a term's nonlinear parameter (the Dahl rate): a 1-D search
@@ -18,8 +19,9 @@
 //!    comes in closed form from its own columns' sums (`Projection`; a full solve where a column
 //!    nears the rank tolerance); the chosen value is then solved in full. Its standard error
 //!    comes from the curvature of the RSS (three full solves). A term that searches its own
-//!    parameters ([`Term::search`](crate::model::term::Term::search), `bump`'s centre and width) is handed the residual of the
-//!    other terms and this RSS for any version of itself instead.
+//!    parameters ([`Term::search`](crate::model::term::Term::search), `bump`'s centre and
+//!    width) is handed the residual of the other terms and this RSS for any version of itself
+//!    instead.
 //! 4. **Causal offsets** (`drift`) are tuned on the residual series of the other terms.
 //! 5. The fitted model is replayed causally over the training log for the fit statistics
 //!    (only its adaptive terms, over the others' stored prediction, where those read nothing

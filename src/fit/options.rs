@@ -51,8 +51,9 @@ impl FitOptions {
 }
 
 checked_settings! {
-    /// Fit settings that passed [`FitOptions::check`]; the only settings [`fit`](fn@crate::fit::fit) accepts. Read
-    /// them through `Deref` ([`FitOptions`]'s fields). `Default` is the checked default.
+    /// Fit settings that passed [`FitOptions::check`]; the only settings
+    /// [`fit`](fn@crate::fit::fit) accepts. Read them through `Deref` ([`FitOptions`]'s fields).
+    /// `Default` is the checked default.
     #[derive(Debug, Clone, PartialEq, Default)]
     pub struct CheckedFitOptions(FitOptions);
 }

@@ -73,9 +73,10 @@ const PROJECTION_MARGIN: f64 = 10.0;
 /// and factorised once (`[Xf y] = Q·[Rf z; 0 ρ]`); per candidate only term `k` is replayed,
 /// accumulating `G = Xfᵀ D`, `H = Dᵀ D` and `e = Dᵀ y` for its columns `D`. With
 /// `C = Rf⁻ᵀ G` (`= Qᵀ D`), the Schur complement `S = H − CᵀC = L Lᵀ` and `u = e − Cᵀ z`, the
-/// RSS of `[Xf D]` is `ρ² − ‖L⁻¹ u‖²` (the same least-squares problem as [`solve`](super::solve::solve)'s, in
-/// closed form). A candidate where a column would come near the rank tolerance (so [`solve`](super::solve::solve)
-/// might drop it) is handed to [`slow_rss`].
+/// RSS of `[Xf D]` is `ρ² − ‖L⁻¹ u‖²` (the same least-squares problem as
+/// [`solve`](super::solve::solve)'s, in closed form). A candidate where a column would come
+/// near the rank tolerance (so [`solve`](super::solve::solve) might drop it) is handed to
+/// [`slow_rss`].
 pub(super) struct Projection<'d, 'a> {
     k: usize,
     data: &'d FitData<'a>,
@@ -487,7 +488,8 @@ mod tests {
     use crate::numeric::rng::SimRng;
     use crate::numeric::search::{golden_min, golden_min_batched};
 
-    /// The search as it was before variable projection: every candidate a full [`solve`](super::solve::solve).
+    /// The search as it was before variable projection: every candidate a full
+    /// [`solve`](super::solve::solve).
     fn slow_search(
         terms: &[Arc<dyn Term>],
         k: usize,

@@ -118,12 +118,13 @@ const TINY_NORM_SQ: f64 = 1e-270;
 
 /// Turns the column `v` (rows `j..` of column `j`) into the Householder vector that zeroes
 /// `v[1..]`: returns the new diagonal `α` (`∓‖v‖`) and `‖v‖²` of the vector (the reflector is
-/// `I − (2/‖v‖²)·v·vᵀ`), or `None` for a zero column. Where `‖v‖²` is below
-/// [`TINY_NORM_SQ`] (and not zero) the column is divided by its largest magnitude first (a vector of the same
+/// `I − (2/‖v‖²)·v·vᵀ`), or `None` for a zero column. Where `‖v‖²` is below [`TINY_NORM_SQ`]
+/// (and not zero) the column is divided by its largest magnitude first (a vector of the same
 /// direction, so the same reflector; `α` is scaled back): unscaled, `‖v‖²` underflows (entries
 /// below ~1e-154) and `2/‖v‖²` overflows to ∞, which turned the trailing columns into NaN (a
 /// column whose only entries in a factorisation are tiny — `memsum`'s decayed basis values in a
-/// small [`PatternQr`](super::qr::PatternQr) group). Above it the arithmetic is the plain one, bit for bit.
+/// small [`PatternQr`](super::qr::PatternQr) group). Above it the arithmetic is the plain one,
+/// bit for bit.
 #[inline(always)]
 fn reflector(v: &mut [f64]) -> Option<(f64, f64)> {
     let nn = dot(v, v);
