@@ -205,6 +205,12 @@ pub struct FitData<'a> {
 /// per row.
 pub(crate) const FEATURE_CACHE_ROWS: usize = 1 << 18;
 
+/// A variable-projection search of the fit keeps its fixed block row by row up to this many
+/// bytes (64 MiB; [`FitData::with_fixed_budget`]); a larger one is replayed from its terms on
+/// every pass instead: the same rows and the same bits, for the CPU time of a replay of the
+/// fixed terms per pass.
+pub(crate) const STORED_FIXED_BYTES: usize = 64 << 20;
+
 impl<'a> FitData<'a> {
     /// The log, its direction from raw position steps.
     pub fn new(log: &'a Log) -> Self {
@@ -213,7 +219,7 @@ impl<'a> FitData<'a> {
             direction: DirectionSource::Steps,
             velocity: None,
             cache: std::sync::OnceLock::new(),
-            fixed_budget: crate::fit::STORED_FIXED_BYTES,
+            fixed_budget: STORED_FIXED_BYTES,
             columns: std::sync::OnceLock::new(),
         }
     }
@@ -227,7 +233,7 @@ impl<'a> FitData<'a> {
             direction: direction.clone(),
             velocity,
             cache: std::sync::OnceLock::new(),
-            fixed_budget: crate::fit::STORED_FIXED_BYTES,
+            fixed_budget: STORED_FIXED_BYTES,
             columns: std::sync::OnceLock::new(),
         })
     }

@@ -42,6 +42,7 @@ use crate::model::term::{
     Nonlinear, Param, SearchContext, Searched, Seek, Term, TermSpec, TermState, se_from_cov,
 };
 use crate::model::{SpecError, terms::positive_finite};
+use crate::numeric::search::golden_min;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -419,7 +420,7 @@ impl BumpTerm {
             );
             if b > a {
                 let f = |t: f64| rss(&self.at(t, lw));
-                let (t, _, ev) = crate::fit::golden_min(&f, a, b, REFINE_GRID, REFINE_STEPS);
+                let (t, _, ev) = golden_min(&f, a, b, REFINE_GRID, REFINE_STEPS);
                 evaluations += ev;
                 c = t;
             }
@@ -429,7 +430,7 @@ impl BumpTerm {
             );
             if b > a {
                 let f = |t: f64| rss(&self.at(c, t));
-                let (t, _, ev) = crate::fit::golden_min(&f, a, b, REFINE_GRID, REFINE_STEPS);
+                let (t, _, ev) = golden_min(&f, a, b, REFINE_GRID, REFINE_STEPS);
                 evaluations += ev;
                 lw = t;
             }

@@ -6,9 +6,9 @@
 //! to other terms (`col:A`, `poly2`); where either feature is undefined the basis is 0.
 
 use super::bins::Source;
-use crate::fit::{FitData, FitError};
 use crate::history::Feature;
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;

@@ -20,8 +20,8 @@
 //! fit stays within a fraction of a per cent of plain least squares while weights that would
 //! cancel each other stay bounded. State O(N) per step, no allocation.
 
-use crate::fit::{FitData, FitError};
 use crate::model::ModelError;
+use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
