@@ -82,6 +82,7 @@ pub(super) fn delimiter_note(file: &str, delimiter: u8, given: bool) -> Option<S
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // values parsed from short decimal text compare exactly
 mod tests {
     use super::*;
 

@@ -383,6 +383,7 @@ pub(super) enum Role {
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // values parsed from short decimal text compare exactly
 mod tests {
     use super::*;
 

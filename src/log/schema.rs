@@ -80,7 +80,7 @@ pub struct Row {
 }
 
 impl Row {
-    /// A row to read into ([`LogReader::read_into`]), with room for `covariates` values.
+    /// A row to read into ([`LogReader::read_into`](super::LogReader::read_into)), with room for `covariates` values.
     pub fn empty(covariates: usize) -> Self {
         Row {
             line: 0,

@@ -189,6 +189,7 @@ pub(super) fn time_unit_note(file: &str, name: &str) -> Option<String> {
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // values parsed from short decimal text compare exactly
 mod tests {
     use super::*;
     use crate::log::{ColumnMap, Log, LogError};

@@ -88,6 +88,7 @@ pub fn fmt_trimmed(x: f64, decimals: usize) -> String {
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // values parsed from short decimal text compare exactly
 mod tests {
     use super::*;
     use crate::log::{ColumnMap, Log, LogError};
