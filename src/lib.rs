@@ -158,6 +158,7 @@ pub(crate) mod model;
 
 pub(crate) mod fit;
 
+pub(crate) mod output_check;
 pub(crate) mod score;
 
 pub(crate) mod diagnose;
@@ -225,11 +226,11 @@ pub use numeric::rng::SimRng;
 /// Summary statistics public on purpose: the examples summarise residuals with them, and the
 /// dip test (Hartigans') is benched on its own against the peer implementation.
 pub use numeric::stats::{dip_test, dip_test_sorted, mean, sorted, std_dev};
+pub use output_check::{check_prediction, check_replay};
 pub use render::json::to_string_pretty;
 pub use render::{
-    NonFinite, OutputError, StagedDir, check_paths, check_prediction, check_replay, check_text,
-    flush_stdout, is_broken_pipe, message, message_with, quote, write_atomic, write_stdout,
-    write_string_atomic,
+    NonFinite, OutputError, StagedDir, check_paths, check_text, flush_stdout, is_broken_pipe,
+    message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
 };
 pub use report::story::{
     CheckedStoryOptions, Progress, StoryOptions, StoryOutcome, data_report, demo_report,

@@ -147,6 +147,12 @@ impl<R: Read> Read for LineLimit<R> {
     }
 }
 
+/// Largest |value| a log cell may hold (every column: time, position, bias, covariates). Models
+/// square positions and sum squares over up to millions of rows; below 1e15 those stay finite
+/// and keep more than one unit of resolution (f64 carries 15–16 significant digits). No rig
+/// logs a larger number; a larger one is a unit mistake or a corrupted cell.
+pub(crate) const MAX_ABS_VALUE: f64 = 1e15;
+
 #[cfg(test)]
 mod tests {
     use super::*;

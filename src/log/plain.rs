@@ -8,6 +8,10 @@
 //! not take ([`parse_plain`] returns `None`) goes to `parse_field`. Tests in `super` compare
 //! whole logs read both ways, values bit for bit and errors word for word.
 
+use super::error::source_failed;
+use super::limits::MAX_ABS_VALUE;
+use super::source::Source;
+use super::{LogError, LogReader, Row};
 use std::io::{self, Read};
 
 /// Bytes asked of the source per read: the size the csv crate's reader asked for, so a
@@ -225,4 +229,243 @@ pub(super) fn parse_plain(line: &[u8], mut i: usize) -> Option<(f64, usize)> {
     }
     let v = m as f64 / POW10[decimals];
     Some((if neg { -v } else { v }, i))
+}
+
+impl<R: Read> LogReader<R> {
+    /// What each column of the file is, in file order.
+    pub(super) fn roles(&self) -> Vec<Role> {
+        let s = &self.schema;
+        (0..s.columns.len())
+            .map(|i| {
+                if i == s.time_idx {
+                    Role::Time
+                } else if i == s.track_idx {
+                    Role::Track
+                } else if Some(i) == s.bias_idx {
+                    Role::Bias
+                } else if let Some(k) = s.covariate_idx.iter().position(|&c| c == i) {
+                    Role::Covariate(k)
+                } else {
+                    Role::Skipped
+                }
+            })
+            .collect()
+    }
+
+    /// Hands rows to `take` the fast way while they are plain and valid: the line split and
+    /// its numbers converted in one pass ([`parse_plain`]), straight from the read
+    /// buffer. Returns at the end, at an error of the source, or at the first line it does not
+    /// take — a quote, a carriage return, a byte beyond ASCII, another number of fields, a
+    /// cell of another shape, a value out of range, time going backwards — without consuming
+    /// it: [`LogReader::read_into`] then reads that line as every line was read before
+    /// (the same row, or the same error).
+    pub(super) fn plain_rows(
+        &mut self,
+        roles: &[Role],
+        row: &mut Row,
+        mut take: impl FnMut(&Row),
+    ) -> Result<(), LogError> {
+        if !self.lookahead.is_empty() || self.pending.is_some() {
+            return Ok(());
+        }
+        let Source::Plain {
+            lines, delimiter, ..
+        } = &mut self.source
+        else {
+            return Ok(());
+        };
+        let delimiter = *delimiter;
+        row.covariates.resize(self.schema.covariate_idx.len(), 0.0);
+        loop {
+            // Whole lines, each ending in `\n`: no search for the line's end, the cells' own
+            // scan finds it.
+            let base_line = lines.line();
+            let window = match lines.ready() {
+                Ok([]) => return Ok(()),
+                Ok(window) => window,
+                Err(e) => return Err(source_failed(&self.schema.file, &e)),
+            };
+            let (mut at, mut rows, mut stop) = (0, 0, false);
+            while at < window.len() {
+                match plain_row(window, at, roles, delimiter, &mut row.covariates) {
+                    Some((time_s, track, bias, next))
+                        if self.prev_time.is_none_or(|prev| time_s >= prev) =>
+                    {
+                        row.line = base_line + rows;
+                        row.time_s = time_s;
+                        row.track = track;
+                        row.bias = bias;
+                        take(row);
+                        self.prev_time = Some(time_s);
+                        self.measured += u64::from(bias.is_some());
+                        rows += 1;
+                        at = next;
+                    }
+                    _ => {
+                        stop = true;
+                        break;
+                    }
+                }
+            }
+            lines.consume(at, rows);
+            if stop {
+                return Ok(());
+            }
+        }
+    }
+}
+
+/// The row of the plain line at `window[at..]` (which ends in `\n`): time, position, bias
+/// (covariates into `covariates`) and the start of the next line; `None` for a line the fast
+/// way does not take (see [`LogReader::plain_rows`]).
+#[inline(always)]
+fn plain_row(
+    window: &[u8],
+    at: usize,
+    roles: &[Role],
+    delimiter: u8,
+    covariates: &mut [f64],
+) -> Option<(f64, f64, Option<f64>, usize)> {
+    let (mut time_s, mut track, mut bias) = (f64::NAN, f64::NAN, None);
+    let mut i = at;
+    for (c, role) in roles.iter().enumerate() {
+        if c > 0 {
+            if window.get(i) != Some(&delimiter) {
+                return None;
+            }
+            i += 1;
+        }
+        let value = match role {
+            Role::Skipped => {
+                // Any text but what would change the split or needs a UTF-8 check.
+                while let Some(&b) = window.get(i)
+                    && b != delimiter
+                    && b != b'\n'
+                {
+                    if b == b'"' || b == b'\r' || !b.is_ascii() {
+                        return None;
+                    }
+                    i += 1;
+                }
+                continue;
+            }
+            Role::Bias if window.get(i).is_none_or(|&b| b == delimiter || b == b'\n') => continue,
+            _ => {
+                let (v, next) = parse_plain(window, i)?;
+                if v.abs() > MAX_ABS_VALUE {
+                    return None;
+                }
+                i = next;
+                v
+            }
+        };
+        match *role {
+            Role::Time => time_s = value,
+            Role::Track => track = value,
+            Role::Bias => bias = Some(value),
+            Role::Covariate(k) => covariates[k] = value,
+            Role::Skipped => {}
+        }
+    }
+    (window.get(i) == Some(&b'\n')).then_some((time_s, track, bias, i + 1))
+}
+
+/// What a column of a log is, for [`LogReader::plain_rows`].
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Role {
+    Time,
+    Track,
+    Bias,
+    /// Covariate `k` of [`LogSchema::covariates`].
+    Covariate(usize),
+    /// A column read past (no name, not numeric, empty in the first rows).
+    Skipped,
+}
+
+#[cfg(test)]
+#[allow(clippy::float_cmp)] // values parsed from short decimal text compare exactly
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plain_number_parser_equals_str_parse() {
+        // Reference: `str::parse::<f64>` (correctly rounded). Every cell the plain parser takes
+        // whole must have the very bits `str::parse` gives; the common shapes must be taken.
+        let mut rng = crate::numeric::rng::SimRng::new(29);
+        let mut cells: Vec<String> = [
+            "0",
+            "-0",
+            "0.0",
+            "-0.000",
+            "1.",
+            ".5",
+            "-.5",
+            "5.",
+            "0.086173",
+            "1481",
+            "110.2882",
+            "-3.25",
+            "9007199254740992",
+            "9007199254740993",
+            "0.1234567890123456789",
+            "1234567890123456789",
+            "12345678901234567890",
+            "0.0000000000000000000001",
+            "0.00000000000000000000001",
+            "-",
+            ".",
+            "-.",
+            "",
+            "+1",
+            "1e5",
+            "1.5.2",
+            "--1",
+            "0x1",
+        ]
+        .iter()
+        .map(|c| c.to_string())
+        .collect();
+        for _ in 0..50_000 {
+            let x = rng.range(-1.0, 1.0) * 10f64.powi(rng.below(34) as i32 - 16);
+            let decimals = rng.below(24) as usize;
+            cells.push(format!("{x:.decimals$}"));
+            cells.push(format!("{}", rng.below(1 << 54)));
+            cells.push(x.to_string());
+        }
+        let mut taken = 0;
+        for c in &cells {
+            let Some((v, end)) = parse_plain(c.as_bytes(), 0) else {
+                continue;
+            };
+            if end != c.len() {
+                continue;
+            }
+            taken += 1;
+            let want: f64 = c.parse().expect(c);
+            assert_eq!(v.to_bits(), want.to_bits(), "{c:?}: {v:e} vs {want:e}");
+        }
+        for c in [
+            "0.086173",
+            "1481",
+            "-110.2882",
+            "-0",
+            ".5",
+            "5.",
+            "9007199254740992",
+        ] {
+            let (v, end) = parse_plain(c.as_bytes(), 0).expect(c);
+            assert_eq!(
+                (v.to_bits(), end),
+                (c.parse::<f64>().unwrap().to_bits(), c.len())
+            );
+        }
+        assert!(taken > cells.len() / 3, "{taken} of {}", cells.len());
+        for c in [
+            "9007199254740993",
+            "12345678901234567890",
+            "0.00000000000000000000001",
+        ] {
+            assert!(parse_plain(c.as_bytes(), 0).is_none(), "{c}");
+        }
+    }
 }

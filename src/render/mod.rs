@@ -17,6 +17,7 @@
 //! - [`finite`] refuses to emit a non-finite number; [`quote`] and [`message`] keep error
 //!   messages short whatever the user typed.
 
+pub(crate) mod fault;
 pub(crate) mod file;
 pub(crate) mod finite;
 pub(crate) mod json;
@@ -24,7 +25,7 @@ pub(crate) mod number;
 pub(crate) mod stdout;
 
 pub use file::{StagedDir, check_paths, write_atomic, write_string_atomic};
-pub use finite::{NonFinite, check_prediction, check_replay, check_text};
+pub use finite::{NonFinite, check_text};
 pub use stdout::{flush_stdout, is_broken_pipe, write_stdout};
 
 use std::io;

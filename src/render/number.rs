@@ -95,7 +95,7 @@ fn lay_out_exponent(text: &[u8], out: &mut Vec<u8>) {
 }
 
 /// Rows of numeric CSV cells written straight into a reused byte buffer (flushed to `out` in
-/// pieces of about 64 KiB): the text a `csv::Writer` in biasctl's dialect ([`crate::log::csv_writer`])
+/// pieces of about 64 KiB): the text a `csv::Writer` in biasctl's dialect (`log::csv_writer`)
 /// writes for the same cells, without its per-field quoting scan — a number's text
 /// ([`write_shortest`]: digits, `-`, `.`) never needs quoting, and every row has several cells,
 /// so an empty cell is written empty. A non-finite value is written as an empty cell, never as

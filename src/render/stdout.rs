@@ -5,7 +5,7 @@
 //! panic.
 
 use super::OutputError;
-use super::file::Faulty;
+use super::fault::Faulty;
 use std::io::{self, Write};
 
 /// A handle on the process's stdout for [`super::write_atomic`]'s `-` target.

@@ -1,0 +1,111 @@
+//! What a log's header says ([`LogSchema`]), one row of it ([`Row`]), and whether the bias
+//! column is required ([`BiasColumn`]).
+
+use super::{ColumnMap, UnitError, Units};
+
+/// What a log's header says: metadata, column names and which column is which.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogSchema {
+    /// The file name used in error messages.
+    pub file: String,
+    /// Metadata lines before the header, without the leading `#` and surrounding space.
+    pub metadata: Vec<String>,
+    /// All column names in file order.
+    pub columns: Vec<String>,
+    /// The column map the log was read with.
+    pub map: ColumnMap,
+    /// Names of the covariate columns (the numeric columns other than the three required), in
+    /// file order.
+    pub covariates: Vec<String>,
+    /// The field delimiter read with (sniffed or given).
+    pub delimiter: u8,
+    /// What the reader did that the user should know: columns skipped (no name with values, not
+    /// numeric, empty in the first rows), a delimiter other than a comma, a column matched
+    /// ignoring case. The CLI prints them on stderr.
+    pub notes: Vec<String>,
+    /// The units of bias and position: from the metadata or the columns when read
+    /// ([`Units::resolve`] without explicit labels); [`LogSchema::set_units`] applies explicit
+    /// ones.
+    pub units: Units,
+    pub(super) time_idx: usize,
+    pub(super) track_idx: usize,
+    pub(super) bias_idx: Option<usize>,
+    pub(super) covariate_idx: Vec<usize>,
+}
+
+impl LogSchema {
+    /// Whether the log has a bias column (a plan read with [`BiasColumn::Optional`] may not).
+    pub fn has_bias(&self) -> bool {
+        self.bias_idx.is_some()
+    }
+
+    /// Index of covariate `name` in [`Row::covariates`], if the log has it.
+    pub fn covariate_index(&self, name: &str) -> Option<usize> {
+        self.covariates.iter().position(|c| c == name)
+    }
+
+    /// Resolves the units again with explicit labels (the CLI's `--bias-unit` and
+    /// `--track-unit`; `None` keeps the metadata or column default), see [`Units::resolve`].
+    pub fn set_units(
+        &mut self,
+        bias: Option<&str>,
+        position: Option<&str>,
+    ) -> Result<(), UnitError> {
+        self.units = Units::resolve(bias, position, self)?;
+        Ok(())
+    }
+
+    /// The value of metadata key `key` from a line `key = value` or `key: value`.
+    pub fn metadata_value(&self, key: &str) -> Option<&str> {
+        self.metadata.iter().find_map(|line| {
+            let (k, v) = line.split_once('=').or_else(|| line.split_once(':'))?;
+            (k.trim() == key).then(|| v.trim())
+        })
+    }
+}
+
+/// One seek of the log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    /// 1-based line number in the file (for messages).
+    pub line: u64,
+    /// Time of the seek, s.
+    pub time_s: f64,
+    /// Target track of the seek.
+    pub track: f64,
+    /// Measured bias in counts, `None` when the move was made but not measured.
+    pub bias: Option<f64>,
+    /// Covariate values in the order of [`LogSchema::covariates`].
+    pub covariates: Vec<f64>,
+}
+
+impl Row {
+    /// A row to read into ([`LogReader::read_into`](super::LogReader::read_into)), with room for `covariates` values.
+    pub fn empty(covariates: usize) -> Self {
+        Row {
+            line: 0,
+            time_s: 0.0,
+            track: 0.0,
+            bias: None,
+            covariates: Vec::with_capacity(covariates),
+        }
+    }
+}
+
+/// Whether a log must hold measurements.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum BiasColumn {
+    /// The bias column must exist and at least one row must be measured (fitting, scoring,
+    /// diagnosing): a missing column or a log without a measured row is an error.
+    #[default]
+    Required,
+    /// A plan (`predict`): the bias column may be missing or empty; every row is then read as
+    /// "moved, not measured".
+    Optional,
+}
+
+/// The path that means standard input (`--data -`).
+pub const STDIN_PATH: &str = "-";
+/// The name standard input has in messages.
+pub(crate) const STDIN_NAME: &str = "<stdin>";
