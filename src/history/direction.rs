@@ -146,7 +146,7 @@ pub enum DirectionSource {
 #[derive(Debug, Clone, PartialEq, Default)]
 #[non_exhaustive]
 pub enum DirectionSetting {
-    /// The deadband [`sampling`] estimates: 2·√(2 ln n) × the position noise on a dense time
+    /// The deadband [`sampling`](super::sampling()) estimates: 2·√(2 ln n) × the position noise on a dense time
     /// series, 0 (raw steps) on a log of seeks.
     #[default]
     Auto,
@@ -201,7 +201,7 @@ impl DirectionSetting {
     }
 
     /// The direction source for the training `log`: `Auto` estimates the deadband from its
-    /// positions ([`sampling`]); a velocity column must be one of its covariates.
+    /// positions ([`sampling`](super::sampling())); a velocity column must be one of its covariates.
     pub fn resolve(&self, log: &crate::log::Log) -> Result<DirectionSource, DirectionError> {
         self.resolve_with(log, &log_sampling(log))
     }

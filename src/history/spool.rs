@@ -4,9 +4,9 @@
 use super::{Sampling, SamplingStream};
 
 /// Streams the log `reader` was opened on (from `path` with `map`) and returns its summary
-/// ([`LogReader::summarise`](crate::LogReader::summarise)) and its [`sampling`], in memory
+/// ([`LogReader::summarise`](crate::LogReader::summarise)) and its [`sampling`](super::sampling()), in memory
 /// independent of the number of rows (`biasctl check`): the exact quantiles (the same bits as
-/// [`sampling`] of every row in memory) need a few passes of radix selection (one on logs
+/// [`sampling`](super::sampling()) of every row in memory) need a few passes of radix selection (one on logs
 /// whose quantiles take few distinct values and whose clock the first pass settles, three on a
 /// dense 1 kHz log with noisy positions, more when a jittered clock's spread must be read).
 /// The log itself is read once: while it is, the time and position of every row (16 bytes per
