@@ -7,6 +7,10 @@
 //! - [`measure`]: the closed-loop servo and the one-revolution average (slow reference loop and
 //!   the fast superposition path).
 //! - [`sequence`]: Tables I–VII, random, dwell, script.
+//! - `config`: the switchable effects, the sequence options and [`SimConfig`].
+//! - `state`: the drive's evolving physical state, one step per row.
+//! - `run`: [`simulate`] and the log and truth files it writes.
+//! - [`family`]: independent drives for testing diagnosis.
 //!
 //! ## Log semantics
 //! A row's `time_s` is when its bias is measured. The seek to the row's track starts right after
