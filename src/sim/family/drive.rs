@@ -103,7 +103,7 @@ pub struct FamilyDrive {
     pub span: f64,
     /// Time at each target before it is measured, uniform in `[min, max]`, s.
     pub dwell_s: [f64; 2],
-    /// Amplitude of every hidden effect, in units of the noise std (see [`HiddenEffect`]).
+    /// Amplitude of every hidden effect, in units of the noise std (see [`HiddenEffect`](super::HiddenEffect)).
     pub effect_scale: f64,
 }
 

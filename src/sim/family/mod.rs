@@ -22,7 +22,7 @@
 //!
 //! Conventions as everywhere in biasctl: positions in tracks (0 at the OD, positive seeks
 //! inbound), bias in counts, time in s. Each random process draws from its own
-//! [`SimRng::substream`] of the seed, so one seed gives a byte-identical log whatever effects
+//! [`SimRng::substream`](crate::numeric::rng::SimRng::substream) of the seed, so one seed gives a byte-identical log whatever effects
 //! are switched on, and switching an effect on changes only the bias column.
 //!
 //! ```
@@ -33,7 +33,8 @@
 //! assert!(run.log.schema.covariate_index("walk").is_some());
 //! let lag = run.truth("lag").unwrap();
 //! assert!(lag.iter().any(|v| v.abs() > 0.0));
-//! ```//!
+//! ```
+//!
 //! One concern per file: the drives and their covariate columns (`drive`), the hidden effects
 //! (`effects`), the pivot physics and random processes (`physics`), and [`generate`] with its
 //! configuration and run (`generate`).
