@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 use crate::history::Feature;
 
 use super::features::FeatureOrigin;
+use super::values::short;
 
 /// The term suggested for the state-space (Dahl) model: `dahl:4`, four elements with rates on a
 /// grid. One element (`dahl:1`, eq. 8) only moves monotonically between the two curves, so it
@@ -68,20 +69,6 @@ impl Shape {
             Shape::SaturatingFall => format!("falls at small {feature}, then levels off"),
             Shape::Irregular => "varies irregularly".to_string(),
         }
-    }
-}
-
-/// A number with about four significant digits for messages.
-pub(crate) fn short(x: f64) -> String {
-    let a = x.abs();
-    if a >= 1000.0 || a <= 0.0 {
-        format!("{x:.0}")
-    } else if a >= 10.0 {
-        format!("{x:.1}")
-    } else if a >= 0.1 {
-        format!("{x:.3}")
-    } else {
-        format!("{x:.2e}")
     }
 }
 

@@ -10,6 +10,7 @@ use crate::model::terms::memsum::MemsumState;
 
 use super::DiagnoseError;
 use super::smoother::{Binned, Key, Unusable};
+use super::values::{defined, short};
 
 /// Where a candidate feature comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -54,7 +55,7 @@ pub(super) const LAG_MIN_VARIANCE: f64 = 0.5;
 pub(super) const LAG_MAX_FRACTION: f64 = 1.0 / 16.0;
 
 /// The covariate a lagged feature (`<COL>@lag<τ>s`) was made from.
-pub(super) fn lagged_column(name: &str) -> Option<&str> {
+pub(crate) fn lagged_column(name: &str) -> Option<&str> {
     name.rsplit_once("@lag").map(|(c, _)| c)
 }
 
@@ -520,12 +521,6 @@ impl PositionGrid {
     }
 }
 
-/// `Some(x)` unless `x` is NaN, the mark of an undefined value in a [`FeatureColumn`].
-#[inline]
-pub(crate) fn defined(x: f64) -> Option<f64> {
-    (!x.is_nan()).then_some(x)
-}
-
 /// `v` as a stored value: NaN for `None`.
 #[inline]
 fn stored(v: Option<f64>) -> f64 {
@@ -717,7 +712,7 @@ fn summed_memory(log: &Log) -> Vec<FeatureColumn> {
                 source = Some(row.track);
             }
             FeatureColumn {
-                name: format!("memsum_L{}", super::advice::short(l)),
+                name: format!("memsum_L{}", short(l)),
                 origin: FeatureOrigin::SummedMemory,
                 values: values.finish(),
             }
@@ -770,7 +765,7 @@ fn lagged(log: &Log, measured: &[Vec<f64>]) -> Vec<FeatureColumn> {
                 continue;
             }
             out.push(FeatureColumn {
-                name: format!("{name}@lag{}s", super::advice::short(tau)),
+                name: format!("{name}@lag{}s", short(tau)),
                 origin: FeatureOrigin::Lagged,
                 values: Values::from(lagged),
             });

@@ -1,5 +1,5 @@
 //! Model diagnosis: compare a model with the measurements, see where it fails, and learn which
-//! physical effect is missing (issue #5).
+//! physical effect is missing.
 //!
 //! The engine takes a [`FeatureTable`] (every candidate feature of every measured row) and the
 //! model's residuals (measured − predicted, one per measured row) and asks, for each feature,
@@ -102,39 +102,31 @@
 //! fewer than [`DiagnoseConfig::min_bin_rows`] rows is pooled with its neighbour.
 
 mod absorbed;
-mod advice;
-mod discover;
+pub(crate) mod advice;
 mod features;
-mod ladder;
 mod model;
 mod pairs;
 mod report;
 mod smoother;
-mod verify;
+mod values;
+mod verification;
 
 pub use absorbed::Absorption;
+#[cfg(test)]
+pub(crate) use absorbed::FAST_FORGETTING;
 pub(crate) use absorbed::{absorbed, rate_warnings};
+#[cfg(test)]
+use advice::DAHL_TERM;
 pub use advice::Shape;
-pub use discover::{
-    CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
-};
+pub(crate) use features::lagged_column;
 pub use features::{DERIVED_VELOCITY, FeatureColumn, FeatureOrigin, FeatureTable};
-pub use ladder::{Ladder, LadderStep};
-pub(crate) use ladder::{LadderInput, ladder};
-pub use model::{
-    LadderTerms, ModelDiagnosisError, PathStep, diagnose_model, diagnose_residual,
-    diagnose_verified, ladder_fit, ladder_terms, model_spec, replay_model, suggestion_path,
-    suggestion_path_from,
-};
+pub(crate) use model::model_table;
+pub use model::{ModelDiagnosisError, diagnose_model, diagnose_residual, model_spec, replay_model};
 pub use pairs::{GlobalCheck, Interaction};
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
-pub use verify::{
-    CheckedVerifyConfig, CombinedEdit, RejectedEdit, SecondRound, Verification, VerifiedEdit,
-    VerifyConfig,
-};
-pub(crate) use verify::{candidates, edit_for, table_spacing, verify, verify_two_rounds};
-#[cfg(test)]
-use {absorbed::FAST_FORGETTING, advice::DAHL_TERM};
+pub(crate) use report::{compare, extend_summary};
+pub(crate) use values::short;
+pub use verification::{CombinedEdit, RejectedEdit, SecondRound, Verification, VerifiedEdit};
 
 use crate::history::Feature;
 use crate::numeric::rng::SimRng;
@@ -1203,7 +1195,7 @@ pub(crate) fn feature_null_block(
     // One buffer: the decoded column itself where it was decoded for this call.
     let mut filled = values.into_owned();
     for v in &mut filled {
-        *v = features::defined(*v).unwrap_or(mean) - mean;
+        *v = values::defined(*v).unwrap_or(mean) - mean;
     }
     null_block_len(&filled)
         .next_power_of_two()
@@ -1684,5 +1676,3 @@ fn permutation_test(
 
 #[cfg(test)]
 mod tests;
-#[cfg(test)]
-mod tests_verify;

@@ -8,10 +8,10 @@ use crate::log::{Units, fmt_trimmed};
 use crate::numeric::stats;
 use crate::render::write_atomic;
 
-use super::advice::{self, Point, Shape, short};
-use super::features::defined;
+use super::advice::{self, Point, Shape};
 use super::features::{FeatureColumn, FeatureOrigin, Visit};
 use super::smoother::{BinAcc, BinKind, Binned, Unusable, accumulate};
+use super::values::{defined, short};
 use super::{DiagnoseConfig, DiagnoseError};
 
 /// The result of [`super::diagnose`]. Serialises to the JSON contract

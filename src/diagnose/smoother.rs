@@ -10,7 +10,7 @@
 //! bin per value and two candidates: all values, or one bin. Missing values always form a bin of
 //! their own, also in the one-bin candidate, so "undefined" can itself be an effect.
 
-use super::features::defined;
+use super::values::defined;
 use crate::numeric::stats::reg_inc_beta;
 
 /// Fine-bin index of a missing value.

@@ -2,8 +2,8 @@
 //! repeat — until nothing is flagged or the verified gain is below what noise allows.
 //!
 //! Each step fits the current spec on the training log, diagnoses its causal residual there
-//! ([`super::diagnose_model`], adaptive terms' absorption included), verifies the leading
-//! suggestions by refitting on folds of consecutive seeks ([`super::verify`]) and applies the
+//! ([`crate::diagnose::diagnose_model`], adaptive terms' absorption included), verifies the leading
+//! suggestions by refitting on folds of consecutive seeks ([`super::verify()`]) and applies the
 //! edit with the largest verified gain. The error reported before and after each step is the
 //! test log's causal error std when a test log is given, else the out-of-sample (fold) std of
 //! the verification.
@@ -23,8 +23,8 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use super::model::{ModelDiagnosisError, diagnose_model, replay_model};
-use super::{CheckedDiagnoseConfig, CheckedVerifyConfig, candidates, verify};
+use super::{CheckedVerifyConfig, candidates, verify};
+use crate::diagnose::{CheckedDiagnoseConfig, ModelDiagnosisError, diagnose_model, replay_model};
 use crate::fit::{FitError, fit};
 use crate::log::Log;
 use crate::model::{Feedback, FittedModel, ModelSpec};
@@ -32,7 +32,7 @@ use crate::model::{Feedback, FittedModel, ModelSpec};
 /// Settings of [`discover`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiscoverConfig {
-    /// The diagnosis at each step (checked by [`super::DiagnoseConfig::check`]).
+    /// The diagnosis at each step (checked by [`crate::diagnose::DiagnoseConfig::check`]).
     pub diagnose: CheckedDiagnoseConfig,
     /// The verification refits at each step (checked by [`super::VerifyConfig::check`]; their fit
     /// options fit every model).
