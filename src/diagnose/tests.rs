@@ -2,8 +2,11 @@
 //! random seek sequence (random targets in a 250-track span, random dwell times, a random
 //! covariate), each with a known effect planted.
 
+use super::smoother::*;
 use super::*;
+use super::{forward::*, permutation::*, screen::*};
 use crate::log::{ColumnMap, Log, LogWriter};
+use crate::numeric::rng::SimRng;
 
 /// A random seek sequence: `rows` seeks to uniform integer targets in 0..250 with uniform dwell
 /// times in [0.05, 10) s and an independent covariate `temp_c` in [20, 50); one row in ten is a
