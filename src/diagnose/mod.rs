@@ -105,6 +105,8 @@ mod absorbed;
 pub(crate) mod advice;
 mod features;
 mod forward;
+mod ftest;
+mod kernels;
 mod model;
 mod pairs;
 mod permutation;

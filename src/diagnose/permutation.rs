@@ -7,9 +7,9 @@ use rayon::prelude::*;
 use crate::numeric::rng::SimRng;
 use crate::numeric::stats;
 
-use super::smoother::{
-    self, Binned, BlockLane, FTest, LANES, Permuted, SlotTable, Unusable, sst_of_sums, sst_one_pass,
-};
+use super::ftest::{FTest, sst_of_sums, sst_one_pass};
+use super::kernels::{self, BlockLane, LANES, Permuted, SlotTable};
+use super::smoother::{Binned, Unusable};
 use super::{DiagnoseConfig, FeatureOrigin, values};
 
 /// One feature's intermediate results.
@@ -54,7 +54,7 @@ pub(super) fn shuffle_rows<T: Copy>(v: &mut [T], rng: &mut SimRng) {
         rng.below_descending(lo as u64, i as u64, &mut js);
         for (step, &j) in js.iter().enumerate() {
             if let Some(&ahead) = js.get(step + SHUFFLE_AHEAD) {
-                smoother::prefetch(&v[ahead as usize..]);
+                kernels::prefetch(&v[ahead as usize..]);
             }
             v.swap(i - step, j as usize);
         }

@@ -8,9 +8,10 @@ use crate::numeric::stats;
 
 use super::forward::{Ctx, forward_pass};
 use super::forward::{gain, sum_sq_about_mean_rows};
+use super::ftest::FTest;
 use super::is_time;
 use super::permutation::{Analysed, feature_null_block, null_block_len, permutation_test, shuffle};
-use super::smoother::{FTest, Unusable};
+use super::smoother::Unusable;
 use super::{
     CheckedDiagnoseConfig, DiagnoseError, FeatureColumn, FeatureOrigin, FeatureReport,
     FeatureTable, report,

@@ -5,6 +5,7 @@
 use super::smoother::*;
 use super::*;
 use super::{forward::*, permutation::*, screen::*};
+use super::{ftest::*, kernels::*};
 use crate::log::{ColumnMap, Log, LogWriter};
 use crate::numeric::rng::SimRng;
 
