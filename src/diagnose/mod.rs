@@ -113,6 +113,7 @@ mod permutation;
 mod report;
 mod screen;
 mod smoother;
+mod text;
 mod values;
 mod verification;
 
@@ -129,8 +130,9 @@ pub(crate) use model::model_table;
 pub use model::{ModelDiagnosisError, diagnose_model, diagnose_residual, model_spec, replay_model};
 pub use pairs::{GlobalCheck, Interaction};
 pub(crate) use permutation::null_block_len;
+pub(crate) use report::compare;
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
-pub(crate) use report::{compare, extend_summary};
+pub(crate) use text::extend_summary;
 pub(crate) use values::short;
 pub use verification::{CombinedEdit, RejectedEdit, SecondRound, Verification, VerifiedEdit};
 
@@ -439,7 +441,7 @@ pub fn diagnose(
         interactions,
         global,
     };
-    d.summary = report::summary(&d, n, config.alpha);
+    d.summary = text::summary(&d, n, config.alpha);
     Ok(d)
 }
 

@@ -98,7 +98,7 @@ pub fn diagnose_model(
     }
     d.absorbed = super::absorbed(model, &table, &mut prediction, &config)?;
     d.warnings = super::rate_warnings(model);
-    d.summary = super::report::extend_summary(&d);
+    d.summary = super::text::extend_summary(&d);
     Ok(d)
 }
 
