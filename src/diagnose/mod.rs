@@ -103,6 +103,7 @@
 
 mod absorbed;
 pub(crate) mod advice;
+mod column;
 mod features;
 mod forward;
 mod ftest;
@@ -124,8 +125,9 @@ pub(crate) use absorbed::{absorbed, rate_warnings};
 #[cfg(test)]
 use advice::DAHL_TERM;
 pub use advice::Shape;
+pub use column::{FeatureColumn, FeatureOrigin};
 pub(crate) use features::lagged_column;
-pub use features::{DERIVED_VELOCITY, FeatureColumn, FeatureOrigin, FeatureTable};
+pub use features::{DERIVED_VELOCITY, FeatureTable};
 pub(crate) use model::model_table;
 pub use model::{ModelDiagnosisError, diagnose_model, diagnose_residual, model_spec, replay_model};
 pub use pairs::{GlobalCheck, Interaction};

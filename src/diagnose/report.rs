@@ -7,7 +7,7 @@ use crate::numeric::stats;
 
 use super::DiagnoseConfig;
 use super::advice::{self, Point, Shape};
-use super::features::{FeatureColumn, FeatureOrigin, Visit};
+use super::column::{FeatureColumn, FeatureOrigin, Visit};
 use super::smoother::{BinAcc, BinKind, Binned, Unusable, accumulate};
 use super::values::{defined, short};
 
