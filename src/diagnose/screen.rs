@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use crate::history::Feature;
 use crate::numeric::stats;
 
-use super::forward::{Ctx, forward_pass};
+use super::forward::{Ctx, Forward, forward_pass};
 use super::forward::{gain, sum_sq_about_mean_rows};
 use super::ftest::FTest;
 use super::is_time;
@@ -92,43 +92,7 @@ pub(super) fn screen(
     which: Reports,
 ) -> Result<Screened, DiagnoseError> {
     let n = table.len();
-    if residuals.len() != n {
-        return Err(DiagnoseError::LengthMismatch {
-            residuals: residuals.len(),
-            rows: n,
-        });
-    }
-    if let Some((index, &value)) = residuals
-        .iter()
-        .enumerate()
-        .find(|(_, v)| !(v.is_finite() && v.abs() <= MAX_RESIDUAL))
-    {
-        return Err(DiagnoseError::BadResidual {
-            index,
-            line: table.line(index).unwrap_or(0),
-            value,
-        });
-    }
-    let needed = config.min_rows();
-    if n < needed {
-        return Err(DiagnoseError::TooFewRows {
-            rows: n,
-            needed,
-            folds: config.folds,
-        });
-    }
-    let block_len = config.block_len_for(n);
-    let n_blocks = n.div_ceil(block_len);
-    if n_blocks < config.folds {
-        return Err(DiagnoseError::InvalidConfig {
-            field: crate::field::Field::BlockLen,
-            message: format!(
-                "blocks of {block_len} seeks cut {n} rows into {n_blocks} blocks, fewer than the \
-                 {} folds",
-                config.folds
-            ),
-        });
-    }
+    let block_len = check_input(table, residuals, config)?;
 
     // Clipped, then centred in place (no second copy of the residual).
     let mut y = winsorize(residuals);
@@ -152,40 +116,18 @@ pub(super) fn screen(
         .map(|d| sum_sq_about_mean_rows(|| y.iter().zip(d).map(|(r, &d)| r * f64::from(d))));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
-    // Columns are independent (no random draws): in parallel, collected in table order.
-    let mut analysed: Vec<Result<Analysed, Unusable>> = table
-        .columns()
-        .par_iter()
-        .map(|col| {
-            col.binned(config.max_bins, config.min_bin_rows, config.max_discrete)
-                .map(|binned| {
-                    let can_sign = signed_sst.is_some() && signable(col);
-                    let g = gain(
-                        &binned,
-                        can_sign,
-                        &y,
-                        direction.as_deref(),
-                        &fold,
-                        config.folds,
-                        variance,
-                    );
-                    let mut observed = FTest::new(&binned).min_p(&binned, &y, sst);
-                    if let (Some(sst), Some(d)) = (signed_sst.filter(|_| can_sign), &direction) {
-                        observed =
-                            observed.min(FTest::new(&binned).min_p_signed(&binned, &y, d, sst));
-                    }
-                    Analysed {
-                        binned,
-                        shift: g.shift,
-                        explained: g.explained,
-                        observed,
-                        by_direction: g.by_direction,
-                        signable: can_sign,
-                        origin: col.origin,
-                    }
-                })
-        })
-        .collect();
+    let mut analysed = analyse_columns(
+        table,
+        &Centred {
+            y: &y,
+            sst,
+            signed_sst,
+            direction: direction.as_deref(),
+            fold: &fold,
+            variance,
+        },
+        config,
+    );
 
     let null_block = config
         .null_block
@@ -257,68 +199,21 @@ pub(super) fn screen(
                 .collect()
         });
     // One report per wanted column, independent of the others: in parallel, in column order.
-    let mut reports: Vec<(usize, FeatureReport)> = wanted
-        .par_iter()
-        .map(|&j| {
-            let (col, a) = (&table.columns()[j], &analysed[j]);
-            let mut r = match a {
-                Ok(a) => report::feature_report(
-                    col,
-                    a.shift,
-                    &a.binned,
-                    a.explained,
-                    p_raw[j],
-                    p_adj[j],
-                    match (&signed_residuals, a.by_direction) {
-                        (Some(s), true) => s,
-                        _ => residuals,
-                    },
-                    a.by_direction,
-                    direction.as_deref(),
-                    residual_std,
-                    config,
-                ),
-                Err(why) => report::skipped_report(col, why, residual_std),
-            };
-            r.explained_beyond_previous = forward.beyond[j];
-            r.significant = significant.contains(&j);
-            let beyond = forward.beyond[j].unwrap_or(0.0);
-            r.flagged = r.significant && r.explained.min(beyond) >= config.min_effect;
-            if r.significant && !r.flagged {
-                let note = format!(
-                    "significant (p = {:.3}) but too small to matter: {:.1} % of the residual \
-                     variance alone, {:.1} % beyond the features ranked before it, below the \
-                     practical minimum of {:.1} %",
-                    r.p_value,
-                    100.0 * r.explained,
-                    100.0 * beyond,
-                    100.0 * config.min_effect
-                );
-                r.note = Some(match r.note.take() {
-                    Some(n) => format!("{note}; {n}"),
-                    None => note,
-                });
-            }
-            if let Some(by) = forward.explained_away_by[j] {
-                let note = format!(
-                    "confounded with `{}`, which explains it away (what `{}` adds beyond it: {:.1} %)",
-                    table.columns()[by].name,
-                    col.name,
-                    100.0 * forward.twin_gain[j]
-                );
-                r.note = Some(match r.note.take() {
-                    Some(n) => format!("{note}; {n}"),
-                    None => note,
-                });
-            }
-            let rank = forward
-                .order
-                .iter()
-                .position(|&k| k == j)
-                .unwrap_or(usize::MAX);
-            (rank, r)
-        })
-        .collect();
+    let input = ReportInput {
+        table,
+        analysed: &analysed,
+        p_raw: &p_raw,
+        p_adj: &p_adj,
+        residuals,
+        signed_residuals: signed_residuals.as_deref(),
+        direction: direction.as_deref(),
+        residual_std,
+        significant: &significant,
+        forward: &forward,
+        config,
+    };
+    let mut reports: Vec<(usize, FeatureReport)> =
+        wanted.par_iter().map(|&j| one_report(&input, j)).collect();
     // Strongest first: the forward order, then the rest by their own (marginal) strength.
     reports.sort_by(|(ra, a), (rb, b)| ra.cmp(rb).then(report::compare(a, b)));
     let reports: Vec<FeatureReport> = reports.into_iter().map(|(_, r)| r).collect();
@@ -337,6 +232,186 @@ pub(super) fn screen(
         direction,
         variance,
     })
+}
+
+/// Checks the residuals against `table` and `config` (one finite residual per row, enough rows
+/// and blocks for the folds); the block length of the folds.
+fn check_input(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+) -> Result<usize, DiagnoseError> {
+    let n = table.len();
+    if residuals.len() != n {
+        return Err(DiagnoseError::LengthMismatch {
+            residuals: residuals.len(),
+            rows: n,
+        });
+    }
+    if let Some((index, &value)) = residuals
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && v.abs() <= MAX_RESIDUAL))
+    {
+        return Err(DiagnoseError::BadResidual {
+            index,
+            line: table.line(index).unwrap_or(0),
+            value,
+        });
+    }
+    let needed = config.min_rows();
+    if n < needed {
+        return Err(DiagnoseError::TooFewRows {
+            rows: n,
+            needed,
+            folds: config.folds,
+        });
+    }
+    let block_len = config.block_len_for(n);
+    let n_blocks = n.div_ceil(block_len);
+    if n_blocks < config.folds {
+        return Err(DiagnoseError::InvalidConfig {
+            field: crate::field::Field::BlockLen,
+            message: format!(
+                "blocks of {block_len} seeks cut {n} rows into {n_blocks} blocks, fewer than the \
+                 {} folds",
+                config.folds
+            ),
+        });
+    }
+    Ok(block_len)
+}
+
+/// The clipped, centred residual and what the screen reads with it.
+struct Centred<'a> {
+    y: &'a [f64],
+    /// Sum of squares of `y`.
+    sst: f64,
+    /// The direction-signed residual's sum of squares about its mean, if there is a direction.
+    signed_sst: Option<f64>,
+    direction: Option<&'a [i8]>,
+    fold: &'a [u8],
+    variance: f64,
+}
+
+/// Every column binned, cross-validated and its observed statistic computed (or why it is
+/// unusable). Columns are independent (no random draws): in parallel, collected in table order.
+fn analyse_columns(
+    table: &FeatureTable,
+    c: &Centred<'_>,
+    config: &CheckedDiagnoseConfig,
+) -> Vec<Result<Analysed, Unusable>> {
+    table
+        .columns()
+        .par_iter()
+        .map(|col| {
+            col.binned(config.max_bins, config.min_bin_rows, config.max_discrete)
+                .map(|binned| {
+                    let can_sign = c.signed_sst.is_some() && signable(col);
+                    let g = gain(
+                        &binned,
+                        can_sign,
+                        c.y,
+                        c.direction,
+                        c.fold,
+                        config.folds,
+                        c.variance,
+                    );
+                    let mut observed = FTest::new(&binned).min_p(&binned, c.y, c.sst);
+                    if let (Some(sst), Some(d)) = (c.signed_sst.filter(|_| can_sign), c.direction) {
+                        observed =
+                            observed.min(FTest::new(&binned).min_p_signed(&binned, c.y, d, sst));
+                    }
+                    Analysed {
+                        binned,
+                        shift: g.shift,
+                        explained: g.explained,
+                        observed,
+                        by_direction: g.by_direction,
+                        signable: can_sign,
+                        origin: col.origin,
+                    }
+                })
+        })
+        .collect()
+}
+
+/// What [`one_report`] reads: the screen's results for every column.
+struct ReportInput<'a> {
+    table: &'a FeatureTable,
+    analysed: &'a [Result<Analysed, Unusable>],
+    p_raw: &'a [f64],
+    p_adj: &'a [f64],
+    residuals: &'a [f64],
+    /// The residuals × direction, when a wanted report is direction-signed.
+    signed_residuals: Option<&'a [f64]>,
+    direction: Option<&'a [i8]>,
+    residual_std: f64,
+    significant: &'a [usize],
+    forward: &'a Forward,
+    config: &'a CheckedDiagnoseConfig,
+}
+
+/// Column `j`'s report, with its place in the forward order.
+fn one_report(inp: &ReportInput<'_>, j: usize) -> (usize, FeatureReport) {
+    let (col, a) = (&inp.table.columns()[j], &inp.analysed[j]);
+    let mut r = match a {
+        Ok(a) => report::feature_report(
+            col,
+            a.shift,
+            &a.binned,
+            a.explained,
+            inp.p_raw[j],
+            inp.p_adj[j],
+            match (inp.signed_residuals, a.by_direction) {
+                (Some(s), true) => s,
+                _ => inp.residuals,
+            },
+            a.by_direction,
+            inp.direction,
+            inp.residual_std,
+            inp.config,
+        ),
+        Err(why) => report::skipped_report(col, why, inp.residual_std),
+    };
+    r.explained_beyond_previous = inp.forward.beyond[j];
+    r.significant = inp.significant.contains(&j);
+    let beyond = inp.forward.beyond[j].unwrap_or(0.0);
+    r.flagged = r.significant && r.explained.min(beyond) >= inp.config.min_effect;
+    if r.significant && !r.flagged {
+        let note = format!(
+            "significant (p = {:.3}) but too small to matter: {:.1} % of the residual \
+             variance alone, {:.1} % beyond the features ranked before it, below the \
+             practical minimum of {:.1} %",
+            r.p_value,
+            100.0 * r.explained,
+            100.0 * beyond,
+            100.0 * inp.config.min_effect
+        );
+        r.note = Some(match r.note.take() {
+            Some(n) => format!("{note}; {n}"),
+            None => note,
+        });
+    }
+    if let Some(by) = inp.forward.explained_away_by[j] {
+        let note = format!(
+            "confounded with `{}`, which explains it away (what `{}` adds beyond it: {:.1} %)",
+            inp.table.columns()[by].name,
+            col.name,
+            100.0 * inp.forward.twin_gain[j]
+        );
+        r.note = Some(match r.note.take() {
+            Some(n) => format!("{note}; {n}"),
+            None => note,
+        });
+    }
+    let rank = inp
+        .forward
+        .order
+        .iter()
+        .position(|&k| k == j)
+        .unwrap_or(usize::MAX);
+    (rank, r)
 }
 
 /// Residuals farther than this many robust standard deviations (1.4826·MAD) from the median
