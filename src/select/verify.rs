@@ -198,41 +198,7 @@ pub(super) fn verify_round(
         cv_residuals_sharing(s, log, config.folds, &config.fit, &shared)
             .map_err(|e| error_chain(&e))
     };
-    let mut wanted: Vec<ModelSpec> = Vec::new();
-    if given.is_none() {
-        wanted.push(spec.clone());
-    }
-    for c in cands {
-        let mut groups = c.terms.iter().map(|t| {
-            variants(t, spec, c.table_spacing)
-                .iter()
-                // `bump` and `step` wait for their screens on the residual below.
-                .filter(|v| {
-                    v.as_str() != crate::diagnose::advice::BUMP_TERM
-                        && !crate::diagnose::advice::is_step(v)
-                })
-                .filter_map(|v| {
-                    edit_for(v, spec, c.table_spacing)
-                        .and_then(|e| spec.apply(&e))
-                        .ok()
-                })
-                .collect::<Vec<_>>()
-        });
-        if c.try_all {
-            wanted.extend(groups.flatten());
-        } else if let Some(first) = groups.find(|g| !g.is_empty()) {
-            wanted.extend(first);
-        }
-    }
-    let mut keys: Vec<String> = Vec::new();
-    wanted.retain(|s| {
-        let k = s.to_string();
-        let new = !keys.contains(&k);
-        if new {
-            keys.push(k);
-        }
-        new
-    });
+    let (wanted, keys) = wanted_refits(spec, cands, given.is_none());
     // The model as it is first (`wanted[0]`, unless a round before gave its residual): every
     // other refit is judged against it as soon as it is made, and only its verdicts are kept —
     // not one residual vector per refit (8 B a row each) until the loop reads it.
@@ -280,29 +246,8 @@ pub(super) fn verify_round(
     };
     // The step screen, per covariate column a `step:COL` variant is scored for (the clipped
     // residual and the measured rows computed once, on first use).
-    let mut steps: HashMap<String, bool> = HashMap::new();
-    let mut clipped: Option<Option<(Vec<f64>, f64)>> = None;
-    let mut rows: Option<Vec<usize>> = None;
-    let mut step_screened = |variant: &str| {
-        let col = variant.split_once(':').map_or("", |(_, c)| c);
-        *steps.entry(col.to_string()).or_insert_with(|| {
-            let Some(k) = log.schema.covariate_index(col) else {
-                return false;
-            };
-            let Some(c) =
-                clipped.get_or_insert_with(|| crate::diagnose::advice::clipped_residual(before))
-            else {
-                return false;
-            };
-            let column = log.covariate(k);
-            let v: Vec<f64> = rows
-                .get_or_insert_with(|| measured_rows(log))
-                .iter()
-                .map(|&i| column[i])
-                .collect();
-            crate::diagnose::advice::step_screen(&v, c).is_some()
-        })
-    };
+    let mut step_screen = StepScreen::default();
+    let mut step_screened = |variant: &str| step_screen.passes(variant, log, before);
     // The second round scores only the candidates it was given (its cost stays bounded).
     let extra = if strict_all {
         None
@@ -332,11 +277,7 @@ pub(super) fn verify_round(
                     Ok(x) => x,
                     Err(e) => {
                         if !alt {
-                            v.rejected.push(RejectedEdit {
-                                feature: c.feature.clone(),
-                                term: term.clone(),
-                                why: e.to_string(),
-                            });
+                            v.rejected.push(rejected(c, term, e.to_string()));
                         }
                         continue;
                     }
@@ -348,11 +289,7 @@ pub(super) fn verify_round(
                     Ok(r) => r,
                     Err(why) => {
                         if !alt {
-                            v.rejected.push(RejectedEdit {
-                                feature: c.feature.clone(),
-                                term: term.clone(),
-                                why,
-                            });
+                            v.rejected.push(rejected(c, term, why));
                         }
                         continue;
                     }
@@ -360,18 +297,7 @@ pub(super) fn verify_round(
                 fitted = true;
                 seen.push(next.to_string());
                 let j = after.judged[usize::from(c.strict || strict_all)];
-                let e = VerifiedEdit {
-                    feature: c.feature.clone(),
-                    edit: edit.to_string(),
-                    terms: next.to_string(),
-                    std_before: v.std_before,
-                    std_after: after.std_after,
-                    gain: j.gain,
-                    gain_within_folds: j.within,
-                    z: j.z,
-                    verified: j.verified,
-                    model_edit: Some(edit),
-                };
+                let e = verified_edit(c, edit, &next, v.std_before, after.std_after, j);
                 if best.as_ref().is_none_or(|b| e.gain > b.0.gain) {
                     best = Some((e, after));
                 }
@@ -392,6 +318,118 @@ pub(super) fn verify_round(
     prefer_physics_to_drift(&mut v.edits);
     keep.before = base.r;
     Ok((v, keep))
+}
+
+/// Candidate `c`'s `term`, rejected for `why`.
+fn rejected(c: &Candidate, term: &str, why: String) -> RejectedEdit {
+    RejectedEdit {
+        feature: c.feature.clone(),
+        term: term.to_string(),
+        why,
+    }
+}
+
+/// The refits a round of [`verify_round`] scores up front: the model as it is (`with_spec`),
+/// each candidate's first term that applies (every term of a `try_all` candidate), once
+/// each; with their texts, in the same order.
+fn wanted_refits(
+    spec: &ModelSpec,
+    cands: &[Candidate],
+    with_spec: bool,
+) -> (Vec<ModelSpec>, Vec<String>) {
+    let mut wanted: Vec<ModelSpec> = Vec::new();
+    if with_spec {
+        wanted.push(spec.clone());
+    }
+    for c in cands {
+        let mut groups = c.terms.iter().map(|t| {
+            variants(t, spec, c.table_spacing)
+                .iter()
+                // `bump` and `step` wait for their screens on the residual below.
+                .filter(|v| {
+                    v.as_str() != crate::diagnose::advice::BUMP_TERM
+                        && !crate::diagnose::advice::is_step(v)
+                })
+                .filter_map(|v| {
+                    edit_for(v, spec, c.table_spacing)
+                        .and_then(|e| spec.apply(&e))
+                        .ok()
+                })
+                .collect::<Vec<_>>()
+        });
+        if c.try_all {
+            wanted.extend(groups.flatten());
+        } else if let Some(first) = groups.find(|g| !g.is_empty()) {
+            wanted.extend(first);
+        }
+    }
+    let mut keys: Vec<String> = Vec::new();
+    wanted.retain(|s| {
+        let k = s.to_string();
+        let new = !keys.contains(&k);
+        if new {
+            keys.push(k);
+        }
+        new
+    });
+    (wanted, keys)
+}
+
+/// The step screen of a round, per covariate column a `step:COL` variant is scored for (the
+/// clipped residual and the measured rows computed once, on first use).
+#[derive(Default)]
+struct StepScreen {
+    steps: HashMap<String, bool>,
+    clipped: Option<Option<(Vec<f64>, f64)>>,
+    rows: Option<Vec<usize>>,
+}
+
+impl StepScreen {
+    /// Whether the step screen finds a step in `variant`'s column on the residual `before`.
+    fn passes(&mut self, variant: &str, log: &Log, before: &[f64]) -> bool {
+        let col = variant.split_once(':').map_or("", |(_, c)| c);
+        let (clipped, rows) = (&mut self.clipped, &mut self.rows);
+        *self.steps.entry(col.to_string()).or_insert_with(|| {
+            let Some(k) = log.schema.covariate_index(col) else {
+                return false;
+            };
+            let Some(c) =
+                clipped.get_or_insert_with(|| crate::diagnose::advice::clipped_residual(before))
+            else {
+                return false;
+            };
+            let column = log.covariate(k);
+            let v: Vec<f64> = rows
+                .get_or_insert_with(|| measured_rows(log))
+                .iter()
+                .map(|&i| column[i])
+                .collect();
+            crate::diagnose::advice::step_screen(&v, c).is_some()
+        })
+    }
+}
+
+/// The verified edit of candidate `c`: `edit`, giving `next`, judged `j`.
+fn verified_edit(
+    c: &Candidate,
+    edit: ModelEdit,
+    next: &ModelSpec,
+    std_before: f64,
+    std_after: f64,
+    j: Judgement,
+) -> VerifiedEdit {
+    VerifiedEdit {
+        feature: c.feature.clone(),
+        edit: edit.to_string(),
+        terms: next.to_string(),
+        std_before,
+        std_after,
+        gain: j.gain,
+        gain_within_folds: j.within,
+        z: j.z,
+        verified: j.verified,
+        model_edit: Some(edit),
+    }
 }
 
 /// A verified `add bump` (`add step:COL`) names the centre and width (the threshold) it finds
