@@ -14,7 +14,7 @@ use super::values::defined;
 pub enum FeatureOrigin {
     /// A built-in feature of the seek history.
     BuiltIn(Feature),
-    /// A covariate column of the log (or any column added with [`FeatureTable::push_column`]).
+    /// A covariate column of the log (or any column added with [`FeatureTable::push_column`](super::FeatureTable::push_column)).
     Covariate,
     /// `memsum_L<L>`: the summed-kernel rest memory of the `memsum` term at one length scale
     /// L (the log's position unit): `Σ_p sgn(x − p)·exp(−|x − p|/L)` over every uncrossed rest
@@ -23,7 +23,7 @@ pub enum FeatureOrigin {
     /// `<COL>@lag<τ>s`: a covariate column through a first-order lag of time constant τ (s), as
     /// the `lag:COL` term computes it ([`crate::model::terms::lag`]).
     Lagged,
-    /// [`DERIVED_VELOCITY`]: on a dense time series ([`crate::history::Sampling::dense`]) the
+    /// [`DERIVED_VELOCITY`](super::DERIVED_VELOCITY): on a dense time series ([`crate::history::Sampling::dense`]) the
     /// velocity derived from position and time as the `viscous`/`stribeck` terms derive it
     /// without a column (`seek_length / dwell_s`, [`crate::model::terms::viscous::velocity`]),
     /// so velocity friction is found on a log with no velocity column.
@@ -36,7 +36,7 @@ pub enum FeatureOrigin {
 /// them exactly (bit for bit: a `-0.0` is not an integer), so a column of track numbers,
 /// directions or seek counts costs 1–4 bytes a row instead of 8 and reads back the same
 /// `f64`s. Read them with [`FeatureColumn::get`] or [`FeatureColumn::iter`], which give `None`
-/// for an undefined row. The values are shared: a clone (as in [`FeatureTable::without`])
+/// for an undefined row. The values are shared: a clone (as in [`FeatureTable::without`](super::FeatureTable::without))
 /// does not copy them.
 #[derive(Debug, Clone)]
 pub struct FeatureColumn {

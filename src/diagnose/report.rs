@@ -47,7 +47,7 @@ pub struct Diagnosis {
     #[serde(default)]
     pub warnings: Vec<String>,
     /// The leading suggestions refitted and scored out of sample, best verified gain first
-    /// (filled by [`super::diagnose_verified`]; `null` when not run).
+    /// (filled by [`crate::select::diagnose_verified`]; `null` when not run).
     #[serde(default)]
     pub verification: Option<super::Verification>,
     /// Measured rows diagnosed.

@@ -205,7 +205,7 @@ fn terms_already_in_the_model_are_never_suggested() {
     let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let top = &d.features[0];
     // A model with the eq. 1 `seek` curves gets what fits beside them, not the state-space
-    // `dahl:4` (issue #10, item 5).
+    // `dahl:4`.
     assert_eq!(top.suggested_term.as_deref(), Some("bins:direction_change"));
     assert!(top.note.as_deref().unwrap().contains("already has `seek`"));
     assert!(!top.alternatives.iter().any(|t| t == DAHL_TERM));

@@ -103,7 +103,7 @@ pub struct SecondRound {
     pub std_before: f64,
     /// Every edit scored on top, largest verified gain first; their `std_before`, `gain` and
     /// `z` are against the model with the best edit. All are judged at the stricter bar of the
-    /// unflagged features (z ≥ [`VerifyConfig::min_z`] + 1, a lower loss in every fold).
+    /// unflagged features (z ≥ [`VerifyConfig::min_z`](crate::select::VerifyConfig::min_z) + 1, a lower loss in every fold).
     pub edits: Vec<VerifiedEdit>,
     /// Suggestions that could not be applied on top or fitted.
     pub rejected: Vec<RejectedEdit>,

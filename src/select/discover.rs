@@ -8,7 +8,7 @@
 //! test log's causal error std when a test log is given, else the out-of-sample (fold) std of
 //! the verification.
 //!
-//! **Honest scores with adaptive terms** (issue #11): a model with an adaptive term (`drift`)
+//! **Honest scores with adaptive terms**: a model with an adaptive term (`drift`)
 //! re-learns its offset from the measured bias, so its one-step error flatters it on a dense log.
 //! For every rung where the model before or after has an adaptive term, discover also measures
 //! the **free-run** error std (the adaptive terms never see the measured bias) on the test log,
@@ -563,7 +563,7 @@ mod tests {
     fn discover_reports_the_free_run_beside_the_one_step_figure() {
         // Reference: a direct replay of the final model on the test log, one-step and free run
         // (`predict_log_with`), and each step's free-run figures chained (after of one = before
-        // of the next). The issue #10 keys stay; the free-run keys appear because `drift` is in.
+        // of the next). The verification's keys stay; the free-run keys appear because `drift` is in.
         let (train, test) = (walk_log(41, 0.05), walk_log(42, 0.05));
         let (d, model) = discover(
             &ModelSpec::parse("poly2,drift").unwrap(),
