@@ -78,13 +78,13 @@ pub enum Field {
     NullBlock,
     /// [`DiagnoseConfig::min_effect`](crate::diagnose::DiagnoseConfig::min_effect).
     MinEffect,
-    /// [`VerifyConfig::folds`](crate::diagnose::VerifyConfig::folds).
+    /// [`VerifyConfig::folds`](crate::select::VerifyConfig::folds).
     VerifyFolds,
-    /// [`VerifyConfig::candidates`](crate::diagnose::VerifyConfig::candidates).
+    /// [`VerifyConfig::candidates`](crate::select::VerifyConfig::candidates).
     VerifyCandidates,
-    /// [`VerifyConfig::min_z`](crate::diagnose::VerifyConfig::min_z).
+    /// [`VerifyConfig::min_z`](crate::select::VerifyConfig::min_z).
     MinZ,
-    /// [`DiscoverConfig::max_steps`](crate::diagnose::DiscoverConfig::max_steps).
+    /// [`DiscoverConfig::max_steps`](crate::select::DiscoverConfig::max_steps).
     MaxSteps,
     /// [`StoryOptions::random_seeks`](crate::StoryOptions::random_seeks).
     RandomSeeks,

@@ -162,6 +162,7 @@ pub(crate) mod output_check;
 pub(crate) mod score;
 
 pub(crate) mod diagnose;
+pub(crate) mod select;
 
 pub(crate) mod control;
 
@@ -186,10 +187,8 @@ pub use control::{
     plant::{Plant, PlantSpec},
 };
 pub use diagnose::{
-    CheckedDiagnoseConfig, CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis,
-    DiscoverConfig, FeatureReport, FeatureTable, Ladder, LadderStep, LadderTerms, PathStep,
-    VerifyConfig, diagnose, diagnose_model, diagnose_residual, diagnose_verified, discover,
-    ladder_fit, ladder_terms, model_spec, replay_model, suggestion_path, suggestion_path_from,
+    CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, FeatureReport, FeatureTable, diagnose,
+    diagnose_model, diagnose_residual, model_spec, replay_model,
 };
 pub use export::{
     C_FILES, CContext, CHandoff, COptions, CPrecision, CSource, CTerm, ExportError, c_source,
@@ -237,6 +236,11 @@ pub use report::story::{
 };
 pub use report::{Cell, Report, Table};
 pub use score::{Score, grouped_warnings, score, score_model, score_with_units};
+pub use select::{
+    CheckedDiscoverConfig, CheckedVerifyConfig, DiscoverConfig, Ladder, LadderStep, LadderTerms,
+    PathStep, VerifyConfig, diagnose_verified, discover, ladder_fit, ladder_terms, suggestion_path,
+    suggestion_path_from,
+};
 pub use sim::family;
 pub use sim::{
     DEFAULT_N, Drive, MeasureMode, SequenceOptions, SimConfig, TRUTH_COLUMNS, simulate,
@@ -251,9 +255,9 @@ pub use control::settle::{
 };
 pub use control::{ExpmError, ServoError};
 pub use diagnose::{
-    Absorption, CombinedEdit, CurveBin, DERIVED_VELOCITY, DiagnoseError, DiscoverError,
-    DiscoverStep, Discovery, FeatureColumn, FeatureOrigin, GlobalCheck, Interaction,
-    ModelDiagnosisError, RejectedEdit, SecondRound, Shape, Verification, VerifiedEdit, Whiteness,
+    Absorption, CombinedEdit, CurveBin, DERIVED_VELOCITY, DiagnoseError, FeatureColumn,
+    FeatureOrigin, GlobalCheck, Interaction, ModelDiagnosisError, RejectedEdit, SecondRound, Shape,
+    Verification, VerifiedEdit, Whiteness,
 };
 pub use history::{DirectionError, Replay, RestMemory, Sampling};
 pub use log::{Covariates, LogSummary, Row, RowRef, Rows, UnitError};
@@ -267,6 +271,7 @@ pub use report::run::{
 };
 pub use report::{Block, Section};
 pub use score::{ModelScore, ModelScoreError, ScoreError};
+pub use select::{DiscoverError, DiscoverStep, Discovery};
 pub use sim::drive::{
     DirectionParams, DriftParams, DriveError, Element, ElementKind, Harmonic, MemoryParams,
     OvershootParams, PositionParams, RunoutParams, ScatterParams, ServoParams, TemperatureParams,

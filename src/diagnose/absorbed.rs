@@ -14,7 +14,7 @@ use crate::model::{FittedModel, Prediction};
 /// A drift forgetting factor above this (memory shorter than about 10 measurements) is much
 /// faster than a slow offset of the driver electronics needs (minutes: a few hundredths at a
 /// few seeks per second) and is reported as suspicious.
-pub(super) const FAST_FORGETTING: f64 = 0.1;
+pub(crate) const FAST_FORGETTING: f64 = 0.1;
 
 /// An effect an adaptive term absorbed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -6,6 +6,7 @@ use crate::history::Feature;
 use crate::model::registry::{self, Cue, Law};
 
 use super::features::FeatureOrigin;
+use super::values::short;
 
 /// The term suggested for the state-space (Dahl) model
 /// ([`crate::model::terms::dahl`]'s suggestion: four elements).
@@ -67,20 +68,6 @@ impl Shape {
             Shape::SaturatingFall => format!("falls at small {feature}, then levels off"),
             Shape::Irregular => "varies irregularly".to_string(),
         }
-    }
-}
-
-/// A number with about four significant digits for messages.
-pub(crate) fn short(x: f64) -> String {
-    let a = x.abs();
-    if a >= 1000.0 || a <= 0.0 {
-        format!("{x:.0}")
-    } else if a >= 10.0 {
-        format!("{x:.1}")
-    } else if a >= 0.1 {
-        format!("{x:.3}")
-    } else {
-        format!("{x:.2e}")
     }
 }
 

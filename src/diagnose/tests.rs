@@ -2,8 +2,12 @@
 //! random seek sequence (random targets in a 250-track span, random dwell times, a random
 //! covariate), each with a known effect planted.
 
+use super::smoother::*;
 use super::*;
+use super::{forward::*, permutation::*, screen::*};
+use super::{ftest::*, kernels::*};
 use crate::log::{ColumnMap, Log, LogWriter};
+use crate::numeric::rng::SimRng;
 
 /// A random seek sequence: `rows` seeks to uniform integer targets in 0..250 with uniform dwell
 /// times in [0.05, 10) s and an independent covariate `temp_c` in [20, 50); one row in ten is a
@@ -201,7 +205,7 @@ fn terms_already_in_the_model_are_never_suggested() {
     let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let top = &d.features[0];
     // A model with the eq. 1 `seek` curves gets what fits beside them, not the state-space
-    // `dahl:4` (issue #10, item 5).
+    // `dahl:4`.
     assert_eq!(top.suggested_term.as_deref(), Some("bins:direction_change"));
     assert!(top.note.as_deref().unwrap().contains("already has `seek`"));
     assert!(!top.alternatives.iter().any(|t| t == DAHL_TERM));
@@ -667,51 +671,6 @@ fn text_and_csvs_show_the_curve() {
     assert_eq!(counts, t.len());
 }
 
-/// Wiring: a model lacking a covariate term, fitted to a log whose bias depends linearly on a
-/// logged temperature that is independent of the seek history. Reference: the dependence is
-/// known by construction (3 counts/°C, noise σ = 2), so `temp_c` must rank first with `col:temp_c`
-/// suggested, and adding it in the ladder must bring the test std down to the noise.
-#[test]
-fn model_wiring_finds_a_missing_covariate_and_the_ladder_drops_to_noise() {
-    use crate::fit::FitOptions;
-    use crate::log::{ColumnMap, Log};
-    use crate::model::ModelSpec;
-    let make = |seed: u64| {
-        let mut rng = crate::numeric::rng::SimRng::new(seed);
-        let mut text = String::from("time_s,track,bias,temp_c\n");
-        for k in 0..600 {
-            let pos = 400.0 + rng.below(200) as f64;
-            let temp = 30.0 + 10.0 * rng.uniform();
-            let bias = 0.05 * pos + 3.0 * temp + 2.0 * rng.normal();
-            text.push_str(&format!(
-                "{},{},{:.4},{:.3}\n",
-                k as f64 * 0.1,
-                pos,
-                bias,
-                temp
-            ));
-        }
-        Log::from_reader("synthetic.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
-    };
-    let (train, test) = (make(1), make(2));
-    let spec = ModelSpec::parse("poly2").unwrap();
-    let model = crate::fit::fit(&spec, &train, &FitOptions::default().check().unwrap()).unwrap();
-    let d = diagnose_model(&model, &test, &DiagnoseConfig::default().check().unwrap()).unwrap();
-    assert_eq!(d.features[0].name, "temp_c", "{}", d.to_text());
-    assert_eq!(d.features[0].suggested_term.as_deref(), Some("col:temp_c"));
-    let terms = super::ladder_terms("poly2,col:temp_c").unwrap();
-    let l = ladder_fit(
-        &train,
-        &test,
-        &terms,
-        &FitOptions::default().check().unwrap(),
-    )
-    .unwrap();
-    assert!(l.steps[0].std > 7.0, "{:?}", l.steps);
-    assert!((l.steps[1].std - 2.0).abs() < 0.3, "{:?}", l.steps);
-    assert!(l.steps[1].reduction > 0.7, "{:?}", l.steps);
-}
-
 /// The diagnosis speaks the table's units (from the log): a residual in newtons with a trend
 /// against a position in metres is "N" and "N/m" in the text, the summary and the JSON, never
 /// counts or tracks.
@@ -1166,7 +1125,7 @@ fn feature_null_block_copying(values: &[f64], residual_block: usize) -> usize {
     let mean = stats::mean(&defined).unwrap_or(0.0);
     let filled: Vec<f64> = values
         .iter()
-        .map(|&v| features::defined(v).unwrap_or(mean) - mean)
+        .map(|&v| values::defined(v).unwrap_or(mean) - mean)
         .collect();
     null_block_len(&filled)
         .next_power_of_two()
@@ -1191,7 +1150,7 @@ fn feature_null_block_in_place_matches_the_copying_one() {
                 if rng.uniform() < 0.05 { f64::NAN } else { v }
             })
             .collect();
-        let opts: Vec<Option<f64>> = values.iter().map(|&v| features::defined(v)).collect();
+        let opts: Vec<Option<f64>> = values.iter().map(|&v| values::defined(v)).collect();
         let mut t = FeatureTable::with_lines((0..n as u64).collect());
         t.push_column("c", opts).expect("column");
         let col = &t.columns()[0];

@@ -21,9 +21,10 @@ use super::figures::{
 };
 use super::from_log;
 use crate::control::settle::SettleReport;
-use crate::diagnose::{Diagnosis, FeatureTable, Ladder};
+use crate::diagnose::{Diagnosis, FeatureTable};
 use crate::log::{Log, LogError, Units};
 use crate::model::{FittedModel, ModelError, Prediction, Predictor};
+use crate::select::Ladder;
 
 /// Why a view of a fitted model could not be drawn.
 #[derive(Debug, thiserror::Error)]

@@ -16,9 +16,8 @@ use crate::control::settle::{
 };
 use crate::control::{Controller, ServoError};
 use crate::diagnose::{
-    CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis, DiscoverConfig,
-    Discovery, FeatureTable, Ladder, ModelDiagnosisError, diagnose_residual, discover, ladder_fit,
-    ladder_terms, replay_model,
+    CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, FeatureTable, ModelDiagnosisError,
+    diagnose_residual, replay_model,
 };
 use crate::field::Field;
 use crate::fit::{CheckedFitOptions, FitError, fit};
@@ -27,6 +26,9 @@ use crate::model::preset;
 use crate::model::{FittedModel, ModelError, ModelSpec, Prediction, SpecError};
 use crate::render::OutputError;
 use crate::score::{Score, ScoreError, score_with_units};
+use crate::select::{
+    CheckedVerifyConfig, DiscoverConfig, Discovery, Ladder, discover, ladder_fit, ladder_terms,
+};
 use crate::sim::{Drive, SequenceOptions, SimConfig, SimError, Truth, simulate, simulate_to_files};
 
 /// Settings of a story run.

@@ -1,9 +1,9 @@
-//! What [`crate::diagnose::discover`] did on the report's data: each verified edit (feature,
+//! What [`crate::select::discover()`] did on the report's data: each verified edit (feature,
 //! edit, reason, error std before → after) and why it stopped.
 
-use crate::diagnose::Discovery;
 use crate::report::run::{DISCOVER_START, Step};
 use crate::report::{Cell, Section, Table};
+use crate::select::Discovery;
 
 /// The steps of `d`: feature, edit, reason, std before → after (bias unit of `d`), terms after.
 pub(crate) fn discover_table(d: &Discovery) -> Table {

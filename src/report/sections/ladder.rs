@@ -1,10 +1,10 @@
 //! The ladder: one term added at a time, each rung refitted on the training log and scored on
 //! the test log.
 
-use crate::diagnose::Ladder;
 use crate::log::Units;
 use crate::plot::views;
 use crate::report::{Cell, Section, Table};
+use crate::select::Ladder;
 
 /// Each rung's terms, test error std (`units.bias`) and reduction from the first rung.
 pub(crate) fn ladder_table(l: &Ladder, units: &Units) -> Table {

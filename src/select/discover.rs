@@ -2,13 +2,13 @@
 //! repeat — until nothing is flagged or the verified gain is below what noise allows.
 //!
 //! Each step fits the current spec on the training log, diagnoses its causal residual there
-//! ([`super::diagnose_model`], adaptive terms' absorption included), verifies the leading
-//! suggestions by refitting on folds of consecutive seeks ([`super::verify`]) and applies the
+//! ([`crate::diagnose::diagnose_model`], adaptive terms' absorption included), verifies the leading
+//! suggestions by refitting on folds of consecutive seeks ([`super::verify()`]) and applies the
 //! edit with the largest verified gain. The error reported before and after each step is the
 //! test log's causal error std when a test log is given, else the out-of-sample (fold) std of
 //! the verification.
 //!
-//! **Honest scores with adaptive terms** (issue #11): a model with an adaptive term (`drift`)
+//! **Honest scores with adaptive terms**: a model with an adaptive term (`drift`)
 //! re-learns its offset from the measured bias, so its one-step error flatters it on a dense log.
 //! For every rung where the model before or after has an adaptive term, discover also measures
 //! the **free-run** error std (the adaptive terms never see the measured bias) on the test log,
@@ -23,16 +23,19 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use super::model::{ModelDiagnosisError, diagnose_model, replay_model};
-use super::{CheckedDiagnoseConfig, CheckedVerifyConfig, candidates, verify};
-use crate::fit::{FitError, fit};
+use super::{CheckedVerifyConfig, candidates, verify};
+use crate::diagnose::{
+    CheckedDiagnoseConfig, Diagnosis, ModelDiagnosisError, Verification, VerifiedEdit,
+    diagnose_model, replay_model,
+};
+use crate::fit::{CheckedFitOptions, FitError, fit};
 use crate::log::Log;
 use crate::model::{Feedback, FittedModel, ModelSpec};
 
 /// Settings of [`discover`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiscoverConfig {
-    /// The diagnosis at each step (checked by [`super::DiagnoseConfig::check`]).
+    /// The diagnosis at each step (checked by [`crate::diagnose::DiagnoseConfig::check`]).
     pub diagnose: CheckedDiagnoseConfig,
     /// The verification refits at each step (checked by [`super::VerifyConfig::check`]; their fit
     /// options fit every model).
@@ -268,26 +271,7 @@ pub fn discover(
         Some(t) => format!("test log {}", t.schema.file),
         None => format!("training log {}, in sample", train.schema.file),
     };
-    let basis = match test {
-        Some(t) => format!("test log {}", t.schema.file),
-        None => format!(
-            "out-of-sample folds of {} ({} folds of consecutive seeks)",
-            train.schema.file, config.verify.folds
-        ),
-    };
-    let mut out = Discovery {
-        steps: Vec::new(),
-        final_terms: Vec::new(),
-        stopped_because: String::new(),
-        basis,
-        unit: train.schema.units.bias.clone(),
-        start_std: 0.0,
-        figure: Feedback::EveryRow.label(),
-        free_run_basis: None,
-        start_free_run_std: None,
-        final_std: None,
-        final_free_run_std: None,
-    };
+    let mut out = empty_discovery(train, test, config);
     let mut current_test = test_std(&model)?;
     let mut current_honest = honest_stds(&model, honest_log)?;
     out.start_free_run_std = current_honest.1;
@@ -317,21 +301,7 @@ pub fn discover(
             first = false;
         }
         let Some(best) = v.best().cloned() else {
-            out.stopped_because = match v.edits.first() {
-                Some(e) => format!(
-                    "the best scored edit, `{}` ({}), gains {:.1} % of the error variance \
-                     out of sample (z = {:.1}): {}",
-                    e.edit,
-                    e.feature,
-                    100.0 * e.gain,
-                    e.z,
-                    v.why_not_verified(e)
-                ),
-                None => v
-                    .not_run
-                    .clone()
-                    .unwrap_or_else(|| "no suggested edit could be fitted".to_string()),
-            };
+            out.stopped_because = not_verified(&v);
             break;
         };
         if step == config.max_steps {
@@ -345,45 +315,17 @@ pub fn discover(
         }
         // The verified edits in order of gain; with an adaptive term on either side, the first
         // whose free-run error is no worse than the current model's is taken.
-        let mut passed_over: Vec<String> = Vec::new();
-        let mut chosen = None;
-        for e in v.edits.iter().filter(|e| e.verified) {
-            let Some(edit) = e.model_edit.clone() else {
-                continue;
-            };
-            let next_spec = spec
-                .apply(&edit)
-                .map_err(|source| ModelDiagnosisError::Spec {
-                    step: step + 1,
-                    terms: e.terms.clone(),
-                    source,
-                })?;
-            let next = fit(&next_spec, train, opts).map_err(|source| ModelDiagnosisError::Fit {
-                step: step + 1,
-                terms: e.terms.clone(),
-                file: train.schema.file.clone(),
-                source: Box::new(source),
-            })?;
-            let next_honest = honest_stds(&next, honest_log)?;
-            let adaptive = model.adaptive() || next.adaptive();
-            let (before, after) = (free_or_one(current_honest), free_or_one(next_honest));
-            if one_step_only(adaptive, current_honest, next_honest) {
-                passed_over.push(format!(
-                    "`{}` ({} {} → {} {} one-step, but free run {} → {} {})",
-                    e.edit,
-                    crate::log::fmt_trimmed(current_honest.0, 4),
-                    out.unit,
-                    crate::log::fmt_trimmed(next_honest.0, 4),
-                    out.unit,
-                    crate::log::fmt_trimmed(before, 4),
-                    crate::log::fmt_trimmed(after, 4),
-                    out.unit
-                ));
-                continue;
-            }
-            chosen = Some((e.clone(), next_spec, next, next_honest, adaptive));
-            break;
-        }
+        let (chosen, passed_over) = choose_edit(
+            &v,
+            &spec,
+            &model,
+            train,
+            honest_log,
+            opts,
+            step,
+            current_honest,
+            &out.unit,
+        )?;
         let passed = if passed_over.is_empty() {
             String::new()
         } else {
@@ -404,17 +346,7 @@ pub fn discover(
             break;
         };
         let next_test = test_std(&next)?;
-        let shape = d
-            .feature(&best.feature)
-            .map(|f| {
-                format!(
-                    "the residual{} {} ({:.1} % explained out of sample); ",
-                    if f.by_direction { " × direction" } else { "" },
-                    f.shape.describe(&f.name, f.shape_at),
-                    100.0 * f.explained
-                )
-            })
-            .unwrap_or_default();
+        let shape = shape_words(&d, &best.feature);
         if adaptive {
             out.free_run_basis = Some(free_run_basis.clone());
         }
@@ -457,6 +389,132 @@ pub fn discover(
     }
     out.final_terms = spec.terms.iter().map(|t| t.name()).collect();
     Ok((out, model))
+}
+
+/// The residual's shape against `feature` in `d`, in words, as a step's reason begins
+/// (empty when `d` has no such feature).
+fn shape_words(d: &Diagnosis, feature: &str) -> String {
+    d.feature(feature)
+        .map(|f| {
+            format!(
+                "the residual{} {} ({:.1} % explained out of sample); ",
+                if f.by_direction { " × direction" } else { "" },
+                f.shape.describe(&f.name, f.shape_at),
+                100.0 * f.explained
+            )
+        })
+        .unwrap_or_default()
+}
+
+/// The discovery before its first step: what its figures are measured on, nothing found yet.
+fn empty_discovery(train: &Log, test: Option<&Log>, config: &CheckedDiscoverConfig) -> Discovery {
+    let basis = match test {
+        Some(t) => format!("test log {}", t.schema.file),
+        None => format!(
+            "out-of-sample folds of {} ({} folds of consecutive seeks)",
+            train.schema.file, config.verify.folds
+        ),
+    };
+    Discovery {
+        steps: Vec::new(),
+        final_terms: Vec::new(),
+        stopped_because: String::new(),
+        basis,
+        unit: train.schema.units.bias.clone(),
+        start_std: 0.0,
+        figure: Feedback::EveryRow.label(),
+        free_run_basis: None,
+        start_free_run_std: None,
+        final_std: None,
+        final_free_run_std: None,
+    }
+}
+
+/// Why a step found no verified edit: the best scored edit and why it fell short, or why
+/// nothing was scored.
+fn not_verified(v: &Verification) -> String {
+    match v.edits.first() {
+        Some(e) => format!(
+            "the best scored edit, `{}` ({}), gains {:.1} % of the error variance \
+             out of sample (z = {:.1}): {}",
+            e.edit,
+            e.feature,
+            100.0 * e.gain,
+            e.z,
+            v.why_not_verified(e)
+        ),
+        None => v
+            .not_run
+            .clone()
+            .unwrap_or_else(|| "no suggested edit could be fitted".to_string()),
+    }
+}
+
+/// One of [`choose_edit`]'s picks: the edit, the spec and model with it, its honest error
+/// stds, and whether an adaptive term is on either side.
+type Chosen = (
+    VerifiedEdit,
+    ModelSpec,
+    FittedModel,
+    (f64, Option<f64>),
+    bool,
+);
+
+/// The verified edits of `v` in order of gain, each refitted on `train`; with an adaptive term
+/// on either side, the first whose free-run error is no worse than the current model's is
+/// taken. Also the edits passed over, in words.
+#[allow(clippy::too_many_arguments)]
+fn choose_edit(
+    v: &Verification,
+    spec: &ModelSpec,
+    model: &FittedModel,
+    train: &Log,
+    honest_log: &Log,
+    opts: &CheckedFitOptions,
+    step: usize,
+    current_honest: (f64, Option<f64>),
+    unit: &str,
+) -> Result<(Option<Chosen>, Vec<String>), ModelDiagnosisError> {
+    let mut passed_over: Vec<String> = Vec::new();
+    let mut chosen = None;
+    for e in v.edits.iter().filter(|e| e.verified) {
+        let Some(edit) = e.model_edit.clone() else {
+            continue;
+        };
+        let next_spec = spec
+            .apply(&edit)
+            .map_err(|source| ModelDiagnosisError::Spec {
+                step: step + 1,
+                terms: e.terms.clone(),
+                source,
+            })?;
+        let next = fit(&next_spec, train, opts).map_err(|source| ModelDiagnosisError::Fit {
+            step: step + 1,
+            terms: e.terms.clone(),
+            file: train.schema.file.clone(),
+            source: Box::new(source),
+        })?;
+        let next_honest = honest_stds(&next, honest_log)?;
+        let adaptive = model.adaptive() || next.adaptive();
+        let (before, after) = (free_or_one(current_honest), free_or_one(next_honest));
+        if one_step_only(adaptive, current_honest, next_honest) {
+            passed_over.push(format!(
+                "`{}` ({} {} → {} {} one-step, but free run {} → {} {})",
+                e.edit,
+                crate::log::fmt_trimmed(current_honest.0, 4),
+                unit,
+                crate::log::fmt_trimmed(next_honest.0, 4),
+                unit,
+                crate::log::fmt_trimmed(before, 4),
+                crate::log::fmt_trimmed(after, 4),
+                unit
+            ));
+            continue;
+        }
+        chosen = Some((e.clone(), next_spec, next, next_honest, adaptive));
+        break;
+    }
+    Ok((chosen, passed_over))
 }
 
 #[cfg(test)]
@@ -505,7 +563,7 @@ mod tests {
     fn discover_reports_the_free_run_beside_the_one_step_figure() {
         // Reference: a direct replay of the final model on the test log, one-step and free run
         // (`predict_log_with`), and each step's free-run figures chained (after of one = before
-        // of the next). The issue #10 keys stay; the free-run keys appear because `drift` is in.
+        // of the next). The verification's keys stay; the free-run keys appear because `drift` is in.
         let (train, test) = (walk_log(41, 0.05), walk_log(42, 0.05));
         let (d, model) = discover(
             &ModelSpec::parse("poly2,drift").unwrap(),

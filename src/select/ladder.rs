@@ -1,11 +1,14 @@
-//! The ladder: how the test-set error falls as terms are added one at a time. Generic: it takes
-//! each step's term list and error std, so it does not depend on the model code.
+//! The ladder: how the test-set error falls as terms are added one at a time. The table
+//! ([`ladder`]) takes each step's term list and error std; [`ladder_fit`] fits and replays the
+//! steps.
 
 use serde::{Deserialize, Serialize};
 
-use super::DiagnoseError;
-use super::advice::short;
-use crate::log::Units;
+use crate::diagnose::{DiagnoseError, ModelDiagnosisError, replay_model, short};
+use crate::field::Field;
+use crate::fit::{CheckedFitOptions, fit};
+use crate::log::{Log, Units};
+use crate::model::ModelSpec;
 
 /// One rung as measured by the caller: the model's terms and its test-set error std.
 #[derive(Debug, Clone, PartialEq)]
@@ -156,6 +159,100 @@ impl Ladder {
     pub fn to_json(&self) -> Result<String, crate::render::OutputError> {
         crate::render::json::to_string_pretty(self)
     }
+}
+
+/// Checks a ladder's comma-separated term list (`poly2,direction,seek`) into the
+/// [`LadderTerms`] that [`ladder_fit`] requires: trimmed, in order. An empty entry, or an empty
+/// list, is an error naming [`Field::LadderTerms`] and the entry's position.
+pub fn ladder_terms(list: &str) -> Result<LadderTerms, ModelDiagnosisError> {
+    let terms: Vec<String> = list.split(',').map(|t| t.trim().to_string()).collect();
+    match terms.iter().position(String::is_empty) {
+        Some(i) => Err(ModelDiagnosisError::EmptyTerm {
+            field: Field::LadderTerms,
+            list: list.to_string(),
+            index: i + 1,
+        }),
+        None => Ok(LadderTerms(terms)),
+    }
+}
+
+/// A ladder's term list that passed [`ladder_terms`] (no empty entry), in the order the terms are
+/// added; read it through `Deref`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LadderTerms(Vec<String>);
+
+impl std::ops::Deref for LadderTerms {
+    type Target = [String];
+    fn deref(&self) -> &[String] {
+        &self.0
+    }
+}
+
+/// The ladder: for k = 1..=terms.len(), fits the first k terms on `train`, replays on `test`
+/// and records the test error std (counts); reductions are relative to the first step. The
+/// steps run in parallel (`crate::numeric::parallel`); the result does not depend on the
+/// thread count.
+pub fn ladder_fit(
+    train: &Log,
+    test: &Log,
+    terms: &LadderTerms,
+    opts: &CheckedFitOptions,
+) -> Result<Ladder, ModelDiagnosisError> {
+    use rayon::prelude::*;
+    // Each step is fitted and scored on its own (nothing shared but the logs): in parallel on
+    // the process's pool, collected in step order, so the ladder and the error of the first
+    // failing step are the same for any thread count.
+    let steps: Vec<Result<LadderInput, ModelDiagnosisError>> = (1..=terms.len())
+        .into_par_iter()
+        .map(|k| -> Result<LadderInput, ModelDiagnosisError> {
+            let list = terms[..k].join(",");
+            let step = k - 1; // numbered as in the ladder table: step 0 is the first term alone
+            let spec = ModelSpec::parse(&list).map_err(|source| ModelDiagnosisError::Spec {
+                step,
+                terms: list.clone(),
+                source,
+            })?;
+            let model = fit(&spec, train, opts).map_err(|source| ModelDiagnosisError::Fit {
+                step,
+                terms: list.clone(),
+                file: train.schema.file.clone(),
+                source: Box::new(source),
+            })?;
+            let prediction = replay_model(&model, test)?;
+            let std = crate::numeric::stats::std_dev(&prediction.residual).ok_or_else(|| {
+                ModelDiagnosisError::TooFewTestRows {
+                    step,
+                    file: test.schema.file.clone(),
+                }
+            })?;
+            let free_run_std = if model.adaptive() {
+                model
+                    .predict_log_with(test, crate::model::Feedback::Never)
+                    .ok()
+                    .and_then(|p| crate::numeric::stats::std_dev(&p.residual))
+            } else {
+                None
+            };
+            let mut warnings: Vec<String> =
+                model.warnings.iter().map(|w| format!("fit: {w}")).collect();
+            let mean = crate::numeric::stats::mean(&prediction.residual).unwrap_or(0.0);
+            if mean.abs() > crate::score::MEAN_WARNING_RATIO * std {
+                warnings.push(format!(
+                    "test mean error {mean:.4e} is {:.2}× the error std {std:.4e}: the model is \
+                     offset on the test log",
+                    mean.abs() / std.max(f64::MIN_POSITIVE)
+                ));
+            }
+            Ok(LadderInput {
+                terms: terms[..k].to_vec(),
+                std,
+                free_run_std,
+                warnings,
+            })
+        })
+        .collect();
+    let inputs = steps.into_iter().collect::<Result<Vec<_>, _>>()?;
+    Ok(ladder(&inputs)?)
 }
 
 #[cfg(test)]

@@ -2,10 +2,12 @@
 //! gate, what adaptive terms absorb, and verified, always-applicable advice.
 
 use super::*;
+use crate::diagnose::*;
 use crate::fit::{CheckedFitOptions, fit};
 use crate::log::{ColumnMap, Log};
 use crate::model::ModelSpec;
 use crate::model::data::SharedHistory;
+use crate::numeric::rng::SimRng;
 
 /// A random seek table (uniform targets in 0..250, random dwell) of `rows` rows.
 fn seek_table(seed: u64, rows: usize) -> FeatureTable {
@@ -547,7 +549,7 @@ fn results_are_identical_for_1_2_and_4_threads() {
 /// automatic block of that part) when no residual reaches c.
 #[test]
 fn huber_loss_and_its_z_score_match_the_closed_forms() {
-    use super::verify::{huber, paired_gain};
+    use super::gain::{huber, paired_gain};
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1.0);
     assert!(close(huber(2.0, 1.5), 2.25));
     assert!(close(huber(2.0, -1.5), 2.25));
@@ -585,7 +587,7 @@ fn huber_loss_and_its_z_score_match_the_closed_forms() {
 /// is accepted.
 #[test]
 fn strict_edits_must_gain_in_every_fold() {
-    use super::verify::gains_in_every_fold;
+    use super::gain::gains_in_every_fold;
     let before = vec![1.0; 90];
     let all: Vec<f64> = vec![0.5; 90];
     let mut two: Vec<f64> = vec![0.5; 90];
@@ -603,7 +605,7 @@ fn strict_edits_must_gain_in_every_fold() {
 /// where the narrow-defect screen asks for it), unless the model has one.
 #[test]
 fn table_suggestion_is_verified_with_finer_tables() {
-    use super::verify::variants;
+    use super::candidates::variants;
     let spec = ModelSpec::parse("table:10,dahl:8").unwrap();
     assert_eq!(
         variants("table", &spec, Some(4.7)),
@@ -643,12 +645,12 @@ fn table_suggestion_is_verified_with_finer_tables() {
     );
 }
 
-/// [`super::verify::gain_within_folds`] against its definition computed by hand (each fold's
+/// [`super::gain::gain_within_folds`] against its definition computed by hand (each fold's
 /// mean taken out of both series, then 1 − SS_after / SS_before): an edit that only moves the
 /// folds' levels gains nothing within folds, one that halves the within-fold wiggle gains 75 %.
 #[test]
 fn gain_within_folds_matches_its_definition() {
-    use super::verify::gain_within_folds;
+    use super::gain::gain_within_folds;
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-12;
     let wiggle = |i: usize| ((i * 7919) % 13) as f64 - 6.0;
     let level = |i: usize| [2.0, -1.0, 0.5][i / 30];
@@ -672,7 +674,7 @@ fn gain_within_folds_matches_its_definition() {
 /// (a sine of 12 cycles, 0.5 noise std) is verified under both rules.
 #[test]
 fn an_edit_that_only_relevels_the_folds_is_not_verified() {
-    use super::verify::{gains_in_every_fold, judge, paired_gain};
+    use super::gain::{gains_in_every_fold, judge, paired_gain};
     let n = 6000;
     let mut rng = SimRng::new(11);
     let mut e = vec![0.0; n];
@@ -686,13 +688,13 @@ fn an_edit_that_only_relevels_the_folds_is_not_verified() {
     let levels = [0.22, -0.20, 0.18];
     let fold = |i: usize| i * 3 / n;
     let before: Vec<f64> = (0..n).map(|i| e[i] + levels[fold(i)]).collect();
-    let within_e = super::verify::within_folds(&e, 3);
+    let within_e = super::gain::within_folds(&e, 3);
     let after: Vec<f64> = (0..n).map(|i| within_e[i] + walk[i]).collect();
     let config = CheckedVerifyConfig::default();
     let min_effect = CheckedDiagnoseConfig::default().min_effect;
     let (gain, z) = paired_gain(&before, &after);
     let old_rule = gain >= min_effect
-        && z >= config.min_z + super::verify::STRICT_EXTRA_Z
+        && z >= config.min_z + super::candidates::STRICT_EXTRA_Z
         && gains_in_every_fold(&before, &after, 3);
     assert!(
         old_rule,
@@ -783,7 +785,7 @@ fn cv_line(y: &[f64], x: Option<&[f64]>) -> Vec<f64> {
 /// unflagged-feature bar of 3 in many; the noise-part z-score clears it in every one.
 #[test]
 fn an_episodic_gain_is_judged_on_its_noise_part() {
-    use super::verify::paired_gain;
+    use super::gain::paired_gain;
     let n = 1500;
     let (mut old_below, mut worst) = (0, f64::INFINITY);
     for seed in 0..20 {
@@ -829,7 +831,7 @@ fn an_episodic_gain_is_judged_on_its_noise_part() {
 /// would exceed them many times over. Allowed: at most 4 % and 1 % (sampling slack on 300).
 #[test]
 fn the_noise_part_z_score_is_calibrated_under_no_effect() {
-    use super::verify::paired_gain;
+    use super::gain::paired_gain;
     let n = 1500;
     let reps = 300;
     let mut rng = SimRng::new(5);
@@ -961,7 +963,7 @@ fn tied_features_are_ordered_by_share_then_name_whatever_the_rounding() {
             f.explained += 1e-13 * rng.range(-1.0, 1.0);
         }
         let mut by_grid = v.clone();
-        by_grid.sort_by(super::report::compare);
+        by_grid.sort_by(crate::diagnose::compare);
         assert_eq!(names(&by_grid), expected);
         let mut by_exact = v;
         by_exact.sort_by(exact);
@@ -1038,7 +1040,7 @@ fn a_second_effect_is_verified_on_top_of_the_best_edit() {
     // Slow reference: refit from scratch on the same folds.
     let opts = CheckedFitOptions::default();
     let cv = |terms: &str| {
-        super::verify::cv_residuals(&ModelSpec::parse(terms).unwrap(), &log, 3, &opts).unwrap()
+        super::refit::cv_residuals(&ModelSpec::parse(terms).unwrap(), &log, 3, &opts).unwrap()
     };
     let mse = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64;
     let (m0, m1, m2) = (
@@ -1075,10 +1077,10 @@ fn a_second_effect_is_verified_on_top_of_the_best_edit() {
     assert!(!d.to_json().unwrap().contains("second_round"));
 }
 
-/// Which first-round edits the second round refits ([`super::verify::second_round_candidates`]):
+/// Which first-round edits the second round refits ([`super::second_round::second_round_candidates`]):
 /// those verified or promising (z ≥ 1, practical gains) with at least half the best edit's
 /// gain, and those verified at any gain whose change can still explain the practical minimum
-/// of the residual after the best ([`super::verify::left_on_top`]), one per source, the best's
+/// of the residual after the best ([`super::second_round::left_on_top`]), one per source, the best's
 /// own source left out; nothing without a verified best.
 /// Reference: the rule applied by hand to the gains below.
 #[test]
@@ -1111,13 +1113,13 @@ fn the_second_round_refits_only_candidates_that_can_pay() {
         ..Verification::default()
     };
     let picked_with = |v: &Verification, left: f64| -> Vec<String> {
-        super::verify::second_round_candidates(&d, &[], v, 3, &|_| Some(left))
+        super::second_round::second_round_candidates(&d, &[], v, 3, &|_| Some(left))
             .into_iter()
             .map(|c| c.terms.join("|"))
             .collect()
     };
     let picked = |v: &Verification| -> Vec<String> {
-        super::verify::second_round_candidates(&d, &[], v, 3, &|_| None)
+        super::second_round::second_round_candidates(&d, &[], v, 3, &|_| None)
             .into_iter()
             .map(|c| c.terms.join("|"))
             .collect()
@@ -1159,7 +1161,7 @@ fn the_second_round_refits_only_candidates_that_can_pay() {
     assert!(picked(&e).is_empty());
 }
 
-/// [`super::verify::left_on_top`] against its closed form for independent series: with the
+/// [`super::second_round::left_on_top`] against its closed form for independent series: with the
 /// bias `s1 + s2 + e` (two effects and noise, independent), a best edit that holds `s1`
 /// (residual `s2 + e`) and another edit that holds `s2` (residual `s1 + e`, so its change is
 /// `s2`), the share of the residual the other explains is `var s2 / (var s2 + var e)` up to
@@ -1176,12 +1178,12 @@ fn what_an_edit_leaves_on_top_matches_its_closed_form() {
     let best: Vec<f64> = (0..n).map(|i| s2[i] + e[i]).collect();
     let second: Vec<f64> = (0..n).map(|i| s1[i] + e[i]).collect();
     let proxy: Vec<f64> = (0..n).map(|i| before[i] - 0.9 * s1[i]).collect();
-    let share = super::verify::left_on_top(&before, &best, &second);
+    let share = super::second_round::left_on_top(&before, &best, &second);
     let expected = 0.64 / (0.64 + 1.0);
     assert!((share - expected).abs() < 0.01, "{share} vs {expected}");
-    let share = super::verify::left_on_top(&before, &best, &proxy);
+    let share = super::second_round::left_on_top(&before, &best, &proxy);
     assert!(share < 0.002, "{share}");
-    assert!(super::verify::left_on_top(&before, &best, &before).abs() < 1e-300);
+    assert!(super::second_round::left_on_top(&before, &best, &before).abs() < 1e-300);
 }
 
 /// A second effect far smaller than the first (a bump of height 5, variance ≈ 2 counts² beside
@@ -1206,7 +1208,7 @@ fn a_small_second_effect_is_verified_on_top_too() {
         .find(|e| e.verified && !e.edit.contains("temp_c"))
         .expect("the bump verified in the first round");
     assert!(
-        small.gain < super::verify::SECOND_ROUND_SHARE * best.gain,
+        small.gain < super::second_round::SECOND_ROUND_SHARE * best.gain,
         "{text}"
     );
     let r = v.second_round.as_ref().expect("the second round runs");
@@ -1219,7 +1221,7 @@ fn a_small_second_effect_is_verified_on_top_too() {
     );
     let opts = CheckedFitOptions::default();
     let cv = |terms: &str| {
-        super::verify::cv_residuals(&ModelSpec::parse(terms).unwrap(), &log, 3, &opts).unwrap()
+        super::refit::cv_residuals(&ModelSpec::parse(terms).unwrap(), &log, 3, &opts).unwrap()
     };
     let mse = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64;
     // Out-of-sample error variance of the model as it is and of the true model; the advice's
@@ -1270,7 +1272,7 @@ fn cv_residuals_reference(
     folds: usize,
     opts: &CheckedFitOptions,
 ) -> Vec<f64> {
-    let measured = super::verify::measured_rows(log);
+    let measured = super::refit::measured_rows(log);
     let n = measured.len();
     let mut out = Vec::with_capacity(n);
     for k in 0..folds {
@@ -1306,10 +1308,10 @@ fn cv_residuals_reference(
 fn fold_starts_cut_where_the_measured_index_does() {
     for rows in [8usize, 9, 40, 301] {
         let log = gappy_log(rows as u64, rows);
-        let measured = super::verify::measured_rows(&log);
+        let measured = super::refit::measured_rows(&log);
         let n = measured.len();
         for folds in 2..=7 {
-            let starts = super::verify::fold_starts(&log, folds);
+            let starts = super::refit::fold_starts(&log, folds);
             assert_eq!(starts.len(), folds + 1);
             for k in 0..folds {
                 let (a, b) = (k * n / folds, (k + 1) * n / folds);
@@ -1338,7 +1340,7 @@ fn fold_starts_cut_where_the_measured_index_does() {
 fn shared_refits_equal_the_reference_bit_for_bit() {
     let log = gappy_log(11, 1500);
     let opts = CheckedFitOptions::default();
-    let mut shared = super::verify::refits_of(&log, &opts);
+    let mut shared = super::refit::refits_of(&log, &opts);
     assert!(
         matches!(shared.history, Some((_, SharedHistory::Features(_)))),
         "a short log shares its features"
@@ -1354,9 +1356,9 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
     ] {
         let spec = ModelSpec::parse(terms).unwrap();
         let reference = cv_residuals_reference(&spec, &log, 3, &opts);
-        for budget in [super::verify::REFIT_FIXED_BYTES, 0] {
+        for budget in [super::refit::REFIT_FIXED_BYTES, 0] {
             shared.fixed_budget = budget;
-            let fast = super::verify::cv_residuals_sharing(&spec, &log, 3, &opts, &shared).unwrap();
+            let fast = super::refit::cv_residuals_sharing(&spec, &log, 3, &opts, &shared).unwrap();
             assert_eq!(fast.len(), reference.len(), "{terms}");
             let same = fast
                 .iter()
@@ -1365,7 +1367,7 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
             assert!(same, "{terms} at budget {budget}");
         }
         // The public path (nothing shared) is the same too.
-        let plain = super::verify::cv_residuals(&spec, &log, 3, &opts).unwrap();
+        let plain = super::refit::cv_residuals(&spec, &log, 3, &opts).unwrap();
         assert!(
             plain
                 .iter()
@@ -1385,7 +1387,7 @@ fn long_log_refits_sharing_history_columns_equal_the_reference() {
     let rows = crate::model::data::FEATURE_CACHE_ROWS + 1_000;
     let log = gappy_log(12, rows);
     let opts = CheckedFitOptions::default();
-    let shared = super::verify::refits_of(&log, &opts);
+    let shared = super::refit::refits_of(&log, &opts);
     assert!(
         matches!(shared.history, Some((_, SharedHistory::Columns(_)))),
         "a long log keeps no feature cache and shares its history columns"
@@ -1393,7 +1395,7 @@ fn long_log_refits_sharing_history_columns_equal_the_reference() {
     for terms in ["poly2,direction,seek,memory", "poly2,dahl"] {
         let spec = ModelSpec::parse(terms).unwrap();
         let reference = cv_residuals_reference(&spec, &log, 3, &opts);
-        let fast = super::verify::cv_residuals_sharing(&spec, &log, 3, &opts, &shared).unwrap();
+        let fast = super::refit::cv_residuals_sharing(&spec, &log, 3, &opts, &shared).unwrap();
         assert_eq!(fast.len(), reference.len(), "{terms}");
         assert!(
             fast.iter()
@@ -1429,24 +1431,24 @@ fn baseline_judges_as_judge_does() {
         before.iter().map(|b| 0.97 * b + 0.02).collect(),
     ];
     for folds in [2, 3, 5] {
-        let reference: f64 = super::verify::within_folds(&before, folds)
+        let reference: f64 = super::gain::within_folds(&before, folds)
             .iter()
             .map(|v| v * v)
             .sum();
         assert_eq!(
-            super::verify::ss_within_folds(&before, folds).to_bits(),
+            super::gain::ss_within_folds(&before, folds).to_bits(),
             reference.to_bits()
         );
         let config = VerifyConfig {
             folds,
             ..VerifyConfig::default()
         };
-        let base = super::verify::Baseline::new(before.clone(), folds);
+        let base = super::gain::Baseline::new(before.clone(), folds);
         for (k, after) in afters.iter().enumerate() {
             for min_effect in [0.0, 0.02, 0.5] {
                 let both = base.judge_both(after, min_effect, &config);
                 for (strict, j) in [false, true].into_iter().zip(both) {
-                    let r = super::verify::judge(&before, after, min_effect, strict, &config);
+                    let r = super::gain::judge(&before, after, min_effect, strict, &config);
                     assert_eq!(j.gain.to_bits(), r.gain.to_bits(), "{k}");
                     assert_eq!(j.within.to_bits(), r.within.to_bits(), "{k}");
                     assert_eq!(j.z.to_bits(), r.z.to_bits(), "{k}");
@@ -1485,7 +1487,7 @@ fn masked_second_effect_log(seed: u64, k: f64, a: f64) -> Log {
 /// position × direction effect of variance 0.56 counts² (2 % of the residual the model
 /// `poly2,direction` leaves, never flagged by the first screen, no first-round candidate) and
 /// σ = 1 noise. Only the **re-screen** of the best edit's out-of-sample residual
-/// ([`super::verify::Rescreen`]) flags `position` with its direction sign, so `dbins:position`
+/// ([`super::second_round::Rescreen`]) flags `position` with its direction sign, so `dbins:position`
 /// is refitted on top; without it (`None`) nothing on top names position. References: (1)
 /// the true model **fitted directly** (`poly2,direction,col:temp_c,dbins:position`, the
 /// generator's terms; `cv_residuals` on the same folds): the advice's out-of-sample error
@@ -1524,7 +1526,7 @@ fn a_second_effect_the_first_hid_is_found_by_the_rescreen() {
     assert_eq!(c.edits, [best.edit.clone(), on_top.edit.clone()]);
     let opts = CheckedFitOptions::default();
     let cv = |terms: &str| {
-        super::verify::cv_residuals(&ModelSpec::parse(terms).unwrap(), &log, 3, &opts).unwrap()
+        super::refit::cv_residuals(&ModelSpec::parse(terms).unwrap(), &log, 3, &opts).unwrap()
     };
     let mse = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64;
     let (m0, m_true) = (
@@ -1544,7 +1546,7 @@ fn a_second_effect_the_first_hid_is_found_by_the_rescreen() {
     assert!(m_best >= 1.2 * m_true, "{m_best} vs {m_true}");
 
     // The same diagnosis without the re-screen: nothing on top names position.
-    let d0 = super::diagnose_model(&model, &log, &config).unwrap();
+    let d0 = crate::diagnose::diagnose_model(&model, &log, &config).unwrap();
     let cands = super::candidates(&d0, vc.candidates);
     let spec = model.spec.clone();
     let v0 =
@@ -1588,4 +1590,49 @@ fn measured_positions_equal_the_replayed_targets() {
             "rows {rows}"
         );
     }
+}
+
+/// Wiring: a model lacking a covariate term, fitted to a log whose bias depends linearly on a
+/// logged temperature that is independent of the seek history. Reference: the dependence is
+/// known by construction (3 counts/°C, noise σ = 2), so `temp_c` must rank first with `col:temp_c`
+/// suggested, and adding it in the ladder must bring the test std down to the noise.
+#[test]
+fn model_wiring_finds_a_missing_covariate_and_the_ladder_drops_to_noise() {
+    use crate::fit::FitOptions;
+    use crate::log::{ColumnMap, Log};
+    use crate::model::ModelSpec;
+    let make = |seed: u64| {
+        let mut rng = crate::numeric::rng::SimRng::new(seed);
+        let mut text = String::from("time_s,track,bias,temp_c\n");
+        for k in 0..600 {
+            let pos = 400.0 + rng.below(200) as f64;
+            let temp = 30.0 + 10.0 * rng.uniform();
+            let bias = 0.05 * pos + 3.0 * temp + 2.0 * rng.normal();
+            text.push_str(&format!(
+                "{},{},{:.4},{:.3}\n",
+                k as f64 * 0.1,
+                pos,
+                bias,
+                temp
+            ));
+        }
+        Log::from_reader("synthetic.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
+    };
+    let (train, test) = (make(1), make(2));
+    let spec = ModelSpec::parse("poly2").unwrap();
+    let model = crate::fit::fit(&spec, &train, &FitOptions::default().check().unwrap()).unwrap();
+    let d = diagnose_model(&model, &test, &DiagnoseConfig::default().check().unwrap()).unwrap();
+    assert_eq!(d.features[0].name, "temp_c", "{}", d.to_text());
+    assert_eq!(d.features[0].suggested_term.as_deref(), Some("col:temp_c"));
+    let terms = ladder_terms("poly2,col:temp_c").unwrap();
+    let l = ladder_fit(
+        &train,
+        &test,
+        &terms,
+        &FitOptions::default().check().unwrap(),
+    )
+    .unwrap();
+    assert!(l.steps[0].std > 7.0, "{:?}", l.steps);
+    assert!((l.steps[1].std - 2.0).abs() < 0.3, "{:?}", l.steps);
+    assert!(l.steps[1].reduction > 0.7, "{:?}", l.steps);
 }
