@@ -199,18 +199,6 @@ impl Scan<'_> {
     }
 }
 
-/// Whether this CPU runs the AVX2 copies of the handoff loops.
-pub(super) fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 impl HandoffTable {
     /// [`HandoffTable::solve`] compiled for AVX2.
     ///

@@ -1,7 +1,6 @@
 //! The allocation-free handoff table: per controller and horizon, the coefficients of every
 //! sample's start-value bounds, and the entry points of the handoff computation.
 
-use super::kernels::has_avx2;
 use super::spec::check_horizon;
 use super::{Handoff, HandoffSolution, SettleError, Window};
 use crate::control::Controller;
@@ -198,6 +197,18 @@ impl HandoffTable {
             return unsafe { self.solve_avx2(h, window, delta_b) };
         }
         self.solve_portable(h, window, delta_b)
+    }
+}
+
+/// Whether this CPU runs the AVX2 copies of the handoff loops.
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 

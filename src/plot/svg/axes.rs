@@ -1,6 +1,5 @@
 //! Axes and ticks: the frame, the "nice" (1-2-5) ticks and their labels, the axis titles.
 
-use super::layout::ordered;
 use super::text::{FONT, esc, fmt_num, n, text_width};
 use super::{Chart, Layout};
 use crate::log::fmt_trimmed;
@@ -147,4 +146,9 @@ pub(super) fn tick_labels(lo: f64, hi: f64, target: usize) -> Vec<(f64, String)>
             (v, s)
         })
         .collect()
+}
+
+/// The ends of an axis range in ascending order.
+pub(super) fn ordered(a: f64, b: f64) -> (f64, f64) {
+    if a <= b { (a, b) } else { (b, a) }
 }

@@ -1,7 +1,7 @@
 //! Where a chart's parts go: the data extents, the axis ranges, the plot area, the ticks and the
 //! legend's place, and the data → pixel mapping.
 
-use super::axes::{AXIS_PADDING, tick_labels, ticks_for};
+use super::axes::{AXIS_PADDING, ordered, tick_labels, ticks_for};
 use super::marks::bar;
 use super::series::{Reference, SeriesData};
 use super::text::{FONT, text_width};
@@ -65,11 +65,6 @@ impl Layout {
         x >= xa && x <= xb && y >= ya && y <= yb
     }
 }
-
-pub(super) fn ordered(a: f64, b: f64) -> (f64, f64) {
-    if a <= b { (a, b) } else { (b, a) }
-}
-
 impl Chart {
     pub(super) fn extents(&self) -> Extents {
         let mut e = Extents::default();

@@ -1,7 +1,7 @@
 //! Marks: one series drawn as points, lines, steps, bars or error bars, clipped to the plot
 //! area, with dense scatter series drawn one mark per cell.
 
-use super::layout::ordered;
+use super::axes::ordered;
 use super::text::{esc, n};
 use super::{Chart, Layout, SeriesData};
 use std::fmt::Write;

@@ -1,6 +1,6 @@
 //! What is drawn over the series: reference bands and lines with their labels, and the legend.
 
-use super::layout::ordered;
+use super::axes::ordered;
 use super::series::{Reference, SeriesData};
 use super::text::{esc, n, text_width};
 use super::{Chart, Layout};

@@ -2,9 +2,10 @@
 //! and scored, diagnosis, ladder and discovery.
 
 use super::error::error_chain;
+use super::options::diagnose_config;
 use super::options::{CheckedStoryOptions, Progress, StoryOptions};
 use super::runs::{DataRun, DiagnosedRun, ScoredModel, Step};
-use super::steps::{LADDER_TERMS, Steps, diagnose_config, discover_run, fit_and_score};
+use super::steps::{LADDER_TERMS, Steps, discover_run, fit_and_score};
 use crate::diagnose::{
     FeatureTable, ModelDiagnosisError, diagnose_residual, ladder_fit, ladder_terms, replay_model,
 };

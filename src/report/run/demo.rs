@@ -2,9 +2,10 @@
 //! predictors, diagnosis, ladder, discovery and settle analysis.
 
 use super::error::StoryError;
+use super::options::diagnose_config;
 use super::options::{CheckedStoryOptions, Progress, StoryOptions};
 use super::runs::{DemoRun, DiagnosedRun, PaperRobustWhy, SettleRun};
-use super::steps::{LADDER_TERMS, Steps, diagnose_config, discover_run, fit_and_score};
+use super::steps::{LADDER_TERMS, Steps, discover_run, fit_and_score};
 use crate::control::Controller;
 use crate::control::settle::{HandoffTable, SettleSpec, analyse, worst_case_settle};
 use crate::diagnose::{FeatureTable, diagnose_residual, ladder_fit, ladder_terms};

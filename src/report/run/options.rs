@@ -1,10 +1,9 @@
-//! How a story run is set up ([`StoryOptions`], checked into [`CheckedStoryOptions`]) and how
-//! it reports its progress.
+//! How a story run is set up ([`StoryOptions`], checked into [`CheckedStoryOptions`], and the
+//! diagnosis settings it implies) and how it reports its progress.
 
 use super::error::StoryError;
-use super::steps::diagnose_config;
 use crate::control::settle::SettleSpec;
-use crate::diagnose::DiagnoseConfig;
+use crate::diagnose::{CheckedDiagnoseConfig, DiagnoseConfig, ModelDiagnosisError};
 use crate::field::Field;
 
 /// Settings of a story run.
@@ -96,4 +95,15 @@ pub struct Progress<'a> {
     pub done: usize,
     /// Steps in all.
     pub total: usize,
+}
+
+pub(super) fn diagnose_config(
+    opts: &StoryOptions,
+) -> Result<CheckedDiagnoseConfig, ModelDiagnosisError> {
+    let config = DiagnoseConfig {
+        permutations: opts.permutations,
+        seed: opts.seed,
+        ..DiagnoseConfig::default()
+    };
+    Ok(config.check()?)
 }

@@ -1,13 +1,10 @@
-//! The steps both runs take: progress counting, fitting and scoring a named model, the
-//! diagnosis' settings, and discover from the report's starting model.
+//! The steps both runs take: progress counting, fitting and scoring a named model, and discover
+//! from the report's starting model.
 
 use super::error::{StoryError, error_chain};
-use super::options::{Progress, StoryOptions};
+use super::options::{Progress, StoryOptions, diagnose_config};
 use super::runs::{ScoredModel, Step};
-use crate::diagnose::{
-    CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, DiscoverConfig, Discovery,
-    ModelDiagnosisError, discover,
-};
+use crate::diagnose::{CheckedVerifyConfig, DiscoverConfig, Discovery, discover};
 use crate::fit::{CheckedFitOptions, fit};
 use crate::log::Log;
 use crate::model::{FittedModel, ModelSpec, preset};
@@ -83,18 +80,6 @@ pub(super) fn fit_and_score(
         score,
     })
 }
-
-pub(super) fn diagnose_config(
-    opts: &StoryOptions,
-) -> Result<CheckedDiagnoseConfig, ModelDiagnosisError> {
-    let config = DiagnoseConfig {
-        permutations: opts.permutations,
-        seed: opts.seed,
-        ..DiagnoseConfig::default()
-    };
-    Ok(config.check()?)
-}
-
 /// [`discover`] from [`DISCOVER_START`] on `train`, scored on `test`, with the report's
 /// diagnosis settings.
 pub(super) fn discover_run(train: &Log, test: &Log, opts: &StoryOptions) -> Step<Discovery> {
