@@ -6,7 +6,7 @@ use super::kernels::suffix_into;
 
 /// The bounds curves of one handoff (Fig. 15), start values in µm·samples relative to the
 /// converged value. Make once per horizon with [`Bounds::new`] and refill with
-/// [`HandoffTable::bounds_into`].
+/// [`HandoffTable::bounds_into`](super::HandoffTable::bounds_into).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Bounds {
     pub(super) upper: Vec<f64>,

@@ -3,7 +3,7 @@
 //!
 //! ## Model
 //! In deviation coordinates x̃ = x − x_ss(d) (x_ss the loop's equilibrium for the constant bias
-//! d, see [`Controller`]) the loop is x̃(k+1) = Acl x̃(k) and the measured position error
+//! d, see [`Controller`](crate::control::Controller)) the loop is x̃(k+1) = Acl x̃(k) and the measured position error
 //! (e = y − r, µm) is linear in the integrator start value ζ = z0 − z_ss(d), which is the start
 //! value **relative to its converged value** (µm·samples; zero feedforward is ζ = 0):
 //! e(k) = a_k·ζ + c_k, with c_k = ce_k·e0 + cv_k·v0 + cu_k·(u_prev − d)   (flexible modes at rest).

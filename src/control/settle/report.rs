@@ -37,9 +37,10 @@ pub struct SettleReport {
     pub optimal_settle_ms: Option<f64>,
     /// [L*(k*), U*(k*)]: the optimal start values relative to the converged value.
     pub ff_interval: Option<[f64; 2]>,
-    /// The start value chosen in the optimal interval ([`Interval::choice`] with no margin): its
-    /// midpoint when both ends are finite, otherwise the value closest to zero feedforward (0)
-    /// inside it. Relative to the converged value, µm·samples.
+    /// The start value chosen in the optimal interval
+    /// ([`Interval::choice`](super::Interval::choice) with no margin): its midpoint when both
+    /// ends are finite, otherwise the value closest to zero feedforward (0) inside it. Relative
+    /// to the converged value, µm·samples.
     pub ff_midpoint: Option<f64>,
     /// Settle time of zero feedforward in ms.
     pub zero_ff_settle_ms: Option<f64>,

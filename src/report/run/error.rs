@@ -15,7 +15,7 @@ use crate::sim::SimError;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum StoryError {
-    /// A story setting is out of range ([`StoryOptions::check`]).
+    /// A story setting is out of range ([`StoryOptions::check`](super::StoryOptions::check)).
     #[error("{field} {message}")]
     InvalidConfig {
         /// The setting.

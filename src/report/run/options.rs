@@ -81,7 +81,8 @@ impl StoryOptions {
 checked_settings! {
     /// Settings that passed [`StoryOptions::check`]; read them through `Deref`. `Default` is the
     /// checked default. The story's entry points ([`crate::demo_report`], [`crate::data_report`],
-    /// [`compute_demo`], [`compute_data`]) accept only these.
+    /// [`compute_demo`](super::compute_demo), [`compute_data`](super::compute_data)) accept
+    /// only these.
     #[derive(Debug, Clone, PartialEq, Default)]
     pub struct CheckedStoryOptions(StoryOptions);
 }
