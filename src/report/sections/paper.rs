@@ -54,7 +54,7 @@ pub(crate) fn what_bias_is(r: &mut Report, run: &DemoRun) {
 
 /// `(x, bias)` of the measured rows of a table log with their history features, and the
 /// previous rows' tracks (for the rest offset of Table VI).
-fn measured_rows(log: &Log) -> Vec<(crate::history::SeekFeatures, f64, Option<f64>)> {
+fn measured_rows(log: &Log) -> Vec<Measured> {
     let mut out = Vec::new();
     for (i, r, f) in crate::history::replay(log) {
         let two_back = i.checked_sub(2).map(|j| log.row(j).track);
@@ -69,24 +69,6 @@ fn measured_rows(log: &Log) -> Vec<(crate::history::SeekFeatures, f64, Option<f6
 /// [`crate::sim::sequence::table`] for the sequences).
 fn table_sweeps(tables: &[Log]) -> Vec<(String, String)> {
     let rows: Vec<_> = tables.iter().map(measured_rows).collect();
-    let series = |name: &str, points: Vec<(f64, f64)>, joined: bool| SweepSeries {
-        name: name.into(),
-        points,
-        joined,
-    };
-    let refs = |t: &[(crate::history::SeekFeatures, f64, Option<f64>)], n: usize| {
-        t.iter()
-            .take(n)
-            .map(|(f, b, _)| {
-                let label = if f.direction > 0 {
-                    "inbound curve at target"
-                } else {
-                    "outbound curve at target"
-                };
-                (label.to_string(), *b)
-            })
-            .collect::<Vec<_>>()
-    };
     let mut out = Vec::new();
     // Fig. 5: the Table II loop.
     let t2 = &rows[1];
@@ -173,14 +155,46 @@ fn table_sweeps(tables: &[Log]) -> Vec<(String, String)> {
             caption.into(),
         ));
     }
-    // Fig. 9: Table VI.
-    let t6 = &rows[5];
+    out.push(fig9_rest_offset(&rows[5]));
+    out.push(fig12_seek_count(t2, &rows[6]));
+    out
+}
+
+/// A measured row of a table log: its history features, its bias and the track two rows back.
+type Measured = (crate::history::SeekFeatures, f64, Option<f64>);
+
+/// One series of a sweep figure.
+fn series(name: &str, points: Vec<(f64, f64)>, joined: bool) -> SweepSeries {
+    SweepSeries {
+        name: name.into(),
+        points,
+        joined,
+    }
+}
+
+/// The first `n` rows' biases as reference levels, labelled by the curve they lie on.
+fn refs(t: &[Measured], n: usize) -> Vec<(String, f64)> {
+    t.iter()
+        .take(n)
+        .map(|(f, b, _)| {
+            let label = if f.direction > 0 {
+                "inbound curve at target"
+            } else {
+                "outbound curve at target"
+            };
+            (label.to_string(), *b)
+        })
+        .collect::<Vec<_>>()
+}
+
+/// Fig. 9 from Table VI's rows, with its caption.
+fn fig9_rest_offset(t6: &[Measured]) -> (String, String) {
     let pts6: Vec<(f64, f64)> = t6
         .iter()
         .skip(1)
         .filter_map(|(f, b, p)| p.map(|p| (p - f.target, *b)))
         .collect();
-    out.push((
+    (
         calibration_sweep(&Sweep {
             figure: SweepFigure::Fig9RestOffset,
             series: vec![series("rest at offset, far OD, then target", pts6, true)],
@@ -193,9 +207,11 @@ fn table_sweeps(tables: &[Log]) -> Vec<(String, String)> {
          came to the target. A rest position close to the target on one side, not crossed since, \
          changes the bias there: the pivot remembers where it rested."
             .into(),
-    ));
-    // Fig. 12: Table VII vs the Table II branch.
-    let t7 = &rows[6];
+    )
+}
+
+/// Fig. 12 from Table VII's rows against the Table II branch, with its caption.
+fn fig12_seek_count(t2: &[Measured], t7: &[Measured]) -> (String, String) {
     let one: Vec<(f64, f64)> = t7
         .iter()
         .map(|(f, b, _)| (f.seek_length.abs(), *b))
@@ -207,7 +223,7 @@ fn table_sweeps(tables: &[Log]) -> Vec<(String, String)> {
         .filter(|(f, _, _)| f.direction < 0)
         .map(|(f, b, _)| (start - f.target, *b))
         .collect();
-    out.push((
+    (
         calibration_sweep(&Sweep {
             figure: SweepFigure::Fig12SeekCount,
             series: vec![
@@ -221,8 +237,7 @@ fn table_sweeps(tables: &[Log]) -> Vec<(String, String)> {
          why the Dahl model, which treats an N-track seek as N one-track seeks, misses the \
          overshoot."
             .into(),
-    ));
-    out
+    )
 }
 
 /// Std of each true effect over the measured rows.

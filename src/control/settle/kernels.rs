@@ -1,0 +1,353 @@
+//! The handoff kernels: the blocked backward scans of [`HandoffTable::solve`] and
+//! [`HandoffTable::bounds_into`], each portable version beside its AVX2 twin (the same code
+//! compiled for AVX2, run when the CPU has it).
+
+use super::table::Point;
+use super::{Bounds, Handoff, HandoffSolution, HandoffTable, Interval, SettleError, Window};
+
+/// min(a, b) as one `minsd`/`minpd`: `b` if `b < a`, else `a` (a NaN `b` is ignored).
+#[inline(always)]
+fn fmin(a: f64, b: f64) -> f64 {
+    if b < a { b } else { a }
+}
+
+/// max(a, b) as one `maxsd`/`maxpd` (a NaN `b` is ignored).
+#[inline(always)]
+fn fmax(a: f64, b: f64) -> f64 {
+    if b > a { b } else { a }
+}
+
+/// Samples per block of the blocked backward scans.
+pub(super) const BLOCK: usize = 8;
+
+/// The running bounds of one block: `su[j] = min(umin, min_{i ≥ j} u[i])` and `sl[j] =
+/// max(lmax, max_{i ≥ j} l[i])`, where `(umin, lmax)` are the bounds over the samples above the
+/// block. The block's own suffix scan starts from ±∞, so it does not wait for the blocks above
+/// and consecutive blocks overlap in the CPU; only the final combine depends on them.
+#[inline(always)]
+pub(super) fn suffix_into(
+    u: &[f64],
+    l: &[f64],
+    su: &mut [f64],
+    sl: &mut [f64],
+    umin: f64,
+    lmax: f64,
+) {
+    let m = u.len();
+    let (l, su, sl) = (&l[..m], &mut su[..m], &mut sl[..m]);
+    let (mut a, mut b) = (f64::INFINITY, f64::NEG_INFINITY);
+    for j in (0..m).rev() {
+        a = fmin(a, u[j]);
+        b = fmax(b, l[j]);
+        su[j] = a;
+        sl[j] = b;
+    }
+    for j in 0..m {
+        su[j] = fmin(umin, su[j]);
+        sl[j] = fmax(lmax, sl[j]);
+    }
+}
+
+/// Four samples with lane-wise arithmetic: in a function compiled for AVX2 each operation is one
+/// 256-bit instruction (the compiler keeps the lanes of the fixed-size array together, where a
+/// loop over a block of 8 became 128-bit pairs of U and L).
+#[derive(Debug, Clone, Copy)]
+struct F4([f64; 4]);
+
+impl F4 {
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Self([x; 4])
+    }
+    #[inline(always)]
+    fn load(s: &[f64]) -> Self {
+        Self([s[0], s[1], s[2], s[3]])
+    }
+    #[inline(always)]
+    fn zip(self, o: Self, f: impl Fn(f64, f64) -> f64) -> Self {
+        let (a, b) = (self.0, o.0);
+        Self([f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])])
+    }
+    /// min over the lanes, as a tree (exact for NaN-free lanes).
+    #[inline(always)]
+    fn hmin(self) -> f64 {
+        let a = self.0;
+        fmin(fmin(a[0], a[2]), fmin(a[1], a[3]))
+    }
+    /// max over the lanes, as a tree (exact for NaN-free lanes).
+    #[inline(always)]
+    fn hmax(self) -> f64 {
+        let a = self.0;
+        fmax(fmax(a[0], a[2]), fmax(a[1], a[3]))
+    }
+}
+
+/// The conditions of [`HandoffTable::solve`] on the running bounds (U*, L*), nested: 0, zero
+/// feedforward's worst case inside (L* ≤ −s, U* ≥ s); 1, width ≥ 2s; 2, width ≥ 0.
+#[inline(always)]
+fn keep<const P: usize>(u: f64, l: f64, shift: f64) -> bool {
+    match P {
+        0 => l <= -shift && u >= shift,
+        1 => u - l >= 2.0 * shift,
+        _ => u - l >= 0.0,
+    }
+}
+
+/// The backward scan of [`HandoffTable::solve`]: the next candidate k (samples k.. are in the
+/// running bounds `umin` = U*(k), `lmax` = L*(k)), moving down towards `floor`.
+struct Scan<'a> {
+    table: &'a HandoffTable,
+    p: Point,
+    /// The handoff's point as lanes: e0, v0, du, δ.
+    lanes: [F4; 4],
+    floor: usize,
+    /// No bound can be NaN: whole blocks may be reduced as trees.
+    nan_free: bool,
+    shift: f64,
+    k: usize,
+    umin: f64,
+    lmax: f64,
+    /// The samples k − `left` .. k of the block where the previous condition stopped holding,
+    /// not yet walked, with their bounds in `u[..left]`, `l[..left]`: the next condition
+    /// walks them first instead of computing a new (unaligned) block.
+    left: usize,
+    u: [f64; BLOCK],
+    l: [f64; BLOCK],
+}
+
+impl Scan<'_> {
+    /// U_k, L_k of the block of samples `lo .. lo + BLOCK`, four at a time.
+    #[inline(always)]
+    fn block(&self, lo: usize) -> ([F4; 2], [F4; 2]) {
+        let t = self.table;
+        let [e0, v0, du, delta] = self.lanes;
+        let (pe, pv) = (&t.pe[lo..lo + BLOCK], &t.pv[lo..lo + BLOCK]);
+        let (pu, w) = (&t.pu[lo..lo + BLOCK], &t.w[lo..lo + BLOCK]);
+        let mut u = [F4::splat(0.0); 2];
+        let mut l = [F4::splat(0.0); 2];
+        for h in 0..2 {
+            let o = 4 * h;
+            let mul = |a: f64, b: f64| a * b;
+            let add = |a: f64, b: f64| a + b;
+            // Point::bounds, lane by lane, the same operations in the same order.
+            let mid = F4::load(&pe[o..])
+                .zip(e0, mul)
+                .zip(F4::load(&pv[o..]).zip(v0, mul), add)
+                .zip(F4::load(&pu[o..]).zip(du, mul), add);
+            let half = F4::load(&w[o..]).zip(delta, mul);
+            u[h] = mid.zip(half, add);
+            l[h] = mid.zip(half, |a, b| a - b);
+        }
+        (u, l)
+    }
+
+    /// Moves down while condition `P` holds and returns (k, L*(k), U*(k)) for the lowest k at
+    /// which it holds (k = the floor if it holds all the way; k above the last candidate if it
+    /// never does). The samples the previous condition left in its last block come first,
+    /// sample by sample; then whole blocks that keep it are taken from their tree min/max,
+    /// and the block where it stops holding is walked sample by sample (its unwalked samples
+    /// are left to the next condition).
+    #[inline(always)]
+    fn run<const P: usize>(&mut self) -> (usize, f64, f64) {
+        let (mut k, mut umin, mut lmax) = (self.k, self.umin, self.lmax);
+        let (mut u, mut l) = (self.u, self.l);
+        // The running bounds ignore a NaN bound (fmin/fmax keep their first operand).
+        let mut left = 0;
+        for j in (0..self.left).rev() {
+            let (a, b) = (fmin(umin, u[j]), fmax(lmax, l[j]));
+            if !keep::<P>(a, b, self.shift) {
+                left = j + 1;
+                break;
+            }
+            (umin, lmax, k) = (a, b, k - 1);
+        }
+        if left == 0 {
+            'blocks: while k > self.floor {
+                let m = (k - self.floor).min(BLOCK);
+                let lo = k - m;
+                if m == BLOCK {
+                    let (bu, bl) = self.block(lo);
+                    if self.nan_free {
+                        let bmin = bu[0].zip(bu[1], fmin).hmin();
+                        let bmax = bl[0].zip(bl[1], fmax).hmax();
+                        let (nu, nl) = (fmin(umin, bmin), fmax(lmax, bmax));
+                        if keep::<P>(nu, nl, self.shift) {
+                            (umin, lmax, k) = (nu, nl, lo);
+                            continue;
+                        }
+                    }
+                    for h in 0..2 {
+                        u[4 * h..4 * h + 4].copy_from_slice(&bu[h].0);
+                        l[4 * h..4 * h + 4].copy_from_slice(&bl[h].0);
+                    }
+                } else {
+                    self.table.fill(lo, self.p, &mut u[..m], &mut l[..m]);
+                }
+                for j in (0..m).rev() {
+                    let (a, b) = (fmin(umin, u[j]), fmax(lmax, l[j]));
+                    if !keep::<P>(a, b, self.shift) {
+                        left = j + 1;
+                        break 'blocks;
+                    }
+                    (umin, lmax, k) = (a, b, lo + j);
+                }
+            }
+        }
+        (self.k, self.umin, self.lmax) = (k, umin, lmax);
+        (self.left, self.u, self.l) = (left, u, l);
+        (k, lmax, umin)
+    }
+}
+
+impl HandoffTable {
+    /// [`HandoffTable::solve`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn solve_avx2(
+        &self,
+        h: &Handoff,
+        window: &Window,
+        delta_b: f64,
+    ) -> HandoffSolution {
+        self.solve_portable(h, window, delta_b)
+    }
+
+    /// [`HandoffTable::solve`] for any CPU.
+    #[inline(always)]
+    pub(super) fn solve_portable(
+        &self,
+        h: &Handoff,
+        window: &Window,
+        delta_b: f64,
+    ) -> HandoffSolution {
+        let n = self.w.len();
+        let delta = window.half_width_um;
+        let shift = (self.dz_dbias * delta_b).abs();
+        let mut out = HandoffSolution {
+            optimal: None,
+            robust: None,
+            zero_ff_worst: None,
+            shift,
+        };
+        let du = h.u_prev_counts - h.bias_counts;
+        let (e0, v0) = (h.e0_um, h.v0_um_s);
+        if window.hold > n || !(e0.is_finite() && v0.is_finite() && du.is_finite()) {
+            return out;
+        }
+        let p = Point { e0, v0, du, delta };
+        let top = n - window.hold;
+        let floor = self.floor(p);
+        if floor > top {
+            return out;
+        }
+        // Running bounds over samples [k, n): start with the samples after the last candidate.
+        let mut umin = f64::INFINITY;
+        let mut lmax = f64::NEG_INFINITY;
+        for k in top + 1..n {
+            let (u, l) = p.bounds(self.pe[k], self.pv[k], self.pu[k], self.w[k]);
+            umin = fmin(umin, u);
+            lmax = fmax(lmax, l);
+        }
+        // |U_k|, |L_k| ≤ bound: far from overflow, so no bound is NaN and whole blocks can be
+        // reduced as trees; otherwise every block takes the per-sample path (NaN ignored).
+        let bound = self.coef_max * (e0.abs() + v0.abs() + du.abs()) + self.w_max * delta;
+        let mut scan = Scan {
+            table: self,
+            p,
+            lanes: [e0, v0, du, delta].map(F4::splat),
+            floor,
+            nan_free: bound < f64::MAX / 16.0,
+            shift,
+            k: top + 1,
+            umin,
+            lmax,
+            left: 0,
+            u: [0.0; BLOCK],
+            l: [0.0; BLOCK],
+        };
+        // The conditions are nested: each scan starts where the previous one stopped.
+        let found = [scan.run::<0>(), scan.run::<1>(), scan.run::<2>()];
+        let interval =
+            |(k, lo, hi): (usize, f64, f64)| (k <= top).then_some(Interval { k, lo, hi });
+        out.zero_ff_worst = interval(found[0]).map(|i| i.k);
+        out.robust = interval(found[1]);
+        out.optimal = interval(found[2]);
+        out
+    }
+
+    /// Fills `buf` with the per-sample bounds (eq. 14) and the backward running min/max
+    /// (eq. 15) of `h`, without allocating. `buf` must have been made for this horizon.
+    pub fn bounds_into(
+        &self,
+        h: &Handoff,
+        window: &Window,
+        buf: &mut Bounds,
+    ) -> Result<(), SettleError> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is true only when `new` found AVX2 on this CPU.
+            return unsafe { self.bounds_into_avx2(h, window, buf) };
+        }
+        self.bounds_into_portable(h, window, buf)
+    }
+
+    /// [`HandoffTable::bounds_into`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn bounds_into_avx2(
+        &self,
+        h: &Handoff,
+        window: &Window,
+        buf: &mut Bounds,
+    ) -> Result<(), SettleError> {
+        self.bounds_into_portable(h, window, buf)
+    }
+
+    /// [`HandoffTable::bounds_into`] for any CPU.
+    #[inline(always)]
+    pub(super) fn bounds_into_portable(
+        &self,
+        h: &Handoff,
+        window: &Window,
+        buf: &mut Bounds,
+    ) -> Result<(), SettleError> {
+        let n = self.w.len();
+        if buf.upper.len() != n {
+            return Err(SettleError::BufferLength {
+                got: buf.upper.len(),
+                want: n,
+            });
+        }
+        let p = Point {
+            e0: h.e0_um,
+            v0: h.v0_um_s,
+            du: h.u_prev_counts - h.bias_counts,
+            delta: window.half_width_um,
+        };
+        self.fill(0, p, &mut buf.upper, &mut buf.lower);
+        for z in &self.zero {
+            if Self::rules_out(z, p) {
+                buf.upper[z.k] = f64::NEG_INFINITY;
+                buf.lower[z.k] = f64::INFINITY;
+            }
+        }
+        // Blocks from the end: each block's suffix scan is independent of the blocks above.
+        let mut run = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut hi = n;
+        while hi >= BLOCK {
+            run = buf.running_block(hi - BLOCK, hi, run);
+            hi -= BLOCK;
+        }
+        if hi > 0 {
+            buf.running_block(0, hi, run);
+        }
+        buf.hold = window.hold;
+        Ok(())
+    }
+}
