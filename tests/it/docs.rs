@@ -36,10 +36,9 @@ fn every_built_in_term_has_a_row_in_the_term_table() {
     for syntax in names.split(", ") {
         let h = head(syntax);
         let row = format!("| `{h}");
-        let found = table.iter().any(|l| {
-            l.starts_with(&row)
-                && l[row.len()..].starts_with(|c: char| matches!(c, '`' | ':' | '[' | ','))
-        });
+        let found = table
+            .iter()
+            .any(|l| l.starts_with(&row) && l[row.len()..].starts_with(['`', ':', '[', ',']));
         if !found {
             missing.push(h.to_string());
         }
