@@ -97,11 +97,41 @@ pub fn data(name: &str) -> String {
         .to_string()
 }
 
-/// Path of a file under the project's real-data folder (`data/real/`, see its README), if present.
+/// The folder of the real measurements (EMPS, pneumatic, MR damper; see `data/real/README.md`):
+/// `$BIASCTL_REAL_DATA` if set, else `../shared/data/real` beside the crate root. `None` when
+/// neither is set and present. They are other people's data and are not in the repository.
+pub fn real_data_dir() -> Option<PathBuf> {
+    if let Some(dir) = std::env::var_os("BIASCTL_REAL_DATA") {
+        let dir = PathBuf::from(dir);
+        assert!(
+            dir.is_dir(),
+            "BIASCTL_REAL_DATA={} is not a folder (see data/real/README.md)",
+            dir.display()
+        );
+        return Some(dir);
+    }
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
+    dir.is_dir().then_some(dir)
+}
+
+/// True (after saying so on stderr) when the real data is not there: a real-data test then
+/// returns at once and passes. Put `if skip_without_real_data() { return; }` first in it.
+pub fn skip_without_real_data() -> bool {
+    use std::io::Write;
+    let skip = real_data_dir().is_none();
+    if skip {
+        // Straight to stderr, past the test harness's capture, so a plain `cargo test` shows it.
+        let _ = writeln!(
+            std::io::stderr(),
+            "skipped: real data not found (see data/real/README.md)"
+        );
+    }
+    skip
+}
+
+/// Path of a file in the real-data folder (see [`real_data_dir`]), if present.
 pub fn real_data(rel: &str) -> Option<String> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/real")
-        .join(rel);
+    let p = real_data_dir()?.join(rel);
     p.exists().then(|| p.display().to_string())
 }
 
@@ -146,4 +176,44 @@ pub fn mixed_line_ends(text: &str) -> String {
         m.push_str(line);
     }
     m
+}
+
+/// A small log with 60 measured rows spread over the stroke; `bias_scale` multiplies the bias.
+pub fn log_text(bias_scale: f64) -> String {
+    let mut s = String::from("time_s,track,bias\n");
+    for i in 0..60u32 {
+        let track = (i * 397) % 2999;
+        let bias =
+            (30.0 + 0.01 * f64::from(track) + if i % 2 == 0 { 5.0 } else { -5.0 }) * bias_scale;
+        s.push_str(&format!("{:.1},{track},{bias}\n", f64::from(i) * 0.1));
+    }
+    s
+}
+
+pub fn no_nonfinite(text: &str, what: &str) {
+    for cell in text.split([',', '\n', ' ', '"', ':']) {
+        let c = cell.trim().to_ascii_lowercase();
+        assert!(
+            !matches!(c.as_str(), "nan" | "inf" | "-inf" | "+inf" | "infinity"),
+            "{what} holds a non-finite value `{cell}`"
+        );
+    }
+}
+
+/// A random-seek log of `n` rows on the default drive (`r.csv` in `dir`) and the
+/// `position-direction` model fitted to it (`m.json`): the start of the tests that need both.
+pub fn random_log_and_model(dir: &std::path::Path, n: &str) -> (String, String) {
+    let log = dir.join("r.csv").display().to_string();
+    ok(&["simulate", "--sequence", "random", "--n", n, "--out", &log]);
+    let model = dir.join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &model,
+    ]);
+    (log, model)
 }

@@ -1,18 +1,16 @@
-//! Acceptance tests of `diagnose` on the simulated drive (issue #5) and the CLI contracts.
-//!
-//! Each effect test simulates random seeks (3000 train, 3000 test, span 250) on the frozen
-//! drive `data/diag_base.toml` with only P1 (position), P2 (direction), P8 (scatter) and the
-//! effect under test switched on, fits a model that lacks the matching term, and checks that the
-//! diagnosis ranks the feature the simulator's own law depends on first (the reference: the
-//! law in `src/sim/drive.rs`), and that adding the suggested term brings the test error within
-//! 10 % of the model holding every matching term.
+//! `diagnose`, `discover` and `ladder`: acceptance on the simulated drive and on the independent
+//! drives of `biasctl::family`, independence of the position unit, and the CLI contracts.
 
-use crate::common::{biasctl, data, fails_with, ok, write};
-use biasctl::Log;
-use biasctl::ModelSpec;
-use biasctl::{DiagnoseConfig, Diagnosis, diagnose_model, ladder_fit};
-use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
-use biasctl::{FitOptions, fit};
+use crate::common::{biasctl, data, fails_with, ok, real_data, skip_without_real_data, write};
+use crate::diagnose::diagnose_family::{config, fit_terms};
+use biasctl::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
+use biasctl::{
+    CheckedVerifyConfig, DiagnoseConfig, Diagnosis, Drive, FeatureTable, FitOptions, Log,
+    ModelSpec, SequenceOptions, SimConfig, diagnose_model, diagnose_verified, fit, ladder_fit,
+    simulate_log,
+};
+use diagnose_family::{Outcome, full_model_flags, run, scenarios};
+use serde_json::Value;
 
 const OFF: [&str; 6] = [
     "overshoot",
@@ -497,6 +495,9 @@ fn cli_bad_inputs_exit_2_with_a_clear_message() {
 /// friction (`viscous` or `stribeck`), verified by refit.
 #[test]
 fn emps_velocity_friction_is_suggested_as_viscous() {
+    if skip_without_real_data() {
+        return;
+    }
     use biasctl::ColumnMap;
     use biasctl::{CheckedVerifyConfig, DERIVED_VELOCITY, diagnose_verified};
     let map = ColumnMap {
@@ -505,7 +506,7 @@ fn emps_velocity_friction_is_suggested_as_viscous() {
         bias: "force_N".into(),
         ..ColumnMap::default()
     };
-    let path = data("real/emps/emps_estimation.csv");
+    let path = real_data("emps/emps_estimation.csv").expect("EMPS in the real-data folder");
     let opts = FitOptions::default().check().unwrap();
     let config = DiagnoseConfig::default().check().unwrap();
     let full = Log::read(std::path::Path::new(&path), &map).unwrap();
@@ -603,5 +604,778 @@ fn velocity_friction_is_not_suggested_without_velocity_friction() {
             .any(|e| e.verified && (e.edit.contains("viscous") || e.edit.contains("stribeck"))),
         "{}",
         d.to_text()
+    );
+}
+
+// ---- the independent drives of `biasctl::family` (scoring code: `examples/diagnose_family.rs`)
+
+#[path = "../../examples/diagnose_family.rs"]
+#[allow(dead_code)]
+pub(crate) mod diagnose_family;
+
+/// Seeks per log in the tests (the scoreboard uses 2000).
+const N: usize = 1500;
+
+/// Scenario `i` on drive `i mod 3`, seed `100 + i`: every scenario once, every drive four times.
+fn rotation() -> Vec<Outcome> {
+    let drives = FamilyDrive::members();
+    scenarios()
+        .iter()
+        .enumerate()
+        .map(|(i, effects)| run(&drives[i % drives.len()], effects, 100 + i as u64, N))
+        .collect()
+}
+
+fn describe(o: &Outcome) -> String {
+    let names: Vec<&str> = o.effects.iter().map(|e| e.name()).collect();
+    format!(
+        "{} {} seed {}: first {:?}, edit {:?}, std {:.3} -> {:.3} (true term {:?}), recovered \
+         {:?} (unverified suggestion {:?}: {:?}); scored: {}",
+        o.drive,
+        names.join("+"),
+        o.seed,
+        o.first,
+        o.edit,
+        o.std_base,
+        o.std_edit,
+        o.std_true,
+        o.recovered(),
+        o.suggested,
+        o.recovered_by_suggestion(),
+        o.verification
+    )
+}
+
+/// Issue #10's bar: every scenario right first, every first edit ≥ 90 % of the achievable.
+const ISSUE_SCENARIOS: usize = 12;
+/// Known gap (docs/validation.md, "Independent drives for testing diagnosis"): what diagnose reaches today
+/// on this rotation; the test fails if it falls below, and docs/validation.md says what is missing.
+/// (7 and 5 before the strongest unflagged features were verified by refit; 10 and 9 since;
+/// 11 and 10 since the `bump` term resolves the narrow defect; 11 and 11 since the
+/// verification's z-score is taken on the noise part of the paired loss difference: the
+/// `bw1-sine-tar` threshold run's `bins:load:16`, 6.6 % at z = 1.2 before, is verified at 2.4;
+/// 12 of 12 since the interaction is scored too, against its true term `by:position:supply`.)
+const KNOWN_RIGHT_FIRST: usize = 12;
+/// See [`KNOWN_RIGHT_FIRST`].
+const KNOWN_RECOVERED: usize = 12;
+/// Issue #10's bar for the model holding every effect: at most 1 of 20 seeds flags anything.
+const ISSUE_FLAGGED_SEEDS: usize = 1;
+/// Seeds of 20 allowed to flag something: the issue's bar, met since diagnose's null keeps the
+/// residual's serial structure (0 of 20 today; 8 of 20 with the row-shuffling null before it).
+const KNOWN_FLAGGED_SEEDS: usize = ISSUE_FLAGGED_SEEDS;
+
+/// Reference: the generator's truth (which effect is on). The first-ranked flagged feature must
+/// name a hidden effect (its column or a lag of it, `position`, a `memsum_L` feature) and the
+/// first verified edit (what `diagnose_verified` leads with; none verified recovers nothing)
+/// must recover at least 90 % of the residual-std reduction that refitting with the effect's
+/// true term achieves. Issue #10 asks for all 12 scenarios (the interaction's true term is
+/// `by:position:supply`); today's counts are asserted as a floor and every miss is printed. Before #10, diagnose named `elapsed_s` for a lagged temperature and
+/// `rest_distance_*` for summed memory.
+#[test]
+fn right_feature_first_and_first_edit_recovers_the_achievable_reduction() {
+    let outcomes = rotation();
+    let mut misses = Vec::new();
+    let (mut right, mut recovered) = (0, 0);
+    for o in &outcomes {
+        if o.right_first {
+            right += 1;
+        } else {
+            misses.push(format!("wrong first feature: {}", describe(o)));
+        }
+        if o.recovered().is_some_and(|r| r >= 0.9) {
+            recovered += 1;
+        } else {
+            misses.push(format!("edit recovers < 90 %: {}", describe(o)));
+        }
+        // No bump where there is no defect (a verified edit is starred in `verification`).
+        assert!(
+            o.effects.contains(&HiddenEffect::Defect) || !o.verification.contains("*add bump"),
+            "a bump verified without a defect: {}",
+            describe(o)
+        );
+        // No step where there is no threshold.
+        assert!(
+            o.effects.contains(&HiddenEffect::Threshold) || !o.verification.contains("*add step"),
+            "a step verified without a threshold: {}",
+            describe(o)
+        );
+    }
+    eprintln!(
+        "right first {right}/{ISSUE_SCENARIOS}, edit ≥ 90 % {recovered}/{ISSUE_SCENARIOS}\n{}",
+        misses.join("\n")
+    );
+    assert!(
+        right >= KNOWN_RIGHT_FIRST && recovered >= KNOWN_RECOVERED,
+        "right first {right}/{ISSUE_SCENARIOS} (floor {KNOWN_RIGHT_FIRST}), edit ≥ 90 % \
+         {recovered}/{ISSUE_SCENARIOS} (floor {KNOWN_RECOVERED}):\n{}",
+        misses.join("\n")
+    );
+}
+
+/// Reference: with every effect present held by its true term (and the drive's own trend and
+/// pivot by `table` and `dahl:8`), the residual is noise: issue #10 asks that nothing be
+/// flagged in at least 19 of 20 seeds (alpha = 1 % family-wise); today's count is the floor.
+/// The diagnosis is verified and a verified edit counts as a flag, so this is also the
+/// false-alarm check of verifying the strongest unflagged features.
+#[test]
+fn model_holding_every_effect_flags_nothing_in_19_of_20_seeds() {
+    let drives = FamilyDrive::members();
+    let held: Vec<Vec<HiddenEffect>> = scenarios();
+    let mut flagged = Vec::new();
+    for seed in 0..20u64 {
+        let drive = &drives[seed as usize % drives.len()];
+        let effects = &held[seed as usize % held.len()];
+        let f = full_model_flags(drive, effects, 200 + seed, N);
+        if !f.is_empty() {
+            flagged.push(format!("{} seed {}: {f:?}", drive.name, 200 + seed));
+        }
+    }
+    eprintln!(
+        "{} of 20 seeds flag a feature (issue: ≤ {ISSUE_FLAGGED_SEEDS})\n{}",
+        flagged.len(),
+        flagged.join("\n")
+    );
+    assert!(
+        flagged.len() <= KNOWN_FLAGGED_SEEDS,
+        "{} of 20 seeds flag a feature (known gap: {KNOWN_FLAGGED_SEEDS}):\n{}",
+        flagged.len(),
+        flagged.join("\n")
+    );
+}
+
+/// Reference: the generator's parameters. On a `bw-sine-t` log with the lag effect, `lag:temp_lag`
+/// recovers the lag's time constant (10 s) and slope (1.2 × noise std per 3 °C = 0.8 counts/°C);
+/// with summed memory, `memsum` recovers L = span/12 = 20 tracks and A = 1.2 × noise std = 2.4
+/// counts. Both fitted models survive a save/load round trip with identical predictions.
+#[test]
+fn lag_and_memsum_terms_recover_the_generators_parameters() {
+    use biasctl::{family::FamilyConfig, family::generate};
+    let drive = FamilyDrive::member("bw-sine-t").unwrap();
+    let base = diagnose_family::base_terms(&drive);
+    let dir = tempfile::tempdir().unwrap();
+    for (effect, term, checks) in [
+        (
+            HiddenEffect::Lag,
+            "lag:temp_lag",
+            [
+                ("lag:temp_lag.tau", 10.0, 0.25),
+                ("lag:temp_lag.slope", 0.8, 0.1),
+            ],
+        ),
+        (
+            HiddenEffect::SummedMemory,
+            "memsum",
+            [("memsum.L", 20.0, 0.25), ("memsum.A", 2.4, 0.15)],
+        ),
+    ] {
+        let run = generate(&FamilyConfig::new(drive.clone(), &[effect], 31, 3000)).unwrap();
+        let terms = diagnose_family::with_term(&base, term);
+        let model = diagnose_family::fit_terms(&terms, &run.log);
+        for (name, want, rel) in checks {
+            let got = model.param(name).unwrap().value;
+            assert!(
+                (got - want).abs() <= rel * want,
+                "{name}: {got} vs {want} (±{:.0} %)",
+                rel * 100.0
+            );
+        }
+        let path = dir.path().join(format!("{}.json", effect.name()));
+        model.save(&path).unwrap();
+        let back = biasctl::FittedModel::load(&path).unwrap();
+        let (a, b) = (
+            model.predict_log(&run.log).unwrap(),
+            back.predict_log(&run.log).unwrap(),
+        );
+        let worst = a
+            .predicted
+            .iter()
+            .zip(&b.predicted)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-9, "{term}: reloaded model differs by {worst}");
+    }
+}
+
+/// Issue #11 item 4, `play` and interactions, each suggested as a typed edit and verified by
+/// refit. Reference: the generator's physics. The `pi-cubic-ar1` pivot is a Prandtl–Ishlinskii
+/// (stop-operator) loop; a model with only a direction offset (`table:S,direction`) cannot
+/// express it, and the verified best edit is `play:N` (scored beside `dahl:4`). With the pivot
+/// held (`table:S,dahl:8`) no `play` edit is verified. The interaction scenario's bias is
+/// `supply × position`: the verified best edit is `by:position:supply`; with no interaction
+/// (the fast-covariate scenario, its true term held) no `by:` edit is verified.
+#[test]
+fn play_and_interaction_are_suggested_where_they_apply_and_only_there() {
+    use biasctl::family::{FamilyConfig, generate};
+    use biasctl::{CheckedVerifyConfig, diagnose_verified};
+    let drive = FamilyDrive::member("pi-cubic-ar1").unwrap();
+    let run = generate(&FamilyConfig::new(drive.clone(), &[], 7, N)).unwrap();
+    let table = diagnose_family::base_terms(&drive)[0].clone();
+    let verified = |terms: &[String], log: &biasctl::Log, seed: u64| {
+        let model = diagnose_family::fit_terms(terms, log);
+        let d = diagnose_verified(
+            &model,
+            log,
+            &diagnose_family::config(seed),
+            &CheckedVerifyConfig::default(),
+        )
+        .unwrap();
+        let v = d.verification.clone().unwrap();
+        (d, v)
+    };
+    let (d, v) = verified(&[table.clone(), "direction".into()], &run.log, 7);
+    let best = v.best().unwrap_or_else(|| panic!("{}", d.to_text()));
+    assert!(best.edit.starts_with("add play"), "{}", d.to_text());
+    let (d, v) = verified(&diagnose_family::base_terms(&drive), &run.log, 7);
+    assert!(
+        !v.edits
+            .iter()
+            .any(|e| e.verified && e.edit.contains("play")),
+        "{}",
+        d.to_text()
+    );
+
+    let bw = FamilyDrive::member("bw-sine-t").unwrap();
+    let run = generate(&FamilyConfig::new(
+        bw.clone(),
+        &[HiddenEffect::Interaction],
+        8,
+        N,
+    ))
+    .unwrap();
+    let (d, v) = verified(&diagnose_family::base_terms(&bw), &run.log, 8);
+    let best = v.best().unwrap_or_else(|| panic!("{}", d.to_text()));
+    assert!(
+        best.edit.starts_with("add by:")
+            && best.edit.contains("supply")
+            && best.edit.contains("position"),
+        "{}",
+        d.to_text()
+    );
+    let run = generate(&FamilyConfig::new(
+        bw.clone(),
+        &[HiddenEffect::FastCovariate],
+        8,
+        N,
+    ))
+    .unwrap();
+    let held = diagnose_family::with_term(&diagnose_family::base_terms(&bw), "col:temp_fast");
+    let (d, v) = verified(&held, &run.log, 8);
+    assert!(
+        !v.edits.iter().any(|e| e.verified && e.edit.contains("by:")),
+        "{}",
+        d.to_text()
+    );
+}
+
+/// Issue #10: a slowly varying column with **no** effect must not be flagged under strongly
+/// autocorrelated noise. Reference: the generator's truth. `pi-cubic-ar1` logs (AR(1) noise in
+/// seek order, ρ = 0.6) with the threshold effect, diagnosed (with verification) on the model
+/// that holds every effect present (`table`, `dahl:8`, the true `step:load`): the random
+/// walk `walk`, the warm-up curve and white noise are logged but never enter the bias, so any
+/// flag or verified edit is a false alarm, and none of 6 seeds may have one. Seed 50 is the
+/// held-out log where, before the within-fold gain was required, `walk@lag32.4s` was flagged
+/// and `col:walk` verified (3.2 % out of sample at z = 4.2, 0.3 % within folds): this test
+/// failed there.
+#[test]
+fn slow_no_effect_column_is_not_flagged_under_ar1_noise() {
+    let drive = FamilyDrive::member("pi-cubic-ar1").unwrap();
+    let mut flagged = Vec::new();
+    for seed in 45..=50u64 {
+        let f = full_model_flags(&drive, &[HiddenEffect::Threshold], seed, N);
+        if !f.is_empty() {
+            flagged.push(format!("seed {seed}: {f:?}"));
+        }
+    }
+    assert!(flagged.is_empty(), "{}", flagged.join("\n"));
+}
+
+/// Reference: the generator's truth. The defect scenario adds `5·a·exp(−½((x − c)/1.5)²)`
+/// (a = the drive's effect scale × noise std; c = the track where the truth series peaks,
+/// where it equals 5·a exactly since tracks are integers). Fitting the user's model plus
+/// `bump` (centre and width found from the data) on three drives must recover the centre
+/// within a quarter of a track, the width within 20 % and the amplitude within 2.5 standard
+/// errors; the fitted model survives a save/load round trip bit for bit.
+#[test]
+fn bump_term_recovers_the_generators_defect() {
+    use biasctl::{family::FamilyConfig, family::generate};
+    let dir = tempfile::tempdir().unwrap();
+    for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
+        let seed = 41 + i as u64;
+        let run = generate(&FamilyConfig::new(
+            drive.clone(),
+            &[HiddenEffect::Defect],
+            seed,
+            3000,
+        ))
+        .unwrap();
+        let truth = run.truth("defect").unwrap();
+        let (k, a_true) = truth
+            .iter()
+            .enumerate()
+            .fold((0, f64::MIN), |b, (k, &v)| if v > b.1 { (k, v) } else { b });
+        let c_true = run.log.tracks()[k];
+        let terms = diagnose_family::with_term(&diagnose_family::base_terms(&drive), "bump");
+        let model = diagnose_family::fit_terms(&terms, &run.log);
+        let p = |n: &str| model.param(&format!("bump.{n}")).unwrap().clone();
+        let (a, c, w) = (p("A"), p("centre"), p("width"));
+        eprintln!(
+            "{} seed {seed}: A {:.3} ± {:.3} (truth {a_true:.3}), centre {:.3} ± {:.3} (truth \
+             {c_true}), width {:.3} ± {:.3} (truth 1.5)",
+            drive.name,
+            a.value,
+            a.se.unwrap(),
+            c.value,
+            c.se.unwrap_or(f64::NAN),
+            w.value,
+            w.se.unwrap_or(f64::NAN)
+        );
+        assert!(
+            (c.value - c_true).abs() < 0.25,
+            "{}: centre {c:?}",
+            drive.name
+        );
+        assert!(
+            (w.value - 1.5).abs() < 0.2 * 1.5,
+            "{}: width {w:?}",
+            drive.name
+        );
+        assert!(
+            (a.value - a_true).abs() < 2.5 * a.se.unwrap(),
+            "{}: amplitude {a:?} vs {a_true}",
+            drive.name
+        );
+        assert_reload_predicts_the_same_bits(&model, &run.log, dir.path(), &drive.name);
+    }
+}
+
+/// Reference: the generator's truth. The threshold scenario adds `2·a` where `load > 0.6`
+/// (a = the drive's effect scale × noise std: the largest value of the truth series).
+/// Fitting the user's model plus `step:load` (threshold found from the data) on three drives
+/// must put the threshold within 0.005 of 0.6 (2.5 % of load's std), with a profile standard
+/// error, and the height within 2.5 standard errors of `2·a`; the fitted model survives a
+/// save/load round trip bit for bit.
+#[test]
+fn step_term_recovers_the_generators_threshold() {
+    use biasctl::{family::FamilyConfig, family::generate};
+    let dir = tempfile::tempdir().unwrap();
+    for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
+        let seed = 51 + i as u64;
+        let run = generate(&FamilyConfig::new(
+            drive.clone(),
+            &[HiddenEffect::Threshold],
+            seed,
+            3000,
+        ))
+        .unwrap();
+        let truth = run.truth("threshold").unwrap();
+        let a_true = truth.iter().copied().fold(0.0, f64::max);
+        let terms = diagnose_family::with_term(&diagnose_family::base_terms(&drive), "step:load");
+        let model = diagnose_family::fit_terms(&terms, &run.log);
+        let p = |n: &str| model.param(&format!("step:load.{n}")).unwrap().clone();
+        let (a, t) = (p("A"), p("threshold"));
+        eprintln!(
+            "{} seed {seed}: A {:.3} ± {:.3} (truth {a_true:.3}), threshold {:.4} ± {:.4} \
+             (truth 0.6)",
+            drive.name,
+            a.value,
+            a.se.unwrap(),
+            t.value,
+            t.se.unwrap_or(f64::NAN),
+        );
+        assert!(
+            (t.value - 0.6).abs() < 0.005,
+            "{}: threshold {t:?}",
+            drive.name
+        );
+        assert!(t.se.is_some_and(|se| se > 0.0), "{}: {t:?}", drive.name);
+        assert!(
+            (a.value - a_true).abs() < 2.5 * a.se.unwrap(),
+            "{}: height {a:?} vs {a_true}",
+            drive.name
+        );
+        assert_reload_predicts_the_same_bits(&model, &run.log, dir.path(), &drive.name);
+    }
+}
+
+/// Issue #10's bar on the narrow defect, on every drive (seeds not in the rotation).
+/// Reference: the generator's truth — the first-ranked flagged feature is `position`, the first
+/// verified edit adds a `bump` whose centre lies within half a track of the track where the
+/// truth series peaks, and refitting with it recovers ≥ 90 % of the reduction the true term
+/// achieves.
+#[test]
+fn narrow_defect_is_named_first_and_its_bump_recovers_the_achievable_reduction() {
+    use biasctl::{family::FamilyConfig, family::generate};
+    for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
+        let seed = 300 + i as u64;
+        let o = run(&drive, &[HiddenEffect::Defect], seed, N);
+        let text = describe(&o);
+        assert!(o.right_first, "{text}");
+        assert!(o.recovered().is_some_and(|r| r >= 0.9), "{text}");
+        let edit = o.edit.clone().unwrap_or_default();
+        let centre: f64 = edit
+            .strip_prefix("add bump:")
+            .and_then(|r| r.split(':').next())
+            .and_then(|c| c.parse().ok())
+            .unwrap_or_else(|| panic!("first edit is not a bump: {text}"));
+        let fam = generate(&FamilyConfig::new(
+            drive.clone(),
+            &[HiddenEffect::Defect],
+            seed,
+            N,
+        ))
+        .unwrap();
+        let truth = fam.truth("defect").unwrap();
+        let k = (0..truth.len())
+            .max_by(|&a, &b| truth[a].total_cmp(&truth[b]))
+            .unwrap();
+        let c_true = fam.log.tracks()[k];
+        assert!(
+            (centre - c_true).abs() < 0.5,
+            "centre {centre} vs {c_true}: {text}"
+        );
+    }
+}
+
+/// The lag runs the verification missed before its z-score was taken on the noise part of the
+/// paired loss difference (seeds 1–5 of the study in docs/validation.md): a lagged
+/// temperature alone, and beside a position × direction effect. In each, `lag:temp_lag`
+/// gained 19–56 % out of sample but at z = 1.8–2.8, under the unflagged-feature bar of 3
+/// (the gain comes in episodes at set-point changes, which the block sums of the whole
+/// difference counted as noise), so nothing or only `dbins:position` was verified (24–50 % of
+/// the achievable). Reference: the generator's truth — the first-ranked feature reads
+/// `temp_lag`, the first verified edit is the effect's own term `add lag:temp_lag`, and it
+/// recovers ≥ 90 % of the reduction the best single true term achieves.
+#[test]
+fn a_lagged_temperature_is_verified_first_also_beside_position_direction() {
+    use HiddenEffect::{Lag, PositionDirection};
+    let drives = FamilyDrive::members();
+    let cases: [(usize, &[HiddenEffect], u64); 5] = [
+        (0, &[Lag], 5),
+        (1, &[Lag], 4),
+        (2, &[Lag], 1),
+        (0, &[Lag, PositionDirection], 5),
+        (1, &[Lag, PositionDirection], 4),
+    ];
+    for (d, effects, seed) in cases {
+        let o = run(&drives[d], effects, seed, N);
+        let text = describe(&o);
+        assert!(o.right_first, "{text}");
+        assert_eq!(o.edit.as_deref(), Some("add lag:temp_lag"), "{text}");
+        assert!(o.recovered().is_some_and(|r| r >= 0.9), "{text}");
+    }
+}
+
+/// Saves `model` as `<name>.json` in `dir`, loads it back and asserts that the reloaded model
+/// predicts `log` bit for bit as the original does (the model file round trip of a searched
+/// term: its found centre, width or threshold must survive the text).
+fn assert_reload_predicts_the_same_bits(
+    model: &biasctl::FittedModel,
+    log: &biasctl::Log,
+    dir: &std::path::Path,
+    name: &str,
+) {
+    let path = dir.join(format!("{name}.json"));
+    model.save(&path).unwrap();
+    let back = biasctl::FittedModel::load(&path).unwrap();
+    let (x, y) = (
+        model.predict_log(log).unwrap(),
+        back.predict_log(log).unwrap(),
+    );
+    assert!(
+        x.predicted
+            .iter()
+            .zip(&y.predicted)
+            .all(|(u, v)| u.to_bits() == v.to_bits()),
+        "{name}: the reloaded model predicts other bits"
+    );
+}
+
+// ---- the diagnosis does not depend on the position unit
+
+/// The log with its positions × `k`.
+fn scaled(log: &Log, k: f64) -> Log {
+    let mut log = log.clone();
+    for x in log.tracks_mut() {
+        *x *= k;
+    }
+    log
+}
+
+/// Whether number `a` (tracks) and `b` (in the unit × `k`) are the same figure up to `rel`: equal
+/// once `b` is divided by `k^p` for a power p from −2 to 2 (a position, a slope per position,
+/// a squared position, …), or both below 1e-12 after it (a figure that is rounding noise).
+fn same_number(a: f64, b: f64, k: f64, rel: f64) -> bool {
+    (-2..=2).any(|p| {
+        let b = b / k.powi(p);
+        (a - b).abs() <= rel * a.abs().max(b.abs()) + 1e-12
+    })
+}
+
+/// `s` split into its text and its numbers (`memsum_L15.0` → `memsum_L#`, [15.0]).
+fn tokens(s: &str) -> (String, Vec<f64>) {
+    let c: Vec<char> = s.chars().collect();
+    let digit = |i: usize| c.get(i).is_some_and(char::is_ascii_digit);
+    let (mut text, mut nums, mut i) = (String::new(), Vec::new(), 0);
+    while i < c.len() {
+        let negative = c[i] == '-' && digit(i + 1) && (i == 0 || !c[i - 1].is_alphanumeric());
+        if !(digit(i) || negative) {
+            text.push(c[i]);
+            i += 1;
+            continue;
+        }
+        let start = i;
+        i += usize::from(negative);
+        while digit(i) || (c.get(i) == Some(&'.') && digit(i + 1)) {
+            i += 1;
+        }
+        if c.get(i) == Some(&'e') && (digit(i + 1) || (c.get(i + 1) == Some(&'-') && digit(i + 2)))
+        {
+            i += 2;
+            while digit(i) {
+                i += 1;
+            }
+        }
+        let number: String = c[start..i].iter().collect();
+        nums.push(number.parse::<f64>().unwrap());
+        text.push('#');
+    }
+    (text, nums)
+}
+
+/// Every difference between report `a` (tracks) and `b` (positions × `k`) under the rules of the
+/// module doc, with its key path.
+fn differences(a: &Value, b: &Value, k: f64, path: &str, out: &mut Vec<String>) {
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            if !same_number(x, y, k, 1e-5) {
+                out.push(format!("{path}: {x} vs {y}"));
+            }
+        }
+        (Value::String(x), Value::String(y)) => {
+            let ((tx, nx), (ty, ny)) = (tokens(x), tokens(y));
+            let numbers_agree = nx.len() == ny.len()
+                && nx.iter().zip(&ny).all(|(p, q)| {
+                    // Printed to 3–4 significant digits.
+                    same_number(*p, *q, k, 6e-3)
+                });
+            if tx != ty || !numbers_agree {
+                out.push(format!("{path}: `{x}` vs `{y}`"));
+            }
+        }
+        (Value::Array(x), Value::Array(y)) if x.len() == y.len() => {
+            for (i, (p, q)) in x.iter().zip(y).enumerate() {
+                differences(p, q, k, &format!("{path}[{i}]"), out);
+            }
+        }
+        (Value::Object(x), Value::Object(y))
+            if x.keys().collect::<Vec<_>>() == y.keys().collect::<Vec<_>>() =>
+        {
+            for (key, p) in x {
+                differences(p, &y[key], k, &format!("{path}.{key}"), out);
+            }
+        }
+        _ if a == b => {}
+        _ => out.push(format!("{path}: {a} vs {b}")),
+    }
+}
+
+#[test]
+fn comparison_rules_catch_what_they_must() {
+    // The failure this module is about, and a changed flag, are differences; a unit factor or
+    // last-bit rounding is not.
+    let a: Value = serde_json::json!({"x": 0.217089, "n": "memsum_L15.0", "f": true});
+    let ok: Value = serde_json::json!({"x": 0.21708900000001, "n": "memsum_L0.750", "f": true});
+    let moved: Value = serde_json::json!({"x": 0.217002, "n": "memsum_L0.750", "f": true});
+    let flag: Value = serde_json::json!({"x": 0.217089, "n": "memsum_L0.750", "f": false});
+    let name: Value = serde_json::json!({"x": 0.217089, "n": "memsum_L0.950", "f": true});
+    let count = |b: &Value| {
+        let mut out = Vec::new();
+        differences(&a, b, 0.05, "", &mut out);
+        out.len()
+    };
+    assert_eq!(
+        [count(&ok), count(&moved), count(&flag), count(&name)],
+        [0, 1, 1, 1]
+    );
+    assert_eq!(tokens("memsum_L3.750 ×dir").1, [3.75]);
+    assert_eq!(tokens("step:position:-12.5").1, [-12.5]);
+    assert_eq!(tokens("p = 1.2e-5,").1, [1.2e-5]);
+}
+
+/// The tie structure of every feature column (which rows are equal, which smaller) is the same
+/// in tracks and in every unit: the cheap check of what the quantile bins see.
+#[test]
+fn derived_position_features_tie_alike_in_every_unit() {
+    let drive = FamilyDrive::member("bw-sine-t").unwrap();
+    let fam = generate(&FamilyConfig::new(drive, &[], 7, 1500)).unwrap();
+    let ranks = |t: &FeatureTable, name: &str| -> Vec<(usize, Option<usize>)> {
+        let col = t.column(name).unwrap();
+        let mut defined: Vec<f64> = col.iter().flatten().collect();
+        defined.sort_by(f64::total_cmp);
+        defined.dedup_by(|a, b| a.to_bits() == b.to_bits());
+        col.iter()
+            .enumerate()
+            .map(|(i, v)| {
+                (
+                    i,
+                    v.map(|v| defined.partition_point(|d| d.total_cmp(&v).is_lt())),
+                )
+            })
+            .collect()
+    };
+    let base = FeatureTable::from_log(&fam.log);
+    for k in [0.05, 1e-3, 7.3, 4.0, 1e-6 / 3.0] {
+        let t = FeatureTable::from_log(&scaled(&fam.log, k));
+        for name in [
+            "position",
+            "seek_length",
+            "seek_abs",
+            "since_reversal",
+            "rest_distance_od",
+            "rest_distance_id",
+        ] {
+            assert!(
+                ranks(&base, name) == ranks(&t, name),
+                "{name} at × {k}: the ties or order differ from tracks"
+            );
+            // And the values are the tracks values × k (the grid is 2⁻³² of the largest position).
+            for (a, b) in base
+                .column(name)
+                .unwrap()
+                .iter()
+                .zip(t.column(name).unwrap().iter())
+            {
+                if let (Some(a), Some(b)) = (a, b) {
+                    assert!(
+                        (a * k - b).abs() <= 1e-7 * 240.0 * k,
+                        "{name} × {k}: {a} vs {b}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The report itself: a family drive with summed memory (rest distances and seek lengths among
+/// the strongest features), verified, in tracks and in four other units; and the user model's
+/// predictions (`fit` then `predict` in each unit) against the tracks model's.
+#[test]
+fn diagnose_report_is_the_same_in_any_position_unit() {
+    let drive = FamilyDrive::member("bw-sine-t").unwrap();
+    let seed = 507;
+    let fam = generate(&FamilyConfig::new(
+        drive.clone(),
+        &[HiddenEffect::SummedMemory],
+        seed,
+        900,
+    ))
+    .unwrap();
+    let report = |k: f64| -> (Value, Vec<f64>) {
+        let log = scaled(&fam.log, k);
+        // The table's knot spacing in the same unit: span/24 tracks.
+        let terms = vec![
+            format!("table:{:?}", drive.span / 24.0 * k),
+            "dahl:8".to_string(),
+        ];
+        let model = fit_terms(&terms, &log);
+        let d = diagnose_verified(&model, &log, &config(seed), &CheckedVerifyConfig::default())
+            .unwrap();
+        let predicted = model.predict_log(&log).unwrap().predicted;
+        (
+            serde_json::from_str(&d.to_json().unwrap()).unwrap(),
+            predicted,
+        )
+    };
+    let (base, p0) = report(1.0);
+    let spread = p0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // The run must exercise what the fix is about.
+    let names: Vec<&str> = base["features"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].as_str().unwrap())
+        .collect();
+    assert!(names.contains(&"rest_distance_od") && names.contains(&"seek_length"));
+    for k in [0.05, 1e-3, 7.3, 4.0] {
+        let (r, p) = report(k);
+        // `fit` and `predict`: the same predictions (counts) in any unit, to 1e-9 of their spread.
+        for (a, b) in p0.iter().zip(&p) {
+            assert!(
+                (a - b).abs() <= 1e-9 * spread,
+                "positions × {k}: {a} vs {b}"
+            );
+        }
+        let mut out = Vec::new();
+        differences(&base, &r, k, "", &mut out);
+        assert!(
+            out.is_empty(),
+            "positions × {k}: {} differences, first: {:#?}",
+            out.len(),
+            &out[..out.len().min(8)]
+        );
+    }
+}
+
+/// Positions far from zero (encoder counts near 1e12, a travel of 1e4) keep the lengths'
+/// resolution: the grid is held at 2⁻²⁴ of the travel, so whole-count seek lengths stay exact.
+/// Reference: the integer differences of the written positions.
+#[test]
+fn positions_far_from_zero_keep_their_lengths() {
+    let steps: [f64; 8] = [0.0, 1.0, 2.0, 3.0, 5000.0, 7.0, 9999.0, 4.0];
+    let mut text = String::from("time_s,track,bias\n");
+    for (i, s) in steps.iter().enumerate() {
+        text += &format!("{i},{},{}\n", 1e12 + s, i % 3);
+    }
+    let log = Log::from_reader("far.csv", text.as_bytes(), &Default::default()).unwrap();
+    let table = FeatureTable::from_log(&log);
+    let lengths: Vec<Option<f64>> = table.column("seek_abs").unwrap().iter().collect();
+    for (i, l) in lengths.iter().enumerate().skip(1) {
+        assert_eq!(
+            l.map(f64::to_bits),
+            Some((steps[i] - steps[i - 1]).abs().to_bits()),
+            "row {i}: {l:?}"
+        );
+    }
+}
+
+// ---- output folders
+
+/// `diagnose --out` must name a directory: an existing file is refused with that explanation.
+#[test]
+fn diagnose_out_that_is_a_file_is_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    ok(&[
+        "simulate",
+        "--sequence",
+        "random",
+        "--n",
+        "200",
+        "--seed",
+        "5",
+        "--out",
+        &p("log.csv"),
+    ]);
+    ok(&[
+        "fit",
+        "--data",
+        &p("log.csv"),
+        "--model",
+        "position-direction",
+        "--out",
+        &p("m.json"),
+    ]);
+    fails_with(
+        &[
+            "diagnose",
+            "--model",
+            &p("m.json"),
+            "--data",
+            &p("log.csv"),
+            "--out",
+            &p("log.csv"),
+        ],
+        &["--out", "is a file", "takes a directory"],
     );
 }

@@ -2,7 +2,7 @@
 //! log to the same predictions as `biasctl predict` (the reference), in double and in float.
 
 use crate::common::{fails_with, ok, write};
-use crate::predict_plan::{column, edit_log, logs};
+use crate::predict::{column, edit_log, logs};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 

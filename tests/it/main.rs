@@ -1,27 +1,19 @@
-//! The one integration-test binary: CLI contracts, paper reproduction, bad inputs, real data.
-//! One module per area; helpers for running the binary live in `common`.
+//! The one integration-test binary, one module per pipeline stage or command: reading a log,
+//! simulating, fitting, predicting, diagnosing, exporting, settling, plotting and reporting, the
+//! command line as a whole, real data, and the properties every input must keep (with the fuzz
+//! harness). Helpers for running the binary live in `common`.
 
-mod check;
+mod cli;
 mod common;
 mod diagnose;
+mod docs;
 mod export;
-mod extend;
-mod family;
-mod first_use;
+mod fit_model;
 mod fuzz;
-mod invariance;
-mod model;
-mod outputs;
-mod plot;
-mod position_unit;
-mod predict_plan;
-mod property;
-mod real;
-mod report;
-mod review;
-mod scale;
-mod selfcheck;
-mod settings;
+mod log_reading;
+mod plot_report;
+mod predict;
+mod properties;
+mod real_data;
 mod settle;
-mod sim;
-mod units;
+mod simulate;

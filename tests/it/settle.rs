@@ -1,11 +1,12 @@
 //! `settle`: the paper's Section IV golden values, the handoff fast path against a naive
 //! simulation, the robust choice against simulated biases, CLI contracts and bad plant files.
 
-use crate::common::{biasctl, data, fails_with, ok, simulate_random_args, write};
-use biasctl::Controller;
-use biasctl::SimRng;
+use crate::common::{
+    biasctl, data, fails_with, no_nonfinite, ok, random_log_and_model, simulate_random_args, write,
+};
 use biasctl::{
-    Bounds, Handoff, HandoffTable, SettleSpec, Window, analyse, handoff_state, settle_index,
+    Bounds, Controller, Handoff, HandoffTable, SettleSpec, SimRng, Window, analyse, handoff_state,
+    settle_index,
 };
 
 fn controller(preset: &str) -> Controller {
@@ -427,4 +428,68 @@ fn settle_with_model_bad_inputs_exit_2() {
         ],
         &["missing required column `force`", "--bias-col"],
     );
+}
+
+// ---- outputs that do not settle
+
+#[test]
+fn settle_bounds_csv_has_no_infinities() {
+    let dir = tempfile::tempdir().unwrap();
+    let bounds = dir.path().join("b.csv").display().to_string();
+    let resp = dir.path().join("r.csv").display().to_string();
+    ok(&["settle", "--bounds-out", &bounds, "--response-out", &resp]);
+    let b = std::fs::read_to_string(&bounds).unwrap();
+    no_nonfinite(&b, "bounds CSV");
+    // k = 0 has no bound: empty cells, and the row keeps its six fields.
+    let row0 = b.lines().nth(1).unwrap();
+    assert_eq!(row0, "0,0.0000000,,,,", "{row0}");
+    no_nonfinite(&std::fs::read_to_string(&resp).unwrap(), "responses CSV");
+}
+
+#[test]
+fn settle_text_says_when_zero_feedforward_does_not_settle() {
+    let out = ok(&["settle", "--horizon", "5"]);
+    assert!(
+        out.contains("zero feedforward: does not settle within the horizon"),
+        "{out}"
+    );
+    assert!(!out.contains("settles in not settled"), "{out}");
+}
+
+// ---- flags named as given
+
+/// Flags that a library error named wrongly or not at all: `settle --target nan` said
+/// "bias (--bias) must be within ±1e9 counts, got NaN" (the NaN target's prediction), an
+/// unknown `--preset` / `--handoff` preset was named without its flag.
+#[test]
+fn settle_and_handoff_flags_are_named_as_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, model) = random_log_and_model(dir.path(), "60");
+    for bad in ["nan", "inf", "2e15"] {
+        let err = fails_with(
+            &["settle", "--model", &model, "--data", &log, "--target", bad],
+            &["--target", "finite position within ±1e15"],
+        );
+        assert!(!err.contains("--bias"), "{err}");
+    }
+    fails_with(
+        &["settle", "--preset", "paper1998"],
+        &["--preset paper1998", "unknown preset"],
+    );
+    let out = dir.path().join("p.csv");
+    fails_with(
+        &[
+            "predict",
+            "--model",
+            &model,
+            "--data",
+            &log,
+            "--out",
+            &out.display().to_string(),
+            "--handoff",
+            "paper1998",
+        ],
+        &["--handoff paper1998", "not a plant file"],
+    );
+    assert!(!out.exists());
 }

@@ -2,9 +2,7 @@
 //! streaming through stdin/stdout, and the allocation-free `Predictor`.
 
 use crate::common::{biasctl, data, fails_with, ok, write};
-use biasctl::{CheckedFitOptions, fit};
-use biasctl::{ColumnMap, Log};
-use biasctl::{ModelSpec, Predictor};
+use biasctl::{CheckedFitOptions, ColumnMap, Log, ModelSpec, Predictor, fit};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::Path;

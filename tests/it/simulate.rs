@@ -1,5 +1,5 @@
 //! `biasctl simulate` and `biasctl demo`: byte-identical output per seed, metadata, truth file,
-//! flag validation with exit 2, nothing half-written on error.
+//! seek scripts, flag validation with exit 2, nothing half-written on error.
 
 use crate::common::{data, editor_line, fails_with, mixed_line_ends, ok, with_line_ends, write};
 
@@ -291,4 +291,98 @@ fn demo_writes_tables_dwell_and_random() {
         assert!(out.join(format!("{name}_truth.csv")).exists(), "{name}");
         assert!(stdout.contains(name), "{stdout}");
     }
+}
+
+// ---- seek scripts as spreadsheets write them
+
+/// The known bug: an empty or blank-only `--script` named its missing `track` column at the
+/// line after the file's end (line 3 of a two-line file). Reference: the file has no header at
+/// all, so no line is named and the message says what a script holds.
+#[test]
+fn an_empty_or_blank_script_is_called_empty_without_a_line() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, text) in [
+        ("empty.csv", ""),
+        ("blank.csv", "\n\n"),
+        ("blank_crlf.csv", "\r\n  \r\n"),
+        ("bom.csv", "\u{feff}"),
+    ] {
+        let script = write(dir.path(), name, text);
+        let out = dir.path().join("o.csv");
+        let err = fails_with(
+            &[
+                "simulate",
+                "--sequence",
+                "script",
+                "--script",
+                &script,
+                "--out",
+                &out.display().to_string(),
+            ],
+            &[
+                &format!("{script}: the script is empty"),
+                "track,dwell_s[,measure]",
+            ],
+        );
+        assert!(!err.contains("line "), "{name}: {err}");
+        assert!(!out.exists(), "{name}: nothing is written");
+    }
+}
+
+/// A script saved by a European spreadsheet (byte-order mark, `;`, decimal commas, CRLF,
+/// capitalised quoted header) failed with "missing column `track`". Reference: the plain comma
+/// script of the same seeks gives a byte-identical log (same seed; all but the metadata line
+/// that names the script file).
+#[test]
+fn a_spreadsheet_script_simulates_the_same_log_as_the_plain_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = write(
+        dir.path(),
+        "plain.csv",
+        "track,dwell_s,measure\n100,0.25,1\n220,1.5,0\n180,0.5,1\n",
+    );
+    let excel = write(
+        dir.path(),
+        "excel.csv",
+        "\u{feff}\"Track\";\"Dwell_s\";\"Measure\"\r\n100;0,25;1\r\n220;1,5;0\r\n180;0,5;1\r\n",
+    );
+    let logs: Vec<String> = [&plain, &excel]
+        .iter()
+        .enumerate()
+        .map(|(i, script)| {
+            let out = dir.path().join(format!("log{i}.csv"));
+            // `--script` alone implies `--sequence script`.
+            ok(&[
+                "simulate",
+                "--script",
+                script,
+                "--out",
+                &out.display().to_string(),
+            ]);
+            // All but the metadata line naming the script file.
+            std::fs::read_to_string(out)
+                .unwrap()
+                .lines()
+                .filter(|l| !l.starts_with("# script ="))
+                .collect::<Vec<_>>()
+                .join("\n")
+        })
+        .collect();
+    assert_eq!(logs[0], logs[1]);
+    assert_eq!(logs[0].lines().filter(|l| !l.starts_with('#')).count(), 4);
+    // A script beside another sequence was silently unused: refused naming both flags.
+    let out = dir.path().join("r.csv");
+    fails_with(
+        &[
+            "simulate",
+            "--sequence",
+            "random",
+            "--script",
+            &plain,
+            "--out",
+            &out.display().to_string(),
+        ],
+        &["--script", "--sequence random"],
+    );
+    assert!(!out.exists());
 }

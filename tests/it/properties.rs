@@ -471,7 +471,7 @@ fn random_finite_inputs_give_finite_outputs_or_clean_refusals() {
     let mut rng = Rng::new(17);
     let mut findings = Vec::new();
     let (mut accepted, mut refused) = (0, 0);
-    // `BIASCTL_PROPERTY_CASES=N cargo test --test it property::` runs a longer study.
+    // `BIASCTL_PROPERTY_CASES=N cargo test --test it properties::` runs a longer study.
     let cases = std::env::var("BIASCTL_PROPERTY_CASES")
         .ok()
         .and_then(|v| v.parse().ok())
