@@ -174,6 +174,12 @@ pub mod plot;
 
 pub(crate) mod report;
 
+/// The `biasctl` command line (the `cli` feature, on by default): flags parsed into the
+/// library's checked settings, one file per command. Its one public item is [`cli::main`],
+/// what the binary runs.
+#[cfg(feature = "cli")]
+pub mod cli;
+
 // The curated public API: what a user of the library needs, one `use biasctl::…` away. The
 // modules above are crate-private; `plot` stays a namespace (one builder per figure), and two
 // namespaces are re-exported whole: `terms` (the built-in terms, for a user writing their own

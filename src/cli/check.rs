@@ -1,24 +1,24 @@
 //! `biasctl check`: validate a log and summarise it.
 
 use super::common::LogArgs;
-use biasctl::LogReader;
+use crate::LogReader;
 
 /// Flags of `biasctl check`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     log: LogArgs,
 }
 
 /// Streams the log (in constant memory) and prints rows, measured rows, span, units, the sampling (rows/s, how the
 /// direction of motion is read, reversals, the position-noise estimate) and covariates.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let map = args.log.columns.map();
     let mut reader = LogReader::open(&args.log.data, &map)?;
     let units = args.log.columns.units(reader.schema())?;
     // Constant memory: the exact medians take a few passes over the log (see
     // `summarise_sampling`).
-    let (sum, sampling) = biasctl::summarise_sampling(&mut reader, &args.log.data, &map)?;
+    let (sum, sampling) = crate::summarise_sampling(&mut reader, &args.log.data, &map)?;
     let s = reader.schema();
     outln!("{}: {} rows, {} measured", s.file, sum.rows, sum.measured)?;
     outln!(

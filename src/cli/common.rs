@@ -1,12 +1,12 @@
 //! Flags shared by several commands.
 
-use anyhow::Context;
-use biasctl::Field;
-use biasctl::SettleSpec;
-use biasctl::{
+use crate::Field;
+use crate::SettleSpec;
+use crate::{
     ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL, Log, LogSchema, Units,
     check_unit_label,
 };
+use anyhow::Context;
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// library's errors name settings ([`Field`]); [`with_flags`] renders each as its flag in every
 /// message the CLI prints. `None`: no command sets the field (a library-only setting such as
 /// `FitOptions::grid`), so its name stays. Every [`Field`] is listed once (a test checks).
-pub const FLAGS: [(Field, Option<&str>); 41] = [
+pub(crate) const FLAGS: [(Field, Option<&str>); 41] = [
     (Field::TimeColumn, Some("--time-col")),
     (Field::TrackColumn, Some("--track-col")),
     (Field::BiasColumn, Some("--bias-col")),
@@ -59,7 +59,7 @@ pub const FLAGS: [(Field, Option<&str>); 41] = [
 ];
 
 /// The flag that sets `field`, from [`FLAGS`]; `None` for a library-only setting.
-pub fn flag(field: Field) -> Option<&'static str> {
+pub(crate) fn flag(field: Field) -> Option<&'static str> {
     FLAGS
         .iter()
         .find(|(f, _)| *f == field)
@@ -79,7 +79,7 @@ fn cli_name(field: Field) -> String {
 
 /// `text` with every whole occurrence of a library setting name ([`Field::find_in`]) replaced
 /// by the CLI's name for it ([`cli_name`]).
-pub fn with_flags(text: &str) -> String {
+pub(crate) fn with_flags(text: &str) -> String {
     let mut found: Vec<(std::ops::Range<usize>, Field)> = Field::ALL
         .iter()
         .flat_map(|&f| f.find_in(text).into_iter().map(move |r| (r, f)))
@@ -98,7 +98,7 @@ pub fn with_flags(text: &str) -> String {
 
 /// Column-name and unit flags accepted by every command that reads a log.
 #[derive(Debug, Clone, Args)]
-pub struct ColumnArgs {
+pub(crate) struct ColumnArgs {
     /// Name of the time column (seconds).
     #[arg(long, default_value = DEFAULT_TIME_COL, value_name = "NAME")]
     pub time_col: String,
@@ -158,7 +158,7 @@ impl Default for ColumnArgs {
 
 impl ColumnArgs {
     /// The validated column map.
-    pub fn map(&self) -> ColumnMap {
+    pub(crate) fn map(&self) -> ColumnMap {
         ColumnMap {
             time: self.time_col.clone(),
             track: self.track_col.clone(),
@@ -169,7 +169,7 @@ impl ColumnArgs {
 
     /// The units of a log read with these flags: the unit flags first, then the log's metadata,
     /// then the column defaults ([`Units::resolve`]).
-    pub fn units(&self, schema: &LogSchema) -> anyhow::Result<Units> {
+    pub(crate) fn units(&self, schema: &LogSchema) -> anyhow::Result<Units> {
         Ok(Units::resolve(
             self.bias_unit.as_deref(),
             self.track_unit.as_deref(),
@@ -178,7 +178,7 @@ impl ColumnArgs {
     }
 
     /// Reads the whole log at `path` with these column names and unit labels.
-    pub fn read_log(&self, path: &Path) -> anyhow::Result<Log> {
+    pub(crate) fn read_log(&self, path: &Path) -> anyhow::Result<Log> {
         let mut log = Log::read(path, &self.map())?;
         for note in &log.schema.notes {
             eprintln!("note: {note}");
@@ -190,7 +190,7 @@ impl ColumnArgs {
 
 /// A log to read (`--data`) and its column names.
 #[derive(Debug, Clone, Args)]
-pub struct LogArgs {
+pub(crate) struct LogArgs {
     /// The measurement log (CSV with `time_s`, `track`, `bias` and optional covariate columns).
     #[arg(long, value_name = "LOG.csv")]
     pub data: PathBuf,
@@ -202,7 +202,7 @@ pub struct LogArgs {
 /// neither: a deadband estimated from the position noise on a dense time series, raw position
 /// steps on a log of seeks.
 #[derive(Debug, Clone, Default, Args)]
-pub struct DirectionArgs {
+pub(crate) struct DirectionArgs {
     /// Direction reverses only once the position has come back more than X (the log's position
     /// unit, ≥ 0; 0: every step against the direction) from its furthest point. Default: the
     /// range the position noise spans over the log (2·√(2 ln n) × its std) on a densely sampled
@@ -221,8 +221,8 @@ pub struct DirectionArgs {
 
 impl DirectionArgs {
     /// The library setting these flags ask for (checked: a bad deadband names the flag).
-    pub fn setting(&self) -> anyhow::Result<biasctl::DirectionSetting> {
-        use biasctl::DirectionSetting;
+    pub(crate) fn setting(&self) -> anyhow::Result<crate::DirectionSetting> {
+        use crate::DirectionSetting;
         let s = match (&self.deadband, &self.velocity_col) {
             (Some(d), _) => DirectionSetting::Deadband(*d),
             (None, Some(c)) => DirectionSetting::Velocity(c.clone()),
@@ -233,10 +233,10 @@ impl DirectionArgs {
     }
 
     /// The checked default fit settings with this direction setting.
-    pub fn fit_options(&self) -> anyhow::Result<biasctl::CheckedFitOptions> {
-        Ok(biasctl::FitOptions {
+    pub(crate) fn fit_options(&self) -> anyhow::Result<crate::CheckedFitOptions> {
+        Ok(crate::FitOptions {
             direction: self.setting()?,
-            ..biasctl::FitOptions::default()
+            ..crate::FitOptions::default()
         }
         .check()?)
     }
@@ -244,7 +244,7 @@ impl DirectionArgs {
 
 /// The plant and scenario flags of the settle analysis (`settle`, `plot bounds|responses`).
 #[derive(Debug, Clone, Default, Args)]
-pub struct SettleArgs {
+pub(crate) struct SettleArgs {
     /// A built-in plant and scenario: paper1997 or modern (default paper1997).
     #[arg(long, value_name = "NAME", conflicts_with = "plant")]
     pub preset: Option<String>,
@@ -273,7 +273,7 @@ pub struct SettleArgs {
 
 impl SettleArgs {
     /// Whether any of these flags was given.
-    pub fn any(&self) -> bool {
+    pub(crate) fn any(&self) -> bool {
         self.preset.is_some()
             || self.plant.is_some()
             || self.step_um.is_some()
@@ -286,12 +286,12 @@ impl SettleArgs {
 
     /// The preset or plant file with the flags' overrides applied (validated later by
     /// `SettleSpec::check`).
-    pub fn spec(&self) -> anyhow::Result<SettleSpec> {
+    pub(crate) fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
             Some(path) => {
-                let text = biasctl::read_text(path)
+                let text = crate::read_text(path)
                     .with_context(|| format!("cannot read plant file {}", path.display()))?;
-                biasctl::check_toml_numbers(&text)
+                crate::check_toml_numbers(&text)
                     .map_err(anyhow::Error::msg)
                     .with_context(|| format!("invalid plant file {}", path.display()))?;
                 toml::from_str::<SettleSpec>(&text)
@@ -300,7 +300,7 @@ impl SettleArgs {
             None => {
                 let name = self.preset.as_deref().unwrap_or("paper1997");
                 SettleSpec::preset(name)
-                    .with_context(|| format!("--preset {}", biasctl::quote(name)))?
+                    .with_context(|| format!("--preset {}", crate::quote(name)))?
             }
         };
         let overrides = [
@@ -325,8 +325,8 @@ impl SettleArgs {
 }
 
 /// Refuses, before anything runs, an output flag naming the same file as an input flag or as
-/// another output flag ([`biasctl::check_paths`]); each path comes with its flag.
-pub fn refuse_clashes(
+/// another output flag ([`crate::check_paths`]); each path comes with its flag.
+pub(crate) fn refuse_clashes(
     inputs: &[(&str, Option<&Path>)],
     outputs: &[(&str, Option<&Path>)],
 ) -> anyhow::Result<()> {
@@ -338,18 +338,18 @@ pub fn refuse_clashes(
         .iter()
         .filter_map(|&(f, p)| p.map(|p| (f, p)))
         .collect();
-    Ok(biasctl::check_paths(&ins, &outs)?)
+    Ok(crate::check_paths(&ins, &outs)?)
 }
 
 /// Refuses, before anything runs, a file output (not `-`) that is an existing folder or whose
 /// folder does not exist: the write at the end would fail after all the work (biasctl makes
 /// the folders of a folder output, `--out DIR`, but not of a file).
-pub fn refuse_missing_folders(outputs: &[(&str, Option<&Path>)]) -> anyhow::Result<()> {
+pub(crate) fn refuse_missing_folders(outputs: &[(&str, Option<&Path>)]) -> anyhow::Result<()> {
     for &(flag, path) in outputs {
-        let Some(path) = path.filter(|p| p.as_os_str() != biasctl::STDIN_PATH) else {
+        let Some(path) = path.filter(|p| p.as_os_str() != crate::STDIN_PATH) else {
             continue;
         };
-        let shown = biasctl::quote(&path.display().to_string());
+        let shown = crate::quote(&path.display().to_string());
         if path.is_dir() {
             anyhow::bail!("{flag} {shown} is a folder; give a file name");
         }
@@ -359,26 +359,26 @@ pub fn refuse_missing_folders(outputs: &[(&str, Option<&Path>)]) -> anyhow::Resu
         {
             anyhow::bail!(
                 "{flag} {shown}: the folder {} does not exist (or is not a folder); create it first",
-                biasctl::quote(&folder.display().to_string())
+                crate::quote(&folder.display().to_string())
             );
         }
     }
     Ok(())
 }
 
-/// The staging folder of a folder output `--out DIR` ([`biasctl::StagedDir`]), made before the
+/// The staging folder of a folder output `--out DIR` ([`crate::StagedDir`]), made before the
 /// work so that a path that is a file or cannot be written fails at once, named as the flag.
-pub fn stage_out(dir: &Path) -> anyhow::Result<biasctl::StagedDir> {
-    let shown = biasctl::quote(&dir.display().to_string());
+pub(crate) fn stage_out(dir: &Path) -> anyhow::Result<crate::StagedDir> {
+    let shown = crate::quote(&dir.display().to_string());
     if dir.exists() && !dir.is_dir() {
         anyhow::bail!("--out {shown}: is a file; --out takes a directory");
     }
-    biasctl::StagedDir::create(dir).with_context(|| format!("--out {shown}"))
+    crate::StagedDir::create(dir).with_context(|| format!("--out {shown}"))
 }
 
 /// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was
 /// fitted on: its position terms are extrapolated there and nothing else would show it.
-pub fn warn_outside_range(model: &biasctl::FittedModel, file: &str, positions: &[f64]) {
+pub(crate) fn warn_outside_range(model: &crate::FittedModel, file: &str, positions: &[f64]) {
     if let Some(w) = model.outside_range(positions) {
         eprintln!("warning: {file}: {w}");
     }

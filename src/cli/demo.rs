@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 /// Flags of `biasctl demo`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Output folder (created if missing).
     #[arg(long, default_value = "out/demo", value_name = "DIR")]
     out: PathBuf,
@@ -16,12 +16,12 @@ pub struct Args {
     #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     seed: u64,
     /// Random seeks of the test and calibration runs.
-    #[arg(allow_negative_numbers = true, long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, default_value_t = crate::DEFAULT_N, value_name = "N")]
     seeks: u64,
 }
 
 /// Runs the story and prints the report's path and five headline lines.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     outln!("demo: drive paper1997, seed {}", args.seed)?;
     let outcome = story(&super::report::Args {
         out: args.out,

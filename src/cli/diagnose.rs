@@ -1,9 +1,9 @@
 //! `biasctl diagnose`: compare a fitted model with a log and name the missing effect.
 
 use super::predict::ModelLogArgs;
-use biasctl::FitOptions;
-use biasctl::write_atomic;
-use biasctl::{
+use crate::FitOptions;
+use crate::write_atomic;
+use crate::{
     DiagnoseConfig, PathStep, VerifyConfig, diagnose_model, diagnose_verified, suggestion_path_from,
 };
 use std::io::Write;
@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 /// Flags of `biasctl diagnose`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     input: ModelLogArgs,
     /// Print the diagnosis as JSON (keys residual_std, features, whiteness, bimodality, dip,
@@ -52,7 +52,7 @@ pub struct Args {
 }
 
 /// Validates the settings, replays the model, diagnoses, prints and writes.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let config = DiagnoseConfig {
         alpha: args.alpha,
         permutations: args.permutations,
@@ -123,7 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 diagnosis: &d,
                 path: &path,
             };
-            outln!("{}", biasctl::to_string_pretty(&v)?)?;
+            outln!("{}", crate::to_string_pretty(&v)?)?;
         } else {
             outln!("{}", d.to_json()?)?;
         }

@@ -1,16 +1,16 @@
 //! `biasctl discover`: fit, diagnose, apply the best verified edit, repeat.
 
 use super::common::ColumnArgs;
+use crate::write_atomic;
+use crate::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
+use crate::{FittedModel, ModelSpec};
 use anyhow::Context;
-use biasctl::write_atomic;
-use biasctl::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
-use biasctl::{FittedModel, ModelSpec};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Flags of `biasctl discover`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// The training log: every model is fitted, diagnosed and verified on it.
     #[arg(long, value_name = "TRAIN.csv")]
     data: PathBuf,
@@ -60,7 +60,7 @@ fn start_spec(start: &str) -> anyhow::Result<ModelSpec> {
 }
 
 /// Validates the settings, reads the logs, runs the loop, prints and writes.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let config = DiscoverConfig {
         diagnose: DiagnoseConfig {
             alpha: args.alpha,

@@ -1,14 +1,14 @@
 //! `biasctl export c`: a fitted model as C99 source for the drive's firmware.
 
 use super::predict::handoff_plan;
+use crate::FittedModel;
+use crate::{C_FILES, CHandoff, COptions, CPrecision, c_source};
 use anyhow::Context;
-use biasctl::FittedModel;
-use biasctl::{C_FILES, CHandoff, COptions, CPrecision, c_source};
 use std::path::PathBuf;
 
 /// Flags of `biasctl export`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(subcommand)]
     target: Target,
 }
@@ -47,7 +47,7 @@ struct CArgs {
 }
 
 /// Loads the model, generates the C files and writes them.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let Target::C(a) = args.target;
     let handoff_file = a.handoff.as_deref().map(std::path::Path::new);
     let outs: Vec<(String, PathBuf)> = C_FILES
@@ -79,7 +79,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let src = c_source(&model, &opts)?;
     src.write(&a.out)
-        .with_context(|| format!("--out {}", biasctl::quote(&a.out.display().to_string())))?;
+        .with_context(|| format!("--out {}", crate::quote(&a.out.display().to_string())))?;
     outln!(
         "exported `{}` ({}) to {}: bias_model.h, bias_model.c, replay.c; build with cc -std=c99 -O2 {}/*.c -lm",
         model.spec,

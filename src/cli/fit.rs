@@ -1,14 +1,14 @@
 //! `biasctl fit`: fit a model (a preset or a term list) to a log and write the model file.
 
 use super::common::{DirectionArgs, LogArgs};
+use crate::ModelSpec;
+use crate::fit;
 use anyhow::Context;
-use biasctl::ModelSpec;
-use biasctl::fit;
 use std::path::PathBuf;
 
 /// Flags of `biasctl fit`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     log: LogArgs,
     #[command(flatten)]
@@ -31,12 +31,12 @@ fn terms_help() -> String {
     format!(
         "A comma-separated term list, e.g. `poly2,dahl:4,col:temp_c` or \
          `poly2,direction,seek,memory,drift,dbins:dwell_s`. Terms: {}",
-        biasctl::builtin_names()
+        crate::builtin_names()
     )
 }
 
 /// Validates the spec, reads the log, fits, prints the parameters and writes the model.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     super::common::refuse_clashes(
         &[("--data", Some(args.log.data.as_path()))],
         &[("--out", Some(args.out.as_path()))],
@@ -51,8 +51,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 return Err(anyhow::anyhow!(e).context(format!(
                     "--model {}: `fit --model` takes a preset; a term list goes in --terms: \
                      `--terms {}`",
-                    biasctl::quote(p),
-                    biasctl::quote(p)
+                    crate::quote(p),
+                    crate::quote(p)
                 )));
             }
             Err(e) => return Err(anyhow::anyhow!(e).context("--model")),

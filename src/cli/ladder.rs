@@ -1,13 +1,13 @@
 //! `biasctl ladder`: add terms one at a time, refit on a training log, score on a test log.
 
 use super::common::{ColumnArgs, DirectionArgs};
+use crate::{ladder_fit, ladder_terms};
 use anyhow::Context;
-use biasctl::{ladder_fit, ladder_terms};
 use std::path::PathBuf;
 
 /// Flags of `biasctl ladder`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// The training log (every step is fitted on it).
     #[arg(long, value_name = "TRAIN.csv")]
     data: PathBuf,
@@ -27,7 +27,7 @@ pub struct Args {
 }
 
 /// Reads both logs, fits every prefix of the term list and prints the table.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let terms = ladder_terms(&args.terms)?;
     let opts = args.direction.fit_options()?;
     let train = args.columns.read_log(&args.data).context("--data")?;

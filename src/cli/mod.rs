@@ -1,21 +1,21 @@
 //! Command-line flag structs, one file per command. Each command's `run` turns its flags into the
 //! library's validated configuration and calls the library; no numerics live here.
 
-/// Prints a line to stdout through the one output path ([`biasctl::write_stdout`]):
+/// Prints a line to stdout through the one output path ([`crate::write_stdout`]):
 /// evaluates to `Result<(), OutputError>` (a closed pipe is `OutputError::BrokenPipe`).
 macro_rules! outln {
     () => {
-        biasctl::write_stdout("\n")
+        crate::write_stdout("\n")
     };
     ($($t:tt)*) => {
-        biasctl::write_stdout(&format!("{}\n", format_args!($($t)*)))
+        crate::write_stdout(&format!("{}\n", format_args!($($t)*)))
     };
 }
 
 /// Prints to stdout without a newline, as [`outln!`].
 macro_rules! out {
     ($($t:tt)*) => {
-        biasctl::write_stdout(&format!($($t)*))
+        crate::write_stdout(&format!($($t)*))
     };
 }
 
@@ -40,7 +40,7 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 /// biasctl: predict, diagnose and compensate disk-drive actuator bias.
 #[derive(Debug, Parser)]
 #[command(name = "biasctl", version, about, long_about = None)]
-pub struct Cli {
+pub(crate) struct Cli {
     /// Worker threads for parallel work (ladder steps, diagnose); default: one per core.
     /// Results are the same for any number.
     #[arg(allow_negative_numbers = true, long, global = true, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
@@ -82,7 +82,7 @@ enum Command {
 /// Parses the command line (exiting on `--help`, `--version` and flag errors, as clap does)
 /// and checks what clap cannot: that `--time-col`, `--track-col` and `--bias-col` name three
 /// different columns.
-pub fn parse() -> Result<Cli, clap::Error> {
+pub(crate) fn parse() -> Result<Cli, clap::Error> {
     let mut cmd = Cli::command();
     let matches = cmd.get_matches_mut();
     if let Some((_, sub)) = matches.subcommand()
@@ -114,16 +114,16 @@ fn column_clash(m: &clap::ArgMatches) -> Option<String> {
     None
 }
 
-/// The text printed after `error: ` ([`biasctl::message_with`]), every library setting
+/// The text printed after `error: ` ([`crate::message_with`]), every library setting
 /// name rendered as its flag by the one table ([`common::FLAGS`]).
-pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
-    biasctl::message_with(err, &common::with_flags)
+pub(crate) fn message(err: &(dyn std::error::Error + 'static)) -> String {
+    crate::message_with(err, &common::with_flags)
 }
 
 /// Runs the parsed command.
-pub fn run(cli: Cli) -> anyhow::Result<()> {
+pub(crate) fn run(cli: Cli) -> anyhow::Result<()> {
     if let Some(n) = cli.threads {
-        biasctl::set_threads(n.into())?;
+        crate::set_threads(n.into())?;
     }
     match cli.command {
         Command::Check(a) => check::run(a),
@@ -139,5 +139,28 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Discover(a) => discover::run(a),
         Command::Settle(a) => settle::run(a),
         Command::Export(a) => export::run(a),
+    }
+}
+
+/// The `biasctl` program: parses the flags, runs the command and turns the outcome into the
+/// exit code. 0 success (also when the reader of stdout goes away, as with `biasctl … | head`),
+/// 2 bad input or a failed write (one message on stderr).
+pub fn main() -> std::process::ExitCode {
+    let args = match parse() {
+        Ok(args) => args,
+        Err(e) => e.exit(),
+    };
+    let result = run(args).and_then(|()| Ok(crate::flush_stdout()?));
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(err) if crate::is_broken_pipe(err.as_ref()) => std::process::ExitCode::SUCCESS,
+        Err(err) => {
+            // stderr gone too: nothing left to tell, the exit code still says it.
+            let _ = std::io::Write::write_all(
+                &mut std::io::stderr(),
+                format!("error: {}\n", message(err.as_ref())).as_bytes(),
+            );
+            std::process::ExitCode::from(2)
+        }
     }
 }

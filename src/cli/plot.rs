@@ -2,22 +2,22 @@
 //! settle analysis.
 
 use super::common::{ColumnArgs, SettleArgs};
-use anyhow::{Context, bail};
-use biasctl::Log;
-use biasctl::analyse;
-use biasctl::write_string_atomic;
-use biasctl::{
+use crate::Log;
+use crate::analyse;
+use crate::write_string_atomic;
+use crate::{
     DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, ladder_terms, replay_model,
 };
-use biasctl::{FitOptions, fit};
-use biasctl::{FittedModel, ModelSpec};
-use biasctl::{plot::from_log, plot::views};
+use crate::{FitOptions, fit};
+use crate::{FittedModel, ModelSpec};
+use crate::{plot::from_log, plot::views};
+use anyhow::{Context, bail};
 use clap::ValueEnum;
 use std::path::{Path, PathBuf};
 
 /// Which figure.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Kind {
+pub(crate) enum Kind {
     /// Fig. 3: bias vs position, inbound and outbound; with --model the model's curves.
     Position,
     /// Fig. 4: bias vs time at one track (--track, default the most measured track).
@@ -40,7 +40,7 @@ pub enum Kind {
 
 /// Flags of `biasctl plot`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// The figure to draw.
     #[arg(value_enum)]
     kind: Kind,
@@ -66,11 +66,11 @@ pub struct Args {
     #[arg(
         long,
         value_name = "T1,T2,...",
-        default_value = biasctl::CALIBRATION
+        default_value = crate::CALIBRATION
     )]
     terms: String,
     /// Top features of the `diagnose` plot.
-    #[arg(allow_negative_numbers = true, long, default_value_t = biasctl::plot::views::DEFAULT_TOP, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, default_value_t = crate::plot::views::DEFAULT_TOP, value_name = "N")]
     top: usize,
     #[command(flatten)]
     settle: SettleArgs,
@@ -205,7 +205,7 @@ fn draw(a: &Args) -> anyhow::Result<String> {
 }
 
 /// Validates the flags, draws the figure, writes it atomically.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let model_file = args.model.as_deref().map(Path::new).filter(|p| p.is_file());
     super::common::refuse_clashes(
         &[
@@ -220,7 +220,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_flags(&args)?;
     let svg = draw(&args)?;
     // The last guard before the file: no `NaN`/`inf` coordinate leaves (exit 2, nothing written).
-    biasctl::check_text(&svg, &args.out.display().to_string())?;
+    crate::check_text(&svg, &args.out.display().to_string())?;
     write_string_atomic(&args.out, &svg)?;
     outln!("wrote {}", args.out.display())?;
     Ok(())

@@ -2,17 +2,17 @@
 //! (and, with `--handoff`, the integrator start value of every seek).
 
 use super::common::{DirectionArgs, LogArgs, SettleArgs};
+use crate::SettleSpec;
+use crate::write_atomic;
+use crate::{BiasColumn, Log, LogReader, STDIN_PATH};
+use crate::{FittedModel, ReplaySummary, StartValues, write_predictions_csv};
 use anyhow::Context;
-use biasctl::SettleSpec;
-use biasctl::write_atomic;
-use biasctl::{BiasColumn, Log, LogReader, STDIN_PATH};
-use biasctl::{FittedModel, ReplaySummary, StartValues, write_predictions_csv};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// A model file and a log to apply it to (shared by `predict` and `score`).
 #[derive(Debug, clap::Args)]
-pub struct ModelLogArgs {
+pub(crate) struct ModelLogArgs {
     /// The model file written by `biasctl fit`.
     #[arg(long, value_name = "MODEL.json")]
     pub model: PathBuf,
@@ -27,7 +27,7 @@ pub struct ModelLogArgs {
 impl ModelLogArgs {
     /// Loads the model (its direction source replaced when `--deadband`/`--velocity-col` is
     /// given).
-    pub fn load_model(&self) -> anyhow::Result<FittedModel> {
+    pub(crate) fn load_model(&self) -> anyhow::Result<FittedModel> {
         let mut model = FittedModel::load(&self.model)?;
         if let Some(d) = self.direction.setting()?.explicit()? {
             model.direction = d;
@@ -38,10 +38,10 @@ impl ModelLogArgs {
     /// Loads the model and the log and replays the model causally over the log (streamed:
     /// nothing per row is kept), refusing a non-finite prediction and warning where the log
     /// goes beyond the fitted positions.
-    pub fn replay(&self) -> anyhow::Result<(FittedModel, Log)> {
+    pub(crate) fn replay(&self) -> anyhow::Result<(FittedModel, Log)> {
         let model = self.load_model()?;
         let log = self.log.columns.read_log(&self.log.data)?;
-        biasctl::check_replay(&model, &log)??;
+        crate::check_replay(&model, &log)??;
         let positions = log.measured_positions();
         super::common::warn_outside_range(&model, &log.schema.file, &positions);
         Ok((model, log))
@@ -50,7 +50,7 @@ impl ModelLogArgs {
 
 /// Flags of `biasctl predict`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     input: ModelLogArgs,
     /// The CSV to write (`-`: standard output): the input columns, `predicted`, `residual`
@@ -75,7 +75,7 @@ pub struct Args {
 
 /// The settle description named by `--handoff`: a file when it ends in `.toml` or exists,
 /// else a preset name.
-pub fn handoff_plan(
+pub(crate) fn handoff_plan(
     model: &FittedModel,
     handoff: &str,
     delta_b: Option<f64>,
@@ -86,7 +86,7 @@ pub fn handoff_plan(
         SettleSpec::preset(handoff).with_context(|| {
             format!(
                 "--handoff {}: not a plant file (FILE.toml) and not a preset",
-                biasctl::quote(handoff)
+                crate::quote(handoff)
             )
         })?;
     }
@@ -102,7 +102,7 @@ pub fn handoff_plan(
 
 /// Loads the model, streams the log through it and writes the CSV (atomically to a file, or
 /// to stdout flushed per row when the input is stdin).
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     super::common::refuse_clashes(
         &[
             ("--model", Some(args.input.model.as_path())),

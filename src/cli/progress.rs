@@ -1,12 +1,12 @@
 //! A progress bar on stderr for the long commands (`demo`, `report`). It appears only once a
 //! run has taken more than a second, and never when stderr is not a terminal.
 
-use biasctl::Progress;
+use crate::Progress;
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
 /// Draws `[#####.....] 5/14 step` on one line of stderr.
-pub struct Bar {
+pub(crate) struct Bar {
     start: Instant,
     enabled: bool,
     drawn: bool,
@@ -18,7 +18,7 @@ const WIDTH: usize = 30;
 
 impl Bar {
     /// A bar that draws only when stderr is a terminal.
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Bar {
             start: Instant::now(),
             enabled: std::io::stderr().is_terminal(),
@@ -28,7 +28,7 @@ impl Bar {
     }
 
     /// Records a progress report and redraws when the run is older than one second.
-    pub fn update(&mut self, p: Progress<'_>) {
+    pub(crate) fn update(&mut self, p: Progress<'_>) {
         self.last = (p.done, p.total, p.step.to_string());
         if !self.enabled || self.start.elapsed() < Duration::from_secs(1) {
             return;
@@ -48,7 +48,7 @@ impl Bar {
     }
 
     /// Clears the bar's line, if one was drawn.
-    pub fn finish(&mut self) {
+    pub(crate) fn finish(&mut self) {
         if self.drawn {
             let mut err = std::io::stderr().lock();
             let _ = write!(err, "\r\x1b[2K");

@@ -3,14 +3,14 @@
 
 use super::common::ColumnArgs;
 use super::progress::Bar;
+use crate::FittedModel;
+use crate::{StoryOptions, StoryOutcome, data_report, demo_report};
 use anyhow::Context;
-use biasctl::FittedModel;
-use biasctl::{StoryOptions, StoryOutcome, data_report, demo_report};
 use std::path::PathBuf;
 
 /// Flags of `biasctl report`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Output folder (created if missing): report.html and the files behind it.
     #[arg(long, default_value = "out/report", value_name = "DIR")]
     pub out: PathBuf,
@@ -26,12 +26,12 @@ pub struct Args {
     #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     pub seed: u64,
     /// Random seeks of the built-in drive's test and calibration runs.
-    #[arg(allow_negative_numbers = true, long, default_value_t = biasctl::DEFAULT_N, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, default_value_t = crate::DEFAULT_N, value_name = "N")]
     pub seeks: u64,
 }
 
 /// Runs the story with a progress bar; returns what was written.
-pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
+pub(crate) fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
     let opts = StoryOptions {
         seed: args.seed,
         random_seeks: args.seeks,
@@ -67,13 +67,13 @@ pub fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
 }
 
 /// Writes the report and prints its path and the headline numbers.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let outcome = story(&args)?;
     print_outcome(&outcome)
 }
 
 /// Prints the report's path and the five-line summary.
-pub fn print_outcome(o: &StoryOutcome) -> anyhow::Result<()> {
+pub(crate) fn print_outcome(o: &StoryOutcome) -> anyhow::Result<()> {
     outln!("report: {}", o.report.display())?;
     for line in &o.summary {
         outln!("  {line}")?;

@@ -1,12 +1,12 @@
 //! `biasctl score`: error statistics of a model on a log.
 
 use super::predict::ModelLogArgs;
-use biasctl::Feedback;
-use biasctl::score_model;
+use crate::Feedback;
+use crate::score_model;
 
 /// Flags of `biasctl score`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     input: ModelLogArgs,
     /// Print JSON (keys n, mean, std, rms, median_abs, percentiles, histogram, bimodality, dip
@@ -27,7 +27,7 @@ pub struct Args {
 }
 
 /// Replays the model and prints the score.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let (model, log) = args.input.replay()?;
     let s = score_model(&model, &log, Feedback::every(args.feedback_every))?;
     // The score's own warnings name the scored log; the model's fit warnings (which `score`
@@ -37,14 +37,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for w in s.warnings.iter().filter(|w| !fit_warnings.contains(w)) {
         eprintln!("warning: {}: {w}", log.schema.file);
     }
-    for w in biasctl::grouped_warnings(&model.warnings) {
+    for w in crate::grouped_warnings(&model.warnings) {
         eprintln!(
             "warning: model {} (from its fit on the training log): {w}",
             args.input.model.display()
         );
     }
     if args.json {
-        outln!("{}", biasctl::to_string_pretty(&s)?)?;
+        outln!("{}", crate::to_string_pretty(&s)?)?;
     } else {
         outln!("{}: model `{}`", log.schema.file, model.spec)?;
         if let (Some(f), Some(label)) = (&s.free_run, &s.free_run_feedback) {

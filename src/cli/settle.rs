@@ -1,16 +1,16 @@
 //! `biasctl settle`: the settle-optimal integrator start value at handoff (paper Section IV).
 
 use super::common::{ColumnArgs, SettleArgs};
+use crate::write_string_atomic;
+use crate::{DEFAULT_BIAS_UNIT, Units};
+use crate::{FittedModel, NextPrediction, predict_next};
+use crate::{SettleReport, analyse};
 use anyhow::Context;
-use biasctl::write_string_atomic;
-use biasctl::{DEFAULT_BIAS_UNIT, Units};
-use biasctl::{FittedModel, NextPrediction, predict_next};
-use biasctl::{SettleReport, analyse};
 use std::path::PathBuf;
 
 /// Flags of `biasctl settle`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     settle: SettleArgs,
     /// Print the report as JSON.
@@ -128,7 +128,7 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
 }
 
 /// Validates, designs, analyses; writes the CSVs (atomically) and prints the report.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     super::common::refuse_clashes(
         &[
             ("--plant", args.settle.plant.as_deref()),
@@ -181,7 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 zero_ff_worst_settle_ms: report.worst_case.zero_ff_worst_settle_ms,
             }),
         };
-        outln!("{}", biasctl::to_string_pretty(&value)?)?;
+        outln!("{}", crate::to_string_pretty(&value)?)?;
     } else {
         if let Some(l) = &link {
             outln!(

@@ -1,11 +1,11 @@
 //! `biasctl simulate`: run the simulated drive through a sequence and write the log.
 
-use biasctl::{Drive, MeasureMode, SequenceOptions, SimConfig, simulate_to_files};
+use crate::{Drive, MeasureMode, SequenceOptions, SimConfig, simulate_to_files};
 use std::path::PathBuf;
 
 /// Flags of `biasctl simulate`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Sequence: table1..table7, random, dwell, script, calibration (default `script` when
     /// --script is given).
     #[arg(long, value_name = "NAME", required_unless_present = "script")]
@@ -64,8 +64,8 @@ fn sequence(a: &Args) -> anyhow::Result<String> {
     match (&a.sequence, &a.script) {
         (Some(s), Some(script)) if s != "script" => anyhow::bail!(
             "--script {} is read only by --sequence script, not --sequence {}: leave out one of them",
-            biasctl::quote(&script.display().to_string()),
-            biasctl::quote(s)
+            crate::quote(&script.display().to_string()),
+            crate::quote(s)
         ),
         (Some(s), _) => Ok(s.clone()),
         (None, _) => Ok("script".into()),
@@ -101,7 +101,7 @@ fn config(a: &Args) -> anyhow::Result<SimConfig> {
 }
 
 /// Validates, simulates, writes the files and prints a summary.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     super::common::refuse_clashes(
         &[
             ("--drive", args.drive.as_deref()),
