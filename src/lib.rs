@@ -40,7 +40,7 @@
 //!   fractional delay, DARE/LQR, and (`control::settle`) the settle-optimal integrator start
 //!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table.
 //! - `export`: the fitted model and the handoff table as C99, checked against the predictor.
-//! - `render`: the one output layer: text, JSON and CSV, atomic and safe file writing,
+//! - `io`: the one output layer: text, JSON and CSV, atomic and safe file writing,
 //!   finite-only numbers.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
 //! - `report`: one self-contained `report.html` (inline SVG and CSS, no script, no network).
@@ -141,37 +141,24 @@ macro_rules! checked_settings {
     };
 }
 
-// Modules in the order a log travels through them; a module imports only modules above it.
+// Modules in the order a log travels through them; a module imports only modules above it
+// (tests/it/layers.rs checks it).
 pub(crate) mod field;
-
 pub(crate) mod numeric;
-
+pub(crate) mod io;
 pub(crate) mod log;
-
 pub(crate) mod history;
-
 pub(crate) mod codegen;
-
 pub(crate) mod sim;
-
 pub(crate) mod model;
-
 pub(crate) mod fit;
-
 pub(crate) mod output_check;
 pub(crate) mod score;
-
 pub(crate) mod diagnose;
 pub(crate) mod select;
-
 pub(crate) mod control;
-
 pub(crate) mod export;
-
-pub(crate) mod render;
-
 pub mod plot;
-
 pub(crate) mod report;
 
 /// The `biasctl` command line (the `cli` feature, on by default): flags parsed into the
@@ -232,8 +219,8 @@ pub use numeric::rng::SimRng;
 /// dip test (Hartigans') is benched on its own against the peer implementation.
 pub use numeric::stats::{dip_test, dip_test_sorted, mean, sorted, std_dev};
 pub use output_check::{check_prediction, check_replay};
-pub use render::json::to_string_pretty;
-pub use render::{
+pub use io::json::to_string_pretty;
+pub use io::{
     NonFinite, OutputError, StagedDir, check_paths, check_text, flush_stdout, is_broken_pipe,
     message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
 };
@@ -270,7 +257,7 @@ pub use log::{Covariates, LogSummary, Row, RowRef, Rows, UnitError};
 pub use model::RangeWarning;
 pub use model::predictor::ReplayError;
 pub use numeric::stats::{Dip, DipTest, Histogram, Trend};
-pub use render::file::Sink;
+pub use io::file::Sink;
 pub use report::run::{
     DataRun, DemoRun, DiagnosedRun, MAX_SEEKS, PaperRobustWhy, ScoredModel, SettleRun, StoryError,
     compute_data, compute_demo,

@@ -3,8 +3,8 @@
 //! above `model` (they replay a [`FittedModel`](crate::model::FittedModel)) and below the
 //! commands that write predictions, scores and diagnoses.
 
-use crate::render::NonFinite;
-use crate::render::finite::check_finite;
+use crate::io::NonFinite;
+use crate::io::finite::check_finite;
 
 /// Checks every number a model's replay over a log produced — `predicted`, `residual` and each
 /// term's contribution — naming the first non-finite one by measured row (1-based), the log's

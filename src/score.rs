@@ -358,7 +358,7 @@ mod tests {
         let s = score(&[2.0; 10], &positions(10)).unwrap();
         assert!(s.dip.is_none() && !s.bimodal);
         // Undefined statistics are absent from the JSON, never `null` (issue #17).
-        let json = crate::render::json::to_string_pretty(&s).unwrap();
+        let json = crate::io::json::to_string_pretty(&s).unwrap();
         assert!(
             !json.contains("null") && !json.contains("\"dip\""),
             "{json}"

@@ -140,7 +140,7 @@ pub use verification::{CombinedEdit, RejectedEdit, SecondRound, Verification, Ve
 
 use crate::history::Feature;
 use crate::numeric::stats;
-use crate::render::OutputError;
+use crate::io::OutputError;
 use forward::{Ctx, gain};
 use screen::{Reports, screen};
 

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use crate::log::fmt_trimmed;
 use crate::numeric::stats;
-use crate::render::write_atomic;
+use crate::io::write_atomic;
 
 use super::advice;
 use super::report::is_skipped;
@@ -306,8 +306,8 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
 impl Diagnosis {
     /// The JSON of the contract (pretty-printed).
     /// Through the one JSON writer: a non-finite number is refused naming its key path.
-    pub fn to_json(&self) -> Result<String, crate::render::OutputError> {
-        crate::render::json::to_string_pretty(self)
+    pub fn to_json(&self) -> Result<String, crate::io::OutputError> {
+        crate::io::json::to_string_pretty(self)
     }
 
     /// The report of feature `name`, if present.

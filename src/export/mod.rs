@@ -32,7 +32,7 @@ mod replay;
 mod source;
 
 use crate::model::FittedModel;
-use crate::render::{OutputError, StagedDir, write_string_atomic};
+use crate::io::{OutputError, StagedDir, write_string_atomic};
 use std::path::Path;
 
 /// The handoff table to export with the model ([`crate::control::StartValues`]).

@@ -158,7 +158,7 @@ impl ColumnFinder<'_> {
                 message: format!(
                     "missing required column `{wanted}`: the header is one column, `{}`, \
                      that holds `{}`, so the fields are not separated by `{}`{}",
-                    crate::render::quote(only),
+                    crate::io::quote(only),
                     d.escape_default(),
                     (self.delimiter as char).escape_default(),
                     if map.delimiter.is_some() {

@@ -22,7 +22,7 @@ pub use predictor::{
 };
 
 use crate::log::Log;
-use crate::render::{OutputError, write_string_atomic};
+use crate::io::{OutputError, write_string_atomic};
 use data::FitReport;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -442,7 +442,7 @@ impl FittedModel {
     }
 
     /// The model file as JSON text, through the one JSON writer
-    /// ([`crate::render::json::to_string_pretty`]): a non-finite coefficient or parameter is
+    /// ([`crate::io::json::to_string_pretty`]): a non-finite coefficient or parameter is
     /// refused naming its key path (`terms[1].coefficients[0]`).
     pub fn to_json(&self) -> Result<String, OutputError> {
         let file = ModelFile {
@@ -464,7 +464,7 @@ impl FittedModel {
             fit: self.fit.clone(),
             warnings: self.warnings.clone(),
         };
-        Ok(crate::render::json::to_string_pretty(&file)? + "\n")
+        Ok(crate::io::json::to_string_pretty(&file)? + "\n")
     }
 
     /// Writes the model file atomically.

@@ -268,7 +268,7 @@ pub fn replay_stream<R: Read>(
 /// `out`: the header (time, track and bias columns as the log names them, its covariates,
 /// `predicted`, `residual`, with `start` also `integrator_start`, then one column per term),
 /// then one row per log row as soon as it is read. Numbers are written with every digit they
-/// need to read back exactly (`crate::render::number::write_shortest`, the text of
+/// need to read back exactly (`crate::io::number::write_shortest`, the text of
 /// `to_string()`); an unmeasured bias, its residual, or a start value that does not exist is an
 /// empty cell. With `flush_each`, every row is flushed as written (a stream answered row by
 /// row). Nothing is allocated per row.
@@ -295,7 +295,7 @@ pub fn write_predictions_csv<R: Read>(
     let out = w
         .into_inner()
         .map_err(|e| ReplayError::Sink(e.into_error()))?;
-    let mut rows = crate::render::number::NumberRows::new(out);
+    let mut rows = crate::io::number::NumberRows::new(out);
     let summary = replay_stream(model, reader, start, |row, p: &RowPrediction, contrib| {
         rows.cell(Some(row.time_s));
         rows.cell(Some(row.track));

@@ -30,7 +30,7 @@ use std::fmt::Write;
 use std::path::Path;
 
 use crate::plot::svg::{esc, fmt_num};
-use crate::render::{OutputError, write_string_atomic};
+use crate::io::{OutputError, write_string_atomic};
 
 /// A table cell: text (left-aligned) or a number (right-aligned, compact format).
 #[derive(Debug, Clone, PartialEq)]

@@ -18,7 +18,7 @@ use super::sections::{
 };
 use crate::plot::svg::fmt_num;
 use crate::plot::views;
-use crate::render::{StagedDir, write_string_atomic};
+use crate::io::{StagedDir, write_string_atomic};
 
 pub use super::run::{CheckedStoryOptions, Progress, StoryOptions};
 pub(crate) use super::run::{DATA_MODELS, StoryError};
@@ -113,8 +113,8 @@ fn file_stem(label: &str) -> String {
     label.replace([',', ':'], "_")
 }
 
-fn pretty<T: serde::Serialize>(v: &T) -> Result<String, crate::render::OutputError> {
-    crate::render::json::to_string_pretty(v)
+fn pretty<T: serde::Serialize>(v: &T) -> Result<String, crate::io::OutputError> {
+    crate::io::json::to_string_pretty(v)
 }
 
 /// Writes a scored model's `model_*.json` and `score_*.json`.

@@ -169,8 +169,8 @@ pub struct Discovery {
 impl Discovery {
     /// The discovery as pretty JSON.
     /// Through the one JSON writer: a non-finite number is refused naming its key path.
-    pub fn to_json(&self) -> Result<String, crate::render::OutputError> {
-        crate::render::json::to_string_pretty(self)
+    pub fn to_json(&self) -> Result<String, crate::io::OutputError> {
+        crate::io::json::to_string_pretty(self)
     }
 }
 

@@ -156,8 +156,8 @@ impl Ladder {
 
     /// The JSON of the contract (pretty-printed).
     /// Through the one JSON writer: a non-finite number is refused naming its key path.
-    pub fn to_json(&self) -> Result<String, crate::render::OutputError> {
-        crate::render::json::to_string_pretty(self)
+    pub fn to_json(&self) -> Result<String, crate::io::OutputError> {
+        crate::io::json::to_string_pretty(self)
     }
 }
 

@@ -4,7 +4,7 @@
 use super::SimConfig;
 use super::state::DriveState;
 use crate::log::{Log, LogError, LogWriter, fmt_fixed};
-use crate::render::{OutputError, write_atomic};
+use crate::io::{OutputError, write_atomic};
 use std::io::Write;
 use std::path::Path;
 

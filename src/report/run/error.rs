@@ -7,7 +7,7 @@ use crate::field::Field;
 use crate::fit::FitError;
 use crate::log::LogError;
 use crate::model::{ModelError, SpecError};
-use crate::render::OutputError;
+use crate::io::OutputError;
 use crate::score::ScoreError;
 use crate::sim::SimError;
 

@@ -55,13 +55,13 @@ impl StoryOptions {
         if let Err(e) = diagnose_config(&self) {
             return Err(StoryError::InvalidConfig {
                 field: Field::StoryPermutations,
-                message: format!("{}: {}", self.permutations, crate::render::message(&e)),
+                message: format!("{}: {}", self.permutations, crate::io::message(&e)),
             });
         }
         if let Err(e) = SettleSpec::preset(&self.settle_preset) {
             return Err(StoryError::InvalidConfig {
                 field: Field::SettlePreset,
-                message: crate::render::message(&e),
+                message: crate::io::message(&e),
             });
         }
         Ok(CheckedStoryOptions(self))

@@ -723,7 +723,7 @@ pub fn check_paths(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::fault::with_write_fault;
+    use crate::io::fault::with_write_fault;
 
     fn names(dir: &Path) -> Vec<String> {
         let mut v: Vec<String> = fs::read_dir(dir)
