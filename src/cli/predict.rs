@@ -133,7 +133,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         Ok(write_predictions_csv(
             &model,
             &mut reader,
-            start.as_ref().map(|s| s as &dyn biasctl::IntegratorStart),
+            start.as_ref().map(|s| s as &dyn crate::IntegratorStart),
             w,
             flush_each,
         )?)
