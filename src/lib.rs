@@ -18,32 +18,41 @@
 //!   score, diagnosis, plot and report made from it is labelled with them.
 //!
 //! ## The pipeline, one module per step
-//! log → seek history → simulated drive → model terms → fit → score/diagnose → plant/controller →
-//! settle → plots/report. The modules are crate-private (the source's layout, not the API); what
-//! each holds:
+//! The modules in the order `lib.rs` declares them, each importing only modules above it
+//! (`tests/it/layers.rs` checks it, and that no files import each other in a circle). They are
+//! crate-private (the source's layout, not the API); what each holds:
 //!
+//! - `field`: the names of settings that errors carry ([`Field`]).
 //! - `numeric`: shared numerics below everything: statistics (moments, histogram, bimodality
-//!   and dip tests, trend and whiteness tests) and the seeded, portable random generator.
-//! - `log`: the measurement log (CSV), streaming reader with column mapping, and the input
-//!   limits (`log::limits`) every reader enforces.
-//! - `history`: the seek-history state machine: direction, reversals, uncrossed rest positions.
-//! - `sim`: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random sequences).
-//! - `model`: bias models as sums of terms (poly2, table, direction, seek, memory, drift, dahl,
-//!   col, bins), presets, the online predictor.
-//! - `fit`: one least-squares solve (streaming QR) for all linear parameters, variable
-//!   projection for the Dahl rate.
-//! - `score`: error statistics of a model on a log: moments, percentiles, histogram,
-//!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
-//! - `diagnose`: which missing effect the residual follows: cross-validated
-//!   smoother per feature, permutation test, advice, ladder.
-//! - `control`: plant → controller → settle: continuous plant with modes, ZOH with
-//!   fractional delay, DARE/LQR, and (`control::settle`) the settle-optimal integrator start
-//!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table.
-//! - `export`: the fitted model and the handoff table as C99, checked against the predictor.
+//!   and dip tests, trend and whiteness tests), the golden-section search, the QR kernels, the
+//!   worker threads and the seeded, portable random generator.
 //! - `io`: the one output layer: text, JSON and CSV, atomic and safe file writing,
 //!   finite-only numbers.
+//! - `log`: the measurement log (CSV): column mapping, units, dialect, the streaming reader and
+//!   writer, and the input limits (`log::limits`) every reader enforces.
+//! - `history`: the seek-history state machine: direction, reversals, uncrossed rest
+//!   positions; the history-column cache and the sampling analysis.
+//! - `codegen`: what a term needs to write its own C for the firmware export.
+//! - `sim`: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random
+//!   sequences) and the drive family the diagnosis is measured on.
+//! - `model`: bias models as sums of terms (one file per term, one registry row each),
+//!   presets, the online predictor.
+//! - `fit`: one least-squares solve (streaming QR) for all linear parameters, variable
+//!   projection for the nonlinear ones.
+//! - `output_check`: every number a model's prediction or replay produces is finite.
+//! - `score`: error statistics of a model on a log: moments, percentiles, histogram,
+//!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
+//! - `diagnose`: the residual engine: which missing effect the residual follows
+//!   (cross-validated smoother per feature, permutation test, pairs, advice).
+//! - `select`: model-structure selection on top of it: verified refits, discover, ladder.
+//! - `control`: plant → controller → settle: continuous plant with modes, ZOH with
+//!   fractional delay, DARE/LQR, (`control::settle`) the settle-optimal integrator start
+//!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table, and the
+//!   start values a predictor gives at handoff.
+//! - `export`: the fitted model and the handoff table as C99, checked against the predictor.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
 //! - `report`: one self-contained `report.html` (inline SVG and CSS, no script, no network).
+//! - [`cli`]: the command line (the `cli` feature).
 //!
 //! ## Settings: unchecked → checked (linfa's `ParamGuard`)
 //! Every settings type is written freely and checked once, before any numerics, into a checked
@@ -144,21 +153,37 @@ macro_rules! checked_settings {
 // Modules in the order a log travels through them; a module imports only modules above it
 // (tests/it/layers.rs checks it).
 pub(crate) mod field;
+
 pub(crate) mod numeric;
+
 pub(crate) mod io;
+
 pub(crate) mod log;
+
 pub(crate) mod history;
+
 pub(crate) mod codegen;
+
 pub(crate) mod sim;
+
 pub(crate) mod model;
+
 pub(crate) mod fit;
+
 pub(crate) mod output_check;
+
 pub(crate) mod score;
+
 pub(crate) mod diagnose;
+
 pub(crate) mod select;
+
 pub(crate) mod control;
+
 pub(crate) mod export;
+
 pub mod plot;
+
 pub(crate) mod report;
 
 /// The `biasctl` command line (the `cli` feature, on by default): flags parsed into the
@@ -192,6 +217,11 @@ pub use history::{
     DirectionSetting, DirectionSource, Feature, History, SeekFeatures, log_sampling, replay,
     sampling, summarise_sampling,
 };
+pub use io::json::to_string_pretty;
+pub use io::{
+    NonFinite, OutputError, StagedDir, check_paths, check_text, flush_stdout, is_broken_pipe,
+    message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
+};
 pub use log::limits::{check_toml_numbers, read_text};
 pub use log::{
     BiasColumn, ColumnMap, DEFAULT_BIAS_COL, DEFAULT_BIAS_UNIT, DEFAULT_TIME_COL,
@@ -219,11 +249,6 @@ pub use numeric::rng::SimRng;
 /// dip test (Hartigans') is benched on its own against the peer implementation.
 pub use numeric::stats::{dip_test, dip_test_sorted, mean, sorted, std_dev};
 pub use output_check::{check_prediction, check_replay};
-pub use io::json::to_string_pretty;
-pub use io::{
-    NonFinite, OutputError, StagedDir, check_paths, check_text, flush_stdout, is_broken_pipe,
-    message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
-};
 pub use report::story::{
     CheckedStoryOptions, Progress, StoryOptions, StoryOutcome, data_report, demo_report,
 };
@@ -253,11 +278,11 @@ pub use diagnose::{
     Verification, VerifiedEdit, Whiteness,
 };
 pub use history::{DirectionError, Replay, RestMemory, Sampling};
+pub use io::file::Sink;
 pub use log::{Covariates, LogSummary, Row, RowRef, Rows, UnitError};
 pub use model::RangeWarning;
 pub use model::predictor::ReplayError;
 pub use numeric::stats::{Dip, DipTest, Histogram, Trend};
-pub use io::file::Sink;
 pub use report::run::{
     DataRun, DemoRun, DiagnosedRun, MAX_SEEKS, PaperRobustWhy, ScoredModel, SettleRun, StoryError,
     compute_data, compute_demo,

@@ -139,8 +139,8 @@ pub(crate) use values::short;
 pub use verification::{CombinedEdit, RejectedEdit, SecondRound, Verification, VerifiedEdit};
 
 use crate::history::Feature;
-use crate::numeric::stats;
 use crate::io::OutputError;
+use crate::numeric::stats;
 use forward::{Ctx, gain};
 use screen::{Reports, screen};
 

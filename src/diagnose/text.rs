@@ -2,9 +2,9 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::io::write_atomic;
 use crate::log::fmt_trimmed;
 use crate::numeric::stats;
-use crate::io::write_atomic;
 
 use super::advice;
 use super::report::is_skipped;

@@ -31,8 +31,8 @@ mod place;
 mod replay;
 mod source;
 
-use crate::model::FittedModel;
 use crate::io::{OutputError, StagedDir, write_string_atomic};
+use crate::model::FittedModel;
 use std::path::Path;
 
 /// The handoff table to export with the model ([`crate::control::StartValues`]).

@@ -45,6 +45,7 @@ mod column_map;
 mod columns;
 mod dialect;
 mod error;
+mod fast_rows;
 mod header;
 pub(crate) mod limits;
 pub(crate) mod lines;

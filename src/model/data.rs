@@ -3,7 +3,6 @@
 //! [`TermSpec::prepare`](super::term::TermSpec::prepare)) returns ([`FitError`]) and the record
 //! of how a fit ended ([`FitReport`], saved in the model file). `crate::fit` re-exports all three.
 
-use super::term::{Seek, Term};
 use super::{ModelError, SpecError};
 use crate::history::{DirectionSource, HistoryColumns, Replay, SeekFeatures};
 use crate::log::Log;
@@ -309,13 +308,6 @@ impl<'a> FitData<'a> {
             .clone()
     }
 
-    /// A replay for `terms`: without the direction tracker and rest memory
-    /// ([`crate::history::History::step_light`]) when no term reads the history
-    /// ([`Term::reads_history`]).
-    pub(crate) fn replay_for(&self, terms: &[Arc<dyn Term>]) -> Replay<'a> {
-        self.replay_reading(terms.iter().any(|t| t.reads_history()))
-    }
-
     /// A replay with the direction tracker and rest memory only if `reads_history` (else
     /// [`crate::history::History::step_light`]: the positional features alone). A full one of
     /// a long log builds the history columns on first use and reads them: the passes of a fit
@@ -612,4 +604,13 @@ pub(crate) mod tests {
         }
         assert!(data.columns.get().is_some_and(|c| c.is_none()));
     }
+}
+
+/// One seek as the terms see it: the history features and the row's covariates.
+#[derive(Debug, Clone, Copy)]
+pub struct Seek<'a> {
+    /// Features of the seek's history ([`SeekFeatures`]).
+    pub features: &'a SeekFeatures,
+    /// The row's covariate values, in the order of the covariate names given to [`Term::start`](crate::model::Term::start).
+    pub covariates: &'a [f64],
 }

@@ -9,11 +9,13 @@
 //! assert!(ModelSpec::parse("poly2,frobnicate").is_err());
 //! ```
 
+pub(crate) mod cue;
 pub(crate) mod data;
 pub(crate) mod predictor;
 pub(crate) mod preset;
 pub(crate) mod registry;
 pub(crate) mod term;
+pub(crate) mod term_text;
 pub mod terms;
 
 pub use predictor::{
@@ -21,8 +23,8 @@ pub use predictor::{
     replay_stream, write_predictions_csv,
 };
 
-use crate::log::Log;
 use crate::io::{OutputError, write_string_atomic};
+use crate::log::Log;
 use data::FitReport;
 use serde::{Deserialize, Serialize};
 use std::fmt;

@@ -16,13 +16,15 @@
 //! assert!(builtin_names().starts_with("poly2, table[:SPACING], direction"));
 //! ```
 
+pub(crate) use super::cue::{Answer, AnswersFn, Cover, Cue, Law};
 use super::term::{Term, TermSpec};
+pub(crate) use super::term_text::TermText;
 use super::terms::{
     bins, bump, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly,
     scale, seek, step, stribeck, table, viscous,
 };
 use super::{ModelError, SpecError};
-use crate::history::Feature;
+
 use std::sync::Arc;
 
 /// Parses the argument of a term (`None` for a bare head).
@@ -59,95 +61,6 @@ pub(crate) struct BuiltinTerm {
     /// others by name. Held to it by this module's test.
     #[cfg_attr(not(test), allow(dead_code))]
     pub exports_c: bool,
-}
-
-/// The residual patterns a term answers: its rank among the terms that answer `cue`, and how
-/// the suggestion is written; `None` for a pattern it does not answer.
-pub(crate) type AnswersFn = fn(Cue) -> Option<Answer>;
-
-/// The law a residual's curve against a covariate (or the derived velocity) follows, the first
-/// that applies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Law {
-    /// A line in the signed value whose sign is the direction's (viscous friction).
-    OddLinear,
-    /// Its sign is the direction's but the law is not that line (friction falling off from a
-    /// breakaway level at low speed).
-    Velocity,
-    /// A line.
-    Linear,
-    /// Any other curve.
-    Other,
-}
-
-/// A residual pattern the diagnosis finds, for which the registry names the terms that answer
-/// it ([`candidates`]). `signed`: the residual follows the value times the direction of the
-/// last move (the effect flips with the approach direction).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Cue {
-    /// A history feature.
-    Feature(Feature, bool),
-    /// A covariate column, its curve following a [`Law`].
-    Covariate(Law, bool),
-    /// The summed rest-memory feature.
-    SummedMemory(bool),
-    /// A covariate column seen through a first-order lag (the name is the column).
-    Lagged,
-    /// The velocity derived from the positions and times, its curve following a [`Law`]
-    /// ([`Law::Velocity`]: the friction falls off at low speed; any other: a line first).
-    DerivedVelocity(Law),
-}
-
-/// How a term answers a [`Cue`]: its rank among the terms that answer it (lowest first) and
-/// whether the suggestion names the feature or column (`HEAD:NAME`) or is the term's
-/// [`BuiltinTerm::suggest`] text.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Answer {
-    /// Rank among the terms answering the same cue; distinct per cue.
-    pub rank: u8,
-    /// `HEAD:NAME` (else the term's suggestion text).
-    pub named: bool,
-    /// Offered only when its spec text parses.
-    pub parsed: bool,
-}
-
-impl Answer {
-    /// The term's suggestion text, at `rank`.
-    pub(crate) const fn fixed(rank: u8) -> Option<Self> {
-        Some(Self {
-            rank,
-            named: false,
-            parsed: false,
-        })
-    }
-    /// `HEAD:NAME`, at `rank`.
-    pub(crate) const fn named(rank: u8) -> Option<Self> {
-        Some(Self {
-            rank,
-            named: true,
-            parsed: false,
-        })
-    }
-    /// `HEAD:NAME`, at `rank`, offered only when it parses.
-    pub(crate) const fn named_if_parses(rank: u8) -> Option<Self> {
-        Some(Self {
-            rank,
-            named: true,
-            parsed: true,
-        })
-    }
-}
-
-/// When a model's term `e` covers a suggested term `t` of the same head.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Cover {
-    /// Only the same text.
-    Exact,
-    /// Any term of the head covers any other (`play:N` holds the play family).
-    Family,
-    /// The head's argument counts elements (none: one) and `e` covers `t` with at least as
-    /// many (`dahl:4` covers `dahl`).
-    Count,
 }
 
 /// A term that answers no pattern.
@@ -445,69 +358,11 @@ pub(crate) fn restore_as<T: serde::de::DeserializeOwned + Term + 'static>(
     Ok(Arc::new(t))
 }
 
-/// One term's spec text as a parser sees it: the whole text, its head and its argument (what
-/// follows the first `:`), with the checks the parsers share.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct TermText<'a> {
-    /// The whole item, trimmed (`dbins:dwell_s:6`).
-    pub text: &'a str,
-    /// Before the first `:` (`dbins`).
-    pub head: &'a str,
-    /// After the first `:` (`dwell_s:6`), if any.
-    pub arg: Option<&'a str>,
-}
-
-impl<'a> TermText<'a> {
-    /// Splits `text` (trimmed) at its first `:`.
-    pub(crate) fn new(text: &'a str) -> Self {
-        let text = text.trim();
-        let (head, arg) = match text.split_once(':') {
-            Some((h, a)) => (h, Some(a)),
-            None => (text, None),
-        };
-        Self { text, head, arg }
-    }
-
-    /// The error "term `TEXT`: `why`".
-    pub(crate) fn bad(&self, why: String) -> SpecError {
-        SpecError::BadArgument {
-            term: self.text.to_string(),
-            why,
-        }
-    }
-
-    /// `a` as an integer in `1..=max`, or the error naming `what`.
-    pub(crate) fn count(&self, a: &str, what: &str, max: usize) -> Result<usize, SpecError> {
-        match a.parse::<usize>() {
-            Ok(n) if (1..=max).contains(&n) => Ok(n),
-            _ => Err(self.bad(format!(
-                "{what} must be an integer from 1 to {max}, got `{a}`"
-            ))),
-        }
-    }
-
-    /// The optional argument as a knot count in `1..=32`, `default` without one.
-    pub(crate) fn knots_or(&self, default: usize) -> Result<usize, SpecError> {
-        Ok(self
-            .arg
-            .map(|a| self.count(a, "the number of knots", 32))
-            .transpose()?
-            .unwrap_or(default))
-    }
-
-    /// `spec`, or an error if the term was given an argument.
-    pub(crate) fn no_arg(&self, spec: Arc<dyn TermSpec>) -> Result<Arc<dyn TermSpec>, SpecError> {
-        match self.arg {
-            None => Ok(spec),
-            Some(a) => Err(self.bad(format!("`{}` takes no argument, got `{a}`", self.head))),
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::codegen::{CContext, CPrecision};
+    use crate::history::Feature;
     use crate::log::{ColumnMap, Log};
     use crate::model::data::FitData;
     use crate::numeric::rng::SimRng;

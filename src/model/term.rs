@@ -61,21 +61,13 @@
 //! ```
 
 use crate::codegen::{CContext, CTerm};
-use crate::history::SeekFeatures;
+use crate::history::Replay;
 use crate::model::ModelError;
+pub use crate::model::data::Seek;
 use crate::model::data::{FitData, FitError};
 use serde::{Deserialize, Serialize};
 use std::fmt::Debug;
 use std::sync::Arc;
-
-/// One seek as the terms see it: the history features and the row's covariates.
-#[derive(Debug, Clone, Copy)]
-pub struct Seek<'a> {
-    /// Features of the seek's history ([`SeekFeatures`]).
-    pub features: &'a SeekFeatures,
-    /// The row's covariate values, in the order of the covariate names given to [`Term::start`].
-    pub covariates: &'a [f64],
-}
 
 /// A fitted parameter as reported in the model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -466,4 +458,13 @@ pub(crate) fn se_from_cov(cov: &[f64], n: usize, i: usize) -> Option<f64> {
     cov.get(i * n + i)
         .map(|v| v.max(0.0).sqrt())
         .filter(|v| v.is_finite())
+}
+
+impl<'a> FitData<'a> {
+    /// A replay for `terms`: without the direction tracker and rest memory
+    /// ([`crate::history::History::step_light`]) when no term reads the history
+    /// ([`Term::reads_history`]).
+    pub(crate) fn replay_for(&self, terms: &[Arc<dyn Term>]) -> Replay<'a> {
+        self.replay_reading(terms.iter().any(|t| t.reads_history()))
+    }
 }

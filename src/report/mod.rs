@@ -29,8 +29,8 @@ pub(crate) mod story;
 use std::fmt::Write;
 use std::path::Path;
 
-use crate::plot::svg::{esc, fmt_num};
 use crate::io::{OutputError, write_string_atomic};
+use crate::plot::svg::{esc, fmt_num};
 
 /// A table cell: text (left-aligned) or a number (right-aligned, compact format).
 #[derive(Debug, Clone, PartialEq)]

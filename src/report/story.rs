@@ -16,9 +16,9 @@ use super::run::{DATA_STEPS, DEMO_STEPS, DataRun, DemoRun, ScoredModel, Steps};
 use super::sections::{
     Notes, data, diagnosis, discover, files, ladder, ms, paper, pct, scores, settle,
 };
+use crate::io::{StagedDir, write_string_atomic};
 use crate::plot::svg::fmt_num;
 use crate::plot::views;
-use crate::io::{StagedDir, write_string_atomic};
 
 pub use super::run::{CheckedStoryOptions, Progress, StoryOptions};
 pub(crate) use super::run::{DATA_MODELS, StoryError};

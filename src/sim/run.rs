@@ -3,8 +3,8 @@
 
 use super::SimConfig;
 use super::state::DriveState;
-use crate::log::{Log, LogError, LogWriter, fmt_fixed};
 use crate::io::{OutputError, write_atomic};
+use crate::log::{Log, LogError, LogWriter, fmt_fixed};
 use std::io::Write;
 use std::path::Path;
 

@@ -10,6 +10,7 @@ mod docs;
 mod export;
 mod fit_model;
 mod fuzz;
+mod layers;
 mod log_reading;
 mod plot_report;
 mod predict;

@@ -16,13 +16,13 @@
 //! `direction` term (or the asymptote of `dahl`), so `g` is fitted up to a constant. Same knots,
 //! scale and parameter names as `bins` on the same feature.
 
-use super::covariate_position;
+use super::common::covariate_position;
 use super::knots::{interior_knots_owned, label};
 use crate::codegen::{CContext, CTerm, zero};
 use crate::history::Feature;
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue, Law};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::{Answer, Cue, Law};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -274,7 +274,7 @@ impl TermState for BinsState {
 
 /// Parses `bins:FEATURE[:KNOTS]` and `dbins:FEATURE[:KNOTS]`; the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let head = t.head;
     let missing = || {

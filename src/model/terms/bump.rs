@@ -36,12 +36,13 @@
 
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
+use crate::model::SpecError;
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::TermText;
 use crate::model::term::{
     Nonlinear, Param, SearchContext, Searched, Seek, Term, TermSpec, TermState, se_from_cov,
 };
-use crate::model::{SpecError, terms::positive_finite};
+use crate::model::term_text::TermText;
+use crate::model::terms::common::positive_finite;
 use crate::numeric::search::golden_min;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;

@@ -15,7 +15,7 @@ use std::sync::Arc;
 
 /// Parses `by:A:B` (registry entry).
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     match t.arg.and_then(|a| a.split_once(':')) {
         Some((a, b)) if !a.is_empty() && !b.is_empty() && !b.contains(':') => {

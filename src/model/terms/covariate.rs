@@ -3,12 +3,12 @@
 //! reported `slope` is in counts per unit of the column. The same fitted term with a lag stage
 //! is `lag:NAME` ([`super::lag`]): the column passed through a first-order lag first.
 
-use super::covariate_position;
-use super::lag::{FirstOrderLag, LagStage};
+use super::common::covariate_position;
+use super::lag_filter::{FirstOrderLag, LagStage};
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue, Law};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::{Answer, Cue, Law};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -172,7 +172,7 @@ impl TermState for ColState {
 
 /// Parses `col:NAME`; the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     match t.arg {
         Some(name) if !name.is_empty() => Ok(Arc::new(ColSpec {

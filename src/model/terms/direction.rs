@@ -4,8 +4,8 @@
 
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use std::sync::Arc;
 
@@ -65,7 +65,7 @@ impl TermState for DirectionState {
 
 /// Parses `direction` (no argument); the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(DirectionSpec))
 }

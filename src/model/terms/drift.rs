@@ -10,8 +10,8 @@
 
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -199,7 +199,7 @@ impl TermState for DriftState {
 
 /// Parses `drift[:ALPHA]` (forgetting factor in (0, 1]); the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     let alpha = match t.arg {
         None => None,

@@ -64,7 +64,7 @@ impl TermState for Constant {
 
 /// Parses `intercept` (no argument); the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(InterceptSpec))
 }

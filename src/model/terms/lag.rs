@@ -15,13 +15,12 @@
 //! absolute unit). As τ → 0 the term becomes `col:NAME`.
 
 use super::covariate::ColTerm;
+pub use super::lag_filter::{FirstOrderLag, LagStage};
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Term, TermSpec};
 use crate::numeric::stats::percentile_select;
-use serde::{Deserialize, Serialize};
-use std::cell::Cell;
 use std::sync::Arc;
 
 /// Spec of the `lag:NAME` term.
@@ -64,17 +63,6 @@ impl TermSpec for LagSpec {
     }
 }
 
-/// The lag stage of a fitted `lag:NAME` term ([`ColTerm::lag`]).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct LagStage {
-    /// Time constant τ of the lag, s.
-    pub tau: f64,
-    /// Lower end of the `ln τ` search interval.
-    pub ln_lo: f64,
-    /// Upper end of the `ln τ` search interval.
-    pub ln_hi: f64,
-}
-
 /// Restores a saved `lag:NAME` term (a [`ColTerm`] whose settings hold `tau`, `ln_lo` and
 /// `ln_hi`); registry entry.
 pub(crate) fn restore(
@@ -94,119 +82,9 @@ pub(crate) fn restore(
     Ok(Arc::new(t))
 }
 
-/// A first-order lag `τ·dz/dt = c − z` of a sampled signal, linear between samples (exact
-/// update, see the module docs). Public so diagnosis features and benches can use it.
-///
-/// The update's two factors `a = exp(−Δt/τ)` and `(1 − a)·τ/Δt` depend only on the step Δt:
-/// they are memoised per Δt (a small direct-mapped table keyed by Δt's exact bits), so a
-/// regularly clocked log — a few distinct Δt however its times round — evaluates the two
-/// transcendentals a handful of times instead of twice per row, and a `peek` followed by the
-/// `step` of the same sample (a model's basis, then its update) computes them once. The memo
-/// returns the very values it stored, so results are bit-identical to computing every time
-/// ([`FirstOrderLag::peek_reference`] is that slow path, tested against it).
-#[derive(Debug, Clone)]
-pub struct FirstOrderLag {
-    tau: f64,
-    /// `(time, input, output)` at the last sample.
-    last: Option<(f64, f64, f64)>,
-    /// `(Δt bits, a, (1 − a)/r)` per slot; a key of 0 (Δt = 0, never looked up) is empty.
-    memo: [Cell<(u64, f64, f64)>; MEMO_SLOTS],
-}
-
-/// Slots of [`FirstOrderLag`]'s memo of decay factors: `2^MEMO_BITS`, enough for the 18
-/// distinct steps the times `k·0.3` s of 100,000 rows round to.
-const MEMO_BITS: u32 = 6;
-/// See [`MEMO_BITS`].
-const MEMO_SLOTS: usize = 1 << MEMO_BITS;
-
-/// The decay factors of one step `dt > 0` with time constant `tau`: `a = exp(−r)` and
-/// `(1 − a)/r`, `r = dt/τ` (the latter accurate for small r).
-#[inline]
-fn decay(dt: f64, tau: f64) -> (f64, f64) {
-    let r = dt / tau;
-    let a = (-r).exp();
-    let g = if r < 1e-6 {
-        1.0 - 0.5 * r
-    } else {
-        -(-r).exp_m1() / r
-    };
-    (a, g)
-}
-
-impl FirstOrderLag {
-    /// A lag with time constant `tau` (s, > 0) before its first sample.
-    pub fn new(tau: f64) -> Self {
-        Self {
-            tau,
-            last: None,
-            memo: std::array::from_fn(|_| Cell::new((0, 0.0, 0.0))),
-        }
-    }
-
-    /// [`decay`] of `dt > 0`, from the memo or computed and remembered.
-    #[inline]
-    fn factors(&self, dt: f64) -> (f64, f64) {
-        let key = dt.to_bits();
-        // Fibonacci hashing: the top bits of key·φ mix in the low mantissa bits, where the steps
-        // of one clock differ.
-        let slot =
-            &self.memo[(key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - MEMO_BITS)) as usize];
-        let (k, a, g) = slot.get();
-        if k == key {
-            return (a, g);
-        }
-        let (a, g) = decay(dt, self.tau);
-        slot.set((key, a, g));
-        (a, g)
-    }
-
-    /// The output at a sample `(t, c)` following the last one, without changing the state
-    /// (only the memo of decay factors).
-    #[inline]
-    pub fn peek(&self, t: f64, c: f64) -> f64 {
-        match self.last {
-            None => c,
-            Some((t0, c0, z0)) => {
-                let dt = t - t0;
-                if dt > 0.0 {
-                    let (a, g) = self.factors(dt);
-                    c + (z0 - c0) * a - (c - c0) * g
-                } else {
-                    z0
-                }
-            }
-        }
-    }
-
-    /// [`FirstOrderLag::peek`] computing both factors every time, without the memo (the slow,
-    /// obvious reference the memoised path is tested against, bit for bit).
-    pub fn peek_reference(&self, t: f64, c: f64) -> f64 {
-        match self.last {
-            None => c,
-            Some((t0, c0, z0)) => {
-                let dt = t - t0;
-                if dt > 0.0 {
-                    let (a, g) = decay(dt, self.tau);
-                    c + (z0 - c0) * a - (c - c0) * g
-                } else {
-                    z0
-                }
-            }
-        }
-    }
-
-    /// Takes the sample `(t, c)` and returns the output.
-    #[inline]
-    pub fn step(&mut self, t: f64, c: f64) -> f64 {
-        let z = self.peek(t, c);
-        self.last = Some((t, c, z));
-        z
-    }
-}
-
 /// Parses `lag:NAME`; the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     match t.arg {
         Some(name) if !name.is_empty() => Ok(Arc::new(LagSpec {

@@ -23,8 +23,8 @@
 //! which [`TermState::update`] then pops. Relative sums never overflow, whatever the positions.
 
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -214,7 +214,7 @@ impl TermState for MemsumState {
 
 /// Parses `memsum` (no argument); the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(MemsumSpec))
 }

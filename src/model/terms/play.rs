@@ -369,7 +369,7 @@ impl TermState for PlayState {
 
 /// Parses `play` / `play:N` (N from 1 to 256; default [`DEFAULT_ELEMENTS`]).
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(PlaySpec {
         elements: t
@@ -382,9 +382,9 @@ pub(crate) fn parse(
 
 /// The patterns `play` answers: hysteresis whose loop changes with the reversal amplitude,
 /// after the Dahl term (the verification scores both and keeps the better).
-pub(crate) fn answers(cue: crate::model::registry::Cue) -> Option<crate::model::registry::Answer> {
+pub(crate) fn answers(cue: crate::model::cue::Cue) -> Option<crate::model::cue::Answer> {
     use crate::history::Feature::{DirectionChange, SeekAbs, SeekLength, SinceReversal};
-    use crate::model::registry::{Answer, Cue};
+    use crate::model::cue::{Answer, Cue};
     match cue {
         Cue::Feature(SinceReversal, false) => Answer::fixed(1),
         Cue::Feature(SeekLength | SeekAbs | SinceReversal | DirectionChange, true) => {

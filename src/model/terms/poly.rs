@@ -61,7 +61,7 @@ pub struct Poly2Term {
     /// Centre of the scaled position, tracks.
     pub centre: f64,
     /// Scale of the scaled position, tracks (> 0; a model file with another is refused).
-    #[serde(deserialize_with = "super::positive_finite")]
+    #[serde(deserialize_with = "super::common::positive_finite")]
     pub scale: f64,
 }
 
@@ -144,7 +144,7 @@ impl TermState for Poly2Term {
 
 /// Parses `poly2` (no argument); the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     t.no_arg(Arc::new(Poly2Spec))
 }

@@ -32,8 +32,8 @@
 //! bias (`drift`): they have no basis to scale. Not exportable to C (`export c` refuses it by
 //! name).
 
+use super::common::covariate_position;
 use super::covariate::ColTerm;
-use super::covariate_position;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState};
 use crate::model::{ModelError, SpecError};
@@ -45,7 +45,7 @@ pub(crate) const HEAD: &str = "scale";
 
 /// Parses `scale:COL:TERM` (registry entry); `TERM` is any built-in term spec but `scale`.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, SpecError> {
     let usage = "`scale` needs a covariate column and a term: `scale:COL:TERM` \
                  (e.g. `scale:voltage_v:dahl`, `scale:temp_c:play:8`)";
@@ -131,7 +131,7 @@ struct ScaleSettings {
     /// Training mean of the column.
     centre: f64,
     /// Training standard deviation of the column.
-    #[serde(deserialize_with = "super::positive_finite")]
+    #[serde(deserialize_with = "super::common::positive_finite")]
     scale: f64,
     /// The inner term's name (its spec text).
     inner: String,
@@ -318,7 +318,7 @@ impl TermState for ScaleState {
 mod tests {
     use super::*;
     use crate::log::{ColumnMap, Log};
-    use crate::model::registry::TermText;
+    use crate::model::term_text::TermText;
     use crate::numeric::rng::SimRng;
 
     /// A random seek log with a covariate `volt` (values exact in the CSV).

@@ -20,8 +20,8 @@ use super::knots::{
 use crate::codegen::{CContext, CTerm, SIDE, c_curve_hinges};
 use crate::history::Feature;
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::{Answer, Cue};
 use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -120,7 +120,7 @@ impl TermState for SeekTerm {
 
 /// Parses `seek[:KNOTS]`; the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(SeekSpec {
         knots: t.knots_or(DEFAULT_KNOTS)?,

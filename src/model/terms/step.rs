@@ -50,13 +50,13 @@
 //! makes it too narrow). Exportable to C (`export c`); in single precision a logged value
 //! within float rounding of `T` may fall on the other side.
 
-use super::covariate_position;
+use super::common::covariate_position;
 use crate::codegen::{CContext, CTerm};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::TermText;
 use crate::model::term::{
     Nonlinear, Param, SearchContext, Searched, Seek, Term, TermSpec, TermState, se_from_cov,
 };
+use crate::model::term_text::TermText;
 use crate::model::{ModelError, SpecError};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;

@@ -21,14 +21,14 @@
 //!   Armstrong-Hélouvry); `stribeck:1` is the exponential (Tustin) form. A numeric argument is
 //!   δ (from 0.5 to 4), any other is the velocity column: `stribeck:velocity_m_s:1`.
 
-use super::positive_finite;
+use super::common::positive_finite;
 use super::viscous::{c_velocity, column_index, training_velocities, velocity};
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue, Law};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::TermText;
-use crate::model::registry::{Answer, Cue, Law};
 use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term_text::TermText;
 use crate::numeric::stats;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;

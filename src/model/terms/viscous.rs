@@ -15,13 +15,13 @@
 //! `v / scale` with `scale` the root mean square of the training velocity, so the solve sees a
 //! column of order one whatever the units; predictions do not depend on that scale.
 
-use super::covariate_position;
+use super::common::covariate_position;
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue, Law};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::TermText;
-use crate::model::registry::{Answer, Cue, Law};
 use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term_text::TermText;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -116,7 +116,7 @@ pub struct ViscousTerm {
     /// The velocity column; `None`: derived from position and time.
     pub column: Option<String>,
     /// RMS of the training velocity (1 if it was all zero), in the velocity's unit; finite, > 0.
-    #[serde(deserialize_with = "super::positive_finite")]
+    #[serde(deserialize_with = "super::common::positive_finite")]
     pub scale: f64,
 }
 
@@ -280,7 +280,7 @@ pub(crate) mod test_logs {
 #[cfg(test)]
 mod tests {
     use super::test_logs::{assert_round_trip, fitted, stage};
-    use crate::model::registry::TermText;
+    use crate::model::term_text::TermText;
 
     /// Reference: the closed-form truth b = 2.5 (bias per position unit per s) of a log made as
     /// `1 + 2.5·v` plus N(0, 0.3²) noise, with `v` the causal backward difference; recovered

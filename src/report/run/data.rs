@@ -7,11 +7,11 @@ use super::options::{CheckedStoryOptions, Progress, StoryOptions};
 use super::runs::{DataRun, DiagnosedRun, ScoredModel, Step};
 use super::steps::{LADDER_TERMS, Steps, discover_run, fit_and_score};
 use crate::diagnose::{FeatureTable, ModelDiagnosisError, diagnose_residual, replay_model};
-use crate::select::{ladder_fit, ladder_terms};
 use crate::fit::CheckedFitOptions;
 use crate::log::Log;
 use crate::model::{FittedModel, preset};
 use crate::score::score_with_units;
+use crate::select::{ladder_fit, ladder_terms};
 use std::path::{Path, PathBuf};
 
 /// The presets fitted on a user's log: (label, term list).

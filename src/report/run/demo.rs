@@ -9,10 +9,10 @@ use super::steps::{LADDER_TERMS, Steps, discover_run, fit_and_score};
 use crate::control::Controller;
 use crate::control::settle::{HandoffTable, SettleSpec, analyse, worst_case_settle};
 use crate::diagnose::{FeatureTable, diagnose_residual};
-use crate::select::{ladder_fit, ladder_terms};
 use crate::fit::CheckedFitOptions;
 use crate::log::Log;
 use crate::model::preset;
+use crate::select::{ladder_fit, ladder_terms};
 use crate::sim::{Drive, SequenceOptions, SimConfig, simulate, simulate_to_files};
 use std::path::Path;
 

@@ -2,12 +2,12 @@
 
 use crate::control::ServoError;
 use crate::control::settle::{AnalyseError, SettleError};
-use crate::diagnose::{ModelDiagnosisError};
+use crate::diagnose::ModelDiagnosisError;
 use crate::field::Field;
 use crate::fit::FitError;
+use crate::io::OutputError;
 use crate::log::LogError;
 use crate::model::{ModelError, SpecError};
-use crate::io::OutputError;
 use crate::score::ScoreError;
 use crate::sim::SimError;
 

@@ -4,10 +4,10 @@
 use super::options::StoryOptions;
 use crate::control::settle::{SettleReport, WorstCase};
 use crate::diagnose::{Diagnosis, FeatureTable};
-use crate::select::{Discovery, Ladder};
 use crate::log::Log;
 use crate::model::{FittedModel, Prediction};
 use crate::score::Score;
+use crate::select::{Discovery, Ladder};
 use crate::sim::Truth;
 
 /// One fitted and scored predictor.

@@ -4,11 +4,11 @@
 use super::error::{StoryError, error_chain};
 use super::options::{Progress, StoryOptions, diagnose_config};
 use super::runs::{ScoredModel, Step};
-use crate::select::{CheckedVerifyConfig, DiscoverConfig, Discovery, discover};
 use crate::fit::{CheckedFitOptions, fit};
 use crate::log::Log;
 use crate::model::{FittedModel, ModelSpec, preset};
 use crate::score::score_with_units;
+use crate::select::{CheckedVerifyConfig, DiscoverConfig, Discovery, discover};
 
 /// The ladder's terms, added one at a time.
 pub(crate) const LADDER_TERMS: [&str; 5] = preset::CALIBRATION_TERMS;

@@ -21,8 +21,8 @@ mod search;
 use crate::codegen::{CContext, CTerm};
 use crate::history::Feature;
 use crate::model::ModelError;
+use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::registry::{Answer, Cue};
 use crate::model::term::{
     Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermSpec, TermState, se_from_cov,
 };
@@ -338,7 +338,7 @@ pub struct DahlTerm {
     pub name: String,
     /// Rates r of the elements, each in [0, 1) (for reading; [`DahlTerm::lengths`] is exact; a
     /// model file with another is refused).
-    #[serde(deserialize_with = "super::unit_rates")]
+    #[serde(deserialize_with = "super::common::unit_rates")]
     pub rates: Vec<f64>,
     /// Characteristic lengths `L = −1/ln r` of the elements, position unit; empty in model
     /// files written before they were recorded (then taken from `rates`).
@@ -623,7 +623,7 @@ impl TermState for DahlTermState {
 
 /// Parses `dahl` or `dahl:N` (N Dahl elements, 1 to 16); the registry's parser.
 pub(crate) fn parse(
-    t: &crate::model::registry::TermText<'_>,
+    t: &crate::model::term_text::TermText<'_>,
 ) -> Result<Arc<dyn TermSpec>, crate::model::SpecError> {
     Ok(Arc::new(DahlSpec {
         elements: t
