@@ -1,6 +1,6 @@
 //! The fuzz and fault harness of issue #17, kept in the repository.
 //!
-//! Mutation fuzzing of a seed corpus (`tests/corpus/seed/`: real and simulated logs, a model
+//! Mutation fuzzing of a seed corpus (`tests/corpus/seed/`: simulated logs (a drive and two rigs), a model
 //! file, drive and plant TOMLs, a seek script, a term list) drives every reader and the library
 //! entry points behind the commands in-process: each mutated input must either be refused with an
 //! error whose message is under 300 characters, or be accepted and then give only finite
