@@ -159,10 +159,10 @@ fn strip_tests(code: &str, test_children: &mut BTreeSet<String>) -> String {
                 .chars()
                 .take_while(|c| c.is_alphanumeric() || *c == '_')
                 .collect();
-            let tail = &m[name.len()..].trim_start();
-            if tail.starts_with(';') {
+            let tail = m[name.len()..].trim_start();
+            if let Some(after_semi) = tail.strip_prefix(';') {
                 test_children.insert(name);
-                rest = &tail[1..];
+                rest = after_semi;
                 continue;
             }
             if tail.starts_with('{') {

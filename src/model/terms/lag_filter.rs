@@ -29,11 +29,11 @@ pub struct LagStage {
 /// ([`FirstOrderLag::peek_reference`] is that slow path, tested against it).
 #[derive(Debug, Clone)]
 pub struct FirstOrderLag {
-    tau: f64,
+    pub(super) tau: f64,
     /// `(time, input, output)` at the last sample.
-    last: Option<(f64, f64, f64)>,
+    pub(super) last: Option<(f64, f64, f64)>,
     /// `(Δt bits, a, (1 − a)/r)` per slot; a key of 0 (Δt = 0, never looked up) is empty.
-    memo: [Cell<(u64, f64, f64)>; MEMO_SLOTS],
+    pub(super) memo: [Cell<(u64, f64, f64)>; MEMO_SLOTS],
 }
 
 /// Slots of [`FirstOrderLag`]'s memo of decay factors: `2^MEMO_BITS`, enough for the 18
