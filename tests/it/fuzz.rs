@@ -267,13 +267,13 @@ impl Default for Ctx {
     }
 }
 
-/// The column names of a corpus log (the real logs keep their own).
+/// The column names of a corpus log (the rig logs keep their own).
 fn map_for(name: &str) -> ColumnMap {
     let mut m = ColumnMap::default();
-    if name.contains("emps") {
+    if name.contains("rig_si_units") {
         m.track = "position_m".into();
         m.bias = "force_N".into();
-    } else if name.contains("pneumatic") {
+    } else if name.contains("rig_mm_pressure") {
         m.track = "position_mm".into();
         m.bias = "force_N".into();
     }
