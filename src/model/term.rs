@@ -267,7 +267,7 @@ pub trait Term: Debug + Send + Sync {
         serde_json::Value::Null
     }
     /// The term as C code for the firmware export (`biasctl export c`, `crate::export`),
-    /// written with the helpers of [`crate::codegen`](mod@crate::codegen); `None` (the
+    /// written with the helpers of `crate::codegen` ([`CContext`](crate::CContext), [`CTerm`](crate::CTerm)); `None` (the
     /// default): not exportable (the export then refuses, naming the term). Each built-in term
     /// that can be exported implements it in its own file from its fitted settings.
     fn export_c(&self, _ctx: &CContext) -> Option<CTerm> {

@@ -132,7 +132,7 @@ pub struct DemoRun {
     pub diagnosis: DiagnosedRun,
     /// The ladder of `LADDER_TERMS`: calibration run → random run.
     pub ladder: Ladder,
-    /// [`discover`](crate::diagnose::discover) from `DISCOVER_START`: calibration run → random run.
+    /// [`discover`](crate::select::discover) from `DISCOVER_START`: calibration run → random run.
     pub discovery: Step<Discovery>,
     /// The settle analysis and the link from prediction error to settle time.
     pub settle: SettleRun,
@@ -166,6 +166,6 @@ pub struct DataRun {
     pub diagnosis: Step<DiagnosedRun>,
     /// The ladder of `LADDER_TERMS`: first half → second half.
     pub ladder: Step<Ladder>,
-    /// [`discover`](crate::diagnose::discover) from `DISCOVER_START`: first half → second half.
+    /// [`discover`](crate::select::discover) from `DISCOVER_START`: first half → second half.
     pub discovery: Step<Discovery>,
 }
