@@ -645,3 +645,42 @@ fn the_checker_sees_imports_and_skips_comments_strings_and_tests() {
         ["field", "cli"]
     );
 }
+
+/// Longest production part of a source file, in lines (its text before a `#[cfg(test)]`
+/// module; test files declared `#[cfg(test)] mod NAME;` do not count).
+const MAX_FILE_LINES: usize = 800;
+
+#[test]
+fn no_production_file_over_800_lines() {
+    let src = read_sources();
+    let mut long: Vec<String> = src
+        .files
+        .values()
+        .filter_map(|(rel, _)| {
+            let text = std::fs::read_to_string(src_dir().join(rel)).unwrap();
+            let mut lines = 0;
+            let mut prev_cfg_test = false;
+            for l in text.lines() {
+                let t = l.trim_start();
+                if prev_cfg_test
+                    && l == t
+                    && (t.starts_with("mod ") || t.starts_with("pub(crate) mod "))
+                {
+                    lines -= 1; // the attribute line belongs to the tests
+                    break;
+                }
+                prev_cfg_test = l == "#[cfg(test)]";
+                lines += 1;
+            }
+            (lines > MAX_FILE_LINES).then(|| format!("src/{} ({lines} lines)", rel.display()))
+        })
+        .collect();
+    long.sort();
+    assert!(
+        long.is_empty(),
+        "production files over {MAX_FILE_LINES} lines:\n  {}\nSplit each by concern into a folder \
+         (`foo.rs` → `foo/{{mod.rs, a.rs, b.rs}}`, re-exported from `foo/mod.rs`); tests may move \
+         to a `tests.rs` beside it.",
+        long.join("\n  ")
+    );
+}
