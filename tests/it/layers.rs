@@ -212,7 +212,7 @@ fn mod_path(rel: &Path) -> ModPath {
 
 /// Every `crate::a::b` / `super::a` path in `code`, resolved to a module path (not yet cut to
 /// an existing module file). Braced groups `crate::{a, b::c}` give one path per member.
-fn paths_in(code: &str, here: &ModPath, is_mod_file: bool) -> Vec<Vec<String>> {
+fn paths_in(code: &str, here: &ModPath) -> Vec<Vec<String>> {
     let mut found = Vec::new();
     let b = code.as_bytes();
     let ident = |c: u8| c.is_ascii_alphanumeric() || c == b'_';
@@ -229,7 +229,6 @@ fn paths_in(code: &str, here: &ModPath, is_mod_file: bool) -> Vec<Vec<String>> {
             // `super` from a file `a/b.rs` (module a::b) is `a`; from `a/mod.rs` (module a) it
             // is the crate root. Nested `super::super` is handled below.
             let mut p = here.clone();
-            let _ = is_mod_file;
             p.pop();
             (p, 5)
         } else {
@@ -443,11 +442,10 @@ fn owner<'a>(
 
 fn edges(src: &Source) -> BTreeMap<ModPath, BTreeSet<ModPath>> {
     let mut out: BTreeMap<ModPath, BTreeSet<ModPath>> = BTreeMap::new();
-    for (here, (rel, code)) in &src.files {
-        let is_mod = rel.file_name().is_some_and(|f| f == "mod.rs");
+    for (here, (_, code)) in &src.files {
         let set = out.entry(here.clone()).or_default();
         for (scope, piece) in inline_pieces(code, here) {
-            for p in paths_in(&piece, &scope, is_mod) {
+            for p in paths_in(&piece, &scope) {
                 if let Some(m) = owner(&src.files, &p)
                     && m != here
                 {
@@ -525,8 +523,6 @@ fn no_circle_of_files() {
         })
         .collect();
     let n = nodes.len();
-    let (mut index, mut low) = (vec![usize::MAX; n], vec![0; n]);
-    let (mut on, mut stack, mut next) = (vec![false; n], Vec::new(), 0);
     let mut circles: Vec<Vec<String>> = Vec::new();
     fn visit(
         v: usize,
@@ -562,12 +558,13 @@ fn no_circle_of_files() {
             }
         }
     }
+    // (index, low link, on stack, stack, next index) of Tarjan's algorithm.
     let mut st = (
-        std::mem::take(&mut index),
-        std::mem::take(&mut low),
-        std::mem::take(&mut on),
-        std::mem::take(&mut stack),
-        std::mem::take(&mut next),
+        vec![usize::MAX; n],
+        vec![0; n],
+        vec![false; n],
+        Vec::new(),
+        0,
     );
     let mut comps = Vec::new();
     for v in 0..n {
@@ -607,7 +604,7 @@ fn the_checker_sees_imports_and_skips_comments_strings_and_tests() {
     let mut kids = BTreeSet::new();
     let code = strip_tests(&code_only(text), &mut kids);
     let here: ModPath = vec!["diagnose".into(), "features".into()];
-    let paths = paths_in(&code, &here, false);
+    let paths = paths_in(&code, &here);
     let flat: Vec<String> = paths.iter().map(|p| p.join("::")).collect();
     assert!(flat.contains(&"fit::solve::Qr".to_string()), "{flat:?}");
     assert!(flat.contains(&"fit::FitOptions".to_string()), "{flat:?}");
@@ -629,7 +626,7 @@ fn the_checker_sees_imports_and_skips_comments_strings_and_tests() {
     );
     let scoped: Vec<String> = pieces
         .iter()
-        .flat_map(|(scope, code)| paths_in(code, scope, false))
+        .flat_map(|(scope, code)| paths_in(code, scope))
         .map(|p| p.join("::"))
         .collect();
     assert!(
