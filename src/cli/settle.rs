@@ -1,10 +1,10 @@
 //! `biasctl settle`: the settle-optimal integrator start value at handoff (paper Section IV).
 
 use super::common::{ColumnArgs, SettleArgs};
-use crate::write_string_atomic;
-use crate::{DEFAULT_BIAS_UNIT, Units};
-use crate::{FittedModel, NextPrediction, predict_next};
+use crate::io::write_string_atomic;
+use crate::{FittedModel, model::NextPrediction, model::predict_next};
 use crate::{SettleReport, analyse};
+use crate::{Units, log::DEFAULT_BIAS_UNIT};
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -181,7 +181,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
                 zero_ff_worst_settle_ms: report.worst_case.zero_ff_worst_settle_ms,
             }),
         };
-        outln!("{}", crate::to_string_pretty(&value)?)?;
+        outln!("{}", crate::io::to_string_pretty(&value)?)?;
     } else {
         if let Some(l) = &link {
             outln!(
