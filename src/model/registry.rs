@@ -9,7 +9,7 @@
 //! settings, `#[derive(Serialize, Deserialize)]` on the fitted type; declare the module in
 //! `terms/mod.rs` (`pub mod NAME;`) and add its row to [`BUILTINS`]. Nothing in the solver
 //! ([`crate::fit`](mod@crate::fit)) knows term names: a term reports its parameter count, whether it may drop
-//! undetermined columns ([`Term::droppable`]) and its own fit warnings ([`Term::fit_warnings`]).
+//! undetermined columns ([`TermCaps::droppable`](crate::model::TermCaps::droppable)) and its own fit warnings ([`Term::fit_warnings`]).
 //!
 //! ```
 //! use biasctl::model::builtin_names;

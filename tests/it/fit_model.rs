@@ -66,7 +66,7 @@ fn synth(
         .iter()
         .map(|t| t.prepare(&data).unwrap())
         .collect();
-    if !terms.iter().any(|t| t.provides_intercept()) {
+    if !terms.iter().any(|t| t.caps().provides_intercept) {
         terms.insert(0, Arc::new(InterceptTerm));
     }
     for t in &mut terms {

@@ -23,7 +23,7 @@ use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue, Law};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -123,14 +123,17 @@ impl Term for BinsTerm {
         }
         v
     }
-    fn droppable(&self) -> bool {
-        true
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            droppable: true,
+            ..TermCaps::DEFAULT
+        }
     }
     /// A `dbins` curve times the direction has no direction×constant column by design (it would
     /// duplicate `direction`); without a term that carries the inbound/outbound offset, that
     /// offset is not modelled at all.
     fn fit_warnings(&self, model: &[Arc<dyn Term>]) -> Vec<String> {
-        if self.by_direction && !model.iter().any(|t| t.spans_direction_offset()) {
+        if self.by_direction && !model.iter().any(|t| t.caps().spans_direction_offset) {
             vec![
                 "`dbins` curves have no direction×constant column: add `direction` or `dahl` to model \
                  the constant inbound/outbound offset (the two curves of Fig. 3)"

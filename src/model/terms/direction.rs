@@ -6,7 +6,7 @@ use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use std::sync::Arc;
 
 /// Spec of the `direction` term.
@@ -33,8 +33,11 @@ impl Term for DirectionTerm {
     fn param_names(&self) -> Vec<String> {
         vec!["Fc".into()]
     }
-    fn spans_direction_offset(&self) -> bool {
-        true
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            spans_direction_offset: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(DirectionState))

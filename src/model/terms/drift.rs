@@ -12,7 +12,7 @@ use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Param, Seek, Term, TermSpec, TermState};
+use crate::model::term::{Param, Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -135,11 +135,12 @@ impl Term for DriftTerm {
             m: 0.0,
         }))
     }
-    fn adaptive(&self) -> bool {
-        true
-    }
-    fn reads_only_residuals(&self) -> bool {
-        true
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            adaptive: true,
+            reads_only_residuals: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn forgetting_factor(&self) -> Option<f64> {
         // `DriftState`: offset `m` (from 0), update `m += alpha · e`.

@@ -8,7 +8,7 @@
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term::{Param, Seek, Term, TermCaps, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -66,18 +66,19 @@ pub struct Poly2Term {
 }
 
 impl Term for Poly2Term {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            provides_intercept: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         "poly2".into()
     }
     fn param_names(&self) -> Vec<String> {
         vec!["a0".into(), "a1".into(), "a2".into()]
-    }
-    fn provides_intercept(&self) -> bool {
-        true
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(*self))

@@ -22,7 +22,7 @@ use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -78,8 +78,11 @@ impl Term for SeekTerm {
     fn param_names(&self) -> Vec<String> {
         curve_param_names(&CURVES, &self.knots)
     }
-    fn droppable(&self) -> bool {
-        true
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            droppable: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn fit_warnings(&self, _model: &[Arc<dyn Term>]) -> Vec<String> {
         super::knots::no_knots_warning(self)

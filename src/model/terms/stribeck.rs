@@ -149,7 +149,7 @@ impl Term for StribeckTerm {
         }
         model
             .iter()
-            .filter(|t| t.spans_direction_offset())
+            .filter(|t| t.caps().spans_direction_offset)
             .map(|t| {
                 format!(
                     "{}: sign(velocity) is the direction of every move, so its Fc shares the \

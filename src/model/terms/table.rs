@@ -7,7 +7,7 @@ use crate::codegen::{CContext, CTerm, zero};
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -66,9 +66,13 @@ pub struct TableTerm {
 }
 
 impl Term for TableTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            provides_intercept: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         self.name.clone()
@@ -82,9 +86,6 @@ impl Term for TableTerm {
                 )
             })
             .collect()
-    }
-    fn provides_intercept(&self) -> bool {
-        true
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(self.clone()))

@@ -24,7 +24,8 @@ use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{
-    Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermSpec, TermState, se_from_cov,
+    Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermCaps, TermSpec, TermState,
+    se_from_cov,
 };
 use search::DahlSearch;
 use serde::{Deserialize, Serialize};
@@ -402,15 +403,19 @@ impl DahlTerm {
 }
 
 impl Term for DahlTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            spans_direction_offset: true,
+            // The rate search's projected RSS is tested against the full solve per candidate
+            // (`fit::tests::projected_search_equals_full_solve_per_candidate`).
+            search_by_projection: self.search,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         self.name.clone()
-    }
-    fn spans_direction_offset(&self) -> bool {
-        true
     }
     fn param_names(&self) -> Vec<String> {
         if self.search {
@@ -451,11 +456,6 @@ impl Term for DahlTerm {
             lo: 0.0,
             hi: 1.0,
         })
-    }
-    fn search_by_projection(&self) -> bool {
-        // The rate search's projected RSS is tested against the full solve per candidate
-        // (`fit::tests::projected_search_equals_full_solve_per_candidate`).
-        self.search
     }
     fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
         self.search.then(|| {
