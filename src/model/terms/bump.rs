@@ -1,5 +1,4 @@
-//! `bump[:CENTRE:WIDTH]`: a localized position defect (issue #10, "localized position
-//! defects") — a narrow Gaussian bump in the bias around one position,
+//! `bump[:CENTRE:WIDTH]`: a localized position defect — a narrow Gaussian bump in the bias around one position,
 //!
 //! `b = A · exp(−½·((x − c)/w)²)`,
 //!

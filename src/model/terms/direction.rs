@@ -9,13 +9,16 @@ use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`direction`).
+pub(crate) const HEAD: &str = "direction";
+
 /// Spec of the `direction` term.
 #[derive(Debug, Clone, Copy)]
 pub struct DirectionSpec;
 
 impl TermSpec for DirectionSpec {
     fn name(&self) -> String {
-        "direction".into()
+        HEAD.into()
     }
     fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         Ok(Arc::new(DirectionTerm))
@@ -28,7 +31,7 @@ pub struct DirectionTerm;
 
 impl Term for DirectionTerm {
     fn name(&self) -> String {
-        "direction".into()
+        HEAD.into()
     }
     fn param_names(&self) -> Vec<String> {
         vec!["Fc".into()]

@@ -16,6 +16,9 @@ use crate::model::term::{Param, Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`drift`).
+pub(crate) const HEAD: &str = "drift";
+
 /// Spec of the `drift` term.
 #[derive(Debug, Clone, Copy)]
 pub struct DriftSpec {
@@ -27,7 +30,7 @@ impl TermSpec for DriftSpec {
     fn name(&self) -> String {
         match self.alpha {
             Some(a) => format!("drift:{a}"),
-            None => "drift".into(),
+            None => HEAD.into(),
         }
     }
     fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {

@@ -6,13 +6,16 @@ use crate::model::data::{FitData, FitError};
 use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`intercept`).
+pub(crate) const HEAD: &str = "intercept";
+
 /// Spec of the `intercept` term.
 #[derive(Debug, Clone, Copy)]
 pub struct InterceptSpec;
 
 impl TermSpec for InterceptSpec {
     fn name(&self) -> String {
-        "intercept".into()
+        HEAD.into()
     }
     fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         Ok(Arc::new(InterceptTerm))
@@ -33,7 +36,7 @@ impl Term for InterceptTerm {
         }
     }
     fn name(&self) -> String {
-        "intercept".into()
+        HEAD.into()
     }
     fn param_names(&self) -> Vec<String> {
         vec!["c".into()]

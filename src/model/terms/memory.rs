@@ -25,6 +25,9 @@ use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`memory`).
+pub(crate) const HEAD: &str = "memory";
+
 /// Default number of knots per curve.
 pub const DEFAULT_KNOTS: usize = 4;
 
@@ -37,7 +40,7 @@ pub struct MemorySpec {
 
 impl TermSpec for MemorySpec {
     fn name(&self) -> String {
-        spec_name("memory", self.knots, DEFAULT_KNOTS)
+        spec_name(HEAD, self.knots, DEFAULT_KNOTS)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let d = data.measured_rest_distances_ahead();

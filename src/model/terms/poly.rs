@@ -12,13 +12,16 @@ use crate::model::term::{Param, Seek, Term, TermCaps, TermSpec, TermState, se_fr
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`poly2`).
+pub(crate) const HEAD: &str = "poly2";
+
 /// Spec of the `poly2` term.
 #[derive(Debug, Clone, Copy)]
 pub struct Poly2Spec;
 
 impl TermSpec for Poly2Spec {
     fn name(&self) -> String {
-        "poly2".into()
+        HEAD.into()
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let (centre, half) = centre_and_half_range(data.log());
@@ -75,7 +78,7 @@ impl Term for Poly2Term {
         }
     }
     fn name(&self) -> String {
-        "poly2".into()
+        HEAD.into()
     }
     fn param_names(&self) -> Vec<String> {
         vec!["a0".into(), "a1".into(), "a2".into()]

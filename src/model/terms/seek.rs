@@ -26,6 +26,9 @@ use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`seek`).
+pub(crate) const HEAD: &str = "seek";
+
 /// Default number of knots per curve.
 pub const DEFAULT_KNOTS: usize = 4;
 
@@ -38,7 +41,7 @@ pub struct SeekSpec {
 
 impl TermSpec for SeekSpec {
     fn name(&self) -> String {
-        spec_name("seek", self.knots, DEFAULT_KNOTS)
+        spec_name(HEAD, self.knots, DEFAULT_KNOTS)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let a =

@@ -1,4 +1,4 @@
-//! `step:COL[:T]`: a threshold in a covariate column (issue #10, "thresholds") — the bias
+//! `step:COL[:T]`: a threshold in a covariate column — the bias
 //! changes by a fitted height where the column exceeds a fitted threshold,
 //!
 //! `b = A · [v > T]`,

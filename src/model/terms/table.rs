@@ -11,6 +11,15 @@ use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`table`).
+pub(crate) const HEAD: &str = "table";
+
+/// The spec text of a table with knot spacing `h` (`table:2.5`, six significant digits at
+/// most), as model-structure selection proposes it.
+pub(crate) fn spec(h: f64) -> String {
+    format!("{HEAD}:{}", crate::log::fmt_trimmed(h, 6))
+}
+
 /// Spec of the `table` term.
 #[derive(Debug, Clone, Copy)]
 pub struct TableSpec {
@@ -22,7 +31,7 @@ impl TermSpec for TableSpec {
     fn name(&self) -> String {
         match self.spacing {
             Some(h) => format!("table:{}", crate::log::fmt_trimmed(h, 6)),
-            None => "table".into(),
+            None => HEAD.into(),
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {

@@ -32,6 +32,9 @@ use serde::{Deserialize, Serialize};
 use std::cell::Cell;
 use std::sync::Arc;
 
+/// The head of the term's spec text (`dahl`).
+pub(crate) const HEAD: &str = "dahl";
+
 /// Powers `r^n` tabulated for integer seek lengths below this.
 const TABLE: usize = 256;
 
@@ -282,7 +285,7 @@ impl TermSpec for DahlSpec {
     fn name(&self) -> String {
         match self.elements {
             Some(n) => format!("dahl:{n}"),
-            None => "dahl".into(),
+            None => HEAD.into(),
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
