@@ -71,25 +71,6 @@ const ALLOWED: &[(&str, &str, &str)] = &[
     ),
     ("select/ladder.rs", "step", "the column of ladder steps"),
     ("sim/family/effects.rs", "lag", "the hidden effect's name"),
-    (
-        "sim/family/effects.rs",
-        "memsum",
-        "the diagnosis feature prefix memsum…",
-    ),
-    // The family's ground truth is written in the spec language, as a preset is; the test
-    // below parses every one of them, so a renamed term fails here.
-    ("sim/family/effects.rs", "col:temp_fast", "ground truth"),
-    ("sim/family/effects.rs", "col:temp_slow", "ground truth"),
-    ("sim/family/effects.rs", "step:load", "ground truth"),
-    ("sim/family/effects.rs", "lag:temp_lag", "ground truth"),
-    ("sim/family/effects.rs", "dbins:humid", "ground truth"),
-    ("sim/family/effects.rs", "dbins:position", "ground truth"),
-    ("sim/family/effects.rs", "bump", "ground truth"),
-    (
-        "sim/family/effects.rs",
-        "by:position:supply",
-        "ground truth",
-    ),
 ];
 
 fn src_dir() -> PathBuf {
