@@ -15,7 +15,8 @@
 //! - [`json::to_string_pretty`] is the one JSON writer: a non-finite number (which serde_json
 //!   would write as `null`) is refused naming its key path.
 //! - `finite` refuses to emit a non-finite number; [`quote`] and [`message`] keep error
-//!   messages short whatever the user typed.
+//!   messages short whatever the user typed; [`shell_quote`] quotes a value for a suggested
+//!   command line.
 
 pub(crate) mod fault;
 pub(crate) mod file;
@@ -23,8 +24,9 @@ pub(crate) mod finite;
 pub(crate) mod json;
 pub(crate) mod number;
 pub(crate) mod stdout;
+pub(crate) mod words;
 
-pub use {file::write_atomic, file::write_string_atomic};
+pub use {file::write_atomic, file::write_string_atomic, words::shell_quote};
 
 pub(crate) use file::StagedDir;
 pub use finite::{NonFinite, check_text};

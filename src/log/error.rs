@@ -27,8 +27,9 @@ pub enum LogError {
     },
     /// A required column is not in the header.
     #[error(
-        "{file}: line {line}: missing required column `{column}` (columns found: {found}){}; name it with {field}",
-        did_you_mean(.suggestion)
+        "{file}: line {line}: missing required column `{column}` (columns found: {found}){}; name it with {field} {}",
+        did_you_mean(.suggestion),
+        .suggestion.as_deref().map_or("NAME".into(), crate::io::shell_quote)
     )]
     MissingColumn {
         /// The log file.

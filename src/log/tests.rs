@@ -925,3 +925,44 @@ fn missing_column_suggests_the_closest_name() {
     assert_eq!(sniff_delimiter("\"a;b\",c"), b',');
     assert_eq!(sniff_delimiter("abc"), b',');
 }
+
+/// Reference: the header names themselves. A rig's symbol-and-unit names (`t [s]`, `t_s`, `t`,
+/// `F_N`, `x_mm`) are suggested for their role, and every suggested flag value is quoted for
+/// the shell where it needs it; a covariate such as `T_coil` is not taken for the time.
+#[test]
+fn missing_columns_suggest_rig_symbols_quoted_for_the_shell() {
+    let e = read(",t [s],pos_mm,F_N,T_coil\n0,0.0,1,2,20\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with(
+            "name them: ColumnMap::time 't [s]' ColumnMap::track pos_mm ColumnMap::bias F_N"
+        ),
+        "{e}"
+    );
+    let e = read("T_coil,t_s,x_mm,F_N\n20,0,1,2\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with("name them: ColumnMap::time t_s ColumnMap::track x_mm ColumnMap::bias F_N"),
+        "{e}"
+    );
+    // One column missing: the hint names the flag with the value to give it.
+    let e = read("t,track,bias\n0,1,2\n").unwrap_err().to_string();
+    assert!(
+        e.ends_with("did you mean `t`?; name it with ColumnMap::time t"),
+        "{e}"
+    );
+    let e = read("time (s),track,bias\n0,1,2\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with("did you mean `time (s)`?; name it with ColumnMap::time 'time (s)'"),
+        "{e}"
+    );
+    // Neither a time in ms nor a temperature is offered as the time in seconds.
+    for header in ["t_ms,track,bias", "T_coil,track,bias"] {
+        let e = read(&format!("{header}\n0,1,2\n")).unwrap_err().to_string();
+        assert!(!e.contains("did you mean"), "{e}");
+    }
+}

@@ -51,8 +51,9 @@ pub(crate) const FORMAT_VERSION: u32 = 1;
 pub enum SpecError {
     /// A term name that is not built in.
     #[error(
-        "unknown term `{term}` (built-in terms: {})",
-        registry::builtin_names()
+        "unknown term `{term}`{} (built-in terms: {}; `biasctl fit --help` gives their arguments)",
+        registry::did_you_mean_term(.term),
+        registry::builtin_heads().join(", ")
     )]
     UnknownTerm {
         /// The offending item.
@@ -73,7 +74,11 @@ pub enum SpecError {
         term: String,
     },
     /// A preset name that does not exist.
-    #[error("unknown model preset `{name}` (presets: {})", preset::PRESETS.join(", "))]
+    #[error(
+        "unknown model preset `{name}`{} (presets: {})",
+        crate::io::words::did_you_mean(.name, preset::PRESETS),
+        preset::PRESETS.join(", ")
+    )]
     UnknownPreset {
         /// The name given.
         name: String,
@@ -149,7 +154,8 @@ pub enum ModelError {
     },
     /// The log's required columns are named differently from the ones the model was fitted on.
     #[error(
-        "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({field}); the names must match: read a log that has `{model}` with {field} {model}, or refit the model on this log"
+        "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({field}); the names must match: read a log that has `{model}` with {field} {}, or refit the model on this log",
+        crate::io::shell_quote(.model)
     )]
     ColumnMismatch {
         /// Which column (time, track, bias).
