@@ -966,3 +966,49 @@ fn missing_columns_suggest_rig_symbols_quoted_for_the_shell() {
         assert!(!e.contains("did you mean"), "{e}");
     }
 }
+
+/// Reference: the cells as written. An empty cell in a covariate is a missing value: the whole
+/// log leaves that column out with a note, a streamed row holds NaN there and the schema counts
+/// the cells; an empty cell in a required column is refused without empty quotes.
+#[test]
+fn an_empty_covariate_cell_is_a_missing_value() {
+    let text =
+        "time_s,track,bias,temp_c,humidity\n0,1,2,20,50\n1,2,3,21,\n2,3,4,22,\n3,4,5,23,51\n";
+    let log = read(text).unwrap();
+    assert_eq!(log.len(), 4);
+    assert_eq!(log.schema.covariates, ["temp_c"]);
+    assert_eq!(log.covariate(0), [20.0, 21.0, 22.0, 23.0]);
+    assert_eq!(log.row(1).covariates.len(), 1);
+    let e = &log.schema.empty_cells[0];
+    assert_eq!(
+        (e.column.as_str(), e.column_index, e.count, e.first_line),
+        ("humidity", 5, 2, 3)
+    );
+    assert!(
+        log.schema.notes.iter().any(|n| n
+            .starts_with("column 5 (`humidity`): 2 empty cells (line 3 first)")
+            && n.contains("left out of the covariates")),
+        "{:?}",
+        log.schema.notes
+    );
+    let mut reader =
+        LogReader::from_reader("t.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+    let rows: Vec<Row> = reader.by_ref().collect::<Result<_, _>>().unwrap();
+    assert!(rows[1].covariates[1].is_nan() && rows[0].covariates[1] == 50.0);
+    let s = reader.schema();
+    assert_eq!(s.empty_cells.len(), 1);
+    s.require_covariates(&rows[1], &[0]).unwrap();
+    let err = s
+        .require_covariates(&rows[1], &[1])
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        err,
+        "t.csv: line 3, column 5 (`humidity`): empty cell in a covariate the model reads"
+    );
+    let err = read("time_s,track,bias\n0,,1\n").unwrap_err().to_string();
+    assert_eq!(
+        err,
+        "t.csv: line 2, column 2 (`track`): empty cell in a required column"
+    );
+}

@@ -152,6 +152,29 @@ pub enum ModelError {
         /// The log's covariates.
         available: String,
     },
+    /// A [`Predictor`] was given another number of covariate values than the covariate names
+    /// it was made with.
+    #[error(
+        "{given} covariate values given, but the predictor was made with {expected} covariate names: pass one value per name, in their order"
+    )]
+    CovariateCount {
+        /// The number of names given to [`Predictor::new`].
+        expected: usize,
+        /// The number of values passed.
+        given: usize,
+    },
+    /// A term reads a covariate column that has empty cells in this log (missing values).
+    #[error(
+        "{file}: term `{term}` reads {cells}; the model needs a value on every row: fill the cells"
+    )]
+    EmptyCovariate {
+        /// The log file.
+        file: String,
+        /// The term.
+        term: String,
+        /// The column and its empty cells.
+        cells: crate::log::EmptyCells,
+    },
     /// The log's required columns are named differently from the ones the model was fitted on.
     #[error(
         "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({field}); the names must match: read a log that has `{model}` with {field} {}, or refit the model on this log",
@@ -612,7 +635,36 @@ impl FittedModel {
                 });
             }
         }
+        for (term, column) in self.covariates_read() {
+            if let Some(cells) = schema.empty_cells_of(&column) {
+                return Err(ModelError::EmptyCovariate {
+                    file: schema.file.clone(),
+                    term,
+                    cells: cells.clone(),
+                });
+            }
+        }
         Ok(())
+    }
+
+    /// Every covariate column the model reads, with the term that reads it (the direction
+    /// source for a velocity column): (term, column).
+    pub fn covariates_read(&self) -> Vec<(String, String)> {
+        let mut read: Vec<(String, String)> = self
+            .terms
+            .iter()
+            .flat_map(|t| {
+                let name = t.term.name();
+                t.term
+                    .covariates()
+                    .into_iter()
+                    .map(move |c| (name.clone(), c))
+            })
+            .collect();
+        if let crate::history::DirectionSource::Velocity { column } = &self.direction {
+            read.push(("direction".into(), column.clone()));
+        }
+        read
     }
 
     /// Which of `positions` (tracks) lie outside the position range the model was fitted on
@@ -723,7 +775,7 @@ impl FittedModel {
                 row.covariates.gather(&mut cov),
                 shown,
                 &mut contrib,
-            );
+            )?;
             if let Some(y) = row.bias {
                 let row = MeasuredRow {
                     index: i,

@@ -192,7 +192,9 @@ fn a_plan_without_bias_is_predicted_exactly_as_the_measured_log() {
     let m = biasctl::FittedModel::load(Path::new(&model)).unwrap();
     let mut p = Predictor::new(&m, &log.schema.covariates).unwrap();
     for (row, want) in log.rows().zip(column(&measured, "predicted")) {
-        let got = p.step(row.time_s, row.track, &row.covariates.to_vec(), row.bias);
+        let got = p
+            .step(row.time_s, row.track, &row.covariates.to_vec(), row.bias)
+            .unwrap();
         assert_eq!(got.to_string(), want);
     }
 }
@@ -457,9 +459,11 @@ fn predictor_step_and_peek_allocate_nothing() {
     let before = allocations();
     for row in test.rows() {
         let c = row.covariates.gather(&mut cov);
-        sum += p.peek(row.time_s, row.track + 7.0, c);
-        sum += p.step(row.time_s, row.track, c, row.bias);
-        sum += p.step(row.time_s, row.track, c, None);
+        sum += p.peek(row.time_s, row.track + 7.0, c).unwrap_or(f64::NAN);
+        sum += p
+            .step(row.time_s, row.track, c, row.bias)
+            .unwrap_or(f64::NAN);
+        sum += p.step(row.time_s, row.track, c, None).unwrap_or(f64::NAN);
     }
     let after = allocations();
     assert!(sum.is_finite());
@@ -467,4 +471,40 @@ fn predictor_step_and_peek_allocate_nothing() {
     // The counter works: a Vec allocates.
     let v = std::hint::black_box(vec![1u8; 3]);
     assert!(allocations() > after && v.len() == 3);
+}
+
+/// Reference: the covariate names given to `Predictor::new`. Fewer (or more) covariate values
+/// than names is an error, not a value read as 0, and a refused step leaves the state as it
+/// was (the next prediction equals a fresh predictor's).
+#[test]
+fn predictor_refuses_another_number_of_covariate_values() {
+    let mut text = String::from("time_s,track,bias,temp_c\n");
+    for i in 0..80u32 {
+        let x = f64::from((i * 397) % 1999);
+        let t = 20.0 + f64::from(i % 7);
+        text += &format!("{i},{x},{},{t}\n", 0.01 * x + 2.0 * t);
+    }
+    let log = Log::from_reader("c.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+    let spec = ModelSpec::parse("poly2,col:temp_c").unwrap();
+    let model = fit(&spec, &log, &CheckedFitOptions::default()).unwrap();
+    let mut p = Predictor::new(&model, &log.schema.covariates).unwrap();
+    let e = p.peek(0.0, 25.0, &[]).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        "0 covariate values given, but the predictor was made with 1 covariate names: pass one \
+         value per name, in their order"
+    );
+    assert!(p.peek(0.0, 25.0, &[20.0, 1.0]).is_err());
+    assert!(p.step(0.0, 25.0, &[], Some(1.0)).is_err());
+    let fresh = Predictor::new(&model, &log.schema.covariates).unwrap();
+    let (a, b) = (
+        p.peek(0.0, 25.0, &[21.0]).unwrap(),
+        fresh.peek(0.0, 25.0, &[21.0]).unwrap(),
+    );
+    assert_eq!(a.to_bits(), b.to_bits());
+    // The value is the model's: 2·temp_c at the fitted coefficient, not temp_c read as 0.
+    assert!(
+        (a - fresh.peek(0.0, 25.0, &[0.0]).unwrap() - 42.0).abs() < 1e-6,
+        "{a}"
+    );
 }
