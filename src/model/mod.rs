@@ -163,6 +163,20 @@ pub enum ModelError {
         /// The number of values passed.
         given: usize,
     },
+    /// A log is read in other units than the model was fitted in.
+    #[error(
+        "the model was fitted with {what} in `{model}`, but this log's {what} is in `{log}` ({field}); a model predicts in the units it was fitted in: read the log in `{model}`, or refit the model on this log"
+    )]
+    UnitMismatch {
+        /// Which unit: `bias` or `position`.
+        what: &'static str,
+        /// The unit the model was fitted in.
+        model: String,
+        /// The log's unit.
+        log: String,
+        /// The setting that names the log's unit.
+        field: crate::field::Field,
+    },
     /// A term reads a covariate column that has empty cells in this log (missing values).
     #[error(
         "{file}: term `{term}` reads {cells}; the model needs a value on every row: fill the cells"
@@ -346,6 +360,10 @@ pub struct ColumnsUsed {
     pub bias: String,
     /// Covariate columns the terms read.
     pub covariates: Vec<String>,
+    /// The units of bias and position of the log the model was fitted on (the model predicts
+    /// in them); `None` in a model file written before they were recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub units: Option<crate::log::Units>,
 }
 
 /// One fitted term: the term, its coefficients (basis order) and its reported parameters.
@@ -641,6 +659,34 @@ impl FittedModel {
                     file: schema.file.clone(),
                     term,
                     cells: cells.clone(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks that `units` (a log's) are the ones the model was fitted in, when the model file
+    /// records them ([`ColumnsUsed::units`]).
+    pub fn check_units(&self, units: &crate::log::Units) -> Result<(), ModelError> {
+        let Some(fitted) = &self.columns.units else {
+            return Ok(());
+        };
+        use crate::field::Field;
+        for (what, model, log, field) in [
+            ("bias", &fitted.bias, &units.bias, Field::BiasUnit),
+            (
+                "position",
+                &fitted.position,
+                &units.position,
+                Field::PositionUnit,
+            ),
+        ] {
+            if model != log {
+                return Err(ModelError::UnitMismatch {
+                    what,
+                    model: model.clone(),
+                    log: log.clone(),
+                    field,
                 });
             }
         }

@@ -81,6 +81,7 @@ fn synth(
             track: "track".into(),
             bias: "bias".into(),
             covariates: vec![],
+            units: None,
         },
         terms: terms
             .iter()

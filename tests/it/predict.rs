@@ -508,3 +508,74 @@ fn predictor_refuses_another_number_of_covariate_values() {
         "{a}"
     );
 }
+
+/// Reference: the unit labels given at fit. The model file records the units it was fitted in;
+/// reading a log in others for it is refused naming the flag, and a model fitted with
+/// `--bias-unit N` scores in N without the flag.
+#[test]
+fn a_model_file_records_its_units_and_refuses_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    let log = write(dir.path(), "l.csv", &crate::common::log_text(1.0));
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &p("m.json"),
+    ]);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("m.json")).unwrap()).unwrap();
+    assert_eq!(
+        json["columns"]["units"],
+        serde_json::json!({"bias": "counts", "position": "tracks"})
+    );
+    fails_with(
+        &[
+            "score",
+            "--model",
+            &p("m.json"),
+            "--data",
+            &log,
+            "--bias-unit",
+            "N",
+        ],
+        &[
+            "the model was fitted with bias in `counts`, but this log's bias is in `N` (--bias-unit)",
+        ],
+    );
+    fails_with(
+        &[
+            "predict",
+            "--model",
+            &p("m.json"),
+            "--data",
+            &log,
+            "--track-unit",
+            "mm",
+            "--out",
+            &p("p.csv"),
+        ],
+        &["position in `tracks`", "(--track-unit)"],
+    );
+    let rig = write(
+        dir.path(),
+        "r.csv",
+        &crate::common::log_text(1.0).replacen("time_s,track,bias", "time_s,x_mm,force_N", 1),
+    );
+    let cols = ["--track-col", "x_mm", "--bias-col", "force_N"];
+    let mut args = vec!["fit", "--data", &rig, "--model", "position-direction"];
+    args.extend(cols);
+    let out = p("r.json");
+    args.extend(["--bias-unit", "N", "--out", &out]);
+    ok(&args);
+    let mut args = vec!["score", "--model", &out, "--data", &rig];
+    args.extend(cols);
+    let text = ok(&args);
+    assert!(
+        text.contains(" N") && !text.contains("force_N,") && !text.contains(" force_N"),
+        "{text}"
+    );
+}
