@@ -177,6 +177,41 @@ impl ColumnArgs {
         )?)
     }
 
+    /// The units of a log read for `model`: a unit named by a flag or by the log's metadata
+    /// must be the one the model was fitted in (else an error naming the flag); one the column
+    /// name gave is the model's, so a model fitted with `--bias-unit N` prints N without the
+    /// flag.
+    pub(crate) fn units_for_model(
+        &self,
+        schema: &LogSchema,
+        model: &crate::FittedModel,
+    ) -> anyhow::Result<Units> {
+        let mut units = self.units(schema)?;
+        if let Some(fitted) = &model.columns.units {
+            use crate::log::{BIAS_UNIT_KEY, POSITION_UNIT_KEY};
+            if self.bias_unit.is_none() && schema.metadata_value(BIAS_UNIT_KEY).is_none() {
+                units.bias = fitted.bias.clone();
+            }
+            if self.track_unit.is_none() && schema.metadata_value(POSITION_UNIT_KEY).is_none() {
+                units.position = fitted.position.clone();
+            }
+        }
+        model.check_units(&units)?;
+        Ok(units)
+    }
+
+    /// Reads the whole log at `path` for `model`: [`ColumnArgs::read_log`], in the units
+    /// [`ColumnArgs::units_for_model`] gives.
+    pub(crate) fn read_log_for(
+        &self,
+        path: &Path,
+        model: &crate::FittedModel,
+    ) -> anyhow::Result<Log> {
+        let mut log = self.read_log(path)?;
+        log.schema.units = self.units_for_model(&log.schema, model)?;
+        Ok(log)
+    }
+
     /// Reads the whole log at `path` with these column names and unit labels.
     pub(crate) fn read_log(&self, path: &Path) -> anyhow::Result<Log> {
         let mut log = Log::read(path, &self.map())?;

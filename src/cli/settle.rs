@@ -89,7 +89,7 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
         return Ok(None);
     };
     let model = FittedModel::load(model_path)?;
-    let log = args.columns.read_log(data)?;
+    let log = args.columns.read_log_for(data, &model)?;
     let units = log.schema.units.clone();
     // The settle plant is a disk drive's: its input is in DAC counts. A bias in another unit
     // (N, mA) cannot be fed to it without a conversion the tool does not know.

@@ -65,6 +65,18 @@ pub enum FitError {
         /// The covariates present.
         available: String,
     },
+    /// A term reads a covariate column that has empty cells (missing values).
+    #[error(
+        "{file}: term `{term}` reads {cells}; a term needs a value on every row: fill the cells, or leave the term out"
+    )]
+    EmptyCovariate {
+        /// The log file.
+        file: String,
+        /// The term.
+        term: String,
+        /// The column and its empty cells.
+        cells: crate::log::EmptyCells,
+    },
     /// A term names one of the log's required columns (time, position, bias) as a covariate.
     #[error(
         "{file}: term `{term}` reads column `{column}`, which is the log's {role} column, not a covariate: {hint}"
@@ -464,6 +476,13 @@ impl<'a> FitData<'a> {
                 column: column.into(),
                 role,
                 hint,
+            });
+        }
+        if let Some(cells) = s.empty_cells_of(column) {
+            return Err(FitError::EmptyCovariate {
+                file: s.file.clone(),
+                term: term.into(),
+                cells: cells.clone(),
             });
         }
         s.covariate_index(column)

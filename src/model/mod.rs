@@ -52,8 +52,9 @@ pub(crate) const FORMAT_VERSION: u32 = 1;
 pub enum SpecError {
     /// A term name that is not built in.
     #[error(
-        "unknown term `{term}` (built-in terms: {})",
-        registry::builtin_names()
+        "unknown term `{term}`{} (built-in terms: {}; `biasctl fit --help` gives their arguments)",
+        registry::did_you_mean_term(.term),
+        registry::builtin_heads().join(", ")
     )]
     UnknownTerm {
         /// The offending item.
@@ -74,7 +75,11 @@ pub enum SpecError {
         term: String,
     },
     /// A preset name that does not exist.
-    #[error("unknown model preset `{name}` (presets: {})", preset::PRESETS.join(", "))]
+    #[error(
+        "unknown model preset `{name}`{} (presets: {})",
+        crate::io::words::did_you_mean(.name, preset::PRESETS),
+        preset::PRESETS.join(", ")
+    )]
     UnknownPreset {
         /// The name given.
         name: String,
@@ -148,9 +153,47 @@ pub enum ModelError {
         /// The log's covariates.
         available: String,
     },
+    /// A [`Predictor`] was given another number of covariate values than the covariate names
+    /// it was made with.
+    #[error(
+        "{given} covariate values given, but the predictor was made with {expected} covariate names: pass one value per name, in their order"
+    )]
+    CovariateCount {
+        /// The number of names given to [`Predictor::new`].
+        expected: usize,
+        /// The number of values passed.
+        given: usize,
+    },
+    /// A log is read in other units than the model was fitted in.
+    #[error(
+        "the model was fitted with {what} in `{model}`, but this log's {what} is in `{log}` ({field}); a model predicts in the units it was fitted in: read the log in `{model}`, or refit the model on this log"
+    )]
+    UnitMismatch {
+        /// Which unit: `bias` or `position`.
+        what: &'static str,
+        /// The unit the model was fitted in.
+        model: String,
+        /// The log's unit.
+        log: String,
+        /// The setting that names the log's unit.
+        field: crate::field::Field,
+    },
+    /// A term reads a covariate column that has empty cells in this log (missing values).
+    #[error(
+        "{file}: term `{term}` reads {cells}; the model needs a value on every row: fill the cells"
+    )]
+    EmptyCovariate {
+        /// The log file.
+        file: String,
+        /// The term.
+        term: String,
+        /// The column and its empty cells.
+        cells: crate::log::EmptyCells,
+    },
     /// The log's required columns are named differently from the ones the model was fitted on.
     #[error(
-        "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({field}); the names must match: read a log that has `{model}` with {field} {model}, or refit the model on this log"
+        "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({field}); the names must match: read a log that has `{model}` with {field} {}, or refit the model on this log",
+        crate::io::shell_quote(.model)
     )]
     ColumnMismatch {
         /// Which column (time, track, bias).
@@ -318,6 +361,10 @@ pub struct ColumnsUsed {
     pub bias: String,
     /// Covariate columns the terms read.
     pub covariates: Vec<String>,
+    /// The units of bias and position of the log the model was fitted on (the model predicts
+    /// in them); `None` in a model file written before they were recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub units: Option<crate::log::Units>,
 }
 
 /// One fitted term: the term, its coefficients (basis order) and its reported parameters.
@@ -607,7 +654,64 @@ impl FittedModel {
                 });
             }
         }
+        for (term, column) in self.covariates_read() {
+            if let Some(cells) = schema.empty_cells_of(&column) {
+                return Err(ModelError::EmptyCovariate {
+                    file: schema.file.clone(),
+                    term,
+                    cells: cells.clone(),
+                });
+            }
+        }
         Ok(())
+    }
+
+    /// Checks that `units` (a log's) are the ones the model was fitted in, when the model file
+    /// records them ([`ColumnsUsed::units`]).
+    pub fn check_units(&self, units: &crate::log::Units) -> Result<(), ModelError> {
+        let Some(fitted) = &self.columns.units else {
+            return Ok(());
+        };
+        use crate::field::Field;
+        for (what, model, log, field) in [
+            ("bias", &fitted.bias, &units.bias, Field::BiasUnit),
+            (
+                "position",
+                &fitted.position,
+                &units.position,
+                Field::PositionUnit,
+            ),
+        ] {
+            if model != log {
+                return Err(ModelError::UnitMismatch {
+                    what,
+                    model: model.clone(),
+                    log: log.clone(),
+                    field,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Every covariate column the model reads, with the term that reads it (the direction
+    /// source for a velocity column): (term, column).
+    pub fn covariates_read(&self) -> Vec<(String, String)> {
+        let mut read: Vec<(String, String)> = self
+            .terms
+            .iter()
+            .flat_map(|t| {
+                let name = t.term.name();
+                t.term
+                    .covariates()
+                    .into_iter()
+                    .map(move |c| (name.clone(), c))
+            })
+            .collect();
+        if let crate::history::DirectionSource::Velocity { column } = &self.direction {
+            read.push(("direction".into(), column.clone()));
+        }
+        read
     }
 
     /// Which of `positions` (tracks) lie outside the position range the model was fitted on
@@ -718,7 +822,7 @@ impl FittedModel {
                 row.covariates.gather(&mut cov),
                 shown,
                 &mut contrib,
-            );
+            )?;
             if let Some(y) = row.bias {
                 let row = MeasuredRow {
                     index: i,

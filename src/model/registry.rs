@@ -351,6 +351,30 @@ pub fn builtin_names() -> String {
         .join(", ")
 }
 
+/// The head of every listed built-in term (`poly2`, `table`, …), once each, in registry order:
+/// a list short enough for one line of a message.
+pub(crate) fn builtin_heads() -> Vec<&'static str> {
+    BUILTINS
+        .iter()
+        .filter(|b| b.syntax.is_some())
+        .map(|b| b.head)
+        .collect()
+}
+
+/// `; did you mean `x`?` for an unknown term's spec text: the closest built-in head to its
+/// head, with the arguments as written (`dahll:4` → `dahl:4`), or nothing.
+pub(crate) fn did_you_mean_term(text: &str) -> String {
+    let (head, args) = text
+        .split_once(':')
+        .map_or((text, None), |(h, a)| (h, Some(a)));
+    crate::io::words::closest(head, builtin_heads())
+        .map(|h| match args {
+            Some(a) => format!("; did you mean `{h}:{a}`?"),
+            None => format!("; did you mean `{h}`?"),
+        })
+        .unwrap_or_default()
+}
+
 /// A fitted term rebuilt by deserialising its saved settings into `T`.
 pub(crate) fn restore_as<T: serde::de::DeserializeOwned + Term + 'static>(
     name: &str,
@@ -371,6 +395,36 @@ mod tests {
     use crate::log::{ColumnMap, Log};
     use crate::model::data::FitData;
     use crate::numeric::rng::SimRng;
+
+    /// Reference: the registry's heads. An unknown term gets the closest head with its
+    /// arguments kept, and the message lists every head whole, within the shortest message
+    /// limit (the full syntax list was cut mid-word there).
+    #[test]
+    fn an_unknown_term_gets_a_did_you_mean_and_every_head_whole() {
+        let e = crate::model::ModelSpec::parse("poly2,dahll").unwrap_err();
+        let m = crate::io::message(&e);
+        assert!(
+            m.starts_with("unknown term `dahll`; did you mean `dahl`?"),
+            "{m}"
+        );
+        for b in BUILTINS.iter().filter(|b| b.syntax.is_some()) {
+            assert!(
+                m.contains(&format!(" {},", b.head)) || m.contains(&format!(" {};", b.head)),
+                "{} in {m}",
+                b.head
+            );
+        }
+        assert!(!m.contains('…'), "{m}");
+        let e = crate::model::ModelSpec::parse("stribek:velocity").unwrap_err();
+        assert!(
+            e.to_string().contains("did you mean `stribeck:velocity`?"),
+            "{e}"
+        );
+        let e = crate::model::ModelSpec::parse("qqqq").unwrap_err();
+        assert!(!e.to_string().contains("did you mean"), "{e}");
+        let e = crate::model::ModelSpec::preset("calibraton").unwrap_err();
+        assert!(e.to_string().contains("did you mean `calibration`?"), "{e}");
+    }
 
     /// A random seek log with a covariate `temp_c`.
     fn log() -> Log {

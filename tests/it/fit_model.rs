@@ -81,6 +81,7 @@ fn synth(
             track: "track".into(),
             bias: "bias".into(),
             covariates: vec![],
+            units: None,
         },
         terms: terms
             .iter()
@@ -107,8 +108,8 @@ fn synth(
     let bias: Vec<f64> = rows
         .iter()
         .map(|&(t, x, c)| {
-            let y = p.peek(t, x, &[c]) + noise * rng.normal();
-            p.step(t, x, &[c], Some(y));
+            let y = p.peek(t, x, &[c]).unwrap() + noise * rng.normal();
+            p.step(t, x, &[c], Some(y)).unwrap();
             y
         })
         .collect();
@@ -608,9 +609,11 @@ fn online_peek_equals_step() {
         let candidates = [r.track - 7.0, r.track + 100.0, r.track];
         let peeks: Vec<f64> = candidates
             .iter()
-            .map(|&c| p.peek(r.time_s, c, &r.covariates.to_vec()))
+            .map(|&c| p.peek(r.time_s, c, &r.covariates.to_vec()).unwrap())
             .collect();
-        let stepped = p.step(r.time_s, r.track, &r.covariates.to_vec(), r.bias);
+        let stepped = p
+            .step(r.time_s, r.track, &r.covariates.to_vec(), r.bias)
+            .unwrap();
         assert_eq!(peeks[2].to_bits(), stepped.to_bits());
     }
 }

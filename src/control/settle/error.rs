@@ -34,7 +34,11 @@ pub enum SettleError {
 #[non_exhaustive]
 pub enum ConfigError {
     /// Unknown preset name.
-    #[error("unknown preset `{0}` (known: {names})", names = PRESETS.join(", "))]
+    #[error(
+        "unknown preset `{0}`{hint} (known: {names})",
+        hint = crate::io::words::did_you_mean(.0, PRESETS),
+        names = PRESETS.join(", ")
+    )]
     UnknownPreset(String),
     /// The plant part is invalid.
     #[error("invalid plant: {0}")]
