@@ -24,7 +24,8 @@ pub(crate) struct Args {
     #[command(flatten)]
     columns: ColumnArgs,
     /// Print the ladder as JSON: {"steps": [{"edit", "feature", "reason", "std_before",
-    /// "std_after", "terms"}, ...], "final_terms", "stopped_because", "basis", "unit", "start_std"}.
+    /// "std_after", "terms"}, ...], "final_terms", "stopped_because", "reason", "basis", "unit",
+    /// "start_std"}.
     #[arg(long)]
     json: bool,
     /// Write discover.json, discover.txt and the final model.json into this directory.

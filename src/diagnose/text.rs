@@ -349,8 +349,8 @@ impl Diagnosis {
         }
         for x in &r.rejected {
             out.push_str(&format!(
-                "  `{}` for `{}` cannot be applied on top: {}\n",
-                x.term, x.feature, x.why
+                "  `{}` for `{}` on top: {}: {}\n",
+                x.term, x.feature, x.reason, x.why
             ));
         }
         if let Some(c) = &r.combined {
@@ -452,8 +452,8 @@ impl Diagnosis {
             }
             for r in &v.rejected {
                 out.push_str(&format!(
-                    "  `{}` for `{}` cannot be applied: {}\n",
-                    r.term, r.feature, r.why
+                    "  `{}` for `{}`: {}: {}\n",
+                    r.term, r.feature, r.reason, r.why
                 ));
             }
             if let Some(r) = &v.second_round {

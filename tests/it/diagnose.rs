@@ -1381,3 +1381,95 @@ fn diagnose_out_that_is_a_file_is_refused_clearly() {
         &["--out", "is a file", "takes a directory"],
     );
 }
+
+/// A rig log as `pandas.DataFrame.to_csv` writes it: an unnamed index column, then `t [s]`
+/// (row i at i·0.02 s computed in binary and printed shortest-round-trip, as pandas prints a
+/// float: `4.0200000000000005`), `pos_mm`, `F_N`, `T_coil`. The force: a Bouc–Wen friction
+/// state (3 N, characteristic length 2 mm), a spring (0.05 N/mm), gravity (2.94 N), the coil
+/// temperature through a 40 s first-order lag (0.4 N/K), noise 0.2 N; the temperature steps to
+/// a new set point every 30 s and follows it with a 5 s time constant.
+fn pandas_rig_csv(n: usize, seed: u64) -> String {
+    let mut rng = biasctl::SimRng::new(seed);
+    let (dt, tau) = (0.02, 40.0);
+    let (mut z, mut temp, mut lagged, mut set_point, mut prev) = (0.0, 25.0, 25.0, 25.0, 0.0);
+    let mut text = String::from(",t [s],pos_mm,F_N,T_coil\n");
+    for i in 0..n {
+        let t = i as f64 * dt;
+        let two_pi = 2.0 * std::f64::consts::PI;
+        let x = 20.0 * (two_pi * t / 7.0).sin() + 5.0 * (two_pi * t / 2.3).sin();
+        let dx: f64 = x - prev;
+        prev = x;
+        let zf: f64 = z;
+        z += (dx - 0.5 * dx.abs() * zf - 0.5 * dx * zf.abs()) / 2.0;
+        if i % 1500 == 0 {
+            set_point = 25.0 + 30.0 * rng.uniform();
+        }
+        temp += (set_point - temp) * dt / 5.0 + 0.02 * rng.normal();
+        lagged += (temp - lagged) * dt / tau;
+        let force = 3.0 * z + 0.05 * x + 9.81 * 0.3 + 0.4 * (lagged - 25.0) + 0.2 * rng.normal();
+        text.push_str(&format!("{i},{t},{x},{force},{temp}\n"));
+    }
+    text
+}
+
+#[test]
+fn a_pandas_written_regular_clock_is_no_effect_and_nothing_blows_up() {
+    // Reference: the log's clock is regular — every row 0.02 s after the one before, as
+    // written in decimal; only the binary rounding of the written times varies (a dozen
+    // variants of 0.02 s that change with the size of t). Time differences read on the time
+    // grid are one value, so `dwell_s` explains nothing and no edit is scored for it; and no
+    // number the diagnosis prints is blown up (the forces are tens of N: nothing it prints,
+    // figures or percentages, reaches 1e7 in absolute value).
+    let dir = tempfile::tempdir().unwrap();
+    let csv = pandas_rig_csv(12_000, 5);
+    assert!(
+        csv.contains("\n201,4.0200000000000005,"),
+        "not pandas' clock"
+    );
+    let data = write(dir.path(), "rig.csv", &csv);
+    let model = dir.path().join("pd.json").display().to_string();
+    let cols = [
+        "--time-col",
+        "t [s]",
+        "--track-col",
+        "pos_mm",
+        "--bias-col",
+        "F_N",
+        "--bias-unit",
+        "N",
+    ];
+    let run = |args: &[&str]| ok(&[args, &cols[..]].concat());
+    run(&[
+        "fit",
+        "--data",
+        &data,
+        "--model",
+        "position-direction",
+        "--out",
+        &model,
+    ]);
+    let text = run(&["diagnose", "--model", &model, "--data", &data]);
+    let json: Value = serde_json::from_str(&run(&[
+        "diagnose", "--model", &model, "--data", &data, "--json",
+    ]))
+    .unwrap();
+    let dwell = json["features"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["name"] == "dwell_s")
+        .expect("dwell_s is a candidate");
+    assert!(
+        dwell["explained"].as_f64().unwrap() < 0.02 && dwell["flagged"] == false,
+        "a regular clock read as an effect: {dwell}"
+    );
+    let v = &json["verification"];
+    for e in v["edits"].as_array().unwrap() {
+        assert_ne!(e["feature"], "dwell_s", "{e}");
+    }
+    let big: Vec<&str> = text
+        .split(|c: char| c.is_whitespace() || c == '(' || c == ')' || c == ',')
+        .filter(|w| w.parse::<f64>().is_ok_and(|v| v.abs() >= 1e7))
+        .collect();
+    assert!(big.is_empty(), "blown-up numbers {big:?} in:\n{text}");
+}

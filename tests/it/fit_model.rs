@@ -1928,3 +1928,56 @@ fn a_step_threshold_that_is_no_number_is_named_as_the_threshold() {
     assert!(!err.contains("lacks"), "{err}");
     assert!(!std::path::Path::new(&out).exists());
 }
+
+#[test]
+fn a_not_identifiable_warning_prints_the_absolute_value() {
+    // Reference: `|value|` is the parameter's absolute value. `c` has no effect, so its slope
+    // is N(0, se²): below its standard error in about 68 % of seeds and negative in half of
+    // them. Over eight seeds every such warning must print |value| as the parameter's own
+    // value without its sign (4 significant digits), and at least one of them is negative.
+    let mut negative = 0;
+    for seed in 11..19 {
+        let mut rng = SimRng::new(seed);
+        let mut text = String::from("time_s,track,bias,a,c\n");
+        for i in 0..2000 {
+            let (a, c) = (rng.normal(), rng.normal());
+            let bias = 2.0 + 0.5 * a + rng.normal();
+            text.push_str(&format!(
+                "{},{},{bias},{a},{c}\n",
+                0.3 * i as f64,
+                rng.below(300)
+            ));
+        }
+        let log = Log::from_reader("nid.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+        let m = fit(
+            &ModelSpec::parse("col:a,col:c").unwrap(),
+            &log,
+            &CheckedFitOptions::default(),
+        )
+        .unwrap();
+        for w in &m.warnings {
+            assert!(
+                !w.contains("|value| -"),
+                "a negative number in absolute bars: {w}"
+            );
+        }
+        let p = m
+            .terms
+            .iter()
+            .flat_map(|t| &t.params)
+            .find(|p| p.name == "col:c.slope")
+            .unwrap();
+        if p.se.is_some_and(|se| se > p.value.abs()) {
+            let want = format!("|value| {:.4e}", p.value.abs());
+            assert!(
+                m.warnings
+                    .iter()
+                    .any(|w| w.starts_with("col:c.slope") && w.contains(&want)),
+                "{want}: {:?}",
+                m.warnings
+            );
+            negative += usize::from(p.value < 0.0);
+        }
+    }
+    assert!(negative > 0, "no seed gave a negative value to check");
+}
