@@ -25,7 +25,9 @@
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term::{
+    Nonlinear, Param, Seek, Term, TermCaps, TermSpec, TermState, se_from_cov,
+};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -70,6 +72,14 @@ pub struct MemsumTerm {
 }
 
 impl Term for MemsumTerm {
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // The projected RSS and the search on it are tested against a full solve per
+            // candidate (`fit::projection`'s memsum and lag test).
+            search_by_projection: true,
+            ..TermCaps::DEFAULT
+        }
+    }
     fn name(&self) -> String {
         HEAD.into()
     }
