@@ -1,0 +1,36 @@
+//! `biasctl._biasctl`: the Python extension module of the `biasctl` package, a thin layer over
+//! the Rust library (`biasctl` without its command line). The Python package `biasctl`
+//! (python/biasctl/) wraps it in pandas and numpy; every long call releases the GIL, every
+//! error is a `BiasctlError` with the library's message, and no panic reaches Python.
+
+mod analysis;
+mod errors;
+mod log;
+mod model;
+mod settle;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _biasctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("BiasctlError", py.get_type::<errors::BiasctlError>())?;
+    m.add("LogError", py.get_type::<errors::LogError>())?;
+    m.add("ModelError", py.get_type::<errors::ModelError>())?;
+    m.add("FitError", py.get_type::<errors::FitError>())?;
+    m.add("SettleError", py.get_type::<errors::SettleError>())?;
+    m.add_class::<log::PyLog>()?;
+    m.add_class::<model::PyModel>()?;
+    m.add_class::<model::PyPredictor>()?;
+    m.add_class::<analysis::PyDiagnosis>()?;
+    m.add_function(wrap_pyfunction!(log::read_log, m)?)?;
+    m.add_function(wrap_pyfunction!(log::log_from_columns, m)?)?;
+    m.add_function(wrap_pyfunction!(model::fit, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::discover, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::ladder, m)?)?;
+    m.add_function(wrap_pyfunction!(settle::settle, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
