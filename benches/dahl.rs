@@ -4,7 +4,7 @@
 //! block ahead of the loop-carried chain); and 1M candidate peeks.
 
 use biasctl::SimRng;
-use biasctl::{terms::dahl::DahlPredictor, terms::dahl::DahlState};
+use biasctl::{model::terms::dahl::DahlPredictor, model::terms::dahl::DahlState};
 #[path = "common/cputime.rs"]
 mod cputime;
 

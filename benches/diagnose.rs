@@ -11,11 +11,11 @@ use std::hint::black_box;
 use biasctl::ModelSpec;
 use biasctl::SimRng;
 use biasctl::{
-    CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, FeatureTable, diagnose,
+    CheckedDiscoverConfig, CheckedVerifyConfig, DiagnoseConfig, diagnose, diagnose::FeatureTable,
     diagnose_verified, discover,
 };
 use biasctl::{CheckedFitOptions, fit};
-use biasctl::{ColumnMap, Log, LogWriter};
+use biasctl::{ColumnMap, Log, log::LogWriter};
 #[path = "common/cputime.rs"]
 mod cputime;
 

@@ -2,7 +2,7 @@
 //! already sorted values (linear time), and the whole `dip_test` including its sort.
 
 use biasctl::SimRng;
-use biasctl::{dip_test, dip_test_sorted, sorted};
+use biasctl::{numeric::dip_test, numeric::dip_test_sorted, numeric::sorted};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 

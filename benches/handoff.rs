@@ -3,8 +3,8 @@
 //! for horizons 64, 128 and 256. The table is precomputed outside the timed loop, as in a drive.
 //! `BIASCTL_BENCH_CPU=1` measures the thread's CPU time instead of wall time (a shared machine).
 
-use biasctl::Controller;
-use biasctl::{Bounds, Handoff, HandoffTable, SettleSpec};
+use biasctl::control::Controller;
+use biasctl::{HandoffTable, SettleSpec, control::Bounds, control::Handoff};
 use criterion::measurement::Measurement;
 use criterion::{BenchmarkId, Criterion};
 use std::hint::black_box;

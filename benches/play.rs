@@ -12,7 +12,7 @@ use biasctl::ModelSpec;
 use biasctl::SimRng;
 use biasctl::{CheckedFitOptions, fit};
 use biasctl::{ColumnMap, Log};
-use biasctl::{terms::play::PlayPredictor, terms::play::PlayTerm};
+use biasctl::{model::terms::play::PlayPredictor, model::terms::play::PlayTerm};
 #[path = "common/cputime.rs"]
 mod cputime;
 

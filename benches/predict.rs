@@ -5,10 +5,13 @@
 //! sink that drops the rows (`replay_stream`), to separate the writer's share. The set-up checks
 //! the output byte for byte against the real `biasctl predict` on a small log.
 
-use biasctl::{BiasColumn, ColumnMap, LogReader};
-use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};
+use biasctl::{ColumnMap, log::BiasColumn, log::LogReader};
+use biasctl::{Drive, SequenceOptions, SimConfig, sim::simulate_to_files, simulate_log};
 use biasctl::{FitOptions, fit};
-use biasctl::{FittedModel, ModelSpec, RowPrediction, replay_stream, write_predictions_csv};
+use biasctl::{
+    FittedModel, ModelSpec, model::RowPrediction, model::replay_stream,
+    model::write_predictions_csv,
+};
 #[path = "common/cputime.rs"]
 mod cputime;
 

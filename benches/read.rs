@@ -6,8 +6,8 @@
 //! made once outside the timed loop. Throughput is in bytes of the file. This bench only
 //! measures: the reader is being changed elsewhere.
 
-use biasctl::{ColumnMap, Log, LogReader};
-use biasctl::{Drive, SequenceOptions, SimConfig, simulate_to_files};
+use biasctl::{ColumnMap, Log, log::LogReader};
+use biasctl::{Drive, SequenceOptions, SimConfig, sim::simulate_to_files};
 #[path = "common/cputime.rs"]
 mod cputime;
 
@@ -51,7 +51,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
     g.bench_function("check_sampling_1M_rows", |b| {
         b.iter(|| {
             let mut r = LogReader::open(black_box(&path), &map).expect("valid log");
-            black_box(biasctl::summarise_sampling(&mut r, &path, &map).expect("valid log"))
+            black_box(biasctl::history::summarise_sampling(&mut r, &path, &map).expect("valid log"))
         })
     });
     g.finish();

@@ -1,7 +1,7 @@
 //! Simulating 1,000,000 random seeks with measurement (fast superposition path), streamed to a
 //! sink that folds every row (memory independent of the number of seeks). Goal: < 2 s.
 
-use biasctl::{Drive, SequenceOptions, SimConfig, simulate};
+use biasctl::{Drive, SequenceOptions, SimConfig, sim::simulate};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 

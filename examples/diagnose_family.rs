@@ -1,4 +1,4 @@
-//! The scoreboard of issue #10: diagnose on independent drives (`biasctl::family`).
+//! The scoreboard of issue #10: diagnose on independent drives (`biasctl::sim::family`).
 //!
 //! ```sh
 //! cargo run --release --example diagnose_family            # 3 drives × every scenario × 10 seeds
@@ -23,20 +23,20 @@
 use biasctl::Log;
 use biasctl::{
     CheckedDiagnoseConfig, CheckedVerifyConfig, DiagnoseConfig, Diagnosis, diagnose_verified,
-    suggestion_path_from,
+    select::suggestion_path_from,
 };
 use biasctl::{CheckedFitOptions, FitOptions, fit};
 use biasctl::{FittedModel, ModelSpec};
 use biasctl::{
-    family::FamilyConfig, family::FamilyDrive, family::HiddenEffect, family::NO_EFFECT_COLUMNS,
-    family::generate,
+    sim::family::FamilyConfig, sim::family::FamilyDrive, sim::family::HiddenEffect,
+    sim::family::NO_EFFECT_COLUMNS, sim::family::generate,
 };
 
 /// A held-out drive for checking that nothing was tuned to the three members: parameters
 /// none of them has (a Prandtl–Ishlinskii pivot with other thresholds, a wider sinusoidal
 /// trend, Student-t ν = 5 innovations with AR(1) ρ = 0.45, longer dwells, another span).
 pub fn fresh_drive() -> FamilyDrive {
-    use biasctl::{family::Noise, family::Pivot, family::Trend};
+    use biasctl::{sim::family::Noise, sim::family::Pivot, sim::family::Trend};
     FamilyDrive {
         name: "fresh-pi-sine".into(),
         pivot: Pivot::Prandtl {
@@ -77,7 +77,7 @@ pub fn scenarios() -> Vec<Vec<HiddenEffect>> {
 /// a residual that diagnose rightly flags against `since_reversal`).
 pub fn base_terms(drive: &FamilyDrive) -> Vec<String> {
     vec![
-        format!("table:{}", biasctl::fmt_trimmed(drive.span / 24.0, 3)),
+        format!("table:{}", biasctl::log::fmt_trimmed(drive.span / 24.0, 3)),
         "dahl:8".to_string(),
     ]
 }
@@ -108,7 +108,7 @@ pub fn fit_terms(terms: &[String], log: &Log) -> FittedModel {
 /// Residual std of `model`'s causal replay over `log`, counts.
 pub fn residual_std(model: &FittedModel, log: &Log) -> f64 {
     let p = model.predict_log(log).expect("replay");
-    biasctl::std_dev(&p.residual).unwrap_or(0.0)
+    biasctl::numeric::std_dev(&p.residual).unwrap_or(0.0)
 }
 
 /// What one scenario on one seed gave.
@@ -198,7 +198,7 @@ pub fn config(seed: u64) -> CheckedDiagnoseConfig {
 }
 
 /// The first flagged feature of a diagnosis.
-pub fn first_flagged(d: &Diagnosis) -> Option<&biasctl::FeatureReport> {
+pub fn first_flagged(d: &Diagnosis) -> Option<&biasctl::diagnose::FeatureReport> {
     d.features.first().filter(|f| f.flagged)
 }
 
@@ -248,7 +248,7 @@ pub fn run(drive: &FamilyDrive, effects: &[HiddenEffect], seed: u64, n: usize) -
             parts.join("; ")
         })
         .unwrap_or_default();
-    let fmt_edit = |e: &biasctl::VerifiedEdit| {
+    let fmt_edit = |e: &biasctl::diagnose::VerifiedEdit| {
         format!(
             "{}{} {:.1} %/z {:.1}/w {:.1}",
             if e.verified { "*" } else { "" },

@@ -6,7 +6,7 @@
 //! diff -r BEFORE_DIR AFTER_DIR   # no output: identical
 //! ```
 //!
-//! Every family drive (`biasctl::family`, the three members and the held-out drive of
+//! Every family drive (`biasctl::sim::family`, the three members and the held-out drive of
 //! `examples/diagnose_family.rs`) × every scenario on a fixed seed: the user's model, then
 //! `diagnose_verified` (feature table, permutation tests, pair screening, verified refits —
 //! among them `lag:` terms, whose refits search τ) → `family_<drive>_<scenario>.json`. Also a
@@ -18,8 +18,8 @@
 mod diagnose_family;
 
 use biasctl::ModelSpec;
-use biasctl::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
 use biasctl::fit;
+use biasctl::sim::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
 use biasctl::{CheckedVerifyConfig, DiagnoseConfig, diagnose_verified};
 use diagnose_family::{base_terms, config, fit_options, fit_terms, fresh_drive, scenarios};
 use std::path::PathBuf;

@@ -60,5 +60,5 @@ fn main() {
 }
 
 fn fuzz_quote(s: &str) -> String {
-    biasctl::quote(s)
+    biasctl::io::quote(s)
 }

@@ -20,7 +20,7 @@ use biasctl::{DiagnoseConfig, Diagnosis, diagnose_model};
 use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
 use biasctl::{FitData, FitError, FitOptions, fit};
 use biasctl::{FittedModel, ModelError, ModelSpec};
-use biasctl::{Nonlinear, Seek, Term, TermSpec, TermState};
+use biasctl::{Term, TermSpec, model::Nonlinear, model::Seek, model::TermState};
 use std::sync::Arc;
 
 // ---------------------------------------------------------------------------------------------
@@ -121,7 +121,7 @@ pub fn fit_with(
 /// Standard deviation of the causal prediction error of `model` on `test`, counts.
 pub fn test_std(model: &FittedModel, test: &Log) -> anyhow::Result<f64> {
     let p = model.predict_log(test)?;
-    biasctl::std_dev(&p.residual).ok_or_else(|| anyhow::anyhow!("too few test rows"))
+    biasctl::numeric::std_dev(&p.residual).ok_or_else(|| anyhow::anyhow!("too few test rows"))
 }
 
 fn print_top(d: &Diagnosis, k: usize) {

@@ -15,13 +15,13 @@
 //! calibration run for comparison. "Two humps" is Hartigans' dip test rejecting a unimodal error
 //! distribution at 1 % on that seed pair's test run.
 
-use biasctl::Controller;
 use biasctl::ModelSpec;
+use biasctl::control::Controller;
 use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log};
 use biasctl::{FitOptions, fit};
-use biasctl::{HandoffTable, SettleSpec, worst_case_settle};
+use biasctl::{HandoffTable, SettleSpec, control::worst_case_settle};
 use biasctl::{Score, score};
-use biasctl::{mean, std_dev};
+use biasctl::{numeric::mean, numeric::std_dev};
 
 /// (label, term list or preset, training sequence, the paper's error std in counts). The first
 /// row is the paper's baseline: position+direction calibrated the 1997 way, b_p and Fc from the

@@ -35,14 +35,14 @@
 #[allow(dead_code)]
 mod diagnose_family;
 
-use biasctl::family::{FamilyConfig, FamilyDrive, HiddenEffect, NO_EFFECT_COLUMNS, generate};
+use biasctl::sim::family::{FamilyConfig, FamilyDrive, HiddenEffect, NO_EFFECT_COLUMNS, generate};
 use biasctl::{CheckedVerifyConfig, ModelSpec, diagnose_verified};
 use diagnose_family::{base_terms, config, fit_terms, fresh_drive, residual_std, with_term};
 
 /// Drives none of the members is: other Bouc–Wen shapes, a two-stop Prandtl–Ishlinskii pivot,
 /// a cubic trend with Gaussian white noise, heavier AR(1) noise.
 fn other_drives() -> Vec<FamilyDrive> {
-    use biasctl::family::{Noise, Pivot, Trend};
+    use biasctl::sim::family::{Noise, Pivot, Trend};
     vec![
         FamilyDrive {
             name: "bw15-cubic-w".into(),
@@ -133,7 +133,7 @@ fn pairs() -> Vec<[HiddenEffect; 2]> {
     ]
 }
 
-fn edit_json(e: &biasctl::VerifiedEdit, right: bool) -> serde_json::Value {
+fn edit_json(e: &biasctl::diagnose::VerifiedEdit, right: bool) -> serde_json::Value {
     serde_json::json!({
         "feature": e.feature, "edit": e.edit, "gain": e.gain, "z": e.z,
         "within": e.gain_within_folds, "verified": e.verified, "right": right,

@@ -19,39 +19,40 @@
 //!
 //! ## The pipeline, one module per step
 //! The modules in the order `lib.rs` declares them, each importing only modules above it
-//! (`tests/it/layers.rs` checks it, and that no files import each other in a circle). They are
-//! crate-private (the source's layout, not the API); what each holds:
+//! (`tests/it/layers.rs` checks it, and that no files import each other in a circle). Each
+//! pipeline step is a public namespace (`biasctl::log`, `biasctl::sim`, `biasctl::model`, …);
+//! `field`, `codegen` and `output_check` are crate-private. What each holds:
 //!
 //! - `field`: the names of settings that errors carry ([`Field`]).
-//! - `numeric`: shared numerics below everything: statistics (moments, histogram, bimodality
+//! - [`numeric`]: shared numerics below everything: statistics (moments, histogram, bimodality
 //!   and dip tests, trend and whiteness tests), the golden-section search, the QR kernels, the
 //!   worker threads and the seeded, portable random generator.
-//! - `io`: the one output layer: text, JSON and CSV, atomic and safe file writing,
+//! - [`io`]: the one output layer: text, JSON and CSV, atomic and safe file writing,
 //!   finite-only numbers.
-//! - `log`: the measurement log (CSV): column mapping, units, dialect, the streaming reader and
+//! - [`log`]: the measurement log (CSV): column mapping, units, dialect, the streaming reader and
 //!   writer, and the input limits (`log::limits`) every reader enforces.
-//! - `history`: the seek-history state machine: direction, reversals, uncrossed rest
+//! - [`history`]: the seek-history state machine: direction, reversals, uncrossed rest
 //!   positions; the history-column cache and the sampling analysis.
 //! - `codegen`: what a term needs to write its own C for the firmware export.
-//! - `sim`: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random
+//! - [`sim`]: the simulated drive (effects P1–P8, servo measurement, Tables I–VII and random
 //!   sequences) and the drive family the diagnosis is measured on.
-//! - `model`: bias models as sums of terms (one file per term, one registry row each),
+//! - [`model`]: bias models as sums of terms (one file per term, one registry row each),
 //!   presets, the online predictor.
-//! - `fit`: one least-squares solve (streaming QR) for all linear parameters, variable
+//! - [`fit`](mod@fit): one least-squares solve (streaming QR) for all linear parameters, variable
 //!   projection for the nonlinear ones.
 //! - `output_check`: every number a model's prediction or replay produces is finite.
-//! - `score`: error statistics of a model on a log: moments, percentiles, histogram,
+//! - [`score`](mod@score): error statistics of a model on a log: moments, percentiles, histogram,
 //!   bimodality (Sarle's coefficient, Hartigans' dip test), trend.
-//! - `diagnose`: the residual engine: which missing effect the residual follows
+//! - [`diagnose`](mod@diagnose): the residual engine: which missing effect the residual follows
 //!   (cross-validated smoother per feature, permutation test, pairs, advice).
-//! - `select`: model-structure selection on top of it: verified refits, discover, ladder.
-//! - `control`: plant → controller → settle: continuous plant with modes, ZOH with
+//! - [`select`]: model-structure selection on top of it: verified refits, discover, ladder.
+//! - [`control`]: plant → controller → settle: continuous plant with modes, ZOH with
 //!   fractional delay, DARE/LQR, (`control::settle`) the settle-optimal integrator start
 //!   value at handoff (eq. 14–16), robust choices, the allocation-free handoff table, and the
 //!   start values a predictor gives at handoff.
-//! - `export`: the fitted model and the handoff table as C99, checked against the predictor.
+//! - [`export`]: the fitted model and the handoff table as C99, checked against the predictor.
 //! - [`plot`]: hand-written SVG charts, one builder per paper figure, quick-look plots of a log.
-//! - `report`: one self-contained `report.html` (inline SVG and CSS, no script, no network).
+//! - [`report`]: one self-contained `report.html` (inline SVG and CSS, no script, no network).
 //! - [`cli`]: the command line (the `cli` feature).
 //!
 //! ## Settings: unchecked → checked (linfa's `ParamGuard`)
@@ -61,9 +62,10 @@
 //! [`DiagnoseConfig::check`] → [`CheckedDiagnoseConfig`] for [`diagnose()`] and
 //! [`diagnose_model`], [`VerifyConfig::check`] → [`CheckedVerifyConfig`] for
 //! [`diagnose_verified`], [`DiscoverConfig::check`] → [`CheckedDiscoverConfig`] for
-//! [`discover()`], [`SettleSpec::check`] → [`SettleConfig`] for [`analyse`] and
-//! [`StartValues::new`], [`StoryOptions::check`] → [`CheckedStoryOptions`] for [`demo_report`],
-//! [`data_report`], [`compute_demo`] and [`compute_data`], [`ladder_terms`] → [`LadderTerms`]
+//! [`discover()`], [`SettleSpec::check`] → [`control::SettleConfig`] for [`analyse`] and
+//! [`StartValues::new`], [`StoryOptions::check`] → [`report::CheckedStoryOptions`] for [`demo_report`],
+//! [`data_report`], [`report::compute_demo`] and [`report::compute_data`], [`ladder_terms`] →
+//! [`select::LadderTerms`]
 //! for [`ladder_fit`], [`plot::views::PanelOptions::check`] →
 //! [`plot::views::CheckedPanelOptions`] for [`plot::views::diagnose_panel`], [`SimConfig::new`]
 //! (a [`SimConfig`] exists only checked) for [`simulate_log`]. The `Default` of a checked type
@@ -75,19 +77,19 @@
 //! flag: the `biasctl` binary holds the one table field → flag and prints `--step-um` there.
 //!
 //! ## The public API
-//! Everything a user needs is one `use biasctl::Name` away, re-exported here at the top ([`Log`],
-//! [`replay`], [`simulate_log`], [`ModelSpec`], [`FittedModel`], [`Predictor`], [`Term`],
-//! [`fit()`], [`score()`], [`diagnose_model`], [`discover()`], [`analyse`], [`StartValues`],
-//! [`c_source`], [`write_atomic`], …), together with the types their signatures use (errors,
-//! results, parameters). Three namespaces stay whole because a user needs them as namespaces:
-//! [`plot`] (one builder per figure, and the chart builder), [`terms`] (the built-in terms, for a
-//! user writing their own [`Term`]) and [`family`] (the drive family the diagnosis is measured
-//! on). The modules themselves are crate-private, and so are the internal numerics (statistics
-//! kernels, the golden-section search, incomplete beta and gamma functions, the matrix
-//! exponential, the smoother); the few numerics that are public ([`SimRng`], [`std_dev`],
-//! [`dip_test`], [`set_threads`]) say why. `#![warn(unreachable_pub)]` keeps every `pub` item
-//! reachable from here: a new public item is added to the re-export list at the end of this
-//! file, anything else is `pub(crate)`.
+//! The crate root holds the names most users need ([`Log`], [`simulate_log`], [`ModelSpec`],
+//! [`FittedModel`], [`Predictor`], [`Term`], [`fit()`], [`score()`], [`diagnose_model`],
+//! [`discover()`], [`analyse`], [`StartValues`], [`c_source`], [`write_atomic`], …), and
+//! [`prelude`] the names of a first session in one `use biasctl::prelude::*;`. Everything else
+//! is reached through its pipeline namespace: the types a signature uses (errors, results,
+//! parameters) beside the function (`biasctl::diagnose::FeatureReport`,
+//! `biasctl::control::Bounds`), the built-in terms in [`model::terms`] (for a user
+//! writing their own [`Term`]), the drive family in [`sim::family`], the figures in [`plot`].
+//! The internal numerics (statistics kernels, the golden-section search, incomplete beta and
+//! gamma functions, the matrix exponential, the smoother) are crate-private; the few that are
+//! public ([`SimRng`], [`numeric::stats::std_dev`], [`numeric::stats::dip_test`],
+//! [`set_threads`]) say why. `#![warn(unreachable_pub)]` keeps every `pub` item reachable: a
+//! new public item is re-exported by its namespace's `mod.rs`, anything else is `pub(crate)`.
 //!
 //! ## The whole pipeline in one example
 //!
@@ -154,37 +156,37 @@ macro_rules! checked_settings {
 // (tests/it/layers.rs checks it).
 pub(crate) mod field;
 
-pub(crate) mod numeric;
+pub mod numeric;
 
-pub(crate) mod io;
+pub mod io;
 
-pub(crate) mod log;
+pub mod log;
 
-pub(crate) mod history;
+pub mod history;
 
 pub(crate) mod codegen;
 
-pub(crate) mod sim;
+pub mod sim;
 
-pub(crate) mod model;
+pub mod model;
 
-pub(crate) mod fit;
+pub mod fit;
 
 pub(crate) mod output_check;
 
-pub(crate) mod score;
+pub mod score;
 
-pub(crate) mod diagnose;
+pub mod diagnose;
 
-pub(crate) mod select;
+pub mod select;
 
-pub(crate) mod control;
+pub mod control;
 
-pub(crate) mod export;
+pub mod export;
 
 pub mod plot;
 
-pub(crate) mod report;
+pub mod report;
 
 /// The `biasctl` command line (the `cli` feature, on by default): flags parsed into the
 /// library's checked settings, one file per command. Its one public item is [`cli::main`],
@@ -192,111 +194,40 @@ pub(crate) mod report;
 #[cfg(feature = "cli")]
 pub mod cli;
 
-// The curated public API: what a user of the library needs, one `use biasctl::…` away. The
-// modules above are crate-private; `plot` stays a namespace (one builder per figure), and two
-// namespaces are re-exported whole: `terms` (the built-in terms, for a user writing their own
-// `Term`) and `family` (the drive family the diagnosis is measured on).
-pub use control::settle::{
-    Bounds, Handoff, HandoffTable, SettleConfig, SettleReport, SettleSpec, Window, analyse,
-    handoff_state, settle_index, worst_case_settle,
-};
-pub use control::{
-    Controller, LqrWeights, StartValues,
-    plant::{Plant, PlantSpec},
-};
-pub use diagnose::{
-    CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, FeatureReport, FeatureTable, diagnose,
-    diagnose_model, diagnose_residual, model_spec, replay_model,
-};
-pub use export::{
-    C_FILES, CContext, CHandoff, COptions, CPrecision, CSource, CTerm, ExportError, c_source,
-};
+// The crate root: the names most users need. Everything else is reached
+// through its pipeline namespace (`biasctl::control::HandoffTable`, `biasctl::sim::family`,
+// `biasctl::model::terms`, …); `prelude` holds the names of a first session.
+pub use control::StartValues;
+pub use control::settle::{HandoffTable, SettleReport, SettleSpec, analyse};
+pub use diagnose::{CheckedDiagnoseConfig, DiagnoseConfig, Diagnosis, diagnose, diagnose_model};
+pub use export::{COptions, ExportError, c_source};
 pub use field::Field;
-pub use fit::{CheckedFitOptions, FitData, FitError, FitOptions, FitReport, fit};
-pub use history::{
-    DirectionSetting, DirectionSource, Feature, History, SeekFeatures, log_sampling, replay,
-    sampling, summarise_sampling,
-};
-pub use io::json::to_string_pretty;
-pub use io::{
-    NonFinite, OutputError, StagedDir, check_paths, check_text, flush_stdout, is_broken_pipe,
-    message, message_with, quote, write_atomic, write_stdout, write_string_atomic,
-};
-pub use log::limits::{check_toml_numbers, read_text};
-pub use log::{
-    BiasColumn, ColumnMap, DEFAULT_BIAS_COL, DEFAULT_BIAS_UNIT, DEFAULT_TIME_COL,
-    DEFAULT_TRACK_COL, Log, LogError, LogReader, LogSchema, LogWriter, STDIN_PATH, Units,
-    check_unit_label, fmt_trimmed,
-};
-pub use model::preset::{CALIBRATION, preset_terms};
-pub use model::registry::builtin_names;
-pub use model::term::{
-    Nonlinear, Param, SearchBasis, SearchContext, Searched, Seek, Term, TermSpec, TermState,
-};
-pub use model::terms;
-pub use model::{
-    ColumnsUsed, Feedback, FittedModel, FittedTerm, IntegratorStart, ModelEdit, ModelError,
-    ModelSpec, NextPrediction, Prediction, Predictor, ReplaySummary, RowPrediction, SpecError,
-    predict_next, replay_stream, write_predictions_csv,
-};
+pub use fit::{CheckedFitOptions, FitData, FitError, FitOptions, fit};
+pub use history::{History, replay};
+pub use io::{OutputError, write_atomic};
+pub use log::{ColumnMap, Log, LogError, Units};
+pub use model::term::{Term, TermSpec};
+pub use model::{FittedModel, ModelError, ModelSpec, Prediction, Predictor, SpecError};
 /// The worker-thread count of the parallel parts (diagnosis permutations, cross-validation):
 /// public for the binary's `--threads` and for tests that pin a thread count.
 pub use numeric::parallel::{ThreadsError, set_threads, with_threads};
 /// The seeded, portable random generator: public so that a user's simulation, bench or test
 /// draws the same numbers as the crate's own for the same seed.
 pub use numeric::rng::SimRng;
-/// Summary statistics public on purpose: the examples summarise residuals with them, and the
-/// dip test (Hartigans') is benched on its own against the peer implementation.
-pub use numeric::stats::{dip_test, dip_test_sorted, mean, sorted, std_dev};
-pub use output_check::{check_prediction, check_replay};
-pub use report::story::{
-    CheckedStoryOptions, Progress, StoryOptions, StoryOutcome, data_report, demo_report,
-};
-pub use report::{Cell, Report, Table};
-pub use score::{Score, grouped_warnings, score, score_model, score_with_units};
+pub use report::story::{StoryOptions, data_report, demo_report};
+pub use score::{Score, score, score_model};
 pub use select::{
-    CheckedDiscoverConfig, CheckedVerifyConfig, DiscoverConfig, Ladder, LadderStep, LadderTerms,
-    PathStep, VerifyConfig, diagnose_verified, discover, ladder_fit, ladder_terms, suggestion_path,
-    suggestion_path_from,
+    CheckedDiscoverConfig, CheckedVerifyConfig, DiscoverConfig, Discovery, VerifyConfig,
+    diagnose_verified, discover, ladder_fit, ladder_terms,
 };
-pub use sim::family;
-pub use sim::{
-    DEFAULT_N, Drive, MeasureMode, SequenceOptions, SimConfig, TRUTH_COLUMNS, simulate,
-    simulate_log, simulate_to_files,
-};
-// Types that appear in the public items above (errors, results, parameters), nameable here.
-pub use control::lqr::DareError;
-pub use control::plant::{DiscretePlant, Mode, ModeSpec, PlantError};
-pub use control::settle::{
-    AnalyseError, ConfigError as SettleConfigError, HandoffSolution, Interval, PaperRobust,
-    Response, RobustChoice, Scenario, SettleError, WorstCase,
-};
-pub use control::{ExpmError, ServoError};
-pub use diagnose::{
-    Absorption, CombinedEdit, CurveBin, DERIVED_VELOCITY, DiagnoseError, FeatureColumn,
-    FeatureOrigin, GlobalCheck, Interaction, ModelDiagnosisError, RejectedEdit, SecondRound, Shape,
-    Verification, VerifiedEdit, Whiteness,
-};
-pub use history::{DirectionError, Replay, RestMemory, Sampling};
-pub use io::file::Sink;
-pub use log::{Covariates, LogSummary, Row, RowRef, Rows, UnitError};
-pub use model::RangeWarning;
-pub use model::predictor::ReplayError;
-pub use numeric::stats::{Dip, DipTest, Histogram, Trend};
-pub use report::run::{
-    DataRun, DemoRun, DiagnosedRun, MAX_SEEKS, PaperRobustWhy, ScoredModel, SettleRun, StoryError,
-    compute_data, compute_demo,
-};
-pub use report::{Block, Section};
-pub use score::{ModelScore, ModelScoreError, ScoreError};
-pub use select::{DiscoverError, DiscoverStep, Discovery};
-pub use sim::drive::{
-    DirectionParams, DriftParams, DriveError, Element, ElementKind, Harmonic, MemoryParams,
-    OvershootParams, PositionParams, RunoutParams, ScatterParams, ServoParams, TemperatureParams,
-    TimeParams,
-};
-pub use sim::sequence::{ScriptError, Step};
-pub use sim::{
-    ConfigError as SimConfigError, Effect, RandomSpec, Sequence, SimError, SimRow, SimSummary,
-    Truth,
-};
+pub use sim::{Drive, SequenceOptions, SimConfig, simulate_log};
+
+/// The names a first session needs, in one `use biasctl::prelude::*;`.
+pub mod prelude {
+    pub use crate::{
+        COptions, ColumnMap, DiagnoseConfig, DiscoverConfig, Drive, FitOptions, FittedModel, Log,
+        ModelSpec, Predictor, SequenceOptions, SettleSpec, SimConfig, StartValues, Units,
+        VerifyConfig, analyse, c_source, diagnose_model, diagnose_verified, discover, fit, score,
+        score_model, simulate_log,
+    };
+}

@@ -18,6 +18,10 @@ use crate::model::{Feedback, FittedModel, ModelError};
 use crate::numeric::stats::{self, DipTest, Histogram, Trend};
 use serde::{Deserialize, Serialize};
 
+// The namespace's public items that live in its submodules (the crate root keeps only the
+// names most users need; see `biasctl::prelude`).
+pub use crate::output_check::{check_prediction, check_replay};
+
 /// An error computing a score.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

@@ -1,7 +1,7 @@
 //! `biasctl check`: validate a log and summarise it.
 
 use super::common::LogArgs;
-use crate::LogReader;
+use crate::log::LogReader;
 
 /// Flags of `biasctl check`.
 #[derive(Debug, clap::Args)]
@@ -18,7 +18,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let units = args.log.columns.units(reader.schema())?;
     // Constant memory: the exact medians take a few passes over the log (see
     // `summarise_sampling`).
-    let (sum, sampling) = crate::summarise_sampling(&mut reader, &args.log.data, &map)?;
+    let (sum, sampling) = crate::history::summarise_sampling(&mut reader, &args.log.data, &map)?;
     let s = reader.schema();
     outln!("{}: {} rows, {} measured", s.file, sum.rows, sum.measured)?;
     outln!(

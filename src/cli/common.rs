@@ -3,8 +3,8 @@
 use crate::Field;
 use crate::SettleSpec;
 use crate::{
-    ColumnMap, DEFAULT_BIAS_COL, DEFAULT_TIME_COL, DEFAULT_TRACK_COL, Log, LogSchema, Units,
-    check_unit_label,
+    ColumnMap, Log, Units, log::DEFAULT_BIAS_COL, log::DEFAULT_TIME_COL, log::DEFAULT_TRACK_COL,
+    log::LogSchema, log::check_unit_label,
 };
 use anyhow::Context;
 use clap::Args;
@@ -221,8 +221,8 @@ pub(crate) struct DirectionArgs {
 
 impl DirectionArgs {
     /// The library setting these flags ask for (checked: a bad deadband names the flag).
-    pub(crate) fn setting(&self) -> anyhow::Result<crate::DirectionSetting> {
-        use crate::DirectionSetting;
+    pub(crate) fn setting(&self) -> anyhow::Result<crate::history::DirectionSetting> {
+        use crate::history::DirectionSetting;
         let s = match (&self.deadband, &self.velocity_col) {
             (Some(d), _) => DirectionSetting::Deadband(*d),
             (None, Some(c)) => DirectionSetting::Velocity(c.clone()),
@@ -289,9 +289,9 @@ impl SettleArgs {
     pub(crate) fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
             Some(path) => {
-                let text = crate::read_text(path)
+                let text = crate::log::limits::read_text(path)
                     .with_context(|| format!("cannot read plant file {}", path.display()))?;
-                crate::check_toml_numbers(&text)
+                crate::log::check_toml_numbers(&text)
                     .map_err(anyhow::Error::msg)
                     .with_context(|| format!("invalid plant file {}", path.display()))?;
                 toml::from_str::<SettleSpec>(&text)
@@ -300,7 +300,7 @@ impl SettleArgs {
             None => {
                 let name = self.preset.as_deref().unwrap_or("paper1997");
                 SettleSpec::preset(name)
-                    .with_context(|| format!("--preset {}", crate::quote(name)))?
+                    .with_context(|| format!("--preset {}", crate::io::quote(name)))?
             }
         };
         let overrides = [
@@ -325,7 +325,7 @@ impl SettleArgs {
 }
 
 /// Refuses, before anything runs, an output flag naming the same file as an input flag or as
-/// another output flag ([`crate::check_paths`]); each path comes with its flag.
+/// another output flag ([`crate::io::check_paths`]); each path comes with its flag.
 pub(crate) fn refuse_clashes(
     inputs: &[(&str, Option<&Path>)],
     outputs: &[(&str, Option<&Path>)],
@@ -338,7 +338,7 @@ pub(crate) fn refuse_clashes(
         .iter()
         .filter_map(|&(f, p)| p.map(|p| (f, p)))
         .collect();
-    Ok(crate::check_paths(&ins, &outs)?)
+    Ok(crate::io::check_paths(&ins, &outs)?)
 }
 
 /// Refuses, before anything runs, a file output (not `-`) that is an existing folder or whose
@@ -346,10 +346,10 @@ pub(crate) fn refuse_clashes(
 /// the folders of a folder output, `--out DIR`, but not of a file).
 pub(crate) fn refuse_missing_folders(outputs: &[(&str, Option<&Path>)]) -> anyhow::Result<()> {
     for &(flag, path) in outputs {
-        let Some(path) = path.filter(|p| p.as_os_str() != crate::STDIN_PATH) else {
+        let Some(path) = path.filter(|p| p.as_os_str() != crate::log::STDIN_PATH) else {
             continue;
         };
-        let shown = crate::quote(&path.display().to_string());
+        let shown = crate::io::quote(&path.display().to_string());
         if path.is_dir() {
             anyhow::bail!("{flag} {shown} is a folder; give a file name");
         }
@@ -359,21 +359,21 @@ pub(crate) fn refuse_missing_folders(outputs: &[(&str, Option<&Path>)]) -> anyho
         {
             anyhow::bail!(
                 "{flag} {shown}: the folder {} does not exist (or is not a folder); create it first",
-                crate::quote(&folder.display().to_string())
+                crate::io::quote(&folder.display().to_string())
             );
         }
     }
     Ok(())
 }
 
-/// The staging folder of a folder output `--out DIR` ([`crate::StagedDir`]), made before the
+/// The staging folder of a folder output `--out DIR` ([`crate::io::StagedDir`]), made before the
 /// work so that a path that is a file or cannot be written fails at once, named as the flag.
-pub(crate) fn stage_out(dir: &Path) -> anyhow::Result<crate::StagedDir> {
-    let shown = crate::quote(&dir.display().to_string());
+pub(crate) fn stage_out(dir: &Path) -> anyhow::Result<crate::io::StagedDir> {
+    let shown = crate::io::quote(&dir.display().to_string());
     if dir.exists() && !dir.is_dir() {
         anyhow::bail!("--out {shown}: is a file; --out takes a directory");
     }
-    crate::StagedDir::create(dir).with_context(|| format!("--out {shown}"))
+    crate::io::StagedDir::create(dir).with_context(|| format!("--out {shown}"))
 }
 
 /// Prints a warning (stderr) when `positions` of `file` go beyond the position range `model` was

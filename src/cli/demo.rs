@@ -16,7 +16,7 @@ pub(crate) struct Args {
     #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     seed: u64,
     /// Random seeks of the test and calibration runs.
-    #[arg(allow_negative_numbers = true, long, default_value_t = crate::DEFAULT_N, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, default_value_t = crate::sim::DEFAULT_N, value_name = "N")]
     seeks: u64,
 }
 

@@ -4,7 +4,8 @@ use super::predict::ModelLogArgs;
 use crate::FitOptions;
 use crate::write_atomic;
 use crate::{
-    DiagnoseConfig, PathStep, VerifyConfig, diagnose_model, diagnose_verified, suggestion_path_from,
+    DiagnoseConfig, VerifyConfig, diagnose_model, diagnose_verified, select::PathStep,
+    select::suggestion_path_from,
 };
 use std::io::Write;
 use std::path::PathBuf;
@@ -123,7 +124,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
                 diagnosis: &d,
                 path: &path,
             };
-            outln!("{}", crate::to_string_pretty(&v)?)?;
+            outln!("{}", crate::io::to_string_pretty(&v)?)?;
         } else {
             outln!("{}", d.to_json()?)?;
         }

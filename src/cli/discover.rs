@@ -2,7 +2,7 @@
 
 use super::common::ColumnArgs;
 use crate::write_atomic;
-use crate::{DiagnoseConfig, DiscoverConfig, VerifyConfig, discover, model_spec};
+use crate::{DiagnoseConfig, DiscoverConfig, VerifyConfig, diagnose::model_spec, discover};
 use crate::{FittedModel, ModelSpec};
 use anyhow::Context;
 use std::io::Write;

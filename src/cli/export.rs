@@ -2,7 +2,7 @@
 
 use super::predict::handoff_plan;
 use crate::FittedModel;
-use crate::{C_FILES, CHandoff, COptions, CPrecision, c_source};
+use crate::{COptions, c_source, export::C_FILES, export::CHandoff, export::CPrecision};
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -79,7 +79,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     };
     let src = c_source(&model, &opts)?;
     src.write(&a.out)
-        .with_context(|| format!("--out {}", crate::quote(&a.out.display().to_string())))?;
+        .with_context(|| format!("--out {}", crate::io::quote(&a.out.display().to_string())))?;
     outln!(
         "exported `{}` ({}) to {}: bias_model.h, bias_model.c, replay.c; build with cc -std=c99 -O2 {}/*.c -lm",
         model.spec,

@@ -31,7 +31,7 @@ fn terms_help() -> String {
     format!(
         "A comma-separated term list, e.g. `poly2,dahl:4,col:temp_c` or \
          `poly2,direction,seek,memory,drift,dbins:dwell_s`. Terms: {}",
-        crate::builtin_names()
+        crate::model::builtin_names()
     )
 }
 
@@ -51,8 +51,8 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
                 return Err(anyhow::anyhow!(e).context(format!(
                     "--model {}: `fit --model` takes a preset; a term list goes in --terms: \
                      `--terms {}`",
-                    crate::quote(p),
-                    crate::quote(p)
+                    crate::io::quote(p),
+                    crate::io::quote(p)
                 )));
             }
             Err(e) => return Err(anyhow::anyhow!(e).context("--model")),

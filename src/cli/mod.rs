@@ -1,21 +1,21 @@
 //! Command-line flag structs, one file per command. Each command's `run` turns its flags into the
 //! library's validated configuration and calls the library; no numerics live here.
 
-/// Prints a line to stdout through the one output path ([`crate::write_stdout`]):
+/// Prints a line to stdout through the one output path ([`crate::io::write_stdout`]):
 /// evaluates to `Result<(), OutputError>` (a closed pipe is `OutputError::BrokenPipe`).
 macro_rules! outln {
     () => {
-        crate::write_stdout("\n")
+        crate::io::write_stdout("\n")
     };
     ($($t:tt)*) => {
-        crate::write_stdout(&format!("{}\n", format_args!($($t)*)))
+        crate::io::write_stdout(&format!("{}\n", format_args!($($t)*)))
     };
 }
 
 /// Prints to stdout without a newline, as [`outln!`].
 macro_rules! out {
     ($($t:tt)*) => {
-        crate::write_stdout(&format!($($t)*))
+        crate::io::write_stdout(&format!($($t)*))
     };
 }
 
@@ -114,10 +114,10 @@ fn column_clash(m: &clap::ArgMatches) -> Option<String> {
     None
 }
 
-/// The text printed after `error: ` ([`crate::message_with`]), every library setting
+/// The text printed after `error: ` ([`crate::io::message_with`]), every library setting
 /// name rendered as its flag by the one table ([`common::FLAGS`]).
 pub(crate) fn message(err: &(dyn std::error::Error + 'static)) -> String {
-    crate::message_with(err, &common::with_flags)
+    crate::io::message_with(err, &common::with_flags)
 }
 
 /// Runs the parsed command.
@@ -150,10 +150,10 @@ pub fn main() -> std::process::ExitCode {
         Ok(args) => args,
         Err(e) => e.exit(),
     };
-    let result = run(args).and_then(|()| Ok(crate::flush_stdout()?));
+    let result = run(args).and_then(|()| Ok(crate::io::flush_stdout()?));
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(err) if crate::is_broken_pipe(err.as_ref()) => std::process::ExitCode::SUCCESS,
+        Err(err) if crate::io::is_broken_pipe(err.as_ref()) => std::process::ExitCode::SUCCESS,
         Err(err) => {
             // stderr gone too: nothing left to tell, the exit code still says it.
             let _ = std::io::Write::write_all(

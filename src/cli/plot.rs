@@ -4,9 +4,10 @@
 use super::common::{ColumnArgs, SettleArgs};
 use crate::Log;
 use crate::analyse;
-use crate::write_string_atomic;
+use crate::io::write_string_atomic;
 use crate::{
-    DiagnoseConfig, FeatureTable, diagnose_residual, ladder_fit, ladder_terms, replay_model,
+    DiagnoseConfig, diagnose::FeatureTable, diagnose::diagnose_residual, diagnose::replay_model,
+    ladder_fit, ladder_terms,
 };
 use crate::{FitOptions, fit};
 use crate::{FittedModel, ModelSpec};
@@ -66,7 +67,7 @@ pub(crate) struct Args {
     #[arg(
         long,
         value_name = "T1,T2,...",
-        default_value = crate::CALIBRATION
+        default_value = crate::model::CALIBRATION
     )]
     terms: String,
     /// Top features of the `diagnose` plot.
@@ -220,7 +221,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     check_flags(&args)?;
     let svg = draw(&args)?;
     // The last guard before the file: no `NaN`/`inf` coordinate leaves (exit 2, nothing written).
-    crate::check_text(&svg, &args.out.display().to_string())?;
+    crate::io::check_text(&svg, &args.out.display().to_string())?;
     write_string_atomic(&args.out, &svg)?;
     outln!("wrote {}", args.out.display())?;
     Ok(())

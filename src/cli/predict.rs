@@ -4,8 +4,8 @@
 use super::common::{DirectionArgs, LogArgs, SettleArgs};
 use crate::SettleSpec;
 use crate::write_atomic;
-use crate::{BiasColumn, Log, LogReader, STDIN_PATH};
-use crate::{FittedModel, ReplaySummary, StartValues, write_predictions_csv};
+use crate::{FittedModel, StartValues, model::ReplaySummary, model::write_predictions_csv};
+use crate::{Log, log::BiasColumn, log::LogReader, log::STDIN_PATH};
 use anyhow::Context;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -41,7 +41,7 @@ impl ModelLogArgs {
     pub(crate) fn replay(&self) -> anyhow::Result<(FittedModel, Log)> {
         let model = self.load_model()?;
         let log = self.log.columns.read_log(&self.log.data)?;
-        crate::check_replay(&model, &log)??;
+        crate::score::check_replay(&model, &log)??;
         let positions = log.measured_positions();
         super::common::warn_outside_range(&model, &log.schema.file, &positions);
         Ok((model, log))
@@ -86,7 +86,7 @@ pub(crate) fn handoff_plan(
         SettleSpec::preset(handoff).with_context(|| {
             format!(
                 "--handoff {}: not a plant file (FILE.toml) and not a preset",
-                crate::quote(handoff)
+                crate::io::quote(handoff)
             )
         })?;
     }
@@ -133,7 +133,9 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         Ok(write_predictions_csv(
             &model,
             &mut reader,
-            start.as_ref().map(|s| s as &dyn crate::IntegratorStart),
+            start
+                .as_ref()
+                .map(|s| s as &dyn crate::model::IntegratorStart),
             w,
             flush_each,
         )?)

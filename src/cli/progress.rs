@@ -1,7 +1,7 @@
 //! A progress bar on stderr for the long commands (`demo`, `report`). It appears only once a
 //! run has taken more than a second, and never when stderr is not a terminal.
 
-use crate::Progress;
+use crate::report::Progress;
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 

@@ -4,7 +4,7 @@
 use super::common::ColumnArgs;
 use super::progress::Bar;
 use crate::FittedModel;
-use crate::{StoryOptions, StoryOutcome, data_report, demo_report};
+use crate::{StoryOptions, data_report, demo_report, report::StoryOutcome};
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -26,7 +26,7 @@ pub(crate) struct Args {
     #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     pub seed: u64,
     /// Random seeks of the built-in drive's test and calibration runs.
-    #[arg(allow_negative_numbers = true, long, default_value_t = crate::DEFAULT_N, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, default_value_t = crate::sim::DEFAULT_N, value_name = "N")]
     pub seeks: u64,
 }
 

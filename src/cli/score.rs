@@ -1,7 +1,7 @@
 //! `biasctl score`: error statistics of a model on a log.
 
 use super::predict::ModelLogArgs;
-use crate::Feedback;
+use crate::model::Feedback;
 use crate::score_model;
 
 /// Flags of `biasctl score`.
@@ -37,14 +37,14 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     for w in s.warnings.iter().filter(|w| !fit_warnings.contains(w)) {
         eprintln!("warning: {}: {w}", log.schema.file);
     }
-    for w in crate::grouped_warnings(&model.warnings) {
+    for w in crate::score::grouped_warnings(&model.warnings) {
         eprintln!(
             "warning: model {} (from its fit on the training log): {w}",
             args.input.model.display()
         );
     }
     if args.json {
-        outln!("{}", crate::to_string_pretty(&s)?)?;
+        outln!("{}", crate::io::to_string_pretty(&s)?)?;
     } else {
         outln!("{}: model `{}`", log.schema.file, model.spec)?;
         if let (Some(f), Some(label)) = (&s.free_run, &s.free_run_feedback) {

@@ -1,10 +1,10 @@
 //! `biasctl settle`: the settle-optimal integrator start value at handoff (paper Section IV).
 
 use super::common::{ColumnArgs, SettleArgs};
-use crate::write_string_atomic;
-use crate::{DEFAULT_BIAS_UNIT, Units};
-use crate::{FittedModel, NextPrediction, predict_next};
 use crate::analyse;
+use crate::io::write_string_atomic;
+use crate::{FittedModel, model::NextPrediction, model::predict_next};
+use crate::{Units, log::DEFAULT_BIAS_UNIT};
 use anyhow::Context;
 use std::path::PathBuf;
 

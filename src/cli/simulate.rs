@@ -1,6 +1,6 @@
 //! `biasctl simulate`: run the simulated drive through a sequence and write the log.
 
-use crate::{Drive, MeasureMode, SequenceOptions, SimConfig, simulate_to_files};
+use crate::{Drive, SequenceOptions, SimConfig, sim::MeasureMode, sim::simulate_to_files};
 use std::path::PathBuf;
 
 /// Flags of `biasctl simulate`.
@@ -64,8 +64,8 @@ fn sequence(a: &Args) -> anyhow::Result<String> {
     match (&a.sequence, &a.script) {
         (Some(s), Some(script)) if s != "script" => anyhow::bail!(
             "--script {} is read only by --sequence script, not --sequence {}: leave out one of them",
-            crate::quote(&script.display().to_string()),
-            crate::quote(s)
+            crate::io::quote(&script.display().to_string()),
+            crate::io::quote(s)
         ),
         (Some(s), _) => Ok(s.clone()),
         (None, _) => Ok("script".into()),

@@ -1,12 +1,12 @@
 //! Plant → controller → settle: the sampled track-following loop of the paper's Section IV and
 //! the settle-optimal integrator start value built on it.
 //!
-//! - [`plant`]: continuous rigid body (plus optional flexible modes) and its exact ZOH
+//! - `plant`: continuous rigid body (plus optional flexible modes) and its exact ZOH
 //!   discretisation with a fractional computation delay τ.
 //! - `expm`: the matrix exponential (scaling and squaring with a Padé approximant).
-//! - [`lqr`]: the DARE solver (structured doubling) and the LQR gain.
+//! - `lqr`: the DARE solver (structured doubling) and the LQR gain.
 //! - [`Controller`]: the loop state, the LQR design and the closed loop.
-//! - [`settle`]: the settle-time analysis (eq. 14–16) and the allocation-free handoff table.
+//! - `settle`: the settle-time analysis (eq. 14–16) and the allocation-free handoff table.
 //!
 //! Loop state (deviation from nothing; units in brackets):
 //! x = [z (µm·samples), e (µm), v (µm/s), q_1, q̇_1, …, u_prev (counts)] with
@@ -16,7 +16,7 @@
 //! - u(k) = −K x(k), and the bias d entering as ë = Kp·(u − d).
 //!
 //! ```
-//! use biasctl::{Controller, LqrWeights, Plant, PlantSpec};
+//! use biasctl::{control::Controller, control::LqrWeights, control::Plant, control::PlantSpec};
 //! let plant = Plant::new(&PlantSpec { ts_s: 1e-4, tau_s: 4e-5, kp: 1e6, modes: vec![] }).unwrap();
 //! let w = LqrWeights::new(&[1e-4, 1.78e-3, 1e-9, 0.0], 1e-6, plant.order()).unwrap();
 //! let c = Controller::design(&plant, &w).unwrap();
@@ -32,9 +32,18 @@ pub(crate) mod settle;
 mod start;
 pub use start::StartValues;
 
-use lqr::{DareError, DareOptions, dare};
 use nalgebra::{DMatrix, DVector};
-use plant::{Plant, PlantError};
+use {lqr::DareOptions, lqr::dare};
+
+// The namespace's public items that live in its submodules (the crate root keeps only the
+// names most users need; see `biasctl::prelude`).
+pub use lqr::DareError;
+pub use plant::{DiscretePlant, Mode, ModeSpec, Plant, PlantError, PlantSpec};
+pub use settle::{
+    AnalyseError, Bounds, ConfigError, Handoff, HandoffSolution, HandoffTable, Interval,
+    PaperRobust, Response, RobustChoice, Scenario, SettleConfig, SettleError, SettleReport,
+    SettleSpec, Window, WorstCase, analyse, handoff_state, settle_index, worst_case_settle,
+};
 
 /// An error designing the controller.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

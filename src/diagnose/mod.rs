@@ -8,7 +8,7 @@
 //! the model term that addresses it become plain-words advice.
 //!
 //! ```
-//! use biasctl::{DiagnoseConfig, FeatureTable, diagnose};
+//! use biasctl::{DiagnoseConfig, diagnose::FeatureTable, diagnose};
 //! use biasctl::{ColumnMap, Log};
 //! // A log whose residual jumps whenever the seek reverses direction.
 //! let mut text = String::from("time_s,track,bias\n");
@@ -54,9 +54,9 @@
 //! per-feature value is reported as `p_value_raw`. Plain permutation treats the residuals as
 //! exchangeable under the null; for a feature that is independent of time (random targets)
 //! that holds whatever the residuals' serial correlation, for a slowly varying feature it does
-//! not. So the residuals are permuted in blocks of consecutive seeks ([`null_block_len`]), and
+//! not. So the residuals are permuted in blocks of consecutive seeks (`null_block_len`), and
 //! each feature's block is as long as the pair (feature, residual) needs
-//! ([`feature_null_block`]): the residual's block for a feature as slow as the residual,
+//! (`feature_null_block`): the residual's block for a feature as slow as the residual,
 //! shorter for one that decorrelates sooner (the cross-products decorrelate with the faster of
 //! the two), single rows for the time features. Every permutation has its own seeded random
 //! streams, so the p-values do not depend on the number of threads they run on.
@@ -67,12 +67,12 @@
 //! `elapsed_s`; the per-sample position change is velocity × the sample time. Ranking by the
 //! marginal `explained` alone then lets a built-in proxy edge out the physical column by noise.
 //! So the **flagged** features (family-wise p ≤ alpha) go through a greedy forward pass of up to
-//! [`FORWARD_STEPS`] steps: at each step every remaining one is cross-validated on what the
+//! `FORWARD_STEPS` steps: at each step every remaining one is cross-validated on what the
 //! earlier ones left (the residual minus their **out-of-fold** smooths, so no row's own noise is
 //! removed), and the one with the largest gain is taken — except among **near-ties** (gains
-//! within [`NEAR_TIE`] of the best): there, for each tied candidate, the others are
+//! within `NEAR_TIE` of the best): there, for each tied candidate, the others are
 //! re-evaluated after removing it; a candidate "explains another away" when at most
-//! [`EXPLAINED_AWAY`] of the other's gain survives. The taken one is a candidate that explains
+//! `EXPLAINED_AWAY` of the other's gain survives. The taken one is a candidate that explains
 //! all the others away — a logged covariate before a built-in feature when several do (twins
 //! the data cannot tell apart: the logged physical quantity is the actionable answer, the
 //! built-in one its proxy) — or else the one leaving least of the others. Displaced twins get
@@ -80,7 +80,7 @@
 //! by marginal `explained`; every report carries `explained_beyond_previous` (its gain beyond
 //! the features ranked before it, or beyond all taken ones). `explained`, `p_value` and the
 //! curve stay marginal. Likewise the direction-signed analysis (below) is chosen only when it
-//! beats the plain one by more than [`NEAR_TIE`]: near a tie the even explanation is simpler.
+//! beats the plain one by more than `NEAR_TIE`: near a tie the even explanation is simpler.
 //!
 //! A diagnosis of an out-of-sample model also sees the model's own estimation error: a poly2
 //! fitted on 3000 noisy seeks is off by tenths of a count, a true (small) structure in the

@@ -20,7 +20,7 @@
 //! ## How a term describes itself
 //! Every term is written by [`crate::model::term::Term::export_c`], implemented in the term's
 //! own file, which returns a [`CTerm`]: C text with placeholders the generator fills in (see
-//! [`crate::codegen`](mod@crate::codegen)). A term that does not describe itself is refused
+//! `crate::codegen`). A term that does not describe itself is refused
 //! with [`ExportError::NotExportable`] naming it.
 
 pub use crate::codegen::{CContext, CPrecision, CTerm};
@@ -101,7 +101,7 @@ pub const C_FILES: [&str; 3] = ["bias_model.h", "bias_model.c", "replay.c"];
 
 impl CSource {
     /// Writes `bias_model.h`, `bias_model.c` and `replay.c` into `dir` (created if missing):
-    /// staged in one temporary folder and moved into place together ([`StagedDir`]), so a
+    /// staged in one temporary folder and moved into place together (`StagedDir`), so a
     /// failure leaves `dir` as it was.
     pub fn write(&self, dir: &Path) -> Result<(), ExportError> {
         if dir.exists() && !dir.is_dir() {

@@ -1,4 +1,4 @@
-//! Fitting a [`ModelSpec`](crate::model::ModelSpec) to a measurement log.
+//! Fitting a [`ModelSpec`] to a measurement log.
 //!
 //! 1. **Prepare**: every [`TermSpec`](crate::model::term::TermSpec) looks at the training data
 //!    once ([`FitData`]) and fixes its knots/centring; an `intercept` is added unless a term

@@ -4,7 +4,7 @@
 use super::{Sampling, SamplingStream};
 
 /// Streams the log `reader` was opened on (from `path` with `map`) and returns its summary
-/// ([`LogReader::summarise`](crate::LogReader::summarise)) and its [`sampling`](super::sampling()), in memory
+/// ([`LogReader::summarise`](crate::log::LogReader::summarise)) and its [`sampling`](super::sampling()), in memory
 /// independent of the number of rows (`biasctl check`): the exact quantiles (the same bits as
 /// [`sampling`](super::sampling()) of every row in memory) need a few passes of radix selection (one on logs
 /// whose quantiles take few distinct values and whose clock the first pass settles, three on a

@@ -502,7 +502,7 @@ fn process_alive(pid: u32) -> bool {
 /// [`StagedDir::commit`] only when the whole run succeeded — `dir` is created by renaming the
 /// staging folder if it did not exist, else each file replaces its namesake and other files are
 /// left alone. Dropped uncommitted, the staging folder is removed.
-pub struct StagedDir {
+pub(crate) struct StagedDir {
     dir: PathBuf,
     stage: PathBuf,
     committed: bool,
@@ -510,7 +510,7 @@ pub struct StagedDir {
 
 impl StagedDir {
     /// Creates the staging folder for `dir`; refuses a `dir` that is a file.
-    pub fn create(dir: &Path) -> Result<StagedDir, OutputError> {
+    pub(crate) fn create(dir: &Path) -> Result<StagedDir, OutputError> {
         let io_err = |path: &Path| {
             let path = path.to_path_buf();
             move |source| OutputError::Io { path, source }
@@ -542,23 +542,18 @@ impl StagedDir {
     }
 
     /// Where a file of the output is written now (inside the staging folder).
-    pub fn path(&self, name: &str) -> PathBuf {
+    pub(crate) fn path(&self, name: &str) -> PathBuf {
         self.stage.join(name)
     }
 
-    /// The final folder.
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
     /// The staging folder files are written into until [`StagedDir::commit`].
-    pub fn stage(&self) -> &Path {
+    pub(crate) fn stage(&self) -> &Path {
         &self.stage
     }
 
     /// Moves every staged file into the final folder and removes the staging folder. Every
     /// destination is checked before anything moves, so a blocked one leaves `dir` as it was.
-    pub fn commit(mut self) -> Result<(), OutputError> {
+    pub(crate) fn commit(mut self) -> Result<(), OutputError> {
         let io_err = |path: &Path| {
             let path = path.to_path_buf();
             move |source| OutputError::Io { path, source }
@@ -612,6 +607,7 @@ static PROTECTED: std::sync::Mutex<Vec<(String, PathBuf)>> = std::sync::Mutex::n
 /// [`OutputError::SamePath`], nothing written. This covers outputs whose names are known only
 /// after the run (a report's or `diagnose --out`'s files inside a folder); outputs known before
 /// the run are compared up front by [`check_paths`], which registers its inputs too.
+#[cfg_attr(not(feature = "cli"), allow(dead_code))] // used by the CLI only
 pub(crate) fn protect_inputs(inputs: &[(&str, &Path)]) {
     if let Ok(mut list) = PROTECTED.lock() {
         list.extend(inputs.iter().map(|(r, p)| (r.to_string(), p.to_path_buf())));
@@ -685,7 +681,11 @@ fn identity(path: &Path, is_output: bool) -> Option<Identity> {
 /// comes with its role (the CLI passes the flag, e.g. `--out`), which the error names. Files are
 /// compared by device and inode, new paths by canonical directory and name; devices and FIFOs
 /// (`/dev/null` twice) are allowed. The inputs are also registered by `protect_inputs`.
-pub fn check_paths(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<(), OutputError> {
+#[cfg_attr(not(feature = "cli"), allow(dead_code))] // used by the CLI only
+pub(crate) fn check_paths(
+    inputs: &[(&str, &Path)],
+    outputs: &[(&str, &Path)],
+) -> Result<(), OutputError> {
     protect_inputs(inputs);
     let ins: Vec<_> = inputs
         .iter()

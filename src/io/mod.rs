@@ -1,20 +1,20 @@
 //! The one output layer: every byte biasctl writes goes through here.
 //!
-//! - [`write_atomic`] / [`write_string_atomic`] write one file safely (see [`file`](mod@file)): a regular
+//! - [`write_atomic`] / [`write_string_atomic`] write one file safely (see `file`): a regular
 //!   file is replaced atomically (temporary file in the target's directory, renamed into place,
 //!   the target's permissions kept, a symlink's target written); a device, FIFO or `/dev/stdout`
 //!   is written directly; `-` is stdout.
-//! - [`StagedDir`] builds a multi-file output (report, `diagnose --out`) in one temporary folder
+//! - `StagedDir` builds a multi-file output (report, `diagnose --out`) in one temporary folder
 //!   and moves it into place only when complete.
-//! - [`check_paths`] refuses an output that is also an input, or two outputs on one file, before
+//! - `check_paths` refuses an output that is also an input, or two outputs on one file, before
 //!   anything runs.
-//! - [`write_stdout`] is the one path to standard output: a closed pipe becomes
+//! - `write_stdout` is the one path to standard output: a closed pipe becomes
 //!   [`OutputError::BrokenPipe`] (the CLI ends quietly with exit 0), any other write error a
 //!   clear [`OutputError::Stdout`].
-//! - [`number::write_shortest`] writes a CSV number as `Display` would, through `ryu`.
+//! - `number::write_shortest` writes a CSV number as `Display` would, through `ryu`.
 //! - [`json::to_string_pretty`] is the one JSON writer: a non-finite number (which serde_json
 //!   would write as `null`) is refused naming its key path.
-//! - [`finite`] refuses to emit a non-finite number; [`quote`] and [`message`] keep error
+//! - `finite` refuses to emit a non-finite number; [`quote`] and [`message`] keep error
 //!   messages short whatever the user typed.
 
 pub(crate) mod fault;
@@ -24,12 +24,22 @@ pub(crate) mod json;
 pub(crate) mod number;
 pub(crate) mod stdout;
 
-pub use file::{StagedDir, check_paths, write_atomic, write_string_atomic};
+pub use {file::write_atomic, file::write_string_atomic};
+
+pub(crate) use file::StagedDir;
 pub use finite::{NonFinite, check_text};
-pub use stdout::{flush_stdout, is_broken_pipe, write_stdout};
+#[cfg(feature = "cli")]
+pub(crate) use {
+    file::check_paths, stdout::flush_stdout, stdout::is_broken_pipe, stdout::write_stdout,
+};
 
 use std::io;
 use std::path::PathBuf;
+
+// The namespace's public items that live in its submodules (the crate root keeps only the
+// names most users need; see `biasctl::prelude`).
+pub use file::Sink;
+pub use json::to_string_pretty;
 
 /// At most this many characters of a user's value are quoted in a message ([`quote`]).
 pub(crate) const QUOTE_CHARS: usize = 80;
@@ -82,7 +92,8 @@ pub enum OutputError {
 
 impl OutputError {
     /// Whether this is a closed stdout pipe (end quietly, exit 0).
-    pub fn is_broken_pipe(&self) -> bool {
+    #[cfg_attr(not(feature = "cli"), allow(dead_code))] // used by the CLI only
+    pub(crate) fn is_broken_pipe(&self) -> bool {
         matches!(self, OutputError::BrokenPipe)
     }
 }
@@ -110,7 +121,7 @@ pub fn message(err: &(dyn std::error::Error + 'static)) -> String {
 
 /// As [`message`], with each error's text passed through `rewrite` before it is shortened (the
 /// CLI renders the library's setting names as its flags there).
-pub fn message_with(
+pub(crate) fn message_with(
     err: &(dyn std::error::Error + 'static),
     rewrite: &dyn Fn(&str) -> String,
 ) -> String {

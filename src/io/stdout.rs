@@ -27,7 +27,8 @@ pub(crate) fn map_stdout_error(e: io::Error) -> OutputError {
 /// caused it).
 /// A text holding a non-finite number (`NaN`, `inf`) is refused whole
 /// ([`OutputError::NonFinite`]) and nothing of it is printed.
-pub fn write_stdout(text: &str) -> Result<(), OutputError> {
+#[cfg_attr(not(feature = "cli"), allow(dead_code))] // used by the CLI only
+pub(crate) fn write_stdout(text: &str) -> Result<(), OutputError> {
     super::check_text(text, "stdout")?;
     let mut out = Faulty::armed(io::stdout().lock());
     out.write_all(text.as_bytes())
@@ -36,14 +37,16 @@ pub fn write_stdout(text: &str) -> Result<(), OutputError> {
 }
 
 /// Flushes stdout at the end of a run; errors mapped as [`write_stdout`]'s.
-pub fn flush_stdout() -> Result<(), OutputError> {
+#[cfg_attr(not(feature = "cli"), allow(dead_code))] // used by the CLI only
+pub(crate) fn flush_stdout() -> Result<(), OutputError> {
     io::stdout().flush().map_err(map_stdout_error)
 }
 
 /// Whether `err` or one of its causes is a closed stdout pipe ([`OutputError::BrokenPipe`], or
 /// an I/O error of kind `BrokenPipe`), also behind `#[error(transparent)]` wrappers (which
 /// show the same text): the CLI then ends quietly with exit 0.
-pub fn is_broken_pipe(err: &(dyn std::error::Error + 'static)) -> bool {
+#[cfg_attr(not(feature = "cli"), allow(dead_code))] // used by the CLI only
+pub(crate) fn is_broken_pipe(err: &(dyn std::error::Error + 'static)) -> bool {
     let pipe_text = OutputError::BrokenPipe.to_string();
     let mut cur = Some(err);
     while let Some(e) = cur {

@@ -310,7 +310,7 @@ impl Covariates<'_> {
     }
 
     /// Copies the values into `buf` (cleared first; no allocation once it has room) and
-    /// returns them as a slice (what [`Seek::covariates`](crate::Seek::covariates) and the
+    /// returns them as a slice (what [`Seek::covariates`](crate::model::Seek::covariates) and the
     /// predictor take).
     pub fn gather<'b>(&self, buf: &'b mut Vec<f64>) -> &'b [f64] {
         buf.clear();

@@ -71,7 +71,7 @@ pub fn check_toml_numbers(text: &str) -> Result<(), String> {
 
 /// Reads a whole text file of at most `MAX_TEXT_FILE_BYTES`; a larger one is an
 /// `InvalidData` error saying so (nothing beyond the limit is read).
-pub fn read_text(path: &Path) -> io::Result<String> {
+pub(crate) fn read_text(path: &Path) -> io::Result<String> {
     let file = std::fs::File::open(path)?;
     let mut text = String::new();
     file.take(MAX_TEXT_FILE_BYTES + 1)

@@ -31,7 +31,7 @@
 //! [`LogSchema::notes`]; nothing is skipped silently.
 //!
 //! ```
-//! use biasctl::{ColumnMap, LogReader};
+//! use biasctl::{ColumnMap, log::LogReader};
 //! let text = "# seed 1\ntime_s,track,bias,temp_c\n0.0,100,12.5,40\n0.5,120,,40\n1.0,90,-3.25,41\n";
 //! let mut reader = LogReader::from_reader("example.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
 //! assert_eq!(reader.schema().covariates, vec!["temp_c".to_string()]);
@@ -66,6 +66,10 @@ pub use schema::{BiasColumn, LogSchema, Row, STDIN_PATH};
 pub use units::{DEFAULT_BIAS_UNIT, UnitError, Units, check_unit_label};
 pub use writer::{LogWriter, fmt_trimmed};
 pub(crate) use writer::{csv_writer, fmt_fixed};
+
+// The namespace's public items that live in its submodules (the crate root keeps only the
+// names most users need; see `biasctl::prelude`).
+pub use limits::check_toml_numbers;
 
 #[cfg(test)]
 mod tests;

@@ -30,7 +30,15 @@ use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use term::{Param, Term, TermSpec};
+
+// The namespace's public items that live in its submodules (the crate root keeps only the
+// names most users need; see `biasctl::prelude`).
+pub use predictor::ReplayError;
+pub use preset::{CALIBRATION, preset_terms};
+pub use registry::builtin_names;
+pub use term::{
+    Nonlinear, Param, SearchBasis, SearchContext, Searched, Seek, Term, TermSpec, TermState,
+};
 
 /// Format name written into every model file.
 pub(crate) const FORMAT: &str = "biasctl-model";
@@ -221,7 +229,7 @@ impl ModelSpec {
 /// [`TermSpec`] objects, never as strings, so a user's own term survives every edit.
 ///
 /// ```
-/// use biasctl::{ModelEdit, ModelSpec, terms::parse_term};
+/// use biasctl::{model::ModelEdit, ModelSpec, model::terms::parse_term};
 /// let spec = ModelSpec::parse("poly2,direction").unwrap();
 /// let add = ModelEdit::Add(parse_term("col:temp_c").unwrap());
 /// assert_eq!(spec.apply(&add).unwrap().to_string(), "poly2,direction,col:temp_c");

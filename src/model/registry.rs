@@ -12,7 +12,7 @@
 //! undetermined columns ([`Term::droppable`]) and its own fit warnings ([`Term::fit_warnings`]).
 //!
 //! ```
-//! use biasctl::builtin_names;
+//! use biasctl::model::builtin_names;
 //! assert!(builtin_names().starts_with("poly2, table[:SPACING], direction"));
 //! ```
 

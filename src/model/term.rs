@@ -19,7 +19,7 @@
 //!
 //! ```
 //! use std::sync::Arc;
-//! use biasctl::{ModelError, ModelSpec, Seek, Term, TermSpec, TermState};
+//! use biasctl::{ModelError, ModelSpec, model::Seek, Term, TermSpec, model::TermState};
 //! use biasctl::{FitData, FitError, FitOptions, fit};
 //!
 //! /// Bias proportional to the square of the seek length (a made-up effect), per track².
@@ -141,7 +141,7 @@ pub trait Term: Debug + Send + Sync {
     /// For a [`Term::reads_only_residuals`] term that is exponential forgetting of the
     /// residuals (`drift`): its factor `alpha`, where its state's offset is a running `m`
     /// starting at 0 and its update with residual `e` is `m += alpha · e`. The fit then
-    /// replays it in one plain loop ([`crate::fit`]'s tail statistics; tested equal to the
+    /// replays it in one plain loop ([`crate::fit`](mod@crate::fit)'s tail statistics; tested equal to the
     /// replay of its state). Default `None`.
     fn forgetting_factor(&self) -> Option<f64> {
         None
@@ -267,7 +267,7 @@ pub trait Term: Debug + Send + Sync {
         serde_json::Value::Null
     }
     /// The term as C code for the firmware export (`biasctl export c`, `crate::export`),
-    /// written with the helpers of `crate::codegen` ([`CContext`](crate::CContext), [`CTerm`](crate::CTerm)); `None` (the
+    /// written with the helpers of `crate::codegen` ([`CContext`](crate::export::CContext), [`CTerm`](crate::export::CTerm)); `None` (the
     /// default): not exportable (the export then refuses, naming the term). Each built-in term
     /// that can be exported implements it in its own file from its fitted settings.
     fn export_c(&self, _ctx: &CContext) -> Option<CTerm> {

@@ -901,7 +901,7 @@ pub(crate) fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
 /// p-value of "unimodal" (`dip_p_value`). `None` where the dip is.
 ///
 /// ```
-/// use biasctl::dip_test;
+/// use biasctl::numeric::dip_test;
 /// // Two clusters of 100 values each: two humps.
 /// let two: Vec<f64> = (0..200).map(|i| (i % 2) as f64 * 10.0 + (i % 13) as f64 * 0.3).collect();
 /// let t = dip_test(&two).unwrap();

@@ -10,7 +10,7 @@
 //!
 //! Every builder takes plain data and returns SVG text; nothing here reads files or depends on
 //! the simulator, and only [`views`] knows the model, diagnose and settle types. Write the text with [`crate::io::write_string_atomic`] or put
-//! it into a [`crate::report::Report`].
+//! it into a `crate::report::Report`.
 
 pub mod figures;
 pub mod from_log;

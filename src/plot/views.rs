@@ -4,7 +4,7 @@
 //! diagnose and settle types; the `plot` command and the report both draw through it.
 //!
 //! ```
-//! use biasctl::{Ladder, LadderStep};
+//! use biasctl::{select::Ladder, select::LadderStep};
 //! use biasctl::plot::views;
 //! let l = Ladder { steps: vec![
 //!     LadderStep { terms: vec!["poly2".into()], std: 20.0, reduction: 0.0,

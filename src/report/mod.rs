@@ -1,26 +1,16 @@
 //! One self-contained `report.html`: inline SVG figures, inline CSS, no script, no network.
 //!
-//! A [`Report`] holds a title, an introduction and numbered sections; each section holds blocks
+//! A `Report` holds a title, an introduction and numbered sections; each section holds blocks
 //! in order: paragraphs, "headline" key–value boxes, tables (numbers right-aligned), figures with
 //! captions. The output is HTML5 that is also well-formed XML (every element closed, only the
 //! five XML entities), with a table of contents linking to the sections. All text is escaped;
 //! figures must be SVG text from [`crate::plot`] (anything else is replaced by a notice).
-//! [`story`] tells the whole story (the built-in drive, or a user's log) as one report: it
-//! computes a run ([`run`], no HTML), writes its files and assembles the page from the
-//! [`sections`] the demo and the data report share.
+//! `story` tells the whole story (the built-in drive, or a user's log) as one report: it
+//! computes a run (`run`, no HTML), writes its files and assembles the page from the
+//! `sections` the demo and the data report share.
 //!
-//! ```
-//! use biasctl::{Report, Table};
-//! let mut r = Report::new("Bias report");
-//! r.intro("Random seeks over 250 tracks.");
-//! r.section("Headline")
-//!     .headline(&[("error std", "7.9 counts"), ("reduction", "58 %")])
-//!     .paragraph("The full calibration model halves the error.")
-//!     .table(Table::new(&["model", "std (counts)"]).row(vec!["calibration".into(), 7.9.into()]));
-//! let html = r.to_html();
-//! assert!(html.starts_with("<!DOCTYPE html>"));
-//! assert!(!html.contains("<script"));
-//! ```
+//! The public entry points are [`data_report`] (a user's log) and [`demo_report`] (the built-in
+//! drive); the HTML builder itself is internal.
 
 pub(crate) mod run;
 pub(crate) mod sections;
@@ -32,9 +22,19 @@ use std::path::Path;
 use crate::io::{OutputError, write_string_atomic};
 use crate::plot::svg::{esc, fmt_num};
 
+// The namespace's public items that live in its submodules (the crate root keeps only the
+// names most users need; see `biasctl::prelude`).
+pub use run::{
+    DataRun, DemoRun, DiagnosedRun, MAX_SEEKS, PaperRobustWhy, ScoredModel, SettleRun, StoryError,
+    compute_data, compute_demo,
+};
+pub use story::{
+    CheckedStoryOptions, Progress, StoryOptions, StoryOutcome, data_report, demo_report,
+};
+
 /// A table cell: text (left-aligned) or a number (right-aligned, compact format).
 #[derive(Debug, Clone, PartialEq)]
-pub enum Cell {
+pub(crate) enum Cell {
     /// Text, left-aligned.
     Text(String),
     /// A number, right-aligned; non-finite values show as "n/a".
@@ -69,7 +69,7 @@ impl From<usize> for Cell {
 
 /// A table with a header row.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Table {
+pub(crate) struct Table {
     /// Column headings.
     pub header: Vec<String>,
     /// Rows of cells (short rows are padded with empty cells).
@@ -80,7 +80,7 @@ pub struct Table {
 
 impl Table {
     /// A table with these column headings and no rows.
-    pub fn new(header: &[&str]) -> Self {
+    pub(crate) fn new(header: &[&str]) -> Self {
         Table {
             header: header.iter().map(|s| s.to_string()).collect(),
             rows: Vec::new(),
@@ -89,13 +89,13 @@ impl Table {
     }
 
     /// Adds a row.
-    pub fn row(mut self, cells: Vec<Cell>) -> Self {
+    pub(crate) fn row(mut self, cells: Vec<Cell>) -> Self {
         self.rows.push(cells);
         self
     }
 
     /// Sets the caption.
-    pub fn caption(mut self, caption: impl Into<String>) -> Self {
+    pub(crate) fn caption(mut self, caption: impl Into<String>) -> Self {
         self.caption = caption.into();
         self
     }
@@ -103,7 +103,7 @@ impl Table {
 
 /// One block of a section.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Block {
+pub(crate) enum Block {
     /// A paragraph of plain text.
     Paragraph(String),
     /// Key–value boxes for the headline numbers.
@@ -117,13 +117,11 @@ pub enum Block {
         /// Caption (plain text).
         caption: String,
     },
-    /// Preformatted text (for example a command line or a fitted model summary).
-    Code(String),
 }
 
 /// A section: a heading and its blocks.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Section {
+pub(crate) struct Section {
     /// The heading.
     pub heading: String,
     /// The blocks, in order.
@@ -132,13 +130,13 @@ pub struct Section {
 
 impl Section {
     /// Adds a paragraph.
-    pub fn paragraph(&mut self, text: impl Into<String>) -> &mut Self {
+    pub(crate) fn paragraph(&mut self, text: impl Into<String>) -> &mut Self {
         self.blocks.push(Block::Paragraph(text.into()));
         self
     }
 
     /// Adds headline boxes `(key, value)`.
-    pub fn headline<K: AsRef<str>, V: AsRef<str>>(&mut self, items: &[(K, V)]) -> &mut Self {
+    pub(crate) fn headline<K: AsRef<str>, V: AsRef<str>>(&mut self, items: &[(K, V)]) -> &mut Self {
         self.blocks.push(Block::Headline(
             items
                 .iter()
@@ -149,30 +147,28 @@ impl Section {
     }
 
     /// Adds a table.
-    pub fn table(&mut self, table: Table) -> &mut Self {
+    pub(crate) fn table(&mut self, table: Table) -> &mut Self {
         self.blocks.push(Block::Table(table));
         self
     }
 
     /// Adds a figure: SVG text from [`crate::plot`] and a caption.
-    pub fn figure(&mut self, svg: impl Into<String>, caption: impl Into<String>) -> &mut Self {
+    pub(crate) fn figure(
+        &mut self,
+        svg: impl Into<String>,
+        caption: impl Into<String>,
+    ) -> &mut Self {
         self.blocks.push(Block::Figure {
             svg: svg.into(),
             caption: caption.into(),
         });
         self
     }
-
-    /// Adds preformatted text.
-    pub fn code(&mut self, text: impl Into<String>) -> &mut Self {
-        self.blocks.push(Block::Code(text.into()));
-        self
-    }
 }
 
 /// The report: title, introduction, sections.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Report {
+pub(crate) struct Report {
     /// Title (the `<title>` and the top heading).
     pub title: String,
     /// Introductory paragraphs before the table of contents.
@@ -197,7 +193,7 @@ pre{background:#f6f6f6;padding:.6rem;overflow-x:auto}
 
 impl Report {
     /// An empty report with a title.
-    pub fn new(title: impl Into<String>) -> Self {
+    pub(crate) fn new(title: impl Into<String>) -> Self {
         Report {
             title: title.into(),
             ..Default::default()
@@ -205,13 +201,13 @@ impl Report {
     }
 
     /// Adds an introductory paragraph.
-    pub fn intro(&mut self, text: impl Into<String>) -> &mut Self {
+    pub(crate) fn intro(&mut self, text: impl Into<String>) -> &mut Self {
         self.intro.push(text.into());
         self
     }
 
     /// Starts a new section and returns it for adding blocks.
-    pub fn section(&mut self, heading: impl Into<String>) -> &mut Section {
+    pub(crate) fn section(&mut self, heading: impl Into<String>) -> &mut Section {
         self.sections.push(Section {
             heading: heading.into(),
             blocks: Vec::new(),
@@ -221,7 +217,7 @@ impl Report {
     }
 
     /// Renders the whole document.
-    pub fn to_html(&self) -> String {
+    pub(crate) fn to_html(&self) -> String {
         let mut h = String::new();
         let title = esc(&self.title);
         let _ = write!(
@@ -263,7 +259,7 @@ impl Report {
     }
 
     /// Writes the report atomically to `path`.
-    pub fn write(&self, path: &Path) -> Result<(), OutputError> {
+    pub(crate) fn write(&self, path: &Path) -> Result<(), OutputError> {
         write_string_atomic(path, &self.to_html())
     }
 }
@@ -340,9 +336,6 @@ fn render_block(h: &mut String, b: &Block, figure_no: &mut usize) {
                 esc(caption)
             );
         }
-        Block::Code(text) => {
-            let _ = writeln!(h, "<pre>{}</pre>", esc(text));
-        }
     }
 }
 
@@ -359,3 +352,6 @@ fn is_plot_svg(svg: &str) -> bool {
         && !lower.contains("<foreignobject")
         && !lower.replacen(SVG_NS_ATTR, "", 1).contains("http")
 }
+
+#[cfg(test)]
+mod tests;

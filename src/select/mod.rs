@@ -1,5 +1,5 @@
 //! Model-structure selection: which terms a model should have, decided by refitting. It sits
-//! on the residual engine ([`crate::diagnose`]) and calls the fit: every suggested edit is
+//! on the residual engine ([`crate::diagnose`](mod@crate::diagnose)) and calls the fit: every suggested edit is
 //! applied, refitted and scored out of sample ([`diagnose_verified`]), the verified edits are
 //! applied one at a time ([`discover()`]), and a list of terms is climbed one rung at a time
 //! ([`ladder_fit`], [`suggestion_path`]).

@@ -2,11 +2,11 @@
 //! way the paper measures (one-revolution average of a track-following servo's control effort),
 //! driven by the paper's calibration sequences.
 //!
-//! - [`drive`]: the drive description (TOML) and the physics of each effect; see its docs for
+//! - `drive`: the drive description (TOML) and the physics of each effect; see its docs for
 //!   the pivot model (Dahl + Maxwell-slip elements with deceleration back-drive).
-//! - [`measure`]: the closed-loop servo and the one-revolution average (slow reference loop and
+//! - `measure`: the closed-loop servo and the one-revolution average (slow reference loop and
 //!   the fast superposition path).
-//! - [`sequence`]: Tables I–VII, random, dwell, script.
+//! - `sequence`: Tables I–VII, random, dwell, script.
 //! - `config`: the switchable effects, the sequence options and [`SimConfig`].
 //! - `state`: the drive's evolving physical state, one step per row.
 //! - `run`: [`simulate`] and the log and truth files it writes.
@@ -22,7 +22,7 @@
 //! Every effect can be switched off by name ([`Effect`]): `position` (P1), `direction` (P2),
 //! `overshoot` (P4/P5), `time` (P3), `memory` (P6), `drift` (P7), `scatter` (P8: force scatter
 //! and sensor noise), `runout`, `temperature` (the `temp_c` covariate; only in drives that enable
-//! it). Each random effect draws from its own [`SimRng::substream`] of the seed, so switching one
+//! it). Each random effect draws from its own [`SimRng::substream`](crate::SimRng::substream) of the seed, so switching one
 //! off leaves the others' draws unchanged.
 //!
 //! ```
@@ -41,7 +41,6 @@ pub(crate) mod sequence;
 
 pub use drive::Drive;
 pub(crate) use measure::{Handoff, Servo};
-pub(crate) use sequence::{ScriptError, Step};
 mod config;
 mod run;
 mod state;
@@ -52,6 +51,15 @@ pub use config::{
 pub use run::{
     SimError, SimRow, SimSummary, TRUTH_COLUMNS, Truth, simulate, simulate_log, simulate_to_files,
 };
+
+// The namespace's public items that live in its submodules (the crate root keeps only the
+// names most users need; see `biasctl::prelude`).
+pub use drive::{
+    DirectionParams, DriftParams, DriveError, Element, ElementKind, Harmonic, MemoryParams,
+    OvershootParams, PositionParams, RunoutParams, ScatterParams, ServoParams, TemperatureParams,
+    TimeParams,
+};
+pub use sequence::{ScriptError, Step};
 
 /// Test support: the log of `n` random seeks on the built-in `paper1997` drive with every
 /// effect on, simulated with `seed` (the setup unit tests share).

@@ -520,14 +520,14 @@ fn library_checks_name_the_setting() {
     assert_eq!(&*ladder_terms("poly2, seek").unwrap(), ["poly2", "seek"]);
 }
 
-/// Reference: the term registry (`biasctl::builtin_names`, what a spec error lists). `fit
+/// Reference: the term registry (`biasctl::model::builtin_names`, what a spec error lists). `fit
 /// --help` lists every built-in term's syntax, so a new term cannot be missing from the help
 /// (its text was written by hand and had fallen eight terms behind).
 #[test]
 fn fit_help_lists_every_built_in_term() {
     let help = ok(&["fit", "--help"]);
     let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
-    for syntax in biasctl::builtin_names().split(", ") {
+    for syntax in biasctl::model::builtin_names().split(", ") {
         assert!(
             flat.contains(syntax),
             "`{syntax}` missing from fit --help:\n{help}"

@@ -1,13 +1,13 @@
 //! `diagnose`, `discover` and `ladder`: acceptance on the simulated drive and on the independent
-//! drives of `biasctl::family`, independence of the position unit, and the CLI contracts.
+//! drives of `biasctl::sim::family`, independence of the position unit, and the CLI contracts.
 
 use crate::common::{biasctl, data, fails_with, ok, real_data, skip_without_real_data, write};
 use crate::diagnose::diagnose_family::{config, fit_terms};
-use biasctl::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
+use biasctl::sim::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
 use biasctl::{
-    CheckedVerifyConfig, DiagnoseConfig, Diagnosis, Drive, FeatureTable, FitOptions, Log,
-    ModelSpec, SequenceOptions, SimConfig, diagnose_model, diagnose_verified, fit, ladder_fit,
-    simulate_log,
+    CheckedVerifyConfig, DiagnoseConfig, Diagnosis, Drive, FitOptions, Log, ModelSpec,
+    SequenceOptions, SimConfig, diagnose::FeatureTable, diagnose_model, diagnose_verified, fit,
+    ladder_fit, simulate_log,
 };
 use diagnose_family::{Outcome, full_model_flags, run, scenarios};
 use serde_json::Value;
@@ -499,7 +499,7 @@ fn emps_velocity_friction_is_suggested_as_viscous() {
         return;
     }
     use biasctl::ColumnMap;
-    use biasctl::{CheckedVerifyConfig, DERIVED_VELOCITY, diagnose_verified};
+    use biasctl::{CheckedVerifyConfig, diagnose::DERIVED_VELOCITY, diagnose_verified};
     let map = ColumnMap {
         time: "time_s".into(),
         track: "position_m".into(),
@@ -561,7 +561,9 @@ fn emps_velocity_friction_is_suggested_as_viscous() {
 #[test]
 fn velocity_friction_is_not_suggested_without_velocity_friction() {
     use biasctl::ColumnMap;
-    use biasctl::{CheckedVerifyConfig, DERIVED_VELOCITY, FeatureTable, diagnose_verified};
+    use biasctl::{
+        CheckedVerifyConfig, diagnose::DERIVED_VELOCITY, diagnose::FeatureTable, diagnose_verified,
+    };
     let (train, _) = logs("diag_base.toml", &[], 1.0, 5);
     assert!(
         FeatureTable::from_log(&train)
@@ -607,7 +609,7 @@ fn velocity_friction_is_not_suggested_without_velocity_friction() {
     );
 }
 
-// ---- the independent drives of `biasctl::family` (scoring code: `examples/diagnose_family.rs`)
+// ---- the independent drives of `biasctl::sim::family` (scoring code: `examples/diagnose_family.rs`)
 
 #[path = "../../examples/diagnose_family.rs"]
 #[allow(dead_code)]
@@ -749,7 +751,7 @@ fn model_holding_every_effect_flags_nothing_in_19_of_20_seeds() {
 /// counts. Both fitted models survive a save/load round trip with identical predictions.
 #[test]
 fn lag_and_memsum_terms_recover_the_generators_parameters() {
-    use biasctl::{family::FamilyConfig, family::generate};
+    use biasctl::{sim::family::FamilyConfig, sim::family::generate};
     let drive = FamilyDrive::member("bw-sine-t").unwrap();
     let base = diagnose_family::base_terms(&drive);
     let dir = tempfile::tempdir().unwrap();
@@ -805,7 +807,7 @@ fn lag_and_memsum_terms_recover_the_generators_parameters() {
 /// (the fast-covariate scenario, its true term held) no `by:` edit is verified.
 #[test]
 fn play_and_interaction_are_suggested_where_they_apply_and_only_there() {
-    use biasctl::family::{FamilyConfig, generate};
+    use biasctl::sim::family::{FamilyConfig, generate};
     use biasctl::{CheckedVerifyConfig, diagnose_verified};
     let drive = FamilyDrive::member("pi-cubic-ar1").unwrap();
     let run = generate(&FamilyConfig::new(drive.clone(), &[], 7, N)).unwrap();
@@ -897,7 +899,7 @@ fn slow_no_effect_column_is_not_flagged_under_ar1_noise() {
 /// errors; the fitted model survives a save/load round trip bit for bit.
 #[test]
 fn bump_term_recovers_the_generators_defect() {
-    use biasctl::{family::FamilyConfig, family::generate};
+    use biasctl::{sim::family::FamilyConfig, sim::family::generate};
     let dir = tempfile::tempdir().unwrap();
     for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
         let seed = 41 + i as u64;
@@ -956,7 +958,7 @@ fn bump_term_recovers_the_generators_defect() {
 /// save/load round trip bit for bit.
 #[test]
 fn step_term_recovers_the_generators_threshold() {
-    use biasctl::{family::FamilyConfig, family::generate};
+    use biasctl::{sim::family::FamilyConfig, sim::family::generate};
     let dir = tempfile::tempdir().unwrap();
     for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
         let seed = 51 + i as u64;
@@ -1004,7 +1006,7 @@ fn step_term_recovers_the_generators_threshold() {
 /// achieves.
 #[test]
 fn narrow_defect_is_named_first_and_its_bump_recovers_the_achievable_reduction() {
-    use biasctl::{family::FamilyConfig, family::generate};
+    use biasctl::{sim::family::FamilyConfig, sim::family::generate};
     for (i, drive) in FamilyDrive::members().into_iter().enumerate() {
         let seed = 300 + i as u64;
         let o = run(&drive, &[HiddenEffect::Defect], seed, N);

@@ -18,7 +18,7 @@ fn head(syntax: &str) -> &str {
     syntax.split([':', '[']).next().unwrap_or(syntax).trim()
 }
 
-/// Reference: the term registry (`biasctl::builtin_names`, the list a spec error and
+/// Reference: the term registry (`biasctl::model::builtin_names`, the list a spec error and
 /// `fit --help` print). Each head must start a row of the term table: a line `| `HEAD…` under
 /// the heading "Built-in terms" of docs/models-and-terms.md.
 #[test]
@@ -31,7 +31,7 @@ fn every_built_in_term_has_a_row_in_the_term_table() {
         .lines()
         .filter(|l| l.starts_with("| `"))
         .collect();
-    let names = biasctl::builtin_names();
+    let names = biasctl::model::builtin_names();
     let mut missing = Vec::new();
     for syntax in names.split(", ") {
         let h = head(syntax);

@@ -225,10 +225,10 @@ fn export_refuses_what_it_cannot_write() {
 /// A user term that does not describe itself in C is refused by name; one that does is exported.
 #[test]
 fn user_terms_export_themselves_or_are_refused_by_name() {
-    use biasctl::{CContext, COptions, CTerm, ExportError, c_source};
+    use biasctl::{COptions, ExportError, c_source, export::CContext, export::CTerm};
     use biasctl::{CheckedFitOptions, FitData, FitError, fit};
     use biasctl::{ModelError, ModelSpec};
-    use biasctl::{Seek, Term, TermSpec, TermState};
+    use biasctl::{Term, TermSpec, model::Seek, model::TermState};
     use std::sync::Arc;
 
     /// Bias ∝ seek length², counts per track²; `exports` says whether it writes C.

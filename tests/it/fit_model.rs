@@ -4,13 +4,13 @@
 //! (`dbins`, a user term through the public traits).
 
 use crate::common::{biasctl, fails_with, log_text, ok, write};
-use biasctl::terms::dahl::{DahlPredictor, DahlState};
-use biasctl::terms::intercept::InterceptTerm;
+use biasctl::model::terms::dahl::{DahlPredictor, DahlState};
+use biasctl::model::terms::intercept::InterceptTerm;
 use biasctl::{
     COptions, CheckedDiagnoseConfig, CheckedFitOptions, CheckedVerifyConfig, ColumnMap,
-    ColumnsUsed, DiagnoseConfig, ExportError, FitData, FitOptions, FittedModel, FittedTerm,
-    History, Log, ModelSpec, Predictor, SimRng, TermSpec, c_source, diagnose_model,
-    diagnose_verified, fit, suggestion_path,
+    DiagnoseConfig, ExportError, FitData, FitOptions, FittedModel, History, Log, ModelSpec,
+    Predictor, SimRng, TermSpec, c_source, diagnose_model, diagnose_verified, fit,
+    model::ColumnsUsed, model::FittedTerm, select::suggestion_path,
 };
 use new_effect::{TimeAtTrack, p3_log, test_std};
 use std::sync::Arc;
@@ -569,7 +569,7 @@ fn predict_next_refuses_a_target_that_is_no_position() {
     )
     .unwrap();
     for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 2e15, -1.5e15] {
-        let e = biasctl::predict_next(&model, &log, Some(bad)).unwrap_err();
+        let e = biasctl::model::predict_next(&model, &log, Some(bad)).unwrap_err();
         assert!(
             matches!(e, biasctl::ModelError::BadTarget { .. }),
             "{bad}: {e}"
@@ -580,7 +580,7 @@ fn predict_next_refuses_a_target_that_is_no_position() {
         );
     }
     for good in [None, Some(0.0), Some(150.5), Some(-1e15), Some(1e15)] {
-        let next = biasctl::predict_next(&model, &log, good).unwrap();
+        let next = biasctl::model::predict_next(&model, &log, good).unwrap();
         assert!(next.bias.is_finite(), "{good:?}: {next:?}");
     }
 }
@@ -857,7 +857,7 @@ fn calibration_preset_survives_a_table_dominated_training_run() {
         )
         .unwrap();
         let p = model.predict_log(&test).unwrap();
-        let sd = biasctl::std_dev(&p.residual).unwrap();
+        let sd = biasctl::numeric::std_dev(&p.residual).unwrap();
         let k = p.term_names.iter().position(|n| n == "memory").unwrap();
         let largest = p.contributions[k]
             .iter()
@@ -1232,7 +1232,7 @@ fn predictions_and_diagnosis_do_not_depend_on_units() {
     ];
     let opts = CheckedFitOptions::default();
     for spec_text in specs {
-        let spec = biasctl::preset_terms(spec_text)
+        let spec = biasctl::model::preset_terms(spec_text)
             .map_or_else(|| ModelSpec::parse(spec_text), ModelSpec::parse)
             .unwrap();
         let m0 = fit(&spec, &base.0, &opts).unwrap();
@@ -1323,7 +1323,7 @@ fn direction_coefficient(m: &biasctl::FittedModel) -> f64 {
 #[test]
 fn dense_log_direction_from_a_deadband_or_a_velocity_column() {
     use biasctl::FitOptions;
-    use biasctl::{DirectionSetting, DirectionSource, log_sampling};
+    use biasctl::{history::DirectionSetting, history::DirectionSource, history::log_sampling};
     // Reference: the generating model, a direction step of ±10 that reverses 3 times (the
     // velocity zeros of the sine at t = 1, 2, 3 s).
     let log = dense_log();
@@ -1418,7 +1418,7 @@ fn log_of(r: &[(f64, f64, f64)]) -> Log {
     log(r, 1.0, 1.0)
 }
 
-fn with_log(l: &Log) -> biasctl::DirectionSource {
+fn with_log(l: &Log) -> biasctl::history::DirectionSource {
     fit(
         &ModelSpec::parse("poly2,direction").unwrap(),
         l,

@@ -15,9 +15,9 @@
 
 #![allow(dead_code)] // the example uses the campaign, the test binary the tests
 
-use biasctl::check_text;
+use biasctl::io::check_text;
 use biasctl::{ColumnMap, Log};
-use biasctl::{Drive, SequenceOptions, SimConfig, simulate_log, simulate_to_files};
+use biasctl::{Drive, SequenceOptions, SimConfig, sim::simulate_to_files, simulate_log};
 use biasctl::{FitOptions, fit};
 use biasctl::{FittedModel, ModelSpec};
 use biasctl::{SettleSpec, analyse};
@@ -284,8 +284,8 @@ fn map_for(name: &str) -> ColumnMap {
 /// would write.
 fn predict_and_score(model: &FittedModel, log: &Log) -> Res {
     let pred = model.predict_log(log)?;
-    biasctl::check_prediction(&pred, log)?;
-    let s = biasctl::score_with_units(&pred.residual, &pred.positions, &log.schema.units)?;
+    biasctl::score::check_prediction(&pred, log)?;
+    let s = biasctl::score::score_with_units(&pred.residual, &pred.positions, &log.schema.units)?;
     finite("score", [s.mean, s.std, s.rms, s.median_abs])?;
     finite("score percentiles", s.percentiles.iter().map(|p| p.1))?;
     if let Some(t) = &s.trend {
@@ -371,7 +371,7 @@ fn exercise(kind: Kind, name: &str, bytes: &[u8], ctx: &Ctx) -> Res {
         }
         Kind::Plant => {
             let text = std::str::from_utf8(bytes)?;
-            biasctl::check_toml_numbers(text).map_err(Box::<dyn Error>::from)?;
+            biasctl::log::check_toml_numbers(text).map_err(Box::<dyn Error>::from)?;
             let spec: SettleSpec = toml::from_str(text)?;
             let report = analyse(&spec.check()?)?;
             finite("LQR gain", report.gain.iter().copied())?;
@@ -423,12 +423,12 @@ pub fn run_case(input: &Input, bytes: &[u8], ctx: &Ctx) -> Result<Outcome, Findi
             if let Some(w) = e.downcast_ref::<Wrong>() {
                 return Err(finding(format!("accepted, but {w}")));
             }
-            let m = biasctl::message(e.as_ref());
+            let m = biasctl::io::message(e.as_ref());
             let n = m.chars().count();
             if n == 0 || n >= MAX_MESSAGE {
                 return Err(finding(format!(
                     "message of {n} characters: {}",
-                    biasctl::quote(&m)
+                    biasctl::io::quote(&m)
                 )));
             }
             Ok(Outcome::Refused)
@@ -574,17 +574,20 @@ mod tests {
         assert!(e.contains("64 MiB"), "{e}");
         let line = format!("time_s,track,bias\n0,{},1\n", "1".repeat(2 << 20));
         let e = Log::from_reader("long", line.as_bytes(), &ColumnMap::default()).unwrap_err();
-        assert!(biasctl::message(&e).contains("1 MiB"), "{e}");
+        assert!(biasctl::io::message(&e).contains("1 MiB"), "{e}");
         let header: Vec<String> = (0..100_000).map(|i| format!("c{i}")).collect();
         let wide = format!("time_s,track,bias,{}\n0,1,1\n", header.join(","));
         let e = Log::from_reader("wide", wide.as_bytes(), &ColumnMap::default()).unwrap_err();
-        assert!(biasctl::message(&e).contains("at most 1000"), "{e}");
+        assert!(biasctl::io::message(&e).contains("at most 1000"), "{e}");
         let nested = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000));
         let e = FittedModel::from_json(&nested, Path::new("n.json"), &|_, _| None).unwrap_err();
-        assert!(biasctl::message(&e).chars().count() < MAX_MESSAGE, "{e}");
+        assert!(
+            biasctl::io::message(&e).chars().count() < MAX_MESSAGE,
+            "{e}"
+        );
         let terms = format!("poly2,{}", "t".repeat(100_000));
         let e = ModelSpec::parse(&terms).unwrap_err();
-        assert!(biasctl::message(&e).chars().count() < MAX_MESSAGE);
+        assert!(biasctl::io::message(&e).chars().count() < MAX_MESSAGE);
         assert!(t.elapsed() < Duration::from_secs(10), "{:?}", t.elapsed());
     }
 

@@ -343,7 +343,7 @@ fn check_reads_spreadsheet_dialects_with_notes() {
 /// `check` reads a log in several passes (constant memory): the later passes read a temporary
 /// file of every row's time and position (a file is read again when no temporary file can be
 /// made). Reference: the in-memory summary of the same rows
-/// (`biasctl::sampling` over every row, as `check` computed it before) gives the same lines,
+/// (`biasctl::history::sampling` over every row, as `check` computed it before) gives the same lines,
 /// and the file and standard input give the same output but for the name, on a dense time
 /// series (regular clock: the deadband pass) and a random seek log.
 #[test]
@@ -420,7 +420,7 @@ fn check_reads_a_file_and_stdin_alike_and_matches_the_in_memory_sampling() {
         "{err}"
     );
     // The rows as written (Rust's float formatting reads back to the same bits).
-    let want = biasctl::sampling(&t, &x).describe("tracks");
+    let want = biasctl::history::sampling(&t, &x).describe("tracks");
     let got = ok(&["check", "--data", &dense]);
     for line in want {
         assert!(got.contains(&format!("  {line}\n")), "{line}\n{got}");

@@ -186,7 +186,7 @@ fn a_plan_without_bias_is_predicted_exactly_as_the_measured_log() {
     let log = Log::read_with(
         Path::new(&plan),
         &ColumnMap::default(),
-        biasctl::BiasColumn::Optional,
+        biasctl::log::BiasColumn::Optional,
     )
     .unwrap();
     let m = biasctl::FittedModel::load(Path::new(&model)).unwrap();

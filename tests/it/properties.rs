@@ -8,7 +8,7 @@
 //! non-finite number, a half-written file) is a finding. Fixed seed; ~150 runs.
 
 use crate::fuzz::{Rng, corpus_dir};
-use biasctl::check_text;
+use biasctl::io::check_text;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -188,7 +188,7 @@ fn judge(dir: &Path, case: &Case) -> Result<bool, String> {
             }
             Ok(false)
         }
-        other => Err(format!("exit {other:?}: {}", biasctl::quote(&stderr))),
+        other => Err(format!("exit {other:?}: {}", biasctl::io::quote(&stderr))),
     }
 }
 

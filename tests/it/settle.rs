@@ -5,8 +5,8 @@ use crate::common::{
     biasctl, data, fails_with, no_nonfinite, ok, random_log_and_model, simulate_random_args, write,
 };
 use biasctl::{
-    Bounds, Controller, Handoff, HandoffTable, SettleSpec, SimRng, Window, analyse, handoff_state,
-    settle_index,
+    HandoffTable, SettleSpec, SimRng, analyse, control::Bounds, control::Controller,
+    control::Handoff, control::Window, control::handoff_state, control::settle_index,
 };
 
 fn controller(preset: &str) -> Controller {
@@ -184,7 +184,7 @@ fn robust_choice_worst_case_verified_by_simulation() {
     let h = sc.handoff();
     let table = HandoffTable::new(&ctl, n).unwrap();
     for db in [2.0, 8.0, 20.0] {
-        let wc = biasctl::worst_case_settle(&table, &h, &sc.window, db).unwrap();
+        let wc = biasctl::control::worst_case_settle(&table, &h, &sc.window, db).unwrap();
         let ff = wc.robust_ff.unwrap();
         let worst_sim = |start: f64| {
             (0..=200)

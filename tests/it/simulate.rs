@@ -77,7 +77,7 @@ fn truth_file_is_separate_and_adds_up() {
     let t = std::fs::read_to_string(&truth).unwrap();
     let mut lines = t.lines().filter(|l| !l.starts_with('#'));
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    assert_eq!(header.join(","), biasctl::TRUTH_COLUMNS);
+    assert_eq!(header.join(","), biasctl::sim::TRUTH_COLUMNS);
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
     for line in lines {
         let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();

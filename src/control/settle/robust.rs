@@ -28,8 +28,8 @@ pub struct WorstCase {
 /// bias prediction and its error std), with the robust choice and with zero feedforward.
 ///
 /// ```
-/// use biasctl::Controller;
-/// use biasctl::{HandoffTable, SettleSpec, worst_case_settle};
+/// use biasctl::control::Controller;
+/// use biasctl::{HandoffTable, SettleSpec, control::worst_case_settle};
 /// let cfg = SettleSpec::preset("paper1997").unwrap().check().unwrap();
 /// let ctl = Controller::design(&cfg.plant, &cfg.weights).unwrap();
 /// let table = HandoffTable::new(&ctl, cfg.scenario.horizon).unwrap();

@@ -1,7 +1,7 @@
 //! The built-in terms, one file per term (listed once in the registry, `model/registry.rs`), and
 //! the parser and restorer of term spec strings derived from that registry.
 //!
-//! Public as the namespace `biasctl::terms` because a user needs it: a user writing their own
+//! Public as the namespace `biasctl::model::terms` because a user needs it: a user writing their own
 //! [`crate::Term`] composes or copies the built-in ones, and the Dahl and play predictors are
 //! usable on their own (`terms::dahl::DahlPredictor`).
 

@@ -1,6 +1,6 @@
 //! Independent drives for testing diagnosis.
 //!
-//! Public as the namespace `biasctl::family` because a user needs it: the examples and tests
+//! Public as the namespace `biasctl::sim::family` because a user needs it: the examples and tests
 //! that measure the diagnosis generate their logs from it (`family::generate`).
 //!
 //! A small generator, written apart from the built-in drive (`crate::sim::drive` and
@@ -26,7 +26,7 @@
 //! are switched on, and switching an effect on changes only the bias column.
 //!
 //! ```
-//! use biasctl::{family::FamilyConfig, family::FamilyDrive, family::HiddenEffect, family::generate};
+//! use biasctl::{sim::family::FamilyConfig, sim::family::FamilyDrive, sim::family::HiddenEffect, sim::family::generate};
 //! let cfg = FamilyConfig::new(FamilyDrive::members()[0].clone(), &[HiddenEffect::Lag], 3, 500);
 //! let run = generate(&cfg).unwrap();
 //! assert_eq!(run.log.len(), 500);
