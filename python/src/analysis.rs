@@ -4,9 +4,10 @@
 use crate::errors::{Failure, Kind, attached, detached, fail};
 use crate::log::PyLog;
 use crate::model::{PyModel, model_spec, replay_check};
+use biasctl::diagnose::FeatureTable;
 use biasctl::{
-    DiagnoseConfig, Diagnosis, DiscoverConfig, Drive, FeatureTable, FitOptions, FittedModel,
-    SequenceOptions, SimConfig, VerifyConfig,
+    DiagnoseConfig, Diagnosis, DiscoverConfig, Drive, FitOptions, FittedModel, SequenceOptions,
+    SimConfig, VerifyConfig,
 };
 use numpy::PyArray1;
 use pyo3::prelude::*;
@@ -46,8 +47,8 @@ pub(crate) fn simulate(
         };
         let disabled: Vec<String> = disable.unwrap_or_default();
         let disabled: Vec<&str> = disabled.iter().map(String::as_str).collect();
-        let cfg = SimConfig::new(drive, &sequence, &opts, seed, &disabled)
-            .map_err(fail(Kind::Base))?;
+        let cfg =
+            SimConfig::new(drive, &sequence, &opts, seed, &disabled).map_err(fail(Kind::Base))?;
         let log = biasctl::simulate_log(&cfg).map_err(fail(Kind::Base))?;
         Ok(PyLog::from_log(log))
     })
@@ -155,11 +156,13 @@ impl PyDiagnosis {
             let opts = biasctl::plot::views::PanelOptions { top }
                 .check()
                 .map_err(fail(Kind::Base))?;
-            let residual = biasctl::replay_model(model, log)
+            let residual = biasctl::diagnose::replay_model(model, log)
                 .map_err(fail(Kind::Model))?
                 .residual;
             let table = FeatureTable::from_log(log);
-            Ok(biasctl::plot::views::diagnose_panel(d, &table, &residual, &opts))
+            Ok(biasctl::plot::views::diagnose_panel(
+                d, &table, &residual, &opts,
+            ))
         })
     }
 
@@ -171,7 +174,7 @@ impl PyDiagnosis {
     ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
         let (model, log) = (&self.model, &self.log);
         let (x, r) = detached(py, || {
-            let residual = biasctl::replay_model(model, log)
+            let residual = biasctl::diagnose::replay_model(model, log)
                 .map_err(fail(Kind::Model))?
                 .residual;
             let table = FeatureTable::from_log(log);
@@ -206,7 +209,7 @@ pub(crate) fn discover(
     let start = attached(|| {
         if start.ends_with(".json") || std::path::Path::new(start).is_file() {
             let m = FittedModel::load(std::path::Path::new(start)).map_err(fail(Kind::Model))?;
-            return biasctl::model_spec(&m).map_err(fail(Kind::Model));
+            return biasctl::diagnose::model_spec(&m).map_err(fail(Kind::Model));
         }
         model_spec(start)
     })?;
@@ -234,9 +237,16 @@ pub(crate) fn discover(
             Some(t) => Some(t.measured()?),
             None => None,
         };
-        let (d, model) = biasctl::discover(&start, train, test, &config).map_err(fail(Kind::Base))?;
+        let (d, model) =
+            biasctl::discover(&start, train, test, &config).map_err(fail(Kind::Base))?;
         let json = d.to_json().map_err(fail(Kind::Base))?;
-        Ok((json, d.to_string(), PyModel { inner: Arc::new(model) }))
+        Ok((
+            json,
+            d.to_string(),
+            PyModel {
+                inner: Arc::new(model),
+            },
+        ))
     })
 }
 

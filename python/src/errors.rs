@@ -78,7 +78,7 @@ impl From<Failure> for PyErr {
 /// Maps a library error to a [`Failure`] of `kind` with the library's message (its causes
 /// included, as the command line prints them).
 pub(crate) fn fail<E: std::error::Error + 'static>(kind: Kind) -> impl Fn(E) -> Failure {
-    move |e| Failure::new(kind, biasctl::message(&e))
+    move |e| Failure::new(kind, biasctl::io::message(&e))
 }
 
 /// Runs `f`, turning a panic into a `BiasctlError` naming it an internal error.

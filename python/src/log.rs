@@ -2,7 +2,8 @@
 //! command line's reader or built from arrays through the same reader (its checks and messages).
 
 use crate::errors::{Failure, Kind, attached, fail};
-use biasctl::{BiasColumn, ColumnMap, Log, LogError, LogReader, Units};
+use biasctl::log::{BiasColumn, LogReader};
+use biasctl::{ColumnMap, Log, LogError, Units};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -136,7 +137,9 @@ pub(crate) fn column_map(
         Some(other) => {
             return Err(Failure::new(
                 Kind::Log,
-                format!("delimiter `{other}` is not a delimiter biasctl reads; use `,`, `;` or `tab`"),
+                format!(
+                    "delimiter `{other}` is not a delimiter biasctl reads; use `,`, `;` or `tab`"
+                ),
             ));
         }
     };
@@ -156,8 +159,10 @@ fn read_plan_or_log(
 ) -> Result<(Log, Option<String>), Failure> {
     match read(BiasColumn::Required) {
         Ok(log) => Ok((log, None)),
-        Err(e @ LogError::MissingColumn { .. }) if e.to_string().contains(&format!("`{bias_col}`")) => {
-            let message = biasctl::message(&e);
+        Err(e @ LogError::MissingColumn { .. })
+            if e.to_string().contains(&format!("`{bias_col}`")) =>
+        {
+            let message = biasctl::io::message(&e);
             let log = read(BiasColumn::Optional).map_err(fail(Kind::Log))?;
             Ok((log, Some(message)))
         }
@@ -166,7 +171,11 @@ fn read_plan_or_log(
 }
 
 /// Applies explicit unit labels (else the metadata or column defaults).
-fn set_units(log: &mut Log, bias_unit: Option<&str>, track_unit: Option<&str>) -> Result<(), Failure> {
+fn set_units(
+    log: &mut Log,
+    bias_unit: Option<&str>,
+    track_unit: Option<&str>,
+) -> Result<(), Failure> {
     log.schema.units =
         Units::resolve(bias_unit, track_unit, &log.schema).map_err(fail(Kind::Log))?;
     Ok(())
@@ -218,14 +227,21 @@ pub(crate) fn log_from_columns(
         return Err(Failure::new(Kind::Log, "internal: names and columns disagree").into());
     }
     let has_bias = !names[2].is_empty();
-    let header: Vec<&str> = names.iter().map(String::as_str).filter(|n| !n.is_empty()).collect();
+    let header: Vec<&str> = names
+        .iter()
+        .map(String::as_str)
+        .filter(|n| !n.is_empty())
+        .collect();
     let n = columns[0].len()?;
     for (name, c) in header.iter().zip(&columns) {
         let len = c.len()?;
         if len != n {
             return Err(Failure::new(
                 Kind::Log,
-                format!("{source}: column `{name}` has {len} values, column `{}` {n}", header[0]),
+                format!(
+                    "{source}: column `{name}` has {len} values, column `{}` {n}",
+                    header[0]
+                ),
             )
             .into());
         }
@@ -250,7 +266,11 @@ pub(crate) fn log_from_columns(
     let map = ColumnMap {
         time: names[0].clone(),
         track: names[1].clone(),
-        bias: if has_bias { names[2].clone() } else { ColumnMap::default().bias },
+        bias: if has_bias {
+            names[2].clone()
+        } else {
+            ColumnMap::default().bias
+        },
         delimiter: Some(b','),
     };
     crate::errors::detached(py, || {
@@ -335,7 +355,9 @@ impl PyLog {
             PyArray1::from_slice(py, log.tracks()),
         ];
         if log.schema.has_bias() {
-            let b: Vec<f64> = (0..log.len()).map(|i| log.bias(i).unwrap_or(f64::NAN)).collect();
+            let b: Vec<f64> = (0..log.len())
+                .map(|i| log.bias(i).unwrap_or(f64::NAN))
+                .collect();
             out.push(PyArray1::from_vec(py, b));
         }
         for k in 0..log.schema.covariates.len() {

@@ -3,10 +3,10 @@
 
 use crate::errors::{Failure, Kind, attached, detached, fail};
 use crate::log::PyLog;
-use biasctl::{
-    CPrecision, COptions, DirectionSetting, Feedback, FitOptions, FittedModel, IntegratorStart,
-    ModelSpec, Predictor,
-};
+use biasctl::export::CPrecision;
+use biasctl::history::DirectionSetting;
+use biasctl::model::{Feedback, IntegratorStart};
+use biasctl::{COptions, FitOptions, FittedModel, ModelSpec, Predictor};
 use numpy::PyArray1;
 use pyo3::prelude::*;
 use std::sync::Arc;
@@ -149,7 +149,12 @@ impl PyModel {
     #[getter]
     fn columns(&self) -> (String, String, String, Vec<String>) {
         let c = &self.inner.columns;
-        (c.time.clone(), c.track.clone(), c.bias.clone(), c.covariates.clone())
+        (
+            c.time.clone(),
+            c.track.clone(),
+            c.bias.clone(),
+            c.covariates.clone(),
+        )
     }
 
     /// The residual std of the fit (the default Δb of a handoff).
@@ -190,7 +195,7 @@ impl PyModel {
                 .map(|_| Vec::with_capacity(log.inner.len()))
                 .collect();
             let nan = f64::NAN;
-            biasctl::replay_stream(
+            biasctl::model::replay_stream(
                 model,
                 &mut reader,
                 start.as_ref().map(|s| s as &dyn IntegratorStart),
@@ -221,7 +226,10 @@ impl PyModel {
             .map_err(fail(Kind::Model))?;
             Ok((names, cols))
         })?;
-        let arrays = cols.into_iter().map(|c| PyArray1::from_vec(py, c)).collect();
+        let arrays = cols
+            .into_iter()
+            .map(|c| PyArray1::from_vec(py, c))
+            .collect();
         Ok((names, arrays))
     }
 
@@ -234,7 +242,7 @@ impl PyModel {
             replay_check(model, log)?;
             let s = biasctl::score_model(model, log, Feedback::every(feedback_every))
                 .map_err(fail(Kind::Model))?;
-            biasctl::to_string_pretty(&s).map_err(fail(Kind::Base))
+            biasctl::io::to_string_pretty(&s).map_err(fail(Kind::Base))
         })
     }
 
@@ -283,11 +291,13 @@ impl PyModel {
                 } else {
                     CPrecision::Float64
                 },
-                handoff: start.as_ref().map(|s| biasctl::CHandoff { start: s }),
+                handoff: start
+                    .as_ref()
+                    .map(|s| biasctl::export::CHandoff { start: s }),
             };
             let src = biasctl::c_source(model, &opts).map_err(fail(Kind::Model))?;
             src.write(&out_dir).map_err(fail(Kind::Base))?;
-            Ok(biasctl::C_FILES
+            Ok(biasctl::export::C_FILES
                 .iter()
                 .map(|f| out_dir.join(f).display().to_string())
                 .collect())
@@ -305,7 +315,7 @@ impl PyModel {
 /// The command line's check before a replay: the model applies to the log, every prediction
 /// is finite.
 pub(crate) fn replay_check(model: &FittedModel, log: &biasctl::Log) -> Result<(), Failure> {
-    biasctl::check_replay(model, log)
+    biasctl::score::check_replay(model, log)
         .map_err(fail(Kind::Model))?
         .map_err(fail(Kind::Model))
 }
@@ -333,7 +343,10 @@ impl PyPredictor {
             ));
         }
         if let Some(x) = c.iter().find(|x| !x.is_finite()) {
-            return Err(Failure::new(Kind::Model, format!("covariate value {x} is not finite")));
+            return Err(Failure::new(
+                Kind::Model,
+                format!("covariate value {x} is not finite"),
+            ));
         }
         Ok(c)
     }
@@ -343,7 +356,10 @@ fn finite(name: &str, x: f64) -> Result<(), Failure> {
     if x.is_finite() {
         Ok(())
     } else {
-        Err(Failure::new(Kind::Model, format!("{name} {x} is not finite")))
+        Err(Failure::new(
+            Kind::Model,
+            format!("{name} {x} is not finite"),
+        ))
     }
 }
 

@@ -10,25 +10,15 @@ use std::path::Path;
 /// file, else a preset; then `overrides` (a JSON object of `SettleSpec` settings) applied.
 pub(crate) fn spec(plant: &str, overrides: Option<&str>) -> Result<SettleSpec, Failure> {
     let mut spec = if plant.ends_with(".toml") || Path::new(plant).is_file() {
-        let path = Path::new(plant);
-        let text = biasctl::read_text(path).map_err(|e| {
-            Failure::new(
-                Kind::Settle,
-                format!("cannot read plant file {plant}: {}", biasctl::message(&e)),
-            )
-        })?;
-        biasctl::check_toml_numbers(&text)
-            .map_err(|e| Failure::new(Kind::Settle, format!("invalid plant file {plant}: {e}")))?;
-        toml::from_str::<SettleSpec>(&text)
-            .map_err(|e| Failure::new(Kind::Settle, format!("invalid plant file {plant}: {e}")))?
+        SettleSpec::from_toml_file(Path::new(plant)).map_err(fail(Kind::Settle))?
     } else {
         SettleSpec::preset(plant).map_err(fail(Kind::Settle))?
     };
     if let Some(o) = overrides {
         let over: serde_json::Map<String, serde_json::Value> = serde_json::from_str(o)
             .map_err(|e| Failure::new(Kind::Settle, format!("settings: {e}")))?;
-        let mut value = serde_json::to_value(&spec)
-            .map_err(|e| Failure::new(Kind::Settle, e.to_string()))?;
+        let mut value =
+            serde_json::to_value(&spec).map_err(|e| Failure::new(Kind::Settle, e.to_string()))?;
         let fields = value
             .as_object_mut()
             .ok_or_else(|| Failure::new(Kind::Settle, "internal: the spec is no object"))?;
@@ -40,15 +30,18 @@ pub(crate) fn spec(plant: &str, overrides: Option<&str>) -> Result<SettleSpec, F
                     Kind::Settle,
                     format!(
                         "`{k}` is not a setting of the settle description (settings: {})",
-                        known.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
+                        known
+                            .iter()
+                            .map(|s| s.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
                     ),
                 ));
             }
             fields.insert(k, v);
         }
-        spec = serde_json::from_value(value).map_err(|e| {
-            Failure::new(Kind::Settle, format!("settings: {e}"))
-        })?;
+        spec = serde_json::from_value(value)
+            .map_err(|e| Failure::new(Kind::Settle, format!("settings: {e}")))?;
     }
     Ok(spec)
 }
@@ -68,10 +61,7 @@ pub(crate) fn settle(py: Python<'_>, plant: &str, overrides: Option<String>) -> 
 }
 
 /// The integrator start values of `predict --handoff` / `export c --handoff`.
-pub(crate) fn start_values(
-    plant: &str,
-    delta_b: f64,
-) -> Result<biasctl::StartValues, Failure> {
+pub(crate) fn start_values(plant: &str, delta_b: f64) -> Result<biasctl::StartValues, Failure> {
     let cfg = spec(plant, None)?.check().map_err(fail(Kind::Settle))?;
     biasctl::StartValues::new(&cfg, delta_b).map_err(fail(Kind::Settle))
 }
