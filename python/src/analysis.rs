@@ -3,7 +3,7 @@
 
 use crate::errors::{Failure, Kind, attached, detached, fail};
 use crate::log::PyLog;
-use crate::model::{PyModel, model_spec, replay_check};
+use crate::model::{PyModel, model_spec};
 use biasctl::diagnose::FeatureTable;
 use biasctl::{
     DiagnoseConfig, Diagnosis, DiscoverConfig, Drive, FitOptions, FittedModel, SequenceOptions,
@@ -103,7 +103,6 @@ pub(crate) fn diagnose(
         .check()
         .map_err(fail(Kind::Base))?;
         let log = log.measured()?;
-        replay_check(&model, log)?;
         let d = if verify {
             biasctl::diagnose_verified(&model, log, &config, &verify_cfg)
         } else {
@@ -206,7 +205,11 @@ pub(crate) fn discover(
     seed: u64,
     verify_folds: usize,
 ) -> PyResult<(String, String, PyModel)> {
+    // As `discover --start`: a preset, else a model file (its terms), else a term list.
     let start = attached(|| {
+        if let Ok(s) = biasctl::ModelSpec::preset(start) {
+            return Ok(s);
+        }
         if start.ends_with(".json") || std::path::Path::new(start).is_file() {
             let m = FittedModel::load(std::path::Path::new(start)).map_err(fail(Kind::Model))?;
             return biasctl::diagnose::model_spec(&m).map_err(fail(Kind::Model));

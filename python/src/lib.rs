@@ -11,6 +11,15 @@ mod settle;
 
 use pyo3::prelude::*;
 
+/// A deliberate panic behind the boundary (for the tests): raises `BiasctlError`, never
+/// unwinds into Python.
+#[pyfunction]
+fn _panic(py: Python<'_>) -> PyResult<()> {
+    errors::detached(py, || -> Result<(), errors::Failure> {
+        panic!("deliberate panic (test hook)")
+    })
+}
+
 #[pymodule]
 fn _biasctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -31,6 +40,7 @@ fn _biasctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(analysis::discover, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::ladder, m)?)?;
     m.add_function(wrap_pyfunction!(settle::settle, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -126,6 +126,12 @@ impl PyModel {
         self.inner.terms.iter().map(|t| t.term.name()).collect()
     }
 
+    /// The parameters the solve dropped (undetermined, fixed at 0).
+    #[getter]
+    fn dropped(&self) -> Vec<String> {
+        self.inner.fit.dropped.clone()
+    }
+
     #[getter]
     fn warnings(&self) -> Vec<String> {
         self.inner.warnings.clone()

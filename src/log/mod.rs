@@ -64,6 +64,7 @@ pub(crate) use limits::MAX_ABS_VALUE;
 pub use reader::{LogReader, LogSummary};
 pub use schema::{BiasColumn, LogSchema, Row, STDIN_PATH};
 pub use units::{DEFAULT_BIAS_UNIT, UnitError, Units, check_unit_label};
+pub(crate) use writer::fmt_float;
 pub use writer::{LogWriter, fmt_trimmed};
 pub(crate) use writer::{csv_writer, fmt_fixed};
 

@@ -248,10 +248,15 @@ fn csv_text(header: Vec<String>, rows: impl Iterator<Item = Vec<String>>) -> Str
 }
 
 /// A CSV cell: the number, or an empty cell where it is not finite (no bound exists at that
-/// sample, or the response overflowed), so the file never holds `inf` or `NaN`.
+/// sample, or the response overflowed), so the file never holds `inf` or `NaN`; a whole number
+/// keeps `.0`, so that a reader guessing the column's type takes it as a float.
 fn csv_cell(x: f64) -> String {
     if x.is_finite() {
-        x.to_string()
+        let mut s = x.to_string();
+        if !s.contains('.') {
+            s.push_str(".0");
+        }
+        s
     } else {
         String::new()
     }
