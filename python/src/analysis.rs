@@ -2,6 +2,7 @@
 //! calls with its defaults, without the GIL.
 
 use crate::errors::{Failure, Kind, attached, detached, fail};
+use crate::log::F64Array;
 use crate::log::PyLog;
 use crate::model::{PyModel, model_spec};
 use biasctl::diagnose::FeatureTable;
@@ -170,7 +171,7 @@ impl PyDiagnosis {
         &self,
         py: Python<'py>,
         feature: &str,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    ) -> PyResult<(F64Array<'py>, F64Array<'py>)> {
         let (model, log) = (&self.model, &self.log);
         let (x, r) = detached(py, || {
             let residual = biasctl::diagnose::replay_model(model, log)

@@ -23,11 +23,18 @@ fn _panic(py: Python<'_>) -> PyResult<()> {
 #[pymodule]
 fn _biasctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
-    m.add("BiasctlError", py.get_type::<errors::BiasctlError>())?;
-    m.add("LogError", py.get_type::<errors::LogError>())?;
-    m.add("ModelError", py.get_type::<errors::ModelError>())?;
-    m.add("FitError", py.get_type::<errors::FitError>())?;
-    m.add("SettleError", py.get_type::<errors::SettleError>())?;
+    let exceptions = [
+        ("BiasctlError", py.get_type::<errors::BiasctlError>()),
+        ("LogError", py.get_type::<errors::LogError>()),
+        ("ModelError", py.get_type::<errors::ModelError>()),
+        ("FitError", py.get_type::<errors::FitError>()),
+        ("SettleError", py.get_type::<errors::SettleError>()),
+    ];
+    for (name, ty) in exceptions {
+        // Shown as `biasctl.LogError`, where users import it from.
+        ty.setattr("__module__", "biasctl")?;
+        m.add(name, ty)?;
+    }
     m.add_class::<log::PyLog>()?;
     m.add_class::<model::PyModel>()?;
     m.add_class::<model::PyPredictor>()?;

@@ -9,6 +9,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::io::Write;
 
+/// A float64 numpy array handed to Python.
+pub(crate) type F64Array<'py> = Bound<'py, PyArray1<f64>>;
+
 /// A measurement log (time, position, bias and covariate columns), immutable.
 #[pyclass(frozen, module = "biasctl._biasctl", name = "Log")]
 pub(crate) struct PyLog {

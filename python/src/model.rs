@@ -2,7 +2,7 @@
 //! the online predictor and the C export.
 
 use crate::errors::{Failure, Kind, attached, detached, fail};
-use crate::log::PyLog;
+use crate::log::{F64Array, PyLog};
 use biasctl::export::CPrecision;
 use biasctl::history::DirectionSetting;
 use biasctl::model::{Feedback, IntegratorStart};
@@ -178,7 +178,7 @@ impl PyModel {
         log: &PyLog,
         handoff: Option<String>,
         bias_uncertainty: Option<f64>,
-    ) -> PyResult<(Vec<String>, Vec<Bound<'py, PyArray1<f64>>>)> {
+    ) -> PyResult<(Vec<String>, Vec<F64Array<'py>>)> {
         let model = &self.inner;
         let (names, cols) = detached(py, || {
             let start = match &handoff {
