@@ -43,7 +43,7 @@ __all__ = [
     "simulate",
 ]
 
-_FIT_OPTIONS = ("deadband", "velocity_col", "rank_tolerance", "grid", "refine")
+_FIT_OPTIONS = ("deadband", "velocity_col", "rank_tolerance", "grid", "refine", "threads")
 
 
 def _pandas():
@@ -313,8 +313,9 @@ def _check_options(options: Mapping[str, Any], known: Sequence[str], what: str, 
 def fit(log: Any, model: Any, **options: Any) -> "Model":
     """Fits ``model`` (a preset such as ``calibration``, a term list ``"poly2,dahl:4"`` or a
     list of term strings) to ``log``, as ``biasctl fit``. Options: ``deadband`` or
-    ``velocity_col`` (how direction is read), and the library's ``rank_tolerance``, ``grid``,
-    ``refine``."""
+    ``velocity_col`` (how direction is read), the library's ``rank_tolerance``, ``grid``,
+    ``refine``, and ``threads`` (workers of the library's parallel parts for this call;
+    default one per core)."""
     _check_options(options, _FIT_OPTIONS, "fit")
     return Model(_ext.fit(_log(log), _terms(model), **options))
 
@@ -434,11 +435,15 @@ class Model:
         permutations: int = 199,
         folds: int = 5,
         verify_folds: int = 3,
+        threads: int | None = None,
     ) -> "Diagnosis":
         """Which missing effect the residual follows: equal to ``biasctl diagnose --json``
-        (``verify=False``: ``--no-verify``)."""
+        (``verify=False``: ``--no-verify``; ``threads``: as ``--threads``, for this call)."""
         return Diagnosis(
-            _ext.diagnose(self._inner, _log(log), verify, seed, alpha, permutations, folds, verify_folds)
+            _ext.diagnose(
+                self._inner, _log(log), verify, seed, alpha, permutations, folds, verify_folds,
+                threads,
+            )
         )
 
     def predictor(self) -> Predictor:
@@ -614,6 +619,7 @@ def discover(
     alpha: float = 0.01,
     seed: int = 1,
     verify_folds: int = 3,
+    threads: int | None = None,
 ) -> Discovery:
     """Fit, diagnose, apply the best verified edit, repeat (``biasctl discover``); ``start``
     a preset, a term list, a model file or a :class:`Model` (its terms)."""
@@ -625,23 +631,44 @@ def discover(
         start = _terms(start)
     j, text, model = _ext.discover(
         _log(train, "train"), None if test is None else _log(test, "test"), start, max_steps,
-        alpha, seed, verify_folds,
+        alpha, seed, verify_folds, threads,
     )
     return Discovery(j, text, Model(model))
 
 
-def ladder(train: Any, test: Any, terms: Any, *, deadband: float | None = None, velocity_col: str | None = None):
-    """Adds ``terms`` one at a time, refits on ``train`` and scores on ``test``
-    (``biasctl ladder``): a DataFrame with a row per step (terms, std, reduction, …)."""
-    j = _ext.ladder(_log(train, "train"), _log(test, "test"), _terms(terms), deadband, velocity_col)
-    return _pandas().DataFrame(_json.loads(j)["steps"])
-
-
-def ladder_json(train: Any, test: Any, terms: Any, *, deadband: float | None = None, velocity_col: str | None = None) -> dict:
+def ladder_json(
+    train: Any,
+    test: Any,
+    terms: Any,
+    *,
+    deadband: float | None = None,
+    velocity_col: str | None = None,
+    threads: int | None = None,
+) -> dict:
     """As :func:`ladder`, the dict ``biasctl ladder --json`` prints."""
     return _json.loads(
-        _ext.ladder(_log(train, "train"), _log(test, "test"), _terms(terms), deadband, velocity_col)
+        _ext.ladder(
+            _log(train, "train"), _log(test, "test"), _terms(terms), deadband, velocity_col,
+            threads,
+        )
     )
+
+
+def ladder(
+    train: Any,
+    test: Any,
+    terms: Any,
+    *,
+    deadband: float | None = None,
+    velocity_col: str | None = None,
+    threads: int | None = None,
+):
+    """Adds ``terms`` one at a time, refits on ``train`` and scores on ``test``
+    (``biasctl ladder``): a DataFrame with a row per step (terms, std, reduction, …)."""
+    j = ladder_json(
+        train, test, terms, deadband=deadband, velocity_col=velocity_col, threads=threads
+    )
+    return _pandas().DataFrame(j["steps"])
 
 
 def _plain(v: Any) -> Any:

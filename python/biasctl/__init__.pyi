@@ -86,6 +86,7 @@ def fit(
     rank_tolerance: float | None = None,
     grid: int | None = None,
     refine: int | None = None,
+    threads: int | None = None,
 ) -> Model: ...
 
 class Model:
@@ -123,6 +124,7 @@ class Model:
         permutations: int = 199,
         folds: int = 5,
         verify_folds: int = 3,
+        threads: int | None = None,
     ) -> Diagnosis: ...
     def predictor(self) -> Predictor: ...
     def export_c(
@@ -167,6 +169,7 @@ def discover(
     alpha: float = 0.01,
     seed: int = 1,
     verify_folds: int = 3,
+    threads: int | None = None,
 ) -> Discovery: ...
 def ladder(
     train: Log | pd.DataFrame,
@@ -175,6 +178,7 @@ def ladder(
     *,
     deadband: float | None = None,
     velocity_col: str | None = None,
+    threads: int | None = None,
 ) -> pd.DataFrame: ...
 def ladder_json(
     train: Log | pd.DataFrame,
@@ -183,5 +187,6 @@ def ladder_json(
     *,
     deadband: float | None = None,
     velocity_col: str | None = None,
+    threads: int | None = None,
 ) -> dict[str, Any]: ...
 def settle(preset: str = "paper1997", **spec: Any) -> dict[str, Any]: ...

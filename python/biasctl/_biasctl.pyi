@@ -112,6 +112,7 @@ def fit(
     rank_tolerance: float | None = None,
     grid: int | None = None,
     refine: int | None = None,
+    threads: int | None = None,
 ) -> Model: ...
 def simulate(
     sequence: str = "random",
@@ -133,6 +134,7 @@ def diagnose(
     permutations: int = 199,
     folds: int = 5,
     verify_folds: int = 3,
+    threads: int | None = None,
 ) -> Diagnosis: ...
 def discover(
     train: Log,
@@ -142,6 +144,7 @@ def discover(
     alpha: float = 0.01,
     seed: int = 1,
     verify_folds: int = 3,
+    threads: int | None = None,
 ) -> tuple[str, str, Model]: ...
 def ladder(
     train: Log,
@@ -149,6 +152,7 @@ def ladder(
     terms: str,
     deadband: float | None = None,
     velocity_col: str | None = None,
+    threads: int | None = None,
 ) -> str: ...
 def settle(plant: str = "paper1997", overrides: str | None = None) -> str: ...
 def _panic() -> None: ...

@@ -1,7 +1,7 @@
 //! `simulate`, `diagnose` (and its `Diagnosis`), `discover` and `ladder`: the command line's
 //! calls with its defaults, without the GIL.
 
-use crate::errors::{Failure, Kind, attached, detached, fail};
+use crate::errors::{Failure, Kind, attached, detached, fail, on_threads};
 use crate::log::F64Array;
 use crate::log::PyLog;
 use crate::model::{PyModel, model_spec};
@@ -66,7 +66,7 @@ pub(crate) struct PyDiagnosis {
 
 /// `Model.diagnose`: as `biasctl diagnose` with its defaults (verified unless `verify=False`).
 #[pyfunction]
-#[pyo3(signature = (model, log, verify=true, seed=1, alpha=0.01, permutations=199, folds=5, verify_folds=3))]
+#[pyo3(signature = (model, log, verify=true, seed=1, alpha=0.01, permutations=199, folds=5, verify_folds=3, threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
@@ -78,6 +78,7 @@ pub(crate) fn diagnose(
     permutations: usize,
     folds: usize,
     verify_folds: usize,
+    threads: Option<usize>,
 ) -> PyResult<PyDiagnosis> {
     let model = model.inner.clone();
     detached(py, || {
@@ -104,12 +105,14 @@ pub(crate) fn diagnose(
         .check()
         .map_err(fail(Kind::Base))?;
         let log = log.measured()?;
-        let d = if verify {
-            biasctl::diagnose_verified(&model, log, &config, &verify_cfg)
-        } else {
-            biasctl::diagnose_model(&model, log, &config)
-        }
-        .map_err(fail(Kind::Base))?;
+        let d = on_threads(threads, || {
+            if verify {
+                biasctl::diagnose_verified(&model, log, &config, &verify_cfg)
+            } else {
+                biasctl::diagnose_model(&model, log, &config)
+            }
+            .map_err(fail(Kind::Base))
+        })?;
         let json = d.to_json().map_err(fail(Kind::Base))?;
         Ok(PyDiagnosis {
             inner: d,
@@ -194,7 +197,7 @@ impl PyDiagnosis {
 
 /// `discover`: (the JSON `biasctl discover --json` prints, its text, the final model).
 #[pyfunction]
-#[pyo3(signature = (train, test=None, start="poly2", max_steps=8, alpha=0.01, seed=1, verify_folds=3))]
+#[pyo3(signature = (train, test=None, start="poly2", max_steps=8, alpha=0.01, seed=1, verify_folds=3, threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn discover(
     py: Python<'_>,
@@ -205,6 +208,7 @@ pub(crate) fn discover(
     alpha: f64,
     seed: u64,
     verify_folds: usize,
+    threads: Option<usize>,
 ) -> PyResult<(String, String, PyModel)> {
     // As `discover --start`: a preset, else a model file (its terms), else a term list.
     let start = attached(|| {
@@ -241,8 +245,9 @@ pub(crate) fn discover(
             Some(t) => Some(t.measured()?),
             None => None,
         };
-        let (d, model) =
-            biasctl::discover(&start, train, test, &config).map_err(fail(Kind::Base))?;
+        let (d, model) = on_threads(threads, || {
+            biasctl::discover(&start, train, test, &config).map_err(fail(Kind::Base))
+        })?;
         let json = d.to_json().map_err(fail(Kind::Base))?;
         Ok((
             json,
@@ -256,7 +261,7 @@ pub(crate) fn discover(
 
 /// `ladder`: the JSON `biasctl ladder --json` prints.
 #[pyfunction]
-#[pyo3(signature = (train, test, terms, deadband=None, velocity_col=None))]
+#[pyo3(signature = (train, test, terms, deadband=None, velocity_col=None, threads=None))]
 pub(crate) fn ladder(
     py: Python<'_>,
     train: &PyLog,
@@ -264,12 +269,15 @@ pub(crate) fn ladder(
     terms: &str,
     deadband: Option<f64>,
     velocity_col: Option<String>,
+    threads: Option<usize>,
 ) -> PyResult<String> {
     let terms = attached(|| biasctl::ladder_terms(terms).map_err(fail(Kind::Model)))?;
     let opts = attached(|| crate::model::fit_options(deadband, velocity_col, None, None, None))?;
     detached(py, || {
-        let l = biasctl::ladder_fit(train.measured()?, test.measured()?, &terms, &opts)
-            .map_err(fail(Kind::Base))?;
+        let (train, test) = (train.measured()?, test.measured()?);
+        let l = on_threads(threads, || {
+            biasctl::ladder_fit(train, test, &terms, &opts).map_err(fail(Kind::Base))
+        })?;
         l.to_json().map_err(fail(Kind::Base))
     })
 }

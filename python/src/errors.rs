@@ -108,3 +108,16 @@ pub(crate) fn detached<T: Send>(
 pub(crate) fn attached<T>(f: impl FnOnce() -> Result<T, Failure>) -> PyResult<T> {
     Ok(guard(f)?)
 }
+
+/// Runs `f` with the library's parallel parts on a pool of `threads` workers (`None`: the
+/// process-wide pool, one worker per core). One worker per call lets several Python threads
+/// each keep one core busy.
+pub(crate) fn on_threads<T: Send>(
+    threads: Option<usize>,
+    f: impl FnOnce() -> Result<T, Failure> + Send,
+) -> Result<T, Failure> {
+    match threads {
+        None => f(),
+        Some(t) => biasctl::with_threads(t, f).map_err(fail(Kind::Base))?,
+    }
+}

@@ -1,7 +1,7 @@
 //! `Model`: a fitted model ([`biasctl::FittedModel`]): fit, its file as JSON, predict, score,
 //! the online predictor and the C export.
 
-use crate::errors::{Failure, Kind, attached, detached, fail};
+use crate::errors::{Failure, Kind, attached, detached, fail, on_threads};
 use crate::log::{F64Array, PyLog};
 use biasctl::export::CPrecision;
 use biasctl::history::DirectionSetting;
@@ -66,7 +66,7 @@ pub(crate) fn fit_options(
 
 /// `fit`: as `biasctl fit`, without the GIL.
 #[pyfunction]
-#[pyo3(signature = (log, model, deadband=None, velocity_col=None, rank_tolerance=None, grid=None, refine=None))]
+#[pyo3(signature = (log, model, deadband=None, velocity_col=None, rank_tolerance=None, grid=None, refine=None, threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fit(
     py: Python<'_>,
@@ -77,12 +77,15 @@ pub(crate) fn fit(
     rank_tolerance: Option<f64>,
     grid: Option<usize>,
     refine: Option<usize>,
+    threads: Option<usize>,
 ) -> PyResult<PyModel> {
     let spec = attached(|| model_spec(model))?;
     let opts = attached(|| fit_options(deadband, velocity_col, rank_tolerance, grid, refine))?;
     detached(py, || {
         let log = log.measured()?;
-        let m = biasctl::fit(&spec, log, &opts).map_err(fail(Kind::Fit))?;
+        let m = on_threads(threads, || {
+            biasctl::fit(&spec, log, &opts).map_err(fail(Kind::Fit))
+        })?;
         Ok(PyModel { inner: Arc::new(m) })
     })
 }

@@ -30,7 +30,7 @@ def test_python_runs_while_a_fit_runs():
 
     def work():
         window["start"] = time.perf_counter()
-        biasctl.fit(log, MODEL)
+        biasctl.fit(log, MODEL, threads=1)
         window["end"] = time.perf_counter()
 
     th = threading.Thread(target=work)
@@ -43,18 +43,20 @@ def test_python_runs_while_a_fit_runs():
     lo, hi = a + 0.25 * (b - a), a + 0.75 * (b - a)
     inside = sum(lo < t < hi for t in ticks)
     # Holding the GIL, the fit would leave this loop no turn in the middle of its run.
-    assert inside > 1000, (inside, b - a)
+    assert inside > 100, (inside, b - a)
 
 
 def test_two_threads_fit_as_one_after_the_other(record_property):
+    """One library worker per fit, so that each Python thread keeps one core busy."""
     logs = [_log(300_000, 1), _log(300_000, 2)]
     t0 = time.perf_counter()
-    seq = [biasctl.fit(log, MODEL) for log in logs]
+    seq = [biasctl.fit(log, MODEL, threads=1) for log in logs]
     t_seq = time.perf_counter() - t0
+    assert seq[0].to_json() == biasctl.fit(logs[0], MODEL).to_json()  # same for any pool
     out = [None, None]
 
     def work(i):
-        out[i] = biasctl.fit(logs[i], MODEL)
+        out[i] = biasctl.fit(logs[i], MODEL, threads=1)
 
     threads = [threading.Thread(target=work, args=(i,)) for i in range(2)]
     t0 = time.perf_counter()
@@ -74,7 +76,12 @@ def test_other_long_calls_release_the_gil(data):
     train = biasctl.read_log(data / "train.csv")
     test = biasctl.read_log(data / "test.csv")
     m = biasctl.fit(train, "poly2,direction")
-    for call in (lambda: m.diagnose(test), lambda: biasctl.ladder(train, test, "poly2,direction,dahl:4")):
+    calls = (
+        lambda: m.diagnose(test, threads=1),
+        lambda: biasctl.ladder(train, test, "poly2,direction,dahl:4", threads=1),
+        lambda: biasctl.discover(train, test=test, max_steps=1, threads=1),
+    )
+    for call in calls:
         window = {}
 
         def work():
@@ -90,4 +97,5 @@ def test_other_long_calls_release_the_gil(data):
         th.join()
         a, b = window["start"], window["end"]
         lo, hi = a + 0.25 * (b - a), a + 0.75 * (b - a)
-        assert sum(lo < t < hi for t in ticks) > 100, b - a
+        # Holding the GIL, the call would leave this loop no turn in the middle of its run.
+        assert sum(lo < t < hi for t in ticks) > 10, b - a

@@ -150,6 +150,7 @@ def test_a_model_from_another_log_is_refused(tmp_path):
         (lambda log: biasctl.fit(log, "poly2", deadband=-1.0), biasctl.BiasctlError, "eadband"),
         (lambda log: biasctl.fit(log, "poly2", deadband=1.0, velocity_col="v"), biasctl.FitError, "not both"),
         (lambda log: biasctl.fit(log, "poly2", bogus=1), biasctl.FitError, "bogus"),
+        (lambda log: biasctl.fit(log, "poly2", threads=0), biasctl.BiasctlError, "thread"),
         (lambda log: biasctl.fit("train.csv", "poly2"), biasctl.LogError, "biasctl.Log"),
         (lambda log: biasctl.Model.from_json("{}"), biasctl.ModelError, "format"),
         (lambda log: biasctl.Model.from_json("not json"), biasctl.ModelError, "<json>"),
