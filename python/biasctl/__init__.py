@@ -212,6 +212,12 @@ class Log:
         """The name the log goes by in messages (its path, ``<DataFrame>``, …)."""
         return self._inner.file
 
+    @property
+    def notes(self) -> list[str]:
+        """What the reader noticed and the command line prints as ``note:`` (a column left out,
+        a dialect guessed, …)."""
+        return self._inner.notes
+
     def to_csv(self, path: Any = None) -> str | None:
         """The log as CSV text that reads back to the same values; written to ``path`` if
         given."""

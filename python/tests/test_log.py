@@ -142,3 +142,37 @@ def test_read_log_messages_name_the_file_line_and_column(data, tmp_path, cli):
     # The library's message, as the CLI prints it after `error: `.
     assert str(e.value) in cli_err.stderr
     assert "bad.csv" in str(e.value) and "line 3" in str(e.value)
+
+
+@pytest.mark.parametrize(
+    "kwargs, flags",
+    [
+        ({"n": 300, "seed": 5}, ["--sequence", "random", "--n", "300", "--seed", "5"]),
+        ({"sequence": "table2", "seed": 2, "disable": ["drift", "scatter"]},
+         ["--sequence", "table2", "--seed", "2", "--disable", "drift,scatter"]),
+        ({"n": 200, "span": 40.0, "center": 900.0, "dwell_min": 0.1, "dwell_max": 0.2},
+         ["--sequence", "random", "--n", "200", "--span", "40", "--center", "900",
+          "--dwell-min", "0.1", "--dwell-max", "0.2"]),
+    ],
+)
+def test_simulate_equals_cli_simulate(cli, tmp_path, kwargs, flags):
+    out = tmp_path / "sim.csv"
+    cli.run("simulate", *flags, "--out", out)
+    want = biasctl.read_log(out)
+    got = biasctl.simulate(**kwargs)
+    assert got.columns == want.columns and got.units == want.units
+    np.testing.assert_array_equal(got.to_pandas().to_numpy(), want.to_pandas().to_numpy())
+
+
+def test_simulate_a_drive_file_with_a_covariate(cli, tmp_path):
+    from conftest import REPO
+
+    drive = REPO / "data" / "drive_temperature.toml"
+    out = tmp_path / "sim.csv"
+    cli.run("simulate", "--sequence", "random", "--n", "200", "--drive", drive, "--out", out)
+    got = biasctl.simulate(n=200, drive=drive)
+    assert got.covariates == ["temp_c"]
+    np.testing.assert_array_equal(
+        got.to_pandas().to_numpy(), biasctl.read_log(out).to_pandas().to_numpy())
+    with pytest.raises(biasctl.BiasctlError, match="sequence|nope"):
+        biasctl.simulate("nope")

@@ -117,10 +117,14 @@ def test_predictor_steps_equal_the_replay(data, model_file):
     np.testing.assert_array_equal(np.array(got), pred.predicted.to_numpy())
 
 
-def test_export_c_writes_the_cli_files(model_file, cli, tmp_path):
+@pytest.mark.parametrize(
+    "kwargs, flags",
+    [({"float32": True}, ["--float32"]), ({"handoff": "paper1997"}, ["--handoff", "paper1997"])],
+)
+def test_export_c_writes_the_cli_files(model_file, cli, tmp_path, kwargs, flags):
     a, b = tmp_path / "py", tmp_path / "cli"
-    files = biasctl.Model.load(model_file).export_c(a, float32=True)
-    cli.run("export", "c", "--model", model_file, "--out", b, "--float32")
+    files = biasctl.Model.load(model_file).export_c(a, **kwargs)
+    cli.run("export", "c", "--model", model_file, "--out", b, *flags)
     assert sorted(p.rsplit("/", 1)[-1] for p in files) == ["bias_model.c", "bias_model.h", "replay.c"]
     for name in ("bias_model.c", "bias_model.h", "replay.c"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
