@@ -198,7 +198,7 @@ pub(crate) struct LogArgs {
     pub columns: ColumnArgs,
 }
 
-/// How the direction of motion is read (issue #11): `--deadband X` or `--velocity-col NAME`;
+/// How the direction of motion is read: `--deadband X` or `--velocity-col NAME`;
 /// neither: a deadband estimated from the position noise on a dense time series, raw position
 /// steps on a log of seeks.
 #[derive(Debug, Clone, Default, Args)]

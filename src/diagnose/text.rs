@@ -78,7 +78,7 @@ pub(super) fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> S
                 short(f.expected_std),
                 short(residual_std)
             ));
-            if t == "seek" && !f.by_direction {
+            if t == crate::model::terms::seek::HEAD && !f.by_direction {
                 s.push_str(&format!(
                     " In a state-space model use `{}` instead.",
                     advice::DAHL_TERM

@@ -532,7 +532,7 @@ mod tests {
                     .map(|t| t.prepare(&data))
                     .collect::<Result<Vec<_>, _>>()
                     .unwrap();
-                if !terms.iter().any(|t| t.provides_intercept()) {
+                if !terms.iter().any(|t| t.caps().provides_intercept) {
                     terms.insert(0, Arc::new(InterceptTerm));
                 }
                 let k = terms.iter().position(|t| t.nonlinear().is_some()).unwrap();
@@ -627,10 +627,13 @@ mod tests {
                     .map(|t| t.prepare(&data))
                     .collect::<Result<Vec<_>, _>>()
                     .unwrap();
-                if !terms.iter().any(|t| t.provides_intercept()) {
+                if !terms.iter().any(|t| t.caps().provides_intercept) {
                     terms.insert(0, Arc::new(InterceptTerm));
                 }
-                let k = terms.iter().position(|t| t.search_by_projection()).unwrap();
+                let k = terms
+                    .iter()
+                    .position(|t| t.caps().search_by_projection)
+                    .unwrap();
                 let stored = Projection::with_budget(&terms, k, &data, &opts, usize::MAX)
                     .expect("fast path applies");
                 let streamed =

@@ -55,14 +55,15 @@ pub(super) fn search_nonlinear(
             }
             // The search compares RSS values from the variable projection; the standard
             // error below differentiates the RSS twice, so it takes three full solves.
-            // Used where the term allows it (`Term::search_by_projection`: the `dahl` rate, its
+            // Used where the term allows it (`TermCaps::search_by_projection`: the `dahl` rate, its
             // search tested to end where the full solves' does, and its model files compared);
             // `stribeck`'s search keeps the full solve per candidate: its velocity-scale search
             // compares RSS values that differ by rounding only, and ends elsewhere within that
             // noise with the projection (its unit-invariance test, 1e-9 of the prediction, then
             // fails by 1.5×).
             let proj = terms[k]
-                .search_by_projection()
+                .caps()
+                .search_by_projection
                 .then(|| Projection::new(terms, k, data, opts))
                 .flatten();
             let (t, _, ev) = match &proj {
@@ -122,7 +123,8 @@ fn own_search(
     let projection = || {
         proj.get_or_init(|| {
             terms[k]
-                .search_by_projection()
+                .caps()
+                .search_by_projection
                 .then(|| Projection::new(terms, k, data, opts))
                 .flatten()
         })

@@ -157,10 +157,10 @@ fn prepare<'a>(
             .into_iter()
             .collect::<Result<Vec<_>, _>>()?
     };
-    if !terms.iter().any(|t| t.provides_intercept()) {
+    if !terms.iter().any(|t| t.caps().provides_intercept) {
         terms.insert(0, Arc::new(InterceptTerm));
     }
-    if !terms.iter().any(|t| t.reads_history()) {
+    if !terms.iter().any(|t| t.caps().reads_history) {
         // No later replay steps the history (`dahl`): the columns its preparation kept go.
         data.forget_history_columns();
     }

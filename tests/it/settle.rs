@@ -19,7 +19,7 @@ fn close(got: f64, want: f64, tol: f64) -> bool {
 }
 
 /// Reference: golden values from python-control `dlqr` and a direct simulation of the paper's
-/// test bed (brief of issue #4); paper text: one-track settle < 3 ms with < 30 % overshoot.
+/// test bed; paper text: one-track settle < 3 ms with < 30 % overshoot.
 #[test]
 fn paper1997_golden_values() {
     let cfg = SettleSpec::preset("paper1997").unwrap().check().unwrap();

@@ -13,6 +13,9 @@ use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_f
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`col`).
+pub(crate) const HEAD: &str = "col";
+
 /// Spec of the `col:NAME` term.
 #[derive(Debug, Clone)]
 pub struct ColSpec {
@@ -67,7 +70,7 @@ impl ColTerm {
 
 impl Term for ColTerm {
     fn name(&self) -> String {
-        let head = if self.lag.is_some() { "lag" } else { "col" };
+        let head = if self.lag.is_some() { "lag" } else { HEAD };
         format!("{head}:{}", self.column)
     }
     fn param_names(&self) -> Vec<String> {
