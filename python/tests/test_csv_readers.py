@@ -1,6 +1,7 @@
 """Every CSV biasctl writes loads in pandas and polars with their default type inference, its
-number columns as floats (a column whose first rows are whole numbers was read as integers by
-polars, which then failed at the first fraction)."""
+number columns as floats (polars guesses a column's type from its first rows: whole numbers
+written without a decimal point there make an integer column that fails at the first
+fraction)."""
 
 from __future__ import annotations
 
