@@ -233,7 +233,7 @@ pub(crate) struct LogArgs {
     pub columns: ColumnArgs,
 }
 
-/// How the direction of motion is read (issue #11): `--deadband X` or `--velocity-col NAME`;
+/// How the direction of motion is read: `--deadband X` or `--velocity-col NAME`;
 /// neither: a deadband estimated from the position noise on a dense time series, raw position
 /// steps on a log of seeks.
 #[derive(Debug, Clone, Default, Args)]
@@ -323,15 +323,7 @@ impl SettleArgs {
     /// `SettleSpec::check`).
     pub(crate) fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
-            Some(path) => {
-                let text = crate::log::limits::read_text(path)
-                    .with_context(|| format!("cannot read plant file {}", path.display()))?;
-                crate::log::check_toml_numbers(&text)
-                    .map_err(anyhow::Error::msg)
-                    .with_context(|| format!("invalid plant file {}", path.display()))?;
-                toml::from_str::<SettleSpec>(&text)
-                    .with_context(|| format!("invalid plant file {}", path.display()))?
-            }
+            Some(path) => SettleSpec::from_toml_file(path)?,
             None => {
                 let name = self.preset.as_deref().unwrap_or("paper1997");
                 SettleSpec::preset(name)

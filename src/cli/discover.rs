@@ -19,12 +19,13 @@ pub(crate) struct Args {
     test: Option<PathBuf>,
     /// Where to start: a preset (position-direction, calibration, dahl), a model file (its
     /// terms), or a term list such as `poly2,direction`.
-    #[arg(long, value_name = "MODEL|TERMS", default_value = "poly2")]
+    #[arg(long, value_name = "MODEL|TERMS", default_value = crate::model::terms::poly::HEAD)]
     start: String,
     #[command(flatten)]
     columns: ColumnArgs,
     /// Print the ladder as JSON: {"steps": [{"edit", "feature", "reason", "std_before",
-    /// "std_after", "terms"}, ...], "final_terms", "stopped_because", "basis", "unit", "start_std"}.
+    /// "std_after", "terms"}, ...], "final_terms", "stopped_because", "reason", "basis", "unit",
+    /// "start_std"}.
     #[arg(long)]
     json: bool,
     /// Write discover.json, discover.txt and the final model.json into this directory.

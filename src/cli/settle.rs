@@ -1,9 +1,9 @@
 //! `biasctl settle`: the settle-optimal integrator start value at handoff (paper Section IV).
 
 use super::common::{ColumnArgs, SettleArgs};
+use crate::analyse;
 use crate::io::write_string_atomic;
 use crate::{FittedModel, model::NextPrediction, model::predict_next};
-use crate::{SettleReport, analyse};
 use crate::{Units, log::DEFAULT_BIAS_UNIT};
 use anyhow::Context;
 use std::path::PathBuf;
@@ -40,26 +40,6 @@ pub(crate) struct Args {
     target: Option<f64>,
     #[command(flatten)]
     columns: ColumnArgs,
-}
-
-/// `settle --json`: the report's keys, `absolute` and (with `--model`) `prediction`, written by
-/// the one JSON writer (a non-finite number is refused naming its key).
-#[derive(serde::Serialize)]
-struct SettleJson<'a> {
-    #[serde(flatten)]
-    report: &'a SettleReport,
-    absolute: Absolute,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    prediction: Option<PredictionJson<'a>>,
-}
-
-/// The absolute integrator start values (µm·samples): `z_converged` + each relative value.
-#[derive(serde::Serialize)]
-struct Absolute {
-    zero_ff: f64,
-    ff_midpoint: Option<f64>,
-    paper_robust: Option<f64>,
-    robust: Option<f64>,
 }
 
 /// `prediction` of `settle --model --data --json`: the handoff bias the model predicts.
@@ -161,27 +141,17 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         write_string_atomic(path, &report.responses_csv())?;
     }
     if args.json {
-        let abs = |v: Option<f64>| v.map(|v| report.absolute(v));
-        let value = SettleJson {
-            report: &report,
-            absolute: Absolute {
-                zero_ff: report.absolute(0.0),
-                ff_midpoint: abs(report.ff_midpoint),
-                paper_robust: abs(report.paper_robust.as_ref().map(|p| p.ff)),
-                robust: abs(report.robust.as_ref().map(|c| c.ff)),
-            },
-            prediction: link.as_ref().map(|l| PredictionJson {
-                model: l.model.display().to_string(),
-                target: l.next.target,
-                bias: l.next.bias,
-                delta_b: l.delta_b,
-                rows_replayed: l.next.rows_replayed,
-                units: &l.units,
-                robust_worst_settle_ms: report.worst_case.robust_worst_settle_ms,
-                zero_ff_worst_settle_ms: report.worst_case.zero_ff_worst_settle_ms,
-            }),
-        };
-        outln!("{}", crate::io::to_string_pretty(&value)?)?;
+        let prediction = link.as_ref().map(|l| PredictionJson {
+            model: l.model.display().to_string(),
+            target: l.next.target,
+            bias: l.next.bias,
+            delta_b: l.delta_b,
+            rows_replayed: l.next.rows_replayed,
+            units: &l.units,
+            robust_worst_settle_ms: report.worst_case.robust_worst_settle_ms,
+            zero_ff_worst_settle_ms: report.worst_case.zero_ff_worst_settle_ms,
+        });
+        outln!("{}", report.to_json_with(prediction.as_ref())?)?;
     } else {
         if let Some(l) = &link {
             outln!(

@@ -163,14 +163,16 @@ pub(super) enum Values {
 
 /// The times of the measured rows, shared by `elapsed_s` and `dwell_s` (8 B a row for both
 /// instead of 8 each): `elapsed_s` of row `i` is `t[i] − start`, `dwell_s` is
-/// `t[i] − t[i − 1]` (`first_dwell` for row 0, whose previous row may be an unmeasured one).
-/// Used only where every row's value equals the replay's bit for bit (checked as the table
-/// is built; a log with unmeasured rows between measured ones keeps `dwell_s` stored).
+/// `t[i] − t[i − 1]` on the time grid (`first_dwell` for row 0, whose previous row may be an
+/// unmeasured one). Used only where every row's value equals the replay's (on the time grid)
+/// bit for bit (checked as the table is built; a log with unmeasured rows between measured
+/// ones keeps `dwell_s` stored).
 #[derive(Debug)]
 pub(super) struct Times {
     t: Vec<f64>,
     start: f64,
     first_dwell: f64,
+    grid: PositionGrid,
 }
 
 /// Which time feature a [`Values::Time`] column is.
@@ -187,7 +189,7 @@ impl Times {
         Some(match kind {
             TimeKind::Elapsed => t - self.start,
             TimeKind::Dwell => match i.checked_sub(1) {
-                Some(p) => t - self.t[p],
+                Some(p) => self.grid.snap(t - self.t[p]),
                 None => self.first_dwell,
             },
         })
@@ -367,21 +369,22 @@ pub(super) struct TimesBuilder {
 
 impl TimesBuilder {
     /// For a log whose first row's time is `start` (`None`: no rows), with room for
-    /// `measured` rows.
-    pub(super) fn new(start: Option<f64>, measured: usize) -> TimesBuilder {
+    /// `measured` rows, `dwell_s` read on `grid` (the log's time grid).
+    pub(super) fn new(start: Option<f64>, measured: usize, grid: PositionGrid) -> TimesBuilder {
         TimesBuilder {
             times: Times {
                 t: Vec::with_capacity(measured),
                 start: start.unwrap_or(0.0),
                 first_dwell: 0.0,
+                grid,
             },
             elapsed: start.is_some(),
             dwell: true,
         }
     }
 
-    /// The next measured row: its time and the replay's `elapsed_s` and `dwell_s` (NaN:
-    /// undefined, which no derived value matches).
+    /// The next measured row: its time and the replay's `elapsed_s` and `dwell_s` (the latter
+    /// on the time grid; NaN: undefined, which no derived value matches).
     #[inline]
     pub(super) fn push(&mut self, time: f64, elapsed: f64, dwell: f64) {
         if !(self.elapsed || self.dwell) {
@@ -430,17 +433,23 @@ impl FinishedTimes {
     }
 }
 
-/// Whether built-in `feature` is a length made by arithmetic on positions (a difference, a sum
-/// of seek lengths), so [`PositionGrid::snap`] applies to it.
-pub(super) fn snaps(feature: Feature) -> bool {
-    matches!(
-        feature,
+/// The grid built-in `feature` is read on: the position grid for a length made by arithmetic
+/// on positions (a difference, a sum of seek lengths), the time grid for the time between rows
+/// (`dwell_s`, a difference of times); `None` for the others.
+pub(super) fn grid_of(
+    feature: Feature,
+    positions: PositionGrid,
+    times: PositionGrid,
+) -> Option<PositionGrid> {
+    match feature {
         Feature::SeekLength
-            | Feature::SeekAbs
-            | Feature::SinceReversal
-            | Feature::RestDistanceOd
-            | Feature::RestDistanceId
-    )
+        | Feature::SeekAbs
+        | Feature::SinceReversal
+        | Feature::RestDistanceOd
+        | Feature::RestDistanceId => Some(positions),
+        Feature::DwellS => Some(times),
+        _ => None,
+    }
 }
 
 /// Bits below the log's largest |position| that position-valued derived features keep
@@ -464,13 +473,32 @@ pub(super) const TRAVEL_GRID_BITS: i32 = 24;
 /// resolution). Whole-track lengths (T < 2²⁴ tracks) lie on the grid already and are unchanged;
 /// in other units a length moves by at most q/2 (about 1e−10 P). `None` (no snapping) for a log
 /// that never moves.
+///
+/// **Times the same way.** The time between rows (`dwell_s`) is a difference of times, and a
+/// regular clock written in decimal is not exact in binary either: `pandas` writes 201 × 0.02 s
+/// as `4.0200000000000005`, and the differences of such times take a dozen rounding variants
+/// of 0.02 s that change with the size of t (the last bits of a larger t are coarser). Read
+/// as they are, those variants follow the elapsed time, and `dwell_s` stood in for a drift. So
+/// `dwell_s` is read on the same grid made from the log's times ([`PositionGrid::of_times`]: P
+/// the largest |time|, T the time span): a regular clock gives one value, and a time step
+/// moves by at most q/2 (about 1e−10 of the largest time).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct PositionGrid(Option<f64>);
 
 impl PositionGrid {
     /// The grid of `log`'s positions.
     pub(super) fn of(log: &Log) -> PositionGrid {
-        let q = crate::numeric::stats::range(log.tracks())
+        Self::of_values(log.tracks())
+    }
+
+    /// The grid of `log`'s times (see the type's docs).
+    pub(super) fn of_times(log: &Log) -> PositionGrid {
+        Self::of_values(log.times())
+    }
+
+    /// The grid of values `v`: `P` their largest |value|, `T` their range.
+    fn of_values(v: &[f64]) -> PositionGrid {
+        let q = crate::numeric::stats::range(v)
             .map(|[a, b]| {
                 let (p, t) = (a.abs().max(b.abs()), b - a);
                 (p * 2f64.powi(-POSITION_GRID_BITS)).min(t * 2f64.powi(-TRAVEL_GRID_BITS))
@@ -772,10 +800,12 @@ mod storage_tests {
     }
 
     /// Reference: the seek-history replay's own `elapsed_s` and `dwell_s` at every measured
-    /// row. The table makes them from the shared times where every row matches bit for bit
-    /// (4 B a row each) and stores them otherwise: a log whose every row is measured makes
-    /// both; one with unmeasured rows between measured ones (and an unmeasured first row)
-    /// makes `elapsed_s` only.
+    /// row (`dwell_s` rounded to the log's time grid, and within 1e-9 of the largest time of
+    /// the replay's). The table makes them from the shared times where every row matches bit
+    /// for bit (4 B a row each) and stores them otherwise: a log whose every row is measured
+    /// makes both; one with unmeasured rows between measured ones (and an unmeasured first
+    /// row) makes `elapsed_s` only and stores `dwell_s` (in 4 B a row too: on the time grid a
+    /// dwell of a few seconds is an exact f32).
     #[test]
     fn time_features_made_from_the_times_equal_the_replays() {
         let full = crate::sim::random_log(3000, 5);
@@ -785,18 +815,24 @@ mod storage_tests {
         }
         for (log, dwell_made) in [(&full, true), (&gaps, false)] {
             let table = FeatureTable::from_log(log);
+            let grid = PositionGrid::of_times(log);
+            let largest = log.times().iter().fold(0.0_f64, |m, t| m.max(t.abs()));
             let want: Vec<(u64, u64)> = crate::history::replay(log)
                 .filter(|(_, r, _)| r.bias.is_some())
                 .map(|(_, _, f)| {
-                    let v = |x: Feature| f.value(x).expect("always defined").to_bits();
-                    (v(Feature::ElapsedS), v(Feature::DwellS))
+                    let v = |x: Feature| f.value(x).expect("always defined");
+                    let d = v(Feature::DwellS);
+                    assert!((grid.snap(d) - d).abs() <= 1e-9 * largest, "{d}");
+                    (v(Feature::ElapsedS).to_bits(), grid.snap(d).to_bits())
                 })
                 .collect();
             assert_eq!(want.len(), table.len());
             let col = |name: &str| table.column(name).expect("a time feature");
             let (elapsed, dwell) = (col("elapsed_s"), col("dwell_s"));
             assert_eq!(elapsed.bytes_per_row(), 4);
-            assert_eq!(dwell.bytes_per_row(), if dwell_made { 4 } else { 8 });
+            assert_eq!(matches!(dwell.values, Values::Time(..)), dwell_made);
+            // Stored on the time grid, a dwell fits an f32 exactly.
+            assert_eq!(dwell.bytes_per_row(), 4);
             let raw = (elapsed.raw(), dwell.raw());
             for (i, &(e, d)) in want.iter().enumerate() {
                 assert_eq!(elapsed.get(i).map(f64::to_bits), Some(e), "row {i}");

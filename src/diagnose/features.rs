@@ -10,7 +10,7 @@ use crate::model::terms::memsum::MemsumState;
 
 use super::DiagnoseError;
 pub(crate) use super::column::FeatureOrigin;
-use super::column::{Builder, FeatureColumn, PositionGrid, TimesBuilder, Values, snaps, stored};
+use super::column::{Builder, FeatureColumn, PositionGrid, TimesBuilder, Values, grid_of, stored};
 use super::values::short;
 
 /// Name of the derived-velocity feature ([`FeatureOrigin::DerivedVelocity`]), position units
@@ -221,24 +221,29 @@ impl FeatureTable {
         let mut lines = LinesBuilder::default();
         let dense = crate::history::sampling(log.times(), log.tracks()).dense;
         let mut velocity = Builder::with_capacity(if dense { measured } else { 0 });
-        let mut times = TimesBuilder::new(log.times().first().copied(), measured);
         let grid = PositionGrid::of(log);
-        let snapped: Vec<bool> = Feature::ALL.iter().map(|&f| snaps(f)).collect();
+        let time_grid = PositionGrid::of_times(log);
+        let mut times = TimesBuilder::new(log.times().first().copied(), measured, time_grid);
+        let snapped: Vec<Option<PositionGrid>> = Feature::ALL
+            .iter()
+            .map(|&f| grid_of(f, grid, time_grid))
+            .collect();
         for (_, row, f) in history {
             if row.bias.is_none() {
                 continue;
             }
             lines.push(row.line);
+            let dwell = f.value(Feature::DwellS).map(|d| time_grid.snap(d));
             times.push(
                 row.time_s,
                 stored(f.value(Feature::ElapsedS)),
-                stored(f.value(Feature::DwellS)),
+                stored(dwell),
             );
             if dense {
                 // The rule of `viscous::velocity` without a column: 0 at a zero dwell or a
                 // quotient that is not finite.
                 let l = f.value(Feature::SeekLength).map(|l| grid.snap(l));
-                let v = match (l, f.value(Feature::DwellS)) {
+                let v = match (l, dwell) {
                     (Some(l), Some(d)) if d > 0.0 && (l / d).is_finite() => l / d,
                     _ => 0.0,
                 };
@@ -246,7 +251,7 @@ impl FeatureTable {
             }
             for ((col, &feature), &snap) in builtin.iter_mut().zip(&Feature::ALL).zip(&snapped) {
                 let v = stored(f.value(feature));
-                col.push(if snap { grid.snap(v) } else { v });
+                col.push(snap.map_or(v, |g| g.snap(v)));
             }
             for (k, col) in covariates.iter_mut().enumerate() {
                 col.push(stored(row.covariates.get(k).filter(|v| v.is_finite())));

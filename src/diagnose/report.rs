@@ -97,6 +97,10 @@ pub struct FeatureReport {
     /// `explained_beyond_previous` reach the practical minimum
     /// ([`super::DiagnoseConfig::min_effect`]).
     pub flagged: bool,
+    /// The rule that decided `flagged` ([`super::Reason`]): flagged, flagged by its verified
+    /// refit, below the practical minimum (significant, but too small alone or beyond the
+    /// features ranked before it), not significant, or not analysed.
+    pub reason: super::Reason,
     /// Shape of the residual against the feature at the chosen binning.
     pub shape: Shape,
     /// Where the peak, dip or step is (feature units), if the shape has a location.
@@ -399,6 +403,11 @@ pub(crate) fn feature_report(
         p_value_raw: p_raw,
         significant: p_adj <= config.alpha && explained > 0.0,
         flagged: p_adj <= config.alpha && explained > 0.0,
+        reason: if p_adj <= config.alpha && explained > 0.0 {
+            super::Reason::Flagged
+        } else {
+            super::Reason::NotSignificant
+        },
         shape,
         // A discrete feature's step is between its values; a location adds nothing.
         shape_at: shape_at
@@ -442,6 +451,7 @@ pub(crate) fn skipped_report(
         p_value_raw: 1.0,
         significant: false,
         flagged: false,
+        reason: super::Reason::NotAnalysed,
         shape: Shape::Flat,
         shape_at: None,
         expected_std: residual_std,

@@ -378,11 +378,19 @@ fn one_report(inp: &ReportInput<'_>, j: usize) -> (usize, FeatureReport) {
     r.significant = inp.significant.contains(&j);
     let beyond = inp.forward.beyond[j].unwrap_or(0.0);
     r.flagged = r.significant && r.explained.min(beyond) >= inp.config.min_effect;
+    if a.is_ok() {
+        r.reason = match (r.significant, r.flagged) {
+            (_, true) => super::Reason::Flagged,
+            (true, false) => super::Reason::BelowPracticalMinimum,
+            (false, _) => super::Reason::NotSignificant,
+        };
+    }
     if r.significant && !r.flagged {
         let note = format!(
-            "significant (p = {:.3}) but too small to matter: {:.1} % of the residual \
+            "{}: significant (p = {:.3}) but too small to matter: {:.1} % of the residual \
              variance alone, {:.1} % beyond the features ranked before it, below the \
              practical minimum of {:.1} %",
+            r.reason,
             r.p_value,
             100.0 * r.explained,
             100.0 * beyond,

@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::Reason;
 use crate::model::ModelEdit;
 
 /// One suggested edit, refitted and scored out of sample. Equality ignores the typed edit
@@ -32,6 +33,13 @@ pub struct VerifiedEdit {
     pub z: f64,
     /// Whether the gain is both practical and beyond noise (see the module docs).
     pub verified: bool,
+    /// The rule that decided `verified` ([`Reason`]): verified, or the first rule it fails —
+    /// below the practical minimum (out of sample), only re-levels the folds, not significant,
+    /// not a lower loss in every fold.
+    pub reason: Reason,
+    /// The bar `z` had to reach (the stricter bar of an unflagged feature's edit and of the
+    /// second round is one higher).
+    pub z_bar: f64,
     /// The typed edit (not serialised).
     #[serde(skip)]
     pub model_edit: Option<ModelEdit>,
@@ -48,6 +56,8 @@ impl PartialEq for VerifiedEdit {
             && self.gain_within_folds.to_bits() == o.gain_within_folds.to_bits()
             && self.z.to_bits() == o.z.to_bits()
             && self.verified == o.verified
+            && self.reason == o.reason
+            && self.z_bar.to_bits() == o.z_bar.to_bits()
     }
 }
 
@@ -58,7 +68,9 @@ pub struct RejectedEdit {
     pub feature: String,
     /// The term tried.
     pub term: String,
-    /// Why it failed (the spec or fit error).
+    /// The rule: the term cannot be applied to the model, or the fit failed.
+    pub reason: Reason,
+    /// Why, in words (the spec or fit error, or how the refit blew up).
     pub why: String,
 }
 
@@ -135,18 +147,41 @@ impl Verification {
         self.edits.first().filter(|e| e.verified)
     }
 
-    /// Why `e` is not verified, in words: its gain only re-levels the folds (practical out of
-    /// sample, not within folds), or it is below what noise allows.
+    /// Why `e` is (not) verified, in words: its rule ([`VerifiedEdit::reason`]) first, then
+    /// the figures that decided it.
     pub fn why_not_verified(&self, e: &VerifiedEdit) -> String {
-        if e.gain >= self.min_effect && e.gain_within_folds < self.min_effect {
-            format!(
-                "within folds it gains {:.1} % of the error variance, below the practical \
-                 minimum of {:.1} %: it only re-levels the folds",
-                100.0 * e.gain_within_folds,
-                100.0 * self.min_effect
-            )
-        } else {
-            "below what noise allows".into()
+        let pct = |v: f64| format!("{:.1} %", 100.0 * v);
+        let rule = e.reason.words();
+        match e.reason {
+            Reason::BelowPracticalMinimum => format!(
+                "{rule}: out of sample it gains {} of the error variance, less than the {} \
+                 that matters",
+                pct(e.gain),
+                pct(self.min_effect)
+            ),
+            Reason::OnlyRelevelsFolds => format!(
+                "{rule}: within folds it gains {} of the error variance, below the practical \
+                 minimum of {}",
+                pct(e.gain_within_folds),
+                pct(self.min_effect)
+            ),
+            Reason::NotSignificant => format!(
+                "{rule}: z = {:.1} is below the bar of {:.1}, so the gain is within what noise \
+                 allows",
+                e.z, e.z_bar
+            ),
+            Reason::NotInEveryFold => format!(
+                "{rule}: at the stricter bar an edit must lower the loss in each of the {} \
+                 folds, and this one does not",
+                self.folds
+            ),
+            _ => format!(
+                "{rule}: it gains {} out of sample and {} within folds (z = {:.1}, bar {:.1})",
+                pct(e.gain),
+                pct(e.gain_within_folds),
+                e.z,
+                e.z_bar
+            ),
         }
     }
 }

@@ -86,7 +86,9 @@ pub(super) fn fitted_terms(
             {
                 warnings.push(format!(
                     "{}: standard error {:.4e} exceeds |value| {:.4e}: not identifiable from this log",
-                    prm.name, se, prm.value
+                    prm.name,
+                    se,
+                    prm.value.abs()
                 ));
             }
         }

@@ -426,7 +426,7 @@ impl<'a> FitData<'a> {
 
     /// [`FitData::measured_values`] of a function of the features a log's times and positions
     /// give row by row (`seek_index`, `time_s`, `elapsed_s`, `dwell_s`, `source`, `target`,
-    /// `seek_length`; see [`Term::reads_history`](crate::model::Term::reads_history)) and the covariates: the same values, from a
+    /// `seek_length`; see [`TermCaps::reads_history`](crate::model::TermCaps::reads_history)) and the covariates: the same values, from a
     /// replay without the direction tracker and rest memory.
     pub fn measured_positional(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
         let mut out = Vec::with_capacity(self.log.measured_count());

@@ -37,7 +37,8 @@ pub use predictor::ReplayError;
 pub use preset::{CALIBRATION, preset_terms};
 pub use registry::builtin_names;
 pub use term::{
-    Nonlinear, Param, SearchBasis, SearchContext, Searched, Seek, Term, TermSpec, TermState,
+    Nonlinear, Param, SearchBasis, SearchContext, Searched, Seek, Term, TermCaps, TermSpec,
+    TermState,
 };
 
 /// Format name written into every model file.
@@ -751,10 +752,10 @@ impl FittedModel {
         self.predict_log_with(log, Feedback::EveryRow)
     }
 
-    /// Whether a term adapts to the measured bias while replaying ([`Term::adaptive`]): then the
+    /// Whether a term adapts to the measured bias while replaying ([`TermCaps::adaptive`]): then the
     /// one-step error ([`Feedback::EveryRow`]) and the free-run error differ.
     pub fn adaptive(&self) -> bool {
-        self.terms.iter().any(|t| t.term.adaptive())
+        self.terms.iter().any(|t| t.term.caps().adaptive)
     }
 
     /// As [`FittedModel::predict_log`], with the measured bias passed to the adaptive terms as

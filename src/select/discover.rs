@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{CheckedVerifyConfig, candidates, verify};
 use crate::diagnose::{
-    CheckedDiagnoseConfig, Diagnosis, ModelDiagnosisError, Verification, VerifiedEdit,
+    CheckedDiagnoseConfig, Diagnosis, ModelDiagnosisError, Reason, Verification, VerifiedEdit,
     diagnose_model, replay_model,
 };
 use crate::fit::{CheckedFitOptions, FitError, fit};
@@ -140,8 +140,12 @@ pub struct Discovery {
     pub steps: Vec<DiscoverStep>,
     /// The final model's terms.
     pub final_terms: Vec<String>,
-    /// Why the loop stopped.
+    /// Why the loop stopped, in words (beginning with the rule's, [`Reason::words`]).
     pub stopped_because: String,
+    /// The rule that stopped it ([`Reason`]): nothing is flagged, the best scored edit's own
+    /// (below the practical minimum, only re-levels the folds, not significant, not a lower
+    /// loss in every fold), the fit failed, the step limit, or a free-run error that grows.
+    pub reason: Reason,
     /// What `std_before`/`std_after` are measured on (`test log …` or `out-of-sample folds …`).
     pub basis: String,
     /// The bias unit of every std.
@@ -283,9 +287,12 @@ pub fn discover(
             if first {
                 out.start_std = current_test.unwrap_or(d.residual_std);
             }
-            out.stopped_because = "nothing is flagged: no candidate feature explains a practical \
-                                   share of the residual beyond noise"
-                .to_string();
+            out.reason = Reason::NothingFlagged;
+            out.stopped_because = format!(
+                "{}: no candidate feature explains a practical share of the residual beyond \
+                 noise",
+                out.reason
+            );
             break;
         }
         let v = verify(
@@ -301,12 +308,14 @@ pub fn discover(
             first = false;
         }
         let Some(best) = v.best().cloned() else {
-            out.stopped_because = not_verified(&v);
+            (out.reason, out.stopped_because) = not_verified(&v);
             break;
         };
         if step == config.max_steps {
+            out.reason = Reason::StepLimit;
             out.stopped_because = format!(
-                "the step limit ({}) was reached; `{}` would still gain {:.1} %",
+                "{} ({}); `{}` would still gain {:.1} %",
+                out.reason,
                 config.max_steps,
                 best.edit,
                 100.0 * best.gain
@@ -335,12 +344,22 @@ pub fn discover(
             )
         };
         let Some((best, next_spec, next, next_honest, adaptive)) = chosen else {
-            out.stopped_because = if passed_over.is_empty() {
-                "no verified edit could be applied".to_string()
+            (out.reason, out.stopped_because) = if passed_over.is_empty() {
+                (
+                    Reason::NotApplicable,
+                    format!(
+                        "{}: no verified edit could be applied",
+                        Reason::NotApplicable
+                    ),
+                )
             } else {
-                format!(
-                    "every verified edit gains on the one-step figure only: in free run it \
-                     makes the error worse{passed}"
+                (
+                    Reason::FreeRunWorse,
+                    format!(
+                        "{}: every verified edit gains on the one-step figure only: in free \
+                         run it makes the error worse{passed}",
+                        Reason::FreeRunWorse
+                    ),
                 )
             };
             break;
@@ -419,6 +438,7 @@ fn empty_discovery(train: &Log, test: Option<&Log>, config: &CheckedDiscoverConf
         steps: Vec::new(),
         final_terms: Vec::new(),
         stopped_because: String::new(),
+        reason: Reason::NothingFlagged,
         basis,
         unit: train.schema.units.bias.clone(),
         start_std: 0.0,
@@ -430,23 +450,42 @@ fn empty_discovery(train: &Log, test: Option<&Log>, config: &CheckedDiscoverConf
     }
 }
 
-/// Why a step found no verified edit: the best scored edit and why it fell short, or why
-/// nothing was scored.
-fn not_verified(v: &Verification) -> String {
+/// Why a step found no verified edit, and its rule: the best scored edit's rule and figures,
+/// or why nothing was scored (the model or every suggestion failed to fit, or no suggestion
+/// applies).
+pub(super) fn not_verified(v: &Verification) -> (Reason, String) {
     match v.edits.first() {
-        Some(e) => format!(
-            "the best scored edit, `{}` ({}), gains {:.1} % of the error variance \
-             out of sample (z = {:.1}): {}",
-            e.edit,
-            e.feature,
-            100.0 * e.gain,
-            e.z,
-            v.why_not_verified(e)
+        Some(e) => (
+            e.reason,
+            format!(
+                "the best scored edit, `{}` ({}), gains {:.1} % of the error variance out of \
+                 sample (z = {:.1}): {}",
+                e.edit,
+                e.feature,
+                100.0 * e.gain,
+                e.z,
+                v.why_not_verified(e)
+            ),
         ),
-        None => v
-            .not_run
-            .clone()
-            .unwrap_or_else(|| "no suggested edit could be fitted".to_string()),
+        None => {
+            let failed = v.not_run.is_some()
+                || (!v.rejected.is_empty()
+                    && v.rejected.iter().all(|r| r.reason == Reason::FitFailed));
+            let reason = if failed {
+                Reason::FitFailed
+            } else {
+                Reason::NotApplicable
+            };
+            let why = v.not_run.clone().unwrap_or_else(|| {
+                let each: Vec<String> = v
+                    .rejected
+                    .iter()
+                    .map(|r| format!("`{}` ({}): {}", r.term, r.reason, r.why))
+                    .collect();
+                format!("no suggested edit could be scored: {}", each.join("; "))
+            });
+            (reason, format!("{reason}: {why}"))
+        }
     }
 }
 

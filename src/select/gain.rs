@@ -3,6 +3,7 @@
 
 use super::VerifyConfig;
 use super::candidates::STRICT_EXTRA_Z;
+use crate::diagnose::Reason;
 
 /// Verified gain and its z-score of `after` over `before` (paired residuals): the gain is
 /// `1 − MSE_after / MSE_before`; the z-score is the summed paired loss difference over the
@@ -216,9 +217,61 @@ pub(super) struct Judgement {
     pub within: f64,
     /// [`paired_gain`]'s block z-score.
     pub z: f64,
+    /// The bar `z` had to reach: `min_z`, or `min_z` + [`STRICT_EXTRA_Z`] for a `strict`
+    /// candidate.
+    pub z_bar: f64,
     /// Both gains at least the practical minimum and z at least the bar (for a `strict`
     /// candidate: `min_z` + [`STRICT_EXTRA_Z`] and a gain in every fold).
     pub verified: bool,
+    /// The rule that decided `verified` ([`rule`]).
+    pub reason: Reason,
+}
+
+/// The rule that decides an edit's verdict: the first it fails, in the order practical out of
+/// sample (`gain` ≥ `min_effect`), practical within folds (`within` ≥ `min_effect`),
+/// significant (`z` ≥ `z_bar`), a lower loss in every fold (`every_fold`, asked of a strict
+/// candidate only: `None` otherwise); [`Reason::Verified`] when it fails none.
+pub(super) fn rule(
+    gain: f64,
+    within: f64,
+    min_effect: f64,
+    z: f64,
+    z_bar: f64,
+    every_fold: Option<bool>,
+) -> Reason {
+    // Below, or not a number: a NaN gain, spread or z fails the rule.
+    let below = |a: f64, b: f64| a.partial_cmp(&b).is_none_or(std::cmp::Ordering::is_lt);
+    if below(gain, min_effect) {
+        Reason::BelowPracticalMinimum
+    } else if below(within, min_effect) {
+        Reason::OnlyRelevelsFolds
+    } else if below(z, z_bar) {
+        Reason::NotSignificant
+    } else if every_fold == Some(false) {
+        Reason::NotInEveryFold
+    } else {
+        Reason::Verified
+    }
+}
+
+/// The out-of-sample error std beyond which, as a multiple of the model's before the edit, a
+/// refit has blown up: its prediction is a numerical failure (coefficients of nearly equal
+/// columns cancelling on the rows it was fitted on and not on the held-out ones), not an edit
+/// that noise made look bad.
+pub(super) const REFIT_BLOW_UP: f64 = 100.0;
+
+/// Why a refit whose out-of-sample error std is `std_after` against `std_before` (the model
+/// before the edit) failed, when it blew up ([`REFIT_BLOW_UP`]) or is not finite.
+pub(super) fn blown_up(std_before: f64, std_after: f64) -> Option<String> {
+    (!std_after.is_finite() || std_after > REFIT_BLOW_UP * std_before).then(|| {
+        format!(
+            "the refit blew up: out of sample its error std is more than {REFIT_BLOW_UP:.0} \
+             times the model's before the edit ({}): a numerical failure of the fit (its \
+             columns nearly a combination of each other on the training folds), not evidence \
+             about the effect",
+            crate::log::fmt_trimmed(std_before, 4)
+        )
+    })
 }
 
 /// Judges an edit from the residuals before and after it on the same folds (see the module
@@ -235,18 +288,16 @@ pub(super) fn judge(
 ) -> Judgement {
     let (gain, z) = paired_gain(before, after);
     let within = gain_within_folds(before, after, config.folds);
-    let verified = gain >= min_effect
-        && within >= min_effect
-        && if strict {
-            z >= config.min_z + STRICT_EXTRA_Z && gains_in_every_fold(before, after, config.folds)
-        } else {
-            z >= config.min_z
-        };
+    let z_bar = config.min_z + if strict { STRICT_EXTRA_Z } else { 0.0 };
+    let every_fold = strict.then(|| gains_in_every_fold(before, after, config.folds));
+    let reason = rule(gain, within, min_effect, z, z_bar, every_fold);
     Judgement {
         gain,
         within,
         z,
-        verified,
+        z_bar,
+        verified: reason == Reason::Verified,
+        reason,
     }
 }
 
@@ -278,16 +329,25 @@ impl Baseline {
     ) -> [Judgement; 2] {
         let (gain, z) = paired_gain_at(&self.r, after, self.c);
         let within = gain_within_folds_of(self.ss_within, after, config.folds);
-        let practical = gain >= min_effect && within >= min_effect;
-        let plain = practical && z >= config.min_z;
-        let strict = practical
-            && z >= config.min_z + STRICT_EXTRA_Z
-            && gains_in_every_fold_at(&self.r, after, config.folds, self.c);
-        [plain, strict].map(|verified| Judgement {
-            gain,
-            within,
-            z,
-            verified,
+        let strict_bar = config.min_z + STRICT_EXTRA_Z;
+        // The every-fold check only where the other rules pass at the strict bar (its pass
+        // over the residuals is paid only then).
+        let every_fold = (rule(gain, within, min_effect, z, strict_bar, None) == Reason::Verified)
+            .then(|| gains_in_every_fold_at(&self.r, after, config.folds, self.c));
+        [
+            (config.min_z, None),
+            (strict_bar, Some(every_fold.unwrap_or(true))),
+        ]
+        .map(|(z_bar, every_fold)| {
+            let reason = rule(gain, within, min_effect, z, z_bar, every_fold);
+            Judgement {
+                gain,
+                within,
+                z,
+                z_bar,
+                verified: reason == Reason::Verified,
+                reason,
+            }
         })
     }
 }

@@ -67,6 +67,7 @@ fn promote_verified(d: &mut Diagnosis, v: &Verification) {
     let mut f = d.features.remove(i);
     if !f.flagged {
         f.flagged = true;
+        f.reason = crate::diagnose::Reason::FlaggedByRefit;
         let note = format!(
             "flagged by its verified refit: `{}` gains {:.1} % out of sample (z = {:.1}), \
              although the one-dimensional screen alone did not flag it",

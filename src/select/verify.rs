@@ -53,13 +53,15 @@ use std::collections::HashMap;
 
 use rayon::prelude::*;
 
-use crate::diagnose::{ModelDiagnosisError, RejectedEdit, Verification, VerifiedEdit};
+use crate::diagnose::{ModelDiagnosisError, Reason, RejectedEdit, Verification, VerifiedEdit};
 use crate::fit::CheckedFitOptions;
 use crate::log::Log;
+use crate::model::registry::head;
+use crate::model::terms::drift;
 use crate::model::{ModelEdit, ModelSpec};
 
 use super::candidates::{Candidate, defect_candidate, edit_for, variants};
-use super::gain::{Baseline, Judgement};
+use super::gain::{Baseline, Judgement, blown_up};
 use super::refit::{cv_residuals_sharing, measured_rows, refits_of};
 
 /// Settings of the verification refits.
@@ -215,14 +217,20 @@ pub(super) fn verify_round(
     };
     let base = Baseline::new(before, config.folds);
     let before = &base.r;
+    let std_before = std_of(before);
     let assess = |s: &ModelSpec| {
-        score(s).map(|after| {
+        score(s).and_then(|after| {
+            let std_after = std_of(&after);
+            // A refit whose held-out error blew up failed: it is no verdict on the effect.
+            if let Some(why) = blown_up(std_before, std_after) {
+                return Err(why);
+            }
             let judged = base.judge_both(&after, min_effect, config);
-            Scored {
-                std_after: std_of(&after),
+            Ok(Scored {
+                std_after,
                 judged,
                 residual: judged.iter().any(|j| j.verified).then_some(after),
-            }
+            })
         })
     };
     let mut cache: HashMap<String, Result<Scored, String>> = keys
@@ -231,7 +239,7 @@ pub(super) fn verify_round(
         .zip(wanted[first..].par_iter().map(assess).collect::<Vec<_>>())
         .collect();
     let mut scored = |s: &ModelSpec| cache.remove(&s.to_string()).unwrap_or_else(|| assess(s));
-    v.std_before = std_of(before);
+    v.std_before = std_before;
     // The narrow-defect screen on the residual before, on first use: the first round always
     // needs it (its extra `bump` candidate); the second only when a candidate has a `bump`
     // variant (its cost, a scan of the whole log, is not paid for nothing).
@@ -277,7 +285,12 @@ pub(super) fn verify_round(
                     Ok(x) => x,
                     Err(e) => {
                         if !alt {
-                            v.rejected.push(rejected(c, term, e.to_string()));
+                            v.rejected.push(rejected(
+                                c,
+                                term,
+                                Reason::NotApplicable,
+                                e.to_string(),
+                            ));
                         }
                         continue;
                     }
@@ -289,7 +302,7 @@ pub(super) fn verify_round(
                     Ok(r) => r,
                     Err(why) => {
                         if !alt {
-                            v.rejected.push(rejected(c, term, why));
+                            v.rejected.push(rejected(c, term, Reason::FitFailed, why));
                         }
                         continue;
                     }
@@ -320,11 +333,12 @@ pub(super) fn verify_round(
     Ok((v, keep))
 }
 
-/// Candidate `c`'s `term`, rejected for `why`.
-fn rejected(c: &Candidate, term: &str, why: String) -> RejectedEdit {
+/// Candidate `c`'s `term`, rejected by `reason` for `why`.
+fn rejected(c: &Candidate, term: &str, reason: Reason, why: String) -> RejectedEdit {
     RejectedEdit {
         feature: c.feature.clone(),
         term: term.to_string(),
+        reason,
         why,
     }
 }
@@ -428,6 +442,8 @@ fn verified_edit(
         gain_within_folds: j.within,
         z: j.z,
         verified: j.verified,
+        reason: j.reason,
+        z_bar: j.z_bar,
         model_edit: Some(edit),
     }
 }
@@ -459,10 +475,10 @@ pub(super) const PHYSICS_OVER_DRIFT: f64 = 0.9;
 /// Whether `e` adds an adaptive term (`drift`): a term that follows whatever slow effect the
 /// residual carries without naming it.
 pub(super) fn adds_adaptive(e: &VerifiedEdit) -> bool {
-    matches!(&e.model_edit, Some(ModelEdit::Add(t)) if t.name().split(':').next() == Some("drift"))
+    matches!(&e.model_edit, Some(ModelEdit::Add(t)) if head(&t.name()) == drift::HEAD)
 }
 
-/// Issue #10's "adaptive terms hide physics", at the ranking: when the leading verified edit
+/// "Adaptive terms hide physics", at the ranking: when the leading verified edit
 /// adds `drift` and a verified edit that names a physical cause (a logged column, a position
 /// shape, a memory law: any non-adaptive edit) reaches [`PHYSICS_OVER_DRIFT`] of its gain,
 /// that edit goes first. Drift gains by following the effect (a lagged temperature is slow, so

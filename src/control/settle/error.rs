@@ -62,3 +62,27 @@ pub enum AnalyseError {
     #[error(transparent)]
     Settle(#[from] SettleError),
 }
+
+/// A plant TOML file that cannot be read or parsed ([`super::SettleSpec::from_toml_file`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlantFileError {
+    /// The file could not be read (or is larger than biasctl reads).
+    #[error("cannot read plant file {file}")]
+    Io {
+        /// The plant file.
+        file: String,
+        /// The operating-system error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The TOML is malformed, a number is out of range, or a field is missing or unknown.
+    #[error("invalid plant file {file}")]
+    Parse {
+        /// The plant file.
+        file: String,
+        /// The parser's message (names the field and line).
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+}

@@ -42,8 +42,9 @@ pub(crate) fn discover_table(d: &Discovery) -> Table {
 pub(crate) fn discover(s: &mut Section, d: &Step<Discovery>, train: &str, test: &str) {
     s.paragraph(format!(
         "discover starts from {DISCOVER_START} fitted on {train}, diagnoses its error, applies \
-         the best edit whose gain is verified on held-out seeks, and repeats until no edit \
-         gains more than noise allows; each step's error std is measured on {test}."
+         the best edit whose gain is verified on held-out seeks (at least the practical minimum \
+         out of sample and within folds, and significant), and repeats until no edit is; each \
+         step's error std is measured on {test}."
     ));
     match d {
         Ok(d) => {

@@ -24,12 +24,16 @@ use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{
-    Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermSpec, TermState, se_from_cov,
+    Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermCaps, TermSpec, TermState,
+    se_from_cov,
 };
 use search::DahlSearch;
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
 use std::sync::Arc;
+
+/// The head of the term's spec text (`dahl`).
+pub(crate) const HEAD: &str = "dahl";
 
 /// Powers `r^n` tabulated for integer seek lengths below this.
 const TABLE: usize = 256;
@@ -281,7 +285,7 @@ impl TermSpec for DahlSpec {
     fn name(&self) -> String {
         match self.elements {
             Some(n) => format!("dahl:{n}"),
-            None => "dahl".into(),
+            None => HEAD.into(),
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
@@ -352,6 +356,12 @@ pub struct DahlTerm {
     pub ln_length_range: Option<[f64; 2]>,
 }
 
+/// `1/r^q05` beyond which a searched element is a direction switch ([`DahlTerm::collapse`]).
+const SWITCH_SATURATION: f64 = 1000.0;
+
+/// `L / travel` beyond which a searched element is a straight line ([`DahlTerm::collapse`]).
+const LINE_FRACTION: f64 = 5.0;
+
 /// Fallback search interval of `ln L` (a log without moves): L from 0.1 to 10⁴.
 const T_LO: f64 = -std::f64::consts::LN_10;
 const T_HI: f64 = 9.210_340_371_976_184;
@@ -393,6 +403,52 @@ impl DahlTerm {
         self.ln_length_range.unwrap_or([T_LO, T_HI])
     }
 
+    /// Whether the searched element collapsed into a simpler term, in words (`None` for a
+    /// Dahl curve the log determines, for `dahl:N`, and for a search range not taken from a
+    /// log). The range `prepare` took from the log gives back its two lengths: the 5 % quantile
+    /// `q05` of the non-zero |seek lengths| (`ln(q05/10)` is the range's low end) and the
+    /// travel (`ln(10·travel)` its high end).
+    ///
+    /// - **A direction switch**: `r^q05 < 10⁻³` (`L < q05 / ln 1000`): the state reaches ±1
+    ///   within even the short seeks, so the term is `Fc·sgn(Δx)`, Coulomb friction. Its
+    ///   `sigma = Fc·(1 − r)` is then `Fc` and `r` is 0 to every printed digit, measuring
+    ///   nothing.
+    /// - **A straight line in position**: `L > 5·travel` (the search ends at `10·travel`): over
+    ///   the whole travel the state covers less than 1 − e^(−0.2) ≈ 18 % of its way to ±1, where
+    ///   the curve is within 10 % of its start's line, `G ≈ (x − x₀)/L`; so the term is a
+    ///   position slope `Fc/L` and `Fc` and `L` are not separately determined.
+    fn collapse(&self) -> Option<String> {
+        if !self.search {
+            return None;
+        }
+        let [lo, hi] = self.ln_length_range?;
+        if lo.to_bits() == T_LO.to_bits() && hi.to_bits() == T_HI.to_bits() {
+            return None;
+        }
+        let l = *self.lengths().first()?;
+        let (q05, travel) = (10.0 * lo.exp(), 0.1 * hi.exp());
+        let num = |v: f64| format!("{v:.3e}");
+        if q05 > SWITCH_SATURATION.ln() * l {
+            Some(format!(
+                "{}: collapsed to a direction switch: its characteristic length L = {} is below                  1/{:.1} of the short seeks (5 % quantile of |seek length| {}), so its state                  saturates within every seek and the term is ±Fc by the direction of motion                  (Coulomb friction); sigma (= Fc) and r (≈ 0) are not measured by this log",
+                self.name,
+                num(l),
+                SWITCH_SATURATION.ln(),
+                num(q05)
+            ))
+        } else if travel * LINE_FRACTION < l {
+            Some(format!(
+                "{}: collapsed to a straight line in position: its characteristic length L = {}                  is over {} times the travel ({}), so its state never leaves the linear start                  of its curve and the term is a position slope Fc/L; Fc, sigma and r are not                  separately measured by this log",
+                self.name,
+                num(l),
+                LINE_FRACTION,
+                num(travel)
+            ))
+        } else {
+            None
+        }
+    }
+
     /// The characteristic length at search coordinate `t` (what [`Term::with_nonlinear`]
     /// gives the element).
     fn length_at(&self, t: f64) -> f64 {
@@ -402,15 +458,22 @@ impl DahlTerm {
 }
 
 impl Term for DahlTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            spans_direction_offset: true,
+            // The rate search's projected RSS is tested against the full solve per candidate
+            // (`fit::tests::projected_search_equals_full_solve_per_candidate`).
+            search_by_projection: self.search,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         self.name.clone()
     }
-    fn spans_direction_offset(&self) -> bool {
-        true
+    fn fit_warnings(&self, _model: &[Arc<dyn Term>]) -> Vec<String> {
+        self.collapse().into_iter().collect()
     }
     fn param_names(&self) -> Vec<String> {
         if self.search {
@@ -451,11 +514,6 @@ impl Term for DahlTerm {
             lo: 0.0,
             hi: 1.0,
         })
-    }
-    fn search_by_projection(&self) -> bool {
-        // The rate search's projected RSS is tested against the full solve per candidate
-        // (`fit::tests::projected_search_equals_full_solve_per_candidate`).
-        self.search
     }
     fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
         self.search.then(|| {
@@ -690,6 +748,73 @@ mod tests {
             text += &format!("{},{},{bias}\n", k as f64 * 0.01, x * scale);
         }
         crate::log::Log::from_reader("t.csv", text.as_bytes(), &Default::default()).unwrap()
+    }
+
+    /// A dense log of a sine motion (amplitude 10, period 5 s, 50 rows/s, 3000 rows) whose
+    /// bias is `force(x, step, Dahl state of length 2 started at 0)` + 0.05·N(0, 1).
+    fn sine_log(force: impl Fn(f64, f64, f64) -> f64) -> crate::log::Log {
+        let mut rng = SimRng::new(7);
+        let mut text = String::from("time_s,track,bias\n");
+        let mut g = DahlState::with_length(2.0);
+        let mut prev = 0.0;
+        for k in 0..3000 {
+            let t = k as f64 * 0.02;
+            let x = 10.0 * (2.0 * std::f64::consts::PI * t / 5.0).sin();
+            g.step(x - prev);
+            let bias = force(x, x - prev, g.value()) + 0.05 * rng.normal();
+            prev = x;
+            text += &format!("{t},{x},{bias}\n");
+        }
+        crate::log::Log::from_reader("sine.csv", text.as_bytes(), &Default::default()).unwrap()
+    }
+
+    /// The `dahl` term's warnings from a fit of `terms` on `log`, and the fitted length.
+    fn dahl_warnings(terms: &str, log: &crate::log::Log) -> (Vec<String>, f64) {
+        let m = crate::fit::fit(
+            &crate::model::ModelSpec::parse(terms).unwrap(),
+            log,
+            &Default::default(),
+        )
+        .unwrap();
+        let r = m
+            .terms
+            .iter()
+            .flat_map(|t| &t.params)
+            .find(|p| p.name == "dahl.r")
+            .unwrap()
+            .value;
+        let w = m
+            .warnings
+            .into_iter()
+            .filter(|w| w.starts_with("dahl:"))
+            .collect();
+        (w, -1.0 / r.ln())
+    }
+
+    #[test]
+    fn a_collapsed_dahl_element_is_warned_about() {
+        // Reference: the rule's two limits on forces made to sit in them. Coulomb friction
+        // (±2 by the sign of the step) is fitted best by the shortest element: its state
+        // saturates within one 50 Hz step of the sine, and Fc = sigma, r ≈ 0. A force that is
+        // a line in position (0.3·x) is fitted by the longest: the state never leaves its
+        // linear start. A true Dahl curve (L = 2, a tenth of the travel) warns of neither.
+        let coulomb = sine_log(|_, dx, _| 2.0 * dx.signum());
+        let (w, l) = dahl_warnings("poly2,dahl", &coulomb);
+        assert!(
+            w.iter()
+                .any(|w| w.contains("collapsed to a direction switch")),
+            "L = {l}: {w:?}"
+        );
+        let line = sine_log(|x, _, _| 0.3 * x);
+        let (w, l) = dahl_warnings("dahl", &line);
+        assert!(
+            w.iter().any(|w| w.contains("collapsed to a straight line")),
+            "L = {l}: {w:?}"
+        );
+        let dahl = sine_log(|x, _, g| 0.01 * x + 2.0 * g);
+        let (w, l) = dahl_warnings("poly2,dahl", &dahl);
+        assert!(w.iter().all(|w| !w.contains("collapsed")), "L = {l}: {w:?}");
+        assert!((l / 2.0 - 1.0).abs() < 0.2, "L = {l}");
     }
 
     /// Every block of a replay, concatenated.
