@@ -1,5 +1,5 @@
 //! Fitting on 1,000,000 measured rows of a synthetic random-seek log (made once, outside the
-//! timed loop): the `calibration` preset (poly2+direction+seek+memory+drift, eq. 1; issue #16's
+//! timed loop): the `calibration` preset (poly2+direction+seek+memory+drift, eq. 1;
 //! goal ≤ 150 ms) and the `dahl` preset (a 1-D search over the Dahl rate by variable
 //! projection, its candidates replayed eight side by side through `Term::search_basis`, then
 //! four full solves; goal ≤ 0.5 s). `BIASCTL_BENCH_CPU=process` measures the

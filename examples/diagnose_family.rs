@@ -1,4 +1,4 @@
-//! The scoreboard of issue #10: diagnose on independent drives (`biasctl::sim::family`).
+//! The scoreboard of diagnose on independent drives (`biasctl::sim::family`).
 //!
 //! ```sh
 //! cargo run --release --example diagnose_family            # 3 drives × every scenario × 10 seeds

@@ -1,5 +1,5 @@
 //! Diagnose's JSON on fixed inputs, written to files, for a byte-for-byte comparison of two
-//! builds (an optimisation must not change a byte, issue #16):
+//! builds (an optimisation must not change a byte):
 //!
 //! ```sh
 //! cargo run --release --example diagnose_golden -- OUT_DIR [THREADS]

@@ -1,4 +1,4 @@
-//! Peak heap of `diagnose` per log row, counted by the allocator (issue #16: `diagnose`
+//! Peak heap of `diagnose` per log row, counted by the allocator (goal: `diagnose`
 //! ≤ 160 B/row): a deterministic figure, unlike peak-RSS slopes, which move by ±10 B/row
 //! between runs on a shared machine (RSS keeps pages the allocator freed but has not
 //! returned, and depends on what other threads did in between).

@@ -1,4 +1,4 @@
-//! Adding an effect the tool does not know (issue #5): P3, time at track.
+//! Adding an effect the tool does not know: P3, time at track.
 //!
 //! ```sh
 //! cargo run --release --example new_effect

@@ -6,7 +6,7 @@
 //! cargo run --release --example paper_table -- --seeds 10 --drive my_drive.toml
 //! ```
 //!
-//! Protocol (issues #2/#3): fit each model on a calibration run (`simulate --sequence
+//! Protocol: fit each model on a calibration run (`simulate --sequence
 //! calibration --seed 2k−1`), score it on a separate random run of 2000 seeks in a 250-track span
 //! (`simulate --sequence random --seed 2k --n 2000 --span 250`), k = 1..seeds. The first pair is
 //! the issue's (seeds 1 and 2). Numbers are mean ± sample standard deviation over the pairs.

@@ -361,7 +361,7 @@ mod tests {
         assert!(s.to_text().contains("dip test undefined"));
         let s = score(&[2.0; 10], &positions(10)).unwrap();
         assert!(s.dip.is_none() && !s.bimodal);
-        // Undefined statistics are absent from the JSON, never `null` (issue #17).
+        // Undefined statistics are absent from the JSON, never `null`.
         let json = crate::io::json::to_string_pretty(&s).unwrap();
         assert!(
             !json.contains("null") && !json.contains("\"dip\""),
@@ -579,7 +579,7 @@ pub fn score_model(
     if let Some(f) = &free {
         warnings.extend(mean_warning(f, "free-run"));
     }
-    // The fit's own self-check travels with the model (issue #11).
+    // The fit's own self-check travels with the model.
     warnings.extend(model.warnings.iter().map(|w| format!("fit: {w}")));
     Ok(ModelScore {
         one_step,

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The peer harness of issue #16: biasctl's hot paths against numba / numpy / polars / pandas
+"""The peer harness: biasctl's hot paths against numba / numpy / polars / pandas
 doing the same work, both sides in the same run, printed as the ratio table of README's
 Benchmarks section. Run it through `benches/peers/run.sh` (it makes the venv and builds biasctl).
 

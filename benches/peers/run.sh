@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The peer harness of issue #16, one command: makes its own venv (pip only) with numpy, numba,
+# The peer harness, one command: makes its own venv (pip only) with numpy, numba,
 # polars and pandas, builds biasctl, runs biasctl's criterion benches and the peers in the same
 # run, checks every peer against biasctl's output on a small input, and prints the ratio table
 # of README's Benchmarks section. Optional; not part of `cargo test`. Takes ~10 min (more on a

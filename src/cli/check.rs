@@ -41,6 +41,11 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     if !s.covariates.is_empty() {
         outln!("  covariates: {}", s.covariates.join(", "))?;
     }
+    for e in &s.empty_cells {
+        outln!(
+            "  note: {e}, read as missing values (a term that reads the column needs every cell)"
+        )?;
+    }
     for note in &s.notes {
         outln!("  note: {note}")?;
     }

@@ -177,6 +177,41 @@ impl ColumnArgs {
         )?)
     }
 
+    /// The units of a log read for `model`: a unit named by a flag or by the log's metadata
+    /// must be the one the model was fitted in (else an error naming the flag); one the column
+    /// name gave is the model's, so a model fitted with `--bias-unit N` prints N without the
+    /// flag.
+    pub(crate) fn units_for_model(
+        &self,
+        schema: &LogSchema,
+        model: &crate::FittedModel,
+    ) -> anyhow::Result<Units> {
+        let mut units = self.units(schema)?;
+        if let Some(fitted) = &model.columns.units {
+            use crate::log::{BIAS_UNIT_KEY, POSITION_UNIT_KEY};
+            if self.bias_unit.is_none() && schema.metadata_value(BIAS_UNIT_KEY).is_none() {
+                units.bias = fitted.bias.clone();
+            }
+            if self.track_unit.is_none() && schema.metadata_value(POSITION_UNIT_KEY).is_none() {
+                units.position = fitted.position.clone();
+            }
+        }
+        model.check_units(&units)?;
+        Ok(units)
+    }
+
+    /// Reads the whole log at `path` for `model`: [`ColumnArgs::read_log`], in the units
+    /// [`ColumnArgs::units_for_model`] gives.
+    pub(crate) fn read_log_for(
+        &self,
+        path: &Path,
+        model: &crate::FittedModel,
+    ) -> anyhow::Result<Log> {
+        let mut log = self.read_log(path)?;
+        log.schema.units = self.units_for_model(&log.schema, model)?;
+        Ok(log)
+    }
+
     /// Reads the whole log at `path` with these column names and unit labels.
     pub(crate) fn read_log(&self, path: &Path) -> anyhow::Result<Log> {
         let mut log = Log::read(path, &self.map())?;
@@ -198,7 +233,7 @@ pub(crate) struct LogArgs {
     pub columns: ColumnArgs,
 }
 
-/// How the direction of motion is read (issue #11): `--deadband X` or `--velocity-col NAME`;
+/// How the direction of motion is read: `--deadband X` or `--velocity-col NAME`;
 /// neither: a deadband estimated from the position noise on a dense time series, raw position
 /// steps on a log of seeks.
 #[derive(Debug, Clone, Default, Args)]
@@ -288,15 +323,7 @@ impl SettleArgs {
     /// `SettleSpec::check`).
     pub(crate) fn spec(&self) -> anyhow::Result<SettleSpec> {
         let mut spec = match &self.plant {
-            Some(path) => {
-                let text = crate::log::limits::read_text(path)
-                    .with_context(|| format!("cannot read plant file {}", path.display()))?;
-                crate::log::check_toml_numbers(&text)
-                    .map_err(anyhow::Error::msg)
-                    .with_context(|| format!("invalid plant file {}", path.display()))?;
-                toml::from_str::<SettleSpec>(&text)
-                    .with_context(|| format!("invalid plant file {}", path.display()))?
-            }
+            Some(path) => SettleSpec::from_toml_file(path)?,
             None => {
                 let name = self.preset.as_deref().unwrap_or("paper1997");
                 SettleSpec::preset(name)

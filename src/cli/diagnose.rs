@@ -91,7 +91,11 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         Some(dir) => Some(super::common::stage_out(dir)?),
         None => None,
     };
-    let log = args.input.log.columns.read_log(&args.input.log.data)?;
+    let log = args
+        .input
+        .log
+        .columns
+        .read_log_for(&args.input.log.data, &model)?;
     super::common::warn_outside_range(&model, &log.schema.file, &log.measured_positions());
     let d = if args.no_verify {
         diagnose_model(&model, &log, &config)?

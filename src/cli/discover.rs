@@ -19,7 +19,7 @@ pub(crate) struct Args {
     test: Option<PathBuf>,
     /// Where to start: a preset (position-direction, calibration, dahl), a model file (its
     /// terms), or a term list such as `poly2,direction`.
-    #[arg(long, value_name = "MODEL|TERMS", default_value = "poly2")]
+    #[arg(long, value_name = "MODEL|TERMS", default_value = crate::model::terms::poly::HEAD)]
     start: String,
     #[command(flatten)]
     columns: ColumnArgs,

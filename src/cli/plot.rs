@@ -157,7 +157,17 @@ fn draw(a: &Args) -> anyhow::Result<String> {
         });
     }
     let data = a.data.as_ref().context("--data")?;
-    let log = a.columns.read_log(data)?;
+    let mut log = a.columns.read_log(data)?;
+    // Model files: the log in the units they were fitted in (a flag that names others is
+    // refused).
+    for name in a.model.iter().flat_map(|m| m.split(',')) {
+        let path = Path::new(name.trim());
+        if path.is_file() {
+            let m = FittedModel::load(path)?;
+            log.schema.units = a.columns.units_for_model(&log.schema, &m)?;
+        }
+    }
+    let log = log;
     let units = &log.schema.units;
     let single = || -> anyhow::Result<FittedModel> {
         model(a.model.as_deref().unwrap_or_default(), &log).map(|m| m.1)

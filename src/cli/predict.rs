@@ -40,7 +40,7 @@ impl ModelLogArgs {
     /// goes beyond the fitted positions.
     pub(crate) fn replay(&self) -> anyhow::Result<(FittedModel, Log)> {
         let model = self.load_model()?;
-        let log = self.log.columns.read_log(&self.log.data)?;
+        let log = self.log.columns.read_log_for(&self.log.data, &model)?;
         crate::score::check_replay(&model, &log)??;
         let positions = log.measured_positions();
         super::common::warn_outside_range(&model, &log.schema.file, &positions);
@@ -126,7 +126,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let columns = &args.input.log.columns;
     let data = &args.input.log.data;
     let mut reader = LogReader::open_with(data, &columns.map(), BiasColumn::Optional)?;
-    let units = columns.units(reader.schema())?;
+    let units = columns.units_for_model(reader.schema(), &model)?;
     let file = reader.schema().file.clone();
     let flush_each = data.as_os_str() == STDIN_PATH;
     let mut write = |w: &mut dyn Write| -> anyhow::Result<ReplaySummary> {

@@ -52,10 +52,13 @@ pub(crate) fn story(args: &Args) -> anyhow::Result<StoryOutcome> {
     let outcome = match &args.data {
         None => demo_report(&args.out, &opts, &mut |p| bar.update(p)),
         Some(path) => {
-            let log = args.columns.read_log(path)?;
             let model = match &args.model {
                 Some(m) => Some(FittedModel::load(m)?),
                 None => None,
+            };
+            let log = match &model {
+                Some(m) => args.columns.read_log_for(path, m)?,
+                None => args.columns.read_log(path)?,
             };
             data_report(&args.out, &log, model.as_ref(), &opts, &mut |p| {
                 bar.update(p)

@@ -1,9 +1,9 @@
 //! `biasctl settle`: the settle-optimal integrator start value at handoff (paper Section IV).
 
 use super::common::{ColumnArgs, SettleArgs};
+use crate::analyse;
 use crate::io::write_string_atomic;
 use crate::{FittedModel, model::NextPrediction, model::predict_next};
-use crate::{SettleReport, analyse};
 use crate::{Units, log::DEFAULT_BIAS_UNIT};
 use anyhow::Context;
 use std::path::PathBuf;
@@ -42,26 +42,6 @@ pub(crate) struct Args {
     columns: ColumnArgs,
 }
 
-/// `settle --json`: the report's keys, `absolute` and (with `--model`) `prediction`, written by
-/// the one JSON writer (a non-finite number is refused naming its key).
-#[derive(serde::Serialize)]
-struct SettleJson<'a> {
-    #[serde(flatten)]
-    report: &'a SettleReport,
-    absolute: Absolute,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    prediction: Option<PredictionJson<'a>>,
-}
-
-/// The absolute integrator start values (µm·samples): `z_converged` + each relative value.
-#[derive(serde::Serialize)]
-struct Absolute {
-    zero_ff: f64,
-    ff_midpoint: Option<f64>,
-    paper_robust: Option<f64>,
-    robust: Option<f64>,
-}
-
 /// `prediction` of `settle --model --data --json`: the handoff bias the model predicts.
 #[derive(serde::Serialize)]
 struct PredictionJson<'a> {
@@ -89,7 +69,7 @@ fn predict_handoff(args: &Args) -> anyhow::Result<Option<ModelLink>> {
         return Ok(None);
     };
     let model = FittedModel::load(model_path)?;
-    let log = args.columns.read_log(data)?;
+    let log = args.columns.read_log_for(data, &model)?;
     let units = log.schema.units.clone();
     // The settle plant is a disk drive's: its input is in DAC counts. A bias in another unit
     // (N, mA) cannot be fed to it without a conversion the tool does not know.
@@ -161,27 +141,17 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         write_string_atomic(path, &report.responses_csv())?;
     }
     if args.json {
-        let abs = |v: Option<f64>| v.map(|v| report.absolute(v));
-        let value = SettleJson {
-            report: &report,
-            absolute: Absolute {
-                zero_ff: report.absolute(0.0),
-                ff_midpoint: abs(report.ff_midpoint),
-                paper_robust: abs(report.paper_robust.as_ref().map(|p| p.ff)),
-                robust: abs(report.robust.as_ref().map(|c| c.ff)),
-            },
-            prediction: link.as_ref().map(|l| PredictionJson {
-                model: l.model.display().to_string(),
-                target: l.next.target,
-                bias: l.next.bias,
-                delta_b: l.delta_b,
-                rows_replayed: l.next.rows_replayed,
-                units: &l.units,
-                robust_worst_settle_ms: report.worst_case.robust_worst_settle_ms,
-                zero_ff_worst_settle_ms: report.worst_case.zero_ff_worst_settle_ms,
-            }),
-        };
-        outln!("{}", crate::io::to_string_pretty(&value)?)?;
+        let prediction = link.as_ref().map(|l| PredictionJson {
+            model: l.model.display().to_string(),
+            target: l.next.target,
+            bias: l.next.bias,
+            delta_b: l.delta_b,
+            rows_replayed: l.next.rows_replayed,
+            units: &l.units,
+            robust_worst_settle_ms: report.worst_case.robust_worst_settle_ms,
+            zero_ff_worst_settle_ms: report.worst_case.zero_ff_worst_settle_ms,
+        });
+        outln!("{}", report.to_json_with(prediction.as_ref())?)?;
     } else {
         if let Some(l) = &link {
             outln!(

@@ -41,8 +41,9 @@ pub use lqr::DareError;
 pub use plant::{DiscretePlant, Mode, ModeSpec, Plant, PlantError, PlantSpec};
 pub use settle::{
     AnalyseError, Bounds, ConfigError, Handoff, HandoffSolution, HandoffTable, Interval,
-    PaperRobust, Response, RobustChoice, Scenario, SettleConfig, SettleError, SettleReport,
-    SettleSpec, Window, WorstCase, analyse, handoff_state, settle_index, worst_case_settle,
+    PaperRobust, PlantFileError, Response, RobustChoice, Scenario, SettleConfig, SettleError,
+    SettleReport, SettleSpec, Window, WorstCase, analyse, handoff_state, settle_index,
+    worst_case_settle,
 };
 
 /// An error designing the controller.

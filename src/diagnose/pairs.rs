@@ -200,7 +200,7 @@ pub(crate) fn screen(
                 b: cols[j].0.name.clone(),
                 explained_pair: pair,
                 best_single: best,
-                suggested_term: format!("by:{}:{}", cols[i].0.name, cols[j].0.name),
+                suggested_term: crate::model::terms::by::spec(&cols[i].0.name, &cols[j].0.name),
             });
         }
     }

@@ -395,7 +395,7 @@ fn a_velocity_like_covariate_gets_viscous_and_a_hysteretic_one_gets_dbins() {
     let d = diagnose(&t, &r, &config.clone().check().unwrap()).unwrap();
     let f = d.feature("velocity").unwrap();
     assert!(f.flagged, "{}", d.to_text());
-    // Issue #11 item 4: the line in a velocity is named as the viscous friction it is.
+    // The line in a velocity is named as the viscous friction it is.
     assert_eq!(
         f.suggested_term.as_deref(),
         Some("viscous:velocity"),

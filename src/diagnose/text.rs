@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::io::write_atomic;
-use crate::log::fmt_trimmed;
+use crate::log::fmt_float;
 use crate::numeric::stats;
 
 use super::advice;
@@ -78,7 +78,7 @@ pub(super) fn advice_line(f: &FeatureReport, residual_std: f64, unit: &str) -> S
                 short(f.expected_std),
                 short(residual_std)
             ));
-            if t == "seek" && !f.by_direction {
+            if t == crate::model::terms::seek::HEAD && !f.by_direction {
                 s.push_str(&format!(
                     " In a state-space model use `{}` instead.",
                     advice::DAHL_TERM
@@ -533,7 +533,7 @@ impl Diagnosis {
                 let mut w = crate::log::csv_writer(w);
                 w.write_record(["bin", "lower", "upper", "centre", "mean", "std", "count"])?;
                 for (i, c) in f.curve.iter().enumerate() {
-                    let num = |x: Option<f64>| x.map(|v| fmt_trimmed(v, 6)).unwrap_or_default();
+                    let num = |x: Option<f64>| x.map(|v| fmt_float(v, 6)).unwrap_or_default();
                     let label = if c.centre.is_some() {
                         i.to_string()
                     } else {
@@ -544,8 +544,8 @@ impl Diagnosis {
                         num(c.lower),
                         num(c.upper),
                         num(c.centre),
-                        fmt_trimmed(c.mean, 6),
-                        fmt_trimmed(c.std, 6),
+                        fmt_float(c.mean, 6),
+                        fmt_float(c.std, 6),
                         c.count.to_string(),
                     ])?;
                 }

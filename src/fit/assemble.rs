@@ -180,6 +180,7 @@ pub(super) fn fitted_model(
             track: map.track.clone(),
             bias: map.bias.clone(),
             covariates,
+            units: Some(log.schema.units.clone()),
         },
         terms: fitted,
         fit,

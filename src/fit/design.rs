@@ -56,7 +56,7 @@ pub(super) fn param_label(terms: &[Arc<dyn Term>], col: usize) -> (String, bool)
         if col < start + names.len() {
             return (
                 format!("{}.{}", t.name(), names[col - start]),
-                t.droppable(),
+                t.caps().droppable,
             );
         }
         start += names.len();
@@ -209,7 +209,7 @@ mod tests {
     use crate::model::terms::intercept::InterceptTerm;
 
     /// Reference: the full replay (the features every term saw before). A term that says it
-    /// does not read the history ([`Term::reads_history`]) must give the same basis, bit for
+    /// does not read the history ([`TermCaps::reads_history`]) must give the same basis, bit for
     /// bit, over the light replay; and the flag matters: `direction` and `memory` do read it.
     #[test]
     fn terms_without_history_give_the_same_basis_from_a_light_replay() {
@@ -226,12 +226,12 @@ mod tests {
             .map(|t| t.prepare(&data).unwrap())
             .collect();
         terms.push(Arc::new(InterceptTerm));
-        let reads: Vec<bool> = terms.iter().map(|t| t.reads_history()).collect();
+        let reads: Vec<bool> = terms.iter().map(|t| t.caps().reads_history).collect();
         assert_eq!(
             reads,
             [false, false, false, false, false, false, true, true, false]
         );
-        for t in terms.iter().filter(|t| !t.reads_history()) {
+        for t in terms.iter().filter(|t| !t.caps().reads_history) {
             let one = std::slice::from_ref(t);
             let basis = |light: bool| {
                 let mut out = Vec::new();

@@ -24,13 +24,14 @@ pub(super) struct NonlinearFit {
 
 /// Variable projection over the nonlinear parameters of `terms` (coordinate-wise if several:
 /// two cycles), each term replaced by its version at the value found; `measured` rows, `p`
-/// design columns.
+/// design columns. With `se`, each searched parameter's standard error (three full solves);
+/// without, `None` (and the edge of the interval alone says whether the search converged).
 pub(super) fn search_nonlinear(
     terms: &mut [Arc<dyn Term>],
     data: &FitData<'_>,
     opts: &CheckedFitOptions,
-    measured: usize,
-    p: usize,
+    (measured, p): (usize, usize),
+    se: bool,
 ) -> NonlinearFit {
     let nl_terms: Vec<usize> = (0..terms.len())
         .filter(|&k| terms[k].nonlinear().is_some())
@@ -55,14 +56,16 @@ pub(super) fn search_nonlinear(
             }
             // The search compares RSS values from the variable projection; the standard
             // error below differentiates the RSS twice, so it takes three full solves.
-            // Used where the term allows it (`Term::search_by_projection`: the `dahl` rate, its
-            // search tested to end where the full solves' does, and its model files compared);
+            // Used where the term allows it (`TermCaps::search_by_projection`: the `dahl` rate,
+            // `memsum`'s length and a lag's τ, each search tested to end where the full solves'
+            // does or at an RSS equal to 1e-12);
             // `stribeck`'s search keeps the full solve per candidate: its velocity-scale search
             // compares RSS values that differ by rounding only, and ends elsewhere within that
             // noise with the projection (its unit-invariance test, 1e-9 of the prediction, then
             // fails by 1.5×).
             let proj = terms[k]
-                .search_by_projection()
+                .caps()
+                .search_by_projection
                 .then(|| Projection::new(terms, k, data, opts))
                 .flatten();
             let (t, _, ev) = match &proj {
@@ -85,17 +88,19 @@ pub(super) fn search_nonlinear(
             };
             drop(proj);
             evaluations += ev;
-            let rss_at = |t: f64| slow_rss(terms, k, t, data, opts);
-            let ft = rss_at(t);
             let span = nl.hi - nl.lo;
             converged &= t > nl.lo + 1e-3 * span && t < nl.hi - 1e-3 * span;
-            // Standard error from the curvature of the RSS: var(t) ≈ 2 s² / RSS''(t).
-            let h = 1e-3 * span;
-            let (fm, fp) = (rss_at(t - h), rss_at(t + h));
-            evaluations += 2;
-            let curv = (fp - 2.0 * ft + fm) / (h * h);
-            let s2 = ft / (measured.saturating_sub(p + 1).max(1)) as f64;
-            nl_se[k] = (curv > 0.0 && ft.is_finite()).then(|| (2.0 * s2 / curv).sqrt());
+            if se {
+                let rss_at = |t: f64| slow_rss(terms, k, t, data, opts);
+                let ft = rss_at(t);
+                // Standard error from the curvature of the RSS: var(t) ≈ 2 s² / RSS''(t).
+                let h = 1e-3 * span;
+                let (fm, fp) = (rss_at(t - h), rss_at(t + h));
+                evaluations += 2;
+                let curv = (fp - 2.0 * ft + fm) / (h * h);
+                let s2 = ft / (measured.saturating_sub(p + 1).max(1)) as f64;
+                nl_se[k] = (curv > 0.0 && ft.is_finite()).then(|| (2.0 * s2 / curv).sqrt());
+            }
             if let Some(term) = terms[k].with_nonlinear(t) {
                 terms[k] = term;
             }
@@ -122,7 +127,8 @@ fn own_search(
     let projection = || {
         proj.get_or_init(|| {
             terms[k]
-                .search_by_projection()
+                .caps()
+                .search_by_projection
                 .then(|| Projection::new(terms, k, data, opts))
                 .flatten()
         })

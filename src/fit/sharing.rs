@@ -32,6 +32,11 @@ pub(crate) struct Refits {
     )>,
     /// [`FitData::with_fixed_budget`].
     pub fixed_budget: usize,
+    /// Whether the standard errors of the searched nonlinear parameters are computed (three
+    /// full solves each, for the curvature of the RSS). A refit whose model serves only its
+    /// out-of-sample residuals skips them: the fitted terms and coefficients are the same bit
+    /// for bit, the standard errors in the model's report `None`.
+    pub nonlinear_se: bool,
 }
 
 impl Default for Refits {
@@ -41,6 +46,7 @@ impl Default for Refits {
             sampling: None,
             history: None,
             fixed_budget: STORED_FIXED_BYTES,
+            nonlinear_se: true,
         }
     }
 }
@@ -61,7 +67,7 @@ pub(crate) fn fit_sharing(
         p,
         measured,
     } = prepare(spec, log, opts, shared)?;
-    let nonlinear = search_nonlinear(&mut terms, &data, opts, measured, p);
+    let nonlinear = search_nonlinear(&mut terms, &data, opts, (measured, p), shared.nonlinear_se);
 
     // The prediction of every term before the adaptive ones, per measured row, where those
     // read nothing but the residuals (`drift`): then they are replayed over it below. The
@@ -157,10 +163,10 @@ fn prepare<'a>(
             .into_iter()
             .collect::<Result<Vec<_>, _>>()?
     };
-    if !terms.iter().any(|t| t.provides_intercept()) {
+    if !terms.iter().any(|t| t.caps().provides_intercept) {
         terms.insert(0, Arc::new(InterceptTerm));
     }
-    if !terms.iter().any(|t| t.reads_history()) {
+    if !terms.iter().any(|t| t.caps().reads_history) {
         // No later replay steps the history (`dahl`): the columns its preparation kept go.
         data.forget_history_columns();
     }

@@ -166,11 +166,8 @@ impl Plan<'_> {
         starts: Option<&mut Vec<ChunkStart<'a>>>,
     ) -> Factorised {
         let p = self.p();
-        let mut qr = if self.dense {
-            PatternQr::dense(p)
-        } else {
-            PatternQr::new(p)
-        };
+        // Compact groups: a short log's pattern groups hold a few rows each.
+        let mut qr = PatternQr::compact(p, self.dense);
         let (mut sums, mut colsq) = (vec![0.0; p], vec![0.0; p + 1]);
         let mut scratch = vec![0.0; p];
         if let Some(s) = starts {

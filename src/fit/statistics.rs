@@ -38,17 +38,17 @@ fn replay_residuals(model: &FittedModel, log: &Log) -> Result<Residuals, FitErro
 }
 
 /// Where the adaptive terms begin, if they all come after the others and read nothing but the
-/// residuals ([`Term::reads_only_residuals`]; `terms.len()` when there are none): then the
+/// residuals ([`TermCaps::reads_only_residuals`](crate::model::TermCaps::reads_only_residuals); `terms.len()` when there are none): then the
 /// fit's statistics replay only them ([`replay_tail`]) over the static prediction of the others
 /// ([`static_predictions_chunked`]) instead of the whole model over the log.
 pub(super) fn adaptive_tail(terms: &[Arc<dyn Term>]) -> Option<usize> {
     let first = terms
         .iter()
-        .position(|t| t.adaptive())
+        .position(|t| t.caps().adaptive)
         .unwrap_or(terms.len());
     terms[first..]
         .iter()
-        .all(|t| t.adaptive() && t.param_count() == 0 && t.reads_only_residuals())
+        .all(|t| t.caps().adaptive && t.param_count() == 0 && t.caps().reads_only_residuals)
         .then_some(first)
 }
 

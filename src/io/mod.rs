@@ -15,7 +15,8 @@
 //! - [`json::to_string_pretty`] is the one JSON writer: a non-finite number (which serde_json
 //!   would write as `null`) is refused naming its key path.
 //! - `finite` refuses to emit a non-finite number; [`quote`] and [`message`] keep error
-//!   messages short whatever the user typed.
+//!   messages short whatever the user typed; [`shell_quote`] quotes a value for a suggested
+//!   command line.
 
 pub(crate) mod fault;
 pub(crate) mod file;
@@ -23,8 +24,9 @@ pub(crate) mod finite;
 pub(crate) mod json;
 pub(crate) mod number;
 pub(crate) mod stdout;
+pub(crate) mod words;
 
-pub use {file::write_atomic, file::write_string_atomic};
+pub use {file::write_atomic, file::write_string_atomic, words::shell_quote};
 
 pub(crate) use file::StagedDir;
 pub use finite::{NonFinite, check_text};
@@ -138,11 +140,28 @@ pub(crate) fn message_with(
     // The whole message, causes included, stays under MESSAGE_CHARS.
     let n = text.chars().count();
     if n > MESSAGE_CHARS {
-        let head: String = text.chars().take(MESSAGE_CHARS - 70).collect();
-        let tail: String = text.chars().skip(n - 60).collect();
-        text = format!("{head} … {tail}");
+        text = cut_middle(&text, MESSAGE_CHARS - 70, 60);
     }
     text
+}
+
+/// `text` (longer than `head + tail` characters) as its first `head` and last `tail`
+/// characters around ` … `, each cut back to a word boundary (whitespace) when one lies in the
+/// last (first) third of it, so that no word is cut in two.
+fn cut_middle(text: &str, head: usize, tail: usize) -> String {
+    let chars: Vec<char> = text.chars().collect();
+    let n = chars.len();
+    let mut h = head.min(n);
+    if let Some(i) = (h * 2 / 3..h).rev().find(|&i| chars[i].is_whitespace()) {
+        h = i;
+    }
+    let mut t = n.saturating_sub(tail).max(h);
+    if let Some(i) = (t..(t + tail / 3).min(n)).find(|&i| chars[i].is_whitespace()) {
+        t = i + 1;
+    }
+    let a: String = chars[..h].iter().collect();
+    let b: String = chars[t..].iter().collect();
+    format!("{} … {}", a.trim_end(), b.trim_start())
 }
 
 /// Most characters of a whole error message ([`message`]), its causes included.
@@ -158,9 +177,7 @@ fn shorten_line(text: &str) -> String {
     if n <= MESSAGE_LINE_CHARS {
         return t;
     }
-    let head: String = t.chars().take(MESSAGE_LINE_CHARS - 60).collect();
-    let tail: String = t.chars().skip(n - 50).collect();
-    format!("{head} … {tail}")
+    cut_middle(&t, MESSAGE_LINE_CHARS - 60, 50)
 }
 
 /// `text` with every word (run of non-whitespace) longer than [`QUOTE_CHARS`] passed through
@@ -198,6 +215,26 @@ mod tests {
         // Multi-byte characters are cut on character boundaries (no panic).
         let wide = "µ".repeat(500);
         assert!(quote(&wide).starts_with("µµµ"));
+    }
+
+    /// Reference: the words of the text. A long message is cut between words, never inside
+    /// one, and keeps its start and end.
+    #[test]
+    fn a_long_message_is_cut_between_words() {
+        let words: Vec<String> = (0..120).map(|i| format!("word{i:03}")).collect();
+        let err = io::Error::other(words.join(" "));
+        let m = message(&err);
+        assert!(m.chars().count() <= MESSAGE_LINE_CHARS, "{m}");
+        assert!(
+            m.starts_with("word000 word001") && m.ends_with("word118 word119"),
+            "{m}"
+        );
+        for w in m.split_whitespace().filter(|w| *w != "…") {
+            assert!(words.iter().any(|x| x == w), "`{w}` is a cut word in {m}");
+        }
+        // Without whitespace to cut at, the cut stays at the limit.
+        let one = io::Error::other("ab,".repeat(200));
+        assert!(message(&one).chars().count() <= MESSAGE_LINE_CHARS);
     }
 
     #[test]

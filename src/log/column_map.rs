@@ -38,23 +38,6 @@ impl Default for ColumnMap {
     }
 }
 
-/// Case-insensitive edit distance between two column names (for "did you mean").
-fn name_distance(a: &str, b: &str) -> usize {
-    let a: Vec<char> = a.to_lowercase().chars().collect();
-    let b: Vec<char> = b.to_lowercase().chars().collect();
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.iter().enumerate() {
-        let mut cur = vec![i + 1; b.len() + 1];
-        for (j, cb) in b.iter().enumerate() {
-            cur[j + 1] = (prev[j] + usize::from(ca != cb))
-                .min(prev[j + 1] + 1)
-                .min(cur[j] + 1);
-        }
-        prev = cur;
-    }
-    prev[b.len()]
-}
-
 /// The column most like `name` (edit distance at most a third of its length, at least 2, or one
 /// name containing the other), for a "did you mean".
 fn closest_column<'a>(name: &str, columns: &'a [String]) -> Option<&'a str> {
@@ -62,7 +45,7 @@ fn closest_column<'a>(name: &str, columns: &'a [String]) -> Option<&'a str> {
     columns
         .iter()
         .filter(|c| !c.is_empty())
-        .map(|c| (name_distance(name, c), c))
+        .map(|c| (crate::io::words::edit_distance(name, c), c))
         .filter(|(d, c)| {
             *d <= (name.chars().count() / 3).max(2) || {
                 // One name inside the other, neither of them a mere letter or two (`a` is in
@@ -78,8 +61,7 @@ fn closest_column<'a>(name: &str, columns: &'a [String]) -> Option<&'a str> {
 
 /// Words that make a column name a likely holder of a role, for a "did you mean" when no name is
 /// close to the one looked for: a rig's `position_m` for the track, `force_N` for the bias.
-fn role_words(field: crate::field::Field) -> &'static [&'static str] {
-    use crate::field::Field;
+fn role_words(field: Field) -> &'static [&'static str] {
     match field {
         Field::TimeColumn => &["time", "zeit", "temps"],
         Field::TrackColumn => &[
@@ -92,17 +74,59 @@ fn role_words(field: crate::field::Field) -> &'static [&'static str] {
     }
 }
 
-/// The first column whose name holds one of `words` (ignoring case), not one of `taken` (the
+/// The symbols a rig names a role's column by, each followed by nothing but a unit (`t`,
+/// `t_s`, `t [s]`; `x_mm`, `q (rad)`; `F_N`, `i [A]`, `u_V`), and the units allowed after
+/// them. A time column must be in seconds, so only `s` follows its symbols.
+fn role_symbols(field: Field) -> (&'static [&'static str], &'static [&'static str]) {
+    match field {
+        Field::TimeColumn => (&["t", "sec", "secs", "seconds"], &["s", "sec"]),
+        Field::TrackColumn => (
+            &["x", "z", "q", "phi", "th", "trk"],
+            &[
+                "m", "mm", "um", "µm", "nm", "cm", "rad", "mrad", "deg", "counts", "tracks", "cnt",
+            ],
+        ),
+        Field::BiasColumn => (
+            &["f", "fm", "i", "u", "tau"],
+            &[
+                "n", "mn", "kn", "a", "ma", "v", "mv", "nm", "counts", "cnt", "pct", "%",
+            ],
+        ),
+        _ => (&[], &[]),
+    }
+}
+
+/// Whether `column` is a role's symbol followed by nothing but one of its units
+/// ([`role_symbols`]), ignoring case and the separators between them (`t [s]`, `F_N`).
+fn is_role_symbol(field: Field, column: &str) -> bool {
+    let (symbols, units) = role_symbols(field);
+    let lower = column.to_lowercase();
+    let mut words = lower
+        .split(|c: char| !(c.is_alphanumeric() || c == '%' || c == 'µ'))
+        .filter(|w| !w.is_empty());
+    let (Some(symbol), rest) = (words.next(), words.collect::<Vec<_>>()) else {
+        return false;
+    };
+    symbols.contains(&symbol) && rest.len() <= 1 && rest.iter().all(|u| units.contains(u))
+}
+
+/// The first column whose name holds one of the role's words (ignoring case), else the first
+/// that is the role's symbol with a unit (`t [s]`, `F_N`, `x_mm`), not one of `taken` (the
 /// other roles' columns).
-fn column_by_role<'a>(words: &[&str], columns: &'a [String], taken: &[usize]) -> Option<&'a str> {
-    columns
-        .iter()
-        .enumerate()
-        .filter(|(i, c)| !c.is_empty() && !taken.contains(i))
+fn column_by_role<'a>(field: Field, columns: &'a [String], taken: &[usize]) -> Option<&'a str> {
+    let free = || {
+        columns
+            .iter()
+            .enumerate()
+            .filter(|(i, c)| !c.is_empty() && !taken.contains(i))
+    };
+    let words = role_words(field);
+    free()
         .find(|(_, c)| {
             let lower = c.to_lowercase();
             words.iter().any(|w| lower.contains(w))
         })
+        .or_else(|| free().find(|(_, c)| is_role_symbol(field, c)))
         .map(|(_, c)| c.as_str())
 }
 
@@ -185,7 +209,7 @@ impl ColumnFinder<'_> {
             found: columns.join(", "),
             field,
             suggestion: closest_column(wanted, columns)
-                .or_else(|| column_by_role(role_words(field), columns, &taken))
+                .or_else(|| column_by_role(field, columns, &taken))
                 .map(str::to_string),
         })
     }
@@ -254,16 +278,7 @@ fn missing_columns(
     columns: &[String],
     missing: &[(String, Field, Option<String>)],
 ) -> LogError {
-    let shell = |s: &str| {
-        if !s.is_empty()
-            && s.chars()
-                .all(|c| c.is_alphanumeric() || "_.-/+".contains(c))
-        {
-            s.to_string()
-        } else {
-            format!("'{}'", s.replace('\'', "'\\''"))
-        }
-    };
+    let shell = crate::io::shell_quote;
     LogError::MissingColumns {
         file: file.into(),
         line,

@@ -79,6 +79,26 @@ impl Log {
         }
     }
 
+    /// Leaves the covariates with empty cells ([`LogSchema::empty_cells`]) out of the log, each
+    /// with a note: every covariate column a whole log holds is complete, and a term that
+    /// reads a left-out column is refused by name.
+    pub(super) fn drop_empty_covariates(&mut self) {
+        let s = &mut self.schema;
+        for e in &s.empty_cells {
+            let Some(k) = s.covariates.iter().position(|c| *c == e.column) else {
+                continue;
+            };
+            s.covariates.remove(k);
+            s.covariate_idx.remove(k);
+            self.covariates.remove(k);
+            s.notes.push(format!(
+                "{e}, read as missing values: `{}` is left out of the covariates (a term that \
+                 reads it needs every cell)",
+                e.column
+            ));
+        }
+    }
+
     /// Gives back the room reserved beyond the rows (one column at a time).
     pub(crate) fn shrink_to_fit(&mut self) {
         self.time_s.shrink_to_fit();

@@ -27,8 +27,9 @@ pub enum LogError {
     },
     /// A required column is not in the header.
     #[error(
-        "{file}: line {line}: missing required column `{column}` (columns found: {found}){}; name it with {field}",
-        did_you_mean(.suggestion)
+        "{file}: line {line}: missing required column `{column}` (columns found: {found}){}; name it with {field} {}",
+        did_you_mean(.suggestion),
+        .suggestion.as_deref().map_or("NAME".into(), crate::io::shell_quote)
     )]
     MissingColumn {
         /// The log file.
@@ -73,7 +74,10 @@ pub enum LogError {
         column: String,
     },
     /// A cell is not a finite number.
-    #[error("{file}: line {line}, column {column_index} (`{column}`): {problem}: `{value}`")]
+    #[error(
+        "{file}: line {line}, column {column_index} (`{column}`): {problem}{}",
+        if .value.is_empty() { String::new() } else { format!(": `{}`", .value) }
+    )]
     BadValue {
         /// The log file.
         file: String,
@@ -83,7 +87,7 @@ pub enum LogError {
         column_index: usize,
         /// Column name.
         column: String,
-        /// The cell's text.
+        /// The cell's text (empty for an empty cell, which the message then does not quote).
         value: String,
         /// What is wrong with it.
         problem: &'static str,

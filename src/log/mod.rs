@@ -62,8 +62,10 @@ pub(crate) use dialect::{parse_cell, sniff_delimiter};
 pub use error::LogError;
 pub(crate) use limits::MAX_ABS_VALUE;
 pub use reader::{LogReader, LogSummary};
-pub use schema::{BiasColumn, LogSchema, Row, STDIN_PATH};
+pub use schema::{BiasColumn, EmptyCells, LogSchema, Row, STDIN_PATH};
+pub(crate) use units::{BIAS_UNIT_KEY, POSITION_UNIT_KEY};
 pub use units::{DEFAULT_BIAS_UNIT, UnitError, Units, check_unit_label};
+pub(crate) use writer::fmt_float;
 pub use writer::{LogWriter, fmt_trimmed};
 pub(crate) use writer::{csv_writer, fmt_fixed};
 

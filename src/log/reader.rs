@@ -160,6 +160,7 @@ impl<R: Read> LogReader<R> {
             delimiter,
             notes,
             units: Units::default(),
+            empty_cells: Vec::new(),
             time_idx,
             track_idx,
             bias_idx,
@@ -313,7 +314,15 @@ impl<R: Read> LogReader<R> {
         };
         row.covariates.clear();
         for &idx in &s.covariate_idx {
-            row.covariates.push(required(idx)?);
+            // An empty covariate cell is a missing value; only a term that reads the column
+            // needs it (`LogSchema::require_covariates`).
+            row.covariates.push(number(idx)?.unwrap_or(f64::NAN));
+        }
+        let empty: Vec<usize> = (0..row.covariates.len())
+            .filter(|&k| row.covariates[k].is_nan())
+            .collect();
+        for k in empty {
+            self.schema.note_empty_cell(k, line);
         }
         row.line = line;
         row.time_s = time_s;
@@ -350,6 +359,8 @@ impl<R: Read> LogReader<R> {
             }
             log.push(&row);
         }
+        log.schema.empty_cells = std::mem::take(&mut self.schema.empty_cells);
+        log.drop_empty_covariates();
         log.shrink_to_fit();
         Ok(log)
     }

@@ -1,7 +1,7 @@
 //! What a log's header says ([`LogSchema`]), one row of it ([`Row`]), and whether the bias
 //! column is required ([`BiasColumn`]).
 
-use super::{ColumnMap, UnitError, Units};
+use super::{ColumnMap, LogError, UnitError, Units};
 
 /// What a log's header says: metadata, column names and which column is which.
 #[derive(Debug, Clone, PartialEq)]
@@ -27,6 +27,11 @@ pub struct LogSchema {
     /// ([`Units::resolve`] without explicit labels); [`LogSchema::set_units`] applies explicit
     /// ones.
     pub units: Units,
+    /// The covariate columns with empty cells, each read as a missing value: a streamed row
+    /// holds `NaN` there; a whole [`Log`](super::Log) leaves such a column out of its
+    /// covariates (and says so in [`LogSchema::notes`]). Only a term that reads the column
+    /// needs every cell ([`LogSchema::require_covariates`]). Filled in as rows are read.
+    pub empty_cells: Vec<EmptyCells>,
     pub(super) time_idx: usize,
     pub(super) track_idx: usize,
     pub(super) bias_idx: Option<usize>,
@@ -42,6 +47,44 @@ impl LogSchema {
     /// Index of covariate `name` in [`Row::covariates`], if the log has it.
     pub fn covariate_index(&self, name: &str) -> Option<usize> {
         self.covariates.iter().position(|c| c == name)
+    }
+
+    /// The empty cells of column `name`, if it has any ([`LogSchema::empty_cells`]).
+    pub fn empty_cells_of(&self, name: &str) -> Option<&EmptyCells> {
+        self.empty_cells.iter().find(|e| e.column == name)
+    }
+
+    /// Refuses `row` if one of the covariates `used` (indices into [`Row::covariates`]) is
+    /// empty there: what a streamed replay checks for the columns its terms read.
+    pub fn require_covariates(&self, row: &Row, used: &[usize]) -> Result<(), LogError> {
+        match used
+            .iter()
+            .find(|&&k| row.covariates.get(k).is_some_and(|v| v.is_nan()))
+        {
+            None => Ok(()),
+            Some(&k) => Err(LogError::BadValue {
+                file: self.file.clone(),
+                line: row.line,
+                column_index: self.covariate_idx.get(k).map_or(0, |i| i + 1),
+                column: self.covariates.get(k).cloned().unwrap_or_default(),
+                value: String::new(),
+                problem: "empty cell in a covariate the model reads",
+            }),
+        }
+    }
+
+    /// Records an empty cell of covariate `k` on line `line`.
+    pub(super) fn note_empty_cell(&mut self, k: usize, line: u64) {
+        let column = &self.covariates[k];
+        match self.empty_cells.iter_mut().find(|e| &e.column == column) {
+            Some(e) => e.count += 1,
+            None => self.empty_cells.push(EmptyCells {
+                column: column.clone(),
+                column_index: self.covariate_idx[k] + 1,
+                count: 1,
+                first_line: line,
+            }),
+        }
     }
 
     /// Resolves the units again with explicit labels (the CLI's `--bias-unit` and
@@ -61,6 +104,35 @@ impl LogSchema {
             let (k, v) = line.split_once('=').or_else(|| line.split_once(':'))?;
             (k.trim() == key).then(|| v.trim())
         })
+    }
+}
+
+/// A covariate column with empty cells ([`LogSchema::empty_cells`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EmptyCells {
+    /// The column's name.
+    pub column: String,
+    /// Its 1-based position in the header.
+    pub column_index: usize,
+    /// How many of its cells are empty.
+    pub count: u64,
+    /// The line of the first empty cell.
+    pub first_line: u64,
+}
+
+impl std::fmt::Display for EmptyCells {
+    /// `column 6 (`humidity`): 1 empty cell (line 102 first)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "column {} (`{}`): {} empty cell{} (line {}{})",
+            self.column_index,
+            self.column,
+            self.count,
+            if self.count == 1 { "" } else { "s" },
+            self.first_line,
+            if self.count == 1 { "" } else { " first" }
+        )
     }
 }
 

@@ -925,3 +925,90 @@ fn missing_column_suggests_the_closest_name() {
     assert_eq!(sniff_delimiter("\"a;b\",c"), b',');
     assert_eq!(sniff_delimiter("abc"), b',');
 }
+
+/// Reference: the header names themselves. A rig's symbol-and-unit names (`t [s]`, `t_s`, `t`,
+/// `F_N`, `x_mm`) are suggested for their role, and every suggested flag value is quoted for
+/// the shell where it needs it; a covariate such as `T_coil` is not taken for the time.
+#[test]
+fn missing_columns_suggest_rig_symbols_quoted_for_the_shell() {
+    let e = read(",t [s],pos_mm,F_N,T_coil\n0,0.0,1,2,20\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with(
+            "name them: ColumnMap::time 't [s]' ColumnMap::track pos_mm ColumnMap::bias F_N"
+        ),
+        "{e}"
+    );
+    let e = read("T_coil,t_s,x_mm,F_N\n20,0,1,2\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with("name them: ColumnMap::time t_s ColumnMap::track x_mm ColumnMap::bias F_N"),
+        "{e}"
+    );
+    // One column missing: the hint names the flag with the value to give it.
+    let e = read("t,track,bias\n0,1,2\n").unwrap_err().to_string();
+    assert!(
+        e.ends_with("did you mean `t`?; name it with ColumnMap::time t"),
+        "{e}"
+    );
+    let e = read("time (s),track,bias\n0,1,2\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with("did you mean `time (s)`?; name it with ColumnMap::time 'time (s)'"),
+        "{e}"
+    );
+    // Neither a time in ms nor a temperature is offered as the time in seconds.
+    for header in ["t_ms,track,bias", "T_coil,track,bias"] {
+        let e = read(&format!("{header}\n0,1,2\n")).unwrap_err().to_string();
+        assert!(!e.contains("did you mean"), "{e}");
+    }
+}
+
+/// Reference: the cells as written. An empty cell in a covariate is a missing value: the whole
+/// log leaves that column out with a note, a streamed row holds NaN there and the schema counts
+/// the cells; an empty cell in a required column is refused without empty quotes.
+#[test]
+fn an_empty_covariate_cell_is_a_missing_value() {
+    let text =
+        "time_s,track,bias,temp_c,humidity\n0,1,2,20,50\n1,2,3,21,\n2,3,4,22,\n3,4,5,23,51\n";
+    let log = read(text).unwrap();
+    assert_eq!(log.len(), 4);
+    assert_eq!(log.schema.covariates, ["temp_c"]);
+    assert_eq!(log.covariate(0), [20.0, 21.0, 22.0, 23.0]);
+    assert_eq!(log.row(1).covariates.len(), 1);
+    let e = &log.schema.empty_cells[0];
+    assert_eq!(
+        (e.column.as_str(), e.column_index, e.count, e.first_line),
+        ("humidity", 5, 2, 3)
+    );
+    assert!(
+        log.schema.notes.iter().any(|n| n
+            .starts_with("column 5 (`humidity`): 2 empty cells (line 3 first)")
+            && n.contains("left out of the covariates")),
+        "{:?}",
+        log.schema.notes
+    );
+    let mut reader =
+        LogReader::from_reader("t.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+    let rows: Vec<Row> = reader.by_ref().collect::<Result<_, _>>().unwrap();
+    assert!(rows[1].covariates[1].is_nan() && rows[0].covariates[1] == 50.0);
+    let s = reader.schema();
+    assert_eq!(s.empty_cells.len(), 1);
+    s.require_covariates(&rows[1], &[0]).unwrap();
+    let err = s
+        .require_covariates(&rows[1], &[1])
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        err,
+        "t.csv: line 3, column 5 (`humidity`): empty cell in a covariate the model reads"
+    );
+    let err = read("time_s,track,bias\n0,,1\n").unwrap_err().to_string();
+    assert_eq!(
+        err,
+        "t.csv: line 2, column 2 (`track`): empty cell in a required column"
+    );
+}

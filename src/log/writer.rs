@@ -17,7 +17,9 @@ pub(crate) fn csv_writer<W: Write>(out: W) -> csv::Writer<W> {
 
 /// Writes a log: metadata lines, the header, then rows, through `csv_writer`. Numbers are
 /// written with fixed decimals (time 6, track as given with up to 6, bias 4, covariates 6) so
-/// output is byte-identical for identical values.
+/// output is byte-identical for identical values; every cell holds a decimal point (`100.0`),
+/// so that CSV readers that guess a column's type from its first rows (pandas, polars) read
+/// every column as floats.
 pub struct LogWriter<W: Write> {
     out: csv::Writer<W>,
     n_covariates: usize,
@@ -51,11 +53,11 @@ impl<W: Write> LogWriter<W> {
     ) -> io::Result<()> {
         debug_assert_eq!(covariates.len(), self.n_covariates);
         self.out.write_field(fmt_fixed(time_s, 6))?;
-        self.out.write_field(fmt_trimmed(track, 6))?;
+        self.out.write_field(fmt_float(track, 6))?;
         self.out
             .write_field(bias.map(|b| fmt_fixed(b, 4)).unwrap_or_default())?;
         for &c in covariates {
-            self.out.write_field(fmt_trimmed(c, 6))?;
+            self.out.write_field(fmt_float(c, 6))?;
         }
         self.out.write_record(None::<&[u8]>)?;
         Ok(())
@@ -75,6 +77,16 @@ pub(crate) fn fmt_fixed(x: f64, decimals: usize) -> String {
     } else {
         s
     }
+}
+
+/// A float cell of a CSV file: [`fmt_trimmed`], with `.0` on a whole number (`120.0`, `0.25`),
+/// so that a reader guessing the column's type from its first rows takes it as a float.
+pub(crate) fn fmt_float(x: f64, decimals: usize) -> String {
+    let mut s = fmt_trimmed(x, decimals);
+    if !s.contains('.') {
+        s.push_str(".0");
+    }
+    s
 }
 
 /// `x` with at most `decimals` decimals and trailing zeros removed (`120`, `0.25`).
@@ -107,7 +119,7 @@ mod tests {
         let text = String::from_utf8(buf).unwrap();
         assert_eq!(
             text,
-            "# seed = 3\ntime_s,track,bias,temp_c\n0.000000,100,0.0000,25.5\n0.500000,101.25,,25\n"
+            "# seed = 3\ntime_s,track,bias,temp_c\n0.000000,100.0,0.0000,25.5\n0.500000,101.25,,25.0\n"
         );
         // A covariate name with a comma or a quote is quoted, and reads back as it was.
         let mut buf = Vec::new();

@@ -65,6 +65,18 @@ pub enum FitError {
         /// The covariates present.
         available: String,
     },
+    /// A term reads a covariate column that has empty cells (missing values).
+    #[error(
+        "{file}: term `{term}` reads {cells}; a term needs a value on every row: fill the cells, or leave the term out"
+    )]
+    EmptyCovariate {
+        /// The log file.
+        file: String,
+        /// The term.
+        term: String,
+        /// The column and its empty cells.
+        cells: crate::log::EmptyCells,
+    },
     /// A term names one of the log's required columns (time, position, bias) as a covariate.
     #[error(
         "{file}: term `{term}` reads column `{column}`, which is the log's {role} column, not a covariate: {hint}"
@@ -414,7 +426,7 @@ impl<'a> FitData<'a> {
 
     /// [`FitData::measured_values`] of a function of the features a log's times and positions
     /// give row by row (`seek_index`, `time_s`, `elapsed_s`, `dwell_s`, `source`, `target`,
-    /// `seek_length`; see [`Term::reads_history`](crate::model::Term::reads_history)) and the covariates: the same values, from a
+    /// `seek_length`; see [`TermCaps::reads_history`](crate::model::TermCaps::reads_history)) and the covariates: the same values, from a
     /// replay without the direction tracker and rest memory.
     pub fn measured_positional(&self, f: impl Fn(&Seek<'_>) -> Option<f64>) -> Vec<f64> {
         let mut out = Vec::with_capacity(self.log.measured_count());
@@ -464,6 +476,13 @@ impl<'a> FitData<'a> {
                 column: column.into(),
                 role,
                 hint,
+            });
+        }
+        if let Some(cells) = s.empty_cells_of(column) {
+            return Err(FitError::EmptyCovariate {
+                file: s.file.clone(),
+                term: term.into(),
+                cells: cells.clone(),
             });
         }
         s.covariate_index(column)

@@ -4,10 +4,12 @@
 //! ```
 //! # use biasctl::{FittedModel, Predictor};
 //! # fn demo(model: &FittedModel) -> Result<(), biasctl::ModelError> {
-//! let mut p = Predictor::new(model, &[])?;
-//! p.step(0.0, 100.0, &[], Some(12.0));        // seek to 100, measured 12 counts
-//! let guess = p.peek(0.5, 180.0, &[]);         // what would the bias be at 180?
-//! assert_eq!(guess, p.step(0.5, 180.0, &[], None));
+//! let mut p = Predictor::new(model, &[])?;    // the log's covariate names (none here)
+//! p.step(0.0, 100.0, &[], Some(12.0))?;       // seek to 100, measured 12 counts
+//! let guess = p.peek(0.5, 180.0, &[])?;        // what would the bias be at 180?
+//! assert_eq!(guess, p.step(0.5, 180.0, &[], None)?);
+//! // One value per covariate name given to `new`, no more, no fewer:
+//! assert!(p.peek(1.0, 200.0, &[25.0]).is_err());
 //! # Ok(()) }
 //! ```
 
@@ -35,7 +37,7 @@ pub struct Predictor {
     velocity: Option<usize>,
     states: Vec<Box<dyn TermState>>,
     coefficients: Vec<Vec<f64>>,
-    /// Scratch: one term's basis values, then the row's covariates (padded with 0).
+    /// Scratch: one term's basis values, then the row's covariates.
     scratch: RefCell<(Vec<f64>, Vec<f64>)>,
 }
 
@@ -83,14 +85,27 @@ impl Predictor {
         &self.history
     }
 
-    /// Copies `covariates` into the scratch buffer (missing values count as 0) and sums the
-    /// terms' contributions (counts) for the seek `f`, writing each into `contrib`.
+    /// Refuses `covariates` unless it holds one value per covariate name given to
+    /// [`Predictor::new`].
+    fn check_count(&self, covariates: &[f64]) -> Result<(), ModelError> {
+        let expected = self.scratch.borrow().1.len();
+        if covariates.len() == expected {
+            Ok(())
+        } else {
+            Err(ModelError::CovariateCount {
+                expected,
+                given: covariates.len(),
+            })
+        }
+    }
+
+    /// Copies `covariates` (one value per name, [`Predictor::check_count`]) into the scratch
+    /// buffer and sums the terms' contributions (counts) for the seek `f`, writing each into
+    /// `contrib`.
     fn evaluate(&self, f: &SeekFeatures, covariates: &[f64], contrib: &mut [f64]) -> f64 {
         let mut scratch = self.scratch.borrow_mut();
         let (basis, cov) = &mut *scratch;
-        for (i, c) in cov.iter_mut().enumerate() {
-            *c = covariates.get(i).copied().unwrap_or(0.0);
-        }
+        cov.copy_from_slice(covariates);
         let seek = Seek {
             features: f,
             covariates: cov,
@@ -109,19 +124,28 @@ impl Predictor {
     }
 
     /// Predicted bias (counts, or the log's bias unit) if the next seek went to `target`
-    /// (tracks) at `time_s` (s) with these covariate values; the state is unchanged. Missing
-    /// covariate values count as 0.
-    pub fn peek(&self, time_s: f64, target: f64, covariates: &[f64]) -> f64 {
+    /// (tracks) at `time_s` (s) with these covariate values (one per name given to
+    /// [`Predictor::new`], else [`ModelError::CovariateCount`]); the state is unchanged.
+    pub fn peek(&self, time_s: f64, target: f64, covariates: &[f64]) -> Result<f64, ModelError> {
+        self.check_count(covariates)?;
         let f = self
             .history
             .peek_moved(time_s, target, self.moved(covariates));
-        self.evaluate(&f, covariates, &mut [])
+        Ok(self.evaluate(&f, covariates, &mut []))
     }
 
     /// Records a seek to `target` at `time_s` and, if measured, its bias; returns the prediction
     /// made before the measurement was seen (it depends on no bias of this row). Adaptive terms
     /// (`drift`) learn from measured rows only and hold their state over unmeasured ones.
-    pub fn step(&mut self, time_s: f64, target: f64, covariates: &[f64], bias: Option<f64>) -> f64 {
+    /// `covariates` holds one value per name given to [`Predictor::new`], else the seek is not
+    /// recorded and the answer is [`ModelError::CovariateCount`].
+    pub fn step(
+        &mut self,
+        time_s: f64,
+        target: f64,
+        covariates: &[f64],
+        bias: Option<f64>,
+    ) -> Result<f64, ModelError> {
         self.step_detailed(time_s, target, covariates, bias, &mut [])
     }
 
@@ -134,7 +158,8 @@ impl Predictor {
         covariates: &[f64],
         bias: Option<f64>,
         contrib: &mut [f64],
-    ) -> f64 {
+    ) -> Result<f64, ModelError> {
+        self.check_count(covariates)?;
         let f = self
             .history
             .step_moved(time_s, target, self.moved(covariates));
@@ -148,7 +173,7 @@ impl Predictor {
         for s in &mut self.states {
             s.update(&seek, residual);
         }
-        pred
+        Ok(pred)
     }
 }
 
@@ -214,6 +239,13 @@ pub fn replay_stream<R: Read>(
     let schema = reader.schema().clone();
     model.check_schema(&schema)?;
     let mut p = Predictor::new(model, &schema.covariates)?;
+    // The covariates the model reads: an empty cell there is an error, elsewhere a missing
+    // value.
+    let used: Vec<usize> = model
+        .covariates_read()
+        .iter()
+        .filter_map(|(_, c)| schema.covariate_index(c))
+        .collect();
     let mut contrib = vec![0.0; model.terms.len()];
     let mut row = Row::empty(schema.covariates.len());
     let mut summary = ReplaySummary {
@@ -225,13 +257,14 @@ pub fn replay_stream<R: Read>(
     let fitted = model.fit.position_range;
     let mut outside: Option<RangeWarning> = None;
     while reader.read_into(&mut row)? {
+        schema.require_covariates(&row, &used)?;
         let predicted = p.step_detailed(
             row.time_s,
             row.track,
             &row.covariates,
             row.bias,
             &mut contrib,
-        );
+        )?;
         let out = RowPrediction {
             predicted,
             residual: row.bias.map(|y| y - predicted),
@@ -269,8 +302,8 @@ pub fn replay_stream<R: Read>(
 /// `predicted`, `residual`, with `start` also `integrator_start`, then one column per term),
 /// then one row per log row as soon as it is read. Numbers are written with every digit they
 /// need to read back exactly (`crate::io::number::write_shortest`, the text of
-/// `to_string()`); an unmeasured bias, its residual, or a start value that does not exist is an
-/// empty cell. With `flush_each`, every row is flushed as written (a stream answered row by
+/// `to_string()`); an unmeasured bias, its residual, a missing covariate value, or a start value
+/// that does not exist is an empty cell. With `flush_each`, every row is flushed as written (a stream answered row by
 /// row). Nothing is allocated per row.
 pub fn write_predictions_csv<R: Read>(
     model: &FittedModel,
@@ -301,7 +334,8 @@ pub fn write_predictions_csv<R: Read>(
         rows.cell(Some(row.track));
         rows.cell(row.bias);
         for &c in &row.covariates {
-            rows.cell(Some(c));
+            // A missing value (an empty cell of a covariate no term reads) stays empty.
+            rows.cell((!c.is_nan()).then_some(c));
         }
         rows.cell(Some(p.predicted));
         rows.cell(p.residual);
@@ -363,7 +397,7 @@ pub fn predict_next(
             row.track,
             row.covariates.gather(&mut cov),
             row.bias,
-        );
+        )?;
     }
     let Some(last) = log.last() else {
         return Err(ModelError::EmptyLog {
@@ -374,7 +408,7 @@ pub fn predict_next(
     Ok(NextPrediction {
         target,
         time_s: last.time_s,
-        bias: p.peek(last.time_s, target, last.covariates.gather(&mut cov)),
+        bias: p.peek(last.time_s, target, last.covariates.gather(&mut cov))?,
         rows_replayed: replay,
     })
 }

@@ -9,7 +9,7 @@
 //! settings, `#[derive(Serialize, Deserialize)]` on the fitted type; declare the module in
 //! `terms/mod.rs` (`pub mod NAME;`) and add its row to [`BUILTINS`]. Nothing in the solver
 //! ([`crate::fit`](mod@crate::fit)) knows term names: a term reports its parameter count, whether it may drop
-//! undetermined columns ([`Term::droppable`]) and its own fit warnings ([`Term::fit_warnings`]).
+//! undetermined columns ([`TermCaps::droppable`](crate::model::TermCaps::droppable)) and its own fit warnings ([`Term::fit_warnings`]).
 //!
 //! ```
 //! use biasctl::model::builtin_names;
@@ -71,14 +71,14 @@ fn answers_none(_: Cue) -> Option<Answer> {
 /// Every built-in term, in the order [`builtin_names`] lists them.
 pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     row(
-        "poly2",
+        poly::HEAD,
         Some("poly2"),
         poly::parse,
         restore_as::<poly::Poly2Term>,
     )
     .exports_c(),
     row(
-        "table",
+        table::HEAD,
         Some("table[:SPACING]"),
         table::parse,
         restore_as::<table::TableTerm>,
@@ -86,7 +86,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .answering(table::answers)
     .exports_c(),
     row(
-        "direction",
+        direction::HEAD,
         Some("direction"),
         direction::parse,
         direction::restore,
@@ -95,7 +95,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .signed_state()
     .exports_c(),
     row(
-        "seek",
+        seek::HEAD,
         Some("seek[:KNOTS]"),
         seek::parse,
         restore_as::<seek::SeekTerm>,
@@ -104,7 +104,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .conflicting(&["dahl"])
     .exports_c(),
     row(
-        "memory",
+        memory::HEAD,
         Some("memory[:KNOTS]"),
         memory::parse,
         restore_as::<memory::MemoryTerm>,
@@ -112,7 +112,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .answering(memory::answers)
     .exports_c(),
     row(
-        "drift",
+        drift::HEAD,
         Some("drift[:ALPHA]"),
         drift::parse,
         restore_as::<drift::DriftTerm>,
@@ -120,7 +120,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .answering(drift::answers)
     .exports_c(),
     row(
-        "dahl",
+        dahl::HEAD,
         Some("dahl, dahl:N"),
         dahl::parse,
         restore_as::<dahl::DahlTerm>,
@@ -132,7 +132,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .signed_state()
     .exports_c(),
     row(
-        "play",
+        play::HEAD,
         Some("play[:N]"),
         play::parse,
         restore_as::<play::PlayTerm>,
@@ -141,23 +141,23 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .covered(Cover::Family)
     .signed_state(),
     row(
-        "col",
+        covariate::HEAD,
         Some("col:NAME"),
         covariate::parse,
         restore_as::<covariate::ColTerm>,
     )
     .answering(covariate::answers)
     .exports_c(),
-    row("lag", Some("lag:NAME"), lag::parse, lag::restore).answering(lag::answers),
+    row(lag::HEAD, Some("lag:NAME"), lag::parse, lag::restore).answering(lag::answers),
     row(
-        "memsum",
+        memsum::HEAD,
         Some("memsum"),
         memsum::parse,
         restore_as::<memsum::MemsumTerm>,
     )
     .answering(memsum::answers),
     row(
-        "viscous",
+        viscous::HEAD,
         Some("viscous[:COL]"),
         viscous::parse,
         restore_as::<viscous::ViscousTerm>,
@@ -165,7 +165,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .answering(viscous::answers)
     .exports_c(),
     row(
-        "stribeck",
+        stribeck::HEAD,
         Some("stribeck[:COL][:DELTA]"),
         stribeck::parse,
         stribeck::restore,
@@ -173,7 +173,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .answering(stribeck::answers)
     .exports_c(),
     row(
-        "bins",
+        bins::HEAD,
         Some("bins:FEATURE[:KNOTS]"),
         bins::parse,
         bins::restore,
@@ -181,7 +181,7 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .answering(bins::answers)
     .exports_c(),
     row(
-        "dbins",
+        bins::DBINS_HEAD,
         Some("dbins:FEATURE[:KNOTS]"),
         bins::parse,
         bins::restore,
@@ -189,27 +189,32 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .answering(bins::answers_by_direction)
     .exports_c(),
     row(
-        "bump",
+        bump::HEAD,
         Some("bump[:CENTRE:WIDTH]"),
         bump::parse,
         restore_as::<bump::BumpTerm>,
     )
     .exports_c(),
     row(
-        "step",
+        step::HEAD,
         Some("step:COL[:T]"),
         step::parse,
         restore_as::<step::StepTerm>,
     )
     .exports_c(),
-    row("by", Some("by:A:B"), by::parse, restore_as::<by::ByTerm>),
     row(
-        "scale",
+        by::HEAD,
+        Some("by:A:B"),
+        by::parse,
+        restore_as::<by::ByTerm>,
+    ),
+    row(
+        scale::HEAD,
         Some("scale:COL:TERM"),
         scale::parse,
         scale::restore,
     ),
-    row("intercept", None, intercept::parse, intercept::restore).exports_c(),
+    row(intercept::HEAD, None, intercept::parse, intercept::restore).exports_c(),
 ];
 
 const fn row(
@@ -296,7 +301,7 @@ pub(crate) fn candidates(cue: Cue, name: &str) -> Vec<String> {
 }
 
 /// The head of spec text `t` (before the first `:`).
-fn head(t: &str) -> &str {
+pub(crate) fn head(t: &str) -> &str {
     t.split(':').next().unwrap_or("")
 }
 
@@ -346,6 +351,30 @@ pub fn builtin_names() -> String {
         .join(", ")
 }
 
+/// The head of every listed built-in term (`poly2`, `table`, …), once each, in registry order:
+/// a list short enough for one line of a message.
+pub(crate) fn builtin_heads() -> Vec<&'static str> {
+    BUILTINS
+        .iter()
+        .filter(|b| b.syntax.is_some())
+        .map(|b| b.head)
+        .collect()
+}
+
+/// `; did you mean `x`?` for an unknown term's spec text: the closest built-in head to its
+/// head, with the arguments as written (`dahll:4` → `dahl:4`), or nothing.
+pub(crate) fn did_you_mean_term(text: &str) -> String {
+    let (head, args) = text
+        .split_once(':')
+        .map_or((text, None), |(h, a)| (h, Some(a)));
+    crate::io::words::closest(head, builtin_heads())
+        .map(|h| match args {
+            Some(a) => format!("; did you mean `{h}:{a}`?"),
+            None => format!("; did you mean `{h}`?"),
+        })
+        .unwrap_or_default()
+}
+
 /// A fitted term rebuilt by deserialising its saved settings into `T`.
 pub(crate) fn restore_as<T: serde::de::DeserializeOwned + Term + 'static>(
     name: &str,
@@ -366,6 +395,36 @@ mod tests {
     use crate::log::{ColumnMap, Log};
     use crate::model::data::FitData;
     use crate::numeric::rng::SimRng;
+
+    /// Reference: the registry's heads. An unknown term gets the closest head with its
+    /// arguments kept, and the message lists every head whole, within the shortest message
+    /// limit (the full syntax list was cut mid-word there).
+    #[test]
+    fn an_unknown_term_gets_a_did_you_mean_and_every_head_whole() {
+        let e = crate::model::ModelSpec::parse("poly2,dahll").unwrap_err();
+        let m = crate::io::message(&e);
+        assert!(
+            m.starts_with("unknown term `dahll`; did you mean `dahl`?"),
+            "{m}"
+        );
+        for b in BUILTINS.iter().filter(|b| b.syntax.is_some()) {
+            assert!(
+                m.contains(&format!(" {},", b.head)) || m.contains(&format!(" {};", b.head)),
+                "{} in {m}",
+                b.head
+            );
+        }
+        assert!(!m.contains('…'), "{m}");
+        let e = crate::model::ModelSpec::parse("stribek:velocity").unwrap_err();
+        assert!(
+            e.to_string().contains("did you mean `stribeck:velocity`?"),
+            "{e}"
+        );
+        let e = crate::model::ModelSpec::parse("qqqq").unwrap_err();
+        assert!(!e.to_string().contains("did you mean"), "{e}");
+        let e = crate::model::ModelSpec::preset("calibraton").unwrap_err();
+        assert!(e.to_string().contains("did you mean `calibration`?"), "{e}");
+    }
 
     /// A random seek log with a covariate `temp_c`.
     fn log() -> Log {

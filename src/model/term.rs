@@ -102,20 +102,74 @@ pub trait TermSpec: Debug + Send + Sync {
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError>;
 }
 
+/// What a term can do, as the fit, the replay and the diagnosis read it: one value per term
+/// ([`Term::caps`]) instead of a method per flag. A new term states only the flags it changes
+/// from [`TermCaps::DEFAULT`] (`TermCaps { droppable: true, ..TermCaps::DEFAULT }`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TermCaps {
+    /// Whether the basis spans a constant (then the model adds no separate intercept).
+    pub provides_intercept: bool,
+    /// Whether basis columns the data cannot determine may be fixed at 0 with a warning
+    /// (hinge knots) instead of failing the fit.
+    pub droppable: bool,
+    /// Whether the term's contribution adapts to the measured bias while a log is replayed
+    /// (its state uses the `residual` of [`TermState::update`], like `drift`): then its
+    /// one-step error and its free-run error differ and both are reported.
+    pub adaptive: bool,
+    /// Whether the term's state reads nothing but the residuals: an [`TermCaps::adaptive`] term
+    /// with no linear parameters whose [`TermState::offset`] and [`TermState::update`] read
+    /// neither the seek features nor the covariates (`drift`). The fit then replays it over the
+    /// rest of the model's stored predictions for its statistics instead of replaying the whole
+    /// model over the log once more (the same arithmetic, tested).
+    pub reads_only_residuals: bool,
+    /// Whether the basis carries a constant inbound/outbound offset (a direction × constant
+    /// column, as `direction` and `dahl` do); terms that need such a companion ask the other
+    /// terms of the model through this in [`Term::fit_warnings`].
+    pub spans_direction_offset: bool,
+    /// Whether the solver may search this term's nonlinear parameter by variable projection:
+    /// the rest of the model factored once, each candidate's RSS from sums over this term's own
+    /// columns, instead of a full solve per candidate. Only for a search whose RSS curve stands
+    /// clear of rounding near its minimum, tested to end where the full solves' search ends
+    /// (`dahl`'s rate). Otherwise a full solve per candidate, as `stribeck`'s velocity scale
+    /// keeps: its RSS values near the minimum differ by rounding only.
+    pub search_by_projection: bool,
+    /// Whether the term's state reads the seek history: any feature beyond those a log's times
+    /// and positions give row by row (`seek_index`, `time_s`, `elapsed_s`, `dwell_s`, `source`,
+    /// `target`, `seek_length`). A fit whose terms all answer `false` replays the log without
+    /// the direction tracker and the rest memory (their features are then 0 / `None`, see
+    /// [`crate::history::History`]), as the `dahl` rate search does once per candidate.
+    pub reads_history: bool,
+}
+
+impl TermCaps {
+    /// The capabilities of a plain term: no intercept, no dropped columns, not adaptive, reads
+    /// the seek history (the safe answer), searched by full solves.
+    pub const DEFAULT: TermCaps = TermCaps {
+        provides_intercept: false,
+        droppable: false,
+        adaptive: false,
+        reads_only_residuals: false,
+        spans_direction_offset: false,
+        search_by_projection: false,
+        reads_history: true,
+    };
+}
+
+impl Default for TermCaps {
+    fn default() -> Self {
+        TermCaps::DEFAULT
+    }
+}
+
 /// A term with its data-dependent settings fixed (see the module docs).
 pub trait Term: Debug + Send + Sync {
     /// The spec string this term came from; also the name of its contribution column.
     fn name(&self) -> String;
     /// Names of the linear parameters (without the `term.` prefix); one per basis value.
     fn param_names(&self) -> Vec<String>;
-    /// Whether the basis spans a constant (then the model adds no separate intercept).
-    fn provides_intercept(&self) -> bool {
-        false
-    }
-    /// Whether basis columns the data cannot determine may be fixed at 0 with a warning
-    /// (hinge knots) instead of failing the fit.
-    fn droppable(&self) -> bool {
-        false
+    /// What the term can do (see [`TermCaps`]). Default: [`TermCaps::DEFAULT`].
+    fn caps(&self) -> TermCaps {
+        TermCaps::DEFAULT
     }
     /// Relative ridge penalty on this term's coefficients (default 0: plain least squares):
     /// each of its columns `j` adds `λ·‖x_j‖²·β_j²` to the least-squares objective, pulling
@@ -124,21 +178,7 @@ pub trait Term: Debug + Send + Sync {
     fn ridge(&self) -> f64 {
         0.0
     }
-    /// Whether the term's contribution adapts to the measured bias while a log is replayed
-    /// (its state uses the `residual` of [`TermState::update`], like `drift`): then its
-    /// one-step error and its free-run error differ and both are reported.
-    fn adaptive(&self) -> bool {
-        false
-    }
-    /// Whether the term's state reads nothing but the residuals: an [`Term::adaptive`] term
-    /// with no linear parameters whose [`TermState::offset`] and [`TermState::update`] read
-    /// neither the seek features nor the covariates (`drift`). The fit then replays it over the
-    /// rest of the model's stored predictions for its statistics instead of replaying the whole
-    /// model over the log once more (the same arithmetic, tested). Default `false`.
-    fn reads_only_residuals(&self) -> bool {
-        false
-    }
-    /// For a [`Term::reads_only_residuals`] term that is exponential forgetting of the
+    /// For a [`TermCaps::reads_only_residuals`] term that is exponential forgetting of the
     /// residuals (`drift`): its factor `alpha`, where its state's offset is a running `m`
     /// starting at 0 and its update with residual `e` is `m += alpha · e`. The fit then
     /// replays it in one plain loop ([`crate::fit`](mod@crate::fit)'s tail statistics; tested equal to the
@@ -150,12 +190,6 @@ pub trait Term: Debug + Send + Sync {
     /// Default: the length of [`Term::param_names`].
     fn param_count(&self) -> usize {
         self.param_names().len()
-    }
-    /// Whether the basis carries a constant inbound/outbound offset (a direction × constant
-    /// column, as `direction` and `dahl` do); terms that need such a companion ask the other
-    /// terms of the model through this in [`Term::fit_warnings`].
-    fn spans_direction_offset(&self) -> bool {
-        false
     }
     /// Warnings about this term once fitted, given every term of the model (itself included):
     /// for example a hinge term left with no knots, or a missing companion term. The fit adds
@@ -173,24 +207,6 @@ pub trait Term: Debug + Send + Sync {
     /// The nonlinear parameter, if any.
     fn nonlinear(&self) -> Option<Nonlinear> {
         None
-    }
-    /// Whether the solver may search this term's nonlinear parameter by variable projection:
-    /// the rest of the model factored once, each candidate's RSS from sums over this term's own
-    /// columns, instead of a full solve per candidate. Only for a search whose RSS curve stands
-    /// clear of rounding near its minimum, tested to end where the full solves' search ends
-    /// (`dahl`'s rate). Default: false (a full solve per candidate, as `stribeck`'s velocity
-    /// scale keeps: its RSS values near the minimum differ by rounding only).
-    fn search_by_projection(&self) -> bool {
-        false
-    }
-    /// Whether the term's state reads the seek history: any feature beyond those a log's times
-    /// and positions give row by row (`seek_index`, `time_s`, `elapsed_s`, `dwell_s`, `source`,
-    /// `target`, `seek_length`). A fit whose terms all answer `false` replays the log without
-    /// the direction tracker and the rest memory (their features are then 0 / `None`, see
-    /// [`crate::history::History`]), as the `dahl` rate search does once per candidate.
-    /// Default: true.
-    fn reads_history(&self) -> bool {
-        true
     }
     /// The same term with its nonlinear parameter set to `value` (search coordinate).
     fn with_nonlinear(&self, _value: f64) -> Option<Arc<dyn Term>> {
@@ -216,7 +232,7 @@ pub trait Term: Debug + Send + Sync {
     /// its own 1-D search of [`Term::nonlinear`] (which such a term still reports, so the fit
     /// knows it has something to search); `None` (the default): the fit searches
     /// [`Term::nonlinear`] itself. The RSS comes by variable projection where
-    /// [`Term::search_by_projection`] allows it, else by a full solve per version.
+    /// [`TermCaps::search_by_projection`] allows it, else by a full solve per version.
     fn search(&self, _ctx: &SearchContext<'_>) -> Option<Searched> {
         None
     }
@@ -325,7 +341,7 @@ impl<T: Term + ?Sized> SearchBasis for PerRowSearch<'_, T> {
         let mut block = vec![0.0; PER_ROW_BLOCK * stride];
         let mut rows = 0;
         let mut cov = Vec::new();
-        for (_, row, f) in self.data.replay_reading(self.term.reads_history()) {
+        for (_, row, f) in self.data.replay_reading(self.term.caps().reads_history) {
             let seek = Seek {
                 features: &f,
                 covariates: row.covariates.gather(&mut cov),
@@ -463,8 +479,8 @@ pub(crate) fn se_from_cov(cov: &[f64], n: usize, i: usize) -> Option<f64> {
 impl<'a> FitData<'a> {
     /// A replay for `terms`: without the direction tracker and rest memory
     /// ([`crate::history::History::step_light`]) when no term reads the history
-    /// ([`Term::reads_history`]).
+    /// ([`TermCaps::reads_history`]).
     pub(crate) fn replay_for(&self, terms: &[Arc<dyn Term>]) -> Replay<'a> {
-        self.replay_reading(terms.iter().any(|t| t.reads_history()))
+        self.replay_reading(terms.iter().any(|t| t.caps().reads_history))
     }
 }

@@ -12,8 +12,11 @@ use nalgebra::DMatrix;
 #[derive(Debug, Clone)]
 pub(crate) struct StreamingQr {
     cols: usize,
-    /// Column-major, `cols + CHUNK` rows: the first `cols` rows hold `R`, then the new rows.
+    /// Column-major, `cols + cap` rows: the first `cols` rows hold `R`, then the new rows.
     block: Vec<f64>,
+    /// Rows of new data the block holds: `chunk`, or for a compact factorisation as many as
+    /// have come so far (from [`COMPACT_START`], doubled as needed up to `chunk`).
+    cap: usize,
     fill: usize,
     colsq: Vec<f64>,
     /// Whether a partial chunk is factorised on its filled rows alone ([`StreamingQr::fold`]).
@@ -25,6 +28,10 @@ pub(crate) struct StreamingQr {
 /// Rows between two re-factorisations of a [`StreamingQr::compact`].
 const COMPACT_CHUNK: usize = 1024;
 
+/// Rows of new data a [`StreamingQr::compact`]'s block holds at first (it grows as rows come:
+/// a pattern group of a few rows neither zeroes nor factorises a block of [`COMPACT_CHUNK`]).
+const COMPACT_START: usize = 16;
+
 /// Rows added between two re-factorisations.
 pub(crate) const CHUNK: usize = 1024;
 
@@ -35,6 +42,7 @@ impl StreamingQr {
         Self {
             cols,
             block: vec![0.0; (cols + CHUNK) * cols],
+            cap: CHUNK,
             fill: 0,
             colsq: vec![0.0; cols],
             compact: false,
@@ -46,12 +54,15 @@ impl StreamingQr {
     /// (a block of `p + 1 + filled` rows instead of `p + 1 + CHUNK`) and whose chunks are
     /// [`COMPACT_CHUNK`] rows: the same `R` up to rounding (the dot products split into other
     /// partial sums), much less work and memory where a factorisation ends with a few rows —
-    /// the chunks of a chunked solve, whose every pattern group ends with a partial chunk.
-    fn compact(p: usize) -> Self {
+    /// the chunks of a chunked solve and the pattern groups of a short log, whose every group
+    /// ends with a partial chunk. Its block grows with the rows ([`COMPACT_START`]); the rows
+    /// factorised together are the same whatever its size, so the same `R` bit for bit.
+    pub(crate) fn compact(p: usize) -> Self {
         let cols = p + 1;
         Self {
             cols,
-            block: vec![0.0; (cols + COMPACT_CHUNK) * cols],
+            block: vec![0.0; (cols + COMPACT_START) * cols],
+            cap: COMPACT_START,
             fill: 0,
             colsq: vec![0.0; cols],
             compact: true,
@@ -65,7 +76,10 @@ impl StreamingQr {
     /// a fresh one, without zeroing (and faulting in) a new block.
     fn compact_in(p: usize, mut block: Vec<f64>) -> Self {
         let cols = p + 1;
-        let m = cols + COMPACT_CHUNK;
+        let cap = (block.len() / cols)
+            .saturating_sub(cols)
+            .clamp(COMPACT_START, COMPACT_CHUNK);
+        let m = cols + cap;
         block.resize(m * cols, 0.0);
         for j in 0..cols {
             block[j * m..j * m + cols].fill(0.0);
@@ -73,6 +87,7 @@ impl StreamingQr {
         Self {
             cols,
             block,
+            cap,
             fill: 0,
             colsq: vec![0.0; cols],
             compact: true,
@@ -90,10 +105,19 @@ impl StreamingQr {
         self.place(x.iter().copied(), y);
     }
 
+    /// The sums of squares of the columns (the response's last) of the rows [`StreamingQr::push`]
+    /// added so far.
+    pub(crate) fn column_squares(&self) -> &[f64] {
+        &self.colsq
+    }
+
     /// Adds one row (its `p` regressors, then the response `y`) without summing its squares.
     #[inline(always)]
     fn place(&mut self, x: impl Iterator<Item = f64>, y: f64) {
-        let m = self.cols + self.chunk;
+        if self.fill == self.cap {
+            self.grow();
+        }
+        let m = self.cols + self.cap;
         let row = self.cols + self.fill;
         let mut at = row;
         for v in x {
@@ -107,11 +131,26 @@ impl StreamingQr {
         }
     }
 
+    /// Doubles the rows of new data the block holds (up to `chunk`), moving `R` and the rows
+    /// so far to the new stride.
+    fn grow(&mut self) {
+        let (n, m) = (self.cols, self.cols + self.cap);
+        let cap = (2 * self.cap).min(self.chunk);
+        let m2 = n + cap;
+        let mut block = vec![0.0; m2 * n];
+        let used = n + self.fill;
+        for j in 0..n {
+            block[j * m2..j * m2 + used].copy_from_slice(&self.block[j * m..j * m + used]);
+        }
+        self.block = block;
+        self.cap = cap;
+    }
+
     fn fold(&mut self) {
         if self.fill == 0 {
             return;
         }
-        let (n, m) = (self.cols, self.cols + self.chunk);
+        let (n, m) = (self.cols, self.cols + self.cap);
         if self.fill < self.chunk && self.compact {
             // Partial chunk on its filled rows alone: the columns moved together (each column's
             // first `n + fill` rows; forward, so no column overwrites one not yet moved), the
@@ -152,7 +191,7 @@ impl StreamingQr {
 
     fn final_r(&mut self) -> DMatrix<f64> {
         self.fold();
-        let (n, m) = (self.cols, self.cols + self.chunk);
+        let (n, m) = (self.cols, self.cols + self.cap);
         DMatrix::from_fn(
             n,
             n,
@@ -242,8 +281,9 @@ impl PatternQr {
     }
 
     /// [`PatternQr::new`] (or [`PatternQr::dense`] with `dense`) whose groups are
-    /// [`StreamingQr::compact`]: for the chunks of a chunked solve.
-    fn compact(p: usize, dense: bool) -> Self {
+    /// [`StreamingQr::compact`]: for the chunks of a chunked solve and the one chunk of a short
+    /// log.
+    pub(crate) fn compact(p: usize, dense: bool) -> Self {
         let base = if dense { Self::dense(p) } else { Self::new(p) };
         Self {
             compact: true,
@@ -279,7 +319,7 @@ impl PatternQr {
     /// A group's factorisation of `k` columns.
     fn group_qr(&mut self, k: usize) -> StreamingQr {
         if self.compact {
-            match self.take_spare((k + 1 + COMPACT_CHUNK) * (k + 1)) {
+            match self.take_spare((k + 1 + COMPACT_START) * (k + 1)) {
                 Some(block) => StreamingQr::compact_in(k, block),
                 None => StreamingQr::compact(k),
             }
@@ -764,6 +804,35 @@ mod tests {
             let tol = if case == 1 { 1e-5 } else { 1e-10 };
             for (q, (a, b)) in bd.iter().zip(&bp).enumerate() {
                 assert!((a - b).abs() <= tol * scale, "{case} {q}: {a} {b}");
+            }
+        }
+    }
+
+    /// A compact factorisation's block grows with its rows ([`COMPACT_START`], doubled up to
+    /// [`COMPACT_CHUNK`]). Reference: the same factorisation in a block of the full chunk from
+    /// the start (`compact_in` a block that large: no growth). The same `R` and column sums bit
+    /// for bit, for row counts below, at and across the growth steps and the chunk.
+    #[test]
+    fn grown_compact_block_equals_the_full_block() {
+        let mut rng = SimRng::new(3);
+        for p in [1, 6, 30] {
+            for n in [1, 15, 16, 17, 100, 1023, 1024, 1025, 2500] {
+                let full = vec![f64::NAN; (p + 1 + COMPACT_CHUNK) * (p + 1)];
+                let mut grown = StreamingQr::compact(p);
+                let mut reference = StreamingQr::compact_in(p, full);
+                assert_eq!(reference.cap, COMPACT_CHUNK);
+                for _ in 0..n {
+                    let x: Vec<f64> = (0..p).map(|_| rng.normal()).collect();
+                    let y = rng.normal();
+                    grown.push(&x, y);
+                    reference.push(&x, y);
+                }
+                let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                let (a, sa) = grown.finish();
+                let (b, sb) = reference.finish();
+                assert_eq!(bits(&a), bits(&b), "p {p}, {n} rows");
+                assert_eq!(sa, sb, "p {p}, {n} rows");
+                assert!(a.iter().all(|v| v.is_finite()), "p {p}, {n} rows");
             }
         }
     }

@@ -1423,7 +1423,7 @@ mod tests {
 
     /// Reference: the moments' ratios and the trend's t, p and r² are scale-free, and the slope
     /// scales as y/x: the same data at 1e±150 must give the in-range figures (scaled) instead
-    /// of overflowing or underflowing to `None` (a fuzz finding of issue #17).
+    /// of overflowing or underflowing to `None` (a fuzz finding).
     #[test]
     fn moments_and_trend_survive_extreme_scales() {
         let x: Vec<f64> = (0..200).map(|i| ((i * 37) % 101) as f64 - 40.0).collect();

@@ -119,13 +119,13 @@ pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), Vi
     let mut replayed = Predictor::new(model, &s.covariates)?;
     let mut cov = Vec::new();
     for r in log.rows() {
-        replayed.step(r.time_s, r.track, r.covariates.gather(&mut cov), r.bias);
+        replayed.step(r.time_s, r.track, r.covariates.gather(&mut cov), r.bias)?;
     }
     let t_end = log.last().map_or(0.0, |r| r.time_s);
     let curve_point = |first: f64, second: f64, x: f64| {
         let mut p = replayed.clone();
-        p.step(t_end + CURVE_DWELL_S, first, &means, None);
-        p.step(t_end + 2.0 * CURVE_DWELL_S, second, &means, None);
+        p.step(t_end + CURVE_DWELL_S, first, &means, None)?;
+        p.step(t_end + 2.0 * CURVE_DWELL_S, second, &means, None)?;
         p.peek(t_end + 3.0 * CURVE_DWELL_S, x, &means)
     };
     let (below, above) = (lo - span, hi + span);
@@ -133,7 +133,7 @@ pub fn model_curves(model: &FittedModel, log: &Log) -> Result<(Curve, Curve), Vi
     let mut outbound = Vec::with_capacity(CURVE_POINTS);
     for i in 0..CURVE_POINTS {
         let x = lo + (hi - lo) * i as f64 / (CURVE_POINTS - 1) as f64;
-        let (a, b) = (curve_point(above, below, x), curve_point(below, above, x));
+        let (a, b) = (curve_point(above, below, x)?, curve_point(below, above, x)?);
         if a.is_finite() && b.is_finite() {
             inbound.push((x, a));
             outbound.push((x, b));

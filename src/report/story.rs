@@ -225,26 +225,26 @@ fn predictors(r: &mut Report, run: &DemoRun, notes: &mut Notes) {
          curves of Table I (table1.csv). The others are fitted on calibration.csv (Tables \
          I–VII followed by {} random seeks): calibration adds the seek-length, rest-memory \
          and drift curves of the paper's Section III-A; dahl is the paper's two-parameter \
-         state-space friction model (Section III-B); poly2,dahl:4 is a richer friction \
-         model with four Dahl elements.",
-        opts.random_seeks
+         state-space friction model (Section III-B); {} is a richer friction model with four \
+         Dahl elements.",
+        opts.random_seeks, dahl4.label
     ))
     .headline(&[
         (
-            "position-direction error std",
+            format!("{} error std", pd.label),
             format!("{} counts", fmt_num(pd.score.std)),
         ),
         (
-            "calibration error std",
+            format!("{} error std", cal.label),
             format!("{} counts", fmt_num(cal.score.std)),
         ),
-        ("reduction", pct(pd.score.std, cal.score.std)),
+        ("reduction".into(), pct(pd.score.std, cal.score.std)),
         (
-            "dahl error std",
+            format!("{} error std", dahl.label),
             format!("{} counts", fmt_num(dahl.score.std)),
         ),
         (
-            "poly2,dahl:4 error std",
+            format!("{} error std", dahl4.label),
             format!("{} counts", fmt_num(dahl4.score.std)),
         ),
     ])
@@ -273,7 +273,8 @@ fn predictors(r: &mut Report, run: &DemoRun, notes: &mut Notes) {
         s,
         &[dahl, dahl4],
         units,
-        "The two friction-state models on the same random run, on the same axes as above.",
+        "The two friction-state models on the same random run. Their axes are scaled to their \
+         own errors, not to the figure above: compare the numbers on the axes, not the heights.",
     );
     scores::curves_figure(
         s,
@@ -286,7 +287,7 @@ fn predictors(r: &mut Report, run: &DemoRun, notes: &mut Notes) {
     match &run.dahl_loop {
         Ok(p) => {
             s.figure(
-                views::dahl_loop(p, &run.tables[1].schema.units, "dahl"),
+                views::dahl_loop(p, &run.tables[1].schema.units, &dahl.label),
                 "Figs. 13/14: the Table II hysteresis loop, measured and as the fitted Dahl \
                  model replays it. The model captures the loop's shape from two parameters \
                  (its friction level and initial slope).",
@@ -404,8 +405,10 @@ fn demo_summary(run: &DemoRun) -> Vec<String> {
             pct(pd.score.std, cal.score.std)
         ),
         format!(
-            "state-space models: dahl {} counts, poly2,dahl:4 {} counts",
+            "state-space models: {} {} counts, {} {} counts",
+            dahl.label,
             fmt_num(dahl.score.std),
+            dahl4.label,
             fmt_num(dahl4.score.std)
         ),
         match lead {
@@ -566,7 +569,10 @@ fn data_page(run: &DataRun, notes: &mut Notes) -> Report {
                 s,
                 log,
                 c,
-                format!("Bias vs position with the {} model's curves.", c.label),
+                format!(
+                    "Bias vs position with the curves of {}.",
+                    scores::model_phrase(&c.label)
+                ),
                 notes,
             );
         }

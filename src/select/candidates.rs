@@ -2,7 +2,8 @@
 //! strongest unflagged ones, what adaptive terms absorbed, pairs) and each one's term variants.
 
 use crate::diagnose::{Diagnosis, FeatureReport};
-use crate::model::terms::parse_term;
+use crate::model::registry::head;
+use crate::model::terms::{bins, covariate, drift, lag, parse_term, poly, table};
 use crate::model::{ModelEdit, ModelSpec, SpecError};
 
 /// A candidate for verification: the feature it comes from and the terms to try, best first
@@ -91,8 +92,7 @@ pub(super) fn feature_candidate(f: &FeatureReport, strict: bool) -> Candidate {
     Candidate {
         feature: f.name.clone(),
         try_all: terms.iter().any(|t| {
-            t.starts_with("col:")
-                || t.starts_with("lag:")
+            matches!(head(t), covariate::HEAD | lag::HEAD)
                 || t == crate::diagnose::advice::PLAY_TERM
         }),
         terms,
@@ -106,7 +106,7 @@ pub(super) fn feature_candidate(f: &FeatureReport, strict: bool) -> Candidate {
 /// verified once.
 pub(super) fn source_of(f: &FeatureReport) -> String {
     match f.suggested_term.as_deref() {
-        Some("drift") => "drift".to_string(),
+        Some(drift::HEAD) => drift::HEAD.to_string(),
         _ => crate::diagnose::lagged_column(&f.name)
             .unwrap_or(&f.name)
             .to_string(),
@@ -151,7 +151,11 @@ pub(crate) fn unflagged_candidates(
         .features
         .iter()
         .filter(|f| !f.flagged && f.p_value_raw <= UNFLAGGED_P)
-        .filter(|f| f.suggested_term.as_deref().is_some_and(|t| t != "drift"))
+        .filter(|f| {
+            f.suggested_term
+                .as_deref()
+                .is_some_and(|t| t != drift::HEAD)
+        })
         .collect();
     pool.sort_by(|a, b| {
         b.explained
@@ -182,16 +186,14 @@ pub(crate) fn edit_for(
     table_spacing: Option<f64>,
 ) -> Result<ModelEdit, SpecError> {
     let has = |name: &str| spec.terms.iter().any(|t| t.name() == name);
-    if term == "table" || term.starts_with("table:") {
+    if head(term) == table::HEAD {
         let new = match table_spacing {
-            Some(h) if term == "table" => {
-                parse_term(&format!("table:{}", crate::log::fmt_trimmed(h, 6)))?
-            }
+            Some(h) if term == table::HEAD => parse_term(&table::spec(h))?,
             _ => parse_term(term)?,
         };
-        if has("poly2") {
+        if has(poly::HEAD) {
             return Ok(ModelEdit::Replace {
-                old: "poly2".into(),
+                old: poly::HEAD.into(),
                 new,
             });
         }
@@ -199,7 +201,7 @@ pub(crate) fn edit_for(
             .terms
             .iter()
             .map(|t| t.name())
-            .find(|n| n == "table" || n.starts_with("table:"))
+            .find(|n| head(n) == table::HEAD)
         {
             return Ok(ModelEdit::Replace { old, new });
         }
@@ -219,7 +221,7 @@ pub(super) const KNOT_CHOICES: [usize; 2] = [8, 16];
 pub(super) fn knot_variants(term: &str) -> Vec<String> {
     let mut out = vec![term.to_string()];
     let parts: Vec<&str> = term.split(':').collect();
-    if let ["bins" | "dbins", _] = parts.as_slice() {
+    if parts.len() == 2 && (parts[0] == bins::HEAD || parts[0] == bins::DBINS_HEAD) {
         out.extend(KNOT_CHOICES.iter().map(|k| format!("{term}:{k}")));
     }
     out
@@ -236,7 +238,7 @@ pub(crate) const TABLE_REFINEMENTS: [f64; 2] = [2.0, 4.0];
 /// [`crate::diagnose::advice::BUMP_TERM`]), unless the model has one; for `bins:COL` on a covariate
 /// also `step:COL` (a threshold, see [`crate::diagnose::advice::STEP_HEAD`]), unless the model has one.
 pub(super) fn variants(term: &str, spec: &ModelSpec, spacing: Option<f64>) -> Vec<String> {
-    if term != "table" {
+    if term != table::HEAD {
         let mut out = knot_variants(term);
         if crate::diagnose::advice::tries_bump(term) {
             out.extend(crate::diagnose::advice::bump_variant(spec));
@@ -246,17 +248,22 @@ pub(super) fn variants(term: &str, spec: &ModelSpec, spacing: Option<f64>) -> Ve
     }
     let current = spec.terms.iter().find_map(|t| {
         t.name()
-            .strip_prefix("table:")
+            .strip_prefix(table::HEAD)
+            .and_then(|h| h.strip_prefix(':'))
             .and_then(|h| h.parse::<f64>().ok())
     });
     let mut out = Vec::new();
     match (spacing, current) {
-        (Some(h), Some(c)) if h < c => out.push(format!("table:{}", crate::log::fmt_trimmed(h, 6))),
+        (Some(h), Some(c)) if h < c => out.push(table::spec(h)),
         (Some(_), None) => out.push(term.to_string()),
         _ => {}
     }
     if let Some(c) = current {
-        out.extend(TABLE_REFINEMENTS.iter().map(|k| format!("table:{}", c / k)));
+        out.extend(
+            TABLE_REFINEMENTS
+                .iter()
+                .map(|k| format!("{}:{}", table::HEAD, c / k)),
+        );
     }
     if out.is_empty() {
         out.push(term.to_string());

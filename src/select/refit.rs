@@ -42,7 +42,8 @@ pub(crate) const REFIT_FIXED_BYTES: usize = 16 << 20;
 
 /// What every refit of a round shares ([`Refits`]): `log`'s sampling, its replayed history
 /// (a short log's features or a long log's history columns, read as `opts` reads direction;
-/// the masked copies differ only in bias, which no history reads) and [`REFIT_FIXED_BYTES`].
+/// the masked copies differ only in bias, which no history reads) and [`REFIT_FIXED_BYTES`];
+/// no standard errors of searched parameters (nothing reads them from a refit).
 pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
     let sampling = crate::history::log_sampling(log);
     // A short log's replayed features, or a long log's history columns (13 B/row once for
@@ -61,6 +62,8 @@ pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
         sampling: Some(sampling),
         history,
         fixed_budget: REFIT_FIXED_BYTES,
+        // Only the refits' out-of-sample residuals are read: no standard errors.
+        nonlinear_se: false,
     }
 }
 

@@ -6,6 +6,7 @@ use crate::diagnose::{
     VerifiedEdit,
 };
 use crate::log::Log;
+use crate::model::terms::drift;
 use crate::model::{ModelEdit, ModelSpec};
 
 use super::CheckedVerifyConfig;
@@ -96,7 +97,11 @@ pub(crate) fn second_round_candidates(
         .features
         .iter()
         .filter(|f| f.flagged || f.p_value_raw <= SECOND_ROUND_P)
-        .filter(|f| f.suggested_term.as_deref().is_some_and(|t| t != "drift"))
+        .filter(|f| {
+            f.suggested_term
+                .as_deref()
+                .is_some_and(|t| t != drift::HEAD)
+        })
         .filter(|f| f.explained >= bar)
         .collect();
     pool.sort_by(|a, b| crate::diagnose::compare(a, b));
@@ -156,7 +161,7 @@ pub(crate) fn rescreen_candidates(
         if out.len() >= max {
             break;
         }
-        if f.suggested_term.as_deref().is_none_or(|t| t == "drift") {
+        if f.suggested_term.as_deref().is_none_or(|t| t == drift::HEAD) {
             continue;
         }
         let s = source_of(f);

@@ -484,7 +484,7 @@ fn by_term_fits_a_covariate_times_position() {
     assert_eq!(back.spec.to_string(), with.spec.to_string());
 }
 
-/// Issue #16: the permutations, the per-feature cross-validation, the verification refits and
+/// The permutations, the per-feature cross-validation, the verification refits and
 /// discover's steps run on rayon, and every random draw has its own seeded stream, so the
 /// result must not depend on the number of threads. Reference: the same call in a local pool
 /// of 1 thread (the sequential order). Diagnose on a residual with a real effect and a slow
@@ -661,7 +661,7 @@ fn gain_within_folds_matches_its_definition() {
     assert!(close(gain_within_folds(&before, &halved, 3), 0.75));
 }
 
-/// Issue #10's held-out false alarm (a random-walk column with **no** effect verified on the
+/// The held-out false alarm (a random-walk column with **no** effect verified on the
 /// full model of an AR(1)-noise log), as the verification sees it. Reference: the construction.
 /// Out-of-sample residuals before an edit on 6000 seeks: AR(1) noise (ρ = 0.6, unit std)
 /// plus the level each of the 3 folds' refits misses (+0.22, −0.20, +0.18: what the

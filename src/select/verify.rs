@@ -56,6 +56,8 @@ use rayon::prelude::*;
 use crate::diagnose::{ModelDiagnosisError, Reason, RejectedEdit, Verification, VerifiedEdit};
 use crate::fit::CheckedFitOptions;
 use crate::log::Log;
+use crate::model::registry::head;
+use crate::model::terms::drift;
 use crate::model::{ModelEdit, ModelSpec};
 
 use super::candidates::{Candidate, defect_candidate, edit_for, variants};
@@ -473,10 +475,10 @@ pub(super) const PHYSICS_OVER_DRIFT: f64 = 0.9;
 /// Whether `e` adds an adaptive term (`drift`): a term that follows whatever slow effect the
 /// residual carries without naming it.
 pub(super) fn adds_adaptive(e: &VerifiedEdit) -> bool {
-    matches!(&e.model_edit, Some(ModelEdit::Add(t)) if t.name().split(':').next() == Some("drift"))
+    matches!(&e.model_edit, Some(ModelEdit::Add(t)) if head(&t.name()) == drift::HEAD)
 }
 
-/// Issue #10's "adaptive terms hide physics", at the ranking: when the leading verified edit
+/// "Adaptive terms hide physics", at the ranking: when the leading verified edit
 /// adds `drift` and a verified edit that names a physical cause (a logged column, a position
 /// shape, a memory law: any non-adaptive edit) reaches [`PHYSICS_OVER_DRIFT`] of its gain,
 /// that edit goes first. Drift gains by following the effect (a lagged temperature is slow, so

@@ -233,7 +233,8 @@ impl SimConfig {
                     Field::Disabled,
                     (*name).to_string(),
                     format!(
-                        "unknown effect; expected one of {}",
+                        "unknown effect{}; expected one of {}",
+                        crate::io::words::did_you_mean(name.trim(), Effect::ALL.map(Effect::name)),
                         Effect::ALL.map(Effect::name).join(", ")
                     ),
                 )
@@ -331,7 +332,8 @@ impl SimConfig {
                             Field::Sequence,
                             name.to_string(),
                             format!(
-                                "unknown sequence; expected one of {}",
+                                "unknown sequence{}; expected one of {}",
+                                crate::io::words::did_you_mean(name, SEQUENCE_NAMES),
                                 SEQUENCE_NAMES.join(", ")
                             ),
                         )

@@ -111,7 +111,7 @@ fn write_truth_row<W: Write>(w: &mut csv::Writer<W>, row: &SimRow) -> std::io::R
     let t = &row.truth;
     w.write_record([
         fmt_fixed(row.time_s, 6),
-        crate::log::fmt_trimmed(row.track, 6),
+        crate::log::fmt_float(row.track, 6),
         u8::from(row.bias.is_some()).to_string(),
         fmt_fixed(t.position, 4),
         fmt_fixed(t.direction, 4),

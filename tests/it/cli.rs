@@ -853,3 +853,56 @@ fn a_negative_infinite_real_flag_is_refused_naming_its_flag() {
         &["invalid value '--json' for '--target <TRACK>'"],
     );
 }
+
+/// Reference: the names each flag accepts. A mistyped value gets the closest name ("did you
+/// mean"), and the list stays whole.
+#[test]
+fn mistyped_names_get_a_did_you_mean() {
+    fails_with(
+        &["simulate", "--sequence", "randm", "--out", "-"],
+        &["did you mean `random`?", "table1, table2"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--sequence",
+            "random",
+            "--disable",
+            "memry",
+            "--out",
+            "-",
+        ],
+        &["did you mean `memory`?"],
+    );
+    fails_with(
+        &["settle", "--preset", "paper197"],
+        &["did you mean `paper1997`?"],
+    );
+    let d = tempfile::tempdir().unwrap();
+    let log = write(
+        d.path(),
+        "l.csv",
+        "time_s,track,bias\n0,1,2\n1,3,4\n2,5,6\n",
+    );
+    let out = d.path().join("m.json").display().to_string();
+    fails_with(
+        &["fit", "--data", &log, "--model", "dahll", "--out", &out],
+        &["unknown model preset `dahll`; did you mean `dahl`?"],
+    );
+    let e = fails_with(
+        &[
+            "fit",
+            "--data",
+            &log,
+            "--terms",
+            "poly2,dahll:4",
+            "--out",
+            &out,
+        ],
+        &[
+            "unknown term `dahll:4`; did you mean `dahl:4`?",
+            "stribeck, bins, dbins",
+        ],
+    );
+    assert!(!e.contains('…'), "{e}");
+}

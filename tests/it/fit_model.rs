@@ -66,7 +66,7 @@ fn synth(
         .iter()
         .map(|t| t.prepare(&data).unwrap())
         .collect();
-    if !terms.iter().any(|t| t.provides_intercept()) {
+    if !terms.iter().any(|t| t.caps().provides_intercept) {
         terms.insert(0, Arc::new(InterceptTerm));
     }
     for t in &mut terms {
@@ -81,6 +81,7 @@ fn synth(
             track: "track".into(),
             bias: "bias".into(),
             covariates: vec![],
+            units: None,
         },
         terms: terms
             .iter()
@@ -107,8 +108,8 @@ fn synth(
     let bias: Vec<f64> = rows
         .iter()
         .map(|&(t, x, c)| {
-            let y = p.peek(t, x, &[c]) + noise * rng.normal();
-            p.step(t, x, &[c], Some(y));
+            let y = p.peek(t, x, &[c]).unwrap() + noise * rng.normal();
+            p.step(t, x, &[c], Some(y)).unwrap();
             y
         })
         .collect();
@@ -608,9 +609,11 @@ fn online_peek_equals_step() {
         let candidates = [r.track - 7.0, r.track + 100.0, r.track];
         let peeks: Vec<f64> = candidates
             .iter()
-            .map(|&c| p.peek(r.time_s, c, &r.covariates.to_vec()))
+            .map(|&c| p.peek(r.time_s, c, &r.covariates.to_vec()).unwrap())
             .collect();
-        let stepped = p.step(r.time_s, r.track, &r.covariates.to_vec(), r.bias);
+        let stepped = p
+            .step(r.time_s, r.track, &r.covariates.to_vec(), r.bias)
+            .unwrap();
         assert_eq!(peeks[2].to_bits(), stepped.to_bits());
     }
 }
@@ -1796,7 +1799,7 @@ fn dbins_spec_strings() {
     }
 }
 
-/// Issue #13: a user's `TermSpec` survives `diagnose --path` (the re-fits are typed edits of
+/// A user's `TermSpec` survives `diagnose --path` (the re-fits are typed edits of
 /// the model's spec, not string concatenation, which failed with "unknown term"). Reference:
 /// the path's first step re-fits the model with the user term still in it, in place.
 #[test]
@@ -1821,7 +1824,7 @@ fn user_term_survives_the_suggestion_path() {
     );
 }
 
-/// P3 row of issue #5's acceptance. Drive `data/diag_base.toml` with P1, P2, P8 and P3 (time at
+/// The P3 row of the paper-effects acceptance. Drive `data/diag_base.toml` with P1, P2, P8 and P3 (time at
 /// track) on, random seeks with dwell 0.05–4 s, 3000 train / 3000 test. The model lacking the
 /// matching term is `poly2,dahl`; the diagnosis must rank `dwell_s` first (by direction, as the
 /// simulator's law −dir·A·(1 − e^(−t/τ)) in `src/sim/drive.rs` is). Reference for "every
@@ -1882,7 +1885,7 @@ fn fit_that_overflows_fails_instead_of_writing_nan() {
             "--out",
             &out.display().to_string(),
         ],
-        // The reader now refuses such values (issue #17: finite in, finite out) before the
+        // The reader now refuses such values (finite in, finite out) before the
         // fit could overflow.
         &["huge.csv", "line 2", "outside ±1e15"],
     );

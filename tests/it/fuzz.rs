@@ -1,4 +1,4 @@
-//! The fuzz and fault harness of issue #17, kept in the repository.
+//! The fuzz and fault harness, kept in the repository.
 //!
 //! Mutation fuzzing of a seed corpus (`tests/corpus/seed/`: simulated logs (a drive and two rigs), a model
 //! file, drive and plant TOMLs, a seek script, a term list) drives every reader and the library

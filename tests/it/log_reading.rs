@@ -746,19 +746,34 @@ fn metadata_units_label_a_log_without_flags() {
         "{ladder}"
     );
     no_simulator_units("ladder", &ladder);
-    // The flag wins over the metadata.
+    // The flag wins over the metadata: a fit reads the bias in `A` …
     let flagged = ok(&[
-        "score",
-        "--model",
-        &model,
+        "fit",
         "--data",
         &log,
+        "--model",
+        "position-direction",
         "--bias-unit",
         "A",
+        "--out",
+        &dir.path().join("a.json").display().to_string(),
     ]);
     assert!(
-        flagged.contains(" A/um, t ") && !flagged.contains("mA"),
+        flagged.contains(" A, R² ") && !flagged.contains("mA"),
         "{flagged}"
+    );
+    // … and the mA model refuses a log the flag says is in A, naming the flag.
+    crate::common::fails_with(
+        &[
+            "score",
+            "--model",
+            &model,
+            "--data",
+            &log,
+            "--bias-unit",
+            "A",
+        ],
+        &["fitted with bias in `mA`", "(--bias-unit)"],
     );
     // The report of the log.
     let out = dir.path().join("rep").display().to_string();
@@ -1043,5 +1058,85 @@ fn one_column_cannot_be_two_roles() {
     fails_with(
         &["check", "--data", &f, "--track-col", "bias"],
         &["--track-col", "--bias-col", "`bias`"],
+    );
+}
+
+/// Reference: the cells as written. An empty cell in a covariate no term reads does not stop
+/// `check`, `fit` or `predict` (it is a missing value, told in a note); a term that reads the
+/// column is refused naming the column and the line of its first empty cell, and a streamed
+/// `predict` names the line, column and cell.
+#[test]
+fn an_empty_cell_in_an_unused_covariate_is_a_missing_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("time_s,track,bias,temp_c,humidity\n");
+    for line in log_text(1.0).lines().skip(1) {
+        let i = text.lines().count();
+        let hum = if i == 7 {
+            String::new()
+        } else {
+            format!("{}", 50 + i % 3)
+        };
+        text += &format!("{line},{},{hum}\n", 20 + i % 5);
+    }
+    let log = write(dir.path(), "h.csv", &text);
+    let out = ok(&["check", "--data", &log]);
+    assert!(
+        out.contains("note: column 5 (`humidity`): 1 empty cell (line 8), read as missing"),
+        "{out}"
+    );
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--terms",
+        "poly2,direction,col:temp_c",
+        "--out",
+        &p("m.json"),
+    ]);
+    let pred = ok(&[
+        "predict",
+        "--model",
+        &p("m.json"),
+        "--data",
+        &log,
+        "--out",
+        "-",
+    ]);
+    assert!(pred.lines().nth(7).unwrap().contains(",,"), "{pred}");
+    fails_with(
+        &[
+            "fit",
+            "--data",
+            &log,
+            "--terms",
+            "poly2,col:humidity",
+            "--out",
+            &p("h.json"),
+        ],
+        &["term `col:humidity` reads column 5 (`humidity`): 1 empty cell (line 8)"],
+    );
+    // A model fitted where the column was complete meets the empty cell in a stream.
+    let full = write(dir.path(), "f.csv", &text.replace(",\n", ",52\n"));
+    ok(&[
+        "fit",
+        "--data",
+        &full,
+        "--terms",
+        "poly2,col:humidity",
+        "--out",
+        &p("h.json"),
+    ]);
+    fails_with(
+        &[
+            "predict",
+            "--model",
+            &p("h.json"),
+            "--data",
+            &log,
+            "--out",
+            "-",
+        ],
+        &["line 8, column 5 (`humidity`): empty cell in a covariate the model reads"],
     );
 }

@@ -18,3 +18,4 @@ mod properties;
 mod real_data;
 mod settle;
 mod simulate;
+mod term_names;

@@ -192,7 +192,9 @@ fn a_plan_without_bias_is_predicted_exactly_as_the_measured_log() {
     let m = biasctl::FittedModel::load(Path::new(&model)).unwrap();
     let mut p = Predictor::new(&m, &log.schema.covariates).unwrap();
     for (row, want) in log.rows().zip(column(&measured, "predicted")) {
-        let got = p.step(row.time_s, row.track, &row.covariates.to_vec(), row.bias);
+        let got = p
+            .step(row.time_s, row.track, &row.covariates.to_vec(), row.bias)
+            .unwrap();
         assert_eq!(got.to_string(), want);
     }
 }
@@ -457,9 +459,11 @@ fn predictor_step_and_peek_allocate_nothing() {
     let before = allocations();
     for row in test.rows() {
         let c = row.covariates.gather(&mut cov);
-        sum += p.peek(row.time_s, row.track + 7.0, c);
-        sum += p.step(row.time_s, row.track, c, row.bias);
-        sum += p.step(row.time_s, row.track, c, None);
+        sum += p.peek(row.time_s, row.track + 7.0, c).unwrap_or(f64::NAN);
+        sum += p
+            .step(row.time_s, row.track, c, row.bias)
+            .unwrap_or(f64::NAN);
+        sum += p.step(row.time_s, row.track, c, None).unwrap_or(f64::NAN);
     }
     let after = allocations();
     assert!(sum.is_finite());
@@ -467,4 +471,111 @@ fn predictor_step_and_peek_allocate_nothing() {
     // The counter works: a Vec allocates.
     let v = std::hint::black_box(vec![1u8; 3]);
     assert!(allocations() > after && v.len() == 3);
+}
+
+/// Reference: the covariate names given to `Predictor::new`. Fewer (or more) covariate values
+/// than names is an error, not a value read as 0, and a refused step leaves the state as it
+/// was (the next prediction equals a fresh predictor's).
+#[test]
+fn predictor_refuses_another_number_of_covariate_values() {
+    let mut text = String::from("time_s,track,bias,temp_c\n");
+    for i in 0..80u32 {
+        let x = f64::from((i * 397) % 1999);
+        let t = 20.0 + f64::from(i % 7);
+        text += &format!("{i},{x},{},{t}\n", 0.01 * x + 2.0 * t);
+    }
+    let log = Log::from_reader("c.csv", text.as_bytes(), &ColumnMap::default()).unwrap();
+    let spec = ModelSpec::parse("poly2,col:temp_c").unwrap();
+    let model = fit(&spec, &log, &CheckedFitOptions::default()).unwrap();
+    let mut p = Predictor::new(&model, &log.schema.covariates).unwrap();
+    let e = p.peek(0.0, 25.0, &[]).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        "0 covariate values given, but the predictor was made with 1 covariate names: pass one \
+         value per name, in their order"
+    );
+    assert!(p.peek(0.0, 25.0, &[20.0, 1.0]).is_err());
+    assert!(p.step(0.0, 25.0, &[], Some(1.0)).is_err());
+    let fresh = Predictor::new(&model, &log.schema.covariates).unwrap();
+    let (a, b) = (
+        p.peek(0.0, 25.0, &[21.0]).unwrap(),
+        fresh.peek(0.0, 25.0, &[21.0]).unwrap(),
+    );
+    assert_eq!(a.to_bits(), b.to_bits());
+    // The value is the model's: 2·temp_c at the fitted coefficient, not temp_c read as 0.
+    assert!(
+        (a - fresh.peek(0.0, 25.0, &[0.0]).unwrap() - 42.0).abs() < 1e-6,
+        "{a}"
+    );
+}
+
+/// Reference: the unit labels given at fit. The model file records the units it was fitted in;
+/// reading a log in others for it is refused naming the flag, and a model fitted with
+/// `--bias-unit N` scores in N without the flag.
+#[test]
+fn a_model_file_records_its_units_and_refuses_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    let log = write(dir.path(), "l.csv", &crate::common::log_text(1.0));
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--model",
+        "position-direction",
+        "--out",
+        &p("m.json"),
+    ]);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("m.json")).unwrap()).unwrap();
+    assert_eq!(
+        json["columns"]["units"],
+        serde_json::json!({"bias": "counts", "position": "tracks"})
+    );
+    fails_with(
+        &[
+            "score",
+            "--model",
+            &p("m.json"),
+            "--data",
+            &log,
+            "--bias-unit",
+            "N",
+        ],
+        &[
+            "the model was fitted with bias in `counts`, but this log's bias is in `N` (--bias-unit)",
+        ],
+    );
+    fails_with(
+        &[
+            "predict",
+            "--model",
+            &p("m.json"),
+            "--data",
+            &log,
+            "--track-unit",
+            "mm",
+            "--out",
+            &p("p.csv"),
+        ],
+        &["position in `tracks`", "(--track-unit)"],
+    );
+    let rig = write(
+        dir.path(),
+        "r.csv",
+        &crate::common::log_text(1.0).replacen("time_s,track,bias", "time_s,x_mm,force_N", 1),
+    );
+    let cols = ["--track-col", "x_mm", "--bias-col", "force_N"];
+    let mut args = vec!["fit", "--data", &rig, "--model", "position-direction"];
+    args.extend(cols);
+    let out = p("r.json");
+    args.extend(["--bias-unit", "N", "--out", &out]);
+    ok(&args);
+    let mut args = vec!["score", "--model", &out, "--data", &rig];
+    args.extend(cols);
+    let text = ok(&args);
+    assert!(
+        text.contains(" N") && !text.contains("force_N,") && !text.contains(" force_N"),
+        "{text}"
+    );
 }

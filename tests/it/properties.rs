@@ -1,4 +1,4 @@
-//! Issue #17, "finite in, finite out": random finite inputs spread log-uniformly over
+//! "Finite in, finite out": random finite inputs spread log-uniformly over
 //! 1e-300 … 1e300 (either sign) — log positions, biases, covariates and time steps, model-file
 //! coefficients and settings, drive and plant TOML values, numeric flags — through every
 //! command's entry point (the `biasctl` binary). Each run must either succeed with every output

@@ -286,7 +286,7 @@ fn fit_and_score(train: &str, test: &str, track: &str, terms: &str) -> serde_jso
     score_json(&model, test, track)
 }
 
-/// Issue #11: every preset and `play:N` fits the real logs without an offset on the test log:
+/// Every preset and `play:N` fits the real logs without an offset on the test log:
 /// |mean error| well under the error std (one-step and, with `drift`, free run). Reference:
 /// an unbiased model's mean error is zero up to noise, far below its std. EMPS: fitted on the
 /// estimation run, scored on the validation run; pneumatic: fitted and scored on its one log.

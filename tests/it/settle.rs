@@ -19,7 +19,7 @@ fn close(got: f64, want: f64, tol: f64) -> bool {
 }
 
 /// Reference: golden values from python-control `dlqr` and a direct simulation of the paper's
-/// test bed (brief of issue #4); paper text: one-track settle < 3 ms with < 30 % overshoot.
+/// test bed; paper text: one-track settle < 3 ms with < 30 % overshoot.
 #[test]
 fn paper1997_golden_values() {
     let cfg = SettleSpec::preset("paper1997").unwrap().check().unwrap();
@@ -262,7 +262,13 @@ fn settle_writes_bounds_and_responses_and_plant_file_matches_preset() {
     assert_eq!(bounds.lines().count(), 129);
     let resp = std::fs::read_to_string(&r).unwrap();
     assert!(resp.starts_with("k,time_s,e_zero_ff_um,e_optimal_um,e_paper_robust_um,e_robust_um\n"));
-    assert!(resp.lines().nth(1).unwrap().starts_with("0,0.0000000,-15,"));
+    // A float cell keeps its decimal point (`-15.0`): CSV readers then infer a float column.
+    assert!(
+        resp.lines()
+            .nth(1)
+            .unwrap()
+            .starts_with("0,0.0000000,-15.0,")
+    );
     let modern = ok(&["settle", "--plant", &data("plant_modern.toml"), "--json"]);
     let m: serde_json::Value = serde_json::from_str(&modern).unwrap();
     assert!(m["k_star"].is_number() && m["zero_ff_settle_ms"].is_number());

@@ -34,7 +34,11 @@ pub enum SettleError {
 #[non_exhaustive]
 pub enum ConfigError {
     /// Unknown preset name.
-    #[error("unknown preset `{0}` (known: {names})", names = PRESETS.join(", "))]
+    #[error(
+        "unknown preset `{0}`{hint} (known: {names})",
+        hint = crate::io::words::did_you_mean(.0, PRESETS),
+        names = PRESETS.join(", ")
+    )]
     UnknownPreset(String),
     /// The plant part is invalid.
     #[error("invalid plant: {0}")]
@@ -57,4 +61,28 @@ pub enum AnalyseError {
     /// The settle computation rejected a setting.
     #[error(transparent)]
     Settle(#[from] SettleError),
+}
+
+/// A plant TOML file that cannot be read or parsed ([`super::SettleSpec::from_toml_file`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlantFileError {
+    /// The file could not be read (or is larger than biasctl reads).
+    #[error("cannot read plant file {file}")]
+    Io {
+        /// The plant file.
+        file: String,
+        /// The operating-system error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The TOML is malformed, a number is out of range, or a field is missing or unknown.
+    #[error("invalid plant file {file}")]
+    Parse {
+        /// The plant file.
+        file: String,
+        /// The parser's message (names the field and line).
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }

@@ -53,7 +53,7 @@ mod table;
 
 pub use analyse::analyse;
 pub use bounds::Bounds;
-pub use error::{AnalyseError, ConfigError, SettleError};
+pub use error::{AnalyseError, ConfigError, PlantFileError, SettleError};
 pub use handoff::{Handoff, HandoffSolution, Interval};
 pub use report::SettleReport;
 pub(crate) use response::settle_ms;

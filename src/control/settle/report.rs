@@ -150,6 +150,33 @@ impl SettleReport {
         out
     }
 
+    /// `biasctl settle --json`: the report's keys, `absolute` (the absolute integrator start
+    /// values, µm·samples: `z_converged` + each relative value) and, when given, `prediction`
+    /// (what a caller adds about where the bias came from), through the one JSON writer (a
+    /// non-finite number is refused naming its key).
+    pub fn to_json_with<P: Serialize>(
+        &self,
+        prediction: Option<&P>,
+    ) -> Result<String, crate::io::OutputError> {
+        let abs = |v: Option<f64>| v.map(|v| self.absolute(v));
+        let value = SettleJson {
+            report: self,
+            absolute: Absolute {
+                zero_ff: self.absolute(0.0),
+                ff_midpoint: abs(self.ff_midpoint),
+                paper_robust: abs(self.paper_robust.as_ref().map(|p| p.ff)),
+                robust: abs(self.robust.as_ref().map(|c| c.ff)),
+            },
+            prediction,
+        };
+        crate::io::json::to_string_pretty(&value)
+    }
+
+    /// [`SettleReport::to_json_with`] without a `prediction`.
+    pub fn to_json(&self) -> Result<String, crate::io::OutputError> {
+        self.to_json_with(None::<&()>)
+    }
+
     /// The bounds of Fig. 15 as CSV: `k,time_s,upper,lower,upper_min,lower_max` (start values in
     /// µm·samples relative to the converged value; time in s). A bound that does not exist at a
     /// sample (at k = 0 no start value puts e(0) = −step in the window) is an empty cell.
@@ -187,6 +214,25 @@ impl SettleReport {
     }
 }
 
+/// `settle --json`: the report's keys, `absolute` and, when given, `prediction`.
+#[derive(Serialize)]
+struct SettleJson<'a, P: Serialize> {
+    #[serde(flatten)]
+    report: &'a SettleReport,
+    absolute: Absolute,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    prediction: Option<&'a P>,
+}
+
+/// The absolute integrator start values (µm·samples): `z_converged` + each relative value.
+#[derive(Serialize)]
+struct Absolute {
+    zero_ff: f64,
+    ff_midpoint: Option<f64>,
+    paper_robust: Option<f64>,
+    robust: Option<f64>,
+}
+
 /// A header and rows as CSV text through [`crate::log::csv_writer`] (quoting where needed).
 fn csv_text(header: Vec<String>, rows: impl Iterator<Item = Vec<String>>) -> String {
     let mut w = crate::log::csv_writer(Vec::new());
@@ -202,10 +248,15 @@ fn csv_text(header: Vec<String>, rows: impl Iterator<Item = Vec<String>>) -> Str
 }
 
 /// A CSV cell: the number, or an empty cell where it is not finite (no bound exists at that
-/// sample, or the response overflowed), so the file never holds `inf` or `NaN`.
+/// sample, or the response overflowed), so the file never holds `inf` or `NaN`; a whole number
+/// keeps `.0`, so that a reader guessing the column's type takes it as a float.
 fn csv_cell(x: f64) -> String {
     if x.is_finite() {
-        x.to_string()
+        let mut s = x.to_string();
+        if !s.contains('.') {
+            s.push_str(".0");
+        }
+        s
     } else {
         String::new()
     }

@@ -1,7 +1,7 @@
 //! A settle problem as written (`SettleSpec` and its presets) and its check into a validated
 //! `SettleConfig`: plant, weights, handoff scenario and settle window.
 
-use super::{ConfigError, Handoff, SettleError};
+use super::{ConfigError, Handoff, PlantFileError, SettleError};
 use crate::control::LqrWeights;
 use crate::control::plant::{ModeSpec, Plant, PlantSpec};
 use serde::{Deserialize, Serialize};
@@ -124,6 +124,22 @@ impl SettleSpec {
             }
             other => Err(ConfigError::UnknownPreset(other.to_string())),
         }
+    }
+
+    /// Reads a plant TOML file (at most the size biasctl reads; numbers within its limits);
+    /// the description is checked later by [`SettleSpec::check`].
+    pub fn from_toml_file(path: &std::path::Path) -> Result<Self, PlantFileError> {
+        let file = path.display().to_string();
+        let text = crate::log::limits::read_text(path).map_err(|source| PlantFileError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        let parse = |source: Box<dyn std::error::Error + Send + Sync>| PlantFileError::Parse {
+            file: file.clone(),
+            source,
+        };
+        crate::log::check_toml_numbers(&text).map_err(|m| parse(m.into()))?;
+        toml::from_str::<SettleSpec>(&text).map_err(|e| parse(Box::new(e)))
     }
 
     /// Validates everything before any numerics: the plant (Ts, τ, Kp, modes), the weights

@@ -23,7 +23,7 @@ use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue, Law};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -54,7 +54,7 @@ impl BinsSpec {
 
 impl TermSpec for BinsSpec {
     fn name(&self) -> String {
-        let head = if self.by_direction { "dbins" } else { "bins" };
+        let head = if self.by_direction { DBINS_HEAD } else { HEAD };
         if self.knots == DEFAULT_KNOTS {
             format!("{head}:{}", self.source)
         } else {
@@ -123,14 +123,17 @@ impl Term for BinsTerm {
         }
         v
     }
-    fn droppable(&self) -> bool {
-        true
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            droppable: true,
+            ..TermCaps::DEFAULT
+        }
     }
     /// A `dbins` curve times the direction has no direction×constant column by design (it would
     /// duplicate `direction`); without a term that carries the inbound/outbound offset, that
     /// offset is not modelled at all.
     fn fit_warnings(&self, model: &[Arc<dyn Term>]) -> Vec<String> {
-        if self.by_direction && !model.iter().any(|t| t.spans_direction_offset()) {
+        if self.by_direction && !model.iter().any(|t| t.caps().spans_direction_offset) {
             vec![
                 "`dbins` curves have no direction×constant column: add `direction` or `dahl` to model \
                  the constant inbound/outbound offset (the two curves of Fig. 3)"
@@ -158,7 +161,7 @@ impl Term for BinsTerm {
         serde_json::to_value(self).unwrap_or_default()
     }
     fn export_c(&self, ctx: &CContext) -> Option<CTerm> {
-        let by_direction = self.name.split(':').next() == Some("dbins");
+        let by_direction = self.name.split(':').next() == Some(DBINS_HEAD);
         let (defined, value) = if self.covariate {
             ("1", "$X0")
         } else {
@@ -292,7 +295,7 @@ pub(crate) fn parse(
     if source.is_empty() {
         return Err(missing());
     }
-    Ok(Arc::new(BinsSpec::new(source, knots, head == "dbins")))
+    Ok(Arc::new(BinsSpec::new(source, knots, head == DBINS_HEAD)))
 }
 
 /// Rebuilds a fitted `bins`/`dbins` term (the head of `name` says which); the registry's
@@ -307,7 +310,7 @@ pub(crate) fn restore(
             why: e.to_string(),
         })?;
     Ok(Arc::new(BinsTerm {
-        by_direction: name.split(':').next() == Some("dbins"),
+        by_direction: name.split(':').next() == Some(DBINS_HEAD),
         ..t
     }))
 }
@@ -342,3 +345,5 @@ pub(crate) fn answers_by_direction(cue: Cue) -> Option<Answer> {
 
 /// The head of the even term's spec text (`bins:NAME`), for the diagnosis.
 pub(crate) const HEAD: &str = "bins";
+/// The head of the direction-signed term's spec text (`dbins:NAME`).
+pub(crate) const DBINS_HEAD: &str = "dbins";

@@ -1,5 +1,4 @@
-//! `bump[:CENTRE:WIDTH]`: a localized position defect (issue #10, "localized position
-//! defects") — a narrow Gaussian bump in the bias around one position,
+//! `bump[:CENTRE:WIDTH]`: a localized position defect — a narrow Gaussian bump in the bias around one position,
 //!
 //! `b = A · exp(−½·((x − c)/w)²)`,
 //!
@@ -39,7 +38,8 @@ use crate::model::ModelError;
 use crate::model::SpecError;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{
-    Nonlinear, Param, SearchContext, Searched, Seek, Term, TermSpec, TermState, se_from_cov,
+    Nonlinear, Param, SearchContext, Searched, Seek, Term, TermCaps, TermSpec, TermState,
+    se_from_cov,
 };
 use crate::model::term_text::TermText;
 use crate::model::terms::common::positive_finite;
@@ -208,9 +208,16 @@ impl BumpTerm {
 }
 
 impl Term for BumpTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` only.
+            reads_history: false,
+            // The RSS curve near its minimum stands clear of rounding (a narrow basin; the
+            // refinement stops where RSS differences are still far above rounding), and the
+            // projection is tested against the full solve (`fit::tests`).
+            search_by_projection: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         self.name.clone()
@@ -238,12 +245,6 @@ impl Term for BumpTerm {
         value
             .is_finite()
             .then(|| Arc::new(self.at(value, self.width.ln())) as Arc<dyn Term>)
-    }
-    /// The RSS curve near its minimum stands clear of rounding (a narrow basin; the
-    /// refinement stops where RSS differences are still far above rounding), and the
-    /// projection is tested against the full solve (`fit::tests`).
-    fn search_by_projection(&self) -> bool {
-        true
     }
     fn search(&self, ctx: &SearchContext<'_>) -> Option<Searched> {
         Some(self.search_bump(ctx))

@@ -13,6 +13,14 @@ use crate::model::term::{Seek, Term, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`by`).
+pub(crate) const HEAD: &str = "by";
+
+/// The spec text of the centred product of features or columns `a` and `b` (`by:A:B`).
+pub(crate) fn spec(a: &str, b: &str) -> String {
+    format!("{HEAD}:{a}:{b}")
+}
+
 /// Parses `by:A:B` (registry entry).
 pub(crate) fn parse(
     t: &crate::model::term_text::TermText<'_>,

@@ -9,9 +9,14 @@ use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue, Law};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term::{
+    Nonlinear, Param, Seek, Term, TermCaps, TermSpec, TermState, se_from_cov,
+};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`col`).
+pub(crate) const HEAD: &str = "col";
 
 /// Spec of the `col:NAME` term.
 #[derive(Debug, Clone)]
@@ -66,8 +71,16 @@ impl ColTerm {
 }
 
 impl Term for ColTerm {
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // A lag's τ: the projected RSS and the search on it are tested against a full solve
+            // per candidate (`fit::projection`'s memsum and lag test).
+            search_by_projection: self.lag.is_some(),
+            ..TermCaps::DEFAULT
+        }
+    }
     fn name(&self) -> String {
-        let head = if self.lag.is_some() { "lag" } else { "col" };
+        let head = if self.lag.is_some() { "lag" } else { HEAD };
         format!("{head}:{}", self.column)
     }
     fn param_names(&self) -> Vec<String> {

@@ -6,8 +6,11 @@ use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`direction`).
+pub(crate) const HEAD: &str = "direction";
 
 /// Spec of the `direction` term.
 #[derive(Debug, Clone, Copy)]
@@ -15,7 +18,7 @@ pub struct DirectionSpec;
 
 impl TermSpec for DirectionSpec {
     fn name(&self) -> String {
-        "direction".into()
+        HEAD.into()
     }
     fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         Ok(Arc::new(DirectionTerm))
@@ -28,13 +31,16 @@ pub struct DirectionTerm;
 
 impl Term for DirectionTerm {
     fn name(&self) -> String {
-        "direction".into()
+        HEAD.into()
     }
     fn param_names(&self) -> Vec<String> {
         vec!["Fc".into()]
     }
-    fn spans_direction_offset(&self) -> bool {
-        true
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            spans_direction_offset: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(DirectionState))

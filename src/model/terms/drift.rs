@@ -12,9 +12,12 @@ use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Param, Seek, Term, TermSpec, TermState};
+use crate::model::term::{Param, Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`drift`).
+pub(crate) const HEAD: &str = "drift";
 
 /// Spec of the `drift` term.
 #[derive(Debug, Clone, Copy)]
@@ -27,7 +30,7 @@ impl TermSpec for DriftSpec {
     fn name(&self) -> String {
         match self.alpha {
             Some(a) => format!("drift:{a}"),
-            None => "drift".into(),
+            None => HEAD.into(),
         }
     }
     fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
@@ -135,11 +138,12 @@ impl Term for DriftTerm {
             m: 0.0,
         }))
     }
-    fn adaptive(&self) -> bool {
-        true
-    }
-    fn reads_only_residuals(&self) -> bool {
-        true
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            adaptive: true,
+            reads_only_residuals: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn forgetting_factor(&self) -> Option<f64> {
         // `DriftState`: offset `m` (from 0), update `m += alpha · e`.

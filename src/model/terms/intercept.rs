@@ -3,8 +3,11 @@
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`intercept`).
+pub(crate) const HEAD: &str = "intercept";
 
 /// Spec of the `intercept` term.
 #[derive(Debug, Clone, Copy)]
@@ -12,7 +15,7 @@ pub struct InterceptSpec;
 
 impl TermSpec for InterceptSpec {
     fn name(&self) -> String {
-        "intercept".into()
+        HEAD.into()
     }
     fn prepare(&self, _data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         Ok(Arc::new(InterceptTerm))
@@ -24,18 +27,19 @@ impl TermSpec for InterceptSpec {
 pub struct InterceptTerm;
 
 impl Term for InterceptTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            provides_intercept: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
-        "intercept".into()
+        HEAD.into()
     }
     fn param_names(&self) -> Vec<String> {
         vec!["c".into()]
-    }
-    fn provides_intercept(&self) -> bool {
-        true
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(Constant))

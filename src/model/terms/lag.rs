@@ -1,5 +1,5 @@
-//! `lag:NAME`: bias linear in a covariate column passed through a first-order lag (issue #10,
-//! 2): a logged temperature often leads its effect (the sensor sits on the case, the effect is
+//! `lag:NAME`: bias linear in a covariate column passed through a first-order lag: a
+//! logged temperature often leads its effect (the sensor sits on the case, the effect is
 //! in the pivot), so the bias follows `z` with `τ·dz/dt = c(t) − z`.
 //!
 //! Between two rows the covariate is taken as linear in time (first-order hold), for which the
@@ -22,6 +22,9 @@ use crate::model::data::{FitData, FitError};
 use crate::model::term::{Term, TermSpec};
 use crate::numeric::stats::percentile_select;
 use std::sync::Arc;
+
+/// The head of the term's spec text (`lag`).
+pub(crate) const HEAD: &str = "lag";
 
 /// Spec of the `lag:NAME` term.
 #[derive(Debug, Clone)]

@@ -21,9 +21,12 @@ use crate::history::Feature;
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`memory`).
+pub(crate) const HEAD: &str = "memory";
 
 /// Default number of knots per curve.
 pub const DEFAULT_KNOTS: usize = 4;
@@ -37,7 +40,7 @@ pub struct MemorySpec {
 
 impl TermSpec for MemorySpec {
     fn name(&self) -> String {
-        spec_name("memory", self.knots, DEFAULT_KNOTS)
+        spec_name(HEAD, self.knots, DEFAULT_KNOTS)
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let d = data.measured_rest_distances_ahead();
@@ -64,8 +67,11 @@ impl Term for MemoryTerm {
     fn param_names(&self) -> Vec<String> {
         curve_param_names(&["out", "in"], &self.knots)
     }
-    fn droppable(&self) -> bool {
-        true
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            droppable: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn fit_warnings(&self, _model: &[Arc<dyn Term>]) -> Vec<String> {
         super::knots::no_knots_warning(self)

@@ -1,4 +1,4 @@
-//! `memsum`: summed-kernel rest memory (issue #10, 3a). Where `memory` looks only at the nearest
+//! `memsum`: summed-kernel rest memory. Where `memory` looks only at the nearest
 //! uncrossed rest position ahead, `memsum` lets **every** uncrossed earlier rest position p
 //! contribute, signed by the side it lies on and fading with its distance:
 //!
@@ -25,9 +25,14 @@
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term::{
+    Nonlinear, Param, Seek, Term, TermCaps, TermSpec, TermState, se_from_cov,
+};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`memsum`).
+pub(crate) const HEAD: &str = "memsum";
 
 /// Spec of the `memsum` term.
 #[derive(Debug, Clone, Copy)]
@@ -35,7 +40,7 @@ pub struct MemsumSpec;
 
 impl TermSpec for MemsumSpec {
     fn name(&self) -> String {
-        "memsum".into()
+        HEAD.into()
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let positions: Vec<f64> = data.log().rows().map(|r| r.track).collect();
@@ -43,7 +48,7 @@ impl TermSpec for MemsumSpec {
             .map(|[lo, hi]| hi - lo)
             .filter(|t| *t > 0.0)
             .ok_or_else(|| FitError::BadSetting {
-                term: "memsum".into(),
+                term: HEAD.into(),
                 why: "the log never moves, so no rest position is ever left behind".into(),
             })?;
         let (lo, hi) = ((travel / 500.0).ln(), travel.ln());
@@ -67,8 +72,16 @@ pub struct MemsumTerm {
 }
 
 impl Term for MemsumTerm {
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // The projected RSS and the search on it are tested against a full solve per
+            // candidate (`fit::projection`'s memsum and lag test).
+            search_by_projection: true,
+            ..TermCaps::DEFAULT
+        }
+    }
     fn name(&self) -> String {
-        "memsum".into()
+        HEAD.into()
     }
     fn param_names(&self) -> Vec<String> {
         vec!["A".into()]

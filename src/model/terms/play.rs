@@ -22,7 +22,7 @@
 
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -322,9 +322,12 @@ pub struct PlayTerm {
 }
 
 impl Term for PlayTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         self.name.clone()

@@ -8,9 +8,12 @@
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
+use crate::model::term::{Param, Seek, Term, TermCaps, TermSpec, TermState, se_from_cov};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`poly2`).
+pub(crate) const HEAD: &str = "poly2";
 
 /// Spec of the `poly2` term.
 #[derive(Debug, Clone, Copy)]
@@ -18,7 +21,7 @@ pub struct Poly2Spec;
 
 impl TermSpec for Poly2Spec {
     fn name(&self) -> String {
-        "poly2".into()
+        HEAD.into()
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
         let (centre, half) = centre_and_half_range(data.log());
@@ -66,18 +69,19 @@ pub struct Poly2Term {
 }
 
 impl Term for Poly2Term {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            provides_intercept: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
-        "poly2".into()
+        HEAD.into()
     }
     fn param_names(&self) -> Vec<String> {
         vec!["a0".into(), "a1".into(), "a2".into()]
-    }
-    fn provides_intercept(&self) -> bool {
-        true
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(*self))

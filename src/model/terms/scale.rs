@@ -35,7 +35,7 @@
 use super::common::covariate_position;
 use super::covariate::ColTerm;
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Nonlinear, Param, Seek, Term, TermSpec, TermState};
+use crate::model::term::{Nonlinear, Param, Seek, Term, TermCaps, TermSpec, TermState};
 use crate::model::{ModelError, SpecError};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -91,7 +91,7 @@ impl TermSpec for ScaleSpec {
         let name = self.name();
         let col = ColTerm::prepare(data, &self.column, &name)?;
         let inner = self.inner.prepare(data)?;
-        if inner.adaptive() || inner.param_count() == 0 {
+        if inner.caps().adaptive || inner.param_count() == 0 {
             return Err(FitError::Spec(SpecError::BadArgument {
                 term: name,
                 why: format!(
@@ -203,9 +203,12 @@ impl Term for ScaleTerm {
     fn param_count(&self) -> usize {
         self.inner.param_count()
     }
-    /// A column the inner term may drop (an empty knot interval) is as undetermined scaled.
-    fn droppable(&self) -> bool {
-        self.inner.droppable()
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // A column the inner term may drop (an empty knot interval) is as undetermined scaled.
+            droppable: self.inner.caps().droppable,
+            ..TermCaps::DEFAULT
+        }
     }
     /// The inner term's ridge (scale free, so the same on the scaled columns).
     fn ridge(&self) -> f64 {

@@ -1,4 +1,4 @@
-//! `step:COL[:T]`: a threshold in a covariate column (issue #10, "thresholds") — the bias
+//! `step:COL[:T]`: a threshold in a covariate column — the bias
 //! changes by a fitted height where the column exceeds a fitted threshold,
 //!
 //! `b = A · [v > T]`,
@@ -54,7 +54,8 @@ use super::common::covariate_position;
 use crate::codegen::{CContext, CTerm};
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{
-    Nonlinear, Param, SearchContext, Searched, Seek, Term, TermSpec, TermState, se_from_cov,
+    Nonlinear, Param, SearchContext, Searched, Seek, Term, TermCaps, TermSpec, TermState,
+    se_from_cov,
 };
 use crate::model::term_text::TermText;
 use crate::model::{ModelError, SpecError};
@@ -325,9 +326,15 @@ impl StepTerm {
 }
 
 impl Term for StepTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads a covariate only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads a covariate only.
+            reads_history: false,
+            // The exact RSS of two splits differs by what the rows between them change, far above
+            // rounding; the projection is tested against the full solve (`fit::tests`).
+            search_by_projection: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         self.name.clone()
@@ -358,11 +365,6 @@ impl Term for StepTerm {
         value
             .is_finite()
             .then(|| Arc::new(self.at(value)) as Arc<dyn Term>)
-    }
-    /// The exact RSS of two splits differs by what the rows between them change, far above
-    /// rounding; the projection is tested against the full solve (`fit::tests`).
-    fn search_by_projection(&self) -> bool {
-        true
     }
     fn search(&self, ctx: &SearchContext<'_>) -> Option<Searched> {
         Some(self.search_step(ctx))

@@ -1,4 +1,4 @@
-//! `stribeck[:COL][:DELTA]`: Coulomb friction with the Stribeck effect (issue #11, 4),
+//! `stribeck[:COL][:DELTA]`: Coulomb friction with the Stribeck effect,
 //!
 //! `F = sign(v)·(Fc + (Fs − Fc)·exp(−(|v|/vs)^δ))`,
 //!
@@ -33,6 +33,9 @@ use crate::numeric::stats;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// The head of the term's spec text (`stribeck`).
+pub(crate) const HEAD: &str = "stribeck";
+
 /// Default shape exponent δ.
 pub const DEFAULT_DELTA: f64 = 2.0;
 /// Allowed range of δ.
@@ -40,7 +43,7 @@ pub const DELTA_RANGE: (f64, f64) = (0.5, 4.0);
 
 /// The term name: `stribeck`, then `:COL` and `:δ` where they differ from the default.
 fn term_name(column: &Option<String>, delta: f64) -> String {
-    let mut name = String::from("stribeck");
+    let mut name = String::from(HEAD);
     if let Some(c) = column {
         name += &format!(":{c}");
     }
@@ -149,7 +152,7 @@ impl Term for StribeckTerm {
         }
         model
             .iter()
-            .filter(|t| t.spans_direction_offset())
+            .filter(|t| t.caps().spans_direction_offset)
             .map(|t| {
                 format!(
                     "{}: sign(velocity) is the direction of every move, so its Fc shares the \

@@ -7,9 +7,18 @@ use crate::codegen::{CContext, CTerm, zero};
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
-use crate::model::term::{Seek, Term, TermSpec, TermState};
+use crate::model::term::{Seek, Term, TermCaps, TermSpec, TermState};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`table`).
+pub(crate) const HEAD: &str = "table";
+
+/// The spec text of a table with knot spacing `h` (`table:2.5`, six significant digits at
+/// most), as model-structure selection proposes it.
+pub(crate) fn spec(h: f64) -> String {
+    format!("{HEAD}:{}", crate::log::fmt_trimmed(h, 6))
+}
 
 /// Spec of the `table` term.
 #[derive(Debug, Clone, Copy)]
@@ -22,7 +31,7 @@ impl TermSpec for TableSpec {
     fn name(&self) -> String {
         match self.spacing {
             Some(h) => format!("table:{}", crate::log::fmt_trimmed(h, 6)),
-            None => "table".into(),
+            None => HEAD.into(),
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
@@ -66,9 +75,13 @@ pub struct TableTerm {
 }
 
 impl Term for TableTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            provides_intercept: true,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         self.name.clone()
@@ -82,9 +95,6 @@ impl Term for TableTerm {
                 )
             })
             .collect()
-    }
-    fn provides_intercept(&self) -> bool {
-        true
     }
     fn start(&self, _covariates: &[String]) -> Result<Box<dyn TermState>, ModelError> {
         Ok(Box::new(self.clone()))

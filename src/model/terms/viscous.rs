@@ -1,5 +1,5 @@
 //! `viscous` and `viscous:COL`: viscous friction, a force proportional to the velocity,
-//! `F = b·v` (issue #11, 4).
+//! `F = b·v`.
 //!
 //! **Velocity.** With a column (`viscous:COL`) the velocity is that logged column, in its own
 //! unit. Without one it is derived causally from the log's position and time, the backward
@@ -24,6 +24,9 @@ use crate::model::term::{Param, Seek, Term, TermSpec, TermState, se_from_cov};
 use crate::model::term_text::TermText;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// The head of the term's spec text (`viscous`).
+pub(crate) const HEAD: &str = "viscous";
 
 /// The velocity of a seek: the covariate at `column` (an index into [`Seek::covariates`]) or,
 /// without one, the causal backward difference `seek_length / dwell_s` (position units per s;

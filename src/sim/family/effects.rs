@@ -82,37 +82,12 @@ impl HiddenEffect {
 
     /// Whether `feature` (a diagnosis feature name) is a right answer for this effect: the
     /// column it reads (or a feature derived from that column, `…COL…`), `position` for the
-    /// position effects, a summed-memory feature (`memsum…`) for summed memory.
+    /// position effects, a summed-memory feature (`memsum_L…`) for summed memory.
     pub fn is_right_feature(self, feature: &str) -> bool {
         match self {
             HiddenEffect::PositionDirection | HiddenEffect::Defect => feature == "position",
-            HiddenEffect::SummedMemory => feature.starts_with("memsum"),
+            HiddenEffect::SummedMemory => feature.starts_with("memsum_L"),
             _ => self.column().is_some_and(|c| feature.contains(c)),
-        }
-    }
-
-    /// The term that captures the effect (the "achievable" refit adds it): `col:temp_fast`,
-    /// `col:temp_slow`, `step:load` (the generator's own form: a step of fitted height at a
-    /// fitted threshold; `bins:load:16`, the stand-in before the step term, fits 17 parameters
-    /// and scored some in-sample overfit as achievable), `lag:temp_lag`, `dbins:humid`, `dbins:position`,
-    /// `bump` (the generator's own form: a Gaussian with fitted centre and width; `table:2`,
-    /// the stand-in before the bump term, fits ~120 knots and scored its in-sample overfit as
-    /// achievable: 1.83 counts in sample but 2.07 out of sample on a `bw-sine-t` log where
-    /// `bump` gives 1.89 and 1.93, and the user's model 2.01 and 2.07), `memsum`, and
-    /// `by:position:supply` for the interaction (the centred product of position and the
-    /// column: the generator's `(supply − 12)·u` up to terms linear in position, which the
-    /// model's position curve holds, and in `supply` times the mean of `u`).
-    pub fn true_term(self) -> Option<&'static str> {
-        match self {
-            HiddenEffect::FastCovariate => Some("col:temp_fast"),
-            HiddenEffect::SlowCovariate => Some("col:temp_slow"),
-            HiddenEffect::Threshold => Some("step:load"),
-            HiddenEffect::Lag => Some("lag:temp_lag"),
-            HiddenEffect::CovariateDirection => Some("dbins:humid"),
-            HiddenEffect::PositionDirection => Some("dbins:position"),
-            HiddenEffect::Defect => Some("bump"),
-            HiddenEffect::SummedMemory => Some("memsum"),
-            HiddenEffect::Interaction => Some("by:position:supply"),
         }
     }
 }

@@ -24,12 +24,16 @@ use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{
-    Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermSpec, TermState, se_from_cov,
+    Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermCaps, TermSpec, TermState,
+    se_from_cov,
 };
 use search::DahlSearch;
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
 use std::sync::Arc;
+
+/// The head of the term's spec text (`dahl`).
+pub(crate) const HEAD: &str = "dahl";
 
 /// Powers `r^n` tabulated for integer seek lengths below this.
 const TABLE: usize = 256;
@@ -281,7 +285,7 @@ impl TermSpec for DahlSpec {
     fn name(&self) -> String {
         match self.elements {
             Some(n) => format!("dahl:{n}"),
-            None => "dahl".into(),
+            None => HEAD.into(),
         }
     }
     fn prepare(&self, data: &FitData<'_>) -> Result<Arc<dyn Term>, FitError> {
@@ -454,15 +458,19 @@ impl DahlTerm {
 }
 
 impl Term for DahlTerm {
-    fn reads_history(&self) -> bool {
-        // Its state reads `target` / `seek_length` only.
-        false
+    fn caps(&self) -> TermCaps {
+        TermCaps {
+            // Its state reads `target` / `seek_length` only.
+            reads_history: false,
+            spans_direction_offset: true,
+            // The rate search's projected RSS is tested against the full solve per candidate
+            // (`fit::tests::projected_search_equals_full_solve_per_candidate`).
+            search_by_projection: self.search,
+            ..TermCaps::DEFAULT
+        }
     }
     fn name(&self) -> String {
         self.name.clone()
-    }
-    fn spans_direction_offset(&self) -> bool {
-        true
     }
     fn fit_warnings(&self, _model: &[Arc<dyn Term>]) -> Vec<String> {
         self.collapse().into_iter().collect()
@@ -506,11 +514,6 @@ impl Term for DahlTerm {
             lo: 0.0,
             hi: 1.0,
         })
-    }
-    fn search_by_projection(&self) -> bool {
-        // The rate search's projected RSS is tested against the full solve per candidate
-        // (`fit::tests::projected_search_equals_full_solve_per_candidate`).
-        self.search
     }
     fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
         self.search.then(|| {
