@@ -160,6 +160,16 @@ fn significant_but_too_small_is_said_and_not_flagged() {
         "{}",
         d.to_text()
     );
+    // With nothing flagged, the summary names the rule that decided it (not "beyond noise":
+    // the feature is far beyond noise, p ≤ alpha), the feature and its figures.
+    assert!(
+        d.summary
+            .contains("`direction_change`, is below the practical minimum")
+            && d.summary.contains("below the practical minimum of 2.0 %")
+            && !d.summary.contains("beyond noise"),
+        "{}",
+        d.summary
+    );
 }
 
 /// A log whose bias is a position curve plus k·(covariate) with the covariate cycling slowly

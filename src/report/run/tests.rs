@@ -104,6 +104,18 @@ fn the_demo_discovery_finds_what_its_ladder_shows() {
         history.contains(&top.as_str()),
         "diagnosis leads with {top}"
     );
+    // The page's feature table names each feature's verdict by its rule.
+    let table = crate::report::sections::diagnosis::diagnosis_table(&run.diagnosis.diagnosis, 6);
+    let col = table.header.iter().position(|h| h == "verdict").unwrap();
+    for (row, f) in table.rows.iter().zip(&run.diagnosis.diagnosis.features) {
+        assert!(
+            matches!(&row[col], crate::report::Cell::Text(t) if t == f.reason.words()),
+            "{}: {:?}",
+            f.name,
+            row[col]
+        );
+    }
+    assert!(matches!(&table.rows[0][col], crate::report::Cell::Text(t) if t == "flagged"));
     let d = run.discovery.as_ref().unwrap();
     let text = d.to_string();
     let first = d
