@@ -401,6 +401,11 @@ fn discover_finds_both_hidden_effects_and_stops() {
     );
     for s in &d.steps {
         assert!(s.std_after < s.std_before, "{text}");
+        // Each step's reason begins with the rule that admitted it and names the bar.
+        assert!(
+            s.reason.starts_with("verified: ") && s.reason.contains(", bar "),
+            "{text}"
+        );
     }
     assert!(d.steps.last().unwrap().std_after < 1.3, "{text}");
     assert!(!d.stopped_because.is_empty(), "{text}");
