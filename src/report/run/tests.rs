@@ -129,6 +129,13 @@ fn the_demo_discovery_finds_what_its_ladder_shows() {
             .any(|t| first.edit.starts_with(&format!("add {t}"))),
         "{text}"
     );
+    // The page says so beside the ladder.
+    let beside = crate::report::story::discovery_beside_ladder(&run).unwrap();
+    assert!(
+        beside.contains(&format!("`{}`", first.edit))
+            && beside.contains("Both are terms of the seek history"),
+        "{beside}"
+    );
     let last = d.steps.last().unwrap();
     assert!(
         last.std_after < rungs[start].std,
