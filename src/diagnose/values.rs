@@ -28,7 +28,7 @@ pub(crate) fn short(x: f64) -> String {
 pub(crate) fn apart(value: f64, bar: f64, scale: f64, decimals: usize) -> (String, String) {
     let fmt = |x: f64, d: usize| format!("{:.*}", d, scale * x);
     let mut d = decimals;
-    while d < decimals + 3 && value != bar && fmt(value, d) == fmt(bar, d) {
+    while d < decimals + 3 && value.total_cmp(&bar).is_ne() && fmt(value, d) == fmt(bar, d) {
         d += 1;
     }
     (fmt(value, d), fmt(bar, d))
