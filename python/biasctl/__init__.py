@@ -231,15 +231,26 @@ class Log:
     def __reduce__(self):
         roles = self._inner.roles
         names = [roles[0], roles[1], roles[2] if self.has_bias else "", *self.covariates]
-        u = self.units
-        return (_restore_log, (self.file, names, self._inner.arrays(), u["bias"], u["position"]))
+        u, given = self.units, self._inner.units_given
+        return (
+            _restore_log,
+            (
+                self.file, names, self._inner.arrays(), u["bias"] if given[0] else None,
+                u["position"] if given[1] else None, self._inner.metadata,
+            ),
+        )
 
     def __repr__(self) -> str:
         return repr(self._inner)
 
 
-def _restore_log(source, names, arrays, bias_unit, track_unit):
-    return Log._from_columns(source, names, [_np.ascontiguousarray(a) for a in arrays], bias_unit, track_unit)
+def _restore_log(source, names, arrays, bias_unit, track_unit, metadata=None):
+    return Log(
+        _ext.log_from_columns(
+            source, names, [_np.ascontiguousarray(a) for a in arrays], bias_unit, track_unit,
+            metadata,
+        )
+    )
 
 
 def read_log(

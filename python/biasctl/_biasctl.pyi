@@ -26,6 +26,8 @@ class Log:
     @property
     def has_bias(self) -> bool: ...
     @property
+    def units_given(self) -> tuple[bool, bool]: ...
+    @property
     def units(self) -> dict[str, str]: ...
     @property
     def file(self) -> str: ...
@@ -103,6 +105,7 @@ def log_from_columns(
     columns: list[_F64],
     bias_unit: str | None = None,
     track_unit: str | None = None,
+    metadata: list[str] | None = None,
 ) -> Log: ...
 def fit(
     log: Log,

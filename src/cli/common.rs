@@ -188,13 +188,8 @@ impl ColumnArgs {
     ) -> anyhow::Result<Units> {
         let mut units = self.units(schema)?;
         if let Some(fitted) = &model.columns.units {
-            use crate::log::{BIAS_UNIT_KEY, POSITION_UNIT_KEY};
-            if self.bias_unit.is_none() && schema.metadata_value(BIAS_UNIT_KEY).is_none() {
-                units.bias = fitted.bias.clone();
-            }
-            if self.track_unit.is_none() && schema.metadata_value(POSITION_UNIT_KEY).is_none() {
-                units.position = fitted.position.clone();
-            }
+            let (bias, track) = (self.bias_unit.is_some(), self.track_unit.is_some());
+            units = units.for_model(fitted, bias, track, schema);
         }
         model.check_units(&units)?;
         Ok(units)
