@@ -123,8 +123,10 @@ class Log:
     ) -> "Log":
         """A log from arrays: ``time`` (s), ``track`` (position) and, optionally, ``bias`` (a
         NaN is a move whose bias was not measured; ``None``: a plan); every other keyword is a
-        covariate column. Checked by the library's reader (finite values, time order, limits):
-        a message names the column and the line, line 2 being row 0."""
+        covariate column (a NaN is a missing value, an empty cell in a file: the reader leaves
+        such a column out with a note, see ``Log.notes``). Checked by the library's reader
+        (finite values, time order, limits): a message names the column and the line, line 2
+        being row 0."""
         source = "<arrays>"
         t = _column("time_s", time, None, source)
         cols = [t, _column("track", track, len(t), source)]

@@ -96,7 +96,9 @@ impl PyLog {
             }
             for c in &covs {
                 out.push(b',');
-                number(&mut out, c[i]);
+                if !c[i].is_nan() {
+                    number(&mut out, c[i]);
+                }
             }
             out.push(b'\n');
         }
@@ -295,8 +297,9 @@ pub(crate) fn log_from_columns(
                 text.push(b',');
             }
             let x = v[i];
-            // A NaN bias is a move that was not measured: an empty cell.
-            if !(has_bias && j == 2 && x.is_nan()) {
+            // A NaN bias is a move that was not measured, a NaN covariate a missing value: an
+            // empty cell, as pandas writes it (a NaN time or position is refused by the reader).
+            if !(j >= 2 && x.is_nan()) {
                 number(&mut text, x);
             }
         }
