@@ -233,7 +233,7 @@ mod tests {
             assert!(words.iter().any(|x| x == w), "`{w}` is a cut word in {m}");
         }
         // Without whitespace to cut at, the cut stays at the limit.
-        let one = io::Error::other(format!("{}", "ab,".repeat(200)));
+        let one = io::Error::other("ab,".repeat(200));
         assert!(message(&one).chars().count() <= MESSAGE_LINE_CHARS);
     }
 

@@ -11,9 +11,11 @@
 
 pub(crate) mod cue;
 pub(crate) mod data;
+mod error;
 pub(crate) mod predictor;
 pub(crate) mod preset;
 pub(crate) mod registry;
+mod spec;
 pub(crate) mod term;
 pub(crate) mod term_text;
 pub mod terms;
@@ -28,14 +30,16 @@ use crate::log::Log;
 use data::FitReport;
 use serde::{Deserialize, Serialize};
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 
 // The namespace's public items that live in its submodules (the crate root keeps only the
 // names most users need; see `biasctl::prelude`).
+pub use error::{ModelError, SpecError};
 pub use predictor::ReplayError;
 pub use preset::{CALIBRATION, preset_terms};
 pub use registry::builtin_names;
+pub use spec::{ModelEdit, ModelSpec};
 pub use term::{
     Nonlinear, Param, SearchBasis, SearchContext, Searched, Seek, Term, TermCaps, TermSpec,
     TermState,
@@ -45,310 +49,6 @@ pub use term::{
 pub(crate) const FORMAT: &str = "biasctl-model";
 /// Version of the model file layout this build reads and writes.
 pub(crate) const FORMAT_VERSION: u32 = 1;
-
-/// An error in a model spec string (`--terms`, `--model`); nothing has been read or fitted.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum SpecError {
-    /// A term name that is not built in.
-    #[error(
-        "unknown term `{term}`{} (built-in terms: {}; `biasctl fit --help` gives their arguments)",
-        registry::did_you_mean_term(.term),
-        registry::builtin_heads().join(", ")
-    )]
-    UnknownTerm {
-        /// The offending item.
-        term: String,
-    },
-    /// A term's argument is malformed.
-    #[error("term `{term}`: {why}")]
-    BadArgument {
-        /// The offending item.
-        term: String,
-        /// What is wrong.
-        why: String,
-    },
-    /// The same term twice.
-    #[error("term `{term}` appears twice in the model")]
-    Duplicate {
-        /// The repeated term.
-        term: String,
-    },
-    /// A preset name that does not exist.
-    #[error(
-        "unknown model preset `{name}`{} (presets: {})",
-        crate::io::words::did_you_mean(.name, preset::PRESETS),
-        preset::PRESETS.join(", ")
-    )]
-    UnknownPreset {
-        /// The name given.
-        name: String,
-    },
-    /// An edit names a term the model does not have.
-    #[error("term `{term}` is not in the model `{model}`")]
-    NotInModel {
-        /// The term named by the edit.
-        term: String,
-        /// The model's terms.
-        model: String,
-    },
-    /// An empty item in a list (`poly2,,seek`).
-    #[error("empty term in the list `{list}`")]
-    EmptyItem {
-        /// The whole list.
-        list: String,
-    },
-}
-
-/// An error loading, saving or applying a fitted model.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ModelError {
-    /// The model file could not be read.
-    #[error("{path}: cannot read the model file: {source}")]
-    Io {
-        /// The model file.
-        path: PathBuf,
-        /// The operating-system error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The file is not a valid model file.
-    #[error("{path}: not a valid biasctl model file: {why}")]
-    Corrupt {
-        /// The model file.
-        path: PathBuf,
-        /// What is wrong.
-        why: String,
-    },
-    /// A model file from another format version.
-    #[error(
-        "{path}: model format version {found}, but this biasctl reads version {expected}; refit the model"
-    )]
-    Version {
-        /// The model file.
-        path: PathBuf,
-        /// The version in the file.
-        found: u64,
-        /// The version this build reads.
-        expected: u32,
-    },
-    /// A term in the file cannot be rebuilt.
-    #[error("model term `{term}`: {why}")]
-    BadTerm {
-        /// The term.
-        term: String,
-        /// What is wrong.
-        why: String,
-    },
-    /// The log lacks a covariate column the model uses.
-    #[error(
-        "term `{term}` needs covariate column `{column}`, which this log lacks (covariates in the log: {available})"
-    )]
-    MissingCovariate {
-        /// The term.
-        term: String,
-        /// The missing column.
-        column: String,
-        /// The log's covariates.
-        available: String,
-    },
-    /// A [`Predictor`] was given another number of covariate values than the covariate names
-    /// it was made with.
-    #[error(
-        "{given} covariate values given, but the predictor was made with {expected} covariate names: pass one value per name, in their order"
-    )]
-    CovariateCount {
-        /// The number of names given to [`Predictor::new`].
-        expected: usize,
-        /// The number of values passed.
-        given: usize,
-    },
-    /// A log is read in other units than the model was fitted in.
-    #[error(
-        "the model was fitted with {what} in `{model}`, but this log's {what} is in `{log}` ({field}); a model predicts in the units it was fitted in: read the log in `{model}`, or refit the model on this log"
-    )]
-    UnitMismatch {
-        /// Which unit: `bias` or `position`.
-        what: &'static str,
-        /// The unit the model was fitted in.
-        model: String,
-        /// The log's unit.
-        log: String,
-        /// The setting that names the log's unit.
-        field: crate::field::Field,
-    },
-    /// A term reads a covariate column that has empty cells in this log (missing values).
-    #[error(
-        "{file}: term `{term}` reads {cells}; the model needs a value on every row: fill the cells"
-    )]
-    EmptyCovariate {
-        /// The log file.
-        file: String,
-        /// The term.
-        term: String,
-        /// The column and its empty cells.
-        cells: crate::log::EmptyCells,
-    },
-    /// The log's required columns are named differently from the ones the model was fitted on.
-    #[error(
-        "the model was fitted with {what} column `{model}`, but this log is read with `{log}` ({field}); the names must match: read a log that has `{model}` with {field} {}, or refit the model on this log",
-        crate::io::shell_quote(.model)
-    )]
-    ColumnMismatch {
-        /// Which column (time, track, bias).
-        what: &'static str,
-        /// Name at fit time.
-        model: String,
-        /// Name now.
-        log: String,
-        /// The setting that renames it.
-        field: crate::field::Field,
-    },
-    /// The log has no rows to predict from.
-    #[error("{file}: the log has no rows")]
-    EmptyLog {
-        /// The log file.
-        file: String,
-    },
-    /// A seek target to predict at that is not a position a log can hold (NaN, infinite, or
-    /// beyond the reader's ±1e15).
-    #[error("target {target}: give a finite position within ±1e15 (the log's position unit)")]
-    BadTarget {
-        /// The target given.
-        target: f64,
-    },
-    /// Writing the model file failed.
-    #[error(transparent)]
-    Output(#[from] OutputError),
-}
-
-/// An unfitted model: the list of term specs (see [`terms::parse_term`] for the names).
-#[derive(Debug, Clone, Default)]
-pub struct ModelSpec {
-    /// The terms, in order.
-    pub terms: Vec<Arc<dyn TermSpec>>,
-}
-
-impl ModelSpec {
-    /// Parses a comma-separated term list such as `poly2,dahl:4,col:temp_c`. An empty string is
-    /// an empty model (only an intercept), useful to add user terms with [`ModelSpec::with_term`].
-    pub fn parse(list: &str) -> Result<Self, SpecError> {
-        let mut spec = ModelSpec::default();
-        if list.trim().is_empty() {
-            return Ok(spec);
-        }
-        for item in list.split(',') {
-            if item.trim().is_empty() {
-                return Err(SpecError::EmptyItem { list: list.into() });
-            }
-            spec = spec.try_with_term(terms::parse_term(item)?)?;
-        }
-        Ok(spec)
-    }
-
-    /// A named preset: `position-direction`, `calibration` or `dahl` (see `preset`).
-    pub fn preset(name: &str) -> Result<Self, SpecError> {
-        preset::preset(name)
-    }
-
-    /// This spec with one more term (a built-in or a user's [`TermSpec`]); panics never, but a
-    /// duplicate name is kept as given (use [`ModelSpec::try_with_term`] to reject it).
-    pub fn with_term(mut self, term: Arc<dyn TermSpec>) -> Self {
-        self.terms.push(term);
-        self
-    }
-
-    /// This spec with one more term; errors if a term of the same name is already there.
-    pub fn try_with_term(self, term: Arc<dyn TermSpec>) -> Result<Self, SpecError> {
-        let name = term.name();
-        if self.terms.iter().any(|t| t.name() == name) {
-            return Err(SpecError::Duplicate { term: name });
-        }
-        Ok(self.with_term(term))
-    }
-}
-
-/// A typed change to a model: what diagnose suggests and `discover` applies. Terms are held as
-/// [`TermSpec`] objects, never as strings, so a user's own term survives every edit.
-///
-/// ```
-/// use biasctl::{model::ModelEdit, ModelSpec, model::terms::parse_term};
-/// let spec = ModelSpec::parse("poly2,direction").unwrap();
-/// let add = ModelEdit::Add(parse_term("col:temp_c").unwrap());
-/// assert_eq!(spec.apply(&add).unwrap().to_string(), "poly2,direction,col:temp_c");
-/// let swap = ModelEdit::Replace { old: "poly2".into(), new: parse_term("table:50").unwrap() };
-/// assert_eq!(spec.apply(&swap).unwrap().to_string(), "table:50,direction");
-/// assert_eq!(swap.to_string(), "replace poly2 by table:50");
-/// assert!(spec.apply(&ModelEdit::Remove("seek".into())).is_err());
-/// ```
-#[derive(Debug, Clone)]
-#[non_exhaustive]
-pub enum ModelEdit {
-    /// Add a term at the end of the model.
-    Add(Arc<dyn TermSpec>),
-    /// Replace the term named `old` by `new`, in place.
-    Replace {
-        /// Name of the term to replace (its spec string, e.g. `poly2`).
-        old: String,
-        /// The term that takes its place.
-        new: Arc<dyn TermSpec>,
-    },
-    /// Remove the term with this name.
-    Remove(String),
-}
-
-impl fmt::Display for ModelEdit {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ModelEdit::Add(t) => write!(f, "add {}", t.name()),
-            ModelEdit::Replace { old, new } => write!(f, "replace {old} by {}", new.name()),
-            ModelEdit::Remove(name) => write!(f, "remove {name}"),
-        }
-    }
-}
-
-impl ModelSpec {
-    /// The spec after `edit`; fails if an added or replacing term duplicates one already there,
-    /// or if a term to replace or remove is not in the model.
-    pub fn apply(&self, edit: &ModelEdit) -> Result<ModelSpec, SpecError> {
-        let position = |name: &str| {
-            self.terms
-                .iter()
-                .position(|t| t.name() == name)
-                .ok_or_else(|| SpecError::NotInModel {
-                    term: name.to_string(),
-                    model: self.to_string(),
-                })
-        };
-        match edit {
-            ModelEdit::Add(t) => self.clone().try_with_term(t.clone()),
-            ModelEdit::Replace { old, new } => {
-                let i = position(old)?;
-                let new_name = new.name();
-                if new_name != *old && self.terms.iter().any(|t| t.name() == new_name) {
-                    return Err(SpecError::Duplicate { term: new_name });
-                }
-                let mut spec = self.clone();
-                spec.terms[i] = new.clone();
-                Ok(spec)
-            }
-            ModelEdit::Remove(name) => {
-                let i = position(name)?;
-                let mut spec = self.clone();
-                spec.terms.remove(i);
-                Ok(spec)
-            }
-        }
-    }
-}
-
-impl fmt::Display for ModelSpec {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let names: Vec<String> = self.terms.iter().map(|t| t.name()).collect();
-        f.write_str(&names.join(","))
-    }
-}
 
 /// The log columns a model was fitted on.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -709,7 +409,7 @@ impl FittedModel {
             })
             .collect();
         if let crate::history::DirectionSource::Velocity { column } = &self.direction {
-            read.push(("direction".into(), column.clone()));
+            read.push((terms::direction::HEAD.into(), column.clone()));
         }
         read
     }

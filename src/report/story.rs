@@ -273,7 +273,8 @@ fn predictors(r: &mut Report, run: &DemoRun, notes: &mut Notes) {
         s,
         &[dahl, dahl4],
         units,
-        "The two friction-state models on the same random run, on the same axes as above.",
+        "The two friction-state models on the same random run. Their axes are scaled to their \
+         own errors, not to the figure above: compare the numbers on the axes, not the heights.",
     );
     scores::curves_figure(
         s,
@@ -559,7 +560,10 @@ fn data_page(run: &DataRun, notes: &mut Notes) -> Report {
                 s,
                 log,
                 c,
-                format!("Bias vs position with the {} model's curves.", c.label),
+                format!(
+                    "Bias vs position with the curves of {}.",
+                    scores::model_phrase(&c.label)
+                ),
                 notes,
             );
         }

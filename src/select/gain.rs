@@ -239,11 +239,13 @@ pub(super) fn rule(
     z_bar: f64,
     every_fold: Option<bool>,
 ) -> Reason {
-    if !(gain >= min_effect) {
+    // Below, or not a number: a NaN gain, spread or z fails the rule.
+    let below = |a: f64, b: f64| a.partial_cmp(&b).is_none_or(std::cmp::Ordering::is_lt);
+    if below(gain, min_effect) {
         Reason::BelowPracticalMinimum
-    } else if !(within >= min_effect) {
+    } else if below(within, min_effect) {
         Reason::OnlyRelevelsFolds
-    } else if !(z >= z_bar) {
+    } else if below(z, z_bar) {
         Reason::NotSignificant
     } else if every_fold == Some(false) {
         Reason::NotInEveryFold

@@ -746,19 +746,34 @@ fn metadata_units_label_a_log_without_flags() {
         "{ladder}"
     );
     no_simulator_units("ladder", &ladder);
-    // The flag wins over the metadata.
+    // The flag wins over the metadata: a fit reads the bias in `A` …
     let flagged = ok(&[
-        "score",
-        "--model",
-        &model,
+        "fit",
         "--data",
         &log,
+        "--model",
+        "position-direction",
         "--bias-unit",
         "A",
+        "--out",
+        &dir.path().join("a.json").display().to_string(),
     ]);
     assert!(
-        flagged.contains(" A/um, t ") && !flagged.contains("mA"),
+        flagged.contains(" A, R² ") && !flagged.contains("mA"),
         "{flagged}"
+    );
+    // … and the mA model refuses a log the flag says is in A, naming the flag.
+    crate::common::fails_with(
+        &[
+            "score",
+            "--model",
+            &model,
+            "--data",
+            &log,
+            "--bias-unit",
+            "A",
+        ],
+        &["fitted with bias in `mA`", "(--bias-unit)"],
     );
     // The report of the log.
     let out = dir.path().join("rep").display().to_string();

@@ -1058,6 +1058,12 @@ fn demo_report_tells_the_whole_story_in_valid_self_contained_html() {
     .unwrap();
     let html = std::fs::read_to_string(&outcome.report).unwrap();
     assert!(html.starts_with("<!DOCTYPE html>"));
+    // The friction-state error figure has its own axes, and its caption says so (it said
+    // "on the same axes as above" over another range).
+    assert!(
+        !html.contains("same axes as above") && html.contains("scaled to their own errors"),
+        "friction-state caption"
+    );
     assert!(!html.contains("<script"), "no script");
     assert!(!html.contains("http"), "no URL of any kind");
     let body = html.trim_start_matches("<!DOCTYPE html>");
@@ -1209,6 +1215,12 @@ fn data_report_covers_a_users_log_and_model_and_survives_tiny_data() {
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     let doc = parse_xml(html.trim_start_matches("<!DOCTYPE html>"));
     assert!(html.contains("your model (whole log)"));
+    // The label reads as a phrase in captions and alt texts.
+    assert!(
+        html.contains("with the curves of your model (whole log).")
+            && !html.contains("the your model"),
+        "caption"
+    );
     assert!(html.contains("Your data") && html.contains("What diagnose finds"));
     assert!(
         doc.descendants()

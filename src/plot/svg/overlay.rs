@@ -92,33 +92,57 @@ impl Chart {
         );
         if !label.is_empty() {
             let w = text_width(label, 11.0);
-            let (x0, x1) = if anchor == "end" {
-                (tx - w, tx)
-            } else {
-                (tx, tx + w)
-            };
             let horizontal = anchor == "end";
-            let free = |y: f64, placed: &[(f64, f64, f64)]| {
+            let span = |tx: f64, anchor: &str| {
+                if anchor == "end" {
+                    (tx - w, tx)
+                } else {
+                    (tx, tx + w)
+                }
+            };
+            let free = |(x0, x1): (f64, f64), y: f64, placed: &[(f64, f64, f64)]| {
                 placed
                     .iter()
                     .all(|&(a, b, py)| b < x0 || a > x1 || (py - y).abs() >= 12.0)
             };
-            // Horizontal lines: above, below, then further out; vertical lines: step down.
-            let ty = (0..12)
-                .map(|i| {
-                    let k = f64::from(i);
-                    if horizontal {
-                        if i % 2 == 0 {
-                            ty - 6.0 * k
-                        } else {
-                            ty + 16.0 + 6.0 * (k - 1.0)
-                        }
-                    } else {
-                        ty + 12.0 * k
+            // Horizontal lines: above, below, then further out, at the right end, then at the
+            // left; the first place that covers no data, else the one covering the least;
+            // vertical lines: step down.
+            let sides: &[(f64, &str)] = if horizontal {
+                &[(tx, "end"), (lay.left + 4.0, "start")]
+            } else {
+                &[(tx, anchor)]
+            };
+            let mut best: Option<(usize, f64, &str, f64)> = None;
+            'search: for i in 0..12 {
+                let k = f64::from(i);
+                let y = if !horizontal {
+                    ty + 12.0 * k
+                } else if i % 2 == 0 {
+                    ty - 6.0 * k
+                } else {
+                    ty + 16.0 + 6.0 * (k - 1.0)
+                };
+                for &(x, a) in sides {
+                    let box_x = span(x, a);
+                    if !free(box_x, y, placed) {
+                        continue;
                     }
-                })
-                .find(|&y| free(y, placed))
-                .unwrap_or(ty);
+                    let covered = if horizontal {
+                        self.data_in_box(lay, box_x, (y - 10.0, y + 2.0))
+                    } else {
+                        0
+                    };
+                    if best.is_none_or(|b| covered < b.0) {
+                        best = Some((covered, x, a, y));
+                    }
+                    if covered == 0 {
+                        break 'search;
+                    }
+                }
+            }
+            let (_, tx, anchor, ty) = best.unwrap_or((0, tx, anchor, ty));
+            let (x0, x1) = span(tx, anchor);
             placed.push((x0, x1, ty));
             let _ = write!(
                 out,
@@ -129,6 +153,39 @@ impl Chart {
             );
         }
         out.push_str("</g>\n");
+    }
+
+    /// How many of the series' drawn points (markers, and points along each line segment)
+    /// fall in the pixel box `x` × `y`: what a label placed there would cover.
+    fn data_in_box(&self, lay: &Layout, x: (f64, f64), y: (f64, f64)) -> usize {
+        let inside = |&(a, b): &(f64, f64)| {
+            let (px, py) = (lay.px(a), lay.py(b));
+            px >= x.0 - 3.0 && px <= x.1 + 3.0 && py >= y.0 - 3.0 && py <= y.1 + 3.0
+        };
+        let along = |pts: &[(f64, f64)]| {
+            pts.windows(2)
+                .flat_map(|w| {
+                    (0..8).map(move |j| {
+                        let t = f64::from(j) / 8.0;
+                        (
+                            w[0].0 + t * (w[1].0 - w[0].0),
+                            w[0].1 + t * (w[1].1 - w[0].1),
+                        )
+                    })
+                })
+                .chain(pts.last().copied())
+                .filter(|p| p.0.is_finite() && p.1.is_finite() && inside(p))
+                .count()
+        };
+        self.series
+            .iter()
+            .map(|s| match &s.data {
+                SeriesData::Line(p) | SeriesData::Step(p) => along(p),
+                SeriesData::Scatter(p) => p.iter().filter(|p| inside(p)).count(),
+                SeriesData::ErrorBars(p) => p.iter().filter(|p| inside(&(p.x, p.y))).count(),
+                SeriesData::Bars { .. } => 0,
+            })
+            .sum()
     }
 
     pub(super) fn render_legend(&self, lay: &Layout, out: &mut String) {

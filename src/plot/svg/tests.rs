@@ -58,3 +58,29 @@ fn clipping_cuts_segments_at_the_range() {
     assert!((lay.x_lo + AXIS_PADDING).abs() < 1e-12);
     assert!(clip(&lay, (-1.0, 2.0), (2.0, 2.0)).is_none());
 }
+
+/// Reference: where the data lie, by construction. A reference line's label goes where it
+/// covers no data: at the right end when the data are away from it there, else at the left.
+#[test]
+fn a_reference_label_avoids_the_data() {
+    let label_anchor = |pts: &[(f64, f64)]| {
+        let svg = Chart::new("t").line("d", pts).hline(5.0, "level").to_svg();
+        let at = svg.find(">level</text>").expect("label drawn");
+        let start = svg[..at].rfind("<text").unwrap();
+        svg[start..at].contains(r#"text-anchor="start""#)
+    };
+    // Data crossing the line's level over the right third, far from it on the left.
+    let right: Vec<(f64, f64)> = (0..=100)
+        .map(|i| {
+            let x = f64::from(i);
+            (x, if i > 66 { 5.0 + (x * 0.7).sin() } else { -5.0 })
+        })
+        .collect();
+    assert!(
+        label_anchor(&right),
+        "label left at the right end, over the data"
+    );
+    // Mirrored: the right end is free, the label stays there.
+    let left: Vec<(f64, f64)> = right.iter().map(|&(x, y)| (100.0 - x, y)).collect();
+    assert!(!label_anchor(&left));
+}

@@ -138,6 +138,16 @@ pub(crate) fn errors_figure(
     s.figure(views::errors(&preds, units), caption);
 }
 
+/// A model's label as a noun phrase: "the calibration model" for a preset or term list, the
+/// label itself where it already says what it is ("your model (whole log)").
+pub(crate) fn model_phrase(label: &str) -> String {
+    if label.starts_with("your model") {
+        label.to_string()
+    } else {
+        format!("the {label} model")
+    }
+}
+
 /// Bias vs position of `log` with `m`'s inbound and outbound curves, or a notice of why they
 /// could not be drawn.
 pub(crate) fn curves_figure(
@@ -151,7 +161,7 @@ pub(crate) fn curves_figure(
         s,
         views::position(log, Some(&m.model)),
         caption,
-        &format!("The {} model's curves", m.label),
+        &format!("The curves of {}", model_phrase(&m.label)),
         notes,
     );
 }
@@ -159,6 +169,23 @@ pub(crate) fn curves_figure(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Reference: the phrases written out by hand; a caption never reads "the your model".
+    #[test]
+    fn a_model_label_reads_as_a_phrase() {
+        assert_eq!(model_phrase("calibration"), "the calibration model");
+        assert_eq!(
+            model_phrase("your model (whole log)"),
+            "your model (whole log)"
+        );
+        assert_eq!(
+            format!(
+                "with the curves of {}.",
+                model_phrase("your model (whole log)")
+            ),
+            "with the curves of your model (whole log)."
+        );
+    }
 
     /// Reference: the list written out by hand.
     #[test]
