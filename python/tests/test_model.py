@@ -199,3 +199,19 @@ def test_units_for_a_model_as_the_cli_takes_them(data, cli, tmp_path):
         m.score(biasctl.read_log(p, bias_col="force", bias_unit="mA"))
     with pytest.raises(biasctl.ModelError, match="mA"):
         m.predict(biasctl.read_log(p, bias_col="force", bias_unit="mA"))
+
+
+def test_a_log_written_by_to_csv_fits_in_the_cli_as_in_python(cli, tmp_path):
+    """Log.to_csv: the file the CLI reads gives the model Python fits on the log itself."""
+    rng = np.random.default_rng(4)
+    t = np.arange(300, dtype=float) * 0.5
+    track = rng.integers(0, 3000, 300).astype(float)
+    temp = 20 + rng.random(300)
+    bias = 3 + 0.01 * track + 2 * temp + rng.normal(0, 0.1, 300)
+    log = biasctl.Log.from_arrays(t, track, bias, temp_c=temp)
+    p = tmp_path / "log.csv"
+    log.to_csv(p)
+    out = tmp_path / "m.json"
+    cli.run("fit", "--data", p, "--terms", "poly2,col:temp_c", "--out", out)
+    m = biasctl.fit(log, "poly2,col:temp_c")
+    assert m.to_json() == out.read_text()
