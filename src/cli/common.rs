@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// library's errors name settings ([`Field`]); [`with_flags`] renders each as its flag in every
 /// message the CLI prints. `None`: no command sets the field (a library-only setting such as
 /// `FitOptions::grid`), so its name stays. Every [`Field`] is listed once (a test checks).
-pub(crate) const FLAGS: [(Field, Option<&str>); 41] = [
+pub(crate) const FLAGS: [(Field, Option<&str>); 42] = [
     (Field::TimeColumn, Some("--time-col")),
     (Field::TrackColumn, Some("--track-col")),
     (Field::BiasColumn, Some("--bias-col")),
@@ -56,6 +56,7 @@ pub(crate) const FLAGS: [(Field, Option<&str>); 41] = [
     (Field::SettlePreset, None),
     (Field::LadderTerms, Some("--terms")),
     (Field::PanelTop, Some("--top")),
+    (Field::OutlierThreshold, Some("--threshold")),
 ];
 
 /// The flag that sets `field`, from [`FLAGS`]; `None` for a library-only setting.
