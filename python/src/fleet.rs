@@ -82,6 +82,9 @@ pub(crate) fn fit_drive(
     })
 }
 
+/// One outlier: source, parameter, value, median, sigma, z, rule.
+type OutlierRow = (String, String, f64, f64, f64, f64, String);
+
 /// The outliers of a fleet table (its CSV text, as `fleet outliers --fits` reads it):
 /// (source, parameter, value, median, sigma, z, rule) for every deviating parameter.
 #[pyfunction]
@@ -90,7 +93,7 @@ pub(crate) fn fleet_outliers(
     csv: &str,
     threshold: f64,
     name: &str,
-) -> PyResult<Vec<(String, String, f64, f64, f64, f64, String)>> {
+) -> PyResult<Vec<OutlierRow>> {
     attached(|| {
         let rows = fleet::read_fits(csv, name).map_err(fail(Kind::Base))?;
         let found = fleet::outliers(&rows, threshold).map_err(fail(Kind::Base))?;

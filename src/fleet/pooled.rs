@@ -18,8 +18,8 @@ use crate::fit::CheckedFitOptions;
 use crate::log::Log;
 use crate::model::ModelSpec;
 
-/// What the pooled screen reads of one drive's screen ([`ScreenStatistics`]), per feature in
-/// the drive's order.
+/// What the pooled screen reads of one drive's screen
+/// ([`crate::diagnose::ScreenStatistics`]), per feature in the drive's order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DriveStatistics {
     /// Feature names.

@@ -220,7 +220,7 @@ fn param_columns(header: &[String]) -> Result<Vec<String>, String> {
     if n < HEAD.len() + TAIL.len()
         || header[..HEAD.len()] != HEAD
         || header[n - TAIL.len()..] != TAIL
-        || (n - HEAD.len() - TAIL.len()) % 2 != 0
+        || !(n - HEAD.len() - TAIL.len()).is_multiple_of(2)
     {
         return Err(format!("not a fleet table: {}", expected()));
     }
