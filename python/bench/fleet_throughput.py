@@ -92,13 +92,16 @@ def main() -> None:
         def screens():
             return [biasctl._biasctl.screen_drive(p, a.model, path=p) for p in dpaths]
 
-        t_dloop = _best(screens, 1)
-        t_ddask = _best(lambda: fleet.diagnose_many(dpaths, a.model, client=client, batch=2), 1)
-        print(f"diagnose ({len(dpaths)} drives)")
-        print(f"  serial loop of drive screens               {t_dloop:7.2f} s  "
-              f"{len(dpaths) / t_dloop:7.2f} drives/s")
-        print(f"  diagnose_many, LocalCluster 2 workers      {t_ddask:7.2f} s  "
-              f"{len(dpaths) / t_ddask:7.2f} drives/s  rate x{t_dloop / t_ddask:.2f} of the loop")
+        if dpaths:
+            t_dloop = _best(screens, 1)
+            t_ddask = _best(
+                lambda: fleet.diagnose_many(dpaths, a.model, client=client, batch=2), 1)
+            print(f"diagnose ({len(dpaths)} drives)")
+            print(f"  serial loop of drive screens               {t_dloop:7.2f} s  "
+                  f"{len(dpaths) / t_dloop:7.2f} drives/s")
+            print(f"  diagnose_many, LocalCluster 2 workers      {t_ddask:7.2f} s  "
+                  f"{len(dpaths) / t_ddask:7.2f} drives/s  rate x{t_dloop / t_ddask:.2f} of "
+                  f"the loop")
         client.close()
         cluster.close()
     load1 = os.getloadavg()

@@ -59,9 +59,9 @@ def _fit_one(item: tuple[str, Any], model: str, options: dict, threads: int | No
 
 
 def _fit_batch(items: list, model: str, options: dict) -> list[tuple]:
-    """One Dask task: a batch of drives, one after the other (each fit on the worker's
-    cores)."""
-    return [_fit_one(item, model, options, None) for item in items]
+    """One Dask task: a batch of drives, one after the other, each fit on one library worker
+    (Dask runs as many tasks at once as the workers have threads)."""
+    return [_fit_one(item, model, options, 1) for item in items]
 
 
 def _frame(rows: list[tuple]):
@@ -216,8 +216,9 @@ def _screen_one(item: tuple[str, Any], model: str, settings: dict, options: dict
 
 
 def _screen_batch(items: list, model: str, settings: dict, options: dict) -> list[tuple]:
-    """One Dask task: a batch of drives fitted and screened, one after the other."""
-    return [_screen_one(item, model, settings, options, None) for item in items]
+    """One Dask task: a batch of drives fitted and screened, one after the other, each on one
+    library worker."""
+    return [_screen_one(item, model, settings, options, 1) for item in items]
 
 
 class FleetDiagnosis:
