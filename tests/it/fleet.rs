@@ -257,3 +257,83 @@ fn fleet_bad_input_is_refused_naming_the_flag_file_and_line() {
     );
     assert!(std::fs::read_to_string(&fits).unwrap().contains("line 3"));
 }
+
+#[test]
+fn fleet_diagnose_of_one_drive_is_diagnose_of_its_fit_and_a_bad_file_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = d.join("drive.csv").display().to_string();
+    ok(&simulate_random_args("600", "4", &log));
+    std::fs::write(d.join("bad.csv"), "time_s,track,bias\n0,1,2\n1,abc,3\n").unwrap();
+    let model = d.join("m.json").display().to_string();
+    ok(&[
+        "fit",
+        "--data",
+        &log,
+        "--terms",
+        "poly2,direction",
+        "--out",
+        &model,
+    ]);
+    let one: serde_json::Value = serde_json::from_str(&ok(&[
+        "diagnose",
+        "--model",
+        &model,
+        "--data",
+        &log,
+        "--json",
+        "--no-verify",
+        "--seed",
+        "2",
+        "--permutations",
+        "99",
+    ]))
+    .unwrap();
+    let r = biasctl(&[
+        "fleet",
+        "diagnose",
+        "--data",
+        &format!("{}/*.csv", d.display()),
+        "--model",
+        "poly2,direction",
+        "--json",
+        "--seed",
+        "2",
+        "--permutations",
+        "99",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("bad.csv") && r.stderr.contains("line 3"),
+        "{}",
+        r.stderr
+    );
+    let pooled: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(pooled["drives"], 1);
+    assert!(
+        pooled["failed"][0][0]
+            .as_str()
+            .unwrap()
+            .ends_with("bad.csv")
+    );
+    // One drive pooled: its own screen, feature by feature, as `diagnose` reports it.
+    let mut compared = 0;
+    for f in one["features"].as_array().unwrap() {
+        let name = f["name"].as_str().unwrap();
+        let p = pooled["features"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|g| g["name"] == name)
+            .unwrap();
+        assert_eq!(p["p_value"], f["p_value"], "{name}");
+        compared += 1;
+    }
+    assert!(compared >= 8, "{compared}");
+    fails_with(
+        &[
+            "fleet", "diagnose", "--data", &log, "--model", "poly2", "--alpha", "0.9",
+        ],
+        &["--alpha"],
+    );
+}
