@@ -31,9 +31,9 @@ pub enum HiddenEffect {
     Interaction,
     /// `preisach`: hysteresis with full reversal memory, a Preisach model of 40 × 40 relays
     /// over the span (every relay updated every step, started in negative saturation) whose
-    /// weight density is a Gaussian ridge at loop width `α − β` ≈ span/4, its strength growing
-    /// with the position of the loop's midpoint: loops neither symmetric nor congruent in
-    /// amplitude, which no `play`/`dahl` element makes. Output scaled to [−A, A] (A = 2). Not
+    /// weight density is a Gaussian blob in the (α, β) plane at `(α, β) = (0.35, −0.25)` in `u`
+    /// units, σ = 0.25: the output steps only for reversals between those two regions of the
+    /// travel, which no `play`/`dahl` element makes. Output scaled to [−A, A] (A = 4). Not
     /// among [`HiddenEffect::ALL`]: the diagnosis does not yet ask for it.
     Preisach,
 }

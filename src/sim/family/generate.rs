@@ -399,7 +399,7 @@ impl Hidden<'_> {
                 .collect(),
             HiddenEffect::Preisach => super::physics::preisach(tracks, d.centre, half)
                 .into_iter()
-                .map(|v| 2.0 * a * v)
+                .map(|v| 4.0 * a * v)
                 .collect(),
         }
     }

@@ -183,9 +183,8 @@ pub(super) fn preisach(tracks: &[f64], centre: f64, half: f64) -> Vec<f64> {
     for i in 0..m {
         for j in 0..=i {
             let (alpha, beta) = (lo + (i + 1) as f64 * h, lo + j as f64 * h);
-            let width = (alpha - beta) / (2.0 * half);
-            let mid = ((alpha + beta) / 2.0 - centre) / half;
-            let w = (-0.5 * ((width - 0.25) / 0.12).powi(2)).exp() * (1.0 + 0.6 * mid);
+            let (a, b) = ((alpha - centre) / half, (beta - centre) / half);
+            let w = (-0.5 * ((a - 0.35).powi(2) + (b + 0.25).powi(2)) / 0.25f64.powi(2)).exp();
             relays.push((alpha, beta, w, false));
         }
     }
