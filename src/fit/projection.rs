@@ -136,6 +136,10 @@ impl<'d, 'a> Projection<'d, 'a> {
         if terms[k].ridge() > 0.0 {
             return None;
         }
+        // Penalty rows over several columns (`Term::penalty`): the full solve places them.
+        if terms.iter().any(|t| !t.penalty().is_empty()) {
+            return None;
+        }
         let fixed: Vec<Arc<dyn Term>> = terms
             .iter()
             .enumerate()

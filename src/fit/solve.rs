@@ -93,9 +93,18 @@ pub(super) fn solve_marking<'a>(
     // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column (after the
     // data rows; `colsq` is the data rows' sums of squares).
     let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
+    // Penalty rows of the terms that have them (`Term::penalty`), after the ridge rows.
+    let (off, _) = offsets(terms);
+    let penalties: Vec<(std::ops::Range<usize>, Vec<Vec<(usize, f64)>>)> = terms
+        .iter()
+        .zip(&off)
+        .map(|(t, &o)| (o..o + t.param_count(), t.penalty()))
+        .filter(|(_, rows)| !rows.is_empty())
+        .collect();
     let plan = Plan {
         order: &order,
         ridge: &ridge,
+        penalties: &penalties,
         dense,
         per_chunk: solve_chunk_rows(p),
     };
@@ -122,6 +131,8 @@ fn column_order(terms: &[Arc<dyn Term>], p: usize) -> Vec<usize> {
 struct Plan<'o> {
     order: &'o [usize],
     ridge: &'o [f64],
+    /// Per term with a [`Term::penalty`]: its design columns and its penalty rows.
+    penalties: &'o [(std::ops::Range<usize>, Vec<Vec<(usize, f64)>>)],
     dense: bool,
     per_chunk: usize,
 }
@@ -154,6 +165,30 @@ impl Plan<'_> {
                 xp[q] = (self.ridge[c] * data_sq[q]).sqrt();
                 push(&xp);
                 colsq[q] += xp[q] * xp[q];
+            }
+        }
+        // Penalty rows: `sqrt(s)·row`, `s` the mean data sum of squares of the term's columns.
+        for (cols, rows) in self.penalties {
+            let qs: Vec<usize> = cols
+                .clone()
+                .filter_map(|c| self.order.iter().position(|&o| o == c))
+                .collect();
+            let s = qs.iter().map(|&q| data_sq[q]).sum::<f64>() / qs.len().max(1) as f64;
+            if !(s > 0.0 && s.is_finite()) {
+                continue;
+            }
+            let scale = s.sqrt();
+            for row in rows {
+                xp.fill(0.0);
+                for &(c, v) in row {
+                    if let Some(&q) = qs.get(c) {
+                        xp[q] += scale * v;
+                    }
+                }
+                push(&xp);
+                for (sq, v) in colsq.iter_mut().zip(&xp) {
+                    *sq += v * v;
+                }
             }
         }
         data_sq
