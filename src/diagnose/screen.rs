@@ -83,14 +83,27 @@ pub(super) struct Screened {
     pub(super) variance: f64,
 }
 
-/// The one-dimensional screen of [`diagnose`]: every feature's smoother, the permutation
-/// test, the forward pass and the features' reports (`which`), strongest first.
-pub(super) fn screen(
+/// The screen's input made ready: the clipped, centred residual, its folds and direction, every
+/// column analysed (binned, cross-validated, its observed statistic) and each one's null block.
+pub(super) struct Prepared {
+    pub(super) y: Vec<f64>,
+    pub(super) sst: f64,
+    pub(super) variance: f64,
+    pub(super) residual_std: f64,
+    pub(super) fold: Vec<u8>,
+    pub(super) direction: Option<Vec<i8>>,
+    pub(super) analysed: Vec<Result<Analysed, Unusable>>,
+    pub(super) blocks: Vec<usize>,
+    pub(super) null_block: usize,
+}
+
+/// Checks the input and makes everything the permutation test reads ([`Prepared`]): the first
+/// half of [`screen`], shared with the pooled screen of a fleet.
+pub(super) fn prepare(
     table: &FeatureTable,
     residuals: &[f64],
     config: &CheckedDiagnoseConfig,
-    which: Reports,
-) -> Result<Screened, DiagnoseError> {
+) -> Result<Prepared, DiagnoseError> {
     let n = table.len();
     let block_len = check_input(table, residuals, config)?;
 
@@ -116,7 +129,7 @@ pub(super) fn screen(
         .map(|d| sum_sq_about_mean_rows(|| y.iter().zip(d).map(|(r, &d)| r * f64::from(d))));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
-    let mut analysed = analyse_columns(
+    let analysed = analyse_columns(
         table,
         &Centred {
             y: &y,
@@ -146,6 +159,38 @@ pub(super) fn screen(
             _ => null_block,
         })
         .collect();
+    Ok(Prepared {
+        y,
+        sst,
+        variance,
+        residual_std,
+        fold,
+        direction,
+        analysed,
+        blocks,
+        null_block,
+    })
+}
+
+/// The one-dimensional screen of [`diagnose`]: every feature's smoother, the permutation
+/// test, the forward pass and the features' reports (`which`), strongest first.
+pub(super) fn screen(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+    which: Reports,
+) -> Result<Screened, DiagnoseError> {
+    let Prepared {
+        y,
+        sst,
+        variance,
+        residual_std,
+        fold,
+        direction,
+        mut analysed,
+        blocks,
+        null_block,
+    } = prepare(table, residuals, config)?;
     let (p_raw, p_adj) = permutation_test(
         &mut analysed,
         &y,
