@@ -95,7 +95,7 @@ pub(super) fn solve_marking<'a>(
     let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
     // Penalty rows of the terms that have them (`Term::penalty`), after the ridge rows.
     let (off, _) = offsets(terms);
-    let penalties: Vec<(std::ops::Range<usize>, Vec<Vec<(usize, f64)>>)> = terms
+    let penalties: Vec<TermPenalty> = terms
         .iter()
         .zip(&off)
         .map(|(t, &o)| (o..o + t.param_count(), t.penalty()))
@@ -125,6 +125,9 @@ fn column_order(terms: &[Arc<dyn Term>], p: usize) -> Vec<usize> {
     order
 }
 
+/// A term's design columns and its penalty rows ([`Term::penalty`]).
+type TermPenalty = (std::ops::Range<usize>, Vec<Vec<(usize, f64)>>);
+
 /// How [`solve_marking`] factorises the design rows: the columns' order ([`column_order`]),
 /// the ridge penalty of each column, whether every row goes on all columns (the tests' dense
 /// reference, [`PatternQr::dense`]) and the measured rows per chunk ([`solve_chunk_rows`]).
@@ -132,7 +135,7 @@ struct Plan<'o> {
     order: &'o [usize],
     ridge: &'o [f64],
     /// Per term with a [`Term::penalty`]: its design columns and its penalty rows.
-    penalties: &'o [(std::ops::Range<usize>, Vec<Vec<(usize, f64)>>)],
+    penalties: &'o [TermPenalty],
     dense: bool,
     per_chunk: usize,
 }
