@@ -96,11 +96,13 @@ pub enum Field {
     LadderTerms,
     /// [`PanelOptions::top`](crate::plot::views::PanelOptions::top).
     PanelTop,
+    /// The robust-z threshold of [`fleet::outliers`](crate::fleet::outliers).
+    OutlierThreshold,
 }
 
 impl Field {
     /// Every field, for tables that must cover them all (the CLI's field → flag table).
-    pub const ALL: [Field; 41] = [
+    pub const ALL: [Field; 42] = [
         Field::TimeColumn,
         Field::TrackColumn,
         Field::BiasColumn,
@@ -142,6 +144,7 @@ impl Field {
         Field::SettlePreset,
         Field::LadderTerms,
         Field::PanelTop,
+        Field::OutlierThreshold,
     ];
 
     /// The setting as `Type::field` (`Units::bias` and `SimConfig::…` for arguments of
@@ -192,6 +195,7 @@ impl Field {
             Field::SettlePreset => "StoryOptions::settle_preset",
             Field::LadderTerms => "LadderTerms::terms",
             Field::PanelTop => "PanelOptions::top",
+            Field::OutlierThreshold => "Outliers::threshold",
         }
     }
 

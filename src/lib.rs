@@ -188,6 +188,8 @@ pub mod plot;
 
 pub mod report;
 
+pub mod fleet;
+
 /// The `biasctl` command line (the `cli` feature, on by default): flags parsed into the
 /// library's checked settings, one file per command. Its one public item is [`cli::main`],
 /// what the binary runs.

@@ -123,8 +123,10 @@ class Log:
     ) -> "Log":
         """A log from arrays: ``time`` (s), ``track`` (position) and, optionally, ``bias`` (a
         NaN is a move whose bias was not measured; ``None``: a plan); every other keyword is a
-        covariate column. Checked by the library's reader (finite values, time order, limits):
-        a message names the column and the line, line 2 being row 0."""
+        covariate column (a NaN is a missing value, an empty cell in a file: the reader leaves
+        such a column out with a note, see ``Log.notes``). Checked by the library's reader
+        (finite values, time order, limits): a message names the column and the line, line 2
+        being row 0."""
         source = "<arrays>"
         t = _column("time_s", time, None, source)
         cols = [t, _column("track", track, len(t), source)]
@@ -231,15 +233,26 @@ class Log:
     def __reduce__(self):
         roles = self._inner.roles
         names = [roles[0], roles[1], roles[2] if self.has_bias else "", *self.covariates]
-        u = self.units
-        return (_restore_log, (self.file, names, self._inner.arrays(), u["bias"], u["position"]))
+        u, given = self.units, self._inner.units_given
+        return (
+            _restore_log,
+            (
+                self.file, names, self._inner.arrays(), u["bias"] if given[0] else None,
+                u["position"] if given[1] else None, self._inner.metadata,
+            ),
+        )
 
     def __repr__(self) -> str:
         return repr(self._inner)
 
 
-def _restore_log(source, names, arrays, bias_unit, track_unit):
-    return Log._from_columns(source, names, [_np.ascontiguousarray(a) for a in arrays], bias_unit, track_unit)
+def _restore_log(source, names, arrays, bias_unit, track_unit, metadata=None):
+    return Log(
+        _ext.log_from_columns(
+            source, names, [_np.ascontiguousarray(a) for a in arrays], bias_unit, track_unit,
+            metadata,
+        )
+    )
 
 
 def read_log(

@@ -26,6 +26,8 @@ class Log:
     @property
     def has_bias(self) -> bool: ...
     @property
+    def units_given(self) -> tuple[bool, bool]: ...
+    @property
     def units(self) -> dict[str, str]: ...
     @property
     def file(self) -> str: ...
@@ -103,6 +105,7 @@ def log_from_columns(
     columns: list[_F64],
     bias_unit: str | None = None,
     track_unit: str | None = None,
+    metadata: list[str] | None = None,
 ) -> Log: ...
 def fit(
     log: Log,
@@ -156,3 +159,76 @@ def ladder(
 ) -> str: ...
 def settle(plant: str = "paper1997", overrides: str | None = None) -> str: ...
 def _panic() -> None: ...
+
+_Row = tuple[
+    str,
+    int | None,
+    str,
+    list[tuple[str, float, float | None]],
+    float | None,
+    list[str],
+    str | None,
+]
+
+def fit_drive(
+    source: str,
+    model: str,
+    path: str | None = None,
+    log: Log | None = None,
+    time_col: str | None = None,
+    track_col: str | None = None,
+    bias_col: str | None = None,
+    bias_unit: str | None = None,
+    track_unit: str | None = None,
+    delimiter: str | None = None,
+    deadband: float | None = None,
+    velocity_col: str | None = None,
+    rank_tolerance: float | None = None,
+    grid: int | None = None,
+    refine: int | None = None,
+    threads: int | None = None,
+) -> _Row: ...
+def fleet_outliers(
+    csv: str, threshold: float = 4.0, name: str = "<fits>"
+) -> list[tuple[str, str, float, float, float, float, str]]: ...
+def fits_csv(rows: list[_Row]) -> str: ...
+
+_Screen = tuple[
+    str,
+    str | None,
+    list[str],
+    list[bool],
+    list[float],
+    list[float],
+    list[float],
+    int,
+    list[float],
+    list[str | None],
+]
+
+def screen_drive(
+    source: str,
+    model: str,
+    path: str | None = None,
+    log: Log | None = None,
+    seed: int = 1,
+    alpha: float = 0.01,
+    permutations: int = 199,
+    folds: int = 5,
+    time_col: str | None = None,
+    track_col: str | None = None,
+    bias_col: str | None = None,
+    bias_unit: str | None = None,
+    track_unit: str | None = None,
+    delimiter: str | None = None,
+    deadband: float | None = None,
+    velocity_col: str | None = None,
+    threads: int | None = None,
+) -> _Screen: ...
+def pool_screens(
+    screens: list[_Screen],
+    seed: int = 1,
+    alpha: float = 0.01,
+    permutations: int = 199,
+    folds: int = 5,
+) -> str: ...

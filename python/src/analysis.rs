@@ -104,7 +104,8 @@ pub(crate) fn diagnose(
         }
         .check()
         .map_err(fail(Kind::Base))?;
-        let log = log.measured()?;
+        let log = log.measured_for(&model)?;
+        let log = log.as_ref();
         let d = on_threads(threads, || {
             if verify {
                 biasctl::diagnose_verified(&model, log, &config, &verify_cfg)

@@ -61,6 +61,11 @@ impl Failure {
             message: message.into(),
         }
     }
+
+    /// The message.
+    pub(crate) fn message(&self) -> &str {
+        &self.message
+    }
 }
 
 impl From<Failure> for PyErr {

@@ -5,6 +5,7 @@
 
 mod analysis;
 mod errors;
+mod fleet;
 mod log;
 mod model;
 mod settle;
@@ -47,6 +48,11 @@ fn _biasctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(analysis::discover, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::ladder, m)?)?;
     m.add_function(wrap_pyfunction!(settle::settle, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet::fit_drive, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet::fleet_outliers, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet::fits_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet::screen_drive, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet::pool_screens, m)?)?;
     m.add_function(wrap_pyfunction!(_panic, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

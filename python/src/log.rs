@@ -3,10 +3,11 @@
 
 use crate::errors::{Failure, Kind, attached, fail};
 use biasctl::log::{BiasColumn, LogReader};
-use biasctl::{ColumnMap, Log, LogError, Units};
+use biasctl::{ColumnMap, FittedModel, Log, LogError, Units};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use std::borrow::Cow;
 use std::io::Write;
 
 /// A float64 numpy array handed to Python.
@@ -19,6 +20,8 @@ pub(crate) struct PyLog {
     /// The reader's message for a log without its bias column (a plan): raised by the calls
     /// that need a measured bias.
     missing_bias: Option<String>,
+    /// Whether the bias and position units were given as arguments (the CLI's unit flags).
+    units_given: (bool, bool),
 }
 
 impl PyLog {
@@ -27,6 +30,7 @@ impl PyLog {
         Self {
             inner,
             missing_bias: None,
+            units_given: (false, false),
         }
     }
 
@@ -36,6 +40,30 @@ impl PyLog {
             Some(m) => Err(Failure::new(Kind::Log, m.clone())),
             None => Ok(&self.inner),
         }
+    }
+
+    /// The units of this log read for `model`, as the command line takes them
+    /// (`Units::for_model`, then `FittedModel::check_units`).
+    pub(crate) fn units_for(&self, model: &FittedModel) -> Result<Units, Failure> {
+        let s = &self.inner.schema;
+        let mut units = s.units.clone();
+        if let Some(fitted) = &model.columns.units {
+            units = units.for_model(fitted, self.units_given.0, self.units_given.1, s);
+        }
+        model.check_units(&units).map_err(fail(Kind::Model))?;
+        Ok(units)
+    }
+
+    /// The measured log in the units it has for `model` ([`PyLog::units_for`]).
+    pub(crate) fn measured_for(&self, model: &FittedModel) -> Result<Cow<'_, Log>, Failure> {
+        let log = self.measured()?;
+        let units = self.units_for(model)?;
+        if units == log.schema.units {
+            return Ok(Cow::Borrowed(log));
+        }
+        let mut log = log.clone();
+        log.schema.units = units;
+        Ok(Cow::Owned(log))
     }
 
     /// The log as CSV text that reads back to exactly the same values (every digit a value
@@ -68,7 +96,9 @@ impl PyLog {
             }
             for c in &covs {
                 out.push(b',');
-                number(&mut out, c[i]);
+                if !c[i].is_nan() {
+                    number(&mut out, c[i]);
+                }
             }
             out.push(b'\n');
         }
@@ -206,6 +236,7 @@ pub(crate) fn read_log(
         Ok(PyLog {
             inner: log,
             missing_bias,
+            units_given: (bias_unit.is_some(), track_unit.is_some()),
         })
     })
 }
@@ -214,7 +245,8 @@ pub(crate) fn read_log(
 /// the library's reader (its checks: finite values, limits, time order; its messages name the
 /// column and the line, line 2 being row 0).
 #[pyfunction]
-#[pyo3(signature = (source, names, columns, bias_unit=None, track_unit=None))]
+#[pyo3(signature = (source, names, columns, bias_unit=None, track_unit=None, metadata=None))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn log_from_columns(
     py: Python<'_>,
     source: String,
@@ -222,6 +254,7 @@ pub(crate) fn log_from_columns(
     columns: Vec<PyReadonlyArray1<'_, f64>>,
     bias_unit: Option<String>,
     track_unit: Option<String>,
+    metadata: Option<Vec<String>>,
 ) -> PyResult<PyLog> {
     // names: time, track, bias ("" when there is none), then the covariates.
     if names.len() != columns.len() + usize::from(names.get(2).is_some_and(String::is_empty))
@@ -251,6 +284,12 @@ pub(crate) fn log_from_columns(
     }
     let views: Vec<_> = columns.iter().map(|c| c.as_array()).collect();
     let mut text = Vec::with_capacity(n * 16 * views.len() + 64);
+    for m in metadata.iter().flatten() {
+        if m.contains(['\n', '\r']) {
+            return Err(Failure::new(Kind::Log, "a metadata line holds a line break").into());
+        }
+        let _ = writeln!(text, "# {m}");
+    }
     write_header(&mut text, &header);
     for i in 0..n {
         for (j, v) in views.iter().enumerate() {
@@ -258,8 +297,9 @@ pub(crate) fn log_from_columns(
                 text.push(b',');
             }
             let x = v[i];
-            // A NaN bias is a move that was not measured: an empty cell.
-            if !(has_bias && j == 2 && x.is_nan()) {
+            // A NaN bias is a move that was not measured, a NaN covariate a missing value: an
+            // empty cell, as pandas writes it (a NaN time or position is refused by the reader).
+            if !(j >= 2 && x.is_nan()) {
                 number(&mut text, x);
             }
         }
@@ -287,6 +327,7 @@ pub(crate) fn log_from_columns(
         Ok(PyLog {
             inner: log,
             missing_bias,
+            units_given: (bias_unit.is_some(), track_unit.is_some()),
         })
     })
 }
@@ -319,6 +360,12 @@ impl PyLog {
     #[getter]
     fn covariates(&self) -> Vec<String> {
         self.inner.schema.covariates.clone()
+    }
+
+    /// Whether the bias and position units were given as arguments.
+    #[getter]
+    fn units_given(&self) -> (bool, bool) {
+        self.units_given
     }
 
     #[getter]

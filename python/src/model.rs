@@ -191,6 +191,7 @@ impl PyModel {
                 )?)),
                 None => None,
             };
+            log.units_for(model)?;
             let mut reader = log.reader()?;
             let s = reader.schema().clone();
             let mut names = vec![s.map.time.clone(), s.map.track.clone(), s.map.bias.clone()];
@@ -247,7 +248,8 @@ impl PyModel {
     fn score(&self, py: Python<'_>, log: &PyLog, feedback_every: u64) -> PyResult<String> {
         let model = &self.inner;
         detached(py, || {
-            let log = log.measured()?;
+            let log = log.measured_for(model)?;
+            let log = log.as_ref();
             replay_check(model, log)?;
             let s = biasctl::score_model(model, log, Feedback::every(feedback_every))
                 .map_err(fail(Kind::Model))?;
@@ -394,7 +396,11 @@ impl PyPredictor {
         })?;
         self.last_time = time_s;
         let inner = &mut self.inner;
-        attached(|| Ok(inner.step(time_s, track, &c, bias)))
+        attached(|| {
+            inner
+                .step(time_s, track, &c, bias)
+                .map_err(fail(Kind::Model))
+        })
     }
 
     /// The bias a seek to `track` would need now, without advancing (time: `time_s`, else the
@@ -407,6 +413,6 @@ impl PyPredictor {
             finite("time_s", t)?;
             self.covs(covariates)
         })?;
-        attached(|| Ok(self.inner.peek(t, track, &c)))
+        attached(|| self.inner.peek(t, track, &c).map_err(fail(Kind::Model)))
     }
 }

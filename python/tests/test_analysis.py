@@ -133,3 +133,11 @@ def test_settle_plant_file(cli):
 def test_settle_errors_name_the_setting(kwargs, match):
     with pytest.raises(biasctl.SettleError, match=match):
         biasctl.settle(**kwargs)
+
+
+def test_discovery_model_is_the_cli_fit_of_the_final_terms(data, cli, logs, tmp_path):
+    """Discovery.model: the model `biasctl fit` writes for discover's final term list."""
+    d = biasctl.discover(logs[0], test=logs[1], max_steps=2)
+    out = tmp_path / "final.json"
+    cli.run("fit", "--data", data / "train.csv", "--terms", ",".join(d.final_terms), "--out", out)
+    assert d.model.to_json() == out.read_text()

@@ -176,3 +176,17 @@ def test_simulate_a_drive_file_with_a_covariate(cli, tmp_path):
         got.to_pandas().to_numpy(), biasctl.read_log(out).to_pandas().to_numpy())
     with pytest.raises(biasctl.BiasctlError, match="sequence|nope"):
         biasctl.simulate("nope")
+
+
+def test_a_nan_covariate_is_a_missing_value_as_an_empty_cell(cli, tmp_path):
+    t = np.arange(5, dtype=float)
+    track = np.array([10.0, 50, 20, 80, 30])
+    bias = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
+    temp = np.array([20.0, np.nan, 21.0, 22.0, 23.0])
+    log = biasctl.Log.from_arrays(t, track, bias, temp_c=temp)
+    # Reference: the reader on the file pandas writes for the same frame (NaN: an empty cell).
+    p = tmp_path / "gap.csv"
+    pd.DataFrame({"time_s": t, "track": track, "bias": bias, "temp_c": temp}).to_csv(p, index=False)
+    ref = biasctl.read_log(p)
+    assert log.columns == ref.columns and log.notes == [n.replace(str(p), "<arrays>") for n in ref.notes]
+    np.testing.assert_array_equal(log.to_pandas().to_numpy(), ref.to_pandas().to_numpy())

@@ -172,3 +172,46 @@ def test_a_panic_is_raised_as_biasctl_error():
 
     with pytest.raises(biasctl.BiasctlError, match="internal error"):
         _biasctl._panic()
+
+
+def test_units_for_a_model_as_the_cli_takes_them(data, cli, tmp_path):
+    """A model fitted with a bias unit keeps it on a log whose unit came from the column name;
+    a unit given that differs from the model's is refused, as the CLI refuses it."""
+    src = (data / "train.csv").read_text().splitlines()
+    body = [l for l in src if not l.startswith("#")]
+    p = tmp_path / "force.csv"
+    p.write_text("\n".join(body).replace("time_s,track,bias", "time_s,track,force") + "\n")
+    mf = tmp_path / "m.json"
+    cli.run("fit", "--data", p, "--bias-col", "force", "--bias-unit", "N", "--terms",
+            "poly2,direction", "--out", mf)
+    m = biasctl.fit(biasctl.read_log(p, bias_col="force", bias_unit="N"), "poly2,direction")
+    assert m.to_json() == mf.read_text()
+    log = biasctl.read_log(p, bias_col="force")
+    want = cli.json("score", "--model", mf, "--data", p, "--bias-col", "force", "--json")
+    got = m.score(log)
+    assert got == want and got["units"]["bias"] == "N"
+    back = pickle.loads(pickle.dumps(log))
+    assert m.score(back) == want
+    bad = cli.run("score", "--model", mf, "--data", p, "--bias-col", "force", "--bias-unit",
+                  "mA", "--json", ok=False)
+    assert bad.returncode == 2
+    with pytest.raises(biasctl.ModelError, match="mA"):
+        m.score(biasctl.read_log(p, bias_col="force", bias_unit="mA"))
+    with pytest.raises(biasctl.ModelError, match="mA"):
+        m.predict(biasctl.read_log(p, bias_col="force", bias_unit="mA"))
+
+
+def test_a_log_written_by_to_csv_fits_in_the_cli_as_in_python(cli, tmp_path):
+    """Log.to_csv: the file the CLI reads gives the model Python fits on the log itself."""
+    rng = np.random.default_rng(4)
+    t = np.arange(300, dtype=float) * 0.5
+    track = rng.integers(0, 3000, 300).astype(float)
+    temp = 20 + rng.random(300)
+    bias = 3 + 0.01 * track + 2 * temp + rng.normal(0, 0.1, 300)
+    log = biasctl.Log.from_arrays(t, track, bias, temp_c=temp)
+    p = tmp_path / "log.csv"
+    log.to_csv(p)
+    out = tmp_path / "m.json"
+    cli.run("fit", "--data", p, "--terms", "poly2,col:temp_c", "--out", out)
+    m = biasctl.fit(log, "poly2,col:temp_c")
+    assert m.to_json() == out.read_text()

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// library's errors name settings ([`Field`]); [`with_flags`] renders each as its flag in every
 /// message the CLI prints. `None`: no command sets the field (a library-only setting such as
 /// `FitOptions::grid`), so its name stays. Every [`Field`] is listed once (a test checks).
-pub(crate) const FLAGS: [(Field, Option<&str>); 41] = [
+pub(crate) const FLAGS: [(Field, Option<&str>); 42] = [
     (Field::TimeColumn, Some("--time-col")),
     (Field::TrackColumn, Some("--track-col")),
     (Field::BiasColumn, Some("--bias-col")),
@@ -56,6 +56,7 @@ pub(crate) const FLAGS: [(Field, Option<&str>); 41] = [
     (Field::SettlePreset, None),
     (Field::LadderTerms, Some("--terms")),
     (Field::PanelTop, Some("--top")),
+    (Field::OutlierThreshold, Some("--threshold")),
 ];
 
 /// The flag that sets `field`, from [`FLAGS`]; `None` for a library-only setting.
@@ -188,13 +189,8 @@ impl ColumnArgs {
     ) -> anyhow::Result<Units> {
         let mut units = self.units(schema)?;
         if let Some(fitted) = &model.columns.units {
-            use crate::log::{BIAS_UNIT_KEY, POSITION_UNIT_KEY};
-            if self.bias_unit.is_none() && schema.metadata_value(BIAS_UNIT_KEY).is_none() {
-                units.bias = fitted.bias.clone();
-            }
-            if self.track_unit.is_none() && schema.metadata_value(POSITION_UNIT_KEY).is_none() {
-                units.position = fitted.position.clone();
-            }
+            let (bias, track) = (self.bias_unit.is_some(), self.track_unit.is_some());
+            units = units.for_model(fitted, bias, track, schema);
         }
         model.check_units(&units)?;
         Ok(units)

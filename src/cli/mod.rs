@@ -26,6 +26,7 @@ mod diagnose;
 mod discover;
 mod export;
 mod fit;
+mod fleet;
 mod ladder;
 mod plot;
 mod predict;
@@ -77,6 +78,8 @@ enum Command {
     Settle(settle::Args),
     /// Export a fitted model for firmware (`export c`: C99 state struct, init, step, peek).
     Export(export::Args),
+    /// One model over many drives: `fleet fit` (the fleet table), `fleet outliers`.
+    Fleet(fleet::Args),
 }
 
 /// Parses the command line (exiting on `--help`, `--version` and flag errors, as clap does)
@@ -139,6 +142,7 @@ pub(crate) fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Discover(a) => discover::run(a),
         Command::Settle(a) => settle::run(a),
         Command::Export(a) => export::run(a),
+        Command::Fleet(a) => fleet::run(a),
     }
 }
 

@@ -300,8 +300,6 @@ pub(super) struct PermWorker {
     chunk: Vec<[f64; LANES]>,
     /// `stat[l·m + k]`: feature `k`'s statistic in permutation `l` of the batch.
     stat: Vec<f64>,
-    raw: Vec<usize>,
-    adj: Vec<usize>,
 }
 
 /// What every permutation of one test shares.
@@ -333,8 +331,6 @@ impl PermWorker {
             acc_signed_lanes: Vec::new(),
             chunk: Vec::new(),
             stat: vec![0.0; m * LANES],
-            raw: vec![0; m],
-            adj: vec![0; m],
         }
     }
 
@@ -349,8 +345,9 @@ impl PermWorker {
     /// read in place — the block permutations of the batch side by side in the lanes of one
     /// vector); the family-wise statistic is the smallest over features. Each permutation
     /// draws from its own streams, and each lane's sums are those of its own pass, so the
-    /// counts are those of one permutation at a time.
-    fn run_batch(&mut self, batch: usize, p: &PermInput) {
+    /// statistics are those of one permutation at a time. Returns how many permutations the
+    /// batch holds; their statistics are `self.stat[..count·m]`.
+    fn run_batch(&mut self, batch: usize, p: &PermInput) -> usize {
         let first = LANES * batch;
         let count = LANES.min(p.permutations - first);
         let m = p.usable.len();
@@ -415,19 +412,8 @@ impl PermWorker {
                 }
             }
         }
-        for l in 0..count {
-            let stat = &stat[l * m..(l + 1) * m];
-            let min_stat = stat.iter().copied().fold(f64::INFINITY, f64::min);
-            for (k, &(_, a)) in p.usable.iter().enumerate() {
-                if stat[k] <= a.observed {
-                    self.raw[k] += 1;
-                }
-                if min_stat <= a.observed {
-                    self.adj[k] += 1;
-                }
-            }
-        }
         self.stat = stat;
+        count
     }
 
     /// One permutation of group `g` (block length `len`) drawn from `rng`, one at a time: the
@@ -496,11 +482,163 @@ impl PermWorker {
     }
 }
 
+/// Every permutation's statistic of every feature: `stats[i·m + j]` is feature `j`'s (of
+/// `m`, in `analysed` order) ln of its smallest F-test p-value on permutation `i`, 0 (p = 1)
+/// for an unusable feature; and the F-test's observed value per feature (the same, 0 for an
+/// unusable one). What the family-wise p-values of one log ([`permutation_test`]) and of a
+/// fleet of logs (the pooled screen) are counted from.
+pub(crate) struct NullStatistics {
+    /// Permutations (rows of `stats`).
+    pub(crate) permutations: usize,
+    /// Row-major, one row per permutation.
+    pub(crate) stats: Vec<f64>,
+    /// The observed statistic per feature.
+    pub(crate) observed: Vec<f64>,
+    /// Whether the feature was tested (usable, and a residual with variance).
+    pub(crate) tested: Vec<bool>,
+}
+
+/// The statistics of `config.permutations` block permutations of `y` for every feature
+/// (feature `j` against permutations of `blocks[j]` consecutive residuals; 1: rows permuted one
+/// by one). `fused`: the statistics of many features from one pass over each permuted residual
+/// ([`SlotTable`]); else each feature's own pass ([`FTest::min_p`], the slow reference — the
+/// results are bit-identical, tested). Every permutation draws from its own seeded streams, so
+/// the statistics are the same for any number of threads.
+pub(crate) fn permutation_statistics(
+    analysed: &mut [Result<Analysed, Unusable>],
+    y: &[f64],
+    sst: f64,
+    direction: Option<&[i8]>,
+    blocks: &[usize],
+    config: &DiagnoseConfig,
+    fused: bool,
+) -> NullStatistics {
+    let m = analysed.len();
+    let b = config.permutations;
+    let mut out = NullStatistics {
+        permutations: b,
+        stats: vec![0.0; b * m],
+        observed: analysed
+            .iter()
+            .map(|a| a.as_ref().map_or(0.0, |a| a.observed))
+            .collect(),
+        tested: vec![false; m],
+    };
+    let usable_idx: Vec<usize> = (0..m).filter(|&j| analysed[j].is_ok()).collect();
+    if sst.is_nan() || sst <= 0.0 || usable_idx.is_empty() {
+        out.observed.iter_mut().for_each(|o| *o = 0.0);
+        return out;
+    }
+    let mut lengths: Vec<usize> = usable_idx.iter().map(|&j| blocks[j]).collect();
+    lengths.sort_unstable();
+    lengths.dedup();
+    let which: Vec<usize> = usable_idx
+        .iter()
+        .map(|&j| lengths.binary_search(&blocks[j]).unwrap_or(0))
+        .collect();
+    // The counts before the slot tables take the features' slots.
+    let tests: Vec<FTest> = usable_idx
+        .par_iter()
+        .filter_map(|&j| analysed[j].as_ref().ok())
+        .map(|a| FTest::new(&a.binned))
+        .collect();
+    let groups = perm_groups(
+        analysed,
+        &usable_idx,
+        lengths.len(),
+        &which,
+        direction.is_some(),
+        fused,
+    );
+    let usable: Vec<(usize, &Analysed)> = analysed
+        .iter()
+        .enumerate()
+        .filter_map(|(j, a)| a.as_ref().ok().map(|a| (j, a)))
+        .collect();
+    let k = usable.len();
+    let input = PermInput {
+        usable: &usable,
+        y,
+        sst,
+        direction,
+        lengths: &lengths,
+        groups: &groups,
+        seed: config.seed,
+        permutations: b,
+    };
+    // One batch of up to LANES permutations per task, collected in batch order.
+    let batches: Vec<Vec<f64>> = (0..b.div_ceil(LANES))
+        .into_par_iter()
+        .map_init(
+            || PermWorker::new(&tests),
+            |w, batch| {
+                let count = w.run_batch(batch, &input);
+                w.stat[..count * k].to_vec()
+            },
+        )
+        .collect();
+    drop(usable);
+    give_back(groups, analysed, &usable_idx);
+    for (i, row) in batches.iter().flat_map(|s| s.chunks_exact(k)).enumerate() {
+        for (&j, &v) in usable_idx.iter().zip(row) {
+            out.stats[i * m + j] = v;
+        }
+    }
+    for &j in &usable_idx {
+        out.tested[j] = true;
+    }
+    out
+}
+
+/// [`family_wise_p_values`] of one log's statistics.
+pub(crate) fn p_values(null: &NullStatistics) -> (Vec<f64>, Vec<f64>) {
+    family_wise_p_values(null.permutations, &null.observed, &null.stats, &null.tested)
+}
+
+/// Raw and Westfall–Young single-step min-p family-wise p-values of `m` features from their
+/// observed statistics (`observed`, smaller is stronger) and their statistics under each of
+/// `permutations` permutations (`null`, row-major permutations × features): raw, the fraction
+/// of permutations (the observed one counted) in which the feature's own statistic is at least
+/// as strong (≤); family-wise, in which the strongest of the tested features is. 1 for a
+/// feature not `tested`. The counts of one log's diagnosis and of a fleet's pooled screen.
+pub fn family_wise_p_values(
+    permutations: usize,
+    observed: &[f64],
+    null: &[f64],
+    tested: &[bool],
+) -> (Vec<f64>, Vec<f64>) {
+    let m = observed.len();
+    let mut raw = vec![0usize; m];
+    let mut adj = vec![0usize; m];
+    for row in null.chunks_exact(m.max(1)).take(permutations) {
+        let min_stat = row
+            .iter()
+            .zip(tested)
+            .filter(|&(_, &t)| t)
+            .map(|(&s, _)| s)
+            .fold(f64::INFINITY, f64::min);
+        for j in (0..m).filter(|&j| tested[j]) {
+            if row[j] <= observed[j] {
+                raw[j] += 1;
+            }
+            if min_stat <= observed[j] {
+                adj[j] += 1;
+            }
+        }
+    }
+    let b = permutations as f64 + 1.0;
+    let p = |counts: Vec<usize>| -> Vec<f64> {
+        counts
+            .iter()
+            .zip(tested)
+            .map(|(&c, &t)| if t { (c as f64 + 1.0) / b } else { 1.0 })
+            .collect()
+    };
+    (p(raw), p(adj))
+}
+
 /// Raw and Westfall–Young family-wise permutation p-values for every feature (1 for unusable
-/// ones); feature `j` is tested against block permutations of `blocks[j]` consecutive
-/// residuals (1: rows permuted one by one). `fused`: the statistics of many features from
-/// one pass over each permuted residual ([`SlotTable`]); else each feature's own pass
-/// ([`FTest::min_p`], the slow reference — the results are bit-identical, tested).
+/// ones): [`p_values`] of [`permutation_statistics`].
 pub(super) fn permutation_test(
     analysed: &mut [Result<Analysed, Unusable>],
     y: &[f64],
@@ -510,89 +648,7 @@ pub(super) fn permutation_test(
     config: &DiagnoseConfig,
     fused: bool,
 ) -> (Vec<f64>, Vec<f64>) {
-    let m = analysed.len();
-    let mut raw_count = vec![0usize; m];
-    let mut adj_count = vec![0usize; m];
-    let usable_idx: Vec<usize> = (0..m).filter(|&j| analysed[j].is_ok()).collect();
-    if sst > 0.0 && !usable_idx.is_empty() {
-        let mut lengths: Vec<usize> = usable_idx.iter().map(|&j| blocks[j]).collect();
-        lengths.sort_unstable();
-        lengths.dedup();
-        let which: Vec<usize> = usable_idx
-            .iter()
-            .map(|&j| lengths.binary_search(&blocks[j]).unwrap_or(0))
-            .collect();
-        // The counts before the slot tables take the features' slots.
-        let tests: Vec<FTest> = usable_idx
-            .par_iter()
-            .filter_map(|&j| analysed[j].as_ref().ok())
-            .map(|a| FTest::new(&a.binned))
-            .collect();
-        let groups = perm_groups(
-            analysed,
-            &usable_idx,
-            lengths.len(),
-            &which,
-            direction.is_some(),
-            fused,
-        );
-        let usable: Vec<(usize, &Analysed)> = analysed
-            .iter()
-            .enumerate()
-            .filter_map(|(j, a)| a.as_ref().ok().map(|a| (j, a)))
-            .collect();
-        // Every permutation draws from its own seeded streams and the counts are integers, so
-        // the p-values are the same for any number of threads.
-        let k = usable.len();
-        let input = PermInput {
-            usable: &usable,
-            y,
-            sst,
-            direction,
-            lengths: &lengths,
-            groups: &groups,
-            seed: config.seed,
-            permutations: config.permutations,
-        };
-        let (raw, adj) = (0..config.permutations.div_ceil(LANES))
-            .into_par_iter()
-            .fold(
-                || PermWorker::new(&tests),
-                |mut w, batch| {
-                    w.run_batch(batch, &input);
-                    w
-                },
-            )
-            .map(|w| (w.raw, w.adj))
-            .reduce(
-                || (vec![0; k], vec![0; k]),
-                |(mut r, mut a), (r2, a2)| {
-                    r.iter_mut().zip(r2).for_each(|(x, y)| *x += y);
-                    a.iter_mut().zip(a2).for_each(|(x, y)| *x += y);
-                    (r, a)
-                },
-            );
-        drop(usable);
-        give_back(groups, analysed, &usable_idx);
-        for (k, &j) in usable_idx.iter().enumerate() {
-            raw_count[j] = raw[k];
-            adj_count[j] = adj[k];
-        }
-    }
-    let b = config.permutations as f64 + 1.0;
-    let analysed = &*analysed;
-    let p = |counts: Vec<usize>| -> Vec<f64> {
-        counts
-            .iter()
-            .zip(analysed)
-            .map(|(&c, a)| {
-                if a.is_ok() && sst > 0.0 {
-                    (c as f64 + 1.0) / b
-                } else {
-                    1.0
-                }
-            })
-            .collect()
-    };
-    (p(raw_count), p(adj_count))
+    p_values(&permutation_statistics(
+        analysed, y, sst, direction, blocks, config, fused,
+    ))
 }

@@ -83,14 +83,27 @@ pub(super) struct Screened {
     pub(super) variance: f64,
 }
 
-/// The one-dimensional screen of [`diagnose`]: every feature's smoother, the permutation
-/// test, the forward pass and the features' reports (`which`), strongest first.
-pub(super) fn screen(
+/// The screen's input made ready: the clipped, centred residual, its folds and direction, every
+/// column analysed (binned, cross-validated, its observed statistic) and each one's null block.
+pub(super) struct Prepared {
+    pub(super) y: Vec<f64>,
+    pub(super) sst: f64,
+    pub(super) variance: f64,
+    pub(super) residual_std: f64,
+    pub(super) fold: Vec<u8>,
+    pub(super) direction: Option<Vec<i8>>,
+    pub(super) analysed: Vec<Result<Analysed, Unusable>>,
+    pub(super) blocks: Vec<usize>,
+    pub(super) null_block: usize,
+}
+
+/// Checks the input and makes everything the permutation test reads ([`Prepared`]): the first
+/// half of [`screen`], shared with the pooled screen of a fleet.
+pub(super) fn prepare(
     table: &FeatureTable,
     residuals: &[f64],
     config: &CheckedDiagnoseConfig,
-    which: Reports,
-) -> Result<Screened, DiagnoseError> {
+) -> Result<Prepared, DiagnoseError> {
     let n = table.len();
     let block_len = check_input(table, residuals, config)?;
 
@@ -116,7 +129,7 @@ pub(super) fn screen(
         .map(|d| sum_sq_about_mean_rows(|| y.iter().zip(d).map(|(r, &d)| r * f64::from(d))));
 
     // Bin, cross-validate and compute the observed statistic of every usable feature.
-    let mut analysed = analyse_columns(
+    let analysed = analyse_columns(
         table,
         &Centred {
             y: &y,
@@ -146,6 +159,38 @@ pub(super) fn screen(
             _ => null_block,
         })
         .collect();
+    Ok(Prepared {
+        y,
+        sst,
+        variance,
+        residual_std,
+        fold,
+        direction,
+        analysed,
+        blocks,
+        null_block,
+    })
+}
+
+/// The one-dimensional screen of [`diagnose`]: every feature's smoother, the permutation
+/// test, the forward pass and the features' reports (`which`), strongest first.
+pub(super) fn screen(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+    which: Reports,
+) -> Result<Screened, DiagnoseError> {
+    let Prepared {
+        y,
+        sst,
+        variance,
+        residual_std,
+        fold,
+        direction,
+        mut analysed,
+        blocks,
+        null_block,
+    } = prepare(table, residuals, config)?;
     let (p_raw, p_adj) = permutation_test(
         &mut analysed,
         &y,
@@ -386,15 +431,18 @@ fn one_report(inp: &ReportInput<'_>, j: usize) -> (usize, FeatureReport) {
         };
     }
     if r.significant && !r.flagged {
+        // As many decimals as it takes to tell the failing share from the minimum.
+        let min = inp.config.min_effect;
+        let (_, m) = super::apart(r.explained.min(beyond), min, 100.0, 1);
+        let d = m.len() - m.find('.').map_or(m.len(), |i| i + 1);
         let note = format!(
-            "{}: significant (p = {:.3}) but too small to matter: {:.1} % of the residual \
-             variance alone, {:.1} % beyond the features ranked before it, below the \
-             practical minimum of {:.1} %",
+            "{}: significant (p = {:.3}) but too small to matter: {:.d$} % of the residual \
+             variance alone, {:.d$} % beyond the features ranked before it, below the \
+             practical minimum of {m} %",
             r.reason,
             r.p_value,
             100.0 * r.explained,
             100.0 * beyond,
-            100.0 * inp.config.min_effect
         );
         r.note = Some(match r.note.take() {
             Some(n) => format!("{note}; {n}"),

@@ -3,7 +3,7 @@
 //! the covariance and each column's conditioning ([`Solution`]); and the RSS of a full solve
 //! with one term replaced ([`slow_rss`]), the reference of the nonlinear searches.
 
-use super::design::{ChunkStart, FixedRows, offsets, param_label, ridge_of};
+use super::design::{ChunkStart, FixedRows, column_flags, offsets, param_label};
 use super::options::CheckedFitOptions;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::Term;
@@ -92,7 +92,7 @@ pub(super) fn solve_marking<'a>(
     let mut rows = FixedRows::new(terms, data)?;
     // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column (after the
     // data rows; `colsq` is the data rows' sums of squares).
-    let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
+    let ridge: Vec<f64> = column_flags(terms).into_iter().map(|f| f.1).collect();
     // Penalty rows of the terms that have them (`Term::penalty`), after the ridge rows.
     let (off, _) = offsets(terms);
     let penalties: Vec<TermPenalty> = terms
@@ -119,7 +119,8 @@ pub(super) fn solve_marking<'a>(
 /// The design columns in the order [`solve`] factorises them: the essential ones first, so
 /// that a dependency is blamed on a droppable hinge if possible.
 fn column_order(terms: &[Arc<dyn Term>], p: usize) -> Vec<usize> {
-    let droppable: Vec<bool> = (0..p).map(|c| param_label(terms, c).1).collect();
+    let droppable: Vec<bool> = column_flags(terms).into_iter().map(|f| f.0).collect();
+    debug_assert_eq!(droppable.len(), p);
     let mut order: Vec<usize> = (0..p).filter(|&c| !droppable[c]).collect();
     order.extend((0..p).filter(|&c| droppable[c]));
     order

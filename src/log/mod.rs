@@ -63,7 +63,6 @@ pub use error::LogError;
 pub(crate) use limits::MAX_ABS_VALUE;
 pub use reader::{LogReader, LogSummary};
 pub use schema::{BiasColumn, EmptyCells, LogSchema, Row, STDIN_PATH};
-pub(crate) use units::{BIAS_UNIT_KEY, POSITION_UNIT_KEY};
 pub use units::{DEFAULT_BIAS_UNIT, UnitError, Units, check_unit_label};
 pub(crate) use writer::fmt_float;
 pub use writer::{LogWriter, fmt_trimmed};

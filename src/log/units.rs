@@ -130,6 +130,26 @@ impl Units {
         })
     }
 
+    /// The units of a log read for a model fitted in `fitted`: a unit given explicitly
+    /// (`bias_given`, `position_given`: the CLI's `--bias-unit`, `--track-unit`) or by the log's
+    /// metadata stays as [`Units::resolve`] gave it; one that came from the column name is the
+    /// model's. (Whether the result is the model's is for `FittedModel::check_units` to say.)
+    pub fn for_model(
+        mut self,
+        fitted: &Units,
+        bias_given: bool,
+        position_given: bool,
+        schema: &LogSchema,
+    ) -> Units {
+        if !bias_given && schema.metadata_value(BIAS_UNIT_KEY).is_none() {
+            self.bias = fitted.bias.clone();
+        }
+        if !position_given && schema.metadata_value(POSITION_UNIT_KEY).is_none() {
+            self.position = fitted.position.clone();
+        }
+        self
+    }
+
     /// The unit of a slope of bias against position, `<bias>/<position>` (`N/m`); a plural
     /// count noun below the slash is made singular (`counts/track`, not `counts/tracks`).
     pub fn per_position(&self) -> String {

@@ -1,5 +1,7 @@
 //! The errors of a model spec and of a fitted model.
 
+#[cfg(doc)]
+use super::Predictor;
 use super::{preset, registry};
 use crate::io::OutputError;
 use std::path::PathBuf;
@@ -111,13 +113,13 @@ pub enum ModelError {
         /// The log's covariates.
         available: String,
     },
-    /// A [`Predictor`] was given another number of covariate values than the covariate names
-    /// it was made with.
+    /// A [`Predictor`](crate::model::Predictor) was given another number of covariate values
+    /// than the covariate names it was made with.
     #[error(
         "{given} covariate values given, but the predictor was made with {expected} covariate names: pass one value per name, in their order"
     )]
     CovariateCount {
-        /// The number of names given to [`Predictor::new`].
+        /// The number of names given to [`Predictor::new`](crate::model::Predictor::new).
         expected: usize,
         /// The number of values passed.
         given: usize,

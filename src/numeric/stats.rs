@@ -745,36 +745,7 @@ pub(crate) fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
     }
     // Geometry on the points (x_i, i): heights are counts, so every distance below is n times a
     // distance between distribution functions, and the dip is half the largest such distance.
-    //
-    // below[j]: the vertex before j on the greatest convex minorant (lower hull) of points 0..=j.
-    // Hull indices are kept as u32 (4 B per point instead of 8; `n` ≤ 2^32 is checked above).
-    let mut below = vec![0u32; n];
-    for j in 1..n {
-        let mut a = j - 1;
-        while a > 0 {
-            let b = below[a] as usize;
-            // Keep `a` while the hull turns upwards there: slope b→a below slope a→j.
-            if (x[j] - x[a]) * ((a - b) as f64) < (x[a] - x[b]) * ((j - a) as f64) {
-                break;
-            }
-            a = b;
-        }
-        below[j] = a as u32;
-    }
-    // above[k]: the vertex after k on the least concave majorant (upper hull) of points k..=last.
-    let mut above = vec![last as u32; n];
-    for k in (0..last).rev() {
-        let mut a = k + 1;
-        while a < last {
-            let b = above[a] as usize;
-            // Keep `a` while the hull turns downwards there: slope a→b below slope k→a.
-            if (x[a] - x[k]) * ((b - a) as f64) < (x[b] - x[a]) * ((a - k) as f64) {
-                break;
-            }
-            a = b;
-        }
-        above[k] = a as u32;
-    }
+    let (below, above) = hulls(x);
 
     // Twice the dip, in counts; 1 is the smallest possible value (a jump of one count).
     let mut two_n_dip = 1.0f64;
@@ -855,33 +826,7 @@ pub(crate) fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
         if d < two_n_dip {
             break;
         }
-        // The dip of the convex minorant over the part of the sample left of the new modal
-        // interval, and of the concave majorant right of it.
-        let mut dip_l = 0.0f64;
-        for j in ig..lg - 1 {
-            let (jb, je) = (gcm[j + 1], gcm[j]);
-            let mut worst = 1.0f64;
-            if je - jb > 1 && x[je] > x[jb] {
-                let c = (je - jb) as f64 / (x[je] - x[jb]);
-                for (r, &xr) in x.iter().enumerate().take(je + 1).skip(jb) {
-                    worst = worst.max((r - jb + 1) as f64 - (xr - x[jb]) * c);
-                }
-            }
-            dip_l = dip_l.max(worst);
-        }
-        let mut dip_u = 0.0f64;
-        for k in ih..ll - 1 {
-            let (kb, ke) = (lcm[k], lcm[k + 1]);
-            let mut worst = 1.0f64;
-            if ke - kb > 1 && x[ke] > x[kb] {
-                let c = (ke - kb) as f64 / (x[ke] - x[kb]);
-                for (r, &xr) in x.iter().enumerate().take(ke + 1).skip(kb) {
-                    worst = worst.max((xr - x[kb]) * c - (r as f64 - kb as f64 - 1.0));
-                }
-            }
-            dip_u = dip_u.max(worst);
-        }
-        two_n_dip = two_n_dip.max(dip_l).max(dip_u);
+        two_n_dip = two_n_dip.max(side_dips(x, &gcm, &lcm, ig, ih));
         let (new_low, new_high) = (gcm[ig], lcm[ih]);
         if new_low == low && new_high == high {
             break;
@@ -895,6 +840,73 @@ pub(crate) fn dip_statistic_sorted(x: &[f64]) -> Option<Dip> {
         modal_interval: [x[low] + 0.0, x[high] + 0.0],
         n,
     })
+}
+
+/// The two hulls of the points (x_i, i) of sorted `x` ([`dip_statistic_sorted`]), as vertex
+/// links: `below[j]`, the vertex before j on the greatest convex minorant (lower hull) of points
+/// 0..=j; `above[k]`, the vertex after k on the least concave majorant (upper hull) of points
+/// k..=last. Indices are u32 (4 B per point instead of 8; the caller checks n ≤ 2^32).
+fn hulls(x: &[f64]) -> (Vec<u32>, Vec<u32>) {
+    let (n, last) = (x.len(), x.len() - 1);
+    let mut below = vec![0u32; n];
+    for j in 1..n {
+        let mut a = j - 1;
+        while a > 0 {
+            let b = below[a] as usize;
+            // Keep `a` while the hull turns upwards there: slope b→a below slope a→j.
+            if (x[j] - x[a]) * ((a - b) as f64) < (x[a] - x[b]) * ((j - a) as f64) {
+                break;
+            }
+            a = b;
+        }
+        below[j] = a as u32;
+    }
+    let mut above = vec![last as u32; n];
+    for k in (0..last).rev() {
+        let mut a = k + 1;
+        while a < last {
+            let b = above[a] as usize;
+            // Keep `a` while the hull turns downwards there: slope a→b below slope k→a.
+            if (x[a] - x[k]) * ((b - a) as f64) < (x[b] - x[a]) * ((a - k) as f64) {
+                break;
+            }
+            a = b;
+        }
+        above[k] = a as u32;
+    }
+    (below, above)
+}
+
+/// The dip (in counts, at least 1) of the convex minorant `gcm` over the part of the sample
+/// left of the modal interval starting at its vertex `ig`, and of the concave majorant `lcm`
+/// right of the one ending at its vertex `ih` ([`dip_statistic_sorted`]).
+fn side_dips(x: &[f64], gcm: &[usize], lcm: &[usize], ig: usize, ih: usize) -> f64 {
+    let (lg, ll) = (gcm.len(), lcm.len());
+    let mut dip_l = 0.0f64;
+    for j in ig..lg - 1 {
+        let (jb, je) = (gcm[j + 1], gcm[j]);
+        let mut worst = 1.0f64;
+        if je - jb > 1 && x[je] > x[jb] {
+            let c = (je - jb) as f64 / (x[je] - x[jb]);
+            for (r, &xr) in x.iter().enumerate().take(je + 1).skip(jb) {
+                worst = worst.max((r - jb + 1) as f64 - (xr - x[jb]) * c);
+            }
+        }
+        dip_l = dip_l.max(worst);
+    }
+    let mut dip_u = 0.0f64;
+    for k in ih..ll - 1 {
+        let (kb, ke) = (lcm[k], lcm[k + 1]);
+        let mut worst = 1.0f64;
+        if ke - kb > 1 && x[ke] > x[kb] {
+            let c = (ke - kb) as f64 / (x[ke] - x[kb]);
+            for (r, &xr) in x.iter().enumerate().take(ke + 1).skip(kb) {
+                worst = worst.max((xr - x[kb]) * c - (r as f64 - kb as f64 - 1.0));
+            }
+        }
+        dip_u = dip_u.max(worst);
+    }
+    dip_l.max(dip_u)
 }
 
 /// Hartigans' dip test of unimodality of `x` in any order: the dip (`dip_statistic`) and the

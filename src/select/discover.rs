@@ -344,24 +344,7 @@ pub fn discover(
             )
         };
         let Some((best, next_spec, next, next_honest, adaptive)) = chosen else {
-            (out.reason, out.stopped_because) = if passed_over.is_empty() {
-                (
-                    Reason::NotApplicable,
-                    format!(
-                        "{}: no verified edit could be applied",
-                        Reason::NotApplicable
-                    ),
-                )
-            } else {
-                (
-                    Reason::FreeRunWorse,
-                    format!(
-                        "{}: every verified edit gains on the one-step figure only: in free \
-                         run it makes the error worse{passed}",
-                        Reason::FreeRunWorse
-                    ),
-                )
-            };
+            (out.reason, out.stopped_because) = none_applied(passed_over.is_empty(), &passed);
             break;
         };
         let next_test = test_std(&next)?;
@@ -373,10 +356,12 @@ pub fn discover(
             edit: best.edit.clone(),
             feature: best.feature.clone(),
             reason: format!(
-                "{shape}refitted, the edit gains {:.1} % of the error variance on held-out \
-                 seeks (z = {:.1}){passed}",
+                "{}: {shape}refitted, the edit gains {:.1} % of the error variance on held-out \
+                 seeks (z = {:.1}, bar {:.1}){passed}",
+                Reason::Verified,
                 100.0 * best.gain,
-                best.z
+                best.z,
+                best.z_bar
             ),
             std_before: current_test.unwrap_or(best.std_before),
             std_after: next_test.unwrap_or(best.std_after),
@@ -389,25 +374,54 @@ pub fn discover(
         current_test = next_test;
         current_honest = next_honest;
     }
-    if let Some(free) = current_honest.1 {
-        out.free_run_basis = Some(free_run_basis.clone());
-        out.final_std = Some(current_honest.0);
-        out.final_free_run_std = Some(free);
-        out.stopped_because = format!(
-            "{}; the final model has an adaptive term: on {free_run_basis} its error std is {} {} \
-             one-step but {} {} in free run (from the positions alone)",
-            out.stopped_because,
-            crate::log::fmt_trimmed(current_honest.0, 4),
-            out.unit,
-            crate::log::fmt_trimmed(free, 4),
-            out.unit
-        );
-    }
-    if out.start_free_run_std.is_some() {
-        out.free_run_basis = Some(free_run_basis);
-    }
+    note_free_run(&mut out, current_honest, free_run_basis);
     out.final_terms = spec.terms.iter().map(|t| t.name()).collect();
     Ok((out, model))
+}
+
+/// Why discover stopped when verified edits existed but none was taken: none could be applied
+/// (`none_passed_over`), or every one gains on the one-step figure only (`passed` lists them).
+fn none_applied(none_passed_over: bool, passed: &str) -> (Reason, String) {
+    if none_passed_over {
+        (
+            Reason::NotApplicable,
+            format!(
+                "{}: no verified edit could be applied",
+                Reason::NotApplicable
+            ),
+        )
+    } else {
+        (
+            Reason::FreeRunWorse,
+            format!(
+                "{}: every verified edit gains on the one-step figure only: in free run it \
+                 makes the error worse{passed}",
+                Reason::FreeRunWorse
+            ),
+        )
+    }
+}
+
+/// Records the final model's free-run figures in `out` when it has an adaptive term
+/// (`honest.1`), and says so after the stop reason; names where they were measured.
+fn note_free_run(out: &mut Discovery, honest: (f64, Option<f64>), free_run_basis: String) {
+    if let Some(free) = honest.1 {
+        out.final_std = Some(honest.0);
+        out.final_free_run_std = Some(free);
+        let (one, run) = (
+            crate::log::fmt_trimmed(honest.0, 4),
+            crate::log::fmt_trimmed(free, 4),
+        );
+        let but = if one == run { "and" } else { "but" };
+        out.stopped_because = format!(
+            "{}; the final model has an adaptive term: on {free_run_basis} its error std is \
+             {one} {} one-step {but} {run} {} in free run (from the positions alone)",
+            out.stopped_because, out.unit, out.unit
+        );
+        out.free_run_basis = Some(free_run_basis);
+    } else if out.start_free_run_std.is_some() {
+        out.free_run_basis = Some(free_run_basis);
+    }
 }
 
 /// The residual's shape against `feature` in `d`, in words, as a step's reason begins

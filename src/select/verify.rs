@@ -263,62 +263,25 @@ pub(super) fn verify_round(
         defect_candidate(spec, defect().is_some(), cands)
     };
     let mut seen: Vec<String> = Vec::new();
-    for c in cands.iter().chain(&extra) {
-        let mut best: Option<(VerifiedEdit, Scored)> = None;
-        for term in &c.terms {
-            let mut fitted = false;
-            for (k, variant) in variants(term, spec, c.table_spacing).iter().enumerate() {
-                if variant == crate::diagnose::advice::BUMP_TERM
-                    && !crate::diagnose::advice::worth_a_bump(defect().as_ref(), c.table_spacing)
-                {
-                    continue;
-                }
-                if crate::diagnose::advice::is_step(variant) && !step_screened(variant) {
-                    continue;
-                }
-                let alt = k > 0;
-                let attempt = edit_for(variant, spec, c.table_spacing).and_then(|e| {
-                    let s = spec.apply(&e)?;
-                    Ok((e, s))
-                });
-                let (edit, next) = match attempt {
-                    Ok(x) => x,
-                    Err(e) => {
-                        if !alt {
-                            v.rejected.push(rejected(
-                                c,
-                                term,
-                                Reason::NotApplicable,
-                                e.to_string(),
-                            ));
-                        }
-                        continue;
-                    }
-                };
-                if seen.contains(&next.to_string()) {
-                    continue;
-                }
-                let after = match scored(&next) {
-                    Ok(r) => r,
-                    Err(why) => {
-                        if !alt {
-                            v.rejected.push(rejected(c, term, Reason::FitFailed, why));
-                        }
-                        continue;
-                    }
-                };
-                fitted = true;
-                seen.push(next.to_string());
-                let j = after.judged[usize::from(c.strict || strict_all)];
-                let e = verified_edit(c, edit, &next, v.std_before, after.std_after, j);
-                if best.as_ref().is_none_or(|b| e.gain > b.0.gain) {
-                    best = Some((e, after));
-                }
-            }
-            if fitted && !c.try_all {
-                break;
-            }
+    let mut worth = |variant: &str, c: &Candidate| {
+        if variant == crate::diagnose::advice::BUMP_TERM
+            && !crate::diagnose::advice::worth_a_bump(defect().as_ref(), c.table_spacing)
+        {
+            return false;
         }
+        !crate::diagnose::advice::is_step(variant) || step_screened(variant)
+    };
+    for c in cands.iter().chain(&extra) {
+        let best = best_edit(
+            c,
+            spec,
+            strict_all,
+            v.std_before,
+            &mut seen,
+            &mut v.rejected,
+            &mut worth,
+            &mut scored,
+        );
         if let Some((e, after)) = best {
             if let (true, Some(m), Some(r)) = (e.verified, &e.model_edit, after.residual) {
                 keep.verified.insert(e.terms.clone(), (r, m.clone()));
@@ -331,6 +294,69 @@ pub(super) fn verify_round(
     prefer_physics_to_drift(&mut v.edits);
     keep.before = base.r;
     Ok((v, keep))
+}
+
+/// Candidate `c`'s best edit of `spec`: its terms' variants in order, each applied, refitted
+/// (`scored`) and judged, skipping the variants `worth` turns down and the models already in
+/// `seen`; the first term that fits ends the search unless `c.try_all`. A first variant that
+/// cannot be applied or refitted is recorded in `rejected` with its rule.
+#[allow(clippy::too_many_arguments)]
+fn best_edit(
+    c: &Candidate,
+    spec: &ModelSpec,
+    strict_all: bool,
+    std_before: f64,
+    seen: &mut Vec<String>,
+    rejected_out: &mut Vec<RejectedEdit>,
+    worth: &mut dyn FnMut(&str, &Candidate) -> bool,
+    scored: &mut dyn FnMut(&ModelSpec) -> Result<Scored, String>,
+) -> Option<(VerifiedEdit, Scored)> {
+    let mut best: Option<(VerifiedEdit, Scored)> = None;
+    for term in &c.terms {
+        let mut fitted = false;
+        for (k, variant) in variants(term, spec, c.table_spacing).iter().enumerate() {
+            if !worth(variant, c) {
+                continue;
+            }
+            let alt = k > 0;
+            let attempt = edit_for(variant, spec, c.table_spacing).and_then(|e| {
+                let s = spec.apply(&e)?;
+                Ok((e, s))
+            });
+            let (edit, next) = match attempt {
+                Ok(x) => x,
+                Err(e) => {
+                    if !alt {
+                        rejected_out.push(rejected(c, term, Reason::NotApplicable, e.to_string()));
+                    }
+                    continue;
+                }
+            };
+            if seen.contains(&next.to_string()) {
+                continue;
+            }
+            let after = match scored(&next) {
+                Ok(r) => r,
+                Err(why) => {
+                    if !alt {
+                        rejected_out.push(rejected(c, term, Reason::FitFailed, why));
+                    }
+                    continue;
+                }
+            };
+            fitted = true;
+            seen.push(next.to_string());
+            let j = after.judged[usize::from(c.strict || strict_all)];
+            let e = verified_edit(c, edit, &next, std_before, after.std_after, j);
+            if best.as_ref().is_none_or(|b| e.gain > b.0.gain) {
+                best = Some((e, after));
+            }
+        }
+        if fitted && !c.try_all {
+            break;
+        }
+    }
+    best
 }
 
 /// Candidate `c`'s `term`, rejected by `reason` for `why`.

@@ -681,3 +681,107 @@ fn no_production_file_over_800_lines() {
         long.join("\n  ")
     );
 }
+
+/// Longest production function, in lines from its `fn` line to its closing brace (rustfmt's
+/// layout; a nested function counts in its parent too).
+const MAX_FN_LINES: usize = 150;
+
+/// Every function body in `code` (comments and literals already blanked): its name, the line
+/// its `fn` stands on (1-based) and its length in lines. A declaration without a body (a trait
+/// method's `;`) and a function-pointer type (`fn(f64) -> f64`) are not functions.
+fn functions(code: &str) -> Vec<(String, usize, usize)> {
+    let b = code.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while let Some(k) = code[i..].find("fn ") {
+        let at = i + k;
+        i = at + 3;
+        if at > 0 && (b[at - 1].is_ascii_alphanumeric() || b[at - 1] == b'_') {
+            continue;
+        }
+        let name: String = code[at + 3..]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        if name.is_empty() {
+            continue;
+        }
+        // The body's `{` (or a `;`) at parenthesis and bracket depth 0 after the signature.
+        let mut depth = 0i32;
+        let mut open = None;
+        for (j, &c) in b.iter().enumerate().skip(at) {
+            match c {
+                b'(' | b'[' => depth += 1,
+                b')' | b']' => depth -= 1,
+                b';' if depth == 0 => break,
+                b'{' if depth == 0 => {
+                    open = Some(j);
+                    break;
+                }
+                _ => {}
+            }
+        }
+        let Some(open) = open else { continue };
+        let mut braces = 0usize;
+        let mut close = b.len() - 1;
+        for (j, &c) in b.iter().enumerate().skip(open) {
+            match c {
+                b'{' => braces += 1,
+                b'}' => {
+                    braces -= 1;
+                    if braces == 0 {
+                        close = j;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        let line = code[..at].matches('\n').count() + 1;
+        let lines = code[at..=close].matches('\n').count() + 1;
+        out.push((name, line, lines));
+    }
+    out
+}
+
+#[test]
+fn no_production_function_over_150_lines() {
+    let src = read_sources();
+    let mut long: Vec<String> = src
+        .files
+        .values()
+        .flat_map(|(rel, code)| {
+            functions(code)
+                .into_iter()
+                .filter(|(_, _, lines)| *lines > MAX_FN_LINES)
+                .map(move |(name, line, lines)| {
+                    format!("src/{}:{line} `{name}` ({lines} lines)", rel.display())
+                })
+        })
+        .collect();
+    long.sort();
+    assert!(
+        long.is_empty(),
+        "production functions over {MAX_FN_LINES} lines:\n  {}\nSplit each into steps named for \
+         what they do.",
+        long.join("\n  ")
+    );
+}
+
+#[test]
+fn the_function_reader_measures_bodies_and_skips_declarations_and_pointer_types() {
+    let code = "trait T {\n    fn declared(&self) -> u8;\n}\nfn outer(f: fn(f64) -> f64, \
+                a: [u8; 2]) -> u8 {\n    fn inner() {}\n    let x = {\n        1\n    };\n    x\n}\n\
+                pub(crate) fn one_line() -> Vec<u8> { vec![] }\nfn ends_in_where<T>(t: T)\nwhere\n    \
+                T: Copy,\n{\n}\n";
+    let got = functions(code);
+    assert_eq!(
+        got,
+        [
+            ("outer".to_string(), 4, 7),
+            ("inner".to_string(), 5, 1),
+            ("one_line".to_string(), 11, 1),
+            ("ends_in_where".to_string(), 12, 5),
+        ]
+    );
+}

@@ -9,6 +9,7 @@ mod diagnose;
 mod docs;
 mod export;
 mod fit_model;
+mod fleet;
 mod fuzz;
 mod layers;
 mod log_reading;

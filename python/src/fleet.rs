@@ -1,0 +1,283 @@
+//! `biasctl.fleet`'s per-drive work: one drive's row of the fleet table and the outliers of a
+//! table, through the library's `fleet` functions (the ones `biasctl fleet` runs).
+
+use crate::errors::{Failure, Kind, attached, detached, fail, on_threads};
+use crate::log::PyLog;
+use crate::model::{fit_options, model_spec};
+use biasctl::fleet::{self, DriveFit, ReadSettings};
+use pyo3::prelude::*;
+
+/// A drive's row: source, rows, terms, [(name, value, se)], std, warnings, error.
+type Row = (
+    String,
+    Option<usize>,
+    String,
+    Vec<(String, f64, Option<f64>)>,
+    Option<f64>,
+    Vec<String>,
+    Option<String>,
+);
+
+fn row(r: DriveFit) -> Row {
+    let params = r
+        .params
+        .into_iter()
+        .map(|p| (p.name, p.value, p.se))
+        .collect();
+    (
+        r.source, r.rows, r.terms, params, r.std, r.warnings, r.error,
+    )
+}
+
+/// One drive's row of the fleet table: `path` read with the column and unit settings (as
+/// `read_log`), or `log` already read; `source` names it. A drive that cannot be read or
+/// fitted gives a row with its error, never an exception; bad settings raise.
+#[pyfunction]
+#[pyo3(signature = (source, model, path=None, log=None, time_col=None, track_col=None, bias_col=None, bias_unit=None, track_unit=None, delimiter=None, deadband=None, velocity_col=None, rank_tolerance=None, grid=None, refine=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fit_drive(
+    py: Python<'_>,
+    source: String,
+    model: &str,
+    path: Option<std::path::PathBuf>,
+    log: Option<&PyLog>,
+    time_col: Option<String>,
+    track_col: Option<String>,
+    bias_col: Option<String>,
+    bias_unit: Option<String>,
+    track_unit: Option<String>,
+    delimiter: Option<String>,
+    deadband: Option<f64>,
+    velocity_col: Option<String>,
+    rank_tolerance: Option<f64>,
+    grid: Option<usize>,
+    refine: Option<usize>,
+    threads: Option<usize>,
+) -> PyResult<Row> {
+    let spec = attached(|| model_spec(model))?;
+    let opts = attached(|| fit_options(deadband, velocity_col, rank_tolerance, grid, refine))?;
+    let read = ReadSettings {
+        columns: crate::log::column_map(time_col, track_col, bias_col, delimiter.as_deref())?,
+        bias_unit,
+        track_unit,
+    };
+    detached(py, || {
+        on_threads(threads, || {
+            let r = match (path, log) {
+                (Some(p), None) => fleet::fit_path(&p, &read, &spec, &opts),
+                (None, Some(l)) => match l.measured() {
+                    Ok(log) => fleet::fit_log(&source, log, &spec, &opts),
+                    Err(e) => DriveFit::failed(&source, e.message()),
+                },
+                _ => {
+                    return Err(Failure::new(
+                        Kind::Base,
+                        "internal: give a path or a log, not both",
+                    ));
+                }
+            };
+            Ok(DriveFit { source, ..r })
+        })
+        .map(row)
+    })
+}
+
+/// One outlier: source, parameter, value, median, sigma, z, rule.
+type OutlierRow = (String, String, f64, f64, f64, f64, String);
+
+/// The outliers of a fleet table (its CSV text, as `fleet outliers --fits` reads it):
+/// (source, parameter, value, median, sigma, z, rule) for every deviating parameter.
+#[pyfunction]
+#[pyo3(signature = (csv, threshold=fleet::OUTLIER_THRESHOLD, name="<fits>"))]
+pub(crate) fn fleet_outliers(
+    csv: &str,
+    threshold: f64,
+    name: &str,
+) -> PyResult<Vec<OutlierRow>> {
+    attached(|| {
+        let rows = fleet::read_fits(csv, name).map_err(fail(Kind::Base))?;
+        let found = fleet::outliers(&rows, threshold).map_err(fail(Kind::Base))?;
+        Ok(found
+            .into_iter()
+            .map(|o| {
+                let rule = o.rule.name().to_string();
+                (o.source, o.parameter, o.value, o.median, o.sigma, o.z, rule)
+            })
+            .collect())
+    })
+}
+
+/// The fleet table's CSV text of rows (as `fleet fit --out` writes it).
+#[pyfunction]
+pub(crate) fn fits_csv(rows: Vec<Row>) -> String {
+    let rows: Vec<DriveFit> = rows
+        .into_iter()
+        .map(
+            |(source, rows, terms, params, std, warnings, error)| DriveFit {
+                source,
+                rows,
+                terms,
+                params: params
+                    .into_iter()
+                    .map(|(name, value, se)| biasctl::model::Param { name, value, se })
+                    .collect(),
+                std,
+                warnings,
+                error,
+            },
+        )
+        .collect();
+    fleet::fits_csv(&rows)
+}
+
+/// One drive's screen as the pooled screen reads it: (source, error, names, tested, observed,
+/// explained, p_value, permutations, null, suggested).
+type Screen = (
+    String,
+    Option<String>,
+    Vec<String>,
+    Vec<bool>,
+    Vec<f64>,
+    Vec<f64>,
+    Vec<f64>,
+    usize,
+    Vec<f64>,
+    Vec<Option<String>>,
+);
+
+/// The checked diagnosis settings of the fleet's screen.
+fn diagnose_config(
+    seed: u64,
+    alpha: f64,
+    permutations: usize,
+    folds: usize,
+) -> Result<biasctl::CheckedDiagnoseConfig, Failure> {
+    biasctl::DiagnoseConfig {
+        seed,
+        alpha,
+        permutations,
+        folds,
+        ..biasctl::DiagnoseConfig::default()
+    }
+    .check()
+    .map_err(fail(Kind::Base))
+}
+
+/// One drive fitted and its residual screened (`fleet::screen_path` / `fleet::screen_drive`):
+/// `path` read with the column and unit settings, or `log` already read.
+#[pyfunction]
+#[pyo3(signature = (source, model, path=None, log=None, seed=1, alpha=0.01, permutations=199, folds=5, time_col=None, track_col=None, bias_col=None, bias_unit=None, track_unit=None, delimiter=None, deadband=None, velocity_col=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn screen_drive(
+    py: Python<'_>,
+    source: String,
+    model: &str,
+    path: Option<std::path::PathBuf>,
+    log: Option<&PyLog>,
+    seed: u64,
+    alpha: f64,
+    permutations: usize,
+    folds: usize,
+    time_col: Option<String>,
+    track_col: Option<String>,
+    bias_col: Option<String>,
+    bias_unit: Option<String>,
+    track_unit: Option<String>,
+    delimiter: Option<String>,
+    deadband: Option<f64>,
+    velocity_col: Option<String>,
+    threads: Option<usize>,
+) -> PyResult<Screen> {
+    let spec = attached(|| model_spec(model))?;
+    let opts = attached(|| fit_options(deadband, velocity_col, None, None, None))?;
+    let config = attached(|| diagnose_config(seed, alpha, permutations, folds))?;
+    let read = ReadSettings {
+        columns: crate::log::column_map(time_col, track_col, bias_col, delimiter.as_deref())?,
+        bias_unit,
+        track_unit,
+    };
+    detached(py, || {
+        on_threads(threads, || {
+            let d = match (path, log) {
+                (Some(p), None) => fleet::screen_path(&p, &read, &spec, &opts, &config),
+                (None, Some(l)) => match l.measured() {
+                    Ok(log) => fleet::screen_drive(&source, log, &spec, &opts, &config),
+                    Err(e) => fleet::DriveScreen {
+                        source: source.clone(),
+                        screen: Err(e.message().to_string()),
+                    },
+                },
+                _ => {
+                    return Err(Failure::new(
+                        Kind::Base,
+                        "internal: give a path or a log, not both",
+                    ));
+                }
+            };
+            Ok(match d.screen {
+                Ok(s) => (
+                    source,
+                    None,
+                    s.names,
+                    s.tested,
+                    s.observed,
+                    s.explained,
+                    s.p_value,
+                    s.permutations,
+                    s.null,
+                    s.suggested,
+                ),
+                Err(e) => (
+                    source,
+                    Some(e),
+                    Vec::new(),
+                    Vec::new(),
+                    Vec::new(),
+                    Vec::new(),
+                    Vec::new(),
+                    permutations,
+                    Vec::new(),
+                    Vec::new(),
+                ),
+            })
+        })
+    })
+}
+
+/// The pooled screen of the drives' screens (`fleet::pool`), as the JSON `biasctl fleet
+/// diagnose --json` prints.
+#[pyfunction]
+#[pyo3(signature = (screens, seed=1, alpha=0.01, permutations=199, folds=5))]
+pub(crate) fn pool_screens(
+    py: Python<'_>,
+    screens: Vec<Screen>,
+    seed: u64,
+    alpha: f64,
+    permutations: usize,
+    folds: usize,
+) -> PyResult<String> {
+    let config = attached(|| diagnose_config(seed, alpha, permutations, folds))?;
+    detached(py, || {
+        let screens: Vec<fleet::DriveScreen> = screens
+            .into_iter()
+            .map(|s| fleet::DriveScreen {
+                source: s.0,
+                screen: match s.1 {
+                    Some(e) => Err(e),
+                    None => Ok(fleet::DriveStatistics {
+                        names: s.2,
+                        tested: s.3,
+                        observed: s.4,
+                        explained: s.5,
+                        p_value: s.6,
+                        permutations: s.7,
+                        null: s.8,
+                        suggested: s.9,
+                    }),
+                },
+            })
+            .collect();
+        let d = fleet::pool(&screens, &config).map_err(fail(Kind::Base))?;
+        biasctl::io::to_string_pretty(&d).map_err(fail(Kind::Base))
+    })
+}
