@@ -438,12 +438,14 @@ pub(crate) const MEAN_WARNING_RATIO: f64 = 0.5;
 pub(crate) fn mean_warning(s: &Score, figure: &str) -> Option<String> {
     (s.mean.abs() > MEAN_WARNING_RATIO * s.std && s.n >= 2).then(|| {
         format!(
-            "{figure} mean error {} {} is {:.2}× the error std {}: the model is offset on this \
-             log (an offset it did not learn, a column or unit mix-up, or parameters that blew up)",
+            "{figure} mean error {} {} is {:.2}× the error std {}, above the {}× that is warned \
+             about: the model is offset on this log (an offset it did not learn, a column or \
+             unit mix-up, or parameters that blew up)",
             crate::log::fmt_trimmed(s.mean, 4),
             s.units.bias,
             s.mean.abs() / s.std.max(f64::MIN_POSITIVE),
             crate::log::fmt_trimmed(s.std, 4),
+            MEAN_WARNING_RATIO,
         )
     })
 }

@@ -140,7 +140,7 @@ pub use reason::Reason;
 pub(crate) use report::compare;
 pub use report::{CurveBin, Diagnosis, FeatureReport, Whiteness};
 pub(crate) use text::extend_summary;
-pub(crate) use values::short;
+pub(crate) use values::{apart, short};
 pub use verification::{CombinedEdit, RejectedEdit, SecondRound, Verification, VerifiedEdit};
 
 use crate::history::Feature;

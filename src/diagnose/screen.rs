@@ -431,15 +431,18 @@ fn one_report(inp: &ReportInput<'_>, j: usize) -> (usize, FeatureReport) {
         };
     }
     if r.significant && !r.flagged {
+        // As many decimals as it takes to tell the failing share from the minimum.
+        let min = inp.config.min_effect;
+        let (_, m) = super::apart(r.explained.min(beyond), min, 100.0, 1);
+        let d = m.len() - m.find('.').map_or(m.len(), |i| i + 1);
         let note = format!(
-            "{}: significant (p = {:.3}) but too small to matter: {:.1} % of the residual \
-             variance alone, {:.1} % beyond the features ranked before it, below the \
-             practical minimum of {:.1} %",
+            "{}: significant (p = {:.3}) but too small to matter: {:.d$} % of the residual \
+             variance alone, {:.d$} % beyond the features ranked before it, below the \
+             practical minimum of {m} %",
             r.reason,
             r.p_value,
             100.0 * r.explained,
             100.0 * beyond,
-            100.0 * inp.config.min_effect
         );
         r.note = Some(match r.note.take() {
             Some(n) => format!("{note}; {n}"),

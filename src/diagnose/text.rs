@@ -216,6 +216,56 @@ pub(super) fn second_round_sentence(
     })
 }
 
+/// Why no feature is flagged, naming the rule that decided it: the strongest feature that is
+/// significant but below the practical minimum (with its own note's figures) and any others,
+/// or that none is significant at `alpha`.
+fn nothing_flagged(d: &Diagnosis, n: usize, alpha: f64) -> String {
+    let residual = format!(
+        "the residual (std {} {}, {n} rows)",
+        short(d.residual_std),
+        d.units.bias
+    );
+    let below: Vec<&FeatureReport> = d
+        .features
+        .iter()
+        .filter(|f| f.reason == super::Reason::BelowPracticalMinimum)
+        .collect();
+    let Some(first) = below.first() else {
+        return format!(
+            "No candidate feature is flagged: {}: none explains {residual} beyond noise at the \
+             {} level (family-wise).",
+            super::Reason::NotSignificant,
+            percent(alpha)
+        );
+    };
+    // The feature's note begins with its rule and the figures that decided it.
+    let why = first
+        .note
+        .as_deref()
+        .and_then(|n| n.split("; ").next())
+        .map(str::to_string)
+        .unwrap_or_else(|| super::Reason::BelowPracticalMinimum.to_string());
+    let mut s = format!(
+        "No candidate feature is flagged in {residual}: the strongest significant one, `{}`, is \
+         {why}.",
+        first.name
+    );
+    if below.len() > 1 {
+        let others: Vec<String> = below[1..].iter().map(|f| format!("`{}`", f.name)).collect();
+        s.push_str(&format!(
+            " Also significant but {}: {}.",
+            super::Reason::BelowPracticalMinimum,
+            others.join(", ")
+        ));
+    }
+    s.push_str(&format!(
+        " The others are {} at the {} level.",
+        super::Reason::NotSignificant,
+        percent(alpha)
+    ));
+    s
+}
+
 /// The plain-words summary of a diagnosis.
 pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
     let mut parts = model_sentences(d);
@@ -249,13 +299,7 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
                 ));
             }
         }
-        None => parts.push(format!(
-            "No candidate feature explains the residual (std {} {}, {n} rows) beyond noise \
-             at the {} level.",
-            short(d.residual_std),
-            d.units.bias,
-            percent(alpha)
-        )),
+        None => parts.push(nothing_flagged(d, n, alpha)),
     }
     let w = &d.whiteness;
     match (w.white, w.ljung_box_p) {

@@ -153,23 +153,27 @@ impl Verification {
         let pct = |v: f64| format!("{:.1} %", 100.0 * v);
         let rule = e.reason.words();
         match e.reason {
-            Reason::BelowPracticalMinimum => format!(
-                "{rule}: out of sample it gains {} of the error variance, less than the {} \
-                 that matters",
-                pct(e.gain),
-                pct(self.min_effect)
-            ),
-            Reason::OnlyRelevelsFolds => format!(
-                "{rule}: within folds it gains {} of the error variance, below the practical \
-                 minimum of {}",
-                pct(e.gain_within_folds),
-                pct(self.min_effect)
-            ),
-            Reason::NotSignificant => format!(
-                "{rule}: z = {:.1} is below the bar of {:.1}, so the gain is within what noise \
-                 allows",
-                e.z, e.z_bar
-            ),
+            Reason::BelowPracticalMinimum => {
+                let (g, m) = super::apart(e.gain, self.min_effect, 100.0, 1);
+                format!(
+                    "{rule}: out of sample it gains {g} % of the error variance, less than the \
+                     {m} % that matters"
+                )
+            }
+            Reason::OnlyRelevelsFolds => {
+                let (g, m) = super::apart(e.gain_within_folds, self.min_effect, 100.0, 1);
+                format!(
+                    "{rule}: within folds it gains {g} % of the error variance, below the \
+                     practical minimum of {m} %"
+                )
+            }
+            Reason::NotSignificant => {
+                let (z, bar) = super::apart(e.z, e.z_bar, 1.0, 1);
+                format!(
+                    "{rule}: z = {z} is below the bar of {bar}, so the gain is within what \
+                     noise allows"
+                )
+            }
             Reason::NotInEveryFold => format!(
                 "{rule}: at the stricter bar an edit must lower the loss in each of the {} \
                  folds, and this one does not",

@@ -64,17 +64,16 @@ pub(super) fn param_label(terms: &[Arc<dyn Term>], col: usize) -> (String, bool)
     (format!("column {col}"), false)
 }
 
-/// The ridge penalty of design column `col` (its term's [`Term::ridge`]).
-pub(super) fn ridge_of(terms: &[Arc<dyn Term>], col: usize) -> f64 {
-    let mut start = 0;
+/// Per design column, in order: whether its term's columns may be dropped
+/// ([`crate::model::term::TermCaps::droppable`]) and its term's ridge penalty ([`Term::ridge`]);
+/// [`param_label`]'s flag for every column, in one pass over the terms.
+pub(super) fn column_flags(terms: &[Arc<dyn Term>]) -> Vec<(bool, f64)> {
+    let mut out = Vec::new();
     for t in terms {
-        let w = t.param_names().len();
-        if col < start + w {
-            return t.ridge();
-        }
-        start += w;
+        let flags = (t.caps().droppable, t.ridge());
+        out.extend(std::iter::repeat_n(flags, t.param_names().len()));
     }
-    0.0
+    out
 }
 
 /// Where one of [`solve`](super::solve::solve)'s chunks of measured rows begins in its replay: the

@@ -2,7 +2,7 @@
 //! the other terms' columns factorised once, each candidate's RSS in closed form from the sums
 //! of its own columns, a full solve ([`slow_rss`]) where a column nears the rank tolerance.
 
-use super::design::{FixedRows, design_pass, offsets, ridge_of};
+use super::design::{FixedRows, column_flags, design_pass, offsets};
 use super::kernels::{BLOCK, Blocked, SEARCH_BATCH, accumulate_one};
 use super::options::CheckedFitOptions;
 use super::solve::slow_rss;
@@ -64,13 +64,15 @@ impl FixedReader<'_, '_> {
     }
 }
 
-/// The ridge rows of the `pf` columns of `fixed` whose term is penalised ([`Term::ridge`]):
-/// `(column, sqrt(λ·colsq))` for each such column with a non-zero sum of squares `colsq` over
-/// the data rows, in column order (the rows `solve` appends).
-fn ridge_rows(fixed: &[Arc<dyn Term>], pf: usize, colsq: &[f64]) -> Vec<(usize, f64)> {
-    (0..pf)
+/// The ridge rows of the fixed columns (those of `fixed`, or the columns `keep` of them, one
+/// sum of squares `colsq` over the data rows each) whose term is penalised ([`Term::ridge`]):
+/// `(column, sqrt(λ·colsq))` for each such column with a non-zero `colsq`, in column order
+/// (the rows `solve` appends).
+fn ridge_rows(fixed: &[Arc<dyn Term>], keep: Option<&[usize]>, colsq: &[f64]) -> Vec<(usize, f64)> {
+    let flags = column_flags(fixed);
+    (0..colsq.len())
         .filter_map(|c| {
-            let lambda = ridge_of(fixed, c);
+            let lambda = flags[keep.map_or(c, |k| k[c])].1;
             (lambda > 0.0 && colsq[c] > 0.0).then(|| (c, (lambda * colsq[c]).sqrt()))
         })
         .collect()
@@ -105,6 +107,8 @@ pub(super) struct Projection<'d, 'a> {
     z: DMatrix<f64>,
     rho2: f64,
     colsq_f: Vec<f64>,
+    /// Per fixed column, the squared norm of its row of `Rf⁻¹` (the closed form's rank test).
+    rf_inv_sq: Vec<f64>,
     /// The RSS of every effective value evaluated so far ([`Projection::rss_many`]).
     memo: std::cell::RefCell<Vec<(u64, f64)>>,
     tol: f64,
@@ -124,6 +128,14 @@ impl<'d, 'a> Projection<'d, 'a> {
 
     /// [`Projection::new`], storing the fixed block only if it takes at most `budget` bytes
     /// (else it is replayed per pass: the same rows, the same bits).
+    ///
+    /// Where a fixed column comes near the rank tolerance, the fixed block alone is solved as
+    /// [`solve`](super::solve::solve) solves it; where that drops columns (droppable ones:
+    /// `bins:position` beside a `table`), the projection is built on the columns it keeps
+    /// (where they can be stored within `budget`), if every one of them clears the margin. A column dropped from
+    /// the fixed block alone is dropped from the joint one at every candidate too: its residual
+    /// on the columns before it can only shrink when the searched columns join them. What the
+    /// searched columns do to the kept ones is the closed form's rank test, per candidate.
     fn with_budget(
         terms: &'d [Arc<dyn Term>],
         k: usize,
@@ -131,9 +143,25 @@ impl<'d, 'a> Projection<'d, 'a> {
         opts: &CheckedFitOptions,
         budget: usize,
     ) -> Option<Self> {
+        Self::keeping(terms, k, data, opts, budget, None)
+    }
+
+    /// [`Projection::with_budget`] on the fixed columns `keep` (all where `None`).
+    fn keeping(
+        terms: &'d [Arc<dyn Term>],
+        k: usize,
+        data: &'d FitData<'a>,
+        opts: &CheckedFitOptions,
+        budget: usize,
+        keep: Option<&[usize]>,
+    ) -> Option<Self> {
         // A penalised fixed column brings its ridge row (below); a penalised searched term
         // would need its own, candidate by candidate: the full solve decides it.
         if terms[k].ridge() > 0.0 {
+            return None;
+        }
+        // Penalty rows over several columns (`Term::penalty`): the full solve places them.
+        if terms.iter().any(|t| !t.penalty().is_empty()) {
             return None;
         }
         let fixed: Vec<Arc<dyn Term>> = terms
@@ -142,7 +170,8 @@ impl<'d, 'a> Projection<'d, 'a> {
             .filter(|&(j, _)| j != k)
             .map(|(_, t)| t.clone())
             .collect();
-        let (_, pf) = offsets(&fixed);
+        let (_, p_all) = offsets(&fixed);
+        let pf = keep.map_or(p_all, <[usize]>::len);
         if pf == 0 {
             return None;
         }
@@ -151,10 +180,24 @@ impl<'d, 'a> Projection<'d, 'a> {
             .saturating_mul(pf)
             .saturating_mul(std::mem::size_of::<f64>())
             <= budget;
+        if keep.is_some() && !store {
+            // The streamed block replays every fixed column: the full solve decides.
+            return None;
+        }
         let mut xf = Vec::with_capacity(if store { m * pf } else { 0 });
         let mut y = Vec::with_capacity(m);
         let mut qr = StreamingQr::new(pf);
+        let mut kept = vec![0.0; pf];
         design_pass(&fixed, data, |x, v| {
+            let x = match keep {
+                Some(keep) => {
+                    for (o, &c) in kept.iter_mut().zip(keep) {
+                        *o = x[c];
+                    }
+                    &kept[..]
+                }
+                None => x,
+            };
             if store {
                 xf.extend_from_slice(x);
             }
@@ -164,7 +207,7 @@ impl<'d, 'a> Projection<'d, 'a> {
         .ok()?;
         // The ridge rows of the penalised fixed columns (`sqrt(λ·‖x_j‖²)·e_j`, response 0, after
         // the data rows, as `solve` places them): the searched term is 0 on them.
-        let ridge = ridge_rows(&fixed, pf, &qr.column_squares()[..pf]);
+        let ridge = ridge_rows(&fixed, keep, &qr.column_squares()[..pf]);
         for (c, v) in &ridge {
             let mut x = vec![0.0; pf];
             x[*c] = *v;
@@ -175,7 +218,17 @@ impl<'d, 'a> Projection<'d, 'a> {
         for q in 0..pf {
             let norm = colsq_f[q].sqrt();
             if !(norm > 0.0 && r[(q, q)].abs() > PROJECTION_MARGIN * tol * norm) {
-                return None;
+                if keep.is_some() {
+                    return None;
+                }
+                // What the full solve of the fixed block alone keeps (an error: a column it
+                // may not drop; nothing dropped: a column near the tolerance it keeps).
+                let sol = super::solve::solve(&fixed, data, opts).ok()?;
+                if sol.dropped.is_empty() {
+                    return None;
+                }
+                let keep: Vec<usize> = (0..p_all).filter(|c| !sol.dropped.contains(c)).collect();
+                return Self::keeping(terms, k, data, opts, budget, Some(&keep));
             }
         }
         let rf = r.view((0, 0), (pf, pf)).clone_owned();
@@ -225,6 +278,10 @@ impl<'d, 'a> Projection<'d, 'a> {
         let w = rf
             .transpose()
             .solve_lower_triangular(&DMatrix::from_column_slice(pf, 1, &xr[..pf]))?;
+        let rf_inv_sq = {
+            let inv = rf.solve_upper_triangular(&DMatrix::identity(pf, pf))?;
+            (0..pf).map(|j| inv.row(j).norm_squared()).collect()
+        };
         Some(Self {
             k,
             data,
@@ -236,6 +293,7 @@ impl<'d, 'a> Projection<'d, 'a> {
             rho2: xr[pf] - w.norm_squared(),
             z: w,
             colsq_f: colsq_f[..pf].to_vec(),
+            rf_inv_sq,
             memo: std::cell::RefCell::new(Vec::new()),
             tol,
         })
@@ -488,6 +546,42 @@ impl<'d, 'a> Projection<'d, 'a> {
         let rss = self.rho2 - v.norm_squared();
         // No column may come near the rank tolerance: its residual on all the others,
         // 1/‖row of R⁻¹‖ for the joint R = [Rf C; 0 Lᵀ], bounds its R diagonal in any order.
+        // R⁻¹ = [Rf⁻¹, −Rf⁻¹ C L⁻ᵀ; 0, L⁻ᵀ]: the rows of Rf⁻¹ are the same for every candidate
+        // (their squared norms kept), so a candidate costs O(pf²·w), not O((pf + w)³).
+        let lt_inv = l
+            .transpose()
+            .solve_upper_triangular(&DMatrix::identity(w, w))?;
+        let m = self.rf.solve_upper_triangular(&c)? * &lt_inv;
+        for j in 0..pf + w {
+            let (colsq, norm_sq) = if j < pf {
+                (self.colsq_f[j], self.rf_inv_sq[j] + m.row(j).norm_squared())
+            } else {
+                (h[(j - pf, j - pf)], lt_inv.row(j - pf).norm_squared())
+            };
+            let resid = 1.0 / norm_sq.sqrt();
+            if !(colsq > 0.0 && resid > PROJECTION_MARGIN * self.tol * colsq.sqrt()) {
+                return None;
+            }
+        }
+        (rss.is_finite() && rss >= 0.0).then_some(rss)
+    }
+
+    /// [`Projection::closed_form`] with the rank test on the whole `R⁻¹` of the joint
+    /// `R = [Rf C; 0 Lᵀ]` (inverted per candidate): the slow, obvious reference.
+    #[cfg(test)]
+    fn closed_form_reference(&self, all: &[f64], w: usize) -> Option<f64> {
+        let pf = self.pf;
+        let (g, rest) = all.split_at(pf * w);
+        let (h, e) = rest.split_at(w * w);
+        let g = DMatrix::from_row_slice(pf, w, g);
+        let h = DMatrix::from_row_slice(w, w, h);
+        let e = DMatrix::from_column_slice(w, 1, e);
+        let c = self.rf.transpose().solve_lower_triangular(&g)?;
+        let s = &h - c.transpose() * &c;
+        let u = e - c.transpose() * &self.z;
+        let l = s.clone().cholesky()?.unpack();
+        let v = l.solve_lower_triangular(&u)?;
+        let rss = self.rho2 - v.norm_squared();
         let p = pf + w;
         let mut r = DMatrix::zeros(p, p);
         r.view_mut((0, 0), (pf, pf)).copy_from(&self.rf);
@@ -574,6 +668,40 @@ mod tests {
                     .collect();
                 // The batched sums (the searched term's block replay, candidates side by
                 // side) against the same sums taken row by row through `TermState`: bit for bit.
+                // The closed form's rank test from the kept rows of `Rf⁻¹` against the whole
+                // `R⁻¹` inverted per candidate: the same RSS and decision, at the candidates
+                // and where the searched column nears a fixed one (`d = x_j·(1 + δ)` in sums).
+                let w = terms[k].param_count();
+                let bits = |v: Option<f64>| v.map(f64::to_bits);
+                for chunk in ts.chunks(SEARCH_BATCH) {
+                    let mut vals = chunk.to_vec();
+                    vals.resize(SEARCH_BATCH, chunk[chunk.len() - 1]);
+                    for all in proj.sums_many(&vals, w).into_iter().flatten() {
+                        let (a, b) = (
+                            proj.closed_form(&all, w),
+                            proj.closed_form_reference(&all, w),
+                        );
+                        assert_eq!(bits(a), bits(b), "{text} seed {seed}");
+                    }
+                }
+                if w == 1 {
+                    let gram = proj.rf.transpose() * &proj.rf;
+                    let mut decided = [0, 0];
+                    for j in 0..proj.pf {
+                        for delta in [1e-20, 1e-14, 1e-10, 1e-6, 1e-2] {
+                            let mut all: Vec<f64> = gram.column(j).iter().copied().collect();
+                            all.push(gram[(j, j)] * (1.0 + delta));
+                            all.push(0.5);
+                            let (a, b) = (
+                                proj.closed_form(&all, 1),
+                                proj.closed_form_reference(&all, 1),
+                            );
+                            assert_eq!(bits(a), bits(b), "{text} seed {seed} column {j} δ {delta}");
+                            decided[usize::from(a.is_some())] += 1;
+                        }
+                    }
+                    assert!(decided[0] > 0 && decided[1] > 0, "{text}: {decided:?}");
+                }
                 let many = proj.fast_rss_many(&terms, &ts);
                 for (&t, m) in ts.iter().zip(&many) {
                     let one = proj.fast_rss(&terms, t);
@@ -713,6 +841,87 @@ mod tests {
         }
         assert_eq!(checked, 2 * 4 * 17);
         eprintln!("memsum and lag: largest relative RSS difference {worst:.1e}");
+    }
+
+    /// A fixed block that the full solve of it alone leaves short of columns (`bins:position`
+    /// beside a `table`: the solve drops hinges): the projection is built on the columns that
+    /// solve keeps. Reference: the full solve per candidate ([`slow_rss`]) and the search run on
+    /// it ([`golden_min`]). On family logs with the summed-memory and the lagged-temperature
+    /// effect, the fixed block alone must drop columns (else the case is not tested), every
+    /// candidate's projected RSS (where the closed form decides: at least 3 in 4) equals the
+    /// full solve's to 1e-9, and the batched search ends where the full solves' does (or at an
+    /// RSS equal to 1e-12).
+    #[test]
+    fn projection_on_the_columns_a_rank_deficient_fixed_block_keeps() {
+        use crate::sim::family::{FamilyConfig, FamilyDrive, HiddenEffect, generate};
+        let opts = FitOptions::default().check().unwrap();
+        let drive = FamilyDrive::member("bw-sine-t").unwrap();
+        let (mut checked, mut decided) = (0, 0);
+        for (effect, text, searched) in [
+            (
+                HiddenEffect::SummedMemory,
+                "table,direction,seek,memory,dahl:4,memsum,play:8,bins:position:16",
+                "memsum",
+            ),
+            (
+                HiddenEffect::Lag,
+                "table,direction,seek,memory,dahl:4,play:8,lag:temp_lag,bins:position:4",
+                "lag:temp_lag",
+            ),
+        ] {
+            let run = generate(&FamilyConfig::new(drive.clone(), &[effect], 5, 2000)).unwrap();
+            let spec = ModelSpec::parse(text).unwrap();
+            let data = FitData::new(&run.log);
+            let mut terms = spec
+                .terms
+                .iter()
+                .map(|t| t.prepare(&data))
+                .collect::<Result<Vec<_>, _>>()
+                .unwrap();
+            if !terms.iter().any(|t| t.caps().provides_intercept) {
+                terms.insert(0, Arc::new(InterceptTerm));
+            }
+            let k = terms.iter().position(|t| t.name() == searched).unwrap();
+            let fixed: Vec<Arc<dyn Term>> = (0..terms.len())
+                .filter(|&j| j != k)
+                .map(|j| terms[j].clone())
+                .collect();
+            let alone = crate::fit::solve::solve(&fixed, &data, &opts).unwrap();
+            assert!(!alone.dropped.is_empty(), "{text}: nothing dropped");
+            let proj = Projection::new(&terms, k, &data, &opts).expect("fast path applies");
+            assert_eq!(proj.pf, offsets(&fixed).1 - alone.dropped.len());
+            let nl = terms[k].nonlinear().unwrap();
+            let ts: Vec<f64> = (0..=16)
+                .map(|i| nl.lo + (nl.hi - nl.lo) * f64::from(i) / 16.0)
+                .collect();
+            for &t in &ts {
+                let slow = slow_rss(&terms, k, t, &data, &opts);
+                checked += 1;
+                let Some(fast) = proj.fast_rss(&terms, t) else {
+                    continue;
+                };
+                decided += 1;
+                assert!(
+                    (fast - slow).abs() <= 1e-9 * slow,
+                    "{text} at {t}: {fast} vs {slow}"
+                );
+            }
+            let (t_fast, _, _) = golden_min_batched(
+                &|ts: &[f64]| proj.rss_many(&terms, ts, &opts),
+                nl.lo,
+                nl.hi,
+                opts.grid,
+                opts.refine,
+            );
+            let f = |t: f64| slow_rss(&terms, k, t, &data, &opts);
+            let (t_slow, f_slow, _) = golden_min(&f, nl.lo, nl.hi, opts.grid, opts.refine);
+            let at_fast = f(t_fast);
+            assert!(
+                t_fast.to_bits() == t_slow.to_bits() || (at_fast - f_slow).abs() <= 1e-12 * f_slow,
+                "{text}: {t_fast} vs {t_slow}, RSS {at_fast} vs {f_slow}"
+            );
+        }
+        assert!(4 * decided >= 3 * checked, "{decided} of {checked} decided");
     }
 
     /// A fixed block over the budget is replayed per pass instead of stored: every RSS the

@@ -3,7 +3,7 @@
 //! the covariance and each column's conditioning ([`Solution`]); and the RSS of a full solve
 //! with one term replaced ([`slow_rss`]), the reference of the nonlinear searches.
 
-use super::design::{ChunkStart, FixedRows, offsets, param_label, ridge_of};
+use super::design::{ChunkStart, FixedRows, column_flags, offsets, param_label};
 use super::options::CheckedFitOptions;
 use crate::model::data::{FitData, FitError};
 use crate::model::term::Term;
@@ -92,10 +92,19 @@ pub(super) fn solve_marking<'a>(
     let mut rows = FixedRows::new(terms, data)?;
     // Ridge rows: `sqrt(λ·‖x_j‖²)·e_j` with response 0 for every penalised column (after the
     // data rows; `colsq` is the data rows' sums of squares).
-    let ridge: Vec<f64> = (0..p).map(|c| ridge_of(terms, c)).collect();
+    let ridge: Vec<f64> = column_flags(terms).into_iter().map(|f| f.1).collect();
+    // Penalty rows of the terms that have them (`Term::penalty`), after the ridge rows.
+    let (off, _) = offsets(terms);
+    let penalties: Vec<(std::ops::Range<usize>, Vec<Vec<(usize, f64)>>)> = terms
+        .iter()
+        .zip(&off)
+        .map(|(t, &o)| (o..o + t.param_count(), t.penalty()))
+        .filter(|(_, rows)| !rows.is_empty())
+        .collect();
     let plan = Plan {
         order: &order,
         ridge: &ridge,
+        penalties: &penalties,
         dense,
         per_chunk: solve_chunk_rows(p),
     };
@@ -110,7 +119,8 @@ pub(super) fn solve_marking<'a>(
 /// The design columns in the order [`solve`] factorises them: the essential ones first, so
 /// that a dependency is blamed on a droppable hinge if possible.
 fn column_order(terms: &[Arc<dyn Term>], p: usize) -> Vec<usize> {
-    let droppable: Vec<bool> = (0..p).map(|c| param_label(terms, c).1).collect();
+    let droppable: Vec<bool> = column_flags(terms).into_iter().map(|f| f.0).collect();
+    debug_assert_eq!(droppable.len(), p);
     let mut order: Vec<usize> = (0..p).filter(|&c| !droppable[c]).collect();
     order.extend((0..p).filter(|&c| droppable[c]));
     order
@@ -122,6 +132,8 @@ fn column_order(terms: &[Arc<dyn Term>], p: usize) -> Vec<usize> {
 struct Plan<'o> {
     order: &'o [usize],
     ridge: &'o [f64],
+    /// Per term with a [`Term::penalty`]: its design columns and its penalty rows.
+    penalties: &'o [(std::ops::Range<usize>, Vec<Vec<(usize, f64)>>)],
     dense: bool,
     per_chunk: usize,
 }
@@ -154,6 +166,30 @@ impl Plan<'_> {
                 xp[q] = (self.ridge[c] * data_sq[q]).sqrt();
                 push(&xp);
                 colsq[q] += xp[q] * xp[q];
+            }
+        }
+        // Penalty rows: `sqrt(s)·row`, `s` the mean data sum of squares of the term's columns.
+        for (cols, rows) in self.penalties {
+            let qs: Vec<usize> = cols
+                .clone()
+                .filter_map(|c| self.order.iter().position(|&o| o == c))
+                .collect();
+            let s = qs.iter().map(|&q| data_sq[q]).sum::<f64>() / qs.len().max(1) as f64;
+            if !(s > 0.0 && s.is_finite()) {
+                continue;
+            }
+            let scale = s.sqrt();
+            for row in rows {
+                xp.fill(0.0);
+                for &(c, v) in row {
+                    if let Some(&q) = qs.get(c) {
+                        xp[q] += scale * v;
+                    }
+                }
+                push(&xp);
+                for (sq, v) in colsq.iter_mut().zip(&xp) {
+                    *sq += v * v;
+                }
             }
         }
         data_sq

@@ -1,5 +1,7 @@
 //! The errors of a model spec and of a fitted model.
 
+#[cfg(doc)]
+use super::Predictor;
 use super::{preset, registry};
 use crate::io::OutputError;
 use std::path::PathBuf;

@@ -54,7 +54,8 @@ impl crate::sim::family::HiddenEffect {
     /// `bump` gives 1.89 and 1.93, and the user's model 2.01 and 2.07), `memsum`, and
     /// `by:position:supply` for the interaction (the centred product of position and the
     /// column: the generator's `(supply − 12)·u` up to terms linear in position, which the
-    /// model's position curve holds, and in `supply` times the mean of `u`).
+    /// model's position curve holds, and in `supply` times the mean of `u`); `preisach:16` for
+    /// the Preisach hysteresis (the generator's 40 levels on a grid of 16).
     pub fn true_term(self) -> Option<&'static str> {
         match self {
             Self::FastCovariate => Some("col:temp_fast"),
@@ -66,6 +67,7 @@ impl crate::sim::family::HiddenEffect {
             Self::Defect => Some("bump"),
             Self::SummedMemory => Some("memsum"),
             Self::Interaction => Some("by:position:supply"),
+            Self::Preisach => Some("preisach:16"),
         }
     }
 }

@@ -21,7 +21,7 @@ use super::term::{Term, TermSpec};
 pub(crate) use super::term_text::TermText;
 use super::terms::{
     bins, bump, by, covariate, dahl, direction, drift, intercept, lag, memory, memsum, play, poly,
-    scale, seek, step, stribeck, table, viscous,
+    preisach, scale, seek, step, stribeck, table, viscous,
 };
 use super::{ModelError, SpecError};
 
@@ -140,6 +140,14 @@ pub(crate) static BUILTINS: &[BuiltinTerm] = &[
     .answering(play::answers)
     .covered(Cover::Family)
     .signed_state(),
+    row(
+        preisach::HEAD,
+        Some("preisach[:N]"),
+        preisach::parse,
+        restore_as::<preisach::PreisachTerm>,
+    )
+    .covered(Cover::Count)
+    .exports_c(),
     row(
         covariate::HEAD,
         Some("col:NAME"),

@@ -178,6 +178,15 @@ pub trait Term: Debug + Send + Sync {
     fn ridge(&self) -> f64 {
         0.0
     }
+    /// Penalty rows on this term's own coefficients beyond [`Term::ridge`] (default none): each
+    /// row `[(column, coefficient), …]` (the term's columns, from 0) adds
+    /// `s·(Σ coefficient·β_column)²` to the least-squares objective, where `s` is the mean sum
+    /// of squares of the term's columns over the data rows (scale free, as the ridge). For a
+    /// surface of weights that must be smooth (`preisach:N`: differences of neighbouring cells,
+    /// the strength folded into the coefficients).
+    fn penalty(&self) -> Vec<Vec<(usize, f64)>> {
+        Vec::new()
+    }
     /// For a [`TermCaps::reads_only_residuals`] term that is exponential forgetting of the
     /// residuals (`drift`): its factor `alpha`, where its state's offset is a running `m`
     /// starting at 0 and its update with residual `e` is `m += alpha · e`. The fit then

@@ -356,10 +356,12 @@ pub fn discover(
             edit: best.edit.clone(),
             feature: best.feature.clone(),
             reason: format!(
-                "{shape}refitted, the edit gains {:.1} % of the error variance on held-out \
-                 seeks (z = {:.1}){passed}",
+                "{}: {shape}refitted, the edit gains {:.1} % of the error variance on held-out \
+                 seeks (z = {:.1}, bar {:.1}){passed}",
+                Reason::Verified,
                 100.0 * best.gain,
-                best.z
+                best.z,
+                best.z_bar
             ),
             std_before: current_test.unwrap_or(best.std_before),
             std_after: next_test.unwrap_or(best.std_after),
@@ -406,14 +408,15 @@ fn note_free_run(out: &mut Discovery, honest: (f64, Option<f64>), free_run_basis
     if let Some(free) = honest.1 {
         out.final_std = Some(honest.0);
         out.final_free_run_std = Some(free);
-        out.stopped_because = format!(
-            "{}; the final model has an adaptive term: on {free_run_basis} its error std is {} {} \
-             one-step but {} {} in free run (from the positions alone)",
-            out.stopped_because,
+        let (one, run) = (
             crate::log::fmt_trimmed(honest.0, 4),
-            out.unit,
             crate::log::fmt_trimmed(free, 4),
-            out.unit
+        );
+        let but = if one == run { "and" } else { "but" };
+        out.stopped_because = format!(
+            "{}; the final model has an adaptive term: on {free_run_basis} its error std is \
+             {one} {} one-step {but} {run} {} in free run (from the positions alone)",
+            out.stopped_because, out.unit, out.unit
         );
         out.free_run_basis = Some(free_run_basis);
     } else if out.start_free_run_std.is_some() {

@@ -238,9 +238,10 @@ pub fn ladder_fit(
             let mean = crate::numeric::stats::mean(&prediction.residual).unwrap_or(0.0);
             if mean.abs() > crate::score::MEAN_WARNING_RATIO * std {
                 warnings.push(format!(
-                    "test mean error {mean:.4e} is {:.2}× the error std {std:.4e}: the model is \
-                     offset on the test log",
-                    mean.abs() / std.max(f64::MIN_POSITIVE)
+                    "test mean error {mean:.4e} is {:.2}× the error std {std:.4e}, above the \
+                     {}× that is warned about: the model is offset on the test log",
+                    mean.abs() / std.max(f64::MIN_POSITIVE),
+                    crate::score::MEAN_WARNING_RATIO
                 ));
             }
             Ok(LadderInput {
@@ -333,5 +334,36 @@ mod tests {
         let l = ladder(&[step(&["a"], 0.0), step(&["b"], 0.0)]).unwrap();
         assert!(l.steps.iter().all(|s| s.reduction.abs() < 1e-15));
         assert!(ladder(&[]).unwrap().steps.is_empty());
+    }
+
+    /// A rung whose test error is offset is warned about, naming the rule's bar. Reference:
+    /// the test log is the training log with 50 added to every bias, the noise std is 1, so
+    /// the test mean error is about 50 times the std, far above the 0.5× bar.
+    #[test]
+    fn an_offset_rung_is_warned_about_naming_the_bar() {
+        let log = |shift: f64| {
+            let mut rng = crate::numeric::rng::SimRng::new(3);
+            let mut text = String::from("time_s,track,bias\n");
+            for i in 0..300 {
+                let pos = rng.below(1000) as f64;
+                let bias = 1e-3 * pos + rng.normal() + shift;
+                text.push_str(&format!("{i}.0,{pos},{bias}\n"));
+            }
+            Log::from_reader("l.csv", text.as_bytes(), &Default::default()).unwrap()
+        };
+        let terms = ladder_terms(crate::model::preset::POSITION_DIRECTION).unwrap();
+        let l = ladder_fit(&log(0.0), &log(50.0), &terms, &CheckedFitOptions::default()).unwrap();
+        let w = &l.steps[0].warnings;
+        assert!(
+            w.iter()
+                .any(|w| w.contains("above the 0.5× that is warned about")),
+            "{w:?}"
+        );
+        let l = ladder_fit(&log(0.0), &log(0.0), &terms, &CheckedFitOptions::default()).unwrap();
+        assert!(
+            l.steps
+                .iter()
+                .all(|s| s.warnings.iter().all(|w| !w.contains("offset")))
+        );
     }
 }

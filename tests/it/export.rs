@@ -100,7 +100,7 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
         "held_out.csv",
         &edit_log(&text, false, 300..400),
     );
-    let models: [(&str, &str); 8] = [
+    let models: [(&str, &str); 9] = [
         ("pd", "--model=position-direction"),
         ("cal", "--model=calibration"),
         ("dahl", "--model=dahl"),
@@ -118,6 +118,8 @@ fn exported_c_replays_like_predict_for_every_term_kind() {
         ("bump", "--terms=poly2,direction,bump"),
         // A threshold in a covariate (the fitted step's height and threshold).
         ("step", "--terms=poly2,direction,step:temp_c"),
+        // Hysteresis with reversal memory (the relay staircase, its demagnetised start).
+        ("preisach", "--terms=poly2,preisach:6"),
     ];
     let mut jobs = Vec::new();
     for (name, spec) in models {

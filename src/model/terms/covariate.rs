@@ -4,13 +4,14 @@
 //! is `lag:NAME` ([`super::lag`]): the column passed through a first-order lag first.
 
 use super::common::covariate_position;
-use super::lag_filter::{FirstOrderLag, LagStage};
+use super::lag_filter::{FirstOrderLag, LagSearch, LagStage};
 use crate::codegen::{CContext, CTerm};
 use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue, Law};
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{
-    Nonlinear, Param, Seek, Term, TermCaps, TermSpec, TermState, se_from_cov,
+    Nonlinear, Param, PerRowSearch, SearchBasis, Seek, Term, TermCaps, TermSpec, TermState,
+    se_from_cov,
 };
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -96,6 +97,19 @@ impl Term for ColTerm {
             scale: self.scale,
             lag: self.lag.map(|l| FirstOrderLag::new(l.tau)),
         }))
+    }
+    fn search_basis<'d>(&'d self, data: &'d FitData<'_>) -> Box<dyn SearchBasis + 'd> {
+        let column = covariate_position(&data.log().schema.covariates, &self.column, "");
+        match (self.lag, column) {
+            (Some(stage), Ok(column)) => Box::new(LagSearch {
+                data,
+                column,
+                centre: self.centre,
+                scale: self.scale,
+                stage,
+            }),
+            _ => Box::new(PerRowSearch { term: self, data }),
+        }
     }
     fn nonlinear(&self) -> Option<Nonlinear> {
         self.lag.map(|l| Nonlinear {

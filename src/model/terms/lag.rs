@@ -191,6 +191,62 @@ mod tests {
         }
     }
 
+    /// The `lag:` term's search basis reads the log's columns directly
+    /// ([`super::super::lag_filter::LagSearch`]). Reference: the default per-row replay of the
+    /// term's state (`PerRowSearch`: `basis` then `update` through the history replay). Every
+    /// value bit for bit, at τ across and beyond the search interval, on a log with irregular
+    /// and repeated times, unmeasured rows (they advance the lag) and a second covariate
+    /// before the lagged one.
+    #[test]
+    fn lag_search_basis_equals_the_per_row_replay() {
+        use crate::model::term::{PerRowSearch, SearchBasis};
+        let mut rng = crate::numeric::rng::SimRng::new(9);
+        let mut text = String::from("time_s,track,bias,other,temp\n");
+        let (mut t, mut temp) = (0.0f64, 40.0f64);
+        for k in 0..3000 {
+            if k % 7 != 3 {
+                t += rng.range(0.01, 3.0);
+            }
+            temp += 0.1 * rng.normal();
+            let x = rng.below(300);
+            let bias = 0.5 * temp + rng.normal();
+            let other = rng.normal();
+            text += &format!("{t:?},{x},{bias:?},{other:?},{temp:?}\n");
+        }
+        let mut log =
+            crate::log::Log::from_reader("lag.csv", text.as_bytes(), &Default::default()).unwrap();
+        for i in (5..log.len()).step_by(4) {
+            log.set_bias(i, None);
+        }
+        let data = FitData::new(&log);
+        let spec = LagSpec {
+            column: "temp".into(),
+        };
+        let term = spec.prepare(&data).unwrap();
+        let nl = term.nonlinear().unwrap();
+        let values: Vec<f64> = (0..8)
+            .map(|i| nl.lo - 1.0 + (nl.hi - nl.lo + 2.0) * f64::from(i) / 7.0)
+            .collect();
+        let collect = |basis: &dyn SearchBasis| {
+            let mut out = Vec::new();
+            let mut rows = 0;
+            basis
+                .replay(&values, &mut |block, n| {
+                    out.extend(block[..n * values.len()].iter().map(|v| v.to_bits()));
+                    rows += n;
+                })
+                .unwrap();
+            (rows, out)
+        };
+        let fast = collect(&*term.search_basis(&data));
+        let slow = collect(&PerRowSearch {
+            term: &*term,
+            data: &data,
+        });
+        assert_eq!(fast.0, log.measured_count());
+        assert_eq!(fast, slow);
+    }
+
     /// Reference: the sorted copy and `percentile_sorted(…, 50)`, bit for bit, on odd and even
     /// lengths, ties and a single value.
     #[test]

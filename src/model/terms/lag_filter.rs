@@ -3,6 +3,8 @@
 //! lag stage a fitted `lag:NAME` term stores ([`LagStage`]). Shared by `col:`/`lag:` terms
 //! and the diagnosis's lagged features.
 
+use crate::model::data::FitData;
+use crate::model::term::SearchBasis;
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
 
@@ -124,5 +126,63 @@ impl FirstOrderLag {
         let z = self.peek(t, c);
         self.last = Some((t, c, z));
         z
+    }
+}
+
+/// Measured rows per block [`LagSearch`] hands its sink.
+const SEARCH_BLOCK: usize = 256;
+
+/// The search basis of a `lag:NAME` term's τ ([`SearchBasis`]): the column passed through the
+/// lag at each searched value, read from the log's time and covariate columns directly — no
+/// replay of the history, no dynamic call per row and value. The same values, bit for bit, as
+/// the term's state gives row by row (its `basis` peeks the lag, its `update` steps it: one
+/// computation from the same state; tested against the per-row replay).
+#[derive(Debug)]
+pub(crate) struct LagSearch<'d> {
+    /// The training data.
+    pub(crate) data: &'d FitData<'d>,
+    /// The covariate's index among the log's covariates.
+    pub(crate) column: usize,
+    /// The centre and scale of the basis `(z − centre)/scale`.
+    pub(crate) centre: f64,
+    pub(crate) scale: f64,
+    /// The lag stage whose `ln τ` is searched.
+    pub(crate) stage: LagStage,
+}
+
+impl SearchBasis for LagSearch<'_> {
+    fn replay(&self, values: &[f64], sink: &mut dyn FnMut(&[f64], usize)) -> Option<()> {
+        let log = self.data.log();
+        let (times, column, bias) = (log.times(), log.covariate(self.column), log.bias_raw());
+        let (lo, hi) = (self.stage.ln_lo, self.stage.ln_hi);
+        // τ as the term's `with_nonlinear` sets it.
+        let mut lags: Vec<FirstOrderLag> = values
+            .iter()
+            .map(|v| FirstOrderLag::new(v.clamp(lo, hi).exp()))
+            .collect();
+        let n = values.len();
+        let mut block = vec![0.0; SEARCH_BLOCK * n];
+        let mut rows = 0;
+        for ((&t, &c), &b) in times.iter().zip(column).zip(bias) {
+            if b.is_nan() {
+                for lag in &mut lags {
+                    lag.step(t, c);
+                }
+                continue;
+            }
+            let out = &mut block[rows * n..(rows + 1) * n];
+            for (o, lag) in out.iter_mut().zip(&mut lags) {
+                *o = (lag.step(t, c) - self.centre) / self.scale;
+            }
+            rows += 1;
+            if rows == SEARCH_BLOCK {
+                sink(&block, rows);
+                rows = 0;
+            }
+        }
+        if rows > 0 {
+            sink(&block[..rows * n], rows);
+        }
+        Some(())
     }
 }

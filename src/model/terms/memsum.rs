@@ -26,7 +26,7 @@ use crate::model::ModelError;
 use crate::model::cue::{Answer, Cue};
 use crate::model::data::{FitData, FitError};
 use crate::model::term::{
-    Nonlinear, Param, Seek, Term, TermCaps, TermSpec, TermState, se_from_cov,
+    Nonlinear, Param, SearchBasis, Seek, Term, TermCaps, TermSpec, TermState, se_from_cov,
 };
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -96,6 +96,9 @@ impl Term for MemsumTerm {
             lo: self.ln_lo,
             hi: self.ln_hi,
         })
+    }
+    fn search_basis<'d>(&'d self, data: &'d FitData<'_>) -> Box<dyn SearchBasis + 'd> {
+        Box::new(MemsumSearch { term: self, data })
     }
     fn with_nonlinear(&self, t: f64) -> Option<Arc<dyn Term>> {
         Some(Arc::new(MemsumTerm {
@@ -225,6 +228,151 @@ impl TermState for MemsumState {
     }
 }
 
+/// Measured rows per block [`MemsumSearch`] hands its sink.
+const SEARCH_BLOCK: usize = 256;
+
+/// Longest whole distance whose kernel [`MemsumSearch`] tabulates per searched length.
+const KERNEL_TABLE: usize = 4096;
+
+/// The search basis of `memsum`'s length ([`SearchBasis`]): one pair of stacks for every
+/// searched length at once — which rest positions a move pops or pushes does not depend on the
+/// length, only the relative kernel sums do, kept per length beside each entry — read from the
+/// log's positions directly (a seek's source is the previous row's target, the first row's
+/// its own), and the kernel of a whole distance taken from a table per length (the same
+/// expression, so the same bits). The same values, bit for bit, as [`MemsumState`] gives row
+/// by row (tested against the per-row replay).
+struct MemsumSearch<'d, 'a> {
+    term: &'d MemsumTerm,
+    data: &'d FitData<'a>,
+}
+
+/// [`MemsumSearch`]'s stacks: positions, and per entry one relative sum per searched length.
+struct Stacks {
+    lanes: usize,
+    below: Vec<f64>,
+    below_c: Vec<f64>,
+    above: Vec<f64>,
+    above_c: Vec<f64>,
+}
+
+impl SearchBasis for MemsumSearch<'_, '_> {
+    fn replay(&self, values: &[f64], sink: &mut dyn FnMut(&[f64], usize)) -> Option<()> {
+        let log = self.data.log();
+        let (tracks, bias) = (log.tracks(), log.bias_raw());
+        let n = values.len();
+        // 1/L as the state computes it from the term at each value.
+        let inv_l: Vec<f64> = values
+            .iter()
+            .map(|&v| 1.0 / v.clamp(self.term.ln_lo, self.term.ln_hi).exp())
+            .collect();
+        // Whole positions: the kernel of each whole distance below the table's end, per length.
+        let whole = tracks.iter().all(|x| x.fract() == 0.0);
+        let span = crate::numeric::stats::range(tracks).map_or(0.0, |[lo, hi]| hi - lo);
+        let len = if whole && span < KERNEL_TABLE as f64 {
+            span as usize + 1
+        } else {
+            0
+        };
+        let mut table = vec![0.0; len * n];
+        for (lane, &il) in inv_l.iter().enumerate() {
+            for d in 0..len {
+                table[lane * len + d] = (-(d as f64) * il).exp();
+            }
+        }
+        let kernel = |d: f64, lane: usize| {
+            let a = d.abs();
+            if a < len as f64 && a.fract() == 0.0 {
+                table[lane * len + a as usize]
+            } else {
+                (-a * inv_l[lane]).exp()
+            }
+        };
+        let mut st = Stacks {
+            lanes: n,
+            below: Vec::new(),
+            below_c: Vec::new(),
+            above: Vec::new(),
+            above_c: Vec::new(),
+        };
+        let mut block = vec![0.0; SEARCH_BLOCK * n];
+        let mut rows = 0;
+        let mut source = tracks.first().copied().unwrap_or(0.0);
+        for (&x, &b) in tracks.iter().zip(bias) {
+            if !b.is_nan() {
+                st.values(source, x, &kernel, &mut block[rows * n..(rows + 1) * n]);
+                rows += 1;
+                if rows == SEARCH_BLOCK {
+                    sink(&block, rows);
+                    rows = 0;
+                }
+            }
+            st.apply(source, x, &kernel);
+            source = x;
+        }
+        if rows > 0 {
+            sink(&block[..rows * n], rows);
+        }
+        Some(())
+    }
+}
+
+impl Stacks {
+    /// [`MemsumState::value_after_move`] at every length (`out[lane]`).
+    fn values(&self, source: f64, x: f64, kernel: &dyn Fn(f64, usize) -> f64, out: &mut [f64]) {
+        let below = if x < source {
+            self.below.iter().rposition(|&p| p < x)
+        } else {
+            self.below.len().checked_sub(1)
+        };
+        let above = if x > source {
+            self.above.iter().rposition(|&p| p > x)
+        } else {
+            self.above.len().checked_sub(1)
+        };
+        let n = self.lanes;
+        for (lane, o) in out.iter_mut().enumerate() {
+            let side = |e: Option<usize>, ps: &[f64], cs: &[f64]| {
+                e.map_or(0.0, |i| kernel(x - ps[i], lane) * cs[i * n + lane])
+            };
+            *o = side(below, &self.below, &self.below_c) - side(above, &self.above, &self.above_c);
+        }
+    }
+
+    /// [`MemsumState::apply_move`] at every length.
+    fn apply(&mut self, source: f64, x: f64, kernel: &dyn Fn(f64, usize) -> f64) {
+        let n = self.lanes;
+        if x > source {
+            while self.above.last().is_some_and(|&p| p <= x) {
+                self.above.pop();
+                self.above_c.truncate(self.above.len() * n);
+            }
+            let top = self.below.len().checked_sub(1);
+            for lane in 0..n {
+                let c = 1.0
+                    + top.map_or(0.0, |i| {
+                        kernel(source - self.below[i], lane) * self.below_c[i * n + lane]
+                    });
+                self.below_c.push(c);
+            }
+            self.below.push(source);
+        } else if x < source {
+            while self.below.last().is_some_and(|&p| p >= x) {
+                self.below.pop();
+                self.below_c.truncate(self.below.len() * n);
+            }
+            let top = self.above.len().checked_sub(1);
+            for lane in 0..n {
+                let c = 1.0
+                    + top.map_or(0.0, |i| {
+                        kernel(self.above[i] - source, lane) * self.above_c[i * n + lane]
+                    });
+                self.above_c.push(c);
+            }
+            self.above.push(source);
+        }
+    }
+}
+
 /// Parses `memsum` (no argument); the registry's parser.
 pub(crate) fn parse(
     t: &crate::model::term_text::TermText<'_>,
@@ -265,6 +413,57 @@ mod tests {
             }
         }
         sum
+    }
+
+    /// `memsum`'s search basis keeps one pair of stacks for every searched length and reads a
+    /// table for whole distances ([`MemsumSearch`]). Reference: the default per-row replay of
+    /// the term's state (`PerRowSearch`: `basis` then `update` through the history replay).
+    /// Every value bit for bit, at lengths across and beyond the search interval, on a log of
+    /// whole tracks (the table) and one of fractional positions (no table), with unmeasured
+    /// rows (their moves still change the memory) and repeated positions.
+    #[test]
+    fn memsum_search_basis_equals_the_per_row_replay() {
+        use crate::model::term::{PerRowSearch, SearchBasis};
+        for whole in [true, false] {
+            let mut rng = SimRng::new(4);
+            let mut text = String::from("time_s,track,bias\n");
+            for k in 0..3000 {
+                let x = if whole {
+                    rng.below(200) as f64
+                } else {
+                    rng.range(0.0, 200.0)
+                };
+                text += &format!("{:?},{x:?},{:?}\n", 0.3 * k as f64, rng.normal());
+            }
+            let mut log =
+                crate::log::Log::from_reader("m.csv", text.as_bytes(), &Default::default())
+                    .unwrap();
+            for i in (2..log.len()).step_by(5) {
+                log.set_bias(i, None);
+            }
+            let data = FitData::new(&log);
+            let term = MemsumSpec.prepare(&data).unwrap();
+            let nl = term.nonlinear().unwrap();
+            let values: Vec<f64> = (0..8)
+                .map(|i| nl.lo - 1.0 + (nl.hi - nl.lo + 2.0) * f64::from(i) / 7.0)
+                .collect();
+            let collect = |basis: &dyn SearchBasis| {
+                let mut out = Vec::new();
+                basis
+                    .replay(&values, &mut |block, n| {
+                        out.extend(block[..n * values.len()].iter().map(|v| v.to_bits()));
+                    })
+                    .unwrap();
+                out
+            };
+            let fast = collect(&*term.search_basis(&data));
+            let slow = collect(&PerRowSearch {
+                term: &*term,
+                data: &data,
+            });
+            assert_eq!(fast.len(), log.measured_count() * values.len());
+            assert!(fast == slow, "whole tracks: {whole}");
+        }
     }
 
     /// Reference: [`reference`], a full scan of the history at every seek. The stacks with

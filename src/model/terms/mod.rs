@@ -20,6 +20,7 @@ pub mod memory;
 pub mod memsum;
 pub mod play;
 pub mod poly;
+pub mod preisach;
 pub mod scale;
 pub mod seek;
 pub mod step;

@@ -18,7 +18,7 @@ mod steps;
 pub use data::compute_data;
 pub(crate) use data::{DATA_MODELS, DATA_STEPS, data_run};
 pub use demo::compute_demo;
-pub(crate) use demo::{DEMO_STEPS, STORY_MODELS, demo_run};
+pub(crate) use demo::{DEMO_STEPS, DISCOVER_TRAIN, STORY_MODELS, demo_run};
 pub use error::StoryError;
 pub(crate) use error::error_chain;
 pub use options::{CheckedStoryOptions, MAX_SEEKS, Progress, StoryOptions};

@@ -132,7 +132,8 @@ pub struct DemoRun {
     pub diagnosis: DiagnosedRun,
     /// The ladder of `LADDER_TERMS`: calibration run → random run.
     pub ladder: Ladder,
-    /// [`discover`](crate::select::discover) from `DISCOVER_START`: calibration run → random run.
+    /// [`discover`](crate::select::discover) from `DISCOVER_START`: a second random run
+    /// (`DISCOVER_TRAIN`, the seed after the demo's) → the random run.
     pub discovery: Step<Discovery>,
     /// The settle analysis and the link from prediction error to settle time.
     pub settle: SettleRun,

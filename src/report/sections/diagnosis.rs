@@ -10,13 +10,15 @@ use crate::report::{Cell, Section, Table};
 pub(crate) const TOP: usize = views::DEFAULT_TOP;
 
 /// The strongest `top` candidate features of `d`: share explained out of sample, family-wise
-/// p-value, shape, suggested term, the error std once it is added (bias unit of `d`).
+/// p-value, the verdict (the rule that decided whether it is flagged), shape, suggested term,
+/// the error std once it is added (bias unit of `d`).
 pub(crate) fn diagnosis_table(d: &Diagnosis, top: usize) -> Table {
     let std_once = format!("std once added ({})", d.units.bias);
     let mut t = Table::new(&[
         "feature",
         "explains (out of sample)",
         "p (family-wise)",
+        "verdict",
         "shape",
         "suggested term",
         &std_once,
@@ -27,6 +29,7 @@ pub(crate) fn diagnosis_table(d: &Diagnosis, top: usize) -> Table {
             f.name.clone().into(),
             format!("{:.1} %", 100.0 * f.explained).into(),
             Cell::Number(f.p_value),
+            f.reason.words().into(),
             f.shape.describe(&f.name, f.shape_at).into(),
             f.suggested_term
                 .clone()

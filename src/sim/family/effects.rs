@@ -29,10 +29,18 @@ pub enum HiddenEffect {
     SummedMemory,
     /// `interaction`: `supply` × position, `A·(supply − 12)/0.3·u` (A = 1.5).
     Interaction,
+    /// `preisach`: hysteresis with full reversal memory, a Preisach model of 40 × 40 relays
+    /// over the span (every relay updated every step, started in negative saturation) whose
+    /// weight density is a Gaussian blob in the (α, β) plane at `(α, β) = (0.35, −0.25)` in `u`
+    /// units, σ = 0.25: the output steps only for reversals between those two regions of the
+    /// travel, which no `play`/`dahl` element makes. Output scaled to [−A, A] (A = 4). Not
+    /// among [`HiddenEffect::ALL`]: the diagnosis does not yet ask for it.
+    Preisach,
 }
 
 impl HiddenEffect {
-    /// Every hidden effect, in a fixed order.
+    /// Every hidden effect the diagnosis screens for (the scenarios of its studies), in a fixed
+    /// order; [`HiddenEffect::Preisach`] is generated but not yet screened for.
     pub const ALL: [HiddenEffect; 9] = [
         HiddenEffect::FastCovariate,
         HiddenEffect::SlowCovariate,
@@ -57,12 +65,16 @@ impl HiddenEffect {
             HiddenEffect::Defect => "defect",
             HiddenEffect::SummedMemory => "summed_memory",
             HiddenEffect::Interaction => "interaction",
+            HiddenEffect::Preisach => "preisach",
         }
     }
 
     /// The effect called `name`.
     pub fn from_name(name: &str) -> Option<HiddenEffect> {
-        Self::ALL.into_iter().find(|e| e.name() == name)
+        Self::ALL
+            .into_iter()
+            .chain([HiddenEffect::Preisach])
+            .find(|e| e.name() == name)
     }
 
     /// The logged column the effect reads, if any.
@@ -74,9 +86,10 @@ impl HiddenEffect {
             HiddenEffect::Lag => Some("temp_lag"),
             HiddenEffect::CovariateDirection => Some("humid"),
             HiddenEffect::Interaction => Some("supply"),
-            HiddenEffect::PositionDirection | HiddenEffect::Defect | HiddenEffect::SummedMemory => {
-                None
-            }
+            HiddenEffect::PositionDirection
+            | HiddenEffect::Defect
+            | HiddenEffect::SummedMemory
+            | HiddenEffect::Preisach => None,
         }
     }
 

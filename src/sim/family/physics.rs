@@ -169,3 +169,39 @@ mod tests {
         assert!((s.step(-4.0) - (-3.0 + 4.0 * 2.0 / 6.0)).abs() < 1e-12);
     }
 }
+
+/// Relay levels of the generator's Preisach effect.
+const PREISACH_LEVELS: usize = 40;
+
+/// The generator's Preisach hysteresis over `[centre − half, centre + half]` (see
+/// [`HiddenEffect::Preisach`](super::HiddenEffect::Preisach)), in [−1, 1]: the slow, obvious
+/// model — every relay a bool, all updated every step, all down at the start.
+pub(super) fn preisach(tracks: &[f64], centre: f64, half: f64) -> Vec<f64> {
+    let m = PREISACH_LEVELS;
+    let (lo, h) = (centre - half, 2.0 * half / m as f64);
+    let mut relays = Vec::new();
+    for i in 0..m {
+        for j in 0..=i {
+            let (alpha, beta) = (lo + (i + 1) as f64 * h, lo + j as f64 * h);
+            let (a, b) = ((alpha - centre) / half, (beta - centre) / half);
+            let w = (-0.5 * ((a - 0.35).powi(2) + (b + 0.25).powi(2)) / 0.25f64.powi(2)).exp();
+            relays.push((alpha, beta, w, false));
+        }
+    }
+    let total: f64 = relays.iter().map(|r| r.2).sum();
+    tracks
+        .iter()
+        .map(|&x| {
+            let mut y = 0.0;
+            for r in &mut relays {
+                if x >= r.0 {
+                    r.3 = true;
+                } else if x <= r.1 {
+                    r.3 = false;
+                }
+                y += if r.3 { r.2 } else { -r.2 };
+            }
+            y / total
+        })
+        .collect()
+}

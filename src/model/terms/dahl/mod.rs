@@ -430,7 +430,10 @@ impl DahlTerm {
         let num = |v: f64| format!("{v:.3e}");
         if q05 > SWITCH_SATURATION.ln() * l {
             Some(format!(
-                "{}: collapsed to a direction switch: its characteristic length L = {} is below                  1/{:.1} of the short seeks (5 % quantile of |seek length| {}), so its state                  saturates within every seek and the term is ±Fc by the direction of motion                  (Coulomb friction); sigma (= Fc) and r (≈ 0) are not measured by this log",
+                "{}: collapsed to a direction switch: its characteristic length L = {} is below \
+                 1/{:.1} of the short seeks (5 % quantile of |seek length| {}), so its state \
+                 saturates within every seek and the term is ±Fc by the direction of motion \
+                 (Coulomb friction); sigma (= Fc) and r (≈ 0) are not measured by this log",
                 self.name,
                 num(l),
                 SWITCH_SATURATION.ln(),
@@ -438,7 +441,10 @@ impl DahlTerm {
             ))
         } else if travel * LINE_FRACTION < l {
             Some(format!(
-                "{}: collapsed to a straight line in position: its characteristic length L = {}                  is over {} times the travel ({}), so its state never leaves the linear start                  of its curve and the term is a position slope Fc/L; Fc, sigma and r are not                  separately measured by this log",
+                "{}: collapsed to a straight line in position: its characteristic length L = {} \
+                 is over {} times the travel ({}), so its state never leaves the linear start \
+                 of its curve and the term is a position slope Fc/L; Fc, sigma and r are not \
+                 separately measured by this log",
                 self.name,
                 num(l),
                 LINE_FRACTION,
@@ -811,6 +817,11 @@ mod tests {
             w.iter().any(|w| w.contains("collapsed to a straight line")),
             "L = {l}: {w:?}"
         );
+        // Each warning reads as one sentence: no run of spaces from a broken line of its text.
+        let (w2, _) = dahl_warnings("poly2,dahl", &coulomb);
+        for w in w.iter().chain(&w2) {
+            assert!(!w.contains("  "), "{w}");
+        }
         let dahl = sine_log(|x, _, g| 0.01 * x + 2.0 * g);
         let (w, l) = dahl_warnings("poly2,dahl", &dahl);
         assert!(w.iter().all(|w| !w.contains("collapsed")), "L = {l}: {w:?}");
