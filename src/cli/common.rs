@@ -422,12 +422,15 @@ mod tests {
         assert_eq!(FLAGS.len(), Field::ALL.len());
         let cmd = <super::super::Cli as clap::CommandFactory>::command();
         let mut known = std::collections::BTreeSet::new();
-        for sub in cmd.get_subcommands() {
+        // Every command's flags, nested ones (`fleet outliers`) included.
+        let mut todo: Vec<&clap::Command> = cmd.get_subcommands().collect();
+        while let Some(sub) = todo.pop() {
             for a in sub.get_arguments() {
                 if let Some(l) = a.get_long() {
                     known.insert(format!("--{l}"));
                 }
             }
+            todo.extend(sub.get_subcommands());
         }
         for (f, flag) in FLAGS {
             if let Some(flag) = flag {
