@@ -187,7 +187,8 @@ def fit_drive(
     grid: int | None = None,
     refine: int | None = None,
     threads: int | None = None,
-) -> _Row: ...
+    keep_model: bool = False,
+) -> tuple[_Row, str | None]: ...
 def fleet_outliers(
     csv: str, threshold: float = 4.0, name: str = "<fits>"
 ) -> list[tuple[str, str, float, float, float, float, str]]: ...

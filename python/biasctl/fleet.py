@@ -19,7 +19,7 @@ from typing import Any, Sequence
 
 from . import BiasctlError, FitError, Log, _biasctl as _ext, _pandas, _terms
 
-__all__ = ["FleetDiagnosis", "diagnose_many", "fit_many", "outliers", "to_csv"]
+__all__ = ["FleetDiagnosis", "diagnose_many", "fit_many", "outliers", "score_many", "to_csv"]
 
 _READ_OPTIONS = ("time_col", "track_col", "bias_col", "bias_unit", "track_unit", "delimiter")
 _FIT_OPTIONS = ("deadband", "velocity_col", "rank_tolerance", "grid", "refine")
@@ -52,10 +52,12 @@ def _items(logs: Sequence[Any]) -> list[tuple[str, Any]]:
 
 
 def _fit_one(item: tuple[str, Any], model: str, options: dict, threads: int | None) -> tuple:
+    """(the drive's row, its model file's text or None)."""
     source, what = item
     if isinstance(what, Log):
-        return _ext.fit_drive(source, model, log=what._inner, threads=threads, **options)
-    return _ext.fit_drive(source, model, path=what, threads=threads, **options)
+        return _ext.fit_drive(source, model, log=what._inner, threads=threads, keep_model=True,
+                              **options)
+    return _ext.fit_drive(source, model, path=what, threads=threads, keep_model=True, **options)
 
 
 def _fit_batch(items: list, model: str, options: dict) -> list[tuple]:
@@ -119,7 +121,8 @@ def fit_many(
 
     With a ``dask.distributed.Client`` the logs go to the cluster in batches of ``batch``;
     without, they run on a local thread pool of ``workers`` threads (default: one per core),
-    one library worker each. The table is the same either way."""
+    one library worker each. The table is the same either way. Each fitted drive's model file
+    is kept in ``fits.attrs["models"]`` (source → text) for :func:`score_many`."""
     unknown = [k for k in options if k not in _READ_OPTIONS + _FIT_OPTIONS]
     if unknown:
         raise FitError(
@@ -133,12 +136,15 @@ def fit_many(
     if client is not None:
         batches = [items[i : i + batch] for i in range(0, len(items), batch)]
         futures = client.map(_fit_batch, batches, model=spec, options=options, pure=False)
-        rows = [r for part in client.gather(futures) for r in part]
+        done = [r for part in client.gather(futures) for r in part]
     else:
         n = workers or _os.cpu_count() or 1
         with ThreadPoolExecutor(max_workers=n) as pool:
-            rows = list(pool.map(lambda it: _fit_one(it, spec, options, 1), items))
-    return _frame(rows)
+            done = list(pool.map(lambda it: _fit_one(it, spec, options, 1), items))
+    df = _frame([r for r, _ in done])
+    # Each fitted drive's model file, for score_many.
+    df.attrs["models"] = {r[0]: m for r, m in done if m is not None}
+    return df
 
 
 def to_csv(fits, path: Any = None) -> str | None:
@@ -307,3 +313,72 @@ def diagnose_many(
         with ThreadPoolExecutor(max_workers=n) as pool:
             screens = list(pool.map(lambda it: _screen_one(it, spec, settings, options, 1), items))
     return FleetDiagnosis(_ext.pool_screens(screens, **settings))
+
+
+_SCORE_COLUMNS = ["source", "test", "n", "mean", "std", "rms", "median_abs", "error"]
+
+
+def _score_one(source: str, model_json: str | None, error: str | None, test: tuple[str, Any],
+               read: dict, feedback_every: int) -> tuple:
+    name, what = test
+    if model_json is None:
+        return (source, name, None, None, None, None, None, f"no fit: {error}")
+    try:
+        from . import Model, read_log
+
+        log = what if isinstance(what, Log) else read_log(what, **read)
+        s = Model.from_json(model_json).score(log, feedback_every=feedback_every)
+    except BiasctlError as e:
+        return (source, name, None, None, None, None, None, str(e))
+    return (source, name, s["n"], s["mean"], s["std"], s["rms"], s["median_abs"], None)
+
+
+def _score_batch(jobs: list, read: dict, feedback_every: int) -> list[tuple]:
+    return [_score_one(*job, read, feedback_every) for job in jobs]
+
+
+def score_many(fits, logs, *, client: Any = None, batch: int = 64, workers: int | None = None,
+               feedback_every: int = 0, **read_options: Any):
+    """Each drive's model (from :func:`fit_many`) scored on another log of the same drive, as
+    ``biasctl score --json``: ``logs`` a mapping source → path or :class:`biasctl.Log` (the
+    ``source`` column pairs them), or a list in the order of the rows of ``fits``. A
+    DataFrame: source, test (the scored log), n, mean, std, rms, median_abs, error (a drive
+    without a fit or whose test log cannot be read or scored keeps the message)."""
+    pd = _pandas()
+    unknown = [k for k in read_options if k not in _READ_OPTIONS]
+    if unknown:
+        raise FitError(
+            f"score_many: unknown option `{unknown[0]}` (options: {', '.join(_READ_OPTIONS)}, "
+            "feedback_every)"
+        )
+    models = getattr(fits, "attrs", {}).get("models")
+    if not isinstance(fits, pd.DataFrame) or models is None:
+        raise BiasctlError("fits must be the DataFrame fit_many returns (it keeps the models)")
+    sources = [str(s) for s in fits["source"]]
+    if isinstance(logs, dict):
+        missing = [s for s in sources if s not in logs]
+        if missing:
+            raise BiasctlError(f"score_many: no test log for the drive {missing[0]}")
+        tests = [logs[s] for s in sources]
+    else:
+        tests = list(logs)
+        if len(tests) != len(sources):
+            raise BiasctlError(
+                f"score_many: {len(tests)} test logs for {len(sources)} drives (pass a list in "
+                "the order of fits, or a dict source → log)"
+            )
+    items = _items(tests)
+    errors = fits["error"].tolist()
+    jobs = [(s, models.get(s), e, it) for s, e, it in zip(sources, errors, items)]
+    if client is not None:
+        batches = [jobs[i : i + batch] for i in range(0, len(jobs), batch)]
+        futures = client.map(_score_batch, batches, read=read_options,
+                             feedback_every=feedback_every, pure=False)
+        rows = [r for part in client.gather(futures) for r in part]
+    else:
+        n = workers or _os.cpu_count() or 1
+        with ThreadPoolExecutor(max_workers=n) as pool:
+            rows = list(pool.map(lambda j: _score_one(*j, read_options, feedback_every), jobs))
+    df = pd.DataFrame(rows, columns=_SCORE_COLUMNS)
+    df["n"] = df["n"].astype("Int64")
+    return df

@@ -52,3 +52,13 @@ def diagnose_many(
     workers: int | None = None,
     **options: Any,
 ) -> FleetDiagnosis: ...
+def score_many(
+    fits: pd.DataFrame,
+    logs: dict[str, str | PathLike[str] | Log] | Sequence[str | PathLike[str] | Log],
+    *,
+    client: Any = None,
+    batch: int = 64,
+    workers: int | None = None,
+    feedback_every: int = 0,
+    **read_options: Any,
+) -> pd.DataFrame: ...

@@ -33,7 +33,7 @@ fn row(r: DriveFit) -> Row {
 /// `read_log`), or `log` already read; `source` names it. A drive that cannot be read or
 /// fitted gives a row with its error, never an exception; bad settings raise.
 #[pyfunction]
-#[pyo3(signature = (source, model, path=None, log=None, time_col=None, track_col=None, bias_col=None, bias_unit=None, track_unit=None, delimiter=None, deadband=None, velocity_col=None, rank_tolerance=None, grid=None, refine=None, threads=None))]
+#[pyo3(signature = (source, model, path=None, log=None, time_col=None, track_col=None, bias_col=None, bias_unit=None, track_unit=None, delimiter=None, deadband=None, velocity_col=None, rank_tolerance=None, grid=None, refine=None, threads=None, keep_model=false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fit_drive(
     py: Python<'_>,
@@ -53,7 +53,8 @@ pub(crate) fn fit_drive(
     grid: Option<usize>,
     refine: Option<usize>,
     threads: Option<usize>,
-) -> PyResult<Row> {
+    keep_model: bool,
+) -> PyResult<(Row, Option<String>)> {
     let spec = attached(|| model_spec(model))?;
     let opts = attached(|| fit_options(deadband, velocity_col, rank_tolerance, grid, refine))?;
     let read = ReadSettings {
@@ -63,12 +64,15 @@ pub(crate) fn fit_drive(
     };
     detached(py, || {
         on_threads(threads, || {
-            let r = match (path, log) {
-                (Some(p), None) => fleet::fit_path(&p, &read, &spec, &opts),
-                (None, Some(l)) => match l.measured() {
-                    Ok(log) => fleet::fit_log(&source, log, &spec, &opts),
-                    Err(e) => DriveFit::failed(&source, e.message()),
-                },
+            let read_log: Result<std::borrow::Cow<'_, biasctl::Log>, String> = match (path, log) {
+                (Some(p), None) => read
+                    .read(&p)
+                    .map(std::borrow::Cow::Owned)
+                    .map_err(|e| biasctl::io::message(&e)),
+                (None, Some(l)) => l
+                    .measured()
+                    .map(std::borrow::Cow::Borrowed)
+                    .map_err(|e| e.message().to_string()),
                 _ => {
                     return Err(Failure::new(
                         Kind::Base,
@@ -76,9 +80,28 @@ pub(crate) fn fit_drive(
                     ));
                 }
             };
-            Ok(DriveFit { source, ..r })
+            let log = match read_log {
+                Ok(log) => log,
+                Err(m) => return Ok((row(DriveFit::failed(&source, &m)), None)),
+            };
+            if !keep_model {
+                return Ok((row(fleet::fit_log(&source, &log, &spec, &opts)), None));
+            }
+            // The row of `fleet::fit_log`, with the model kept (for `score_many`).
+            Ok(match biasctl::fit(&spec, &log, &opts) {
+                Ok(m) => {
+                    let json = m.to_json().map_err(fail(Kind::Model))?;
+                    (row(DriveFit::fitted(&source, &m)), Some(json))
+                }
+                Err(e) => {
+                    let e = fleet::DriveError::from(e);
+                    (
+                        row(DriveFit::failed(&source, &biasctl::io::message(&e))),
+                        None,
+                    )
+                }
+            })
         })
-        .map(row)
     })
 }
 
@@ -89,11 +112,7 @@ type OutlierRow = (String, String, f64, f64, f64, f64, String);
 /// (source, parameter, value, median, sigma, z, rule) for every deviating parameter.
 #[pyfunction]
 #[pyo3(signature = (csv, threshold=fleet::OUTLIER_THRESHOLD, name="<fits>"))]
-pub(crate) fn fleet_outliers(
-    csv: &str,
-    threshold: f64,
-    name: &str,
-) -> PyResult<Vec<OutlierRow>> {
+pub(crate) fn fleet_outliers(csv: &str, threshold: f64, name: &str) -> PyResult<Vec<OutlierRow>> {
     attached(|| {
         let rows = fleet::read_fits(csv, name).map_err(fail(Kind::Base))?;
         let found = fleet::outliers(&rows, threshold).map_err(fail(Kind::Base))?;

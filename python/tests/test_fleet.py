@@ -249,3 +249,31 @@ def test_diagnose_many_on_dask_equals_local_and_the_cli(drives, client, cli):
     assert [s for s, _ in local.failed] == [p for p in logs if p.endswith("bad.csv")]
     # The drives' order does not change the pool.
     assert fleet.diagnose_many(logs[::-1], MODEL, permutations=99).features.equals(local.features)
+
+
+def test_score_many_scores_each_drive_on_its_other_log_as_the_cli(drives, cli, client, tmp_path):
+    d, logs, _ = drives
+    fits = fleet.fit_many(logs, MODEL)
+    tests = {}
+    for k, p in enumerate(logs):
+        out = tmp_path / f"test_{Path(p).name}"
+        cli.run("simulate", "--sequence", "random", "--n", "300", "--seed", 500 + k, "--out", out)
+        tests[p] = str(out)
+    got = fleet.score_many(fits, tests)
+    on_dask = fleet.score_many(fits, [tests[p] for p in logs], client=client, batch=4)
+    pd.testing.assert_frame_equal(on_dask, got, check_exact=True)
+    assert list(got.source) == logs and list(got.test) == [tests[p] for p in logs]
+    for p in logs[1:4]:
+        mf = tmp_path / "m.json"
+        cli.run("fit", "--data", p, "--terms", MODEL, "--out", mf)
+        want = cli.json("score", "--model", mf, "--data", tests[p], "--json")
+        row = got[got.source == p].iloc[0]
+        assert row.n == want["n"] and pd.isna(row.error)
+        for k in ("mean", "std", "rms", "median_abs"):
+            assert row[k] == want[k], k
+    bad = got[got.source.str.endswith("bad.csv")].iloc[0]
+    assert bad.error.startswith("no fit: ") and "line 3" in bad.error and pd.isna(bad.n)
+    with pytest.raises(biasctl.BiasctlError, match="no test log"):
+        fleet.score_many(fits, {})
+    with pytest.raises(biasctl.BiasctlError, match="keeps the models"):
+        fleet.score_many(pd.DataFrame(fits.to_dict()), tests)

@@ -422,15 +422,15 @@ mod tests {
         assert_eq!(FLAGS.len(), Field::ALL.len());
         let cmd = <super::super::Cli as clap::CommandFactory>::command();
         let mut known = std::collections::BTreeSet::new();
-        // Every command at every depth (`fleet outliers` is a subcommand's subcommand).
-        let mut stack: Vec<&clap::Command> = cmd.get_subcommands().collect();
-        while let Some(sub) = stack.pop() {
+        // Every command's flags, nested ones (`fleet outliers`) included.
+        let mut todo: Vec<&clap::Command> = cmd.get_subcommands().collect();
+        while let Some(sub) = todo.pop() {
             for a in sub.get_arguments() {
                 if let Some(l) = a.get_long() {
                     known.insert(format!("--{l}"));
                 }
             }
-            stack.extend(sub.get_subcommands());
+            todo.extend(sub.get_subcommands());
         }
         for (f, flag) in FLAGS {
             if let Some(flag) = flag {

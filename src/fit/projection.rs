@@ -156,12 +156,9 @@ impl<'d, 'a> Projection<'d, 'a> {
         keep: Option<&[usize]>,
     ) -> Option<Self> {
         // A penalised fixed column brings its ridge row (below); a penalised searched term
-        // would need its own, candidate by candidate: the full solve decides it.
-        if terms[k].ridge() > 0.0 {
-            return None;
-        }
-        // Penalty rows over several columns (`Term::penalty`): the full solve places them.
-        if terms.iter().any(|t| !t.penalty().is_empty()) {
+        // would need its own, candidate by candidate, and penalty rows over several columns
+        // (`Term::penalty`) only the full solve places: it decides those.
+        if terms[k].ridge() > 0.0 || terms.iter().any(|t| !t.penalty().is_empty()) {
             return None;
         }
         let fixed: Vec<Arc<dyn Term>> = terms

@@ -95,7 +95,7 @@ pub(super) fn solve_marking<'a>(
     let ridge: Vec<f64> = column_flags(terms).into_iter().map(|f| f.1).collect();
     // Penalty rows of the terms that have them (`Term::penalty`), after the ridge rows.
     let (off, _) = offsets(terms);
-    let penalties: Vec<(std::ops::Range<usize>, Vec<Vec<(usize, f64)>>)> = terms
+    let penalties: Vec<TermPenalty> = terms
         .iter()
         .zip(&off)
         .map(|(t, &o)| (o..o + t.param_count(), t.penalty()))
@@ -126,6 +126,9 @@ fn column_order(terms: &[Arc<dyn Term>], p: usize) -> Vec<usize> {
     order
 }
 
+/// A term's design columns and its penalty rows ([`Term::penalty`]).
+type TermPenalty = (std::ops::Range<usize>, Vec<Vec<(usize, f64)>>);
+
 /// How [`solve_marking`] factorises the design rows: the columns' order ([`column_order`]),
 /// the ridge penalty of each column, whether every row goes on all columns (the tests' dense
 /// reference, [`PatternQr::dense`]) and the measured rows per chunk ([`solve_chunk_rows`]).
@@ -133,7 +136,7 @@ struct Plan<'o> {
     order: &'o [usize],
     ridge: &'o [f64],
     /// Per term with a [`Term::penalty`]: its design columns and its penalty rows.
-    penalties: &'o [(std::ops::Range<usize>, Vec<Vec<(usize, f64)>>)],
+    penalties: &'o [TermPenalty],
     dense: bool,
     per_chunk: usize,
 }

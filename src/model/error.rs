@@ -12,7 +12,7 @@ use std::path::PathBuf;
 pub enum SpecError {
     /// A term name that is not built in.
     #[error(
-        "unknown term `{term}`{} (built-in terms: {}; arguments: `biasctl fit --help`)",
+        "unknown term `{term}`{} (terms: {}; their arguments: `biasctl fit --help`)",
         registry::did_you_mean_term(.term),
         registry::builtin_heads().join(", ")
     )]

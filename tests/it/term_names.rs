@@ -71,6 +71,11 @@ const ALLOWED: &[(&str, &str, &str)] = &[
     ),
     ("select/ladder.rs", "step", "the column of ladder steps"),
     ("sim/family/effects.rs", "lag", "the hidden effect's name"),
+    (
+        "sim/family/effects.rs",
+        "preisach",
+        "the hidden effect's name",
+    ),
 ];
 
 fn src_dir() -> PathBuf {

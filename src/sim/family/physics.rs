@@ -142,34 +142,6 @@ impl Rests {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Reference: the Bouc–Wen loop saturates at ±amplitude on long seeks, and a Prandtl
-    /// operator's output after a seek longer than every threshold is ±Σw.
-    #[test]
-    fn pivots_saturate_at_their_closed_form_limits() {
-        let bw = Pivot::BoucWen {
-            amplitude: 9.0,
-            length: 12.0,
-            beta: 0.75,
-            n: 2.0,
-        };
-        let mut s = PivotState::new(&bw);
-        assert!((s.step(400.0) - 9.0).abs() < 1e-6);
-        assert!((s.step(-800.0) + 9.0).abs() < 1e-6);
-        let pi = Pivot::Prandtl {
-            thresholds: vec![2.0, 6.0],
-            weights: vec![3.0, 4.0],
-        };
-        let mut s = PivotState::new(&pi);
-        assert!((s.step(50.0) - 7.0).abs() < 1e-12);
-        // Back 4 tracks: the 2-track stop goes to −2 (−3), the 6-track one to 2 (4·2/6).
-        assert!((s.step(-4.0) - (-3.0 + 4.0 * 2.0 / 6.0)).abs() < 1e-12);
-    }
-}
-
 /// Relay levels of the generator's Preisach effect.
 const PREISACH_LEVELS: usize = 40;
 
@@ -204,4 +176,32 @@ pub(super) fn preisach(tracks: &[f64], centre: f64, half: f64) -> Vec<f64> {
             y / total
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reference: the Bouc–Wen loop saturates at ±amplitude on long seeks, and a Prandtl
+    /// operator's output after a seek longer than every threshold is ±Σw.
+    #[test]
+    fn pivots_saturate_at_their_closed_form_limits() {
+        let bw = Pivot::BoucWen {
+            amplitude: 9.0,
+            length: 12.0,
+            beta: 0.75,
+            n: 2.0,
+        };
+        let mut s = PivotState::new(&bw);
+        assert!((s.step(400.0) - 9.0).abs() < 1e-6);
+        assert!((s.step(-800.0) + 9.0).abs() < 1e-6);
+        let pi = Pivot::Prandtl {
+            thresholds: vec![2.0, 6.0],
+            weights: vec![3.0, 4.0],
+        };
+        let mut s = PivotState::new(&pi);
+        assert!((s.step(50.0) - 7.0).abs() < 1e-12);
+        // Back 4 tracks: the 2-track stop goes to −2 (−3), the 6-track one to 2 (4·2/6).
+        assert!((s.step(-4.0) - (-3.0 + 4.0 * 2.0 / 6.0)).abs() < 1e-12);
+    }
 }

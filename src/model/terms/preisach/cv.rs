@@ -91,7 +91,7 @@ fn fold_sums(
     let mut hist2 = vec![vec![0u32; n * n * w * w]; FOLDS];
     let mut rsum = vec![vec![0.0f64; n * w]; FOLDS];
     let mut cnt = vec![vec![0u32; n * w]; FOLDS];
-    let mut tot = vec![(0.0f64, 0.0f64, 0.0f64); FOLDS];
+    let mut tot = [(0.0f64, 0.0f64, 0.0f64); FOLDS];
     let mut row = 0usize;
     replay(data, grid, |b, _| {
         let Some(&r) = residual.get(row) else {

@@ -126,7 +126,7 @@ impl PreisachMemory {
             return;
         }
         let mut len = self.len as usize;
-        if len % 2 == 0 {
+        if len.is_multiple_of(2) {
             // The top is an `Up`: the new one is covered by it, or covers it.
             if self.ops[len - 1] >= u {
                 return;
@@ -148,7 +148,7 @@ impl PreisachMemory {
             return;
         }
         let mut len = self.len as usize;
-        if len % 2 == 1 {
+        if !len.is_multiple_of(2) {
             // The top is a `Down` (the bottom `Down(0)` covers every `d`).
             if self.ops[len - 1] <= d {
                 return;
