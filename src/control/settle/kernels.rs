@@ -306,7 +306,30 @@ impl HandoffTable {
         window: &Window,
         buf: &mut Bounds,
     ) -> Result<(), SettleError> {
-        self.bounds_into_portable(h, window, buf)
+        let n = self.w.len();
+        if buf.upper.len() != n {
+            return Err(SettleError::BufferLength {
+                got: buf.upper.len(),
+                want: n,
+            });
+        }
+        let p = Point {
+            e0: h.e0_um,
+            v0: h.v0_um_s,
+            du: h.u_prev_counts - h.bias_counts,
+            delta: window.half_width_um,
+        };
+        self.fill(0, p, &mut buf.upper, &mut buf.lower);
+        for z in &self.zero {
+            if Self::rules_out(z, p) {
+                buf.upper[z.k] = f64::NEG_INFINITY;
+                buf.lower[z.k] = f64::INFINITY;
+            }
+        }
+        // SAFETY: the CPU has AVX2 (this function's contract); the four buffers have n samples.
+        unsafe { suffix_avx2(buf) };
+        buf.hold = window.hold;
+        Ok(())
     }
 
     /// [`HandoffTable::bounds_into`] for any CPU.
@@ -349,5 +372,61 @@ impl HandoffTable {
         }
         buf.hold = window.hold;
         Ok(())
+    }
+}
+
+/// The backward running bounds of `buf` (U*, L* of eq. 15 from U, L), four samples per
+/// instruction: each group of four gets its own suffix min/max from two shifted copies of
+/// itself, then the running bounds of the samples above it. Every min keeps the operand of the
+/// higher sample on a tie and ignores a NaN bound, as the sample-by-sample scan does (a NaN
+/// bound is first turned into ±∞, which the scan's min/max also leave out), so the curves are
+/// bit for bit those of [`suffix_into`]'s blocks (tested: the AVX2 and portable copies agree).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn suffix_avx2(buf: &mut Bounds) {
+    use std::arch::x86_64::{
+        _mm256_loadu_pd, _mm256_max_pd, _mm256_min_pd, _mm256_permute4x64_pd, _mm256_set1_pd,
+        _mm256_storeu_pd,
+    };
+    let n = buf.upper.len();
+    let (u, l) = (&buf.upper[..n], &buf.lower[..n]);
+    let (su, sl) = (&mut buf.upper_min[..n], &mut buf.lower_max[..n]);
+    // The top n % 4 samples one by one, then groups of four down to sample 0.
+    let n4 = n - n % 4;
+    let (mut a, mut b) = (f64::INFINITY, f64::NEG_INFINITY);
+    for j in (n4..n).rev() {
+        a = fmin(a, u[j]);
+        b = fmax(b, l[j]);
+        su[j] = a;
+        sl[j] = b;
+    }
+    // `_mm256_min_pd(x, y)` is `if x < y { x } else { y }`: with x the lower sample and y the
+    // higher one it is `fmin(y, x)`, the scan's own step.
+    let (inf, ninf) = (
+        _mm256_set1_pd(f64::INFINITY),
+        _mm256_set1_pd(f64::NEG_INFINITY),
+    );
+    let (mut ru, mut rl) = (_mm256_set1_pd(a), _mm256_set1_pd(b));
+    let mut k = n4;
+    while k >= 4 {
+        k -= 4;
+        // SAFETY: k + 4 ≤ n4 ≤ n, the length of all four slices.
+        unsafe {
+            let vu = _mm256_min_pd(_mm256_loadu_pd(u.as_ptr().add(k)), inf);
+            let vl = _mm256_max_pd(_mm256_loadu_pd(l.as_ptr().add(k)), ninf);
+            // Lane i ← lanes i, i + 1 (lane 3 with itself), then lanes i .. i + 3.
+            let tu = _mm256_min_pd(vu, _mm256_permute4x64_pd::<0b11_11_10_01>(vu));
+            let tl = _mm256_max_pd(vl, _mm256_permute4x64_pd::<0b11_11_10_01>(vl));
+            let tu = _mm256_min_pd(tu, _mm256_permute4x64_pd::<0b11_10_11_10>(tu));
+            let tl = _mm256_max_pd(tl, _mm256_permute4x64_pd::<0b11_10_11_10>(tl));
+            _mm256_storeu_pd(su.as_mut_ptr().add(k), _mm256_min_pd(tu, ru));
+            _mm256_storeu_pd(sl.as_mut_ptr().add(k), _mm256_max_pd(tl, rl));
+            // The running bounds from this group's lane 0 (off the stores' path).
+            ru = _mm256_min_pd(_mm256_permute4x64_pd::<0>(tu), ru);
+            rl = _mm256_max_pd(_mm256_permute4x64_pd::<0>(tl), rl);
+        }
     }
 }
