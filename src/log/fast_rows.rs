@@ -36,12 +36,13 @@ impl<R: Read> LogReader<R> {
     /// take — a quote, a carriage return, a byte beyond ASCII, another number of fields, a
     /// cell of another shape, a value out of range, time going backwards — without consuming
     /// it: [`LogReader::read_into`] then reads that line as every line was read before
-    /// (the same row, or the same error).
+    /// (the same row, or the same error). Also returns, right after the row, when `take`
+    /// returns `false`.
     pub(super) fn plain_rows(
         &mut self,
         roles: &[Role],
         row: &mut Row,
-        mut take: impl FnMut(&Row),
+        mut take: impl FnMut(&Row) -> bool,
     ) -> Result<(), LogError> {
         if !self.lookahead.is_empty() || self.pending.is_some() {
             return Ok(());
@@ -73,11 +74,15 @@ impl<R: Read> LogReader<R> {
                         row.time_s = time_s;
                         row.track = track;
                         row.bias = bias;
-                        take(row);
+                        let more = take(row);
                         self.prev_time = Some(time_s);
                         self.measured += u64::from(bias.is_some());
                         rows += 1;
                         at = next;
+                        if !more {
+                            stop = true;
+                            break;
+                        }
                     }
                     _ => {
                         stop = true;

@@ -219,6 +219,7 @@ impl<R: Read> LogReader<R> {
             s.measured += u64::from(row.bias.is_some());
             s.positions = [s.positions[0].min(row.track), s.positions[1].max(row.track)];
             each(row);
+            true
         };
         let roles = self.roles();
         loop {
@@ -229,6 +230,35 @@ impl<R: Read> LogReader<R> {
             take(&row);
         }
         Ok(s)
+    }
+
+    /// Hands every remaining row to `each`, in order, and stops at the first error of the log
+    /// or of `each`: the rows and the error of calling [`LogReader::read_into`] until it
+    /// returns `Ok(false)` (tested), but faster, the plain lines split and converted in one
+    /// pass straight from the read buffer. The row handed to `each` is reused.
+    pub fn try_for_each_row<E: From<LogError>>(
+        &mut self,
+        mut each: impl FnMut(&Row) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let roles = self.roles();
+        let mut row = Row::empty(self.schema.covariates.len());
+        loop {
+            let mut failed = None;
+            self.plain_rows(&roles, &mut row, |r| match each(r) {
+                Ok(()) => true,
+                Err(e) => {
+                    failed = Some(e);
+                    false
+                }
+            })?;
+            if let Some(e) = failed {
+                return Err(e);
+            }
+            if !self.read_into(&mut row)? {
+                return Ok(());
+            }
+            each(&row)?;
+        }
     }
 
     /// Reads the next row into `row` (reusing its allocation). Returns `Ok(false)` at the end of
@@ -351,7 +381,10 @@ impl<R: Read> LogReader<R> {
         let roles = fast.then(|| self.roles());
         loop {
             if let Some(roles) = &roles {
-                self.plain_rows(roles, &mut row, |row| log.push(row))?;
+                self.plain_rows(roles, &mut row, |row| {
+                    log.push(row);
+                    true
+                })?;
             }
             // The row the fast way left (not plain, an error to name, or the end).
             if !self.read_into(&mut row)? {

@@ -678,6 +678,98 @@ fn fast_reading_equals_the_csv_parser_and_the_row_by_row_read() {
 }
 
 #[test]
+fn rows_handed_on_equal_the_row_by_row_read() {
+    // Reference: `read_into` until it returns `Ok(false)` or an error, every line through the
+    // csv crate's parser. `try_for_each_row` (the plain lines the fast way: predict's replay)
+    // must hand on the same rows — values bit for bit, line numbers — and end with the same
+    // error word for word; and a row whose handler fails ends it there, with that error.
+    let mut rng = crate::numeric::rng::SimRng::new(3535);
+    type Seen = (u64, u64, u64, Option<u64>, Vec<u64>);
+    let seen = |row: &Row| -> Seen {
+        let bits = |x: f64| x.to_bits();
+        (
+            row.line,
+            bits(row.time_s),
+            bits(row.track),
+            row.bias.map(bits),
+            row.covariates.iter().map(|&c| bits(c)).collect(),
+        )
+    };
+    fn open<'a>(
+        text: &'a [u8],
+        plain: bool,
+        max: usize,
+        seed: u64,
+    ) -> Result<LogReader<Pieces<'a>>, LogError> {
+        let src = Pieces {
+            data: text,
+            max,
+            rng: crate::numeric::rng::SimRng::new(seed),
+        };
+        LogReader::from_reader_source(
+            "t.csv",
+            src,
+            &ColumnMap::default(),
+            BiasColumn::Optional,
+            LOOKAHEAD_ROWS,
+            plain,
+        )
+    }
+    let (mut whole, mut failed, mut stopped) = (0, 0, 0);
+    for case in 0..400 {
+        let text = random_log_text(&mut rng);
+        let max = [1 << 16, 7, 1000][case % 3];
+        let (mut want, mut got) = (Vec::new(), Vec::new());
+        let want_end = open(&text, false, max, case as u64).and_then(|mut r| {
+            let mut row = Row::empty(r.schema().covariates.len());
+            while r.read_into(&mut row)? {
+                want.push(seen(&row));
+            }
+            Ok(())
+        });
+        let got_end = open(&text, true, max, case as u64 + 1).and_then(|mut r| {
+            r.try_for_each_row(|row| -> Result<(), LogError> {
+                got.push(seen(row));
+                Ok(())
+            })
+        });
+        assert!(want == got, "case {case}: rows differ");
+        match (&want_end, &got_end) {
+            (Ok(()), Ok(())) => whole += 1,
+            (Err(a), Err(b)) => {
+                assert_eq!(a.to_string(), b.to_string(), "case {case}");
+                failed += 1;
+            }
+            (a, b) => panic!("case {case}: {a:?} vs {b:?}"),
+        }
+        // A handler that fails at row `k` ends the read there, with its error.
+        if want.len() > 1 {
+            let k = rng.below(want.len() as u64) as usize;
+            let mut n = 0;
+            let end = open(&text, true, max, case as u64 + 2).and_then(|mut r| {
+                r.try_for_each_row(|_| {
+                    n += 1;
+                    if n > k {
+                        Err(LogError::NoRows {
+                            file: "stop".into(),
+                        })
+                    } else {
+                        Ok(())
+                    }
+                })
+            });
+            assert_eq!(n, k + 1, "case {case}");
+            assert!(matches!(end, Err(LogError::NoRows { ref file }) if file == "stop"));
+            stopped += 1;
+        }
+    }
+    assert!(
+        whole > 50 && failed > 50 && stopped > 100,
+        "{whole} whole, {failed} failed, {stopped} stopped"
+    );
+}
+
+#[test]
 fn dialects_read_to_the_same_rows() {
     // Reference: the plain comma file; every dialect below holds the same numbers.
     let plain = read("time_s,track,bias,temp_c\n0,100,12.5,40\n0.5,120,-3.25,41\n").unwrap();

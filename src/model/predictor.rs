@@ -247,7 +247,6 @@ pub fn replay_stream<R: Read>(
         .filter_map(|(_, c)| schema.covariate_index(c))
         .collect();
     let mut contrib = vec![0.0; model.terms.len()];
-    let mut row = Row::empty(schema.covariates.len());
     let mut summary = ReplaySummary {
         rows: 0,
         scored: 0,
@@ -256,8 +255,8 @@ pub fn replay_stream<R: Read>(
     };
     let fitted = model.fit.position_range;
     let mut outside: Option<RangeWarning> = None;
-    while reader.read_into(&mut row)? {
-        schema.require_covariates(&row, &used)?;
+    reader.try_for_each_row(|row| -> Result<(), ReplayError> {
+        schema.require_covariates(row, &used)?;
         let predicted = p.step_detailed(
             row.time_s,
             row.track,
@@ -288,8 +287,8 @@ pub fn replay_stream<R: Read>(
             w.outside += 1;
             w.seen = [w.seen[0].min(row.track), w.seen[1].max(row.track)];
         }
-        sink(&row, &out, &contrib).map_err(ReplayError::Sink)?;
-    }
+        sink(row, &out, &contrib).map_err(ReplayError::Sink)
+    })?;
     summary.outside_range = outside.map(|mut w| {
         w.total = summary.rows as usize;
         w
