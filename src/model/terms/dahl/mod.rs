@@ -63,9 +63,24 @@ impl DahlState {
         Self { ln_r, pow, g: 0.0 }
     }
 
-    /// `r^|dx|`, from the table for integer lengths.
+    /// `r^|dx|`, from the table for integer lengths. The index without a float-to-integer
+    /// conversion: for 0 ≤ a ≤ 255 the low bits of a + 2^52 hold a rounded to an integer, and
+    /// (a + 2^52) − 2^52 is a exactly when a is an integer (tested against the conversion).
     #[inline]
     fn decay(&self, dx: f64) -> f64 {
+        const MAGIC: f64 = 4_503_599_627_370_496.0;
+        let a = dx.abs();
+        let t = a.min((TABLE - 1) as f64) + MAGIC;
+        if (t - MAGIC).to_bits() == a.to_bits() {
+            self.pow[(t.to_bits() as usize) & (TABLE - 1)]
+        } else {
+            (self.ln_r * a).exp()
+        }
+    }
+
+    /// [`DahlState::decay`] with a float-to-integer conversion: the reference.
+    #[cfg(test)]
+    fn decay_reference(&self, dx: f64) -> f64 {
         let a = dx.abs();
         let n = a as usize;
         if n < TABLE && (n as f64 - a).abs() <= 0.0 {
@@ -142,7 +157,8 @@ pub struct DahlPredictor {
     c: [f64; 3],
     fc: f64,
     state: DahlState,
-    position: Option<f64>,
+    /// The last target; NaN before the first seek (a seek from NaN is a zero-length seek).
+    position: f64,
 }
 
 impl DahlPredictor {
@@ -154,14 +170,15 @@ impl DahlPredictor {
             c,
             fc,
             state: DahlState::new(r),
-            position: None,
+            position: f64::NAN,
         })
     }
 
     /// Predicted bias after a seek to `target` (tracks), without changing the state.
     #[inline]
     pub fn peek(&self, target: f64) -> f64 {
-        let dx = self.position.map_or(0.0, |p| target - p);
+        // A NaN length (no seek yet) leaves the state as a zero-length one: the identity.
+        let dx = target - self.position;
         self.c[0] + target * (self.c[1] + target * self.c[2]) + self.fc * self.state.peek(dx)
     }
 
@@ -172,9 +189,13 @@ impl DahlPredictor {
     /// [`DahlState::step`]'s form `s + (G − s)·d` to rounding (tested against it).
     #[inline]
     pub fn step(&mut self, target: f64) -> f64 {
-        let dx = self.position.map_or(0.0, |p| target - p);
-        self.position = Some(target);
-        let (d, b) = self.state.affine(dx);
+        let dx = target - self.position;
+        self.position = target;
+        // `affine`'s b = sgn(dx)·(1 − d) as (1 − d) ≥ 0 with dx's sign bit: no sign turned into a
+        // number. A zero or NaN length has d = 1 and b = ±0, which adds nothing to G (G is never
+        // −0: it starts at +0 and a sum is −0 only when both terms are): the same bits (tested).
+        let d = self.state.decay(dx.abs().max(0.0));
+        let b = f64::from_bits((1.0 - d).to_bits() | (dx.to_bits() & (1 << 63)));
         self.state.g = self.state.g * d + b;
         self.c[0] + target * (self.c[1] + target * self.c[2]) + self.fc * self.state.g
     }
@@ -224,7 +245,11 @@ impl DahlPredictor {
         let fc = self.fc;
         let pow: &[f64; TABLE] = &self.state.pow;
         let (mut idx, mut sign) = ([0usize; STEP_BLOCK], [0.0f64; STEP_BLOCK]);
-        let mut prev = self.position.unwrap_or(first);
+        let mut prev = if self.position.is_nan() {
+            first
+        } else {
+            self.position
+        };
         let mut g = self.state.g;
         for block in targets.chunks(STEP_BLOCK) {
             let m = block.len();
@@ -265,7 +290,7 @@ impl DahlPredictor {
             prev = block[m - 1];
         }
         self.state.g = g;
-        self.position = Some(prev);
+        self.position = prev;
     }
 }
 
@@ -795,6 +820,86 @@ mod tests {
             .filter(|w| w.starts_with("dahl:"))
             .collect();
         (w, -1.0 / r.ln())
+    }
+
+    #[test]
+    fn step_equals_the_affine_map_bit_for_bit() {
+        // Reference: `DahlState::affine` (the sign as a number, b = s·(1 − d)) applied seek by
+        // seek, and the position curve. Random seeks on and off the table, zero-length seeks,
+        // signed zeros and NaN targets: `step` and `step_many` give the same bits.
+        let mut rng = crate::numeric::rng::SimRng::new(35);
+        for case in 0..40 {
+            let (c, fc, sigma) = ([5.0, 0.01, -1e-6], 15.0, [1.2, 0.01, 14.0][case % 3]);
+            let mut fast = DahlPredictor::new(c, fc, sigma).unwrap();
+            let mut many = fast.clone();
+            let mut state = DahlState::new(1.0 - sigma / fc);
+            let mut prev: Option<f64> = None;
+            let targets: Vec<f64> = (0..3000)
+                .map(|i| match rng.below(12) {
+                    0 if i > 0 => f64::NAN,
+                    1 => 0.0,
+                    2 => -0.0,
+                    3 => rng.range(-400.0, 400.0),
+                    _ => 1000.0 + rng.below(250) as f64,
+                })
+                .collect();
+            let mut want = Vec::new();
+            for &x in &targets {
+                let dx = prev.map_or(0.0, |p| x - p);
+                prev = Some(x);
+                let (d, b) = state.affine(dx);
+                state.g = state.g * d + b;
+                let y = c[0] + x * (c[1] + x * c[2]) + fc * state.g;
+                assert_eq!(fast.step(x).to_bits(), y.to_bits(), "case {case} x {x}");
+                want.push(y.to_bits());
+            }
+            let mut got = Vec::new();
+            many.step_many(&targets, &mut got);
+            let got: Vec<u64> = got.iter().map(|y| y.to_bits()).collect();
+            assert!(got == want, "case {case}: step_many");
+        }
+    }
+
+    #[test]
+    fn table_index_without_conversion_equals_the_conversion() {
+        // Reference: `decay_reference` (the length converted to an integer and back). Every
+        // length on and next to the table, fractions, huge, infinite and NaN lengths, both
+        // signs: the same bits.
+        let mut rng = crate::numeric::rng::SimRng::new(88);
+        for l in [0.05, 1.0, 7.3, 400.0] {
+            let st = DahlState::with_length(l);
+            let mut xs: Vec<f64> = (0..600).map(f64::from).collect();
+            xs.extend([
+                f64::INFINITY,
+                f64::NAN,
+                f64::MAX,
+                f64::MIN_POSITIVE,
+                5e-324,
+                254.5,
+                255.0,
+                255.5,
+                256.0,
+                4_503_599_627_370_496.0,
+                4_503_599_627_370_497.0,
+            ]);
+            for n in 0..257u32 {
+                xs.push(f64::from_bits(f64::from(n).to_bits() + 1));
+                xs.push(f64::from_bits(f64::from(n).to_bits().saturating_sub(1)));
+            }
+            for _ in 0..20_000 {
+                xs.push(rng.range(0.0, 300.0));
+                xs.push(rng.below(300) as f64 + [0.0, 0.5, 1e-9][rng.below(3) as usize]);
+            }
+            for x in xs {
+                for dx in [x, -x] {
+                    assert_eq!(
+                        st.decay(dx).to_bits(),
+                        st.decay_reference(dx).to_bits(),
+                        "L {l}, dx {dx:e}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
