@@ -26,6 +26,10 @@ import sys
 import time
 
 os.environ.setdefault("POLARS_MAX_THREADS", "1")  # polars on 1 thread, as biasctl reads
+# numpy's BLAS on 1 thread: its idle threads spin while they wait for work, and on a loaded
+# machine that spinning counted in the CPU time as several times the solve itself.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
@@ -342,7 +346,31 @@ def read(exe, work, root, log, cli):
 
 
 # ---------------------------------------------------------------- fit
-def fit(exe, work, root, cli):
+def peak_rss_mb(*args):
+    """Peak resident memory (MB) of one run of a command (its own rusage)."""
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, status, usage = os.wait4(proc.pid, 0)
+    if status != 0:
+        sys.exit(f"{args} failed")
+    return usage.ru_maxrss / 1024  # kB on Linux
+
+
+def fit_memory(exe, work, log_1m):
+    """`fit --model calibration`'s peak RSS on 300k and 1M rows of the same kind of log: bytes
+    per row as the slope between the two (what each more row costs) and as the 1M-row peak over
+    its rows (which also counts the fixed part: the binary, thread stacks, buffers)."""
+    log_300k = os.path.join(work, "random_300k.csv")
+    sh(exe, "simulate", "--sequence", "random", "--n", "300000", "--seed", "1", "--out", log_300k)
+    out = os.path.join(work, "fit_mem.json")
+    peak = {}
+    for n, log in ((300_000, log_300k), (N, log_1m)):
+        peak[n] = min(peak_rss_mb(exe, "fit", "--data", log, "--model", "calibration", "--out", out) for _ in range(3))
+    slope = (peak[N] - peak[300_000]) * 1024 * 1024 / (N - 300_000)
+    whole = peak[N] * 1024 * 1024 / N
+    print(f"  fit --model calibration peak RSS (least of 3): {peak[300_000]:.1f} MB at 300k rows, {peak[N]:.1f} MB at 1M rows: slope {slope:.0f} B/row, peak/rows {whole:.0f} B/row")
+
+
+def fit(exe, work, root, cli, t_read):
     print("Fit: normal equations")
     train, test = os.path.join(work, "pd_train.csv"), os.path.join(work, "pd_test.csv")
     model, pred = os.path.join(work, "pd.json"), os.path.join(work, "pd_pred.csv")
@@ -363,8 +391,10 @@ def fit(exe, work, root, cli):
     a = rng.standard_normal((N, 30))
     y = a @ rng.standard_normal(30) + rng.standard_normal(N)
     t_np, _ = median_of(lambda: np.linalg.solve(a.T @ a, a.T @ y), 3)
+    both = Timing(t_np.wall + t_read.wall, t_np.cpu + t_read.cpu)
     return [
-        row("`fit --model calibration` (29 parameters), 1M rows, CLI", (cli["fit"].cpu, "cpu"), "numpy normal equations, 1M × 30 design", t_np),
+        row("`fit --model calibration` (29 parameters), 1M rows, CLI", (cli["fit"].cpu, "cpu"), "polars `read_csv` of the log + numpy normal equations, 1M × 30 design", both),
+        row("the same", (cli["fit"].cpu, "cpu"), "numpy normal equations alone, on a design handed to it", t_np),
         row("the same fit in-process (criterion `fit`)", criterion_median(root, "fit/calibration_1M_rows"), "numpy normal equations, 1M × 30 design", t_np),
     ]
 
@@ -426,7 +456,9 @@ def main():
         if "read" in only:
             rows += read(a.exe, a.work, a.root, log, cli)
         if "fit" in only:
-            rows += fit(a.exe, a.work, a.root, cli)
+            t_read, _ = median_of(lambda: pl.read_csv(log, comment_prefix="#"), 3)
+            rows += fit(a.exe, a.work, a.root, cli, t_read)
+            fit_memory(a.exe, a.work, log)
         if "write" in only:
             rows += write(a.exe, a.work, a.root, cli, pred)
     print()
