@@ -243,11 +243,17 @@ def bounds_into(pe, pv, pu, w, zk, zce, zcv, zcu, e0, v0, du, delta, upper, lowe
 
 @numba.njit(cache=True)
 def bounds_repeat(reps, pe, pv, pu, w, zk, zce, zcv, zcu, e0, v0, du, delta, upper, lower, umin_out, lmax_out):
-    """`reps` calls inside compiled code, so Python's call overhead is not timed."""
+    """`reps` calls inside compiled code, so Python's call overhead is not timed. Each call is
+    followed by the search for k* (the first k ≤ N − 1 with L*(k) ≤ U*(k)), as the criterion
+    bench follows `bounds_into` with `Bounds::optimal`."""
     acc = 0.0
+    n = pe.shape[0]
     for _ in range(reps):
         bounds_into(pe, pv, pu, w, zk, zce, zcv, zcu, e0, v0, du, delta, upper, lower, umin_out, lmax_out)
-        acc += umin_out[0]
+        for k in range(n):
+            if lmax_out[k] <= umin_out[k]:
+                acc += k + lmax_out[k] + umin_out[k]
+                break
     return acc
 
 
@@ -320,7 +326,7 @@ def handoff(exe, work, root):
     t_s, _ = median_of(solve, 15)
     t_s = Timing(t_s.wall / 200, t_s.cpu / 200)
     return [
-        row("handoff bounds, horizon 64 (`bounds_into`)", criterion_median(root, "handoff/bounds_into/64"), "numba, same arithmetic on four plain arrays", t_b),
+        row("handoff bounds, horizon 64 (`bounds_into`, then k* from the curves)", criterion_median(root, "handoff/bounds_into/64"), "numba, same arithmetic on four plain arrays, then the same search for k*", t_b),
         row("handoff solve, horizon 64", criterion_median(root, "handoff/solve/64"), "numpy vectorised", t_s),
     ]
 
@@ -347,12 +353,11 @@ def read(exe, work, root, log, cli):
 
 # ---------------------------------------------------------------- fit
 def peak_rss_mb(*args):
-    """Peak resident memory (MB) of one run of a command (its own rusage)."""
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    _, status, usage = os.wait4(proc.pid, 0)
-    if status != 0:
-        sys.exit(f"{args} failed")
-    return usage.ru_maxrss / 1024  # kB on Linux
+    """Peak resident memory (MB) of one run of a command, as GNU time reports it (`%M`). Not
+    this process's own rusage of the child: a child forked from this Python (numpy, polars and
+    their arrays loaded) starts with this process's pages resident and reports them."""
+    r = subprocess.run(["/usr/bin/time", "-f", "%M", *args], check=True, capture_output=True, text=True)
+    return int(r.stderr.strip().splitlines()[-1]) / 1024  # kB
 
 
 def fit_memory(exe, work, log_1m):
@@ -458,7 +463,8 @@ def main():
         if "fit" in only:
             t_read, _ = median_of(lambda: pl.read_csv(log, comment_prefix="#"), 3)
             rows += fit(a.exe, a.work, a.root, cli, t_read)
-            fit_memory(a.exe, a.work, log)
+            if os.path.exists("/usr/bin/time"):
+                fit_memory(a.exe, a.work, log)
         if "write" in only:
             rows += write(a.exe, a.work, a.root, cli, pred)
     print()
