@@ -69,17 +69,29 @@ impl Bounds {
     }
 
     /// k* and the optimal interval (eq. 16), from the stored curves.
+    ///
+    /// U*(k) = min(U_k, U*(k + 1)) ≤ U*(k + 1) and L*(k) ≥ L*(k + 1) (neither is NaN: the
+    /// running bounds leave a NaN bound out), so L*(k) ≤ U*(k) implies L*(k + 1) ≤ U*(k + 1):
+    /// the condition holds on a suffix of k, and k* is found by bisection (tested against the
+    /// sample-by-sample search).
     pub fn optimal(&self) -> Option<Interval> {
         let top = self.top()?;
-        self.lower_max[..=top]
-            .iter()
-            .zip(&self.upper_min[..=top])
-            .position(|(lo, hi)| lo <= hi)
-            .map(|k| Interval {
-                k,
-                lo: self.lower_max[k],
-                hi: self.upper_min[k],
-            })
+        let (lo, hi) = (&self.lower_max[..=top], &self.upper_min[..=top]);
+        let holds = |k: usize| lo[k] <= hi[k];
+        // The last k not holding is in base .. base + size (base itself when none holds below).
+        let (mut base, mut size) = (0, top + 1);
+        while size > 1 {
+            let half = size / 2;
+            // Arithmetic, not a branch: which way the search goes is the data's coin flip.
+            base += half * usize::from(!holds(base + half));
+            size -= half;
+        }
+        let k = base + usize::from(!holds(base));
+        (k <= top).then(|| Interval {
+            k,
+            lo: lo[k],
+            hi: hi[k],
+        })
     }
 
     /// The paper's robust choice: the first local minimum k of the per-sample upper bound U_k

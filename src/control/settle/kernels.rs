@@ -319,17 +319,62 @@ impl HandoffTable {
             du: h.u_prev_counts - h.bias_counts,
             delta: window.half_width_um,
         };
-        self.fill(0, p, &mut buf.upper, &mut buf.lower);
+        // SAFETY: the CPU has AVX2 (this function's contract).
+        unsafe { self.fill_down(p, &mut buf.upper, &mut buf.lower) };
         for z in &self.zero {
             if Self::rules_out(z, p) {
                 buf.upper[z.k] = f64::NEG_INFINITY;
                 buf.lower[z.k] = f64::INFINITY;
             }
         }
+        // No bound can be NaN (as in `solve`: |U_k|, |L_k| far from overflow, δ > 0 so a
+        // zero-gain sample's ∞·δ is ∞): the running bounds may then be taken over windows.
+        let bound = self.coef_max * (p.e0.abs() + p.v0.abs() + p.du.abs()) + self.w_max * p.delta;
+        let nan_free = bound < f64::MAX / 16.0 && p.delta > 0.0;
         // SAFETY: the CPU has AVX2 (this function's contract); the four buffers have n samples.
-        unsafe { suffix_avx2(buf) };
+        unsafe { suffix_avx2(buf, nan_free) };
         buf.hold = window.hold;
         Ok(())
+    }
+
+    /// U_k, L_k (eq. 14) of every sample, as [`HandoffTable::fill`] computes them (the same
+    /// operations in the same order, four lanes at a time), the top samples first: the
+    /// running bounds, read top-down right after, then find the top groups' stores already in
+    /// the cache (a load spanning two stores still in the store buffer waits for them, and
+    /// the windows of [`suffix_avx2`] span two).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn fill_down(&self, p: Point, u: &mut [f64], l: &mut [f64]) {
+        use std::arch::x86_64::{
+            _mm256_add_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_set1_pd, _mm256_storeu_pd,
+            _mm256_sub_pd,
+        };
+        let n = self.w.len();
+        let (u, l) = (&mut u[..n], &mut l[..n]);
+        let (pe, pv, pu, w) = (&self.pe[..n], &self.pv[..n], &self.pu[..n], &self.w[..n]);
+        let n4 = n - n % 4;
+        for k in n4..n {
+            (u[k], l[k]) = p.bounds(pe[k], pv[k], pu[k], w[k]);
+        }
+        let [e0, v0, du, delta] = [p.e0, p.v0, p.du, p.delta].map(|x| _mm256_set1_pd(x));
+        let mut k = n4;
+        while k >= 4 {
+            k -= 4;
+            // SAFETY: k + 4 ≤ n4 ≤ n, the length of all six slices.
+            unsafe {
+                let at = |s: &[f64]| _mm256_loadu_pd(s.as_ptr().add(k));
+                let mid = _mm256_add_pd(
+                    _mm256_add_pd(_mm256_mul_pd(at(pe), e0), _mm256_mul_pd(at(pv), v0)),
+                    _mm256_mul_pd(at(pu), du),
+                );
+                let half = _mm256_mul_pd(at(w), delta);
+                _mm256_storeu_pd(u.as_mut_ptr().add(k), _mm256_add_pd(mid, half));
+                _mm256_storeu_pd(l.as_mut_ptr().add(k), _mm256_sub_pd(mid, half));
+            }
+        }
     }
 
     /// [`HandoffTable::bounds_into`] for any CPU.
@@ -376,17 +421,25 @@ impl HandoffTable {
 }
 
 /// The backward running bounds of `buf` (U*, L* of eq. 15 from U, L), four samples per
-/// instruction: each group of four gets its own suffix min/max from two shifted copies of
+/// instruction: the top group of four gets its own suffix min/max from two shifted copies of
 /// itself, then the running bounds of the samples above it. Every min keeps the operand of the
 /// higher sample on a tie and ignores a NaN bound, as the sample-by-sample scan does (a NaN
 /// bound is first turned into ±∞, which the scan's min/max also leave out), so the curves are
 /// bit for bit those of [`suffix_into`]'s blocks (tested: the AVX2 and portable copies agree).
 ///
+/// When no bound can be NaN (`nan_free`), the groups below the top one take no shuffle: the
+/// running bound at k + i is the min of the window of four samples k + i .. k + i + 3 (read
+/// from memory at four offsets) and the running bound at k + i + 4, so a group is four loads,
+/// three lane-wise mins of the windows and one of the group above (the shuffles ran on one
+/// port and bound the scan). The windows overlap the group above; a min over a set that holds
+/// a sample twice is the same, and with each min's lower-sample operand first, a tie still
+/// keeps the highest sample's value.
+///
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn suffix_avx2(buf: &mut Bounds) {
+unsafe fn suffix_avx2(buf: &mut Bounds, nan_free: bool) {
     use std::arch::x86_64::{
         _mm256_loadu_pd, _mm256_max_pd, _mm256_min_pd, _mm256_permute4x64_pd, _mm256_set1_pd,
         _mm256_storeu_pd,
@@ -422,11 +475,58 @@ unsafe fn suffix_avx2(buf: &mut Bounds) {
             let tl = _mm256_max_pd(vl, _mm256_permute4x64_pd::<0b11_11_10_01>(vl));
             let tu = _mm256_min_pd(tu, _mm256_permute4x64_pd::<0b11_10_11_10>(tu));
             let tl = _mm256_max_pd(tl, _mm256_permute4x64_pd::<0b11_10_11_10>(tl));
-            _mm256_storeu_pd(su.as_mut_ptr().add(k), _mm256_min_pd(tu, ru));
-            _mm256_storeu_pd(sl.as_mut_ptr().add(k), _mm256_max_pd(tl, rl));
+            let (gu, gl) = (_mm256_min_pd(tu, ru), _mm256_max_pd(tl, rl));
+            _mm256_storeu_pd(su.as_mut_ptr().add(k), gu);
+            _mm256_storeu_pd(sl.as_mut_ptr().add(k), gl);
+            if nan_free {
+                // Every group below reads samples k' .. k' + 7 ≤ k + 3 < n.
+                windows_avx2(u, l, su, sl, k, gu, gl);
+                return;
+            }
             // The running bounds from this group's lane 0 (off the stores' path).
             ru = _mm256_min_pd(_mm256_permute4x64_pd::<0>(tu), ru);
             rl = _mm256_max_pd(_mm256_permute4x64_pd::<0>(tl), rl);
+        }
+    }
+}
+
+/// The groups of four below sample `top` (a multiple of four whose group's running bounds are
+/// `gu`, `gl`): the running bound at k + i is the min of the window k + i .. k + i + 3 and the
+/// running bound at k + i + 4 (see [`suffix_avx2`]). No bound may be NaN.
+///
+/// # Safety
+/// The CPU must support AVX2; `top + 4 ≤` the length of all four slices.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn windows_avx2(
+    u: &[f64],
+    l: &[f64],
+    su: &mut [f64],
+    sl: &mut [f64],
+    top: usize,
+    mut gu: std::arch::x86_64::__m256d,
+    mut gl: std::arch::x86_64::__m256d,
+) {
+    use std::arch::x86_64::{_mm256_loadu_pd, _mm256_max_pd, _mm256_min_pd, _mm256_storeu_pd};
+    assert!(top + 4 <= u.len().min(l.len()).min(su.len()).min(sl.len()));
+    let mut k = top;
+    while k >= 4 {
+        k -= 4;
+        // SAFETY: k + 3 + 4 ≤ top + 3 < the slices' length (asserted above).
+        unsafe {
+            let (pu, pl) = (u.as_ptr().add(k), l.as_ptr().add(k));
+            let wu = _mm256_min_pd(
+                _mm256_min_pd(_mm256_loadu_pd(pu), _mm256_loadu_pd(pu.add(1))),
+                _mm256_min_pd(_mm256_loadu_pd(pu.add(2)), _mm256_loadu_pd(pu.add(3))),
+            );
+            let wl = _mm256_max_pd(
+                _mm256_max_pd(_mm256_loadu_pd(pl), _mm256_loadu_pd(pl.add(1))),
+                _mm256_max_pd(_mm256_loadu_pd(pl.add(2)), _mm256_loadu_pd(pl.add(3))),
+            );
+            gu = _mm256_min_pd(wu, gu);
+            gl = _mm256_max_pd(wl, gl);
+            _mm256_storeu_pd(su.as_mut_ptr().add(k), gu);
+            _mm256_storeu_pd(sl.as_mut_ptr().add(k), gl);
         }
     }
 }
