@@ -32,6 +32,7 @@ mod outliers;
 mod pattern;
 mod pooled;
 mod table;
+mod verify;
 
 pub use fits::{DriveError, DriveFit, ReadSettings, fit_log, fit_path, fit_paths};
 pub use outliers::{
@@ -43,6 +44,9 @@ pub use pooled::{
     screen_drive, screen_path,
 };
 pub use table::{FitsError, fits_csv, param_names, read_fits};
+pub use verify::{
+    DriveEdit, DriveVerification, FleetVerification, pool_verifications, verify_drive, verify_path,
+};
 
 #[cfg(test)]
 mod tests;

@@ -12,11 +12,13 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::verify::{DriveVerification, FleetVerification, verify_path};
 use super::{DriveError, ReadSettings};
 use crate::diagnose::CheckedDiagnoseConfig;
 use crate::fit::CheckedFitOptions;
 use crate::log::Log;
 use crate::model::ModelSpec;
+use crate::select::CheckedVerifyConfig;
 
 /// What the pooled screen reads of one drive's screen
 /// ([`crate::diagnose::ScreenStatistics`]), per feature in the drive's order.
@@ -91,6 +93,10 @@ pub struct FleetDiagnosis {
     pub permutations: usize,
     /// The permutations' seed (every drive's, as `diagnose --seed`).
     pub seed: u64,
+    /// The pooled suggestion's term when the fleet verifies it (see [`super::verify`]).
+    pub best_edit: Option<String>,
+    /// The pooled suggestion verified across the fleet, or why it was not.
+    pub verification: FleetVerification,
 }
 
 /// Drive screens that cannot be pooled: another number of permutations, or lengths that
@@ -172,19 +178,38 @@ pub fn screen_path(
     }
 }
 
-/// Screens every path's drive on rayon's pool and pools them ([`pool`]).
+/// Screens every path's drive on rayon's pool and pools them ([`pool`]); with `verify`, then
+/// refits every drive with the pooled suggestion and pools the refits
+/// ([`super::pool_verifications`], the refits' settings and fit options `verify`'s).
 pub fn diagnose_paths(
     paths: &[PathBuf],
     read: &ReadSettings,
     spec: &ModelSpec,
     opts: &CheckedFitOptions,
     config: &CheckedDiagnoseConfig,
+    verify: Option<&CheckedVerifyConfig>,
 ) -> Result<FleetDiagnosis, PoolError> {
     let screens: Vec<DriveScreen> = paths
         .par_iter()
         .map(|p| screen_path(p, read, spec, opts, config))
         .collect();
-    pool(&screens, config)
+    let default = CheckedVerifyConfig::default();
+    let mut d = pool(&screens, config, verify.unwrap_or(&default))?;
+    if let (Some(v), Some(term)) = (verify, d.verification.term.clone()) {
+        // The drives the pool screened, each read again (no log is held through the screens).
+        let screened: Vec<&PathBuf> = paths
+            .iter()
+            .zip(&screens)
+            .filter(|(_, s)| s.screen.is_ok())
+            .map(|(p, _)| p)
+            .collect();
+        let drives: Vec<DriveVerification> = screened
+            .par_iter()
+            .map(|p| verify_path(p, read, spec, &term, config.min_effect, v))
+            .collect();
+        super::pool_verifications(&mut d, &drives);
+    }
+    Ok(d)
 }
 
 /// The pooled screen of the drives' screens (see the module docs); the drives' order does not
@@ -192,6 +217,7 @@ pub fn diagnose_paths(
 pub fn pool(
     screens: &[DriveScreen],
     config: &CheckedDiagnoseConfig,
+    verify: &CheckedVerifyConfig,
 ) -> Result<FleetDiagnosis, PoolError> {
     // In the order of the sources, so that the sums (and so every figure) do not depend on
     // the order the drives came in.
@@ -308,6 +334,7 @@ pub fn pool(
             .then(a.p_value.total_cmp(&b.p_value))
             .then(b.explained.total_cmp(&a.explained))
     });
+    let verification = FleetVerification::pending(&features, verify.min_z, verify.folds);
     let mut d = FleetDiagnosis {
         drives: ok.len(),
         failed,
@@ -316,14 +343,16 @@ pub fn pool(
         alpha: config.alpha,
         permutations: b,
         seed: config.seed,
+        best_edit: None,
+        verification,
     };
     d.summary = summary(&d);
     Ok(d)
 }
 
 /// The verdict in words: the flagged features with their pooled p, mean share and how many
-/// drives find them alone, or that none is flagged.
-fn summary(d: &FleetDiagnosis) -> String {
+/// drives find them alone, or that none is flagged; then the verification's verdict.
+pub(super) fn summary(d: &FleetDiagnosis) -> String {
     let flagged: Vec<&PooledFeature> = d.features.iter().filter(|f| f.flagged).collect();
     let mut s = format!("{} drives pooled", d.drives);
     if !d.failed.is_empty() {
@@ -358,5 +387,6 @@ fn summary(d: &FleetDiagnosis) -> String {
         })
         .collect();
     s.push_str(&parts.join("; "));
+    s.push_str(&format!(". Across the fleet: {}", d.verification.why));
     s
 }

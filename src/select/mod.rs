@@ -6,6 +6,7 @@
 
 mod candidates;
 mod discover;
+mod edit_score;
 mod gain;
 mod ladder;
 mod path;
@@ -18,6 +19,7 @@ pub(crate) use candidates::{candidates, edit_for, table_spacing};
 pub use discover::{
     CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
 };
+pub(crate) use edit_score::score_edit;
 pub use ladder::{Ladder, LadderStep, LadderTerms, ladder_fit, ladder_terms};
 pub use path::{PathStep, suggestion_path, suggestion_path_from};
 pub(crate) use second_round::verify_two_rounds;
