@@ -278,7 +278,12 @@ fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             v.drives_verified_alone,
             v.reason
         )?,
-        _ => outln!("not verified: {} ({})", v.why, v.reason)?,
+        _ => {
+            // `why` begins with the rule; printed after the words here.
+            let prefix = format!("{}: ", v.reason);
+            let why = v.why.strip_prefix(&prefix).unwrap_or(&v.why);
+            outln!("not verified: {why} ({})", v.reason)?
+        }
     }
     Ok(())
 }
