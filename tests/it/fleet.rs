@@ -402,9 +402,14 @@ fn fleet_diagnose_verifies_the_pooled_suggestion_on_every_drive() {
     );
     assert!((f(v, "z") - t / s2.sqrt()).abs() < 1e-9, "{v}");
     // The human output: the verdict with its rule.
+    let edit = v["edit"].as_str().unwrap();
+    assert!(
+        edit.starts_with("add ") && edit.ends_with(":load"),
+        "{edit}"
+    );
     let text = ok(&args);
     assert!(
-        text.contains("verified: add col:load across 6 drives") && text.contains("z = "),
+        text.contains(&format!("verified: {edit} across 6 drives")) && text.contains("z = "),
         "{text}"
     );
     // Without the refits: named, not run; more folds: other figures, the same rule.
@@ -412,8 +417,11 @@ fn fleet_diagnose_verifies_the_pooled_suggestion_on_every_drive() {
     assert_eq!(off["verification"]["reason"], "not_run");
     assert_eq!(off["best_edit"], serde_json::Value::Null);
     let text = ok(&[&args[..], &["--no-verify"]].concat());
+    let term = v["term"].as_str().unwrap();
     assert!(
-        text.contains("not verified: the refits with `col:load` were not run (not_run)"),
+        text.contains(&format!(
+            "not verified: the refits with `{term}` were not run (not_run)"
+        )),
         "{text}"
     );
     let five = json(&["--verify-folds", "5"]);
