@@ -205,6 +205,7 @@ _Screen = tuple[
     int,
     list[float],
     list[str | None],
+    list[list[str]],
 ]
 
 def screen_drive(
@@ -229,6 +230,7 @@ def screen_drive(
 
 _Refit = tuple[
     str,
+    str,
     str | None,
     tuple[int, float, float, float, float, float, float, float],
     tuple[bool, str, str, str],
@@ -237,7 +239,7 @@ _Refit = tuple[
 def verify_drive(
     source: str,
     model: str,
-    term: str,
+    terms: list[str],
     path: str | None = None,
     log: Log | None = None,
     verify_folds: int = 3,
@@ -250,7 +252,7 @@ def verify_drive(
     deadband: float | None = None,
     velocity_col: str | None = None,
     threads: int | None = None,
-) -> _Refit: ...
+) -> list[_Refit]: ...
 def pool_screens(
     screens: list[_Screen],
     seed: int = 1,

@@ -227,21 +227,21 @@ def _screen_batch(items: list, model: str, settings: dict, options: dict) -> lis
     return [_screen_one(item, model, settings, options, 1) for item in items]
 
 
-def _refit_one(item: tuple[str, Any], model: str, term: str, verify_folds: int, options: dict,
-               threads: int | None) -> tuple:
+def _refit_one(item: tuple[str, Any], model: str, terms: list[str], verify_folds: int,
+               options: dict, threads: int | None) -> list[tuple]:
     source, what = item
     if isinstance(what, Log):
-        return _ext.verify_drive(source, model, term, log=what._inner, verify_folds=verify_folds,
-                                 threads=threads, **options)
-    return _ext.verify_drive(source, model, term, path=what, verify_folds=verify_folds,
+        return _ext.verify_drive(source, model, terms, log=what._inner,
+                                 verify_folds=verify_folds, threads=threads, **options)
+    return _ext.verify_drive(source, model, terms, path=what, verify_folds=verify_folds,
                              threads=threads, **options)
 
 
-def _refit_batch(items: list, model: str, term: str, verify_folds: int,
-                 options: dict) -> list[tuple]:
-    """One Dask task: a batch of drives refitted with and without the pooled suggestion, one
+def _refit_batch(items: list, model: str, terms: list[str], verify_folds: int,
+                 options: dict) -> list[list[tuple]]:
+    """One Dask task: a batch of drives refitted without and with each candidate term, one
     after the other, each on one library worker."""
-    return [_refit_one(item, model, term, verify_folds, options, 1) for item in items]
+    return [_refit_one(item, model, terms, verify_folds, options, 1) for item in items]
 
 
 def _run(fn, items: list, client: Any, batch: int, workers: int | None, batch_fn, **kw) -> list:
@@ -261,11 +261,12 @@ class FleetDiagnosis:
     ``biasctl fleet diagnose --json``; ``features`` a DataFrame (name, explained: the mean
     out-of-sample share per drive, p_value: family-wise of the pooled statistic, p_value_raw,
     flagged, reason: the rule that decided, drives_alone: drives whose own screen finds it
-    significant, drives: drives that tested it, suggested_term); ``summary``; ``failed``: the
-    drives that could not be screened, with their messages; ``verification``: the pooled
-    suggestion refitted on every drive (feature, term, edit, terms, folds, drives, gain, z,
-    z_bar, verified, reason: the rule that decided, why, drives_verified_alone, per_drive:
-    each drive's figures, failed); ``best_edit``: its term when the fleet verifies it."""
+    significant, drives: drives that tested it, suggested_term, alternatives); ``summary``;
+    ``failed``: the drives that could not be screened, with their messages; ``verification``:
+    the pooled suggestion refitted on every drive (feature, term, candidates, try_all, edit,
+    terms, folds, drives, gain, z, z_bar, verified, reason: the rule that decided, why,
+    drives_verified_alone, tried: each candidate's figures, per_drive: each drive's, failed);
+    ``best_edit``: its term when the fleet verifies it."""
 
     def __init__(self, json_text: str) -> None:
         self._json = json_text
@@ -289,7 +290,7 @@ class FleetDiagnosis:
     def features(self):
         pd = _pandas()
         cols = ["name", "explained", "p_value", "p_value_raw", "flagged", "reason",
-                "drives_alone", "drives", "suggested_term"]
+                "drives_alone", "drives", "suggested_term", "alternatives"]
         return pd.DataFrame(self._dict["features"], columns=cols)
 
     @property
@@ -330,12 +331,14 @@ def diagnose_many(
     significant in any one drive but present in all is flagged; with nothing missing from the
     model the family-wise false-alarm rate stays at ``alpha`` however many drives are pooled.
 
-    With ``verify`` the pooled suggestion (the first flagged feature's suggested term) is then
-    verified across the fleet: every screened drive refitted with and without it on
-    ``verify_folds`` folds of consecutive seeks (as ``diagnose`` verifies an edit), the fleet's
-    gain Σ(SSE_before − SSE_after) / Σ SSE_before and its z Σ Tᵢ / √(Σ sᵢ²) (each drive's
-    paired-loss gain and its standard error); verified iff z reaches the single drive's bar
-    and the gain is positive (``verification``, ``best_edit``).
+    With ``verify`` the pooled suggestion (the first flagged feature's suggested term, and the
+    alternatives the drives would try) is then verified across the fleet: every screened drive
+    refitted without and with each on ``verify_folds`` folds of consecutive seeks (as
+    ``diagnose`` verifies an edit), per term the fleet's gain Σ(SSE_before − SSE_after) /
+    Σ SSE_before and its z Σ Tᵢ / √(Σ sᵢ²) (each drive's paired-loss gain and its standard
+    error); the term is chosen as ``diagnose`` chooses among a feature's terms, and verified
+    iff its z reaches the single drive's bar and its gain is positive (``verification``,
+    ``best_edit``).
 
     ``logs``, ``client``, ``batch``, ``workers`` and the read options as :func:`fit_many`
     (fit options: ``deadband``, ``velocity_col``). A drive that cannot be read, fitted or
@@ -356,13 +359,14 @@ def diagnose_many(
     screens = _run(_screen_one, items, client, batch, workers, _screen_batch, model=spec,
                    settings=settings, options=options)
     pooled = _ext.pool_screens(screens, **settings, verify_folds=verify_folds)
-    term = _json.loads(pooled)["verification"]["term"]
-    if not verify or term is None:
+    terms = _json.loads(pooled)["verification"]["candidates"]
+    if not verify or not terms:
         return FleetDiagnosis(pooled)
-    # The drives the pool screened, each refitted with the suggestion.
+    # The drives the pool screened, each refitted with every candidate term.
     screened = [it for it, s in zip(items, screens) if s[1] is None]
     refits = _run(_refit_one, screened, client, batch, workers, _refit_batch, model=spec,
-                  term=term, verify_folds=verify_folds, options=options)
+                  terms=terms, verify_folds=verify_folds, options=options)
+    refits = [r for drive in refits for r in drive]
     return FleetDiagnosis(_ext.pool_screens(screens, **settings, verify_folds=verify_folds,
                                             refits=refits))
 

@@ -150,7 +150,7 @@ pub(crate) fn fits_csv(rows: Vec<Row>) -> String {
 }
 
 /// One drive's screen as the pooled screen reads it: (source, error, names, tested, observed,
-/// explained, p_value, permutations, null, suggested).
+/// explained, p_value, permutations, null, suggested, alternatives).
 type Screen = (
     String,
     Option<String>,
@@ -162,6 +162,7 @@ type Screen = (
     usize,
     Vec<f64>,
     Vec<Option<String>>,
+    Vec<Vec<String>>,
 );
 
 /// The checked diagnosis settings of the fleet's screen.
@@ -245,6 +246,7 @@ pub(crate) fn screen_drive(
                     s.permutations,
                     s.null,
                     s.suggested,
+                    s.alternatives,
                 ),
                 Err(e) => (
                     source,
@@ -257,16 +259,18 @@ pub(crate) fn screen_drive(
                     permutations,
                     Vec::new(),
                     Vec::new(),
+                    Vec::new(),
                 ),
             })
         })
     })
 }
 
-/// One drive's refits with the pooled suggestion (`fleet::verify_drive`): (source, error,
+/// One drive's refits with one candidate term (`fleet::verify_drive`): (source, term, error,
 /// (rows, sse_before, sse_after, gain, gain_within_folds, loss_gain, loss_se, z),
 /// (verified_alone, reason_alone, edit, terms)).
 type Refit = (
+    String,
     String,
     Option<String>,
     (usize, f64, f64, f64, f64, f64, f64, f64),
@@ -296,6 +300,7 @@ fn refit_row(v: fleet::DriveVerification) -> Refit {
                 .unwrap_or_default();
             (
                 v.source,
+                v.term,
                 None,
                 (
                     e.rows,
@@ -312,6 +317,7 @@ fn refit_row(v: fleet::DriveVerification) -> Refit {
         }
         Err(m) => (
             v.source,
+            v.term,
             Some(m),
             (0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
             (false, String::new(), String::new(), String::new()),
@@ -320,7 +326,7 @@ fn refit_row(v: fleet::DriveVerification) -> Refit {
 }
 
 fn drive_verification(r: Refit) -> Result<fleet::DriveVerification, Failure> {
-    let (source, error, figures, verdict) = r;
+    let (source, term, error, figures, verdict) = r;
     let (rows, sse_before, sse_after, gain, within, loss_gain, loss_se, z) = figures;
     let (verified_alone, reason, edit, terms) = verdict;
     let result = match error {
@@ -347,21 +353,25 @@ fn drive_verification(r: Refit) -> Result<fleet::DriveVerification, Failure> {
             })
         }
     };
-    Ok(fleet::DriveVerification { source, result })
+    Ok(fleet::DriveVerification {
+        source,
+        term,
+        result,
+    })
 }
 
-/// One drive refitted with and without `term` on the verification's folds
+/// One drive refitted without and with each of `terms` on the verification's folds
 /// (`fleet::verify_path` / `fleet::verify_drive`): `path` read with the column and unit
-/// settings, or `log` already read. A drive that cannot be read or refitted gives its message,
-/// never an exception; bad settings raise.
+/// settings, or `log` already read; one row per term. A drive that cannot be read or refitted
+/// gives its message, never an exception; bad settings raise.
 #[pyfunction]
-#[pyo3(signature = (source, model, term, path=None, log=None, verify_folds=3, time_col=None, track_col=None, bias_col=None, bias_unit=None, track_unit=None, delimiter=None, deadband=None, velocity_col=None, threads=None))]
+#[pyo3(signature = (source, model, terms, path=None, log=None, verify_folds=3, time_col=None, track_col=None, bias_col=None, bias_unit=None, track_unit=None, delimiter=None, deadband=None, velocity_col=None, threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn verify_drive(
     py: Python<'_>,
     source: String,
     model: &str,
-    term: &str,
+    terms: Vec<String>,
     path: Option<std::path::PathBuf>,
     log: Option<&PyLog>,
     verify_folds: usize,
@@ -374,7 +384,7 @@ pub(crate) fn verify_drive(
     deadband: Option<f64>,
     velocity_col: Option<String>,
     threads: Option<usize>,
-) -> PyResult<Refit> {
+) -> PyResult<Vec<Refit>> {
     let spec = attached(|| model_spec(model))?;
     let opts = attached(|| fit_options(deadband, velocity_col, None, None, None))?;
     let verify = attached(|| verify_config(verify_folds, opts))?;
@@ -387,13 +397,21 @@ pub(crate) fn verify_drive(
     detached(py, || {
         on_threads(threads, || {
             let v = match (path, log) {
-                (Some(p), None) => fleet::verify_path(&p, &read, &spec, term, min_effect, &verify),
+                (Some(p), None) => {
+                    fleet::verify_path(&p, &read, &spec, &terms, min_effect, &verify)
+                }
                 (None, Some(l)) => match l.measured() {
-                    Ok(log) => fleet::verify_drive(&source, log, &spec, term, min_effect, &verify),
-                    Err(e) => fleet::DriveVerification {
-                        source: source.clone(),
-                        result: Err(e.message().to_string()),
-                    },
+                    Ok(log) => {
+                        fleet::verify_drive(&source, log, &spec, &terms, min_effect, &verify)
+                    }
+                    Err(e) => terms
+                        .iter()
+                        .map(|t| fleet::DriveVerification {
+                            source: source.clone(),
+                            term: t.clone(),
+                            result: Err(e.message().to_string()),
+                        })
+                        .collect(),
                 },
                 _ => {
                     return Err(Failure::new(
@@ -403,9 +421,13 @@ pub(crate) fn verify_drive(
                 }
             };
             // The source as the caller names it (a path's display may differ).
-            let mut row = refit_row(v);
-            row.0 = source;
-            Ok(row)
+            Ok(v.into_iter()
+                .map(|v| {
+                    let mut row = refit_row(v);
+                    row.0 = source.clone();
+                    row
+                })
+                .collect())
         })
     })
 }
@@ -444,6 +466,7 @@ pub(crate) fn pool_screens(
                         permutations: s.7,
                         null: s.8,
                         suggested: s.9,
+                        alternatives: s.10,
                     }),
                 },
             })

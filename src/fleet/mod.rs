@@ -45,7 +45,8 @@ pub use pooled::{
 };
 pub use table::{FitsError, fits_csv, param_names, read_fits};
 pub use verify::{
-    DriveEdit, DriveVerification, FleetVerification, pool_verifications, verify_drive, verify_path,
+    DriveEdit, DriveVerification, FleetVerification, TriedEdit, pool_verifications, verify_drive,
+    verify_path,
 };
 
 #[cfg(test)]

@@ -40,6 +40,9 @@ pub struct DriveStatistics {
     pub null: Vec<f64>,
     /// The term the drive alone would suggest for the feature.
     pub suggested: Vec<Option<String>>,
+    /// The other terms for the feature the drive's verification would try (as `diagnose`'s
+    /// `alternatives`).
+    pub alternatives: Vec<Vec<String>>,
 }
 
 /// One drive's screen, or why it has none (the library's message).
@@ -74,6 +77,9 @@ pub struct PooledFeature {
     pub drives: usize,
     /// The term the drives suggest for it most often (ties: the first drive's).
     pub suggested_term: Option<String>,
+    /// The other terms the drives would try for it, in the order they first appear (the
+    /// fleet's verification tries them as `diagnose` tries a feature's alternatives).
+    pub alternatives: Vec<String>,
 }
 
 /// The fleet's pooled diagnosis.
@@ -130,7 +136,7 @@ pub fn screen_drive(
         let s = crate::diagnose::screen_model(&model, log, config)
             .map_err(|e| crate::io::message(&e))?;
         let existing: Vec<String> = model.terms.iter().map(|t| t.term.name()).collect();
-        let suggested: Vec<Option<String>> = (0..s.names.len())
+        let (suggested, alternatives): (Vec<Option<String>>, Vec<Vec<String>>) = (0..s.names.len())
             .map(|j| {
                 let c = crate::diagnose::advice::candidate_terms(
                     &s.names[j],
@@ -140,9 +146,12 @@ pub fn screen_drive(
                     false,
                     false,
                 );
-                crate::diagnose::advice::suggest(&c, &existing).0
+                let chosen = crate::diagnose::advice::suggest(&c, &existing).0;
+                let others =
+                    crate::diagnose::advice::alternatives(&c, &existing, chosen.as_deref());
+                (chosen, others)
             })
-            .collect();
+            .unzip();
         Ok(DriveStatistics {
             names: s.names,
             tested: s.tested,
@@ -152,6 +161,7 @@ pub fn screen_drive(
             permutations: s.permutations,
             null: s.null,
             suggested,
+            alternatives,
         })
     };
     DriveScreen {
@@ -195,7 +205,7 @@ pub fn diagnose_paths(
         .collect();
     let default = CheckedVerifyConfig::default();
     let mut d = pool(&screens, config, verify.unwrap_or(&default))?;
-    if let (Some(v), Some(term)) = (verify, d.verification.term.clone()) {
+    if let (Some(v), false) = (verify, d.verification.candidates.is_empty()) {
         // The drives the pool screened, each read again (no log is held through the screens).
         let screened: Vec<&PathBuf> = paths
             .iter()
@@ -203,9 +213,10 @@ pub fn diagnose_paths(
             .filter(|(_, s)| s.screen.is_ok())
             .map(|(p, _)| p)
             .collect();
+        let terms = d.verification.candidates.clone();
         let drives: Vec<DriveVerification> = screened
             .par_iter()
-            .map(|p| verify_path(p, read, spec, &term, config.min_effect, v))
+            .flat_map_iter(|p| verify_path(p, read, spec, &terms, config.min_effect, v))
             .collect();
         super::pool_verifications(&mut d, &drives);
     }
@@ -247,7 +258,7 @@ pub fn pool(
                 s.p_value.len(),
             ]
             .iter()
-            .chain([&s.suggested.len()])
+            .chain([&s.suggested.len(), &s.alternatives.len()])
             .any(|&l| l != m_of(s))
             || s.null.len() != b * m_of(s)
     }) {
@@ -273,6 +284,7 @@ pub fn pool(
     let mut tested = vec![0usize; m];
     let mut alone = vec![0usize; m];
     let mut votes: Vec<Vec<(String, usize)>> = vec![Vec::new(); m];
+    let mut others: Vec<Vec<String>> = vec![Vec::new(); m];
     for (_, s) in &ok {
         let w = m_of(s);
         for (j, name) in s.names.iter().enumerate() {
@@ -295,8 +307,20 @@ pub fn pool(
                     None => votes[k].push((t.clone(), 1)),
                 }
             }
+            for t in &s.alternatives[j] {
+                if !others[k].contains(t) {
+                    others[k].push(t.clone());
+                }
+            }
         }
     }
+    let suggested: Vec<Option<String>> = votes
+        .iter()
+        .map(|v| {
+            let best = v.iter().map(|(_, c)| *c).max().unwrap_or(0);
+            v.iter().find(|(_, c)| *c == best).map(|(t, _)| t.clone())
+        })
+        .collect();
     let any: Vec<bool> = tested.iter().map(|&t| t > 0).collect();
     let (p_raw, p_adj) = crate::diagnose::family_wise_p_values(b, &observed, &null, &any);
     let mut features: Vec<PooledFeature> = (0..m)
@@ -307,7 +331,7 @@ pub fn pool(
                 0.0
             };
             let flagged = tested[k] > 0 && p_adj[k] <= config.alpha && mean > 0.0;
-            let best = votes[k].iter().map(|(_, c)| *c).max().unwrap_or(0);
+
             PooledFeature {
                 name: names[k].clone(),
                 explained: mean,
@@ -321,10 +345,19 @@ pub fn pool(
                 },
                 drives_alone: alone[k],
                 drives: tested[k],
-                suggested_term: votes[k]
+                suggested_term: suggested[k].clone(),
+                // The drives' other suggestions first, then their alternatives.
+                alternatives: votes[k]
                     .iter()
-                    .find(|(_, c)| *c == best)
-                    .map(|(t, _)| t.clone()),
+                    .map(|(t, _)| t)
+                    .chain(&others[k])
+                    .filter(|t| Some(*t) != suggested[k].as_ref())
+                    .fold(Vec::new(), |mut a: Vec<String>, t| {
+                        if !a.contains(t) {
+                            a.push(t.clone());
+                        }
+                        a
+                    }),
             }
         })
         .collect();

@@ -245,20 +245,22 @@ fn load_fleet(first: u64, drives: u64, n: usize, load: f64) -> Vec<(String, crat
         .collect()
 }
 
-/// The refits of `term` on every drive of `fleet`.
-fn refits(fleet: &[(String, crate::log::Log)], term: &str) -> Vec<DriveVerification> {
+/// The refits of `terms` on every drive of `fleet`.
+fn refits(fleet: &[(String, crate::log::Log)], terms: &[&str]) -> Vec<DriveVerification> {
     let spec = ModelSpec::parse("poly2,direction").unwrap();
     let verify = crate::select::VerifyConfig::default().check().unwrap();
     let min_effect = DiagnoseConfig::default().min_effect;
+    let terms: Vec<String> = terms.iter().map(|t| t.to_string()).collect();
     fleet
         .iter()
-        .map(|(s, log)| verify_drive(s, log, &spec, term, min_effect, &verify))
+        .flat_map(|(s, log)| verify_drive(s, log, &spec, &terms, min_effect, &verify))
         .collect()
 }
 
-/// A pooled diagnosis whose suggestion is `term` for the feature `feature` (what the pooled
-/// screen of a fleet with that effect gives; the screen itself is tested above).
-fn suggesting(feature: &str, term: &str) -> FleetDiagnosis {
+/// A pooled diagnosis whose suggestion for the feature `feature` is `terms[0]`, with the
+/// others as its alternatives (what the pooled screen of a fleet with that effect gives; the
+/// screen itself is tested above).
+fn suggesting(feature: &str, terms: &[&str]) -> FleetDiagnosis {
     let f = PooledFeature {
         name: feature.into(),
         explained: 0.01,
@@ -268,7 +270,8 @@ fn suggesting(feature: &str, term: &str) -> FleetDiagnosis {
         reason: "pooled_family_wise",
         drives_alone: 0,
         drives: 1,
-        suggested_term: Some(term.into()),
+        suggested_term: Some(terms[0].into()),
+        alternatives: terms[1..].iter().map(|t| t.to_string()).collect(),
     };
     let verify = crate::select::CheckedVerifyConfig::default();
     FleetDiagnosis {
@@ -297,9 +300,16 @@ fn one_drive_pooled_is_its_own_verification_by_diagnose() {
     let own = crate::select::diagnose_verified(&model, &log, &config, &verify).unwrap();
     let v = own.verification.unwrap();
     let e = v.edits.iter().find(|e| e.edit == "add col:load").unwrap();
-    let mut d = suggesting("load", "col:load");
-    let r = verify_drive("d", &log, &spec, "col:load", config.min_effect, &verify);
-    pool_verifications(&mut d, &[r]);
+    let mut d = suggesting("load", &["col:load"]);
+    let r = verify_drive(
+        "d",
+        &log,
+        &spec,
+        &["col:load".into()],
+        config.min_effect,
+        &verify,
+    );
+    pool_verifications(&mut d, &r);
     let f = &d.verification;
     assert_eq!(f.drives, 1);
     // Σ reductions / Σ before is 1 − MSE_after / MSE_before in another order of operations.
@@ -324,14 +334,31 @@ fn a_weak_effect_in_every_drive_is_verified_by_the_fleet_not_by_single_drives() 
     // noise at 400 training rows, 40 % of the effect's 0.0064), so a drive's z averages about
     // 0.3: over ten fleets the fleet's z was 1.0–3.8 for 32 drives (7 of 10 verified), 2.7–4.6
     // for 64 (10 of 10), 4.2–6.0 for 128. 96 drives here, for a margin.
+    // The candidates as the pooled screen gives them for a covariate: every one is scored
+    // (the shape `bins:load` pays for its knots), the largest fleet gain kept.
+    let cands = ["bins:load", "col:load", "lag:load"];
     let fleet = load_fleet(100, 96, 600, 0.08);
-    let drives = refits(&fleet, "col:load");
-    let mut d = suggesting("load", "col:load");
+    let drives = refits(&fleet, &cands);
+    let mut d = suggesting("load", &cands);
     pool_verifications(&mut d, &drives);
     let v = &d.verification;
+    assert!(v.try_all);
+    assert_eq!(v.tried.len(), 3);
+    let best = v
+        .tried
+        .iter()
+        .map(|t| t.gain.unwrap())
+        .fold(f64::MIN, f64::max);
+    assert_eq!(v.gain, Some(best), "{:?}", v.tried);
+    assert_eq!(v.term.as_deref(), Some("col:load"), "{:?}", v.tried);
     assert_eq!((v.drives, v.failed.len()), (96, 0));
     // The slow reference: the rule's sums taken again from each drive's figures.
-    let ok: Vec<&DriveEdit> = drives.iter().map(|r| r.result.as_ref().unwrap()).collect();
+    let ok: Vec<&DriveEdit> = drives
+        .iter()
+        .filter(|r| r.term == "col:load")
+        .map(|r| r.result.as_ref().unwrap())
+        .collect();
+    assert_eq!(ok.len(), 96);
     let before: f64 = ok.iter().map(|e| e.sse_before).sum();
     let after: f64 = ok.iter().map(|e| e.sse_after).sum();
     let t: f64 = ok.iter().map(|e| e.loss_gain).sum();
@@ -353,21 +380,28 @@ fn a_weak_effect_in_every_drive_is_verified_by_the_fleet_not_by_single_drives() 
     assert_eq!(d.best_edit.as_deref(), Some("col:load"));
     assert!(d.summary.contains("verified_pooled_z"), "{}", d.summary);
     // The drives' order does not change it.
-    let mut again = suggesting("load", "col:load");
+    let mut again = suggesting("load", &cands);
     let mut rev = drives.clone();
     rev.reverse();
     pool_verifications(&mut again, &rev);
     assert_eq!(again, d);
+    // Not a covariate's terms: the first candidate any drive refits is judged, not the best.
+    let mut first = suggesting("load", &["bins:load", "col:load"]);
+    first.verification.try_all = false;
+    pool_verifications(&mut first, &drives);
+    assert_eq!(first.verification.term.as_deref(), Some("bins:load"));
 }
 
 #[test]
 fn an_edit_without_effect_is_not_verified_by_the_fleet() {
-    // `temp` has no effect: refitted with it, the fleet's z stays below the bar in every one
-    // of several fleets (under no effect its expectation is negative: the refit's cost).
+    // `temp` has no effect: refitted with each of its terms, the best one's fleet z stays
+    // below the bar in every one of several fleets (under no effect its expectation is
+    // negative: the refit's cost).
     for first in [200, 300, 400] {
         let fleet = load_fleet(first, 16, 400, 0.0);
-        let mut d = suggesting("temp", "col:temp");
-        pool_verifications(&mut d, &refits(&fleet, "col:temp"));
+        let cands = ["bins:temp", "col:temp", "lag:temp"];
+        let mut d = suggesting("temp", &cands);
+        pool_verifications(&mut d, &refits(&fleet, &cands));
         let v = &d.verification;
         assert!(!v.verified, "{}", v.why);
         assert_eq!(v.reason, "not_significant_pooled_z");
@@ -375,8 +409,8 @@ fn an_edit_without_effect_is_not_verified_by_the_fleet() {
     }
     // A drive whose refit fails is named, not pooled; none left: no_drive_refitted.
     let fleet = load_fleet(500, 2, 300, 0.0);
-    let mut d = suggesting("humidity", "col:humidity");
-    pool_verifications(&mut d, &refits(&fleet, "col:humidity"));
+    let mut d = suggesting("humidity", &["col:humidity"]);
+    pool_verifications(&mut d, &refits(&fleet, &["col:humidity"]));
     let v = &d.verification;
     assert_eq!(
         (v.reason, v.failed.len(), v.drives),
@@ -406,7 +440,7 @@ fn a_fleet_whose_model_lacks_nothing_verifies_nothing() {
     assert_eq!(d.verification.term, None);
     // Nothing to verify: pooling refits changes nothing.
     let before = d.clone();
-    pool_verifications(&mut d, &refits(&fleet, "col:temp"));
+    pool_verifications(&mut d, &refits(&fleet, &["col:temp"]));
     assert_eq!(d, before);
     assert_eq!(d.best_edit, None);
 }

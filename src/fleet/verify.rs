@@ -1,9 +1,12 @@
-//! The pooled suggestion verified across the fleet. The edit is the pooled screen's: the
-//! suggested term of the first flagged feature (the features' order: smallest pooled p, then
-//! the largest mean explained share) that has one. Every screened drive is refitted with and
-//! without it on the folds of consecutive seeks the single-drive verification uses
-//! ([`VerifyConfig::folds`](crate::select::VerifyConfig::folds)), by the same code
-//! (`select::score_edit`), and the drives' out-of-sample figures are pooled:
+//! The pooled suggestion verified across the fleet. The feature is the pooled screen's first
+//! flagged one (the features' order: smallest pooled p, then the largest mean explained
+//! share) that has a suggested term; its candidates are that term and the alternatives the
+//! drives would try ([`PooledFeature::alternatives`]), as `diagnose` verifies a feature's
+//! terms. Every screened drive is refitted with each candidate and without, on the folds of
+//! consecutive seeks the single-drive verification uses
+//! ([`VerifyConfig::folds`](crate::select::VerifyConfig::folds)), by the same code (the
+//! verification's refits and judgement in `select`), and the drives' out-of-sample figures are
+//! pooled per candidate:
 //!
 //! - **gain** = Σ (SSE_before − SSE_after) / Σ SSE_before over the drives: the share of the
 //!   fleet's held-out squared error the edit removes (a drive's own gain is the verification's
@@ -14,12 +17,19 @@
 //!   the variances add; it is Stouffer's combination of the drives' z-scores weighted by sᵢ,
 //!   and an effect of the same size in k drives has a fleet z about √k times a drive's.
 //!
-//! The rule: verified iff z ≥ [`VerifyConfig::min_z`](crate::select::VerifyConfig::min_z) (the
-//! bar of a flagged feature's edit on one drive) and the gain is positive
-//! (`verified_pooled_z`); else `not_significant_pooled_z` or `no_pooled_gain`. The single
-//! drive's practical minimum is not asked of the fleet (an effect below it in every drive is
-//! what the pool is for); each drive's own verdict by the single-drive rule is reported beside
-//! it (`verified_alone`, `reason_alone`).
+//! Which candidate is judged is chosen as `diagnose` chooses among a feature's terms: for a
+//! covariate's or lag's terms (or `play`) every candidate is scored and the largest fleet gain
+//! kept; otherwise the first candidate that any drive could refit. The rule: verified iff its
+//! z ≥ [`VerifyConfig::min_z`](crate::select::VerifyConfig::min_z) (the bar of a flagged
+//! feature's edit on one drive) and its gain is positive (`verified_pooled_z`); else
+//! `not_significant_pooled_z` or `no_pooled_gain`. The single drive's practical minimum
+//! ([`crate::diagnose::DiagnoseConfig::min_effect`]) is not asked of the fleet (an effect
+//! below it in every drive is what the pool is for); each drive's own verdict by the
+//! single-drive rule is reported beside it (`verified_alone`, `reason_alone`).
+//!
+//! Each drive's refit pays its estimates' variance out of sample, so an effect verifies
+//! across the fleet only where it is larger than that cost on one drive; below it (a linear
+//! effect smaller than σ/√n_train per unit of its column) no number of drives verifies it.
 
 use std::path::Path;
 
@@ -66,13 +76,28 @@ pub struct DriveEdit {
     pub reason_alone: Reason,
 }
 
-/// One drive's refits with the fleet's edit, or why it has none (the library's message).
+/// One drive's refits with one candidate term, or why it has none (the library's message).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DriveVerification {
     /// The drive.
     pub source: String,
+    /// The candidate term.
+    pub term: String,
     /// Its figures, or the message.
     pub result: Result<DriveEdit, String>,
+}
+
+/// One candidate term's pooled figures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TriedEdit {
+    /// The term.
+    pub term: String,
+    /// Drives refitted with it.
+    pub drives: usize,
+    /// Its fleet gain (none: no drive was refitted).
+    pub gain: Option<f64>,
+    /// Its fleet z.
+    pub z: Option<f64>,
 }
 
 /// The pooled suggestion verified across the fleet (see the module docs).
@@ -80,8 +105,14 @@ pub struct DriveVerification {
 pub struct FleetVerification {
     /// The flagged feature the edit comes from (none: nothing to verify).
     pub feature: Option<String>,
-    /// The suggested term (`col:load`).
+    /// The candidate judged: the pooled suggestion before the refits, then the one chosen
+    /// among the candidates (see the module docs).
     pub term: Option<String>,
+    /// The terms refitted on every drive: the suggestion, then its alternatives.
+    pub candidates: Vec<String>,
+    /// Whether every candidate is scored and the largest fleet gain kept (else the first
+    /// that any drive could refit).
+    pub try_all: bool,
     /// The edit in words (`add col:load`), once a drive was refitted with it.
     pub edit: Option<String>,
     /// The model's terms with it.
@@ -106,9 +137,11 @@ pub struct FleetVerification {
     pub why: String,
     /// Drives whose own verification (the single-drive rule) verifies the edit.
     pub drives_verified_alone: usize,
-    /// Every pooled drive's figures, in the order of the sources.
+    /// Every candidate's pooled figures, in the order of `candidates`.
+    pub tried: Vec<TriedEdit>,
+    /// Every pooled drive's figures for the judged term, in the order of the sources.
     pub per_drive: Vec<DriveEdit>,
-    /// Drives whose refits failed: (source, message).
+    /// Drives whose refits with the judged term failed: (source, message).
     pub failed: Vec<(String, String)>,
 }
 
@@ -119,6 +152,8 @@ impl FleetVerification {
         let mut v = FleetVerification {
             feature: None,
             term: None,
+            candidates: Vec::new(),
+            try_all: false,
             edit: None,
             terms: None,
             folds,
@@ -130,6 +165,7 @@ impl FleetVerification {
             reason: "not_run",
             why: String::new(),
             drives_verified_alone: 0,
+            tried: Vec::new(),
             per_drive: Vec::new(),
             failed: Vec::new(),
         };
@@ -138,9 +174,16 @@ impl FleetVerification {
             Some(f) => {
                 v.feature = Some(f.name.clone());
                 v.term = f.suggested_term.clone();
+                v.candidates = f
+                    .suggested_term
+                    .iter()
+                    .chain(&f.alternatives)
+                    .cloned()
+                    .collect();
+                v.try_all = crate::select::tries_every_term(&v.candidates);
                 v.why = format!(
                     "not_run: the refits with `{}` were not run",
-                    f.suggested_term.as_deref().unwrap_or_default()
+                    v.candidates.join("`, `")
                 );
             }
             None if flagged.is_empty() => {
@@ -160,37 +203,41 @@ impl FleetVerification {
     }
 }
 
-/// Refits `spec` with and without `term` on one drive's `log` (see the module docs);
-/// `min_effect` is the single-drive rule's practical minimum
-/// ([`crate::diagnose::DiagnoseConfig::min_effect`]).
+/// Refits `spec` without and with each of `terms` on one drive's `log` (see the module
+/// docs): one result per term, in order; `min_effect` is the single-drive rule's practical
+/// minimum ([`crate::diagnose::DiagnoseConfig::min_effect`]).
 pub fn verify_drive(
     source: &str,
     log: &Log,
     spec: &ModelSpec,
-    term: &str,
+    terms: &[String],
     min_effect: f64,
     verify: &CheckedVerifyConfig,
-) -> DriveVerification {
-    let result =
-        crate::select::score_edit(spec, term, log, min_effect, verify).map(|s| DriveEdit {
+) -> Vec<DriveVerification> {
+    let scores = crate::select::score_edits(spec, terms, log, min_effect, verify);
+    terms
+        .iter()
+        .zip(scores)
+        .map(|(term, r)| DriveVerification {
             source: source.to_string(),
-            edit: s.edit.to_string(),
-            terms: s.terms,
-            rows: s.rows,
-            sse_before: s.sse_before,
-            sse_after: s.sse_after,
-            gain: s.gain,
-            gain_within_folds: s.gain_within_folds,
-            loss_gain: s.loss_gain,
-            loss_se: s.loss_se,
-            z: s.z,
-            verified_alone: s.reason == Reason::Verified,
-            reason_alone: s.reason,
-        });
-    DriveVerification {
-        source: source.to_string(),
-        result,
-    }
+            term: term.clone(),
+            result: r.map(|s| DriveEdit {
+                source: source.to_string(),
+                edit: s.edit.to_string(),
+                terms: s.terms,
+                rows: s.rows,
+                sse_before: s.sse_before,
+                sse_after: s.sse_after,
+                gain: s.gain,
+                gain_within_folds: s.gain_within_folds,
+                loss_gain: s.loss_gain,
+                loss_se: s.loss_se,
+                z: s.z,
+                verified_alone: s.reason == Reason::Verified,
+                reason_alone: s.reason,
+            }),
+        })
+        .collect()
 }
 
 /// [`verify_drive`] of the log at `path` read with `read`.
@@ -198,55 +245,33 @@ pub fn verify_path(
     path: &Path,
     read: &ReadSettings,
     spec: &ModelSpec,
-    term: &str,
+    terms: &[String],
     min_effect: f64,
     verify: &CheckedVerifyConfig,
-) -> DriveVerification {
+) -> Vec<DriveVerification> {
     let source = path.display().to_string();
     match read.read(path) {
-        Ok(log) => verify_drive(&source, &log, spec, term, min_effect, verify),
-        Err(e) => DriveVerification {
-            source,
-            result: Err(crate::io::message(&e)),
-        },
+        Ok(log) => verify_drive(&source, &log, spec, terms, min_effect, verify),
+        Err(e) => {
+            let m = crate::io::message(&e);
+            terms
+                .iter()
+                .map(|t| DriveVerification {
+                    source: source.clone(),
+                    term: t.clone(),
+                    result: Err(m.clone()),
+                })
+                .collect()
+        }
     }
 }
 
-/// Pools the drives' refits with the pooled suggestion ([`FleetDiagnosis::verification`]'s
-/// `term`) into the fleet's verdict (see the module docs), sets
-/// [`FleetDiagnosis::best_edit`] and the summary. The drives' order does not change it. Does
-/// nothing when the pooled screen has no edit to verify.
-pub fn pool_verifications(d: &mut FleetDiagnosis, drives: &[DriveVerification]) {
-    let v = &mut d.verification;
-    let Some(term) = v.term.clone() else { return };
-    let mut order: Vec<&DriveVerification> = drives.iter().collect();
-    order.sort_by(|a, b| a.source.cmp(&b.source));
-    v.per_drive = order
-        .iter()
-        .filter_map(|r| r.result.as_ref().ok().cloned())
-        .collect();
-    v.failed = order
-        .iter()
-        .filter_map(|r| {
-            r.result
-                .as_ref()
-                .err()
-                .map(|e| (r.source.clone(), e.clone()))
-        })
-        .collect();
-    v.drives = v.per_drive.len();
-    v.drives_verified_alone = v.per_drive.iter().filter(|e| e.verified_alone).count();
-    if v.per_drive.is_empty() {
-        v.reason = "no_drive_refitted";
-        v.why = format!(
-            "no_drive_refitted: no drive could be refitted with `{term}` (the failed list \
-             names each one's error)"
-        );
-        d.best_edit = None;
-        d.summary = super::pooled::summary(d);
-        return;
+/// The fleet's gain and z of the drives' figures (see the module docs): none without a drive.
+fn pooled(per: &[DriveEdit]) -> Option<(f64, f64)> {
+    if per.is_empty() {
+        return None;
     }
-    let sum = |f: fn(&DriveEdit) -> f64| v.per_drive.iter().map(f).sum::<f64>();
+    let sum = |f: fn(&DriveEdit) -> f64| per.iter().map(f).sum::<f64>();
     let (before, after) = (sum(|e| e.sse_before), sum(|e| e.sse_after));
     let gain = if before > 0.0 {
         (before - after) / before
@@ -258,6 +283,73 @@ pub fn pool_verifications(d: &mut FleetDiagnosis, drives: &[DriveVerification]) 
         sum(|e| e.loss_gain) / se
     } else {
         0.0
+    };
+    Some((gain, z))
+}
+
+/// Pools the drives' refits with the candidates
+/// ([`FleetVerification::candidates`]) into the fleet's verdict (see the module docs), sets
+/// [`FleetDiagnosis::best_edit`] and the summary. The drives' order does not change it. Does
+/// nothing when the pooled screen has no edit to verify; refits of other terms are ignored.
+pub fn pool_verifications(d: &mut FleetDiagnosis, drives: &[DriveVerification]) {
+    let v = &mut d.verification;
+    if v.candidates.is_empty() {
+        return;
+    }
+    let mut order: Vec<&DriveVerification> = drives.iter().collect();
+    order.sort_by(|a, b| a.source.cmp(&b.source));
+    let of = |term: &str| -> (Vec<DriveEdit>, Vec<(String, String)>) {
+        let mine = order.iter().filter(|r| r.term == term);
+        let ok = mine.clone().filter_map(|r| r.result.as_ref().ok().cloned());
+        let failed = mine.filter_map(|r| {
+            r.result
+                .as_ref()
+                .err()
+                .map(|e| (r.source.clone(), e.clone()))
+        });
+        (ok.collect(), failed.collect())
+    };
+    v.tried = v
+        .candidates
+        .iter()
+        .map(|t| {
+            let (per, _) = of(t);
+            let p = pooled(&per);
+            TriedEdit {
+                term: t.clone(),
+                drives: per.len(),
+                gain: p.map(|p| p.0),
+                z: p.map(|p| p.1),
+            }
+        })
+        .collect();
+    // As `diagnose` chooses among a feature's terms: the largest gain of all, or the first
+    // that fitted.
+    let refitted = v.tried.iter().filter(|t| t.drives > 0);
+    let chosen = if v.try_all {
+        refitted
+            .reduce(|a, b| if b.gain > a.gain { b } else { a })
+            .map(|t| t.term.clone())
+    } else {
+        refitted.map(|t| t.term.clone()).next()
+    };
+    let term = chosen.unwrap_or_else(|| v.candidates[0].clone());
+    let (per, failed) = of(&term);
+    v.term = Some(term.clone());
+    v.per_drive = per;
+    v.failed = failed;
+    v.drives = v.per_drive.len();
+    v.drives_verified_alone = v.per_drive.iter().filter(|e| e.verified_alone).count();
+    let Some((gain, z)) = pooled(&v.per_drive) else {
+        v.reason = "no_drive_refitted";
+        v.why = format!(
+            "no_drive_refitted: no drive could be refitted with `{}` (the failed list names \
+             each one's error)",
+            v.candidates.join("`, `")
+        );
+        d.best_edit = None;
+        d.summary = super::pooled::summary(d);
+        return;
     };
     (v.gain, v.z) = (Some(gain), Some(z));
     v.edit = v.per_drive.first().map(|e| e.edit.clone());

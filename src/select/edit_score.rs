@@ -3,6 +3,8 @@
 //! out-of-sample residuals judged by the same rule, and the parts of the z-score kept, so a
 //! caller that pools many logs (the fleet) can add them up.
 
+use rayon::prelude::*;
+
 use crate::diagnose::Reason;
 use crate::log::Log;
 use crate::model::{ModelEdit, ModelSpec};
@@ -41,48 +43,75 @@ pub(crate) struct EditScore {
     pub(crate) reason: Reason,
 }
 
-/// Scores `term` (a term a diagnosis suggests, turned into an edit of `spec` as the
-/// verification turns it, without a `table` spacing) on `log`: `spec` and the edited model each
-/// refitted on `config.folds` folds of consecutive seeks, as [`super::verify`] refits them;
-/// `min_effect` is the practical minimum of the single-log rule. The error says why the edit
-/// does not apply, a refit failed or blew up.
-pub(crate) fn score_edit(
+/// Scores each of `terms` (terms a diagnosis suggests, each turned into an edit of `spec` as
+/// the verification turns it, without a `table` spacing) on `log`: `spec` refitted once and
+/// each edited model refitted, on `config.folds` folds of consecutive seeks, as
+/// [`super::verify`] refits them; `min_effect` is the practical minimum of the single-log
+/// rule. One result per term, in order; an error says why the edit does not apply, or the
+/// refit (of the model as it is, for every term) failed or blew up.
+pub(crate) fn score_edits(
     spec: &ModelSpec,
-    term: &str,
+    terms: &[String],
     log: &Log,
     min_effect: f64,
     config: &CheckedVerifyConfig,
-) -> Result<EditScore, String> {
-    let edit = edit_for(term, spec, None).map_err(|e| e.to_string())?;
-    let next = spec.apply(&edit).map_err(|e| e.to_string())?;
+) -> Vec<Result<EditScore, String>> {
     let shared = refits_of(log, &config.fit);
     let score = |s: &ModelSpec| {
         cv_residuals_sharing(s, log, config.folds, &config.fit, &shared)
             .map_err(|e| error_chain(&e))
     };
-    let (before, after) = rayon::join(|| score(spec), || score(&next));
-    let (before, after) = (before?, after?);
-    let base = Baseline::new(before, config.folds);
-    if let Some(why) = blown_up(
-        super::verify::std_of(&base.r),
-        super::verify::std_of(&after),
-    ) {
-        return Err(why);
-    }
-    let judged = base.judge_both(&after, min_effect, config)[0];
-    let (loss_gain, loss_se) = base.z_parts(&after);
+    let edits: Vec<Result<(ModelEdit, ModelSpec), String>> = terms
+        .iter()
+        .map(|t| {
+            let edit = edit_for(t, spec, None).map_err(|e| e.to_string())?;
+            let next = spec.apply(&edit).map_err(|e| e.to_string())?;
+            Ok((edit, next))
+        })
+        .collect();
+    let (before, afters) = rayon::join(
+        || score(spec),
+        || {
+            edits
+                .par_iter()
+                .map(|e| e.as_ref().map_err(Clone::clone).and_then(|(_, n)| score(n)))
+                .collect::<Vec<_>>()
+        },
+    );
+    let base = match before {
+        Ok(r) => Baseline::new(r, config.folds),
+        Err(e) => {
+            let why = format!("the model `{spec}` cannot be refitted on this log: {e}");
+            return terms.iter().map(|_| Err(why.clone())).collect();
+        }
+    };
+    let std_before = super::verify::std_of(&base.r);
     let sse = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
-    Ok(EditScore {
-        edit,
-        terms: next.to_string(),
-        rows: after.len(),
-        sse_before: sse(&base.r),
-        sse_after: sse(&after),
-        gain: judged.gain,
-        gain_within_folds: judged.within,
-        loss_gain,
-        loss_se,
-        z: judged.z,
-        reason: judged.reason,
-    })
+    let sse_before = sse(&base.r);
+    edits
+        .into_iter()
+        .zip(afters)
+        .map(|(e, after)| {
+            let (edit, next) = e?;
+            let after = after?;
+            if let Some(why) = blown_up(std_before, super::verify::std_of(&after)) {
+                return Err(why);
+            }
+            let judged = base.judge_both(&after, min_effect, config)[0];
+            let (loss_gain, loss_se) = base.z_parts(&after);
+            Ok(EditScore {
+                edit,
+                terms: next.to_string(),
+                rows: after.len(),
+                sse_before,
+                sse_after: sse(&after),
+                gain: judged.gain,
+                gain_within_folds: judged.within,
+                loss_gain,
+                loss_se,
+                z: judged.z,
+                reason: judged.reason,
+            })
+        })
+        .collect()
 }
