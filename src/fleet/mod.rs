@@ -32,6 +32,7 @@ mod outliers;
 mod pattern;
 mod pooled;
 mod table;
+mod verdict;
 mod verify;
 
 pub use fits::{DriveError, DriveFit, ReadSettings, fit_log, fit_path, fit_paths};
@@ -40,13 +41,13 @@ pub use outliers::{
 };
 pub use pattern::{PatternError, expand};
 pub use pooled::{
-    DriveScreen, DriveStatistics, FleetDiagnosis, PoolError, PooledFeature, diagnose_paths, pool,
-    screen_drive, screen_path,
+    DriveScreen, DriveStatistics, FleetDiagnosis, PoolError, PooledFeature, pool, screen_drive,
+    screen_path,
 };
 pub use table::{FitsError, fits_csv, param_names, read_fits};
+pub use verdict::{diagnose_paths, pool_verifications};
 pub use verify::{
-    DriveEdit, DriveVerification, FleetVerification, TriedEdit, pool_verifications, verify_drive,
-    verify_path,
+    DriveEdit, DriveVerification, FleetVerification, TriedEdit, verify_drive, verify_path,
 };
 
 #[cfg(test)]

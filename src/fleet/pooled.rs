@@ -7,12 +7,11 @@
 //! for one drive). Under the null of no missing effect in any drive the family-wise false-alarm
 //! rate stays at alpha however many drives are pooled.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use rayon::prelude::*;
 use serde::Serialize;
 
-use super::verify::{DriveVerification, FleetVerification, verify_path};
+use super::verify::FleetVerification;
 use super::{DriveError, ReadSettings};
 use crate::diagnose::CheckedDiagnoseConfig;
 use crate::fit::CheckedFitOptions;
@@ -99,7 +98,7 @@ pub struct FleetDiagnosis {
     pub permutations: usize,
     /// The permutations' seed (every drive's, as `diagnose --seed`).
     pub seed: u64,
-    /// The pooled suggestion's term when the fleet verifies it (see [`super::verify`]).
+    /// The pooled suggestion's term when the fleet verifies it (see [`FleetVerification`]).
     pub best_edit: Option<String>,
     /// The pooled suggestion verified across the fleet, or why it was not.
     pub verification: FleetVerification,
@@ -188,41 +187,6 @@ pub fn screen_path(
     }
 }
 
-/// Screens every path's drive on rayon's pool and pools them ([`pool`]); with `verify`, then
-/// refits every drive with the pooled suggestion and pools the refits
-/// ([`super::pool_verifications`], the refits' settings and fit options `verify`'s).
-pub fn diagnose_paths(
-    paths: &[PathBuf],
-    read: &ReadSettings,
-    spec: &ModelSpec,
-    opts: &CheckedFitOptions,
-    config: &CheckedDiagnoseConfig,
-    verify: Option<&CheckedVerifyConfig>,
-) -> Result<FleetDiagnosis, PoolError> {
-    let screens: Vec<DriveScreen> = paths
-        .par_iter()
-        .map(|p| screen_path(p, read, spec, opts, config))
-        .collect();
-    let default = CheckedVerifyConfig::default();
-    let mut d = pool(&screens, config, verify.unwrap_or(&default))?;
-    if let (Some(v), false) = (verify, d.verification.candidates.is_empty()) {
-        // The drives the pool screened, each read again (no log is held through the screens).
-        let screened: Vec<&PathBuf> = paths
-            .iter()
-            .zip(&screens)
-            .filter(|(_, s)| s.screen.is_ok())
-            .map(|(p, _)| p)
-            .collect();
-        let terms = d.verification.candidates.clone();
-        let drives: Vec<DriveVerification> = screened
-            .par_iter()
-            .flat_map_iter(|p| verify_path(p, read, spec, &terms, config.min_effect, v))
-            .collect();
-        super::pool_verifications(&mut d, &drives);
-    }
-    Ok(d)
-}
-
 /// The pooled screen of the drives' screens (see the module docs); the drives' order does not
 /// change it.
 pub fn pool(
@@ -249,25 +213,7 @@ pub fn pool(
         .collect();
     let b = config.permutations;
     let m_of = |s: &DriveStatistics| s.names.len();
-    if let Some((source, s)) = ok.iter().find(|(_, s)| {
-        s.permutations != b
-            || [
-                s.tested.len(),
-                s.observed.len(),
-                s.explained.len(),
-                s.p_value.len(),
-            ]
-            .iter()
-            .chain([&s.suggested.len(), &s.alternatives.len()])
-            .any(|&l| l != m_of(s))
-            || s.null.len() != b * m_of(s)
-    }) {
-        return Err(PoolError {
-            drive: source.to_string(),
-            got: s.permutations,
-            want: b,
-        });
-    }
+    check_shapes(&ok, b)?;
     // The features of every drive, in the order they first appear.
     let mut names: Vec<String> = Vec::new();
     for (_, s) in &ok {
@@ -367,7 +313,7 @@ pub fn pool(
             .then(a.p_value.total_cmp(&b.p_value))
             .then(b.explained.total_cmp(&a.explained))
     });
-    let verification = FleetVerification::pending(&features, verify.min_z, verify.folds);
+    let verification = pending(&features, verify);
     let mut d = FleetDiagnosis {
         drives: ok.len(),
         failed,
@@ -381,6 +327,54 @@ pub fn pool(
     };
     d.summary = summary(&d);
     Ok(d)
+}
+
+/// Every drive's statistics of `b` permutations, one of each per feature: else the first
+/// drive that differs.
+fn check_shapes(ok: &[(&str, &DriveStatistics)], b: usize) -> Result<(), PoolError> {
+    let bad = |s: &DriveStatistics| {
+        let m = s.names.len();
+        s.permutations != b
+            || [
+                s.tested.len(),
+                s.observed.len(),
+                s.explained.len(),
+                s.p_value.len(),
+                s.suggested.len(),
+                s.alternatives.len(),
+            ]
+            .iter()
+            .any(|&l| l != m)
+            || s.null.len() != b * m
+    };
+    match ok.iter().find(|(_, s)| bad(s)) {
+        Some((source, s)) => Err(PoolError {
+            drive: source.to_string(),
+            got: s.permutations,
+            want: b,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The verification the pooled screen asks for, before any refit: the first flagged feature
+/// (in the features' order) that has a suggested term, its candidates that term and then the
+/// alternatives the drives would try.
+pub(super) fn pending(
+    features: &[PooledFeature],
+    verify: &CheckedVerifyConfig,
+) -> FleetVerification {
+    let mut flagged = features.iter().filter(|f| f.flagged).peekable();
+    let any = flagged.peek().is_some();
+    let suggestion = flagged.find_map(|f| {
+        let term = f.suggested_term.as_ref()?;
+        let candidates = std::iter::once(term)
+            .chain(&f.alternatives)
+            .cloned()
+            .collect();
+        Some((f.name.clone(), candidates))
+    });
+    FleetVerification::pending(suggestion, any, verify.min_z, verify.folds)
 }
 
 /// The verdict in words: the flagged features with their pooled p, mean share and how many

@@ -277,7 +277,7 @@ fn suggesting(feature: &str, terms: &[&str]) -> FleetDiagnosis {
     FleetDiagnosis {
         drives: 1,
         failed: Vec::new(),
-        verification: FleetVerification::pending(std::slice::from_ref(&f), verify.min_z, 3),
+        verification: super::pooled::pending(std::slice::from_ref(&f), &verify),
         features: vec![f],
         summary: String::new(),
         alpha: 0.01,
@@ -331,9 +331,11 @@ fn one_drive_pooled_is_its_own_verification_by_diagnose() {
 fn a_weak_effect_in_every_drive_is_verified_by_the_fleet_not_by_single_drives() {
     // 0.08 counts per unit of load on unit noise, a quarter of what one drive of 600 seeks
     // needs. Each drive's refit pays its estimate's variance out of sample (1/400 of the
-    // noise at 400 training rows, 40 % of the effect's 0.0064), so a drive's z averages about
-    // 0.3: over ten fleets the fleet's z was 1.0–3.8 for 32 drives (7 of 10 verified), 2.7–4.6
-    // for 64 (10 of 10), 4.2–6.0 for 128. 96 drives here, for a margin.
+    // noise at 400 training rows, 40 % of the effect's 0.0064), so the fleet's z grows as
+    // about 0.3 √drives (the drives' own z average 0.15 here): over ten fleets of each size
+    // (first seeds 1000, 1200, …, 2800) the fleet's z of the chosen term was 0.1–4.6 for 32
+    // drives (5 of 10 verified), 2.1–5.5 for 64 (10 of 10), 2.7–6.8 for 128 (10 of 10).
+    // 96 drives here (z = 3.10), for a margin.
     // The candidates as the pooled screen gives them for a covariate: every one is scored
     // (the shape `bins:load` pays for its knots), the largest fleet gain kept.
     let cands = ["bins:load", "col:load", "lag:load"];

@@ -1,8 +1,8 @@
 //! The pooled suggestion verified across the fleet. The feature is the pooled screen's first
 //! flagged one (the features' order: smallest pooled p, then the largest mean explained
 //! share) that has a suggested term; its candidates are that term and the alternatives the
-//! drives would try ([`PooledFeature::alternatives`]), as `diagnose` verifies a feature's
-//! terms. Every screened drive is refitted with each candidate and without, on the folds of
+//! drives would try ([`super::PooledFeature::alternatives`]), as `diagnose` verifies a
+//! feature's terms. Every screened drive is refitted with each candidate and without, on the folds of
 //! consecutive seeks the single-drive verification uses
 //! ([`VerifyConfig::folds`](crate::select::VerifyConfig::folds)), by the same code (the
 //! verification's refits and judgement in `select`), and the drives' out-of-sample figures are
@@ -35,7 +35,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::{FleetDiagnosis, PooledFeature, ReadSettings};
+use super::ReadSettings;
 use crate::diagnose::Reason;
 use crate::log::Log;
 use crate::model::ModelSpec;
@@ -147,8 +147,15 @@ pub struct FleetVerification {
 
 impl FleetVerification {
     /// The verification of a pooled screen before any refit: the edit to verify (reason
-    /// `not_run`), or why there is none.
-    pub(super) fn pending(features: &[PooledFeature], z_bar: f64, folds: usize) -> Self {
+    /// `not_run`), or why there is none. `suggestion`: the first flagged feature that has a
+    /// suggested term, with its candidates (that term, then the alternatives); `any_flagged`:
+    /// whether any feature is flagged.
+    pub(super) fn pending(
+        suggestion: Option<(String, Vec<String>)>,
+        any_flagged: bool,
+        z_bar: f64,
+        folds: usize,
+    ) -> Self {
         let mut v = FleetVerification {
             feature: None,
             term: None,
@@ -169,24 +176,18 @@ impl FleetVerification {
             per_drive: Vec::new(),
             failed: Vec::new(),
         };
-        let flagged: Vec<_> = features.iter().filter(|f| f.flagged).collect();
-        match flagged.iter().find(|f| f.suggested_term.is_some()) {
-            Some(f) => {
-                v.feature = Some(f.name.clone());
-                v.term = f.suggested_term.clone();
-                v.candidates = f
-                    .suggested_term
-                    .iter()
-                    .chain(&f.alternatives)
-                    .cloned()
-                    .collect();
+        match suggestion {
+            Some((feature, candidates)) => {
+                v.feature = Some(feature);
+                v.term = candidates.first().cloned();
+                v.candidates = candidates;
                 v.try_all = crate::select::tries_every_term(&v.candidates);
                 v.why = format!(
                     "not_run: the refits with `{}` were not run",
                     v.candidates.join("`, `")
                 );
             }
-            None if flagged.is_empty() => {
+            None if !any_flagged => {
                 v.reason = "nothing_flagged";
                 v.why = "nothing_flagged: no feature is flagged by the pooled screen, so there \
                          is no edit to verify"
@@ -264,121 +265,4 @@ pub fn verify_path(
                 .collect()
         }
     }
-}
-
-/// The fleet's gain and z of the drives' figures (see the module docs): none without a drive.
-fn pooled(per: &[DriveEdit]) -> Option<(f64, f64)> {
-    if per.is_empty() {
-        return None;
-    }
-    let sum = |f: fn(&DriveEdit) -> f64| per.iter().map(f).sum::<f64>();
-    let (before, after) = (sum(|e| e.sse_before), sum(|e| e.sse_after));
-    let gain = if before > 0.0 {
-        (before - after) / before
-    } else {
-        0.0
-    };
-    let se = sum(|e| e.loss_se * e.loss_se).sqrt();
-    let z = if se > 0.0 {
-        sum(|e| e.loss_gain) / se
-    } else {
-        0.0
-    };
-    Some((gain, z))
-}
-
-/// Pools the drives' refits with the candidates
-/// ([`FleetVerification::candidates`]) into the fleet's verdict (see the module docs), sets
-/// [`FleetDiagnosis::best_edit`] and the summary. The drives' order does not change it. Does
-/// nothing when the pooled screen has no edit to verify; refits of other terms are ignored.
-pub fn pool_verifications(d: &mut FleetDiagnosis, drives: &[DriveVerification]) {
-    let v = &mut d.verification;
-    if v.candidates.is_empty() {
-        return;
-    }
-    let mut order: Vec<&DriveVerification> = drives.iter().collect();
-    order.sort_by(|a, b| a.source.cmp(&b.source));
-    let of = |term: &str| -> (Vec<DriveEdit>, Vec<(String, String)>) {
-        let mine = order.iter().filter(|r| r.term == term);
-        let ok = mine.clone().filter_map(|r| r.result.as_ref().ok().cloned());
-        let failed = mine.filter_map(|r| {
-            r.result
-                .as_ref()
-                .err()
-                .map(|e| (r.source.clone(), e.clone()))
-        });
-        (ok.collect(), failed.collect())
-    };
-    v.tried = v
-        .candidates
-        .iter()
-        .map(|t| {
-            let (per, _) = of(t);
-            let p = pooled(&per);
-            TriedEdit {
-                term: t.clone(),
-                drives: per.len(),
-                gain: p.map(|p| p.0),
-                z: p.map(|p| p.1),
-            }
-        })
-        .collect();
-    // As `diagnose` chooses among a feature's terms: the largest gain of all, or the first
-    // that fitted.
-    let refitted = v.tried.iter().filter(|t| t.drives > 0);
-    let chosen = if v.try_all {
-        refitted
-            .reduce(|a, b| if b.gain > a.gain { b } else { a })
-            .map(|t| t.term.clone())
-    } else {
-        refitted.map(|t| t.term.clone()).next()
-    };
-    let term = chosen.unwrap_or_else(|| v.candidates[0].clone());
-    let (per, failed) = of(&term);
-    v.term = Some(term.clone());
-    v.per_drive = per;
-    v.failed = failed;
-    v.drives = v.per_drive.len();
-    v.drives_verified_alone = v.per_drive.iter().filter(|e| e.verified_alone).count();
-    let Some((gain, z)) = pooled(&v.per_drive) else {
-        v.reason = "no_drive_refitted";
-        v.why = format!(
-            "no_drive_refitted: no drive could be refitted with `{}` (the failed list names \
-             each one's error)",
-            v.candidates.join("`, `")
-        );
-        d.best_edit = None;
-        d.summary = super::pooled::summary(d);
-        return;
-    };
-    (v.gain, v.z) = (Some(gain), Some(z));
-    v.edit = v.per_drive.first().map(|e| e.edit.clone());
-    v.terms = v.per_drive.first().map(|e| e.terms.clone());
-    v.reason = if z.partial_cmp(&v.z_bar).is_none_or(|o| o.is_lt()) {
-        "not_significant_pooled_z"
-    } else if gain.partial_cmp(&0.0).is_none_or(|o| o.is_le()) {
-        "no_pooled_gain"
-    } else {
-        "verified_pooled_z"
-    };
-    v.verified = v.reason == "verified_pooled_z";
-    let figures = format!(
-        "over {} drives it gains {:.2} % of the held-out squared error at z = {:.2} (bar \
-         {}); {} of {} drives verify it alone",
-        v.drives,
-        100.0 * gain,
-        z,
-        v.z_bar,
-        v.drives_verified_alone,
-        v.drives
-    );
-    v.why = match v.reason {
-        "verified_pooled_z" => format!("verified_pooled_z: `{term}` {figures}"),
-        "no_pooled_gain" => {
-            format!("no_pooled_gain: `{term}` {figures}, but the squared error does not fall")
-        }
-        _ => format!("not_significant_pooled_z: `{term}` {figures}: below the bar"),
-    };
-    d.best_edit = v.verified.then_some(term);
-    d.summary = super::pooled::summary(d);
 }
