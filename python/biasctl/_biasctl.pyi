@@ -205,6 +205,7 @@ _Screen = tuple[
     int,
     list[float],
     list[str | None],
+    list[list[str]],
 ]
 
 def screen_drive(
@@ -226,10 +227,38 @@ def screen_drive(
     velocity_col: str | None = None,
     threads: int | None = None,
 ) -> _Screen: ...
+
+_Refit = tuple[
+    str,
+    str,
+    str | None,
+    tuple[int, float, float, float, float, float, float, float],
+    tuple[bool, str, str, str],
+]
+
+def verify_drive(
+    source: str,
+    model: str,
+    terms: list[str],
+    path: str | None = None,
+    log: Log | None = None,
+    verify_folds: int = 3,
+    time_col: str | None = None,
+    track_col: str | None = None,
+    bias_col: str | None = None,
+    bias_unit: str | None = None,
+    track_unit: str | None = None,
+    delimiter: str | None = None,
+    deadband: float | None = None,
+    velocity_col: str | None = None,
+    threads: int | None = None,
+) -> list[_Refit]: ...
 def pool_screens(
     screens: list[_Screen],
     seed: int = 1,
     alpha: float = 0.01,
     permutations: int = 199,
     folds: int = 5,
+    verify_folds: int = 3,
+    refits: list[_Refit] | None = None,
 ) -> str: ...

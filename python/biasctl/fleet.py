@@ -227,13 +227,46 @@ def _screen_batch(items: list, model: str, settings: dict, options: dict) -> lis
     return [_screen_one(item, model, settings, options, 1) for item in items]
 
 
+def _refit_one(item: tuple[str, Any], model: str, terms: list[str], verify_folds: int,
+               options: dict, threads: int | None) -> list[tuple]:
+    source, what = item
+    if isinstance(what, Log):
+        return _ext.verify_drive(source, model, terms, log=what._inner,
+                                 verify_folds=verify_folds, threads=threads, **options)
+    return _ext.verify_drive(source, model, terms, path=what, verify_folds=verify_folds,
+                             threads=threads, **options)
+
+
+def _refit_batch(items: list, model: str, terms: list[str], verify_folds: int,
+                 options: dict) -> list[list[tuple]]:
+    """One Dask task: a batch of drives refitted without and with each candidate term, one
+    after the other, each on one library worker."""
+    return [_refit_one(item, model, terms, verify_folds, options, 1) for item in items]
+
+
+def _run(fn, items: list, client: Any, batch: int, workers: int | None, batch_fn, **kw) -> list:
+    """``fn(item, **kw, threads=1)`` for every item, in order: on the client in batches of
+    ``batch`` (``batch_fn``), else on a local thread pool."""
+    if client is not None:
+        batches = [items[i : i + batch] for i in range(0, len(items), batch)]
+        futures = client.map(batch_fn, batches, **kw, pure=False)
+        return [r for part in client.gather(futures) for r in part]
+    n = workers or _os.cpu_count() or 1
+    with ThreadPoolExecutor(max_workers=n) as pool:
+        return list(pool.map(lambda it: fn(it, **kw, threads=1), items))
+
+
 class FleetDiagnosis:
     """The pooled screen of a fleet (:func:`diagnose_many`): ``to_dict()`` equals
     ``biasctl fleet diagnose --json``; ``features`` a DataFrame (name, explained: the mean
     out-of-sample share per drive, p_value: family-wise of the pooled statistic, p_value_raw,
     flagged, reason: the rule that decided, drives_alone: drives whose own screen finds it
-    significant, drives: drives that tested it, suggested_term); ``summary``; ``failed``: the
-    drives that could not be screened, with their messages."""
+    significant, drives: drives that tested it, suggested_term, alternatives); ``summary``;
+    ``failed``: the drives that could not be screened, with their messages; ``verification``:
+    the pooled suggestion refitted on every drive (feature, term, candidates, try_all, edit,
+    terms, folds, drives, gain, z, z_bar, verified, reason: the rule that decided, why,
+    drives_verified_alone, tried: each candidate's figures, per_drive: each drive's, failed);
+    ``best_edit``: its term when the fleet verifies it."""
 
     def __init__(self, json_text: str) -> None:
         self._json = json_text
@@ -257,12 +290,20 @@ class FleetDiagnosis:
     def features(self):
         pd = _pandas()
         cols = ["name", "explained", "p_value", "p_value_raw", "flagged", "reason",
-                "drives_alone", "drives", "suggested_term"]
+                "drives_alone", "drives", "suggested_term", "alternatives"]
         return pd.DataFrame(self._dict["features"], columns=cols)
 
     @property
     def flagged(self) -> list[str]:
         return [f["name"] for f in self._dict["features"] if f["flagged"]]
+
+    @property
+    def best_edit(self) -> str | None:
+        return self._dict["best_edit"]
+
+    @property
+    def verification(self) -> dict:
+        return _json.loads(self._json)["verification"]
 
     def __repr__(self) -> str:
         return f"FleetDiagnosis({self.summary!r})"
@@ -277,6 +318,8 @@ def diagnose_many(
     alpha: float = 0.01,
     permutations: int = 199,
     folds: int = 5,
+    verify: bool = True,
+    verify_folds: int = 3,
     batch: int = 64,
     workers: int | None = None,
     **options: Any,
@@ -287,6 +330,16 @@ def diagnose_many(
     counted over the same permutations applied within each drive. An effect too weak to be
     significant in any one drive but present in all is flagged; with nothing missing from the
     model the family-wise false-alarm rate stays at ``alpha`` however many drives are pooled.
+
+    With ``verify`` the pooled suggestion (the first flagged feature's suggested term, and the
+    alternatives the drives would try) is then verified across the fleet: every screened drive
+    refitted without and with each on ``verify_folds`` folds of consecutive seeks (as
+    ``diagnose`` verifies an edit), per term the fleet's gain Σ(SSE_before − SSE_after) /
+    Σ SSE_before and its z Σ Tᵢ / √(Σ sᵢ²) (each drive's paired-loss gain and its standard
+    error); the term is chosen as ``diagnose`` chooses among a feature's terms, and verified
+    iff its z reaches the single drive's bar and its gain is positive (``verification``,
+    ``best_edit``).
+
     ``logs``, ``client``, ``batch``, ``workers`` and the read options as :func:`fit_many`
     (fit options: ``deadband``, ``velocity_col``). A drive that cannot be read, fitted or
     screened is left out of the pool and named in ``failed``."""
@@ -301,18 +354,21 @@ def diagnose_many(
     spec = _terms(model)
     settings = {"seed": seed, "alpha": alpha, "permutations": permutations, "folds": folds}
     # The settings are checked once, before any drive runs.
-    _ext.pool_screens([], **settings)
+    _ext.pool_screens([], **settings, verify_folds=verify_folds)
     items = _items(logs)
-    if client is not None:
-        batches = [items[i : i + batch] for i in range(0, len(items), batch)]
-        futures = client.map(_screen_batch, batches, model=spec, settings=settings,
-                             options=options, pure=False)
-        screens = [s for part in client.gather(futures) for s in part]
-    else:
-        n = workers or _os.cpu_count() or 1
-        with ThreadPoolExecutor(max_workers=n) as pool:
-            screens = list(pool.map(lambda it: _screen_one(it, spec, settings, options, 1), items))
-    return FleetDiagnosis(_ext.pool_screens(screens, **settings))
+    screens = _run(_screen_one, items, client, batch, workers, _screen_batch, model=spec,
+                   settings=settings, options=options)
+    pooled = _ext.pool_screens(screens, **settings, verify_folds=verify_folds)
+    terms = _json.loads(pooled)["verification"]["candidates"]
+    if not verify or not terms:
+        return FleetDiagnosis(pooled)
+    # The drives the pool screened, each refitted with every candidate term.
+    screened = [it for it, s in zip(items, screens) if s[1] is None]
+    refits = _run(_refit_one, screened, client, batch, workers, _refit_batch, model=spec,
+                  terms=terms, verify_folds=verify_folds, options=options)
+    refits = [r for drive in refits for r in drive]
+    return FleetDiagnosis(_ext.pool_screens(screens, **settings, verify_folds=verify_folds,
+                                            refits=refits))
 
 
 _SCORE_COLUMNS = ["source", "test", "n", "mean", "std", "rms", "median_abs", "error"]

@@ -38,6 +38,10 @@ class FleetDiagnosis:
     def features(self) -> pd.DataFrame: ...
     @property
     def flagged(self) -> list[str]: ...
+    @property
+    def best_edit(self) -> str | None: ...
+    @property
+    def verification(self) -> dict[str, Any]: ...
 
 def diagnose_many(
     logs: Sequence[str | PathLike[str] | Log],
@@ -48,6 +52,8 @@ def diagnose_many(
     alpha: float = 0.01,
     permutations: int = 199,
     folds: int = 5,
+    verify: bool = True,
+    verify_folds: int = 3,
     batch: int = 64,
     workers: int | None = None,
     **options: Any,

@@ -150,7 +150,7 @@ pub(crate) fn fits_csv(rows: Vec<Row>) -> String {
 }
 
 /// One drive's screen as the pooled screen reads it: (source, error, names, tested, observed,
-/// explained, p_value, permutations, null, suggested).
+/// explained, p_value, permutations, null, suggested, alternatives).
 type Screen = (
     String,
     Option<String>,
@@ -162,6 +162,7 @@ type Screen = (
     usize,
     Vec<f64>,
     Vec<Option<String>>,
+    Vec<Vec<String>>,
 );
 
 /// The checked diagnosis settings of the fleet's screen.
@@ -245,6 +246,7 @@ pub(crate) fn screen_drive(
                     s.permutations,
                     s.null,
                     s.suggested,
+                    s.alternatives,
                 ),
                 Err(e) => (
                     source,
@@ -257,16 +259,185 @@ pub(crate) fn screen_drive(
                     permutations,
                     Vec::new(),
                     Vec::new(),
+                    Vec::new(),
                 ),
             })
         })
     })
 }
 
-/// The pooled screen of the drives' screens (`fleet::pool`), as the JSON `biasctl fleet
-/// diagnose --json` prints.
+/// One drive's refits with one candidate term (`fleet::verify_drive`): (source, term, error,
+/// (rows, sse_before, sse_after, gain, gain_within_folds, loss_gain, loss_se, z),
+/// (verified_alone, reason_alone, edit, terms)).
+type Refit = (
+    String,
+    String,
+    Option<String>,
+    (usize, f64, f64, f64, f64, f64, f64, f64),
+    (bool, String, String, String),
+);
+
+/// The checked settings of the verification refits (`fit`: the fleet's fit options).
+fn verify_config(
+    folds: usize,
+    fit: biasctl::fit::CheckedFitOptions,
+) -> Result<biasctl::select::CheckedVerifyConfig, Failure> {
+    biasctl::VerifyConfig {
+        folds,
+        fit,
+        ..biasctl::VerifyConfig::default()
+    }
+    .check()
+    .map_err(fail(Kind::Base))
+}
+
+fn refit_row(v: fleet::DriveVerification) -> Refit {
+    match v.result {
+        Ok(e) => {
+            let reason = serde_json::to_value(e.reason_alone)
+                .ok()
+                .and_then(|r| r.as_str().map(str::to_string))
+                .unwrap_or_default();
+            (
+                v.source,
+                v.term,
+                None,
+                (
+                    e.rows,
+                    e.sse_before,
+                    e.sse_after,
+                    e.gain,
+                    e.gain_within_folds,
+                    e.loss_gain,
+                    e.loss_se,
+                    e.z,
+                ),
+                (e.verified_alone, reason, e.edit, e.terms),
+            )
+        }
+        Err(m) => (
+            v.source,
+            v.term,
+            Some(m),
+            (0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            (false, String::new(), String::new(), String::new()),
+        ),
+    }
+}
+
+fn drive_verification(r: Refit) -> Result<fleet::DriveVerification, Failure> {
+    let (source, term, error, figures, verdict) = r;
+    let (rows, sse_before, sse_after, gain, within, loss_gain, loss_se, z) = figures;
+    let (verified_alone, reason, edit, terms) = verdict;
+    let result = match error {
+        Some(m) => Err(m),
+        None => {
+            let reason_alone: biasctl::diagnose::Reason = serde_json::from_value(
+                serde_json::Value::String(reason.clone()),
+            )
+            .map_err(|_| Failure::new(Kind::Base, format!("internal: unknown rule `{reason}`")))?;
+            Ok(fleet::DriveEdit {
+                source: source.clone(),
+                edit,
+                terms,
+                rows,
+                sse_before,
+                sse_after,
+                gain,
+                gain_within_folds: within,
+                loss_gain,
+                loss_se,
+                z,
+                verified_alone,
+                reason_alone,
+            })
+        }
+    };
+    Ok(fleet::DriveVerification {
+        source,
+        term,
+        result,
+    })
+}
+
+/// One drive refitted without and with each of `terms` on the verification's folds
+/// (`fleet::verify_path` / `fleet::verify_drive`): `path` read with the column and unit
+/// settings, or `log` already read; one row per term. A drive that cannot be read or refitted
+/// gives its message, never an exception; bad settings raise.
 #[pyfunction]
-#[pyo3(signature = (screens, seed=1, alpha=0.01, permutations=199, folds=5))]
+#[pyo3(signature = (source, model, terms, path=None, log=None, verify_folds=3, time_col=None, track_col=None, bias_col=None, bias_unit=None, track_unit=None, delimiter=None, deadband=None, velocity_col=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn verify_drive(
+    py: Python<'_>,
+    source: String,
+    model: &str,
+    terms: Vec<String>,
+    path: Option<std::path::PathBuf>,
+    log: Option<&PyLog>,
+    verify_folds: usize,
+    time_col: Option<String>,
+    track_col: Option<String>,
+    bias_col: Option<String>,
+    bias_unit: Option<String>,
+    track_unit: Option<String>,
+    delimiter: Option<String>,
+    deadband: Option<f64>,
+    velocity_col: Option<String>,
+    threads: Option<usize>,
+) -> PyResult<Vec<Refit>> {
+    let spec = attached(|| model_spec(model))?;
+    let opts = attached(|| fit_options(deadband, velocity_col, None, None, None))?;
+    let verify = attached(|| verify_config(verify_folds, opts))?;
+    let min_effect = biasctl::DiagnoseConfig::default().min_effect;
+    let read = ReadSettings {
+        columns: crate::log::column_map(time_col, track_col, bias_col, delimiter.as_deref())?,
+        bias_unit,
+        track_unit,
+    };
+    detached(py, || {
+        on_threads(threads, || {
+            let v = match (path, log) {
+                (Some(p), None) => {
+                    fleet::verify_path(&p, &read, &spec, &terms, min_effect, &verify)
+                }
+                (None, Some(l)) => match l.measured() {
+                    Ok(log) => {
+                        fleet::verify_drive(&source, log, &spec, &terms, min_effect, &verify)
+                    }
+                    Err(e) => terms
+                        .iter()
+                        .map(|t| fleet::DriveVerification {
+                            source: source.clone(),
+                            term: t.clone(),
+                            result: Err(e.message().to_string()),
+                        })
+                        .collect(),
+                },
+                _ => {
+                    return Err(Failure::new(
+                        Kind::Base,
+                        "internal: give a path or a log, not both",
+                    ));
+                }
+            };
+            // The source as the caller names it (a path's display may differ).
+            Ok(v.into_iter()
+                .map(|v| {
+                    let mut row = refit_row(v);
+                    row.0 = source.clone();
+                    row
+                })
+                .collect())
+        })
+    })
+}
+
+/// The pooled screen of the drives' screens (`fleet::pool`), and with `refits` the drives'
+/// refits with its suggestion pooled (`fleet::pool_verifications`), as the JSON `biasctl
+/// fleet diagnose --json` prints.
+#[pyfunction]
+#[pyo3(signature = (screens, seed=1, alpha=0.01, permutations=199, folds=5, verify_folds=3, refits=None))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn pool_screens(
     py: Python<'_>,
     screens: Vec<Screen>,
@@ -274,8 +445,11 @@ pub(crate) fn pool_screens(
     alpha: f64,
     permutations: usize,
     folds: usize,
+    verify_folds: usize,
+    refits: Option<Vec<Refit>>,
 ) -> PyResult<String> {
     let config = attached(|| diagnose_config(seed, alpha, permutations, folds))?;
+    let verify = attached(|| verify_config(verify_folds, Default::default()))?;
     detached(py, || {
         let screens: Vec<fleet::DriveScreen> = screens
             .into_iter()
@@ -292,11 +466,19 @@ pub(crate) fn pool_screens(
                         permutations: s.7,
                         null: s.8,
                         suggested: s.9,
+                        alternatives: s.10,
                     }),
                 },
             })
             .collect();
-        let d = fleet::pool(&screens, &config).map_err(fail(Kind::Base))?;
+        let mut d = fleet::pool(&screens, &config, &verify).map_err(fail(Kind::Base))?;
+        if let Some(refits) = refits {
+            let drives = refits
+                .into_iter()
+                .map(drive_verification)
+                .collect::<Result<Vec<_>, _>>()?;
+            fleet::pool_verifications(&mut d, &drives);
+        }
         biasctl::io::to_string_pretty(&d).map_err(fail(Kind::Base))
     })
 }

@@ -53,6 +53,7 @@ fn _biasctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fleet::fits_csv, m)?)?;
     m.add_function(wrap_pyfunction!(fleet::screen_drive, m)?)?;
     m.add_function(wrap_pyfunction!(fleet::pool_screens, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet::verify_drive, m)?)?;
     m.add_function(wrap_pyfunction!(_panic, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

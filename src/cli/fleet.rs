@@ -87,7 +87,9 @@ struct DiagnoseArgs {
     drives: Drives,
     /// Print the pooled diagnosis as JSON (keys drives, failed, features {name, explained,
     /// p_value, p_value_raw, flagged, reason, drives_alone, drives, suggested_term}, summary,
-    /// alpha, permutations, seed).
+    /// alpha, permutations, seed, best_edit, verification {feature, term, edit, terms, folds,
+    /// drives, gain, z, z_bar, verified, reason, why, drives_verified_alone, per_drive,
+    /// failed}).
     #[arg(long)]
     json: bool,
     /// Family-wise significance level of the pooled screen, in (0, 0.5].
@@ -102,6 +104,13 @@ struct DiagnoseArgs {
     /// Cross-validation folds, 2..=50.
     #[arg(allow_negative_numbers = true, long, default_value_t = 5)]
     folds: usize,
+    /// Skip the verification refits (every drive refitted with the pooled suggestion on
+    /// held-out folds of consecutive seeks, the fleet's gain and z).
+    #[arg(long)]
+    no_verify: bool,
+    /// Folds of consecutive seeks of the verification refits, 2..=20 (as `diagnose`).
+    #[arg(allow_negative_numbers = true, long, default_value_t = 3)]
+    verify_folds: usize,
 }
 
 /// Flags of `biasctl fleet outliers`.
@@ -216,7 +225,17 @@ fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     }
     .check()?;
     let (spec, opts, paths, read) = a.drives.resolve()?;
-    let d = fleet::diagnose_paths(&paths, &read, &spec, &opts, &config)?;
+    let verify = crate::VerifyConfig {
+        folds: a.verify_folds,
+        fit: opts.clone(),
+        ..crate::VerifyConfig::default()
+    }
+    .check()?;
+    let verify = (!a.no_verify).then_some(&verify);
+    let d = fleet::diagnose_paths(&paths, &read, &spec, &opts, &config, verify)?;
+    for (source, message) in &d.verification.failed {
+        eprintln!("warning: {source}: not refitted with the pooled suggestion: {message}");
+    }
     for (source, message) in &d.failed {
         eprintln!("warning: {source}: not screened: {message}");
     }
@@ -247,6 +266,24 @@ fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             if f.flagged { "yes" } else { "no" },
             f.suggested_term.as_deref().unwrap_or("-")
         )?;
+    }
+    let v = &d.verification;
+    match (v.verified, v.edit.as_deref(), v.gain, v.z) {
+        (true, Some(edit), Some(gain), Some(z)) => outln!(
+            "verified: {edit} across {} drives: gain {:.2} % of the held-out squared error, \
+             z = {z:.2} (bar {}; {} drives verify it alone) [{}]",
+            v.drives,
+            100.0 * gain,
+            v.z_bar,
+            v.drives_verified_alone,
+            v.reason
+        )?,
+        _ => {
+            // `why` begins with the rule; printed after the words here.
+            let prefix = format!("{}: ", v.reason);
+            let why = v.why.strip_prefix(&prefix).unwrap_or(&v.why);
+            outln!("not verified: {why} ({})", v.reason)?
+        }
     }
     Ok(())
 }

@@ -32,6 +32,8 @@ mod outliers;
 mod pattern;
 mod pooled;
 mod table;
+mod verdict;
+mod verify;
 
 pub use fits::{DriveError, DriveFit, ReadSettings, fit_log, fit_path, fit_paths};
 pub use outliers::{
@@ -39,10 +41,14 @@ pub use outliers::{
 };
 pub use pattern::{PatternError, expand};
 pub use pooled::{
-    DriveScreen, DriveStatistics, FleetDiagnosis, PoolError, PooledFeature, diagnose_paths, pool,
-    screen_drive, screen_path,
+    DriveScreen, DriveStatistics, FleetDiagnosis, PoolError, PooledFeature, pool, screen_drive,
+    screen_path,
 };
 pub use table::{FitsError, fits_csv, param_names, read_fits};
+pub use verdict::{diagnose_paths, pool_verifications};
+pub use verify::{
+    DriveEdit, DriveVerification, FleetVerification, TriedEdit, verify_drive, verify_path,
+};
 
 #[cfg(test)]
 mod tests;

@@ -7,16 +7,17 @@
 //! for one drive). Under the null of no missing effect in any drive the family-wise false-alarm
 //! rate stays at alpha however many drives are pooled.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use rayon::prelude::*;
 use serde::Serialize;
 
+use super::verify::FleetVerification;
 use super::{DriveError, ReadSettings};
 use crate::diagnose::CheckedDiagnoseConfig;
 use crate::fit::CheckedFitOptions;
 use crate::log::Log;
 use crate::model::ModelSpec;
+use crate::select::CheckedVerifyConfig;
 
 /// What the pooled screen reads of one drive's screen
 /// ([`crate::diagnose::ScreenStatistics`]), per feature in the drive's order.
@@ -38,6 +39,9 @@ pub struct DriveStatistics {
     pub null: Vec<f64>,
     /// The term the drive alone would suggest for the feature.
     pub suggested: Vec<Option<String>>,
+    /// The other terms for the feature the drive's verification would try (as `diagnose`'s
+    /// `alternatives`).
+    pub alternatives: Vec<Vec<String>>,
 }
 
 /// One drive's screen, or why it has none (the library's message).
@@ -72,6 +76,9 @@ pub struct PooledFeature {
     pub drives: usize,
     /// The term the drives suggest for it most often (ties: the first drive's).
     pub suggested_term: Option<String>,
+    /// The other terms the drives would try for it, in the order they first appear (the
+    /// fleet's verification tries them as `diagnose` tries a feature's alternatives).
+    pub alternatives: Vec<String>,
 }
 
 /// The fleet's pooled diagnosis.
@@ -91,6 +98,10 @@ pub struct FleetDiagnosis {
     pub permutations: usize,
     /// The permutations' seed (every drive's, as `diagnose --seed`).
     pub seed: u64,
+    /// The pooled suggestion's term when the fleet verifies it (see [`FleetVerification`]).
+    pub best_edit: Option<String>,
+    /// The pooled suggestion verified across the fleet, or why it was not.
+    pub verification: FleetVerification,
 }
 
 /// Drive screens that cannot be pooled: another number of permutations, or lengths that
@@ -124,7 +135,7 @@ pub fn screen_drive(
         let s = crate::diagnose::screen_model(&model, log, config)
             .map_err(|e| crate::io::message(&e))?;
         let existing: Vec<String> = model.terms.iter().map(|t| t.term.name()).collect();
-        let suggested: Vec<Option<String>> = (0..s.names.len())
+        let (suggested, alternatives): (Vec<Option<String>>, Vec<Vec<String>>) = (0..s.names.len())
             .map(|j| {
                 let c = crate::diagnose::advice::candidate_terms(
                     &s.names[j],
@@ -134,9 +145,12 @@ pub fn screen_drive(
                     false,
                     false,
                 );
-                crate::diagnose::advice::suggest(&c, &existing).0
+                let chosen = crate::diagnose::advice::suggest(&c, &existing).0;
+                let others =
+                    crate::diagnose::advice::alternatives(&c, &existing, chosen.as_deref());
+                (chosen, others)
             })
-            .collect();
+            .unzip();
         Ok(DriveStatistics {
             names: s.names,
             tested: s.tested,
@@ -146,6 +160,7 @@ pub fn screen_drive(
             permutations: s.permutations,
             null: s.null,
             suggested,
+            alternatives,
         })
     };
     DriveScreen {
@@ -172,26 +187,12 @@ pub fn screen_path(
     }
 }
 
-/// Screens every path's drive on rayon's pool and pools them ([`pool`]).
-pub fn diagnose_paths(
-    paths: &[PathBuf],
-    read: &ReadSettings,
-    spec: &ModelSpec,
-    opts: &CheckedFitOptions,
-    config: &CheckedDiagnoseConfig,
-) -> Result<FleetDiagnosis, PoolError> {
-    let screens: Vec<DriveScreen> = paths
-        .par_iter()
-        .map(|p| screen_path(p, read, spec, opts, config))
-        .collect();
-    pool(&screens, config)
-}
-
 /// The pooled screen of the drives' screens (see the module docs); the drives' order does not
 /// change it.
 pub fn pool(
     screens: &[DriveScreen],
     config: &CheckedDiagnoseConfig,
+    verify: &CheckedVerifyConfig,
 ) -> Result<FleetDiagnosis, PoolError> {
     // In the order of the sources, so that the sums (and so every figure) do not depend on
     // the order the drives came in.
@@ -212,25 +213,7 @@ pub fn pool(
         .collect();
     let b = config.permutations;
     let m_of = |s: &DriveStatistics| s.names.len();
-    if let Some((source, s)) = ok.iter().find(|(_, s)| {
-        s.permutations != b
-            || [
-                s.tested.len(),
-                s.observed.len(),
-                s.explained.len(),
-                s.p_value.len(),
-            ]
-            .iter()
-            .chain([&s.suggested.len()])
-            .any(|&l| l != m_of(s))
-            || s.null.len() != b * m_of(s)
-    }) {
-        return Err(PoolError {
-            drive: source.to_string(),
-            got: s.permutations,
-            want: b,
-        });
-    }
+    check_shapes(&ok, b)?;
     // The features of every drive, in the order they first appear.
     let mut names: Vec<String> = Vec::new();
     for (_, s) in &ok {
@@ -247,6 +230,7 @@ pub fn pool(
     let mut tested = vec![0usize; m];
     let mut alone = vec![0usize; m];
     let mut votes: Vec<Vec<(String, usize)>> = vec![Vec::new(); m];
+    let mut others: Vec<Vec<String>> = vec![Vec::new(); m];
     for (_, s) in &ok {
         let w = m_of(s);
         for (j, name) in s.names.iter().enumerate() {
@@ -269,8 +253,20 @@ pub fn pool(
                     None => votes[k].push((t.clone(), 1)),
                 }
             }
+            for t in &s.alternatives[j] {
+                if !others[k].contains(t) {
+                    others[k].push(t.clone());
+                }
+            }
         }
     }
+    let suggested: Vec<Option<String>> = votes
+        .iter()
+        .map(|v| {
+            let best = v.iter().map(|(_, c)| *c).max().unwrap_or(0);
+            v.iter().find(|(_, c)| *c == best).map(|(t, _)| t.clone())
+        })
+        .collect();
     let any: Vec<bool> = tested.iter().map(|&t| t > 0).collect();
     let (p_raw, p_adj) = crate::diagnose::family_wise_p_values(b, &observed, &null, &any);
     let mut features: Vec<PooledFeature> = (0..m)
@@ -281,7 +277,7 @@ pub fn pool(
                 0.0
             };
             let flagged = tested[k] > 0 && p_adj[k] <= config.alpha && mean > 0.0;
-            let best = votes[k].iter().map(|(_, c)| *c).max().unwrap_or(0);
+
             PooledFeature {
                 name: names[k].clone(),
                 explained: mean,
@@ -295,10 +291,19 @@ pub fn pool(
                 },
                 drives_alone: alone[k],
                 drives: tested[k],
-                suggested_term: votes[k]
+                suggested_term: suggested[k].clone(),
+                // The drives' other suggestions first, then their alternatives.
+                alternatives: votes[k]
                     .iter()
-                    .find(|(_, c)| *c == best)
-                    .map(|(t, _)| t.clone()),
+                    .map(|(t, _)| t)
+                    .chain(&others[k])
+                    .filter(|t| Some(*t) != suggested[k].as_ref())
+                    .fold(Vec::new(), |mut a: Vec<String>, t| {
+                        if !a.contains(t) {
+                            a.push(t.clone());
+                        }
+                        a
+                    }),
             }
         })
         .collect();
@@ -308,6 +313,7 @@ pub fn pool(
             .then(a.p_value.total_cmp(&b.p_value))
             .then(b.explained.total_cmp(&a.explained))
     });
+    let verification = pending(&features, verify);
     let mut d = FleetDiagnosis {
         drives: ok.len(),
         failed,
@@ -316,14 +322,64 @@ pub fn pool(
         alpha: config.alpha,
         permutations: b,
         seed: config.seed,
+        best_edit: None,
+        verification,
     };
     d.summary = summary(&d);
     Ok(d)
 }
 
+/// Every drive's statistics of `b` permutations, one of each per feature: else the first
+/// drive that differs.
+fn check_shapes(ok: &[(&str, &DriveStatistics)], b: usize) -> Result<(), PoolError> {
+    let bad = |s: &DriveStatistics| {
+        let m = s.names.len();
+        s.permutations != b
+            || [
+                s.tested.len(),
+                s.observed.len(),
+                s.explained.len(),
+                s.p_value.len(),
+                s.suggested.len(),
+                s.alternatives.len(),
+            ]
+            .iter()
+            .any(|&l| l != m)
+            || s.null.len() != b * m
+    };
+    match ok.iter().find(|(_, s)| bad(s)) {
+        Some((source, s)) => Err(PoolError {
+            drive: source.to_string(),
+            got: s.permutations,
+            want: b,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The verification the pooled screen asks for, before any refit: the first flagged feature
+/// (in the features' order) that has a suggested term, its candidates that term and then the
+/// alternatives the drives would try.
+pub(super) fn pending(
+    features: &[PooledFeature],
+    verify: &CheckedVerifyConfig,
+) -> FleetVerification {
+    let mut flagged = features.iter().filter(|f| f.flagged).peekable();
+    let any = flagged.peek().is_some();
+    let suggestion = flagged.find_map(|f| {
+        let term = f.suggested_term.as_ref()?;
+        let candidates = std::iter::once(term)
+            .chain(&f.alternatives)
+            .cloned()
+            .collect();
+        Some((f.name.clone(), candidates))
+    });
+    FleetVerification::pending(suggestion, any, verify.min_z, verify.folds)
+}
+
 /// The verdict in words: the flagged features with their pooled p, mean share and how many
-/// drives find them alone, or that none is flagged.
-fn summary(d: &FleetDiagnosis) -> String {
+/// drives find them alone, or that none is flagged; then the verification's verdict.
+pub(super) fn summary(d: &FleetDiagnosis) -> String {
     let flagged: Vec<&PooledFeature> = d.features.iter().filter(|f| f.flagged).collect();
     let mut s = format!("{} drives pooled", d.drives);
     if !d.failed.is_empty() {
@@ -358,5 +414,6 @@ fn summary(d: &FleetDiagnosis) -> String {
         })
         .collect();
     s.push_str(&parts.join("; "));
+    s.push_str(&format!(". Across the fleet: {}", d.verification.why));
     s
 }

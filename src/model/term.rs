@@ -142,7 +142,7 @@ pub struct TermCaps {
     /// Whether the term's basis holds its values over runs of consecutive rows (a relay's state
     /// changes only where the position crosses a threshold): the solve folds each run of rows
     /// equal in these columns into one mean row and contrast rows zero in them (an orthogonal
-    /// transformation, [`crate::numeric::runs`]: the same least squares, factorised on fewer
+    /// transformation, `crate::numeric::runs`: the same least squares, factorised on fewer
     /// columns).
     pub piecewise_constant: bool,
 }

@@ -91,14 +91,19 @@ pub(super) fn feature_candidate(f: &FeatureReport, strict: bool) -> Candidate {
     terms.extend(f.alternatives.iter().cloned());
     Candidate {
         feature: f.name.clone(),
-        try_all: terms.iter().any(|t| {
-            matches!(head(t), covariate::HEAD | lag::HEAD)
-                || t == crate::diagnose::advice::PLAY_TERM
-        }),
+        try_all: tries_every_term(&terms),
         terms,
         table_spacing: (f.name == "position").then(|| table_spacing(f)).flatten(),
         strict,
     }
+}
+
+/// Whether a feature's verification scores every one of its `terms` and keeps the best (a
+/// covariate's or lag's terms, `play`), instead of stopping at the first that fits.
+pub(crate) fn tries_every_term(terms: &[String]) -> bool {
+    terms.iter().any(|t| {
+        matches!(head(t), covariate::HEAD | lag::HEAD) || t == crate::diagnose::advice::PLAY_TERM
+    })
 }
 
 /// The source a feature stands for: the column of a lagged covariate (`temp@lag4s` →

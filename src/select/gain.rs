@@ -54,6 +54,14 @@ pub(super) fn huber_c(before: &[f64]) -> f64 {
 /// mean difference `−d²` is a cost, so the score stays honest (tests/it/family.rs: the model
 /// holding every effect gets no verified edit in 20 of 20 seeds).
 pub(super) fn conditional_z(before: &[f64], after: &[f64], c: f64) -> f64 {
+    let (total, se) = conditional_z_parts(before, after, c);
+    if se > 0.0 { total / se } else { 0.0 }
+}
+
+/// The two parts of [`conditional_z`]: the summed paired Huber-loss difference and the block
+/// standard error of its noise part (0 when the block sums have no spread). A caller pooling
+/// many logs' edits (the fleet) sums both over the logs.
+pub(super) fn conditional_z_parts(before: &[f64], after: &[f64], c: f64) -> (f64, f64) {
     let loss = |r: f64| huber(c, r);
     let total: f64 = before
         .iter()
@@ -65,8 +73,8 @@ pub(super) fn conditional_z(before: &[f64], after: &[f64], c: f64) -> f64 {
     let sums: Vec<f64> = noise.chunks(block).map(|c| c.iter().sum()).collect();
     let m = sums.len() as f64;
     match crate::numeric::stats::std_dev(&sums) {
-        Some(sd) if sd > 0.0 => total / (sd * m.sqrt()),
-        _ => 0.0,
+        Some(sd) if sd > 0.0 => (total, sd * m.sqrt()),
+        _ => (total, 0.0),
     }
 }
 
@@ -317,6 +325,12 @@ impl Baseline {
         let c = huber_c(&r);
         let ss_within = ss_within_folds(&r, folds);
         Self { r, c, ss_within }
+    }
+
+    /// [`conditional_z_parts`] of `after` against this baseline (its Huber constant): the
+    /// parts of [`Self::judge_both`]'s z-score.
+    pub(super) fn z_parts(&self, after: &[f64]) -> (f64, f64) {
+        conditional_z_parts(&self.r, after, self.c)
     }
 
     /// [`judge`] of `after` at the plain bar (`[0]`) and the strict one (`[1]`): the same

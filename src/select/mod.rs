@@ -6,6 +6,7 @@
 
 mod candidates;
 mod discover;
+mod edit_score;
 mod gain;
 mod ladder;
 mod path;
@@ -14,10 +15,11 @@ mod second_round;
 mod verified;
 mod verify;
 
-pub(crate) use candidates::{candidates, edit_for, table_spacing};
+pub(crate) use candidates::{candidates, edit_for, table_spacing, tries_every_term};
 pub use discover::{
     CheckedDiscoverConfig, DiscoverConfig, DiscoverError, DiscoverStep, Discovery, discover,
 };
+pub(crate) use edit_score::score_edits;
 pub use ladder::{Ladder, LadderStep, LadderTerms, ladder_fit, ladder_terms};
 pub use path::{PathStep, suggestion_path, suggestion_path_from};
 pub(crate) use second_round::verify_two_rounds;

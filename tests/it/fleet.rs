@@ -337,3 +337,105 @@ fn fleet_diagnose_of_one_drive_is_diagnose_of_its_fit_and_a_bad_file_is_named() 
         &["--alpha"],
     );
 }
+
+/// `drives` logs in `dir` whose bias is `poly2,direction` plus unit noise plus `load` counts
+/// per unit of a logged standard-normal `load` column, 400 seeks each.
+fn load_fleet(dir: &Path, drives: u64, load: f64) {
+    for seed in 1..=drives {
+        let mut rng = biasctl::SimRng::new(700 + seed);
+        let mut text = String::from("time_s,track,bias,load\n");
+        let mut last: Option<f64> = None;
+        for i in 0..400 {
+            let track = rng.below(3000) as f64;
+            let d = last.map_or(0.0, |l| (track - l).signum());
+            last = Some(track);
+            let x = rng.normal();
+            let bias =
+                50.0 + 0.01 * track - 2e-6 * track * track + 6.0 * d + rng.normal() + load * x;
+            text.push_str(&format!("{},{track},{bias:.6},{x:.6}\n", 0.5 * i as f64));
+        }
+        std::fs::write(dir.join(format!("load{seed:02}.csv")), text).unwrap();
+    }
+}
+
+#[test]
+fn fleet_diagnose_verifies_the_pooled_suggestion_on_every_drive() {
+    let dir = tempfile::tempdir().unwrap();
+    load_fleet(dir.path(), 6, 0.4);
+    let data = format!("{}/*.csv", dir.path().display());
+    let args = [
+        "fleet",
+        "diagnose",
+        "--data",
+        &data,
+        "--model",
+        "poly2,direction",
+        "--permutations",
+        "99",
+    ];
+    let json = |extra: &[&str]| -> serde_json::Value {
+        let mut a = args.to_vec();
+        a.push("--json");
+        a.extend(extra);
+        serde_json::from_str(&ok(&a)).unwrap()
+    };
+    let d = json(&[]);
+    let v = &d["verification"];
+    assert_eq!(v["feature"], "load", "{v}");
+    assert_eq!(v["verified"], true, "{v}");
+    assert_eq!(v["reason"], "verified_pooled_z");
+    assert_eq!(d["best_edit"], v["term"]);
+    assert_eq!(
+        (v["drives"].as_u64(), v["folds"].as_u64()),
+        (Some(6), Some(3))
+    );
+    // The fleet's figures from the drives' own: Σ reductions / Σ before, Σ T / √Σ s².
+    let per = v["per_drive"].as_array().unwrap();
+    let f = |e: &serde_json::Value, k: &str| e[k].as_f64().unwrap();
+    let before: f64 = per.iter().map(|e| f(e, "sse_before")).sum();
+    let after: f64 = per.iter().map(|e| f(e, "sse_after")).sum();
+    let t: f64 = per.iter().map(|e| f(e, "loss_gain")).sum();
+    let s2: f64 = per.iter().map(|e| f(e, "loss_se").powi(2)).sum();
+    assert!(
+        (f(v, "gain") - (before - after) / before).abs() < 1e-12,
+        "{v}"
+    );
+    assert!((f(v, "z") - t / s2.sqrt()).abs() < 1e-9, "{v}");
+    // The human output: the verdict with its rule.
+    let edit = v["edit"].as_str().unwrap();
+    assert!(
+        edit.starts_with("add ") && edit.ends_with(":load"),
+        "{edit}"
+    );
+    let text = ok(&args);
+    assert!(
+        text.contains(&format!("verified: {edit} across 6 drives")) && text.contains("z = "),
+        "{text}"
+    );
+    // Without the refits: named, not run; more folds: other figures, the same rule.
+    let off = json(&["--no-verify"]);
+    assert_eq!(off["verification"]["reason"], "not_run");
+    assert_eq!(off["best_edit"], serde_json::Value::Null);
+    let text = ok(&[&args[..], &["--no-verify"]].concat());
+    let cands: Vec<&str> = off["verification"]["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    assert!(cands.contains(&v["term"].as_str().unwrap()), "{cands:?}");
+    assert!(
+        text.contains(&format!(
+            "not verified: the refits with `{}` were not run (not_run)",
+            cands.join("`, `")
+        )),
+        "{text}"
+    );
+    let five = json(&["--verify-folds", "5"]);
+    assert_eq!(five["verification"]["folds"], 5);
+    assert_ne!(five["verification"]["z"], v["z"]);
+    fails_with(
+        &[&args[..], &["--verify-folds", "1"]].concat(),
+        &["--verify-folds", "2..=20"],
+    );
+}
