@@ -871,6 +871,71 @@ fn play_and_interaction_are_suggested_where_they_apply_and_only_there() {
     );
 }
 
+/// The reversal-memory pair screen. Reference: the generator's truth. On `pi-cubic-ar1` with
+/// the Preisach effect (a weight blob off the diagonal of the (α, β) plane: the output steps
+/// only for reversals between two regions of the travel, which no congruent loop makes) and
+/// the family's user model (`table`, `dahl:8`), the pair (`position`, `reversal_position`)
+/// explains jointly what neither does alone, and the best verified edit is `preisach:N`, N
+/// chosen by the refit. On every family drive **without** it — Bouc–Wen (a smooth Dahl-like
+/// loop) and Prandtl–Ishlinskii (Maxwell-slip/play) pivots — neither the user model nor a
+/// model whose loop term is too coarse for the pivot (`dahl:4`; `play:8` on a Bouc–Wen drive)
+/// gets a `preisach` suggestion, verified or not.
+#[test]
+fn preisach_is_suggested_for_reversal_memory_and_only_there() {
+    let verified = |terms: &[String], log: &Log, seed: u64| {
+        let model = fit_terms(terms, log);
+        diagnose_verified(&model, log, &config(seed), &CheckedVerifyConfig::default()).unwrap()
+    };
+    let pi = FamilyDrive::member("pi-cubic-ar1").unwrap();
+    for seed in [17u64, 18] {
+        let run = generate(&FamilyConfig::new(
+            pi.clone(),
+            &[HiddenEffect::Preisach],
+            seed,
+            N,
+        ))
+        .unwrap();
+        let d = verified(&diagnose_family::base_terms(&pi), &run.log, seed);
+        assert!(
+            d.interactions.iter().any(|i| i.a == "position"
+                && i.b == "reversal_position"
+                && i.suggested_term == "preisach"),
+            "seed {seed}: {:?}\n{}",
+            d.interactions,
+            d.to_text()
+        );
+        let best = d.verification.as_ref().and_then(|v| v.best());
+        assert!(
+            best.is_some_and(|b| b.edit.starts_with("add preisach:")),
+            "seed {seed}: {}",
+            d.to_text()
+        );
+    }
+    let mut drives = FamilyDrive::members();
+    drives.push(diagnose_family::fresh_drive());
+    for (k, drive) in drives.iter().enumerate() {
+        let run = generate(&FamilyConfig::new(drive.clone(), &[], 60 + k as u64, N)).unwrap();
+        let table = diagnose_family::base_terms(drive)[0].clone();
+        for terms in [
+            diagnose_family::base_terms(drive),
+            vec![table.clone(), "dahl:4".into()],
+            vec![table, "play:8".into()],
+        ] {
+            let d = verified(&terms, &run.log, 60 + k as u64);
+            let v = d.verification.clone().unwrap_or_default();
+            assert!(
+                !d.interactions
+                    .iter()
+                    .any(|i| i.suggested_term.contains("preisach"))
+                    && !v.edits.iter().any(|e| e.edit.contains("preisach")),
+                "{} {terms:?}: {}",
+                drive.name,
+                d.to_text()
+            );
+        }
+    }
+}
+
 /// A slowly varying column with **no** effect must not be flagged under strongly
 /// autocorrelated noise. Reference: the generator's truth. `pi-cubic-ar1` logs (AR(1) noise in
 /// seek order, ρ = 0.6) with the threshold effect, diagnosed (with verification) on the model
