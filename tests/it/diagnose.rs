@@ -936,6 +936,51 @@ fn preisach_is_suggested_for_reversal_memory_and_only_there() {
     }
 }
 
+/// The covariate × position pair screen. Reference: the generator's truth. The windage effect
+/// (`sim::family::HiddenEffect::Windage`: air density falling with the slow column `temp_slow`
+/// times a force that changes sign along the stroke) averages to zero over the travel and
+/// over the column, so no single feature has a marginal of it; on every family drive the
+/// pair (`position`, `temp_slow`) is screened and the best verified edit is its term
+/// `by:position:temp_slow` (not the `scale:temp_slow:dahl:8` it is scored beside, nor a table).
+#[test]
+fn windage_is_named_by_the_covariate_position_pair() {
+    let mut drives = FamilyDrive::members();
+    drives.push(diagnose_family::fresh_drive());
+    for (k, drive) in drives.iter().enumerate() {
+        let seed = 70 + k as u64;
+        let run = generate(&FamilyConfig::new(
+            drive.clone(),
+            &[HiddenEffect::Windage],
+            seed,
+            N,
+        ))
+        .unwrap();
+        let model = fit_terms(&diagnose_family::base_terms(drive), &run.log);
+        let d = diagnose_verified(
+            &model,
+            &run.log,
+            &config(seed),
+            &CheckedVerifyConfig::default(),
+        )
+        .unwrap();
+        assert!(
+            d.interactions
+                .iter()
+                .any(|i| i.suggested_term == "by:position:temp_slow"),
+            "{}: {:?}",
+            drive.name,
+            d.interactions
+        );
+        let best = d.verification.as_ref().and_then(|v| v.best());
+        assert!(
+            best.is_some_and(|b| b.edit == "add by:position:temp_slow"),
+            "{}: {}",
+            drive.name,
+            d.to_text()
+        );
+    }
+}
+
 /// A slowly varying column with **no** effect must not be flagged under strongly
 /// autocorrelated noise. Reference: the generator's truth. `pi-cubic-ar1` logs (AR(1) noise in
 /// seek order, ρ = 0.6) with the threshold effect, diagnosed (with verification) on the model

@@ -397,6 +397,12 @@ impl Hidden<'_> {
                 .enumerate()
                 .map(|(k, v)| 1.5 * a * (v - 12.0) / 0.3 * u(k))
                 .collect(),
+            HiddenEffect::Windage => self
+                .cov("temp_slow")
+                .iter()
+                .enumerate()
+                .map(|(k, v)| 1.5 * a * (40.0 - v) / 2.0 * u(k))
+                .collect(),
             HiddenEffect::Preisach => super::physics::preisach(tracks, d.centre, half)
                 .into_iter()
                 .map(|v| 4.0 * a * v)
@@ -478,10 +484,7 @@ mod tests {
             let c = generate(&FamilyConfig::new(drive.clone(), &[], 6, 300)).unwrap();
             assert_eq!(log_text(&a), log_text(&b));
             assert_ne!(log_text(&a), log_text(&c));
-            for e in HiddenEffect::ALL
-                .into_iter()
-                .chain([HiddenEffect::Preisach])
-            {
+            for e in HiddenEffect::ALL.into_iter().chain(HiddenEffect::APART) {
                 let on = generate(&FamilyConfig::new(drive.clone(), &[e], 5, 300)).unwrap();
                 let mut differs = 0;
                 for (r0, r1) in a.log.rows().zip(on.log.rows()) {
