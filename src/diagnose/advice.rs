@@ -96,7 +96,17 @@ pub(crate) fn classify(points: &[Point], linear: bool) -> (Shape, Option<f64>) {
     }
     let (first, last) = (ys[0], ys[k - 1]);
     let net = last - first;
-    let mid = |i: usize| 0.5 * (points[i].x + points[i + 1].x);
+    // Between two bin centres; a midpoint that is zero but for rounding (centres ±a) is zero,
+    // so a message never reads "steps up near x ≈ -1.55e-10".
+    let mid = |i: usize| {
+        let (a, b) = (points[i].x, points[i + 1].x);
+        let m = 0.5 * (a + b);
+        if m.abs() <= 1e-9 * (a.abs() + b.abs()) {
+            0.0
+        } else {
+            m
+        }
+    };
     if k == 2 {
         let shape = if net > 0.0 {
             Shape::StepUp
@@ -615,6 +625,25 @@ mod tests {
             })
             .collect();
         (x, r)
+    }
+
+    /// Bin centres symmetric about zero place a step at zero, not at the rounding of their sum
+    /// (−0.3 and 0.1 + 0.2 sum to 5.6e-17): the message says "≈ 0".
+    #[test]
+    fn a_step_between_symmetric_centres_is_at_zero() {
+        let points = [
+            Point { x: -0.3, y: -1.0 },
+            Point {
+                x: 0.1 + 0.2,
+                y: 1.0,
+            },
+        ];
+        let (shape, at) = classify(&points, false);
+        assert_eq!(shape, Shape::StepUp);
+        assert_eq!(at, Some(0.0));
+        assert_eq!(shape.describe("x", at), "steps up near x ≈ 0");
+        let off = [Point { x: -0.3, y: -1.0 }, Point { x: 0.5, y: 1.0 }];
+        assert_eq!(classify(&off, false).1, Some(0.1));
     }
 
     /// Reference: the planted truth. A bump of 3 noise std (σ = 1.5 tracks, 1500 rows) is
