@@ -180,17 +180,24 @@ impl<'a> FixedRows<'a> {
         mut each: impl FnMut(&[f64], f64),
     ) -> usize {
         let p = order.len();
+        // In the terms' own order (no droppable column moved last): the rows as they are.
+        let identity = order.iter().enumerate().all(|(q, &c)| q == c);
         self.measured_rows(rows, |buf, y| {
-            for (x, &c) in xp.iter_mut().zip(order) {
-                *x = buf[c];
-            }
+            let x: &[f64] = if identity {
+                &buf[..p]
+            } else {
+                for (x, &c) in xp.iter_mut().zip(order) {
+                    *x = buf[c];
+                }
+                xp
+            };
             // By position: one pass the compiler vectorises.
-            for ((&v, s), sq) in xp.iter().zip(sums.iter_mut()).zip(colsq.iter_mut()) {
+            for ((&v, s), sq) in x.iter().zip(sums.iter_mut()).zip(colsq.iter_mut()) {
                 *s += v;
                 *sq += v * v;
             }
             colsq[p] += y * y;
-            each(xp, y);
+            each(x, y);
         })
     }
 

@@ -139,6 +139,12 @@ pub struct TermCaps {
     /// the direction tracker and the rest memory (their features are then 0 / `None`, see
     /// [`crate::history::History`]), as the `dahl` rate search does once per candidate.
     pub reads_history: bool,
+    /// Whether the term's basis holds its values over runs of consecutive rows (a relay's state
+    /// changes only where the position crosses a threshold): the solve folds each run of rows
+    /// equal in these columns into one mean row and contrast rows zero in them (an orthogonal
+    /// transformation, [`crate::numeric::runs`]: the same least squares, factorised on fewer
+    /// columns).
+    pub piecewise_constant: bool,
 }
 
 impl TermCaps {
@@ -152,6 +158,7 @@ impl TermCaps {
         spans_direction_offset: false,
         search_by_projection: false,
         reads_history: true,
+        piecewise_constant: false,
     };
 }
 

@@ -8,6 +8,7 @@ pub(crate) mod kernels;
 pub(crate) mod parallel;
 pub(crate) mod qr;
 pub(crate) mod rng;
+pub(crate) mod runs;
 pub(crate) mod search;
 pub(crate) mod stats;
 // The namespace's public items that live in its submodules (the crate root keeps only the

@@ -4,6 +4,7 @@
 //! ([`refactor_kept`]). The inner loops are in [`super::kernels`].
 
 use super::kernels::{householder_r, nonzero_mask};
+use super::runs::RunFolder;
 use nalgebra::DMatrix;
 
 /// The running `R` factor of a tall least-squares problem `[X y]`, fed row by row (TSQR: the
@@ -23,6 +24,8 @@ pub(crate) struct StreamingQr {
     compact: bool,
     /// Rows added between two re-factorisations ([`CHUNK`], or [`COMPACT_CHUNK`]).
     chunk: usize,
+    /// Whether any rows have been factorised (else `R` is zero and the block holds them all).
+    folded: bool,
 }
 
 /// Rows between two re-factorisations of a [`StreamingQr::compact`].
@@ -47,6 +50,7 @@ impl StreamingQr {
             colsq: vec![0.0; cols],
             compact: false,
             chunk: CHUNK,
+            folded: false,
         }
     }
 
@@ -67,6 +71,7 @@ impl StreamingQr {
             colsq: vec![0.0; cols],
             compact: true,
             chunk: COMPACT_CHUNK,
+            folded: false,
         }
     }
 
@@ -92,6 +97,7 @@ impl StreamingQr {
             colsq: vec![0.0; cols],
             compact: true,
             chunk: COMPACT_CHUNK,
+            folded: false,
         }
     }
 
@@ -150,6 +156,7 @@ impl StreamingQr {
         if self.fill == 0 {
             return;
         }
+        self.folded = true;
         let (n, m) = (self.cols, self.cols + self.cap);
         if self.fill < self.chunk && self.compact {
             // Partial chunk on its filled rows alone: the columns moved together (each column's
@@ -187,6 +194,18 @@ impl StreamingQr {
     fn finish_keeping(mut self) -> (DMatrix<f64>, Vec<f64>) {
         let r = self.final_r();
         (r, self.block)
+    }
+
+    /// Where fewer rows than columns came and none was factorised yet, those rows themselves
+    /// (`fill × (p+1)`: the same least squares as their `R`, without factorising a block for
+    /// them), else [`StreamingQr::finish_keeping`]; with the block's storage.
+    fn finish_rows_keeping(self) -> (DMatrix<f64>, Vec<f64>) {
+        if self.folded || self.fill >= self.cols {
+            return self.finish_keeping();
+        }
+        let (n, m) = (self.cols, self.cols + self.cap);
+        let rows = DMatrix::from_fn(self.fill, n, |i, j| self.block[j * m + n + i]);
+        (rows, self.block)
     }
 
     fn final_r(&mut self) -> DMatrix<f64> {
@@ -250,6 +269,11 @@ pub(crate) struct PatternQr {
     /// Storage of finished factorisations for new groups and the probe
     /// ([`PatternQr::compact_reusing`]).
     spare: Vec<Vec<f64>>,
+    /// Runs of rows equal in some columns, folded before they are grouped
+    /// ([`PatternQr::with_runs`]), and the factorisation of their contrast rows (on the
+    /// folder's other columns; made at the first contrast row).
+    runs: Option<Box<RunFolder>>,
+    contrast: Option<StreamingQr>,
 }
 
 impl PatternQr {
@@ -268,7 +292,20 @@ impl PatternQr {
             colsq: vec![0.0; p + 1],
             rows: 0,
             spare: Vec::new(),
+            runs: None,
+            contrast: None,
         }
+    }
+
+    /// This factorisation with the runs of consecutive rows that share their values in the
+    /// columns `run` folded first ([`RunFolder`]: an orthogonal transformation, so the same
+    /// `R` up to signs and rounding; rows in runs of one pass unchanged). Nothing changes for
+    /// an empty `run`.
+    pub(crate) fn with_runs(mut self, run: &[usize]) -> Self {
+        if !run.is_empty() {
+            self.runs = Some(Box::new(RunFolder::new(self.p, run)));
+        }
+        self
     }
 
     /// [`PatternQr::new`] that never groups: [`StreamingQr`]'s `R` bit for bit (the tests'
@@ -389,6 +426,30 @@ impl PatternQr {
     /// Adds one row `x` (length p) with response `y`, without counting it or summing its
     /// squares ([`PatternQr::rows`] and [`PatternQr::colsq`] do not see it).
     pub(crate) fn place_row(&mut self, x: &[f64], y: f64) {
+        let Some(mut runs) = self.runs.take() else {
+            return self.place_data(x, y);
+        };
+        let mut contrast = self.contrast.take();
+        runs.push(x, y, &mut |x, y| self.place_data(x, y), &mut |z, y| {
+            contrast
+                .get_or_insert_with(|| StreamingQr::compact(z.len()))
+                .place(z.iter().copied(), y)
+        });
+        self.runs = Some(runs);
+        self.contrast = contrast;
+    }
+
+    /// Closes the open run of rows ([`PatternQr::with_runs`]) and returns the factorisation
+    /// of the contrast rows, if any, with its columns.
+    fn end_runs(&mut self) -> Option<(Vec<usize>, StreamingQr)> {
+        let mut runs = self.runs.take()?;
+        runs.flush(&mut |x, y| self.place_data(x, y));
+        let qr = self.contrast.take()?;
+        Some((runs.rest().to_vec(), qr))
+    }
+
+    /// [`PatternQr::place_row`] after the runs are folded.
+    fn place_data(&mut self, x: &[f64], y: f64) {
         if let Some(buf) = &mut self.probe {
             buf.extend_from_slice(x);
             buf.push(y);
@@ -457,17 +518,28 @@ impl PatternQr {
     }
 
     /// Each group's columns and its `R` ((k+1) × (k+1), the response last), in the order the
-    /// groups were made (the order their patterns first occur in the rows): the factorisation
-    /// before [`PatternQr::finish`] stacks the groups; and the storage of its groups, probe and
-    /// spare blocks (for [`PatternQr::compact_reusing`]).
+    /// groups were made (the order their patterns first occur in the rows), then the contrast
+    /// rows' group of folded runs ([`PatternQr::with_runs`]): the factorisation before
+    /// [`PatternQr::finish`] stacks the groups; and the storage of its groups, probe and
+    /// spare blocks (for [`PatternQr::compact_reusing`]). Where runs are folded, a group that
+    /// received fewer than k + 1 rows gives those rows instead of their `R` (the same least
+    /// squares, no block factorised for a chunk's few mean rows).
     pub(crate) fn finish_groups_keeping(mut self) -> (Groups, Vec<Vec<f64>>) {
+        let folds_runs = self.runs.is_some();
+        let contrast = self.end_runs();
         self.decide();
         let mut spare = std::mem::take(&mut self.spare);
         let groups = self
             .groups
             .into_iter()
+            .chain(contrast)
             .map(|(cols, qr)| {
-                let (r, block) = qr.finish_keeping();
+                // With folded runs, a chunk's few mean rows go to the merge as they are.
+                let (r, block) = if folds_runs {
+                    qr.finish_rows_keeping()
+                } else {
+                    qr.finish_keeping()
+                };
                 spare.push(block);
                 (cols, r)
             })
@@ -475,8 +547,8 @@ impl PatternQr {
         (groups, spare)
     }
 
-    /// Adds the `k + 1` rows of `r`, a group's `R` over the design columns `cols`
-    /// ([`PatternQr::finish_groups`]), to the group of those columns (every row of a group's
+    /// Adds the rows of `r`, a group's `R` (or rows) over the design columns `cols`
+    /// ([`PatternQr::finish_groups_keeping`]), to the group of those columns (every row of a group's
     /// `R` lies in its columns; the dense group where there is no room or no grouping).
     pub(crate) fn place_group_r(&mut self, cols: &[usize], r: &DMatrix<f64>) {
         let g = if self.patterned {
@@ -487,7 +559,7 @@ impl PatternQr {
         let k = cols.len();
         let mut x = vec![0.0; self.p];
         let (gcols, qr) = &mut self.groups[g];
-        for i in 0..=k {
+        for i in 0..r.nrows() {
             for (a, &j) in cols.iter().enumerate() {
                 x[j] = r[(i, a)];
             }
@@ -498,7 +570,9 @@ impl PatternQr {
     /// The final `R` of `[X y]` ((p+1) × (p+1), diagonal of either sign) and the column norms²
     /// (as [`StreamingQr::finish`]).
     pub(crate) fn finish(mut self) -> (DMatrix<f64>, Vec<f64>) {
+        let contrast = self.end_runs();
         self.decide();
+        self.groups.extend(contrast);
         let p = self.p;
         if self.groups.len() == 1 && self.groups[0].0.len() == p {
             // One dense factorisation: [`StreamingQr`]'s `R` itself.

@@ -134,6 +134,8 @@ impl Term for PreisachTerm {
         TermCaps {
             // Its state reads `target` only.
             reads_history: false,
+            // Relay states change only where the position crosses a threshold.
+            piecewise_constant: true,
             ..TermCaps::DEFAULT
         }
     }
@@ -163,7 +165,7 @@ impl Term for PreisachTerm {
         Ok(Box::new(PreisachState {
             grid: self.grid,
             memory: PreisachMemory::new(self.grid.levels),
-            cells: self.cells.clone().into(),
+            lines: line_runs(&self.cells).into(),
             peeked: Cell::new(None),
         }))
     }
@@ -214,7 +216,8 @@ mod export;
 struct PreisachState {
     grid: PreisachGrid,
     memory: PreisachMemory,
-    cells: Arc<[(u8, u8)]>,
+    /// The model's relays as runs of consecutive columns on one α-line ([`line_runs`]).
+    lines: Arc<[LineRun]>,
     /// The bits of the position `basis` last peeked at and the memory after it: the fit calls
     /// `basis` then `update` with the same seek, and the update takes it.
     peeked: Cell<Option<(u64, PreisachMemory)>>,
@@ -227,8 +230,15 @@ impl TermState for PreisachState {
         m.step(&self.grid, x);
         let mut b = [0u8; MAX_LEVELS];
         m.boundary(&mut b[..self.grid.levels]);
-        for (o, &(i, j)) in out.iter_mut().zip(self.cells.iter()) {
-            *o = if j < b[i as usize] { 1.0 } else { -1.0 };
+        // Relay (i, j) is up (+1) iff j < B(i): on a run of relays j0, j0 + 1, … of line i,
+        // the first B(i) − j0 are up.
+        for r in self.lines.iter() {
+            let (start, len) = (r.start as usize, r.len as usize);
+            let up = (b[r.i as usize] as usize)
+                .saturating_sub(r.j0 as usize)
+                .min(len);
+            out[start..start + up].fill(1.0);
+            out[start + up..start + len].fill(-1.0);
         }
         self.peeked.set(Some((x.to_bits(), m)));
     }
@@ -242,6 +252,34 @@ impl TermState for PreisachState {
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
     }
+}
+
+/// Relays `(i, j0)`, `(i, j0 + 1)`, … of one α-line in consecutive columns from `start`.
+#[derive(Debug, Clone, Copy)]
+struct LineRun {
+    i: u8,
+    j0: u8,
+    start: u16,
+    len: u16,
+}
+
+/// The columns `cells` (`(i, j)` of each) as maximal runs of one line and consecutive `j`.
+fn line_runs(cells: &[(u8, u8)]) -> Vec<LineRun> {
+    let mut runs: Vec<LineRun> = Vec::new();
+    for (c, &(i, j)) in cells.iter().enumerate() {
+        match runs.last_mut() {
+            Some(r) if r.i == i && usize::from(r.j0) + usize::from(r.len) == usize::from(j) => {
+                r.len += 1
+            }
+            _ => runs.push(LineRun {
+                i,
+                j0: j,
+                start: c as u16,
+                len: 1,
+            }),
+        }
+    }
+    runs
 }
 
 /// Parses `preisach` / `preisach:N` (N from 1 to [`MAX_LEVELS`]; default [`DEFAULT_LEVELS`]).
