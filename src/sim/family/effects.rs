@@ -42,6 +42,11 @@ pub enum HiddenEffect {
     /// `by:position:temp_slow`. Not among [`HiddenEffect::ALL`] (its scenario is checked
     /// apart: the study rotation stays as it is).
     Windage,
+    /// `slow_threshold`: a slow column with a set point — nothing while `temp_slow` is below
+    /// 41 °C, a ramp of A = 3 per °C above it (A = 1 × the drive's scale) — the shape an
+    /// adaptive `drift` follows step by step. Its term is `bins:temp_slow:8`. Not among
+    /// [`HiddenEffect::ALL`] (checked apart).
+    SlowThreshold,
 }
 
 impl HiddenEffect {
@@ -61,7 +66,11 @@ impl HiddenEffect {
 
     /// The hidden effects generated but not among [`HiddenEffect::ALL`] (checked apart from
     /// the studies' scenarios).
-    pub const APART: [HiddenEffect; 2] = [HiddenEffect::Preisach, HiddenEffect::Windage];
+    pub const APART: [HiddenEffect; 3] = [
+        HiddenEffect::Preisach,
+        HiddenEffect::Windage,
+        HiddenEffect::SlowThreshold,
+    ];
 
     /// The effect's name (metadata, truth column).
     pub fn name(self) -> &'static str {
@@ -77,6 +86,7 @@ impl HiddenEffect {
             HiddenEffect::Interaction => "interaction",
             HiddenEffect::Preisach => "preisach",
             HiddenEffect::Windage => "windage",
+            HiddenEffect::SlowThreshold => "slow_threshold",
         }
     }
 
@@ -92,7 +102,9 @@ impl HiddenEffect {
     pub fn column(self) -> Option<&'static str> {
         match self {
             HiddenEffect::FastCovariate => Some("temp_fast"),
-            HiddenEffect::SlowCovariate | HiddenEffect::Windage => Some("temp_slow"),
+            HiddenEffect::SlowCovariate | HiddenEffect::Windage | HiddenEffect::SlowThreshold => {
+                Some("temp_slow")
+            }
             HiddenEffect::Threshold => Some("load"),
             HiddenEffect::Lag => Some("temp_lag"),
             HiddenEffect::CovariateDirection => Some("humid"),
