@@ -94,6 +94,10 @@ impl CContext {
             F::Direction => ("1", "(bias_real)f->direction"),
             F::DirectionChange => ("1", "(bias_real)f->direction_change"),
             F::SinceReversal => ("1", "f->since_reversal"),
+            F::ReversalPosition => (
+                "1",
+                "(f->target - (bias_real)f->direction * f->since_reversal)",
+            ),
             F::RestDistanceOd => ("f->has_rest_od", "f->rest_od"),
             F::RestDistanceId => ("f->has_rest_id", "f->rest_id"),
             F::DwellS => ("1", "f->dwell_s"),

@@ -5,16 +5,38 @@
 //! repeated on **residual + that term's contribution** against every candidate except the time
 //! features (which trivially follow any adaptive offset), and a candidate that explains a
 //! practical share of it becomes advice: "drift is following `temp_c`: add `col:temp_c`".
+//!
+//! ## Slow columns: the strongest one, on its own null
+//! A slow column with a set point (nothing below it, a ramp above: a coolant valve opening, a
+//! fan stage) that drift follows makes residual + drift slow too: its null block is a tenth of
+//! a 1500-seek log, so the family-wise null has some eight blocks to permute and every slow
+//! column (a warm-up, a random walk) matches some permutation — the column with the effect
+//! explained 37–48 % of it on every family drive, at a family-wise p above 0.01 (up to 0.80)
+//! on 5 of 12 logs. So a second rule ([`slow_column`]) takes the **strongest** non-time
+//! candidate of that diagnosis when it is a logged column (or its lag), not flagged, and
+//! explains at least `min_effect` of
+//! residual + contribution and more than twice what it explains of the residual alone, at a
+//! per-feature permutation p (the same block null) of at most [`SLOW_RAW_P`]. Its binned
+//! smoother holds any shape (the advice is the shape's term, `bins:COL` for a ramp from a set
+//! point), and the edit goes to the verification refit as every absorbed effect's does. On the
+//! family drives without such an effect residual + drift holds no slow structure: the
+//! strongest column explained 1.4 % at most (`min_effect` is 2 %; docs/diagnosis.md).
 
 use serde::{Deserialize, Serialize};
 
-use super::{CheckedDiagnoseConfig, DiagnoseError, FeatureTable, diagnose};
+use super::{
+    CheckedDiagnoseConfig, DiagnoseError, Diagnosis, FeatureOrigin, FeatureReport, FeatureTable,
+    diagnose,
+};
 use crate::model::{FittedModel, Prediction};
 
 /// A drift forgetting factor above this (memory shorter than about 10 measurements) is much
 /// faster than a slow offset of the driver electronics needs (minutes: a few hundredths at a
 /// few seeks per second) and is reported as suspicious.
 pub(crate) const FAST_FORGETTING: f64 = 0.1;
+
+/// Most per-feature permutation p-value of the slow-column rule ([`slow_column`]).
+pub(crate) const SLOW_RAW_P: f64 = 0.01;
 
 /// An effect an adaptive term absorbed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -113,19 +135,51 @@ pub(crate) fn absorbed(
             .for_each(|(c, r)| *c += r);
         let with = diagnose(&reduced, &y, config)?;
         let plain = diagnose(&reduced, &prediction.residual, config)?;
-        for f in with.features.iter().filter(|f| f.flagged) {
-            let alone = plain.feature(&f.name).map_or(0.0, |p| p.explained);
-            if f.explained >= config.min_effect && f.explained > 2.0 * alone {
-                out.push(Absorption {
-                    term: name.clone(),
-                    feature: f.name.clone(),
-                    explained_with_term: f.explained,
-                    explained_residual: alone,
-                    suggested_term: f.suggested_term.clone(),
-                    alternatives: f.alternatives.clone(),
-                });
-            }
+        let alone = |f: &FeatureReport| plain.feature(&f.name).map_or(0.0, |p| p.explained);
+        let absorbs =
+            |f: &FeatureReport| f.explained >= config.min_effect && f.explained > 2.0 * alone(f);
+        let reported = with.features.iter().filter(|f| f.flagged && absorbs(f));
+        let slow = slow_column(&with, &reduced).filter(|f| absorbs(f));
+        for f in reported.chain(slow) {
+            out.push(Absorption {
+                term: name.clone(),
+                feature: f.name.clone(),
+                explained_with_term: f.explained,
+                explained_residual: alone(f),
+                suggested_term: f.suggested_term.clone(),
+                alternatives: with_binned_column(f),
+            });
         }
     }
     Ok(out)
+}
+
+/// The alternatives of an absorbed effect: the feature's own, and for a lag of a column
+/// (`temp@lag4.8s`) the binned column too (`bins:temp`): a lag short beside the column's own
+/// course changes it little, and the binned curve holds a set point a lag's straight line
+/// cannot (the verification keeps whichever refit gains most).
+fn with_binned_column(f: &FeatureReport) -> Vec<String> {
+    let mut alternatives = f.alternatives.clone();
+    if let Some(column) = super::lagged_column(&f.name) {
+        let binned = format!("{}:{column}", crate::model::terms::bins::HEAD);
+        if !alternatives.contains(&binned) && f.suggested_term.as_ref() != Some(&binned) {
+            alternatives.push(binned);
+        }
+    }
+    alternatives
+}
+
+/// The slow-column rule (module docs): the feature of `with` (the diagnosis of residual + an
+/// adaptive term's contribution against `table`) that explains most of it, when it is a
+/// logged column or a lag of one, not flagged (a flagged one is reported by the family-wise
+/// rule), and its per-feature permutation p-value is at most [`SLOW_RAW_P`].
+fn slow_column<'a>(with: &'a Diagnosis, table: &FeatureTable) -> Option<&'a FeatureReport> {
+    let top = with
+        .features
+        .iter()
+        .max_by(|a, b| a.explained.total_cmp(&b.explained))?;
+    let logged = table
+        .column(&top.name)
+        .is_some_and(|c| matches!(c.origin, FeatureOrigin::Covariate | FeatureOrigin::Lagged));
+    (logged && !top.flagged && top.p_value_raw <= SLOW_RAW_P).then_some(top)
 }

@@ -445,6 +445,7 @@ pub(super) fn grid_of(
         Feature::SeekLength
         | Feature::SeekAbs
         | Feature::SinceReversal
+        | Feature::ReversalPosition
         | Feature::RestDistanceOd
         | Feature::RestDistanceId => Some(positions),
         Feature::DwellS => Some(times),

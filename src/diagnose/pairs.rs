@@ -146,14 +146,78 @@ fn cells_gain(parts: &[&Vec<u8>], r: &[f64], ctx: &Ctx, config: &DiagnoseConfig)
 /// Whether a pair is worth an interaction term: not two time features, not a feature with
 /// the direction (the direction-signed single analysis covers `direction × feature`).
 /// A summed-memory or lagged feature is no column `by:` can read (its term is `memsum` or
-/// `lag:COL`), so it is not paired either.
-fn pairable(c: &FeatureColumn) -> bool {
-    !super::is_time(c.origin)
-        && matches!(
-            c.origin,
-            FeatureOrigin::BuiltIn(_) | FeatureOrigin::Covariate
-        )
-        && c.origin != FeatureOrigin::BuiltIn(Feature::Direction)
+/// `lag:COL`), so it is not paired either. `reversal_position` is paired with `position`
+/// alone ([`reversal_pair`]): that pair is the reversal-memory screen.
+fn pairable(a: &FeatureColumn, b: &FeatureColumn) -> bool {
+    let one = |c: &FeatureColumn| {
+        !super::is_time(c.origin)
+            && matches!(
+                c.origin,
+                FeatureOrigin::BuiltIn(_) | FeatureOrigin::Covariate
+            )
+            && c.origin != FeatureOrigin::BuiltIn(Feature::Direction)
+    };
+    let reversal =
+        |c: &FeatureColumn| c.origin == FeatureOrigin::BuiltIn(Feature::ReversalPosition);
+    one(a) && one(b) && (!(reversal(a) || reversal(b)) || reversal_pair(a, b))
+}
+
+/// Whether a feature is read only by the pair screen, not alone: `reversal_position`. Alone
+/// it is a proxy of the direction of the next move (a motion turns back away from where it
+/// last reversed) and of the seek length, and its single smoother took their place on logs
+/// whose effects they name; jointly with `position` it is what no other feature is.
+pub(super) fn pair_only(origin: FeatureOrigin) -> bool {
+    origin == FeatureOrigin::BuiltIn(Feature::ReversalPosition)
+}
+
+/// Whether `(a, b)` is the pair (`position`, `reversal_position`) in either order: the output
+/// depends on where the head is and where the motion last turned jointly — hysteresis with
+/// reversal memory, whose loops are not congruent (a `play`/`dahl` loop depends on the two
+/// only through their difference, `since_reversal`, which the single screen reads). Its term
+/// is `preisach` (the relay count chosen by the verification), not `by:`.
+fn reversal_pair(a: &FeatureColumn, b: &FeatureColumn) -> bool {
+    let is = |c: &FeatureColumn, f| c.origin == FeatureOrigin::BuiltIn(f);
+    (is(a, Feature::Position) && is(b, Feature::ReversalPosition))
+        || (is(a, Feature::ReversalPosition) && is(b, Feature::Position))
+}
+
+/// The term a screened pair suggests: `preisach` for the reversal pair ([`reversal_pair`]),
+/// else `by:A:B`. The reversal pair is read only on the residual of a model that already
+/// holds a congruent-loop hysteresis term ([`holds_congruent_loops`]) and no `preisach`:
+/// where no such term is in the model, a `play`/`dahl` loop left in the residual is a joint
+/// function of the two as well (of their difference), and a Preisach grid — which holds every
+/// play operator — would be refitted in place of the two-parameter term that answers it
+/// (`since_reversal` → `play`/`dahl`, from the single screen). `None`: the pair suggests nothing.
+fn pair_term(a: &FeatureColumn, b: &FeatureColumn, existing: &[String]) -> Option<String> {
+    use crate::model::terms::preisach;
+    if !reversal_pair(a, b) {
+        return Some(crate::model::terms::by::spec(&a.name, &b.name));
+    }
+    let has = existing
+        .iter()
+        .any(|t| crate::model::registry::head(t.trim()) == preisach::HEAD);
+    (!has && holds_congruent_loops(existing)).then(|| preisach::HEAD.to_string())
+}
+
+/// Whether the model's terms hold a hysteresis state term with congruent loops (a
+/// direction-signed state term other than the plain `direction` offset: `dahl[:N]`,
+/// `play[:N]`), whose loops depend on the position and the last reversal only through their
+/// difference.
+pub(super) fn holds_congruent_loops(existing: &[String]) -> bool {
+    existing.iter().map(|t| t.trim()).any(|t| {
+        crate::model::registry::is_signed_state(t)
+            && crate::model::registry::head(t) != crate::model::terms::direction::HEAD
+    })
+}
+
+/// The best single gain among the single screen's candidates (a pair-only feature is not one).
+fn order_best(single: &[f64], cols: &[(&FeatureColumn, Vec<u8>)]) -> f64 {
+    single
+        .iter()
+        .zip(cols)
+        .filter(|(_, (c, _))| !pair_only(c.origin))
+        .map(|(&g, _)| g)
+        .fold(0.0, f64::max)
 }
 
 /// Pair screening and the global check on `left`, the residual the forward pass left.
@@ -180,7 +244,7 @@ pub(crate) fn screen(
         .collect();
     let pairs: Vec<(usize, usize)> = (0..cols.len())
         .flat_map(|i| (i + 1..cols.len()).map(move |j| (i, j)))
-        .filter(|&(i, j)| pairable(cols[i].0) && pairable(cols[j].0))
+        .filter(|&(i, j)| pairable(cols[i].0, cols[j].0))
         .collect();
     let pair_gains: Vec<f64> = pairs
         .par_iter()
@@ -194,13 +258,15 @@ pub(crate) fn screen(
         score[i] = score[i].max(pair);
         score[j] = score[j].max(pair);
         let best = single[i].max(single[j]);
-        if pair - best >= config.min_effect.max(1e-9) {
+        if pair - best >= config.min_effect.max(1e-9)
+            && let Some(term) = pair_term(cols[i].0, cols[j].0, &config.existing_terms)
+        {
             found.push(Interaction {
                 a: cols[i].0.name.clone(),
                 b: cols[j].0.name.clone(),
                 explained_pair: pair,
                 best_single: best,
-                suggested_term: crate::model::terms::by::spec(&cols[i].0.name, &cols[j].0.name),
+                suggested_term: term,
             });
         }
     }
@@ -208,12 +274,15 @@ pub(crate) fn screen(
         (y.explained_pair - y.best_single).total_cmp(&(x.explained_pair - x.best_single))
     });
     found.truncate(MAX_INTERACTIONS);
-    let mut order: Vec<usize> = (0..cols.len()).collect();
+    // The global check's candidates are the single screen's (a pair-only feature is not one).
+    let mut order: Vec<usize> = (0..cols.len())
+        .filter(|&k| !pair_only(cols[k].0.origin))
+        .collect();
     order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
     let top: Vec<usize> = order.into_iter().take(GLOBAL_FEATURES).collect();
     let parts: Vec<&Vec<u8>> = top.iter().map(|&k| &cols[k].1).collect();
     let joint = cells_gain(&parts, left, ctx, config);
-    let best_single = single.iter().copied().fold(0.0, f64::max);
+    let best_single = order_best(&single, &cols);
     let global = GlobalCheck {
         features: top.iter().map(|&k| cols[k].0.name.clone()).collect(),
         explained_joint: joint,

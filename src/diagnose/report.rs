@@ -439,6 +439,10 @@ pub(crate) fn skipped_report(
             short(*value)
         ),
         Unusable::AllMissing => "skipped: undefined on every measured row".to_string(),
+        Unusable::PairOnly => "not a single candidate: read jointly with `position` by the \
+                                pair screen (alone it stands in for the direction of the next \
+                                move, which turns back away from where the last one reversed)"
+            .to_string(),
     };
     let defined = col.defined_count();
     FeatureReport {
@@ -471,8 +475,16 @@ pub(super) fn is_skipped(f: &FeatureReport) -> bool {
     f.bins == 0
 }
 
+/// Whether `f` is the report of a feature only the pair screen reads
+/// ([`super::pairs::pair_only`]): skipped by the single screen, but not constant or undefined.
+pub(super) fn is_pair_only(f: &FeatureReport) -> bool {
+    crate::history::Feature::from_name(&f.name)
+        .is_some_and(|b| super::pairs::pair_only(FeatureOrigin::BuiltIn(b)))
+}
+
 /// Marginal strength order: explained (on the grid of [`EXPLAINED_TIE`]), then family-wise p,
-/// then raw p, then name; skipped last.
+/// then raw p, then name; skipped last (a feature only the pair screen reads before the
+/// constant or undefined ones).
 ///
 /// The permutation p-values are multiples of 1/(permutations + 1), so unflagged features often
 /// share one (p = 0.005), and features that bin alike (`elapsed_s` and `seek_index`, a lagged
@@ -482,8 +494,13 @@ pub(super) fn is_skipped(f: &FeatureReport) -> bool {
 /// by p, then by name: the same for any rounding of the fit (unless a share straddles a grid
 /// step, about one tie in 10⁴ per 1e-13 of change).
 pub(crate) fn compare(a: &FeatureReport, b: &FeatureReport) -> std::cmp::Ordering {
-    is_skipped(a)
-        .cmp(&is_skipped(b))
+    let rank = |f: &FeatureReport| match (is_skipped(f), is_pair_only(f)) {
+        (false, _) => 0u8,
+        (true, true) => 1,
+        (true, false) => 2,
+    };
+    rank(a)
+        .cmp(&rank(b))
         .then(explained_key(b).total_cmp(&explained_key(a)))
         .then(a.p_value.total_cmp(&b.p_value))
         .then(a.p_value_raw.total_cmp(&b.p_value_raw))

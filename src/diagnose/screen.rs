@@ -350,6 +350,9 @@ fn analyse_columns(
         .columns()
         .par_iter()
         .map(|col| {
+            if super::pairs::pair_only(col.origin) {
+                return Err(Unusable::PairOnly);
+            }
             col.binned(config.max_bins, config.min_bin_rows, config.max_discrete)
                 .map(|binned| {
                     let can_sign = c.signed_sst.is_some() && signable(col);

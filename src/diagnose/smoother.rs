@@ -118,6 +118,9 @@ pub(crate) enum Unusable {
         /// Rows with another value or undefined.
         others: usize,
     },
+    /// A feature the pair screen reads jointly with another and the single screen leaves out
+    /// (`reversal_position`, read with `position`).
+    PairOnly,
 }
 
 /// Shift that maps every fine bin to bin 0.

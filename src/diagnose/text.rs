@@ -7,7 +7,7 @@ use crate::log::fmt_float;
 use crate::numeric::stats;
 
 use super::advice;
-use super::report::is_skipped;
+use super::report::{is_pair_only, is_skipped};
 use super::values::short;
 use super::{DiagnoseError, Diagnosis, FeatureReport};
 
@@ -335,7 +335,7 @@ pub(crate) fn summary(d: &Diagnosis, n: usize, alpha: f64) -> String {
     let skipped: Vec<String> = d
         .features
         .iter()
-        .filter(|f| is_skipped(f))
+        .filter(|f| is_skipped(f) && !is_pair_only(f))
         .map(|f| format!("`{}`", f.name))
         .collect();
     if !skipped.is_empty() {

@@ -41,6 +41,13 @@ impl SeekFeatures {
         self.seek_length.abs()
     }
 
+    /// Where the motion last reversed direction (`reversal_position`): the turning point
+    /// `since_reversal` is measured from, `target − direction·since_reversal`, tracks (the
+    /// target itself before the head has moved).
+    pub fn reversal_position(&self) -> f64 {
+        self.target - f64::from(self.direction) * self.since_reversal
+    }
+
     /// Distance to the nearest uncrossed rest position ahead of the approach, i.e. on the side
     /// the head was moving towards (ID side for an inbound seek), if any.
     pub fn rest_distance_ahead(&self) -> Option<f64> {
@@ -69,6 +76,9 @@ pub enum Feature {
     DirectionChange,
     /// `since_reversal`: tracks travelled since the last direction change.
     SinceReversal,
+    /// `reversal_position`: where the motion last reversed direction (the turning point
+    /// `since_reversal` is measured from), tracks; the target itself before any reversal.
+    ReversalPosition,
     /// `rest_distance_od`: distance to the nearest uncrossed rest position on the OD side.
     RestDistanceOd,
     /// `rest_distance_id`: distance to the nearest uncrossed rest position on the ID side.
@@ -83,13 +93,14 @@ pub enum Feature {
 
 impl Feature {
     /// Every built-in feature, in a fixed order.
-    pub const ALL: [Feature; 11] = [
+    pub const ALL: [Feature; 12] = [
         Feature::Position,
         Feature::SeekLength,
         Feature::SeekAbs,
         Feature::Direction,
         Feature::DirectionChange,
         Feature::SinceReversal,
+        Feature::ReversalPosition,
         Feature::RestDistanceOd,
         Feature::RestDistanceId,
         Feature::DwellS,
@@ -106,6 +117,7 @@ impl Feature {
             Feature::Direction => "direction",
             Feature::DirectionChange => "direction_change",
             Feature::SinceReversal => "since_reversal",
+            Feature::ReversalPosition => "reversal_position",
             Feature::RestDistanceOd => "rest_distance_od",
             Feature::RestDistanceId => "rest_distance_id",
             Feature::DwellS => "dwell_s",
@@ -131,6 +143,7 @@ impl SeekFeatures {
             Feature::Direction => Some(f64::from(self.direction)),
             Feature::DirectionChange => Some(f64::from(u8::from(self.direction_change))),
             Feature::SinceReversal => Some(self.since_reversal),
+            Feature::ReversalPosition => Some(self.reversal_position()),
             Feature::RestDistanceOd => self.rest_distance_od,
             Feature::RestDistanceId => self.rest_distance_id,
             Feature::DwellS => Some(self.dwell_s),
@@ -145,6 +158,32 @@ mod tests {
     #![allow(clippy::float_cmp)] // positions are exact integers here; equality is meant
 
     use super::*;
+
+    /// Reference: the turning points read off the targets alone — the target before each
+    /// non-zero move whose sign differs from the last non-zero move's, the first target
+    /// before any reversal — on a seeded random walk with zero-length moves and long runs.
+    #[test]
+    fn reversal_position_is_the_last_turning_point() {
+        let mut rng = crate::numeric::rng::SimRng::new(33);
+        let mut h = super::super::History::new();
+        let mut x = 500.0;
+        let (mut last_sign, mut turn, mut prev) = (0.0f64, x, x);
+        for k in 0..2000 {
+            if k > 0 {
+                x += rng.below(41) as f64 - 20.0;
+            }
+            let f = h.step(k as f64 * 0.1, x);
+            let sign = (x - prev).signum() * f64::from(u8::from(x != prev));
+            if sign != 0.0 {
+                if last_sign != 0.0 && sign != last_sign {
+                    turn = prev;
+                }
+                last_sign = sign;
+            }
+            prev = x;
+            assert_eq!(f.value(Feature::ReversalPosition), Some(turn), "row {k}");
+        }
+    }
 
     #[test]
     fn feature_names_round_trip() {

@@ -38,7 +38,7 @@ pub(crate) fn turning_points(features: impl IntoIterator<Item = SeekFeatures>) -
     features
         .into_iter()
         .filter(|f| f.direction_change)
-        .map(|f| f.target - f64::from(f.direction) * f.since_reversal)
+        .map(|f| f.reversal_position())
         .collect()
 }
 

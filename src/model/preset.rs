@@ -55,7 +55,9 @@ impl crate::sim::family::HiddenEffect {
     /// `by:position:supply` for the interaction (the centred product of position and the
     /// column: the generator's `(supply − 12)·u` up to terms linear in position, which the
     /// model's position curve holds, and in `supply` times the mean of `u`); `preisach:16` for
-    /// the Preisach hysteresis (the generator's 40 levels on a grid of 16).
+    /// the Preisach hysteresis (the generator's 40 levels on a grid of 16), and
+    /// `by:position:temp_slow` for the windage (the same centred product, of the slow column),
+    /// `bins:temp_slow:8` for the slow threshold (hinges that hold a ramp from a set point).
     pub fn true_term(self) -> Option<&'static str> {
         match self {
             Self::FastCovariate => Some("col:temp_fast"),
@@ -68,6 +70,8 @@ impl crate::sim::family::HiddenEffect {
             Self::SummedMemory => Some("memsum"),
             Self::Interaction => Some("by:position:supply"),
             Self::Preisach => Some("preisach:16"),
+            Self::Windage => Some("by:position:temp_slow"),
+            Self::SlowThreshold => Some("bins:temp_slow:8"),
         }
     }
 }

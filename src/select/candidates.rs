@@ -3,7 +3,7 @@
 
 use crate::diagnose::{Diagnosis, FeatureReport};
 use crate::model::registry::head;
-use crate::model::terms::{bins, covariate, drift, lag, parse_term, poly, table};
+use crate::model::terms::{bins, covariate, drift, lag, parse_term, poly, preisach, table};
 use crate::model::{ModelEdit, ModelSpec, SpecError};
 
 /// A candidate for verification: the feature it comes from and the terms to try, best first
@@ -220,14 +220,23 @@ pub(crate) fn edit_for(
 /// smooth curve, and the out-of-sample refit, not the 1-D smoother, decides how many pay.
 pub(super) const KNOT_CHOICES: [usize; 2] = [8, 16];
 
+/// Relay counts N the verification tries for a `preisach` suggestion given without one: the
+/// term's default first, then these. A finer grid follows a narrower weight density, at
+/// N(N+1)/2 weights; the out-of-sample refit decides how many pay.
+pub(super) const PREISACH_CHOICES: [usize; 2] = [12, 16];
+
 /// The terms the verification scores for suggestion `term`: the term itself, then for a
-/// `bins:F` or `dbins:F` without a knot count the same term with each of [`KNOT_CHOICES`]
-/// (the best verified gain among them is kept).
+/// `bins:F` or `dbins:F` without a knot count the same term with each of [`KNOT_CHOICES`],
+/// for `preisach` without a relay count the same with each of [`PREISACH_CHOICES`] (the best
+/// verified gain among them is kept).
 pub(super) fn knot_variants(term: &str) -> Vec<String> {
     let mut out = vec![term.to_string()];
     let parts: Vec<&str> = term.split(':').collect();
     if parts.len() == 2 && (parts[0] == bins::HEAD || parts[0] == bins::DBINS_HEAD) {
         out.extend(KNOT_CHOICES.iter().map(|k| format!("{term}:{k}")));
+    }
+    if term == preisach::HEAD {
+        out.extend(PREISACH_CHOICES.iter().map(|k| format!("{term}:{k}")));
     }
     out
 }

@@ -1838,3 +1838,59 @@ fn the_calibration_runs_table_stretch_holds_the_z_score_down() {
         "{zs:?}, {share}"
     );
 }
+
+/// A verified `add step:COL` is named with the threshold the whole log places only where the
+/// named form refits on the verification's folds. Reference: a column that steps up once per
+/// quarter in time (1, 3, 5, 7) with a bias step between 1 and 3; on the whole log the
+/// threshold lands between the 1- and 3-levels, but the first fold's training rows (the
+/// later two thirds) hold no 1-level row, so that threshold leaves a side empty there and the
+/// bare term stays (it places its threshold on each fold's own rows). Where every fold holds
+/// rows on both sides (levels cycling through the log), the named form is kept.
+#[test]
+fn a_step_named_on_the_whole_log_is_kept_only_where_the_folds_refit_it() {
+    use crate::model::ModelEdit;
+    let log_of = |level: &dyn Fn(usize) -> f64| {
+        let mut rng = SimRng::new(9);
+        let mut text = String::from("time_s,track,bias,p\n");
+        for i in 0..1200 {
+            let pos = rng.below(250) as f64;
+            let p = level(i) + 0.01 * rng.normal();
+            let bias = 0.02 * pos + if p > 2.0 { 4.0 } else { 0.0 } + rng.normal();
+            text.push_str(&format!("{},{pos},{bias:.4},{p:.4}\n", 0.2 * i as f64));
+        }
+        Log::from_reader("p.csv", text.as_bytes(), &ColumnMap::default()).unwrap()
+    };
+    let named = |log: &Log| {
+        let spec = ModelSpec::parse("poly2").unwrap();
+        let edit = ModelEdit::Add(crate::model::terms::parse_term("step:p").unwrap());
+        let mut v = Verification {
+            edits: vec![VerifiedEdit {
+                feature: "p".into(),
+                edit: edit.to_string(),
+                terms: spec.apply(&edit).unwrap().to_string(),
+                std_before: 2.0,
+                std_after: 1.0,
+                gain: 0.5,
+                gain_within_folds: 0.5,
+                z: 10.0,
+                verified: true,
+                reason: Reason::Verified,
+                z_bar: 2.0,
+                model_edit: Some(edit),
+            }],
+            ..Verification::default()
+        };
+        super::verify::name_verified(&mut v, &spec, log, &CheckedVerifyConfig::default());
+        v.edits[0].edit.clone()
+    };
+    let once = log_of(&|i| [1.0, 3.0, 5.0, 7.0][i * 4 / 1200]);
+    assert_eq!(named(&once), "add step:p");
+    let cycling = log_of(&|i| [1.0, 3.0, 5.0, 7.0][i / 50 % 4]);
+    let edit = named(&cycling);
+    let t: f64 = edit
+        .strip_prefix("add step:p:")
+        .unwrap_or_else(|| panic!("{edit}"))
+        .parse()
+        .unwrap();
+    assert!((1.0..3.0).contains(&t), "{edit}");
+}

@@ -475,7 +475,11 @@ fn verified_edit(
 }
 
 /// A verified `add bump` (`add step:COL`) names the centre and width (the threshold) it finds
-/// on the whole log, fitted on `spec`.
+/// on the whole log, fitted on `spec`. The named form is kept only where it refits on the
+/// folds the bare term was verified on: a threshold found on the whole log can leave a fold's
+/// training rows all on one side (a column that steps once in time, its low rows in one
+/// stretch), and the next round would then fail to refit the model; the bare term, which
+/// places its threshold on each fold's own rows, stays in that case.
 pub(super) fn name_verified(
     v: &mut Verification,
     spec: &ModelSpec,
@@ -486,7 +490,11 @@ pub(super) fn name_verified(
         let named = e
             .model_edit
             .as_ref()
-            .and_then(|m| crate::diagnose::advice::name_searched(spec, m, log, &config.fit));
+            .and_then(|m| crate::diagnose::advice::name_searched(spec, m, log, &config.fit))
+            .filter(|(_, next)| {
+                cv_residuals_sharing(next, log, config.folds, &config.fit, &Default::default())
+                    .is_ok()
+            });
         if let Some((edit, next)) = named {
             e.edit = edit.to_string();
             e.terms = next.to_string();

@@ -871,6 +871,194 @@ fn play_and_interaction_are_suggested_where_they_apply_and_only_there() {
     );
 }
 
+/// The reversal-memory pair screen. Reference: the generator's truth. On `pi-cubic-ar1` with
+/// the Preisach effect (a weight blob off the diagonal of the (α, β) plane: the output steps
+/// only for reversals between two regions of the travel, which no congruent loop makes) and
+/// the family's user model (`table`, `dahl:8`), the pair (`position`, `reversal_position`)
+/// explains jointly what neither does alone, and the best verified edit is `preisach:N`, N
+/// chosen by the refit. On every family drive **without** it — Bouc–Wen (a smooth Dahl-like
+/// loop) and Prandtl–Ishlinskii (Maxwell-slip/play) pivots — neither the user model nor a
+/// model whose loop term is too coarse for the pivot (`dahl:4`; `play:8` on a Bouc–Wen drive)
+/// gets a `preisach` suggestion, verified or not.
+#[test]
+fn preisach_is_suggested_for_reversal_memory_and_only_there() {
+    let verified = |terms: &[String], log: &Log, seed: u64| {
+        let model = fit_terms(terms, log);
+        diagnose_verified(&model, log, &config(seed), &CheckedVerifyConfig::default()).unwrap()
+    };
+    let pi = FamilyDrive::member("pi-cubic-ar1").unwrap();
+    for seed in [17u64, 18] {
+        let run = generate(&FamilyConfig::new(
+            pi.clone(),
+            &[HiddenEffect::Preisach],
+            seed,
+            N,
+        ))
+        .unwrap();
+        let d = verified(&diagnose_family::base_terms(&pi), &run.log, seed);
+        assert!(
+            d.interactions.iter().any(|i| i.a == "position"
+                && i.b == "reversal_position"
+                && i.suggested_term == "preisach"),
+            "seed {seed}: {:?}\n{}",
+            d.interactions,
+            d.to_text()
+        );
+        let best = d.verification.as_ref().and_then(|v| v.best());
+        assert!(
+            best.is_some_and(|b| b.edit.starts_with("add preisach:")),
+            "seed {seed}: {}",
+            d.to_text()
+        );
+    }
+    let mut drives = FamilyDrive::members();
+    drives.push(diagnose_family::fresh_drive());
+    for (k, drive) in drives.iter().enumerate() {
+        let run = generate(&FamilyConfig::new(drive.clone(), &[], 60 + k as u64, N)).unwrap();
+        let table = diagnose_family::base_terms(drive)[0].clone();
+        for terms in [
+            diagnose_family::base_terms(drive),
+            vec![table.clone(), "dahl:4".into()],
+            vec![table, "play:8".into()],
+        ] {
+            let d = verified(&terms, &run.log, 60 + k as u64);
+            let v = d.verification.clone().unwrap_or_default();
+            assert!(
+                !d.interactions
+                    .iter()
+                    .any(|i| i.suggested_term.contains("preisach"))
+                    && !v.edits.iter().any(|e| e.edit.contains("preisach")),
+                "{} {terms:?}: {}",
+                drive.name,
+                d.to_text()
+            );
+        }
+    }
+}
+
+/// The covariate × position pair screen. Reference: the generator's truth. The windage effect
+/// (`sim::family::HiddenEffect::Windage`: air density falling with the slow column `temp_slow`
+/// times a force that changes sign along the stroke) averages to zero over the travel and
+/// over the column, so no single feature has a marginal of it; on every family drive the
+/// pair (`position`, `temp_slow`) is screened and the best verified edit is its term
+/// `by:position:temp_slow` (not the `scale:temp_slow:dahl:8` it is scored beside, nor a table).
+#[test]
+fn windage_is_named_by_the_covariate_position_pair() {
+    let mut drives = FamilyDrive::members();
+    drives.push(diagnose_family::fresh_drive());
+    for (k, drive) in drives.iter().enumerate() {
+        let seed = 70 + k as u64;
+        let run = generate(&FamilyConfig::new(
+            drive.clone(),
+            &[HiddenEffect::Windage],
+            seed,
+            N,
+        ))
+        .unwrap();
+        let model = fit_terms(&diagnose_family::base_terms(drive), &run.log);
+        let d = diagnose_verified(
+            &model,
+            &run.log,
+            &config(seed),
+            &CheckedVerifyConfig::default(),
+        )
+        .unwrap();
+        assert!(
+            d.interactions
+                .iter()
+                .any(|i| i.suggested_term == "by:position:temp_slow"),
+            "{}: {:?}",
+            drive.name,
+            d.interactions
+        );
+        let best = d.verification.as_ref().and_then(|v| v.best());
+        assert!(
+            best.is_some_and(|b| b.edit == "add by:position:temp_slow"),
+            "{}: {}",
+            drive.name,
+            d.to_text()
+        );
+    }
+}
+
+/// Runs of the slow-threshold check ([`slow_threshold_behind_drift_is_named_and_only_there`])
+/// whose edit is verified by its refit, of 8; the test fails below it. The rest gain 13–24 %
+/// out of sample at z 1.4–1.8: the column rose above the set point once in the log, one
+/// episode, which the verification's block z-score rightly does not take as sure.
+const KNOWN_SLOW_THRESHOLD_VERIFIED: usize = 6;
+
+/// What `drift` absorbed, on a slow column with a set point. Reference: the generator's truth
+/// (`sim::family::HiddenEffect::SlowThreshold`: nothing while `temp_slow` ≤ 41 °C, a ramp of
+/// 3·a per °C above; its term `bins:temp_slow:8`). With `drift` in the user's model, drift
+/// follows the ramp step by step and no feature of the residual is flagged; on every family
+/// drive (the three members and the held-out one, seeds 200 and 201) the absorbed check must
+/// name `temp_slow` (or a lag of it), its suggestion must be a `temp_slow` term, that edit
+/// must be refitted with a gain out of sample, every verified edit must be a `temp_slow` term,
+/// and at least [`KNOWN_SLOW_THRESHOLD_VERIFIED`] of the 8 must be verified. On the same
+/// drives and seeds without the effect (drift in the model), nothing is absorbed and nothing
+/// verified names `temp_slow`: no new false alarm. Before the slow-column rule the check was
+/// silent on 5 of 12 such logs (all three `pi-cubic-ar1` seeds: family-wise p 0.04–0.80).
+#[test]
+fn slow_threshold_behind_drift_is_named_and_only_there() {
+    let mut drives = FamilyDrive::members();
+    drives.push(diagnose_family::fresh_drive());
+    let mut verified = 0;
+    let mut misses = Vec::new();
+    for drive in &drives {
+        for seed in [200u64, 201] {
+            for on in [true, false] {
+                let effects: &[HiddenEffect] = if on {
+                    &[HiddenEffect::SlowThreshold]
+                } else {
+                    &[]
+                };
+                let run = generate(&FamilyConfig::new(drive.clone(), effects, seed, N)).unwrap();
+                let mut terms = diagnose_family::base_terms(drive);
+                terms.push("drift".into());
+                let model = fit_terms(&terms, &run.log);
+                let d = diagnose_verified(
+                    &model,
+                    &run.log,
+                    &config(seed),
+                    &CheckedVerifyConfig::default(),
+                )
+                .unwrap();
+                let what = format!("{} seed {seed} effect {on}", drive.name);
+                let slow = |t: &str| t.contains("temp_slow");
+                let edits = d.verification.clone().unwrap_or_default().edits;
+                if edits.iter().any(|e| e.verified && !slow(&e.edit)) && on {
+                    misses.push(format!("{what}: a verified edit that is not temp_slow's"));
+                }
+                if !on {
+                    if !d.absorbed.is_empty() || edits.iter().any(|e| e.verified && slow(&e.edit)) {
+                        misses.push(format!("{what}: false alarm\n{}", d.to_text()));
+                    }
+                    continue;
+                }
+                let named = d.absorbed.iter().find(|a| {
+                    a.term == "drift"
+                        && slow(&a.feature)
+                        && a.suggested_term.as_deref().is_some_and(slow)
+                });
+                let edit = edits
+                    .iter()
+                    .find(|e| e.feature.starts_with("drift → temp_slow"));
+                match (named, edit) {
+                    (Some(_), Some(e)) if slow(&e.edit) && e.gain > 0.0 => {
+                        verified += usize::from(e.verified);
+                    }
+                    _ => misses.push(format!("{what}: not named\n{}", d.to_text())),
+                }
+            }
+        }
+    }
+    assert!(misses.is_empty(), "{}", misses.join("\n"));
+    assert!(
+        verified >= KNOWN_SLOW_THRESHOLD_VERIFIED,
+        "{verified} of 8 verified"
+    );
+}
+
 /// A slowly varying column with **no** effect must not be flagged under strongly
 /// autocorrelated noise. Reference: the generator's truth. `pi-cubic-ar1` logs (AR(1) noise in
 /// seek order, ρ = 0.6) with the threshold effect, diagnosed (with verification) on the model

@@ -36,6 +36,17 @@ pub enum HiddenEffect {
     /// travel, which no `play`/`dahl` element makes. Output scaled to [−A, A] (A = 4). Not
     /// among [`HiddenEffect::ALL`]: the diagnosis does not yet ask for it.
     Preisach,
+    /// `windage`: air density (falling with `temp_slow`) times a windage force that changes
+    /// sign along the stroke, `A·(40 − temp_slow)/2·u` (A = 1.5): it averages to zero over the
+    /// travel and over the column, so neither has a one-dimensional marginal; its term is
+    /// `by:position:temp_slow`. Not among [`HiddenEffect::ALL`] (its scenario is checked
+    /// apart: the study rotation stays as it is).
+    Windage,
+    /// `slow_threshold`: a slow column with a set point — nothing while `temp_slow` is below
+    /// 41 °C, a ramp of A = 3 per °C above it (A = 1 × the drive's scale) — the shape an
+    /// adaptive `drift` follows step by step. Its term is `bins:temp_slow:8`. Not among
+    /// [`HiddenEffect::ALL`] (checked apart).
+    SlowThreshold,
 }
 
 impl HiddenEffect {
@@ -53,6 +64,14 @@ impl HiddenEffect {
         HiddenEffect::Interaction,
     ];
 
+    /// The hidden effects generated but not among [`HiddenEffect::ALL`] (checked apart from
+    /// the studies' scenarios).
+    pub const APART: [HiddenEffect; 3] = [
+        HiddenEffect::Preisach,
+        HiddenEffect::Windage,
+        HiddenEffect::SlowThreshold,
+    ];
+
     /// The effect's name (metadata, truth column).
     pub fn name(self) -> &'static str {
         match self {
@@ -66,6 +85,8 @@ impl HiddenEffect {
             HiddenEffect::SummedMemory => "summed_memory",
             HiddenEffect::Interaction => "interaction",
             HiddenEffect::Preisach => "preisach",
+            HiddenEffect::Windage => "windage",
+            HiddenEffect::SlowThreshold => "slow_threshold",
         }
     }
 
@@ -73,7 +94,7 @@ impl HiddenEffect {
     pub fn from_name(name: &str) -> Option<HiddenEffect> {
         Self::ALL
             .into_iter()
-            .chain([HiddenEffect::Preisach])
+            .chain(Self::APART)
             .find(|e| e.name() == name)
     }
 
@@ -81,7 +102,9 @@ impl HiddenEffect {
     pub fn column(self) -> Option<&'static str> {
         match self {
             HiddenEffect::FastCovariate => Some("temp_fast"),
-            HiddenEffect::SlowCovariate => Some("temp_slow"),
+            HiddenEffect::SlowCovariate | HiddenEffect::Windage | HiddenEffect::SlowThreshold => {
+                Some("temp_slow")
+            }
             HiddenEffect::Threshold => Some("load"),
             HiddenEffect::Lag => Some("temp_lag"),
             HiddenEffect::CovariateDirection => Some("humid"),

@@ -397,6 +397,17 @@ impl Hidden<'_> {
                 .enumerate()
                 .map(|(k, v)| 1.5 * a * (v - 12.0) / 0.3 * u(k))
                 .collect(),
+            HiddenEffect::Windage => self
+                .cov("temp_slow")
+                .iter()
+                .enumerate()
+                .map(|(k, v)| 1.5 * a * (40.0 - v) / 2.0 * u(k))
+                .collect(),
+            HiddenEffect::SlowThreshold => self
+                .cov("temp_slow")
+                .iter()
+                .map(|v| 3.0 * a * (v - 41.0).max(0.0))
+                .collect(),
             HiddenEffect::Preisach => super::physics::preisach(tracks, d.centre, half)
                 .into_iter()
                 .map(|v| 4.0 * a * v)
@@ -478,10 +489,7 @@ mod tests {
             let c = generate(&FamilyConfig::new(drive.clone(), &[], 6, 300)).unwrap();
             assert_eq!(log_text(&a), log_text(&b));
             assert_ne!(log_text(&a), log_text(&c));
-            for e in HiddenEffect::ALL
-                .into_iter()
-                .chain([HiddenEffect::Preisach])
-            {
+            for e in HiddenEffect::ALL.into_iter().chain(HiddenEffect::APART) {
                 let on = generate(&FamilyConfig::new(drive.clone(), &[e], 5, 300)).unwrap();
                 let mut differs = 0;
                 for (r0, r1) in a.log.rows().zip(on.log.rows()) {
@@ -544,6 +552,47 @@ mod tests {
             assert!((v - truth[k]).abs() < 1e-9, "row {k}: {v} vs {}", truth[k]);
             source = x;
         }
+    }
+
+    /// Reference: the closed forms of the two covariate effects checked apart from the
+    /// studies, row by row from the logged column (4-decimal rounding): the slow threshold is
+    /// 0 at or below 41 °C and `3·a·(T − 41)` above (a = effect scale × noise std), and the
+    /// windage `1.5·a·(40 − T)/2·u`.
+    #[test]
+    fn slow_threshold_and_windage_follow_their_closed_forms() {
+        let d = FamilyDrive::members()[2].clone();
+        let a = d.effect_scale * d.noise.std;
+        let effects = [HiddenEffect::SlowThreshold, HiddenEffect::Windage];
+        let run = generate(&FamilyConfig::new(d.clone(), &effects, 12, 600)).unwrap();
+        let k_t = run.log.schema.covariate_index("temp_slow").unwrap();
+        let (thr, wind) = (
+            run.truth("slow_threshold").unwrap(),
+            run.truth("windage").unwrap(),
+        );
+        let (mut below, mut above) = (0, 0);
+        for (k, row) in run.log.rows().enumerate() {
+            let t = row.covariates.get(k_t).unwrap();
+            let u = (row.track - d.centre) / (d.span / 2.0);
+            let want = if t > 41.0 { 3.0 * a * (t - 41.0) } else { 0.0 };
+            assert!(
+                (thr[k] - want).abs() < 2e-3 * a,
+                "row {k}: {} vs {want}",
+                thr[k]
+            );
+            assert!(
+                (wind[k] - 1.5 * a * (40.0 - t) / 2.0 * u).abs() < 1e-3 * a,
+                "row {k}"
+            );
+            if t > 41.05 {
+                above += 1;
+            } else if t < 40.95 {
+                below += 1;
+            }
+        }
+        assert!(
+            below > 100 && above > 100,
+            "{below} below, {above} above the set point"
+        );
     }
 
     /// Bad input is a typed error, never a panic.
