@@ -224,7 +224,6 @@ impl HandoffTable {
         delta_b: f64,
     ) -> HandoffSolution {
         let n = self.w.len();
-        let delta = window.half_width_um;
         let shift = (self.dz_dbias * delta_b).abs();
         let mut out = HandoffSolution {
             optimal: None,
@@ -232,12 +231,11 @@ impl HandoffTable {
             zero_ff_worst: None,
             shift,
         };
-        let du = h.u_prev_counts - h.bias_counts;
-        let (e0, v0) = (h.e0_um, h.v0_um_s);
+        let p = Point::of(h, window);
+        let Point { e0, v0, du, delta } = p;
         if window.hold > n || !(e0.is_finite() && v0.is_finite() && du.is_finite()) {
             return out;
         }
-        let p = Point { e0, v0, du, delta };
         let top = n - window.hold;
         let floor = self.floor(p);
         if floor > top {
@@ -251,15 +249,14 @@ impl HandoffTable {
             umin = fmin(umin, u);
             lmax = fmax(lmax, l);
         }
-        // |U_k|, |L_k| ≤ bound: far from overflow, so no bound is NaN and whole blocks can be
-        // reduced as trees; otherwise every block takes the per-sample path (NaN ignored).
-        let bound = self.coef_max * (e0.abs() + v0.abs() + du.abs()) + self.w_max * delta;
         let mut scan = Scan {
             table: self,
             p,
             lanes: [e0, v0, du, delta].map(F4::splat),
             floor,
-            nan_free: bound < f64::MAX / 16.0,
+            // No bound NaN: whole blocks can be reduced as trees; otherwise every block takes
+            // the per-sample path (NaN ignored).
+            nan_free: self.nan_free(p),
             shift,
             k: top + 1,
             umin,
@@ -286,26 +283,6 @@ impl HandoffTable {
         window: &Window,
         buf: &mut Bounds,
     ) -> Result<(), SettleError> {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: `avx2` is true only when `new` found AVX2 on this CPU.
-            return unsafe { self.bounds_into_avx2(h, window, buf) };
-        }
-        self.bounds_into_portable(h, window, buf)
-    }
-
-    /// [`HandoffTable::bounds_into`] compiled for AVX2.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn bounds_into_avx2(
-        &self,
-        h: &Handoff,
-        window: &Window,
-        buf: &mut Bounds,
-    ) -> Result<(), SettleError> {
         let n = self.w.len();
         if buf.upper.len() != n {
             return Err(SettleError::BufferLength {
@@ -313,28 +290,52 @@ impl HandoffTable {
                 want: n,
             });
         }
-        let p = Point {
-            e0: h.e0_um,
-            v0: h.v0_um_s,
-            du: h.u_prev_counts - h.bias_counts,
-            delta: window.half_width_um,
-        };
-        // SAFETY: the CPU has AVX2 (this function's contract).
-        unsafe { self.fill_down(p, &mut buf.upper, &mut buf.lower) };
+        let p = Point::of(h, window);
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is true only when `new` found AVX2 on this CPU.
+            unsafe { self.curves_avx2(p, buf) };
+            buf.hold = window.hold;
+            return Ok(());
+        }
+        self.curves_portable(p, buf);
+        buf.hold = window.hold;
+        Ok(())
+    }
+
+    /// |U_k|, |L_k| far from overflow and δ > 0 (a zero-gain sample's ∞·δ is then ∞): no bound
+    /// of `p` can be NaN.
+    #[inline(always)]
+    fn nan_free(&self, p: Point) -> bool {
+        let bound = self.coef_max * (p.e0.abs() + p.v0.abs() + p.du.abs()) + self.w_max * p.delta;
+        bound < f64::MAX / 16.0 && p.delta > 0.0
+    }
+
+    /// The zero-gain samples that rule settling out: no start value settles there.
+    #[inline(always)]
+    fn rule_out_zero_gain(&self, p: Point, buf: &mut Bounds) {
         for z in &self.zero {
             if Self::rules_out(z, p) {
                 buf.upper[z.k] = f64::NEG_INFINITY;
                 buf.lower[z.k] = f64::INFINITY;
             }
         }
-        // No bound can be NaN (as in `solve`: |U_k|, |L_k| far from overflow, δ > 0 so a
-        // zero-gain sample's ∞·δ is ∞): the running bounds may then be taken over windows.
-        let bound = self.coef_max * (p.e0.abs() + p.v0.abs() + p.du.abs()) + self.w_max * p.delta;
-        let nan_free = bound < f64::MAX / 16.0 && p.delta > 0.0;
+    }
+
+    /// The four curves of [`HandoffTable::bounds_into`] compiled for AVX2 (`buf` of this
+    /// horizon).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn curves_avx2(&self, p: Point, buf: &mut Bounds) {
+        // SAFETY: the CPU has AVX2 (this function's contract).
+        unsafe { self.fill_down(p, &mut buf.upper, &mut buf.lower) };
+        self.rule_out_zero_gain(p, buf);
+        // Without a NaN bound the running bounds may be taken over windows.
         // SAFETY: the CPU has AVX2 (this function's contract); the four buffers have n samples.
-        unsafe { suffix_avx2(buf, nan_free) };
-        buf.hold = window.hold;
-        Ok(())
+        unsafe { suffix_avx2(buf, self.nan_free(p)) };
     }
 
     /// U_k, L_k (eq. 14) of every sample, as [`HandoffTable::fill`] computes them (the same
@@ -377,34 +378,12 @@ impl HandoffTable {
         }
     }
 
-    /// [`HandoffTable::bounds_into`] for any CPU.
+    /// The four curves of [`HandoffTable::bounds_into`] for any CPU (`buf` of this horizon).
     #[inline(always)]
-    pub(super) fn bounds_into_portable(
-        &self,
-        h: &Handoff,
-        window: &Window,
-        buf: &mut Bounds,
-    ) -> Result<(), SettleError> {
+    pub(super) fn curves_portable(&self, p: Point, buf: &mut Bounds) {
         let n = self.w.len();
-        if buf.upper.len() != n {
-            return Err(SettleError::BufferLength {
-                got: buf.upper.len(),
-                want: n,
-            });
-        }
-        let p = Point {
-            e0: h.e0_um,
-            v0: h.v0_um_s,
-            du: h.u_prev_counts - h.bias_counts,
-            delta: window.half_width_um,
-        };
         self.fill(0, p, &mut buf.upper, &mut buf.lower);
-        for z in &self.zero {
-            if Self::rules_out(z, p) {
-                buf.upper[z.k] = f64::NEG_INFINITY;
-                buf.lower[z.k] = f64::INFINITY;
-            }
-        }
+        self.rule_out_zero_gain(p, buf);
         // Blocks from the end: each block's suffix scan is independent of the blocks above.
         let mut run = (f64::INFINITY, f64::NEG_INFINITY);
         let mut hi = n;
@@ -415,8 +394,6 @@ impl HandoffTable {
         if hi > 0 {
             buf.running_block(0, hi, run);
         }
-        buf.hold = window.hold;
-        Ok(())
     }
 }
 

@@ -23,6 +23,17 @@ pub(super) struct Point {
 }
 
 impl Point {
+    /// The point of handoff `h` in `window`.
+    #[inline(always)]
+    pub(super) fn of(h: &super::Handoff, window: &super::Window) -> Self {
+        Self {
+            e0: h.e0_um,
+            v0: h.v0_um_s,
+            du: h.u_prev_counts - h.bias_counts,
+            delta: window.half_width_um,
+        }
+    }
+
     /// U_k and L_k (eq. 14) from one sample's coefficients.
     #[inline(always)]
     pub(super) fn bounds(&self, pe: f64, pv: f64, pu: f64, w: f64) -> (f64, f64) {
