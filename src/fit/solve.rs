@@ -558,6 +558,24 @@ mod tests {
         pub(super) static DENSE_SOLVE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
     }
 
+    /// `spec` fitted on `log` on a pool of `threads`, by the dense reference when `dense`.
+    fn fit_on(
+        spec: &ModelSpec,
+        log: &crate::log::Log,
+        opts: &crate::fit::CheckedFitOptions,
+        threads: usize,
+        dense: bool,
+    ) -> FittedModel {
+        crate::with_threads(threads, || {
+            DENSE_SOLVE.set(dense);
+            let m = fit(spec, log, opts);
+            DENSE_SOLVE.set(false);
+            m
+        })
+        .unwrap()
+        .unwrap()
+    }
+
     /// [`solve`] on a log of several chunks ([`solve_chunk_rows`]: 100,000 seeks, the
     /// `calibration` preset, three chunks): the fitted model is the same bit for bit on 1, 2
     /// and 4 threads (1: every chunk straight into its factorisation; 2 and 4: buffered and
@@ -587,16 +605,7 @@ mod tests {
         let params = |m: &FittedModel| -> Vec<(String, f64)> {
             m.params().map(|p| (p.name.clone(), p.value)).collect()
         };
-        let run = |threads: usize, dense: bool| {
-            crate::with_threads(threads, || {
-                DENSE_SOLVE.set(dense);
-                let m = fit(&spec, &log, &opts);
-                DENSE_SOLVE.set(false);
-                m
-            })
-            .unwrap()
-            .unwrap()
-        };
+        let run = |threads: usize, dense: bool| fit_on(&spec, &log, &opts, threads, dense);
         let one = run(1, false);
         for threads in [2, 4] {
             let other = run(threads, false);
@@ -661,16 +670,7 @@ mod tests {
             .unwrap();
         let spec = ModelSpec::parse("poly2,preisach:8").unwrap();
         let opts = FitOptions::default().check().unwrap();
-        let run = |threads: usize, dense: bool| {
-            crate::with_threads(threads, || {
-                DENSE_SOLVE.set(dense);
-                let m = fit(&spec, &log, &opts);
-                DENSE_SOLVE.set(false);
-                m
-            })
-            .unwrap()
-            .unwrap()
-        };
+        let run = |threads: usize, dense: bool| fit_on(&spec, &log, &opts, threads, dense);
         let reference = run(2, true);
         for threads in [1, 2] {
             let folded = run(threads, false);
