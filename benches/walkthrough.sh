@@ -11,31 +11,8 @@ seeks=${1:-6000}
 reps=${2:-3}
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
-gen=$root/target/release/examples/family_log
-if [ -z "${BIASCTL:-}" ]; then
-    cargo build --release --quiet --bin biasctl --example family_log
-    BIASCTL=$root/target/release/biasctl
-elif [ ! -x "$gen" ]; then
-    cargo build --release --quiet --example family_log
-fi
-work=$root/target/walkthrough-bench
-mkdir -p "$work"
-log=$work/family_$seeks.csv
-"$gen" "$log" "$seeks" 7 lag
-
-# "WALL CPU": the best wall and the best CPU seconds (ms resolution) of $reps runs of the command.
-best() {
-    local bw="" bc="" w c t
-    for _ in $(seq "$reps"); do
-        t=$( { TIMEFORMAT='%3R %3U %3S'; time "$@" >/dev/null 2>&1; } 2>&1 ) ||
-            { echo "failed: $*" >&2; exit 1; }
-        read -r w u s <<<"$t"
-        c=$(echo "$u + $s" | bc -l)
-        if [ -z "$bw" ] || [ "$(echo "$w < $bw" | bc -l)" = 1 ]; then bw=$w; fi
-        if [ -z "$bc" ] || [ "$(echo "$c < $bc" | bc -l)" = 1 ]; then bc=$c; fi
-    done
-    printf '%.3f %.3f\n' "$bw" "$bc"
-}
+# shellcheck source=benches/common/family_log.sh
+source "$root/benches/common/family_log.sh" walkthrough-bench
 
 out=$root/target/walkthrough-bench.md
 {
