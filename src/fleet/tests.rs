@@ -115,6 +115,17 @@ fn simulated(seed: u64) -> crate::log::Log {
 }
 
 fn screens(seeds: &[u64]) -> (Vec<DriveScreen>, crate::diagnose::CheckedDiagnoseConfig) {
+    let drives: Vec<_> = seeds
+        .iter()
+        .map(|&seed| (format!("d{seed}"), simulated(seed)))
+        .collect();
+    screens_of(&drives)
+}
+
+/// Every drive of `drives` screened with `poly2,direction` (99 permutations), and the config.
+fn screens_of(
+    drives: &[(String, crate::log::Log)],
+) -> (Vec<DriveScreen>, crate::diagnose::CheckedDiagnoseConfig) {
     let spec = ModelSpec::parse("poly2,direction").unwrap();
     let opts = FitOptions::default().check().unwrap();
     let config = DiagnoseConfig {
@@ -123,9 +134,9 @@ fn screens(seeds: &[u64]) -> (Vec<DriveScreen>, crate::diagnose::CheckedDiagnose
     }
     .check()
     .unwrap();
-    let s = seeds
+    let s = drives
         .iter()
-        .map(|&seed| screen_drive(&format!("d{seed}"), &simulated(seed), &spec, &opts, &config))
+        .map(|(source, log)| screen_drive(source, log, &spec, &opts, &config))
         .collect();
     (s, config)
 }
@@ -424,18 +435,7 @@ fn an_edit_without_effect_is_not_verified_by_the_fleet() {
 #[test]
 fn a_fleet_whose_model_lacks_nothing_verifies_nothing() {
     let fleet = load_fleet(600, 8, 400, 0.0);
-    let spec = ModelSpec::parse("poly2,direction").unwrap();
-    let opts = FitOptions::default().check().unwrap();
-    let config = DiagnoseConfig {
-        permutations: 99,
-        ..DiagnoseConfig::default()
-    }
-    .check()
-    .unwrap();
-    let screens: Vec<DriveScreen> = fleet
-        .iter()
-        .map(|(s, log)| screen_drive(s, log, &spec, &opts, &config))
-        .collect();
+    let (screens, config) = screens_of(&fleet);
     let mut d = pool(&screens, &config, &Default::default()).unwrap();
     assert!(d.features.iter().all(|f| !f.flagged), "{}", d.summary);
     assert_eq!(d.verification.reason, "nothing_flagged");
