@@ -7,6 +7,22 @@ use crate::model::{fit_options, model_spec};
 use biasctl::fleet::{self, DriveFit, ReadSettings};
 use pyo3::prelude::*;
 
+/// How a worker reads each path, from the Python read arguments.
+fn read_settings(
+    time_col: Option<String>,
+    track_col: Option<String>,
+    bias_col: Option<String>,
+    delimiter: Option<String>,
+    bias_unit: Option<String>,
+    track_unit: Option<String>,
+) -> Result<ReadSettings, Failure> {
+    Ok(ReadSettings {
+        columns: crate::log::column_map(time_col, track_col, bias_col, delimiter.as_deref())?,
+        bias_unit,
+        track_unit,
+    })
+}
+
 /// A drive's row: source, rows, terms, [(name, value, se)], std, warnings, error.
 type Row = (
     String,
@@ -57,11 +73,9 @@ pub(crate) fn fit_drive(
 ) -> PyResult<(Row, Option<String>)> {
     let spec = attached(|| model_spec(model))?;
     let opts = attached(|| fit_options(deadband, velocity_col, rank_tolerance, grid, refine))?;
-    let read = ReadSettings {
-        columns: crate::log::column_map(time_col, track_col, bias_col, delimiter.as_deref())?,
-        bias_unit,
-        track_unit,
-    };
+    let read = read_settings(
+        time_col, track_col, bias_col, delimiter, bias_unit, track_unit,
+    )?;
     detached(py, || {
         on_threads(threads, || {
             let read_log: Result<std::borrow::Cow<'_, biasctl::Log>, String> = match (path, log) {
@@ -211,11 +225,9 @@ pub(crate) fn screen_drive(
     let spec = attached(|| model_spec(model))?;
     let opts = attached(|| fit_options(deadband, velocity_col, None, None, None))?;
     let config = attached(|| diagnose_config(seed, alpha, permutations, folds))?;
-    let read = ReadSettings {
-        columns: crate::log::column_map(time_col, track_col, bias_col, delimiter.as_deref())?,
-        bias_unit,
-        track_unit,
-    };
+    let read = read_settings(
+        time_col, track_col, bias_col, delimiter, bias_unit, track_unit,
+    )?;
     detached(py, || {
         on_threads(threads, || {
             let d = match (path, log) {
@@ -389,11 +401,9 @@ pub(crate) fn verify_drive(
     let opts = attached(|| fit_options(deadband, velocity_col, None, None, None))?;
     let verify = attached(|| verify_config(verify_folds, opts))?;
     let min_effect = biasctl::DiagnoseConfig::default().min_effect;
-    let read = ReadSettings {
-        columns: crate::log::column_map(time_col, track_col, bias_col, delimiter.as_deref())?,
-        bias_unit,
-        track_unit,
-    };
+    let read = read_settings(
+        time_col, track_col, bias_col, delimiter, bias_unit, track_unit,
+    )?;
     detached(py, || {
         on_threads(threads, || {
             let v = match (path, log) {
