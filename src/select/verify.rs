@@ -62,7 +62,7 @@ use crate::model::{ModelEdit, ModelSpec};
 
 use super::candidates::{Candidate, defect_candidate, edit_for, variants};
 use super::gain::{Baseline, Judgement, blown_up};
-use super::refit::{cv_residuals_sharing, measured_rows, refits_of};
+use super::refit::{cv_residuals, cv_residuals_sharing, measured_rows, refits_of};
 
 /// Settings of the verification refits.
 #[derive(Debug, Clone, PartialEq)]
@@ -491,10 +491,7 @@ pub(super) fn name_verified(
             .model_edit
             .as_ref()
             .and_then(|m| crate::diagnose::advice::name_searched(spec, m, log, &config.fit))
-            .filter(|(_, next)| {
-                cv_residuals_sharing(next, log, config.folds, &config.fit, &Default::default())
-                    .is_ok()
-            });
+            .filter(|(_, next)| cv_residuals(next, log, config.folds, &config.fit).is_ok());
         if let Some((edit, next)) = named {
             e.edit = edit.to_string();
             e.terms = next.to_string();
