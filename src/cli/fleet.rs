@@ -1,7 +1,7 @@
 //! `biasctl fleet`: one model over many drives' logs on this machine (`fleet fit`), and the
 //! drives whose parameters stand out (`fleet outliers`).
 
-use super::common::{ColumnArgs, DirectionArgs};
+use super::common::{ColumnArgs, DirectionArgs, with_flags};
 use crate::fleet::{self, DriveFit, ReadSettings};
 use anyhow::Context;
 use std::path::PathBuf;
@@ -160,7 +160,7 @@ fn fit(a: FitArgs) -> anyhow::Result<()> {
         eprintln!(
             "warning: {}: no fit: {}",
             r.source,
-            r.error.as_deref().unwrap_or("")
+            with_flags(r.error.as_deref().unwrap_or(""))
         );
     }
     outln!(
@@ -233,11 +233,13 @@ fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     .check()?;
     let verify = (!a.no_verify).then_some(&verify);
     let d = fleet::diagnose_paths(&paths, &read, &spec, &opts, &config, verify)?;
+    // The warnings name the settings as flags (the JSON keeps the library's text, as Python's).
     for (source, message) in &d.verification.failed {
+        let message = with_flags(message);
         eprintln!("warning: {source}: not refitted with the pooled suggestion: {message}");
     }
     for (source, message) in &d.failed {
-        eprintln!("warning: {source}: not screened: {message}");
+        eprintln!("warning: {source}: not screened: {}", with_flags(message));
     }
     if d.drives == 0 {
         anyhow::bail!("no drive could be screened (the warnings above name each one's error)");

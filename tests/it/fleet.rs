@@ -439,3 +439,32 @@ fn fleet_diagnose_verifies_the_pooled_suggestion_on_every_drive() {
         &["--verify-folds", "2..=20"],
     );
 }
+
+/// A drive whose columns are not found is warned about with the command line's flags
+/// (`--track-col NAME`), as `fit` itself says it, not with the library's setting names.
+#[test]
+fn fleet_warnings_name_the_column_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = d.join("drive.csv").display().to_string();
+    ok(&simulate_random_args("300", "4", &log));
+    std::fs::write(d.join("other.csv"), "t,x,y\n0,1,2\n1,2,3\n").unwrap();
+    let out = d.join("fits.csv").display().to_string();
+    for args in [
+        &["fleet", "fit", "--out", &out][..],
+        &["fleet", "diagnose", "--permutations", "99"][..],
+    ] {
+        let glob = format!("{}/*.csv", d.display());
+        let mut all = args.to_vec();
+        all.extend(["--data", &glob, "--model", "poly2,direction"]);
+        let r = biasctl(&all);
+        assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
+        assert!(
+            r.stderr.contains("other.csv")
+                && r.stderr.contains("--track-col")
+                && !r.stderr.contains("ColumnMap::"),
+            "{args:?}: {}",
+            r.stderr
+        );
+    }
+}
