@@ -96,7 +96,12 @@ pub(super) struct FixedRows<'a> {
     moving: Vec<usize>,
     off: Vec<usize>,
     widths: Vec<usize>,
+    /// Per state, whether its term is [`TermCaps::piecewise_constant`](crate::model::term::TermCaps::piecewise_constant):
+    /// its basis is kept where [`TermState::same_basis`](crate::model::term::TermState::same_basis) says it holds.
+    piecewise: Vec<bool>,
     buf: Vec<f64>,
+    /// Whether `buf` holds the design row of the previous row replayed (it was measured).
+    primed: bool,
     cov: Vec<f64>,
 }
 
@@ -117,7 +122,9 @@ impl<'a> FixedRows<'a> {
             states,
             off,
             widths: terms.iter().map(|t| t.param_count()).collect(),
+            piecewise: terms.iter().map(|t| t.caps().piecewise_constant).collect(),
             buf: vec![0.0; p],
+            primed: false,
             cov: Vec::new(),
         })
     }
@@ -131,13 +138,19 @@ impl<'a> FixedRows<'a> {
     }
 
     /// Replays the next `rows` measured rows (fewer where the log ends), handing each one's
-    /// design row (every column, in design order) and its response to `each`; every row,
-    /// measured or not, updates the term states. Returns how many measured rows it handed on.
-    /// The one replay loop behind [`FixedRows::each_ordered`] and [`FixedRows::fill`].
+    /// design row (every column, in design order), its response and whether the columns of
+    /// the piecewise-constant terms are those of the previous row handed on (bit for bit;
+    /// `false` where not known) to `each`; every row, measured or not, updates the term
+    /// states. Returns how many measured rows it handed on. The one replay loop behind
+    /// [`FixedRows::each_ordered`] and [`FixedRows::fill`].
+    ///
+    /// A piecewise-constant term whose state says the basis holds
+    /// ([`TermState::same_basis`](crate::model::term::TermState::same_basis)) after a measured
+    /// row keeps that row's values in the design row instead of writing them again.
     pub(super) fn measured_rows(
         &mut self,
         rows: usize,
-        mut each: impl FnMut(&[f64], f64),
+        mut each: impl FnMut(&[f64], f64, bool),
     ) -> usize {
         let mut n = 0;
         while n < rows {
@@ -149,14 +162,24 @@ impl<'a> FixedRows<'a> {
                 covariates: row.covariates.gather(&mut self.cov),
             };
             if let Some(y) = row.bias {
+                let mut same = self.primed;
                 for (k, s) in self.states.iter().enumerate() {
+                    if self.piecewise[k] {
+                        if self.primed && s.same_basis(&seek) {
+                            continue;
+                        }
+                        same = false;
+                    }
                     s.basis(
                         &seek,
                         &mut self.buf[self.off[k]..self.off[k] + self.widths[k]],
                     );
                 }
-                each(&self.buf, y);
+                each(&self.buf, y, same);
+                self.primed = true;
                 n += 1;
+            } else {
+                self.primed = false;
             }
             for &k in &self.moving {
                 self.states[k].update(&seek, None);
@@ -166,7 +189,8 @@ impl<'a> FixedRows<'a> {
     }
 
     /// Replays the next `rows` measured rows (fewer where the log ends), handing each one's
-    /// design columns in the order `order` (in the scratch `xp`) and its response to `each`;
+    /// design columns in the order `order` (in the scratch `xp`), its response and the flag of
+    /// [`FixedRows::measured_rows`] (the piecewise-constant terms' columns unchanged) to `each`;
     /// adds each column value to `sums` and its square (and the response's) to `colsq`, by
     /// position in `order`, row by row. Returns how many rows it
     /// handed on.
@@ -177,12 +201,12 @@ impl<'a> FixedRows<'a> {
         sums: &mut [f64],
         colsq: &mut [f64],
         xp: &mut [f64],
-        mut each: impl FnMut(&[f64], f64),
+        mut each: impl FnMut(&[f64], f64, bool),
     ) -> usize {
         let p = order.len();
         // In the terms' own order (no droppable column moved last): the rows as they are.
         let identity = order.iter().enumerate().all(|(q, &c)| q == c);
-        self.measured_rows(rows, |buf, y| {
+        self.measured_rows(rows, |buf, y, same| {
             let x: &[f64] = if identity {
                 &buf[..p]
             } else {
@@ -197,14 +221,14 @@ impl<'a> FixedRows<'a> {
                 *sq += v * v;
             }
             colsq[p] += y * y;
-            each(x, y);
+            each(x, y, same);
         })
     }
 
     /// Appends the next `rows` measured rows (fewer where the log ends) to `out`, row-major;
     /// returns how many it appended.
     pub(super) fn fill(&mut self, out: &mut Vec<f64>, rows: usize) -> usize {
-        self.measured_rows(rows, |buf, _| out.extend_from_slice(buf))
+        self.measured_rows(rows, |buf, _, _| out.extend_from_slice(buf))
     }
 }
 

@@ -46,14 +46,17 @@ const REPLAY_SIDE_COLUMNS: usize = 16;
 /// ([`PatternQr::finish_groups_keeping`]). With `sums`, adds each column value to the first
 /// and its square (and the response's) to the second, by position, row by row: the sums of
 /// [`FixedRows::each_ordered`], bit for bit, where the rows of each call follow those of the
-/// previous one in the log.
+/// previous one in the log. `known[i]`: row `i`'s flag of [`FixedRows::measured_rows`] (its
+/// run columns are those of the row before; [`PatternQr::place_row_known`]).
 fn factorise_rows(
     mut qr: PatternQr,
     rows: &[f64],
+    known: &[bool],
     p: usize,
     mut sums: Option<(&mut [f64], &mut [f64])>,
 ) -> (Groups, Vec<Vec<f64>>) {
-    for row in rows.chunks_exact(p + 1) {
+    debug_assert_eq!(rows.len(), known.len() * (p + 1));
+    for (row, &known) in rows.chunks_exact(p + 1).zip(known) {
         let (x, y) = (&row[..p], row[p]);
         if let Some((s, sq)) = sums.as_mut() {
             for ((&v, s), sq) in x.iter().zip(s.iter_mut()).zip(sq.iter_mut()) {
@@ -62,7 +65,7 @@ fn factorise_rows(
             }
             sq[p] += y * y;
         }
-        qr.place_row(x, y);
+        qr.place_row_known(x, y, known);
     }
     qr.finish_groups_keeping()
 }
@@ -235,7 +238,7 @@ impl Plan<'_> {
             &mut sums,
             &mut colsq,
             &mut scratch,
-            |x, y| qr.place_row(x, y),
+            |x, y, known| qr.place_row_known(x, y, known),
         );
         let data_sq = self.ridge_rows(&mut colsq, &mut |x| qr.place_row(x, 0.0));
         Factorised {
@@ -296,12 +299,19 @@ impl Plan<'_> {
         // factorisation beside its rate's state replay), and likewise the merge of the
         // previous chunk's groups.
         let on_replay = p >= REPLAY_SIDE_COLUMNS;
-        let mut cur = Vec::with_capacity(per_chunk * w);
-        let mut next = Vec::with_capacity(per_chunk * w);
+        // A chunk's rows (row-major `[x y]`) and their flags of `FixedRows::measured_rows`.
+        let mut cur = (
+            Vec::with_capacity(per_chunk * w),
+            Vec::with_capacity(per_chunk),
+        );
+        let mut next = (
+            Vec::with_capacity(per_chunk * w),
+            Vec::with_capacity(per_chunk),
+        );
         let mut scratch = vec![0.0; p];
         let (mut fill_sums, mut fill_colsq) = (vec![0.0; p], vec![0.0; w]);
         let (mut pool_sums, mut pool_colsq) = (vec![0.0; p], vec![0.0; w]);
-        let mut fill = |rows: &mut FixedRows<'a>, out: &mut Vec<f64>| {
+        let mut fill = |rows: &mut FixedRows<'a>, (out, known): &mut (Vec<f64>, Vec<bool>)| {
             let start = starts.is_some().then(|| rows.start());
             let got = if on_replay {
                 rows.each_ordered(
@@ -310,15 +320,17 @@ impl Plan<'_> {
                     &mut fill_sums,
                     &mut fill_colsq,
                     &mut scratch,
-                    |x, y| {
+                    |x, y, same| {
                         out.extend_from_slice(x);
                         out.push(y);
+                        known.push(same);
                     },
                 )
             } else {
-                rows.measured_rows(per_chunk, |buf, y| {
+                rows.measured_rows(per_chunk, |buf, y, same| {
                     out.extend(order.iter().map(|&c| buf[c]));
                     out.push(y);
+                    known.push(same);
                 })
             };
             if let (Some(s), Some(start)) = (starts.as_deref_mut(), start)
@@ -333,13 +345,13 @@ impl Plan<'_> {
         // blocks to fault in).
         let mut spare = Vec::new();
         let mut pending: Groups = Vec::new();
-        while !cur.is_empty() {
+        while !cur.0.is_empty() {
             let ((groups, kept), got) = rayon::join(
                 || {
                     let qr = PatternQr::compact_reusing(p, dense, std::mem::take(&mut spare))
                         .with_runs(runs);
                     let sums = (!on_replay).then_some((&mut pool_sums[..], &mut pool_colsq[..]));
-                    factorise_rows(qr, &cur, p, sums)
+                    factorise_rows(qr, &cur.0, &cur.1, p, sums)
                 },
                 || {
                     for (cols, r) in &pending {
@@ -359,7 +371,8 @@ impl Plan<'_> {
             }
             n += got;
             std::mem::swap(&mut cur, &mut next);
-            next.clear();
+            next.0.clear();
+            next.1.clear();
         }
         for (cols, r) in &pending {
             merged.place_group_r(cols, r);
@@ -396,7 +409,7 @@ impl Plan<'_> {
                 &mut sums,
                 &mut colsq,
                 &mut scratch,
-                |x, y| qr.place_row(x, y),
+                |x, y, known| qr.place_row_known(x, y, known),
             );
             if got == 0 {
                 break;

@@ -471,6 +471,15 @@ pub trait TermState: Debug + Send {
     fn constant(&self) -> bool {
         false
     }
+    /// Whether [`TermState::basis`] at `seek` gives, bit for bit, the basis of the seek the state
+    /// was last updated with (the previous row): then a replay that holds that row's basis may
+    /// keep it instead of writing it again. `false` where it cannot tell (the default; and
+    /// before the first update). Like `basis`, it does not change the state. Answered cheaply
+    /// by `preisach` (its relay states change only where the position crosses a level of its
+    /// grid), which the fit's replays ask.
+    fn same_basis(&self, _seek: &Seek<'_>) -> bool {
+        false
+    }
     /// Advances the state past `seek`; `residual` is measured − predicted bias of the whole model
     /// for this row, `None` when the row was not measured (and always `None` during the
     /// least-squares passes, so the basis must not depend on residuals).

@@ -426,15 +426,28 @@ impl PatternQr {
     /// Adds one row `x` (length p) with response `y`, without counting it or summing its
     /// squares ([`PatternQr::rows`] and [`PatternQr::colsq`] do not see it).
     pub(crate) fn place_row(&mut self, x: &[f64], y: f64) {
+        self.place_row_known(x, y, false)
+    }
+
+    /// [`PatternQr::place_row`]; with `known`, the caller vouches that the row's values in the
+    /// columns of [`PatternQr::with_runs`] are those of the previous row, bit for bit (the
+    /// run then continues without comparing them; the same `R`).
+    pub(crate) fn place_row_known(&mut self, x: &[f64], y: f64, known: bool) {
         let Some(mut runs) = self.runs.take() else {
             return self.place_data(x, y);
         };
         let mut contrast = self.contrast.take();
-        runs.push(x, y, &mut |x, y| self.place_data(x, y), &mut |z, y| {
-            contrast
-                .get_or_insert_with(|| StreamingQr::compact(z.len()))
-                .place(z.iter().copied(), y)
-        });
+        runs.push(
+            x,
+            y,
+            known,
+            &mut |x, y| self.place_data(x, y),
+            &mut |z, y| {
+                contrast
+                    .get_or_insert_with(|| StreamingQr::compact(z.len()))
+                    .place(z.iter().copied(), y)
+            },
+        );
         self.runs = Some(runs);
         self.contrast = contrast;
     }

@@ -64,28 +64,40 @@ impl RunFolder {
 
     /// Adds the row `x` with response `y`: a row that ends the current run first hands the
     /// run's mean row to `whole`; a row that continues it hands a contrast row (on
-    /// [`RunFolder::rest`]) to `contrast`.
+    /// [`RunFolder::rest`]) to `contrast`. With `known`, the caller vouches that the run
+    /// columns of `x` are those of the previous row pushed, bit for bit (they are not compared).
     #[inline]
     pub(crate) fn push(
         &mut self,
         x: &[f64],
         y: f64,
+        known: bool,
         whole: &mut impl FnMut(&[f64], f64),
         contrast: &mut impl FnMut(&[f64], f64),
     ) {
         // Equal bit for bit (a run's rows have the very same values in its columns).
         let same = self.k > 0
-            && match &self.span {
-                Some(r) => x[r.clone()]
-                    .iter()
-                    .zip(&self.key)
-                    .all(|(a, b)| a.to_bits() == b.to_bits()),
-                None => self
+            && (known
+                || match &self.span {
+                    Some(r) => x[r.clone()]
+                        .iter()
+                        .zip(&self.key)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    None => self
+                        .run
+                        .iter()
+                        .zip(&self.key)
+                        .all(|(&j, &c)| x[j].to_bits() == c.to_bits()),
+                });
+        debug_assert!(
+            !(known && self.k > 0)
+                || self
                     .run
                     .iter()
                     .zip(&self.key)
                     .all(|(&j, &c)| x[j].to_bits() == c.to_bits()),
-            };
+            "a row vouched for differs from its run in the run columns"
+        );
         if !same {
             self.flush(whole);
             for (c, &j) in self.key.iter_mut().zip(&self.run) {
@@ -190,13 +202,19 @@ mod tests {
         let mut out: Vec<(Vec<f64>, f64)> = Vec::new();
         let mut contrast: Vec<(Vec<f64>, f64)> = Vec::new();
         for (x, y) in &rows {
-            f.push(x, *y, &mut |x, y| out.push((x.to_vec(), y)), &mut |z, y| {
-                let mut x = vec![0.0; p];
-                for (&j, &v) in [1usize, 4].iter().zip(z) {
-                    x[j] = v;
-                }
-                contrast.push((x, y));
-            });
+            f.push(
+                x,
+                *y,
+                false,
+                &mut |x, y| out.push((x.to_vec(), y)),
+                &mut |z, y| {
+                    let mut x = vec![0.0; p];
+                    for (&j, &v) in [1usize, 4].iter().zip(z) {
+                        x[j] = v;
+                    }
+                    contrast.push((x, y));
+                },
+            );
         }
         f.flush(&mut |x, y| out.push((x.to_vec(), y)));
         assert_eq!(f.rest(), &[1, 4]);
@@ -232,6 +250,7 @@ mod tests {
             f.push(
                 x,
                 *y,
+                false,
                 &mut |x, y| back.push((x.to_vec(), y)),
                 &mut |_, _| panic!("no run has two rows"),
             );

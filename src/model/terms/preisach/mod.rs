@@ -226,8 +226,7 @@ struct PreisachState {
 impl TermState for PreisachState {
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         let x = seek.features.target;
-        let mut m = self.memory;
-        m.step(&self.grid, x);
+        let m = self.peek(x);
         let mut b = [0u8; MAX_LEVELS];
         m.boundary(&mut b[..self.grid.levels]);
         // Relay (i, j) is up (+1) iff j < B(i): on a run of relays j0, j0 + 1, … of line i,
@@ -242,6 +241,14 @@ impl TermState for PreisachState {
         }
         self.peeked.set(Some((x.to_bits(), m)));
     }
+    /// The relay states are a function of the memory alone: the same basis where the input
+    /// leaves the memory as the previous row left it (it crossed no level of the grid).
+    fn same_basis(&self, seek: &Seek<'_>) -> bool {
+        let x = seek.features.target;
+        let m = self.peek(x);
+        self.peeked.set(Some((x.to_bits(), m)));
+        self.memory.started() && m.entries() == self.memory.entries()
+    }
     fn update(&mut self, seek: &Seek<'_>, _residual: Option<f64>) {
         let x = seek.features.target;
         match self.peeked.take() {
@@ -251,6 +258,21 @@ impl TermState for PreisachState {
     }
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
+    }
+}
+
+impl PreisachState {
+    /// The memory after the input `x` (the one `basis` or `same_basis` last peeked at, if `x`).
+    #[inline(always)]
+    fn peek(&self, x: f64) -> PreisachMemory {
+        match self.peeked.get() {
+            Some((bits, m)) if bits == x.to_bits() => m,
+            _ => {
+                let mut m = self.memory;
+                m.step(&self.grid, x);
+                m
+            }
+        }
     }
 }
 

@@ -139,6 +139,71 @@ fn staircase_memory_equals_every_relay_updated_every_step() {
     }
 }
 
+/// Reference: `Slow`, every relay updated every step. Where the state says the basis holds
+/// (`same_basis`, which the fit's replays trust to keep the previous row's basis), no relay of
+/// the slow model changed; and the basis written after it (from the memory it peeked at) is the
+/// slow model's. On slow wandering with jumps, so that both answers come often.
+#[test]
+fn same_basis_holds_only_where_no_relay_switches() {
+    let mut rng = SimRng::new(17);
+    for levels in [1usize, 3, 8, 16] {
+        let grid = PreisachGrid {
+            lo: -2.0,
+            hi: 5.0,
+            levels,
+        };
+        let term = PreisachTerm {
+            name: format!("preisach:{levels}"),
+            grid,
+            cells: (0..levels)
+                .flat_map(|i| (0..=i).map(move |j| (i as u8, j as u8)))
+                .collect(),
+            log10_lambda: 0.0,
+        };
+        let mut state = term.start(&[]).unwrap();
+        let mut slow = Slow::new(grid);
+        let mut basis = vec![0.0; grid.cells()];
+        let (mut held, mut switched) = (0, 0);
+        let mut x = 1.0 + 1e-7;
+        for k in 0..6000 {
+            x = if k % 100 == 0 {
+                grid.lo - 0.5 + 8.0 * rng.uniform()
+            } else {
+                x + 0.02 * rng.normal()
+            };
+            let f = crate::history::History::new().peek(0.0, x);
+            let seek = Seek {
+                features: &f,
+                covariates: &[],
+            };
+            let before = slow.up.clone();
+            slow.step(x);
+            let same = state.same_basis(&seek);
+            if same {
+                assert_eq!(slow.up, before, "N {levels} step {k}: said the basis holds");
+                held += 1;
+            }
+            if slow.up != before {
+                switched += 1;
+            }
+            // Every third row, the basis without asking first.
+            if same || k % 3 != 0 {
+                state.basis(&seek, &mut basis);
+                for (c, (&b, &u)) in basis.iter().zip(&slow.up).enumerate() {
+                    let want: f64 = if u { 1.0 } else { -1.0 };
+                    assert_eq!(b.to_bits(), want.to_bits(), "N {levels} step {k} cell {c}");
+                }
+            }
+            state.update(&seek, None);
+        }
+        assert!(held > 3000, "N {levels}: the basis held on {held} rows");
+        assert!(
+            switched >= 2 * levels,
+            "N {levels}: relays switched on {switched} rows"
+        );
+    }
+}
+
 /// The closed-form Everett function of the density `f(α, β) = c0 + c1·α·β`:
 /// `E(A, B) = ∫_B^A ∫_B^α f dβ dα`.
 fn everett(c0: f64, c1: f64, a: f64, b: f64) -> f64 {
