@@ -452,6 +452,20 @@ impl PatternQr {
         self.contrast = contrast;
     }
 
+    /// Adds a row that continues the open run of rows ([`PatternQr::with_runs`]; one row at
+    /// least was placed since the factorisation began), given by its values `z` on the other
+    /// columns (those not in the `run` of [`PatternQr::with_runs`], in increasing order) and
+    /// its response: what [`PatternQr::place_row_known`] does with the whole row, bit for bit.
+    pub(crate) fn place_continuing(&mut self, z: &[f64], y: f64) {
+        let runs = self.runs.as_mut().expect("runs are folded");
+        let contrast = &mut self.contrast;
+        runs.push_continuing(z, y, &mut |z, y| {
+            contrast
+                .get_or_insert_with(|| StreamingQr::compact(z.len()))
+                .place(z.iter().copied(), y)
+        });
+    }
+
     /// Closes the open run of rows ([`PatternQr::with_runs`]) and returns the factorisation
     /// of the contrast rows, if any, with its columns.
     fn end_runs(&mut self) -> Option<(Vec<usize>, StreamingQr)> {

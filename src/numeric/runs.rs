@@ -110,12 +110,44 @@ impl RunFolder {
             self.k = 1;
             return;
         }
+        self.extend(|_, j| x[j], y, contrast);
+    }
+
+    /// [`RunFolder::push`] of a row that continues the open run (the caller vouches for its run
+    /// columns, which it leaves out): `z`, its values on [`RunFolder::rest`], in that order.
+    #[inline]
+    pub(crate) fn push_continuing(
+        &mut self,
+        z: &[f64],
+        y: f64,
+        contrast: &mut impl FnMut(&[f64], f64),
+    ) {
+        assert!(self.k > 0, "no run is open");
+        debug_assert_eq!(z.len(), self.rest.len());
+        self.extend(|i, _| z[i], y, contrast);
+    }
+
+    /// Adds a row to the open run: `value(i, j)`, its value in the `i`-th other column (at
+    /// position `j` of a whole row); hands its contrast row to `contrast`.
+    #[inline(always)]
+    fn extend(
+        &mut self,
+        value: impl Fn(usize, usize) -> f64,
+        y: f64,
+        contrast: &mut impl FnMut(&[f64], f64),
+    ) {
         self.k += 1;
         let k = self.k as f64;
         let scale = ((k - 1.0) / k).sqrt();
         let q = self.rest.len();
-        for ((o, m), &j) in self.contrast.iter_mut().zip(&mut self.mean).zip(&self.rest) {
-            let d = x[j] - *m;
+        for (i, ((o, m), &j)) in self
+            .contrast
+            .iter_mut()
+            .zip(&mut self.mean)
+            .zip(&self.rest)
+            .enumerate()
+        {
+            let d = value(i, j) - *m;
             *o = scale * d;
             *m += d / k;
         }

@@ -181,6 +181,12 @@ impl PreisachMemory {
     /// Applies the input `x` on `grid`.
     #[inline(always)]
     pub fn step(&mut self, grid: &PreisachGrid, x: f64) {
+        self.step_switching(grid, x);
+    }
+
+    /// [`PreisachMemory::step`], which returns the input's `(U, D)` ([`PreisachGrid::switches`]).
+    #[inline(always)]
+    pub fn step_switching(&mut self, grid: &PreisachGrid, x: f64) -> (u8, u8) {
         if !self.started {
             self.started = true;
             self.demagnetise(grid.level(x));
@@ -188,6 +194,7 @@ impl PreisachMemory {
         let (u, d) = grid.switches(x);
         self.up(u);
         self.down(d);
+        (u, d)
     }
 
     /// `B(i)` for every α-line into `out` (length N): relay `(i, j)` is up iff `j < out[i]`.

@@ -167,6 +167,7 @@ impl Term for PreisachTerm {
             memory: PreisachMemory::new(self.grid.levels),
             lines: line_runs(&self.cells).into(),
             peeked: Cell::new(None),
+            switched: None,
         }))
     }
     fn nonlinear(&self) -> Option<Nonlinear> {
@@ -212,21 +213,27 @@ impl Term for PreisachTerm {
 
 mod export;
 
+/// What `basis` peeked at: the position's bits, the memory after it and its `(U, D)`.
+type Peeked = (u64, PreisachMemory, (u8, u8));
+
 #[derive(Debug, Clone)]
 struct PreisachState {
     grid: PreisachGrid,
     memory: PreisachMemory,
     /// The model's relays as runs of consecutive columns on one α-line ([`line_runs`]).
     lines: Arc<[LineRun]>,
-    /// The bits of the position `basis` last peeked at and the memory after it: the fit calls
-    /// `basis` then `update` with the same seek, and the update takes it.
-    peeked: Cell<Option<(u64, PreisachMemory)>>,
+    /// The bits of the position `basis` last peeked at, the memory after it and its `(U, D)`:
+    /// the fit calls `basis` then `update` with the same seek, and the update takes them.
+    peeked: Cell<Option<Peeked>>,
+    /// `(U, D)` of the input of the last update ([`PreisachGrid::switches`]; `None` before).
+    switched: Option<(u8, u8)>,
 }
 
 impl TermState for PreisachState {
     fn basis(&self, seek: &Seek<'_>, out: &mut [f64]) {
         let x = seek.features.target;
-        let m = self.peek(x);
+        let mut m = self.memory;
+        let switched = m.step_switching(&self.grid, x);
         let mut b = [0u8; MAX_LEVELS];
         m.boundary(&mut b[..self.grid.levels]);
         // Relay (i, j) is up (+1) iff j < B(i): on a run of relays j0, j0 + 1, … of line i,
@@ -239,40 +246,28 @@ impl TermState for PreisachState {
             out[start..start + up].fill(1.0);
             out[start + up..start + len].fill(-1.0);
         }
-        self.peeked.set(Some((x.to_bits(), m)));
+        self.peeked.set(Some((x.to_bits(), m, switched)));
     }
-    /// The relay states are a function of the memory alone: the same basis where the input
-    /// leaves the memory as the previous row left it (it crossed no level of the grid).
+    /// The same basis where the input switches what the last one switched (the same `(U, D)`:
+    /// it crossed no level of the grid since): a step is idempotent — the last one already
+    /// switched every relay this one would, up the α-lines below `U`, then down the β-columns
+    /// from `D` (tested against every relay updated every step).
     fn same_basis(&self, seek: &Seek<'_>) -> bool {
-        let x = seek.features.target;
-        let m = self.peek(x);
-        self.peeked.set(Some((x.to_bits(), m)));
-        self.memory.started() && m.entries() == self.memory.entries()
+        self.switched == Some(self.grid.switches(seek.features.target))
     }
     fn update(&mut self, seek: &Seek<'_>, _residual: Option<f64>) {
         let x = seek.features.target;
-        match self.peeked.take() {
-            Some((bits, m)) if bits == x.to_bits() => self.memory = m,
-            _ => self.memory.step(&self.grid, x),
-        }
+        let switched = match self.peeked.take() {
+            Some((bits, m, switched)) if bits == x.to_bits() => {
+                self.memory = m;
+                switched
+            }
+            _ => self.memory.step_switching(&self.grid, x),
+        };
+        self.switched = Some(switched);
     }
     fn clone_box(&self) -> Box<dyn TermState> {
         Box::new(self.clone())
-    }
-}
-
-impl PreisachState {
-    /// The memory after the input `x` (the one `basis` or `same_basis` last peeked at, if `x`).
-    #[inline(always)]
-    fn peek(&self, x: f64) -> PreisachMemory {
-        match self.peeked.get() {
-            Some((bits, m)) if bits == x.to_bits() => m,
-            _ => {
-                let mut m = self.memory;
-                m.step(&self.grid, x);
-                m
-            }
-        }
     }
 }
 
