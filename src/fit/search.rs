@@ -26,12 +26,20 @@ pub(super) struct NonlinearFit {
 /// two cycles), each term replaced by its version at the value found; `measured` rows, `p`
 /// design columns. With `se`, each searched parameter's standard error (three full solves);
 /// without, `None` (and the edge of the interval alone says whether the search converged).
+///
+/// `warm` holds values found before for terms of the same name (a verification's refits: the
+/// values the refit of the model as it is found on the same fold). Where any term has one, the search is warm-started
+/// ([`warm_schedule`]): the terms without one are searched as a cold search searches them,
+/// once, the others held at their warm values; then every term is searched near its value
+/// ([`local_search`], to [`WARM_TOLERANCE`] of its interval). With `warm` empty (every `fit`)
+/// the search is the cold one, unchanged.
 pub(super) fn search_nonlinear(
     terms: &mut [Arc<dyn Term>],
     data: &FitData<'_>,
     opts: &CheckedFitOptions,
     (measured, p): (usize, usize),
     se: bool,
+    warm: &[(String, f64)],
 ) -> NonlinearFit {
     let nl_terms: Vec<usize> = (0..terms.len())
         .filter(|&k| terms[k].nonlinear().is_some())
@@ -39,71 +47,86 @@ pub(super) fn search_nonlinear(
     let mut evaluations = 0;
     let mut converged = true;
     let mut nl_se: Vec<Option<f64>> = vec![None; terms.len()];
-    let cycles = if nl_terms.len() > 1 { 2 } else { 1 };
-    for _ in 0..cycles {
-        for &k in &nl_terms {
-            let Some(nl) = terms[k].nonlinear() else {
-                continue;
-            };
-            // A term that searches its own parameters (`Term::search`: `bump`'s centre and
-            // width) does so here; its standard errors are its own.
-            let dof = measured.saturating_sub(p + 1).max(1);
-            if let Some(found) = own_search(terms, k, data, opts, dof) {
-                evaluations += found.evaluations;
-                converged &= found.converged;
-                terms[k] = found.term;
-                continue;
+    let schedule = match warm_schedule(terms, &nl_terms, warm) {
+        Some(s) => s,
+        None => {
+            let cycles = if nl_terms.len() > 1 { 2 } else { 1 };
+            (0..cycles)
+                .flat_map(|_| nl_terms.iter().map(|&k| (k, Reach::Whole)))
+                .collect()
+        }
+    };
+    for (k, reach) in schedule {
+        let Some(nl) = terms[k].nonlinear() else {
+            continue;
+        };
+        // A term that searches its own parameters (`Term::search`: `bump`'s centre and
+        // width) does so here; its standard errors are its own.
+        let dof = measured.saturating_sub(p + 1).max(1);
+        if reach == Reach::Whole
+            && let Some(found) = own_search(terms, k, data, opts, dof)
+        {
+            evaluations += found.evaluations;
+            converged &= found.converged;
+            terms[k] = found.term;
+            continue;
+        }
+        // The search compares RSS values from the variable projection; the standard
+        // error below differentiates the RSS twice, so it takes three full solves.
+        // Used where the term allows it (`TermCaps::search_by_projection`: the `dahl` rate,
+        // `memsum`'s length and a lag's τ, each search tested to end where the full solves'
+        // does or at an RSS equal to 1e-12);
+        // `stribeck`'s search keeps the full solve per candidate: its velocity-scale search
+        // compares RSS values that differ by rounding only, and ends elsewhere within that
+        // noise with the projection (its unit-invariance test, 1e-9 of the prediction, then
+        // fails by 1.5×).
+        let proj = terms[k]
+            .caps()
+            .search_by_projection
+            .then(|| Projection::new(terms, k, data, opts))
+            .flatten();
+        let min = |lo: f64, hi: f64, grid: usize, iters: usize| match &proj {
+            // The projected RSS is cheaper per candidate in batches (one replay for
+            // several): the same points, compared in the same order.
+            Some(p) => golden_min_batched(
+                &|ts: &[f64]| p.rss_many(terms, ts, opts),
+                lo,
+                hi,
+                grid,
+                iters,
+            ),
+            None => golden_min(
+                &|t: f64| slow_rss(terms, k, t, data, opts),
+                lo,
+                hi,
+                grid,
+                iters,
+            ),
+        };
+        let (t, ev) = match reach {
+            Reach::Whole => {
+                let (t, _, ev) = min(nl.lo, nl.hi, opts.grid, opts.refine);
+                (t, ev)
             }
-            // The search compares RSS values from the variable projection; the standard
-            // error below differentiates the RSS twice, so it takes three full solves.
-            // Used where the term allows it (`TermCaps::search_by_projection`: the `dahl` rate,
-            // `memsum`'s length and a lag's τ, each search tested to end where the full solves'
-            // does or at an RSS equal to 1e-12);
-            // `stribeck`'s search keeps the full solve per candidate: its velocity-scale search
-            // compares RSS values that differ by rounding only, and ends elsewhere within that
-            // noise with the projection (its unit-invariance test, 1e-9 of the prediction, then
-            // fails by 1.5×).
-            let proj = terms[k]
-                .caps()
-                .search_by_projection
-                .then(|| Projection::new(terms, k, data, opts))
-                .flatten();
-            let (t, _, ev) = match &proj {
-                // The projected RSS is cheaper per candidate in batches (one replay for
-                // several): the same points, compared in the same order.
-                Some(p) => golden_min_batched(
-                    &|ts: &[f64]| p.rss_many(terms, ts, opts),
-                    nl.lo,
-                    nl.hi,
-                    opts.grid,
-                    opts.refine,
-                ),
-                None => golden_min(
-                    &|t: f64| slow_rss(terms, k, t, data, opts),
-                    nl.lo,
-                    nl.hi,
-                    opts.grid,
-                    opts.refine,
-                ),
-            };
-            drop(proj);
-            evaluations += ev;
-            let span = nl.hi - nl.lo;
-            converged &= t > nl.lo + 1e-3 * span && t < nl.hi - 1e-3 * span;
-            if se {
-                let rss_at = |t: f64| slow_rss(terms, k, t, data, opts);
-                let ft = rss_at(t);
-                // Standard error from the curvature of the RSS: var(t) ≈ 2 s² / RSS''(t).
-                let h = 1e-3 * span;
-                let (fm, fp) = (rss_at(t - h), rss_at(t + h));
-                evaluations += 2;
-                let curv = (fp - 2.0 * ft + fm) / (h * h);
-                let s2 = ft / (measured.saturating_sub(p + 1).max(1)) as f64;
-                nl_se[k] = (curv > 0.0 && ft.is_finite()).then(|| (2.0 * s2 / curv).sqrt());
-            }
-            if let Some(term) = terms[k].with_nonlinear(t) {
-                terms[k] = term;
-            }
+            Reach::Near => local_search(&nl, (opts.grid, opts.refine), &min),
+        };
+        drop(proj);
+        evaluations += ev;
+        let span = nl.hi - nl.lo;
+        converged &= t > nl.lo + 1e-3 * span && t < nl.hi - 1e-3 * span;
+        if se {
+            let rss_at = |t: f64| slow_rss(terms, k, t, data, opts);
+            let ft = rss_at(t);
+            // Standard error from the curvature of the RSS: var(t) ≈ 2 s² / RSS''(t).
+            let h = 1e-3 * span;
+            let (fm, fp) = (rss_at(t - h), rss_at(t + h));
+            evaluations += 2;
+            let curv = (fp - 2.0 * ft + fm) / (h * h);
+            let s2 = ft / (measured.saturating_sub(p + 1).max(1)) as f64;
+            nl_se[k] = (curv > 0.0 && ft.is_finite()).then(|| (2.0 * s2 / curv).sqrt());
+        }
+        if let Some(term) = terms[k].with_nonlinear(t) {
+            terms[k] = term;
         }
     }
     NonlinearFit {
@@ -111,6 +134,107 @@ pub(super) fn search_nonlinear(
         converged,
         se: nl_se,
     }
+}
+
+/// How far a search of one term reaches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reach {
+    /// The whole search interval: the grid, then golden-section steps (the cold search), or the
+    /// term's own search.
+    Whole,
+    /// Near the term's current value ([`local_search`]).
+    Near,
+}
+
+/// The width, as a share of a term's search interval, to which [`local_search`] narrows its
+/// bracket: the warm-started refits' search tolerance. (The cold search's 40 golden-section
+/// steps narrow its bracket to about 4·10⁻¹⁰ of the interval.)
+pub(crate) const WARM_TOLERANCE: f64 = 1e-7;
+
+/// Points of [`local_search`]'s grid: one batch of the projection's replay
+/// (`projection::SEARCH_BATCH`).
+const LOCAL_GRID: usize = 8;
+
+/// The warm-started schedule of [`search_nonlinear`] where some searched term has a warm value
+/// (`warm`, by term name; values outside a term's interval are not taken): each such term is
+/// set to its value; the terms without one (and the terms that search themselves, which take
+/// no warm value) are searched over their whole interval, in order; then every term searched by
+/// golden section is searched near its value (once; twice in turn where there are several).
+/// `None` where no term has a warm value.
+fn warm_schedule(
+    terms: &mut [Arc<dyn Term>],
+    nl_terms: &[usize],
+    warm: &[(String, f64)],
+) -> Option<Vec<(usize, Reach)>> {
+    if warm.is_empty() {
+        return None;
+    }
+    let mut started = vec![false; terms.len()];
+    for &k in nl_terms {
+        if terms[k].caps().searches_itself {
+            continue;
+        }
+        let name = terms[k].name();
+        let Some(&(_, v)) = warm.iter().find(|(n, _)| *n == name) else {
+            continue;
+        };
+        let nl = terms[k].nonlinear()?;
+        if !(nl.lo..=nl.hi).contains(&v) {
+            continue;
+        }
+        if let Some(t) = terms[k].with_nonlinear(v) {
+            terms[k] = t;
+            started[k] = true;
+        }
+    }
+    if !started.iter().any(|&s| s) {
+        return None;
+    }
+    let own = |t: &Arc<dyn Term>| t.caps().searches_itself;
+    let cold = nl_terms
+        .iter()
+        .filter(|&&k| !started[k])
+        .map(|&k| (k, Reach::Whole));
+    let near: Vec<usize> = nl_terms
+        .iter()
+        .copied()
+        .filter(|&k| !own(&terms[k]))
+        .collect();
+    // Coupled parameters move each other: two cycles where several are searched near, as the
+    // cold search takes two over the whole intervals.
+    let cycles = if near.len() > 1 { 2 } else { 1 };
+    let near = (0..cycles).flat_map(|_| near.iter().map(|&k| (k, Reach::Near)));
+    Some(cold.chain(near).collect())
+}
+
+/// A term's search near its current value `nl.value`: [`LOCAL_GRID`] points over the two cells
+/// either side of it of the cold search's grid (`grid` points over the interval), then
+/// golden-section steps until the bracket is [`WARM_TOLERANCE`] of the interval wide. Where the
+/// best value is at the edge of that bracket (the minimum lies beyond it) the whole interval is
+/// searched as the cold search searches it (`grid` points, `refine` steps). `min(lo, hi, grid,
+/// iters)` is the search of [`search_nonlinear`]. Returns the value and the count of
+/// evaluations.
+fn local_search(
+    nl: &crate::model::term::Nonlinear,
+    (grid, refine): (usize, usize),
+    min: &dyn Fn(f64, f64, usize, usize) -> (f64, f64, usize),
+) -> (f64, usize) {
+    let span = nl.hi - nl.lo;
+    let reach = 2.0 * span / (grid.max(3) - 1) as f64;
+    let (lo, hi) = ((nl.value - reach).max(nl.lo), (nl.value + reach).min(nl.hi));
+    // The bracket after the grid: two of its cells; each golden-section step keeps 0.618 of it.
+    let cell = (hi - lo) / (LOCAL_GRID - 1) as f64;
+    let phi = 0.5 * (5f64.sqrt() - 1.0);
+    let steps = ((2.0 * cell / (WARM_TOLERANCE * span)).ln() / (1.0 / phi).ln())
+        .ceil()
+        .max(0.0) as usize;
+    let (t, _, ev) = min(lo, hi, LOCAL_GRID, steps);
+    let at_edge = (t - lo < cell && lo > nl.lo) || (hi - t < cell && hi < nl.hi);
+    if !at_edge || span.is_nan() || span <= 0.0 {
+        return (t, ev);
+    }
+    let (t, _, more) = min(nl.lo, nl.hi, grid, refine);
+    (t, ev + more)
 }
 
 /// Term `k`'s own search ([`Term::search`]), if it has one: the residual of the other terms
@@ -189,6 +313,73 @@ mod tests {
     use crate::log::Log;
     use crate::model::ModelSpec;
     use crate::numeric::rng::SimRng;
+
+    /// Reference: the cold search (`warm` empty) of the same terms on the same rows. Started
+    /// near the values it found (both 1 % or 3 % of the interval away) or one of them far (40 %:
+    /// beyond the local bracket, so that search falls back to the whole interval), the warm-started
+    /// search of `dahl`'s rate and `memsum`'s length ends at an RSS no larger (to 1e-9
+    /// relative: each search stops at its own tolerance, and the two coupled parameters' cycles
+    /// end apart by a few 10⁻⁷ of the RSS, either side) and at values within 10⁻³ of each
+    /// interval. A local search that did not fall back from the
+    /// bracket's edge would stop 40 % away.
+    #[test]
+    fn a_warm_started_search_ends_where_the_cold_search_ends() {
+        let log = crate::sim::random_log(4000, 13);
+        let opts = FitOptions::default().check().unwrap();
+        let spec = ModelSpec::parse("poly2,direction,dahl,memsum").unwrap();
+        let data = FitData::new(&log);
+        let prepared = || -> Vec<Arc<dyn Term>> {
+            spec.terms
+                .iter()
+                .map(|t| t.prepare(&data))
+                .collect::<Result<_, _>>()
+                .unwrap()
+        };
+        let (_, p) = offsets(&prepared());
+        let shape = (log.measured_count(), p);
+        let searched = |ts: &[Arc<dyn Term>]| -> Vec<(String, crate::model::term::Nonlinear)> {
+            ts.iter()
+                .filter_map(|t| Some((t.name(), t.nonlinear()?)))
+                .collect()
+        };
+        let rss = |ts: &[Arc<dyn Term>]| solve(ts, &data, &opts).unwrap().rss;
+        let mut cold = prepared();
+        search_nonlinear(&mut cold, &data, &opts, shape, false, &[]);
+        let found = searched(&cold);
+        assert_eq!(found.len(), 2, "{found:?}");
+        let want = rss(&cold);
+        for shifts in [[0.01, 0.01], [-0.03, -0.03], [0.0, 0.4], [0.4, 0.0]] {
+            let warm: Vec<(String, f64)> = found
+                .iter()
+                .zip(shifts)
+                .map(|((n, nl), shift)| {
+                    let v = nl.value + shift * (nl.hi - nl.lo);
+                    // Beyond an end: the same distance inside from the other side.
+                    let v = if v > nl.hi {
+                        nl.value - shift * (nl.hi - nl.lo)
+                    } else {
+                        v
+                    };
+                    (n.clone(), v.clamp(nl.lo, nl.hi))
+                })
+                .collect();
+            let mut terms = prepared();
+            search_nonlinear(&mut terms, &data, &opts, shape, false, &warm);
+            let got = rss(&terms);
+            assert!(
+                got <= want * (1.0 + 1e-9),
+                "shifts {shifts:?}: RSS {got} vs cold {want}"
+            );
+            for ((name, a), (_, b)) in found.iter().zip(searched(&terms)) {
+                assert!(
+                    (a.value - b.value).abs() <= 1e-3 * (a.hi - a.lo),
+                    "shifts {shifts:?}, {name}: {} vs cold {}",
+                    b.value,
+                    a.value
+                );
+            }
+        }
+    }
 
     /// `bump` searches its own centre and width (`Term::search`) on the RSS by variable
     /// projection. Reference: [`slow_rss_of`], a full solve per version. On a simulated log

@@ -37,6 +37,12 @@ pub(crate) struct Refits {
     /// out-of-sample residuals skips them: the fitted terms and coefficients are the same bit
     /// for bit, the standard errors in the model's report `None`.
     pub nonlinear_se: bool,
+    /// Values of searched nonlinear parameters found before, by term name (the value in the
+    /// search coordinate, [`crate::model::term::Nonlinear::value`]): a term of that name starts
+    /// there and is searched near it, to [`super::search::WARM_TOLERANCE`] of its interval,
+    /// instead of over its whole interval (`diagnose`'s verification: the model's values on
+    /// the whole log, for refits on its folds). Empty: the cold search of `fit`.
+    pub warm: Vec<(String, f64)>,
 }
 
 impl Default for Refits {
@@ -47,6 +53,7 @@ impl Default for Refits {
             history: None,
             fixed_budget: STORED_FIXED_BYTES,
             nonlinear_se: true,
+            warm: Vec::new(),
         }
     }
 }
@@ -67,7 +74,14 @@ pub(crate) fn fit_sharing(
         p,
         measured,
     } = prepare(spec, log, opts, shared)?;
-    let nonlinear = search_nonlinear(&mut terms, &data, opts, (measured, p), shared.nonlinear_se);
+    let nonlinear = search_nonlinear(
+        &mut terms,
+        &data,
+        opts,
+        (measured, p),
+        shared.nonlinear_se,
+        &shared.warm,
+    );
 
     // The prediction of every term before the adaptive ones, per measured row, where those
     // read nothing but the residuals (`drift`): then they are replayed over it below. The

@@ -145,6 +145,11 @@ pub struct TermCaps {
     /// transformation, `crate::numeric::runs`: the same least squares, factorised on fewer
     /// columns).
     pub piecewise_constant: bool,
+    /// Whether the term searches its own nonlinear parameters ([`Term::search`]: `bump`'s
+    /// centre and width, `step`'s threshold, `preisach`'s smoothing) instead of the fit's
+    /// golden-section search of [`Term::nonlinear`]. A warm-started refit
+    /// (`crate::fit::Refits::warm`) searches such a term as a cold fit does.
+    pub searches_itself: bool,
 }
 
 impl TermCaps {
@@ -159,6 +164,7 @@ impl TermCaps {
         search_by_projection: false,
         reads_history: true,
         piecewise_constant: false,
+        searches_itself: false,
     };
 }
 

@@ -57,10 +57,6 @@ pub(crate) fn score_edits(
     config: &CheckedVerifyConfig,
 ) -> Vec<Result<EditScore, String>> {
     let shared = refits_of(log, &config.fit);
-    let score = |s: &ModelSpec| {
-        cv_residuals_sharing(s, log, config.folds, &config.fit, &shared)
-            .map_err(|e| error_chain(&e))
-    };
     let edits: Vec<Result<(ModelEdit, ModelSpec), String>> = terms
         .iter()
         .map(|t| {
@@ -69,15 +65,22 @@ pub(crate) fn score_edits(
             Ok((edit, next))
         })
         .collect();
-    let (before, afters) = rayon::join(
-        || score(spec),
-        || {
-            edits
-                .par_iter()
-                .map(|e| e.as_ref().map_err(Clone::clone).and_then(|(_, n)| score(n)))
-                .collect::<Vec<_>>()
-        },
-    );
+    // The model as it is first: each of its folds' searched values start the edited models'
+    // searches on the same fold, as the verification's refits start (`Refits::warm`).
+    let (before, warm) =
+        match cv_residuals_sharing(spec, log, config.folds, &config.fit, &shared, &[]) {
+            Ok(r) => (Ok(r.residuals), r.searched),
+            Err(e) => (Err(error_chain(&e)), Vec::new()),
+        };
+    let score = |s: &ModelSpec| {
+        cv_residuals_sharing(s, log, config.folds, &config.fit, &shared, &warm)
+            .map(|r| r.residuals)
+            .map_err(|e| error_chain(&e))
+    };
+    let afters = edits
+        .par_iter()
+        .map(|e| e.as_ref().map_err(Clone::clone).and_then(|(_, n)| score(n)))
+        .collect::<Vec<_>>();
     let base = match before {
         Ok(r) => Baseline::new(r, config.folds),
         Err(e) => {

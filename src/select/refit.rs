@@ -29,7 +29,30 @@ pub(super) fn cv_residuals(
     folds: usize,
     opts: &CheckedFitOptions,
 ) -> Result<Vec<f64>, ModelDiagnosisError> {
-    cv_residuals_sharing(spec, log, folds, opts, &Refits::default())
+    cv_residuals_sharing(spec, log, folds, opts, &Refits::default(), &[]).map(|r| r.residuals)
+}
+
+/// What [`cv_residuals_sharing`] gives: the out-of-sample residuals, and the values the folds'
+/// fits found for the searched nonlinear parameters.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Refitted {
+    /// One per measured row, in log order.
+    pub(super) residuals: Vec<f64>,
+    /// Per fold, the values its fit found for the terms searched by the fit's golden-section
+    /// search (not the terms that search themselves), by term name, in the search coordinate:
+    /// where a later refit of the same fold starts those terms ([`Refits::warm`]).
+    pub(super) searched: Vec<Vec<(String, f64)>>,
+}
+
+/// The searched nonlinear parameters of `model`'s terms (those the fit's golden-section search
+/// sets: not the terms that search themselves), by term name, in the search coordinate.
+fn searched_values(model: &crate::model::FittedModel) -> Vec<(String, f64)> {
+    model
+        .terms
+        .iter()
+        .filter(|t| !t.term.caps().searches_itself)
+        .filter_map(|t| Some((t.term.name(), t.term.nonlinear()?.value)))
+        .collect()
 }
 
 /// Most bytes one verification refit's variable-projection search stores of its fixed block
@@ -64,6 +87,8 @@ pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
         fixed_budget: REFIT_FIXED_BYTES,
         // Only the refits' out-of-sample residuals are read: no standard errors.
         nonlinear_se: false,
+        // Cold: a fold's refit is warm-started by `cv_residuals_sharing`'s `warm`.
+        warm: Vec::new(),
     }
 }
 
@@ -91,30 +116,46 @@ pub(super) fn fold_starts(log: &Log, folds: usize) -> Vec<usize> {
 }
 
 /// [`cv_residuals`] with what the refits share given (`shared`, from [`refits_of`]): the same
-/// residuals bit for bit (tested against the reference that shares nothing and keeps an index
-/// per row, `tests_verify`).
+/// residuals bit for bit where `shared.warm` is empty (tested against the reference that shares
+/// nothing and keeps an index per row, `tests_verify`); with warm values, each fold's search
+/// starts from them ([`Refits::warm`]). `warm`: per fold, the values a refit of the same fold
+/// found ([`Refitted::searched`]; empty: cold searches). Also the folds' searched values.
 pub(super) fn cv_residuals_sharing(
     spec: &ModelSpec,
     log: &Log,
     folds: usize,
     opts: &CheckedFitOptions,
     shared: &Refits,
-) -> Result<Vec<f64>, ModelDiagnosisError> {
+    warm: &[Vec<(String, f64)>],
+) -> Result<Refitted, ModelDiagnosisError> {
     let n = log.measured_count();
     let starts = fold_starts(log, folds);
     let terms = spec.to_string();
     // The folds are independent fits (no random draws): in parallel, in fold order.
-    let parts: Vec<Result<Vec<f64>, ModelDiagnosisError>> = (0..folds)
+    type Part = (Vec<f64>, Vec<(String, f64)>);
+    let parts: Vec<Result<Part, ModelDiagnosisError>> = (0..folds)
         .into_par_iter()
         .map(|k| {
             let (a, b) = (k * n / folds, (k + 1) * n / folds);
             if a == b {
-                return Ok(Vec::new());
+                return Ok((Vec::new(), Vec::new()));
             }
             let mut masked = log.clone();
             for i in starts[k]..starts[k + 1] {
                 masked.set_bias(i, None);
             }
+            // The fold's own warm values, where a refit of it gave some.
+            let warmed;
+            let shared = match warm.get(k) {
+                Some(w) if !w.is_empty() => {
+                    warmed = Refits {
+                        warm: w.clone(),
+                        ..shared.clone()
+                    };
+                    &warmed
+                }
+                _ => shared,
+            };
             let model = fit_sharing(spec, &masked, opts, shared).map_err(|source| {
                 ModelDiagnosisError::Fit {
                     step: k,
@@ -128,6 +169,7 @@ pub(super) fn cv_residuals_sharing(
             // terms' contributions and the residual of the whole log: the same subtraction,
             // so the same bits).
             drop(masked);
+            let searched = searched_values(&model);
             // The replay is causal, so the rows after this stretch (from the next stretch's
             // first row on) change none of its predictions: replayed up to there only.
             let end = starts[k + 1];
@@ -144,12 +186,18 @@ pub(super) fn cv_residuals_sharing(
                     file: log.schema.file.clone(),
                     source,
                 })?;
-            Ok(part)
+            Ok((part, searched))
         })
         .collect();
-    let mut out = Vec::with_capacity(n);
+    let mut residuals = Vec::with_capacity(n);
+    let mut searched = Vec::with_capacity(folds);
     for p in parts {
-        out.extend(p?);
+        let (r, s) = p?;
+        residuals.extend(r);
+        searched.push(s);
     }
-    Ok(out)
+    Ok(Refitted {
+        residuals,
+        searched,
+    })
 }

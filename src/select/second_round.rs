@@ -222,7 +222,7 @@ pub(crate) fn verify_two_rounds(
             let best = v.best()?;
             let (r1, _) = keep.verified.get(&best.terms)?;
             let (r2, _) = keep.verified.get(&e.terms)?;
-            Some(left_on_top(&keep.before, r1, r2))
+            Some(left_on_top(&keep.before, &r1.residuals, &r2.residuals))
         };
         second_round_candidates(d, cands, &v, config.candidates, &left)
     };
@@ -231,7 +231,7 @@ pub(crate) fn verify_two_rounds(
     let rescreened = v.best().and_then(|b| {
         let (r1, m) = keep.verified.get(&b.terms)?;
         let columns = rescreen_columns(d, b);
-        let r = rescreen?(r1, &spec.apply(m).ok()?, &|n: &str| {
+        let r = rescreen?(&r1.residuals, &spec.apply(m).ok()?, &|n: &str| {
             columns.iter().any(|c| c == n)
         })?;
         let mut taken = vec![b.feature.clone()];

@@ -1431,7 +1431,9 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
         let reference = cv_residuals_reference(&spec, &log, 3, &opts);
         for budget in [super::refit::REFIT_FIXED_BYTES, 0] {
             shared.fixed_budget = budget;
-            let fast = super::refit::cv_residuals_sharing(&spec, &log, 3, &opts, &shared).unwrap();
+            let fast = super::refit::cv_residuals_sharing(&spec, &log, 3, &opts, &shared, &[])
+                .unwrap()
+                .residuals;
             assert_eq!(fast.len(), reference.len(), "{terms}");
             let same = fast
                 .iter()
@@ -1468,7 +1470,9 @@ fn long_log_refits_sharing_history_columns_equal_the_reference() {
     for terms in ["poly2,direction,seek,memory", "poly2,dahl"] {
         let spec = ModelSpec::parse(terms).unwrap();
         let reference = cv_residuals_reference(&spec, &log, 3, &opts);
-        let fast = super::refit::cv_residuals_sharing(&spec, &log, 3, &opts, &shared).unwrap();
+        let fast = super::refit::cv_residuals_sharing(&spec, &log, 3, &opts, &shared, &[])
+            .unwrap()
+            .residuals;
         assert_eq!(fast.len(), reference.len(), "{terms}");
         assert!(
             fast.iter()

@@ -62,7 +62,7 @@ use crate::model::{ModelEdit, ModelSpec};
 
 use super::candidates::{Candidate, defect_candidate, edit_for, variants};
 use super::gain::{Baseline, Judgement, blown_up};
-use super::refit::{cv_residuals, cv_residuals_sharing, measured_rows, refits_of};
+use super::refit::{Refitted, cv_residuals, cv_residuals_sharing, measured_rows, refits_of};
 
 /// Settings of the verification refits.
 #[derive(Debug, Clone, PartialEq)]
@@ -138,7 +138,7 @@ checked_settings! {
 pub(super) struct Scored {
     std_after: f64,
     judged: [Judgement; 2],
-    residual: Option<Vec<f64>>,
+    residual: Option<Refitted>,
 }
 
 pub(super) fn std_of(r: &[f64]) -> f64 {
@@ -164,16 +164,19 @@ pub(crate) fn verify(
 
 /// What a round keeps for the next one: the out-of-sample residuals of the model it started
 /// from and of each verified edit (keyed by the edit's terms before [`name_verified`]), with
-/// the edit as scored (a `bump`/`step` still searched by every fold's refit).
+/// the edit as scored (a `bump`/`step` still searched by every fold's refit) and the values its
+/// folds' fits found for the searched parameters (where the next round's refits start).
 #[derive(Debug, Default)]
 pub(super) struct RoundResiduals {
     pub(super) before: Vec<f64>,
-    pub(super) verified: HashMap<String, (Vec<f64>, ModelEdit)>,
+    pub(super) verified: HashMap<String, (Refitted, ModelEdit)>,
 }
 
 /// One round of [`verify`] on `spec`, the edits not yet named ([`name_verified`]). `given` is
 /// the out-of-sample residual of `spec` when a round before has it (it is not refitted then);
-/// with it every edit is judged at the strict bar (the second round).
+/// with it every edit is judged at the strict bar (the second round). The candidates' refits
+/// start their searched parameters where the folds of `spec`'s refit (or of `given`) found them
+/// ([`crate::fit::Refits::warm`]).
 pub(super) fn verify_round(
     spec: &ModelSpec,
     log: &Log,
@@ -181,7 +184,7 @@ pub(super) fn verify_round(
     block_len: usize,
     min_effect: f64,
     config: &CheckedVerifyConfig,
-    given: Option<Vec<f64>>,
+    given: Option<Refitted>,
 ) -> Result<(Verification, RoundResiduals), ModelDiagnosisError> {
     let strict_all = given.is_some();
     let mut keep = RoundResiduals::default();
@@ -196,36 +199,45 @@ pub(super) fn verify_round(
     // reads them, so the result is the same for any number of threads.
     // Every refit of the round reads the log's sampling and replayed features from here.
     let shared = refits_of(log, &config.fit);
-    let score = |s: &ModelSpec| {
-        cv_residuals_sharing(s, log, config.folds, &config.fit, &shared)
-            .map_err(|e| error_chain(&e))
-    };
     let (wanted, keys) = wanted_refits(spec, cands, given.is_none());
     // The model as it is first (`wanted[0]`, unless a round before gave its residual): every
     // other refit is judged against it as soon as it is made, and only its verdicts are kept —
-    // not one residual vector per refit (8 B a row each) until the loop reads it.
+    // not one residual vector per refit (8 B a row each) until the loop reads it. Its folds'
+    // searched values start the other refits' searches.
     let first = usize::from(!strict_all);
-    let before = match given.map_or_else(|| score(spec), Ok) {
+    let before = match given.map_or_else(
+        || cv_residuals_sharing(spec, log, config.folds, &config.fit, &shared, &[]),
+        Ok,
+    ) {
         Ok(r) => r,
         Err(e) => {
             v.not_run = Some(format!(
                 "the model `{spec}` cannot be refitted on this log, so no suggestion was \
-                 verified: {e}"
+                 verified: {}",
+                error_chain(&e)
             ));
             return Ok((v, keep));
         }
+    };
+    let Refitted {
+        residuals: before,
+        searched: warm,
+    } = before;
+    let score = |s: &ModelSpec| {
+        cv_residuals_sharing(s, log, config.folds, &config.fit, &shared, &warm)
+            .map_err(|e| error_chain(&e))
     };
     let base = Baseline::new(before, config.folds);
     let before = &base.r;
     let std_before = std_of(before);
     let assess = |s: &ModelSpec| {
         score(s).and_then(|after| {
-            let std_after = std_of(&after);
+            let std_after = std_of(&after.residuals);
             // A refit whose held-out error blew up failed: it is no verdict on the effect.
             if let Some(why) = blown_up(std_before, std_after) {
                 return Err(why);
             }
-            let judged = base.judge_both(&after, min_effect, config);
+            let judged = base.judge_both(&after.residuals, min_effect, config);
             Ok(Scored {
                 std_after,
                 judged,

@@ -216,6 +216,7 @@ impl Term for BumpTerm {
             // refinement stops where RSS differences are still far above rounding), and the
             // projection is tested against the full solve (`fit::tests`).
             search_by_projection: true,
+            searches_itself: true,
             ..TermCaps::DEFAULT
         }
     }

@@ -333,6 +333,7 @@ impl Term for StepTerm {
             // The exact RSS of two splits differs by what the rows between them change, far above
             // rounding; the projection is tested against the full solve (`fit::tests`).
             search_by_projection: true,
+            searches_itself: true,
             ..TermCaps::DEFAULT
         }
     }

@@ -136,6 +136,7 @@ impl Term for PreisachTerm {
             reads_history: false,
             // Relay states change only where the position crosses a threshold.
             piecewise_constant: true,
+            searches_itself: true,
             ..TermCaps::DEFAULT
         }
     }
