@@ -24,10 +24,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{
-    CheckedDiagnoseConfig, DiagnoseError, Diagnosis, FeatureOrigin, FeatureReport, FeatureTable,
-    diagnose,
-};
+use super::screen::{Reports, explained_shares, screen};
+use super::{CheckedDiagnoseConfig, DiagnoseError, FeatureOrigin, FeatureReport, FeatureTable};
 use crate::model::{FittedModel, Prediction};
 
 /// A drift forgetting factor above this (memory shorter than about 10 measurements) is much
@@ -118,6 +116,7 @@ pub(crate) fn absorbed(
 ) -> Result<Vec<Absorption>, DiagnoseError> {
     let mut out = Vec::new();
     let reduced = table.without(|c| super::is_time(c.origin));
+    let mut plain: Option<Vec<f64>> = None;
     for (t, name) in prediction.term_names.iter().enumerate() {
         let Some(contribution) = prediction.contributions.get_mut(t) else {
             continue;
@@ -133,12 +132,23 @@ pub(crate) fn absorbed(
         y.iter_mut()
             .zip(&prediction.residual)
             .for_each(|(c, r)| *c += r);
-        let with = diagnose(&reduced, &y, config)?;
-        let plain = diagnose(&reduced, &prediction.residual, config)?;
-        let alone = |f: &FeatureReport| plain.feature(&f.name).map_or(0.0, |p| p.explained);
+        // Only the features are read: the screen without the pair screen and the residual's
+        // own statistics (the same reports as `diagnose`'s, tested).
+        let with = screen(&reduced, &y, config, Reports::All)?.reports;
+        // Of the residual alone only the explained shares are read, and they do not depend on
+        // the term: the columns' analysis, once (the same shares as `diagnose`'s, tested).
+        if plain.is_none() {
+            plain = Some(explained_shares(&reduced, &prediction.residual, config)?);
+        }
+        let shares = plain.as_deref().unwrap_or(&[]);
+        let alone = |f: &FeatureReport| {
+            (reduced.columns().iter())
+                .position(|c| c.name == f.name)
+                .map_or(0.0, |j| shares[j])
+        };
         let absorbs =
             |f: &FeatureReport| f.explained >= config.min_effect && f.explained > 2.0 * alone(f);
-        let reported = with.features.iter().filter(|f| f.flagged && absorbs(f));
+        let reported = with.iter().filter(|f| f.flagged && absorbs(f));
         let slow = slow_column(&with, &reduced).filter(|f| absorbs(f));
         for f in reported.chain(slow) {
             out.push(Absorption {
@@ -173,9 +183,8 @@ fn with_binned_column(f: &FeatureReport) -> Vec<String> {
 /// adaptive term's contribution against `table`) that explains most of it, when it is a
 /// logged column or a lag of one, not flagged (a flagged one is reported by the family-wise
 /// rule), and its per-feature permutation p-value is at most [`SLOW_RAW_P`].
-fn slow_column<'a>(with: &'a Diagnosis, table: &FeatureTable) -> Option<&'a FeatureReport> {
+fn slow_column<'a>(with: &'a [FeatureReport], table: &FeatureTable) -> Option<&'a FeatureReport> {
     let top = with
-        .features
         .iter()
         .max_by(|a, b| a.explained.total_cmp(&b.explained))?;
     let logged = table

@@ -97,13 +97,26 @@ pub(super) struct Prepared {
     pub(super) null_block: usize,
 }
 
-/// Checks the input and makes everything the permutation test reads ([`Prepared`]): the first
-/// half of [`screen`], shared with the pooled screen of a fleet.
-pub(super) fn prepare(
+/// The screen's input made ready up to the permutation test's blocks: the clipped, centred
+/// residual, its folds and direction, and every column analysed ([`prepare`] without the null
+/// blocks).
+pub(super) struct Analysis {
+    pub(super) y: Vec<f64>,
+    pub(super) sst: f64,
+    pub(super) variance: f64,
+    pub(super) residual_std: f64,
+    pub(super) fold: Vec<u8>,
+    pub(super) direction: Option<Vec<i8>>,
+    pub(super) analysed: Vec<Result<Analysed, Unusable>>,
+}
+
+/// Checks the input, clips and centres the residual, and analyses every column: the first
+/// part of [`prepare`].
+pub(super) fn analyse(
     table: &FeatureTable,
     residuals: &[f64],
     config: &CheckedDiagnoseConfig,
-) -> Result<Prepared, DiagnoseError> {
+) -> Result<Analysis, DiagnoseError> {
     let n = table.len();
     let block_len = check_input(table, residuals, config)?;
 
@@ -141,7 +154,51 @@ pub(super) fn prepare(
         },
         config,
     );
+    Ok(Analysis {
+        y,
+        sst,
+        variance,
+        residual_std,
+        fold,
+        direction,
+        analysed,
+    })
+}
 
+/// Every column's out-of-sample explained share of `residuals`, in table order, as
+/// [`diagnose`]`(table, residuals, config)` reports it (0 for a column it skips; tested):
+/// [`analyse`] alone, without the permutation test, the forward pass, the reports and the
+/// pair screen — what a caller reading only the shares (the absorbed-effect rule's residual
+/// alone) would pay for nothing.
+pub(super) fn explained_shares(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+) -> Result<Vec<f64>, DiagnoseError> {
+    let a = analyse(table, residuals, config)?;
+    Ok(a.analysed
+        .iter()
+        .map(|a| a.as_ref().map_or(0.0, |a| a.explained))
+        .collect())
+}
+
+/// Checks the input and makes everything the permutation test reads ([`Prepared`]): the first
+/// half of [`screen`], shared with the pooled screen of a fleet.
+pub(super) fn prepare(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+) -> Result<Prepared, DiagnoseError> {
+    let n = table.len();
+    let Analysis {
+        y,
+        sst,
+        variance,
+        residual_std,
+        fold,
+        direction,
+        analysed,
+    } = analyse(table, residuals, config)?;
     let null_block = config
         .null_block
         .unwrap_or_else(|| null_block_len(&y))
