@@ -24,7 +24,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::screen::{Reports, explained_shares, screen};
+use super::screen::{Reports, screen};
 use super::{CheckedDiagnoseConfig, DiagnoseError, FeatureOrigin, FeatureReport, FeatureTable};
 use crate::model::{FittedModel, Prediction};
 
@@ -108,15 +108,17 @@ pub(crate) fn keep_needed(model: &FittedModel, prediction: &mut Prediction) {
 /// flagged ones that explain at least `config.min_effect` of it and clearly more than of the
 /// residual alone. The sum is made in place of the contribution (taken from `prediction`,
 /// which keeps an empty vector there), so no third vector of the log's length is held.
+/// `residual_features`: the features of the diagnosis of `prediction.residual` against
+/// `table` with `config` (what the residual alone explains).
 pub(crate) fn absorbed(
     model: &FittedModel,
     table: &FeatureTable,
     prediction: &mut Prediction,
     config: &CheckedDiagnoseConfig,
+    residual_features: &[FeatureReport],
 ) -> Result<Vec<Absorption>, DiagnoseError> {
     let mut out = Vec::new();
     let reduced = table.without(|c| super::is_time(c.origin));
-    let mut plain: Option<Vec<f64>> = None;
     for (t, name) in prediction.term_names.iter().enumerate() {
         let Some(contribution) = prediction.contributions.get_mut(t) else {
             continue;
@@ -135,16 +137,13 @@ pub(crate) fn absorbed(
         // Only the features are read: the screen without the pair screen and the residual's
         // own statistics (the same reports as `diagnose`'s, tested).
         let with = screen(&reduced, &y, config, Reports::All)?.reports;
-        // Of the residual alone only the explained shares are read, and they do not depend on
-        // the term: the columns' analysis, once (the same shares as `diagnose`'s, tested).
-        if plain.is_none() {
-            plain = Some(explained_shares(&reduced, &prediction.residual, config)?);
-        }
-        let shares = plain.as_deref().unwrap_or(&[]);
+        // Of the residual alone only the explained shares are read: a column's share does not
+        // depend on the other columns of the table, so the diagnosis of the residual against
+        // the whole table has them (the shares of a diagnosis against `reduced`, tested).
         let alone = |f: &FeatureReport| {
-            (reduced.columns().iter())
-                .position(|c| c.name == f.name)
-                .map_or(0.0, |j| shares[j])
+            (residual_features.iter())
+                .find(|p| p.name == f.name)
+                .map_or(0.0, |p| p.explained)
         };
         let absorbs =
             |f: &FeatureReport| f.explained >= config.min_effect && f.explained > 2.0 * alone(f);

@@ -166,10 +166,9 @@ pub(super) fn analyse(
 }
 
 /// Every column's out-of-sample explained share of `residuals`, in table order, as
-/// [`diagnose`]`(table, residuals, config)` reports it (0 for a column it skips; tested):
-/// [`analyse`] alone, without the permutation test, the forward pass, the reports and the
-/// pair screen — what a caller reading only the shares (the absorbed-effect rule's residual
-/// alone) would pay for nothing.
+/// [`diagnose`]`(table, residuals, config)` reports it (0 for a column it skips): [`analyse`]
+/// alone. The tests' reference of the shares the absorbed-effect rule reads.
+#[cfg(test)]
 pub(super) fn explained_shares(
     table: &FeatureTable,
     residuals: &[f64],

@@ -1118,6 +1118,15 @@ fn screen_alone_and_explained_shares_equal_the_diagnosis() {
         let want = d.feature(&c.name).expect("reported").explained;
         assert_eq!(s.to_bits(), want.to_bits(), "{}", c.name);
     }
+    // A column's share does not depend on the other columns: those of the table without the
+    // time features (the absorbed-effect rule's) are the whole table's.
+    let reduced = t.without(|c| is_time(c.origin));
+    assert!(reduced.columns().len() < t.columns().len());
+    let fewer = explained_shares(&reduced, &r, &config).expect("shares");
+    for (c, s) in reduced.columns().iter().zip(&fewer) {
+        let want = d.feature(&c.name).expect("reported").explained;
+        assert_eq!(s.to_bits(), want.to_bits(), "{}", c.name);
+    }
 }
 
 /// The signed sums a fused pass returned for the signed residual `product` (materialised):
