@@ -24,7 +24,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::screen::{Reports, screen};
+use super::screen::{Reports, analyse, screen_analysed};
 use super::{CheckedDiagnoseConfig, DiagnoseError, FeatureOrigin, FeatureReport, FeatureTable};
 use crate::model::{FittedModel, Prediction};
 
@@ -134,19 +134,29 @@ pub(crate) fn absorbed(
         y.iter_mut()
             .zip(&prediction.residual)
             .for_each(|(c, r)| *c += r);
-        // Only the features are read: the screen without the pair screen and the residual's
-        // own statistics (the same reports as `diagnose`'s, tested).
-        let with = screen(&reduced, &y, config, Reports::All)?.reports;
         // Of the residual alone only the explained shares are read: a column's share does not
         // depend on the other columns of the table, so the diagnosis of the residual against
         // the whole table has them (the shares of a diagnosis against `reduced`, tested).
-        let alone = |f: &FeatureReport| {
+        let alone = |name: &str| {
             (residual_features.iter())
-                .find(|p| p.name == f.name)
+                .find(|p| p.name == name)
                 .map_or(0.0, |p| p.explained)
         };
-        let absorbs =
-            |f: &FeatureReport| f.explained >= config.min_effect && f.explained > 2.0 * alone(f);
+        let absorbs_share = |name: &str, e: f64| e >= config.min_effect && e > 2.0 * alone(name);
+        let absorbs = |f: &FeatureReport| absorbs_share(&f.name, f.explained);
+        // Every rule below keeps only features that absorb, which their explained shares
+        // alone decide (a report's share is its column's analysed share, 0 for a skipped
+        // column): when none does, the permutation test and the reports are not needed.
+        let analysis = analyse(&reduced, &y, config)?;
+        let any = (reduced.columns().iter())
+            .zip(&analysis.analysed)
+            .any(|(c, a)| absorbs_share(&c.name, a.as_ref().map_or(0.0, |a| a.explained)));
+        if !any {
+            continue;
+        }
+        // Only the features are read: the screen without the pair screen and the residual's
+        // own statistics (the same reports as `diagnose`'s, tested).
+        let with = screen_analysed(&reduced, &y, config, Reports::All, analysis).reports;
         let reported = with.iter().filter(|f| f.flagged && absorbs(f));
         let slow = slow_column(&with, &reduced).filter(|f| absorbs(f));
         for f in reported.chain(slow) {
@@ -154,7 +164,7 @@ pub(crate) fn absorbed(
                 term: name.clone(),
                 feature: f.name.clone(),
                 explained_with_term: f.explained,
-                explained_residual: alone(f),
+                explained_residual: alone(&f.name),
                 suggested_term: f.suggested_term.clone(),
                 alternatives: with_binned_column(f),
             });

@@ -188,6 +188,19 @@ pub(super) fn prepare(
     residuals: &[f64],
     config: &CheckedDiagnoseConfig,
 ) -> Result<Prepared, DiagnoseError> {
+    Ok(prepare_analysed(
+        table,
+        analyse(table, residuals, config)?,
+        config,
+    ))
+}
+
+/// [`prepare`] of the [`analyse`]d input (`analysis` of `table`): the null blocks added.
+fn prepare_analysed(
+    table: &FeatureTable,
+    analysis: Analysis,
+    config: &CheckedDiagnoseConfig,
+) -> Prepared {
     let n = table.len();
     let Analysis {
         y,
@@ -197,7 +210,7 @@ pub(super) fn prepare(
         fold,
         direction,
         analysed,
-    } = analyse(table, residuals, config)?;
+    } = analysis;
     let null_block = config
         .null_block
         .unwrap_or_else(|| null_block_len(&y))
@@ -215,7 +228,7 @@ pub(super) fn prepare(
             _ => null_block,
         })
         .collect();
-    Ok(Prepared {
+    Prepared {
         y,
         sst,
         variance,
@@ -225,7 +238,7 @@ pub(super) fn prepare(
         analysed,
         blocks,
         null_block,
-    })
+    }
 }
 
 /// The one-dimensional screen of [`diagnose`]: every feature's smoother, the permutation
@@ -236,6 +249,31 @@ pub(super) fn screen(
     config: &CheckedDiagnoseConfig,
     which: Reports,
 ) -> Result<Screened, DiagnoseError> {
+    let prepared = prepare(table, residuals, config)?;
+    Ok(screen_prepared(table, residuals, config, which, prepared))
+}
+
+/// [`screen`] of `residuals` already [`analyse`]d (`analysis`, of `table` with `config`): the
+/// same result (a caller that read the analysis first, to see whether it needs the rest).
+pub(super) fn screen_analysed(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+    which: Reports,
+    analysis: Analysis,
+) -> Screened {
+    let prepared = prepare_analysed(table, analysis, config);
+    screen_prepared(table, residuals, config, which, prepared)
+}
+
+/// [`screen`] from its [`Prepared`] input.
+fn screen_prepared(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+    which: Reports,
+    prepared: Prepared,
+) -> Screened {
     let Prepared {
         y,
         sst,
@@ -246,7 +284,7 @@ pub(super) fn screen(
         mut analysed,
         blocks,
         null_block,
-    } = prepare(table, residuals, config)?;
+    } = prepared;
     let (p_raw, p_adj) = permutation_test(
         &mut analysed,
         &y,
@@ -324,7 +362,7 @@ pub(super) fn screen(
     // diagnosis's peak of memory otherwise).
     drop(analysed);
     drop(signed_residuals);
-    Ok(Screened {
+    Screened {
         reports,
         residual_std,
         null_block,
@@ -332,7 +370,7 @@ pub(super) fn screen(
         fold,
         direction,
         variance,
-    })
+    }
 }
 
 /// Checks the residuals against `table` and `config` (one finite residual per row, enough rows
