@@ -24,10 +24,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{
-    CheckedDiagnoseConfig, DiagnoseError, Diagnosis, FeatureOrigin, FeatureReport, FeatureTable,
-    diagnose,
-};
+use super::screen::{Reports, analyse, screen_analysed};
+use super::{CheckedDiagnoseConfig, DiagnoseError, FeatureOrigin, FeatureReport, FeatureTable};
 use crate::model::{FittedModel, Prediction};
 
 /// A drift forgetting factor above this (memory shorter than about 10 measurements) is much
@@ -110,11 +108,14 @@ pub(crate) fn keep_needed(model: &FittedModel, prediction: &mut Prediction) {
 /// flagged ones that explain at least `config.min_effect` of it and clearly more than of the
 /// residual alone. The sum is made in place of the contribution (taken from `prediction`,
 /// which keeps an empty vector there), so no third vector of the log's length is held.
+/// `residual_features`: the features of the diagnosis of `prediction.residual` against
+/// `table` with `config` (what the residual alone explains).
 pub(crate) fn absorbed(
     model: &FittedModel,
     table: &FeatureTable,
     prediction: &mut Prediction,
     config: &CheckedDiagnoseConfig,
+    residual_features: &[FeatureReport],
 ) -> Result<Vec<Absorption>, DiagnoseError> {
     let mut out = Vec::new();
     let reduced = table.without(|c| super::is_time(c.origin));
@@ -133,19 +134,37 @@ pub(crate) fn absorbed(
         y.iter_mut()
             .zip(&prediction.residual)
             .for_each(|(c, r)| *c += r);
-        let with = diagnose(&reduced, &y, config)?;
-        let plain = diagnose(&reduced, &prediction.residual, config)?;
-        let alone = |f: &FeatureReport| plain.feature(&f.name).map_or(0.0, |p| p.explained);
-        let absorbs =
-            |f: &FeatureReport| f.explained >= config.min_effect && f.explained > 2.0 * alone(f);
-        let reported = with.features.iter().filter(|f| f.flagged && absorbs(f));
+        // Of the residual alone only the explained shares are read: a column's share does not
+        // depend on the other columns of the table, so the diagnosis of the residual against
+        // the whole table has them (the shares of a diagnosis against `reduced`, tested).
+        let alone = |name: &str| {
+            (residual_features.iter())
+                .find(|p| p.name == name)
+                .map_or(0.0, |p| p.explained)
+        };
+        let absorbs_share = |name: &str, e: f64| e >= config.min_effect && e > 2.0 * alone(name);
+        let absorbs = |f: &FeatureReport| absorbs_share(&f.name, f.explained);
+        // Every rule below keeps only features that absorb, which their explained shares
+        // alone decide (a report's share is its column's analysed share, 0 for a skipped
+        // column): when none does, the permutation test and the reports are not needed.
+        let analysis = analyse(&reduced, &y, config)?;
+        let any = (reduced.columns().iter())
+            .zip(&analysis.analysed)
+            .any(|(c, a)| absorbs_share(&c.name, a.as_ref().map_or(0.0, |a| a.explained)));
+        if !any {
+            continue;
+        }
+        // Only the features are read: the screen without the pair screen and the residual's
+        // own statistics (the same reports as `diagnose`'s, tested).
+        let with = screen_analysed(&reduced, &y, config, Reports::All, analysis).reports;
+        let reported = with.iter().filter(|f| f.flagged && absorbs(f));
         let slow = slow_column(&with, &reduced).filter(|f| absorbs(f));
         for f in reported.chain(slow) {
             out.push(Absorption {
                 term: name.clone(),
                 feature: f.name.clone(),
                 explained_with_term: f.explained,
-                explained_residual: alone(f),
+                explained_residual: alone(&f.name),
                 suggested_term: f.suggested_term.clone(),
                 alternatives: with_binned_column(f),
             });
@@ -173,9 +192,8 @@ fn with_binned_column(f: &FeatureReport) -> Vec<String> {
 /// adaptive term's contribution against `table`) that explains most of it, when it is a
 /// logged column or a lag of one, not flagged (a flagged one is reported by the family-wise
 /// rule), and its per-feature permutation p-value is at most [`SLOW_RAW_P`].
-fn slow_column<'a>(with: &'a Diagnosis, table: &FeatureTable) -> Option<&'a FeatureReport> {
+fn slow_column<'a>(with: &'a [FeatureReport], table: &FeatureTable) -> Option<&'a FeatureReport> {
     let top = with
-        .features
         .iter()
         .max_by(|a, b| a.explained.total_cmp(&b.explained))?;
     let logged = table

@@ -13,21 +13,25 @@ use super::smoother::{Binned, FineSlots};
 #[derive(Debug, Clone)]
 pub(crate) struct SlotTable {
     /// `codes[i·m + j]`: the fine slot of feature `j` at row `i`.
-    codes: Vec<u8>,
+    pub(super) codes: Vec<u8>,
     /// Features.
-    m: usize,
+    pub(super) m: usize,
     /// The first `signed` features also sum a second (direction-signed) residual.
-    signed: usize,
+    pub(super) signed: usize,
     /// Start of feature `j`'s slots in the accumulators (`offset[m]`: their length).
-    offset: Vec<usize>,
+    pub(super) offset: Vec<usize>,
     /// Whether every feature stays in one slot for long runs of rows in seek order (at most
     /// one change of slot per [`STEADY_ROWS`] rows, as the time features' monotone bins do):
     /// then a row-permuted residual is summed with each feature's current slot held in a
     /// register ([`add_rows_held`]).
     steady: bool,
+    /// Per feature, how many times its slot changes from one row to the next in seek order
+    /// (the lanes' pass holds the sums of a feature that changes seldom in registers).
+    pub(super) changes: Vec<usize>,
 }
 
-/// Rows per change of slot, at least, of a [`SlotTable`] summed with [`add_rows_held`].
+/// Rows per change of slot, at least, of a feature whose sums are held in registers
+/// ([`add_rows_held`], and the lanes' held units).
 pub(super) const STEADY_ROWS: usize = 64;
 
 impl SlotTable {
@@ -92,18 +96,20 @@ impl SlotTable {
         for b in bins {
             offset.push(offset.last().copied().unwrap_or(0) + b.n_fine + 1);
         }
-        let changes = (0..m)
+        let changes: Vec<usize> = (0..m)
             .map(|j| {
                 let col = codes.iter().skip(j).step_by(m);
                 col.clone().zip(col.skip(1)).filter(|(a, b)| a != b).count()
             })
-            .max()
-            .unwrap_or(0);
+            .collect();
+        let most = changes.iter().copied().max().unwrap_or(0);
+        let signed = signed.min(m);
         SlotTable {
-            steady: m <= HELD_MAX && changes * STEADY_ROWS <= n,
+            steady: m <= HELD_MAX && most * STEADY_ROWS <= n,
+            changes,
             codes,
             m,
-            signed: signed.min(m),
+            signed,
             offset,
         }
     }
@@ -310,288 +316,6 @@ impl SlotTable {
     /// Features whose sums of the signed residual are taken.
     pub(crate) fn signed(&self) -> usize {
         self.signed
-    }
-}
-
-/// Permutations summed side by side, one per lane of a vector, by
-/// [`SlotTable::accumulate_lanes`] (eight `f64`: one 512-bit register with AVX-512, two
-/// 256-bit ones with AVX2).
-pub(crate) const LANES: usize = 8;
-
-/// Rows per chunk of [`SlotTable::accumulate_lanes`]: the lanes' permuted rows are gathered
-/// into a chunk of `CHUNK × LANES` values (32 KiB, in L1/L2) before they are summed.
-pub(super) const CHUNK: usize = 512;
-
-/// One lane's block permutation, read in place: the residual rotated by `offset`, cut into
-/// blocks of `block` rows taken in `order` (as [`Permuted::Blocks`]).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct BlockLane<'a> {
-    /// Rotation.
-    pub(crate) offset: usize,
-    /// Block order.
-    pub(crate) order: &'a [usize],
-}
-
-/// Where one lane's gathering stands: the block (index into its order) and the row in it.
-#[derive(Debug, Clone, Copy, Default)]
-pub(super) struct Cursor {
-    idx: usize,
-    pos: usize,
-}
-
-/// Copies the next `out.len()` rows of lane `lane`'s block permutation of `y` (blocks of
-/// `block` rows) into `out[t][slot]`, advancing `cur`; prefetches the rows of the block
-/// [`PREFETCH_BLOCKS`] blocks ahead, as [`Permuted::for_each_run`] does.
-#[inline(always)]
-pub(super) fn gather_lane(
-    y: &[f64],
-    block: usize,
-    lane: &BlockLane<'_>,
-    slot: usize,
-    cur: &mut Cursor,
-    out: &mut [[f64; LANES]],
-) {
-    let n = y.len();
-    let mut t = 0;
-    while t < out.len() {
-        let b = lane.order[cur.idx];
-        let len = ((b + 1) * block).min(n) - b * block;
-        let take = (len - cur.pos).min(out.len() - t);
-        // The block's rows from `cur.pos` on: at most two runs of `y` (it may wrap).
-        let start = wrap(b * block + lane.offset + cur.pos, n);
-        let first = take.min(n - start);
-        for (o, &v) in out[t..t + first].iter_mut().zip(&y[start..start + first]) {
-            o[slot] = v;
-        }
-        for (o, &v) in out[t + first..t + take].iter_mut().zip(&y[..take - first]) {
-            o[slot] = v;
-        }
-        t += take;
-        cur.pos += take;
-        if cur.pos == len {
-            cur.pos = 0;
-            cur.idx += 1;
-            if let Some(&ahead) = lane.order.get(cur.idx + PREFETCH_BLOCKS) {
-                let s = wrap(ahead * block + lane.offset, n);
-                prefetch(&y[s..]);
-                prefetch(&y[(s + block - 1).min(n - 1)..]);
-            }
-        }
-    }
-}
-
-/// The [`LANES`] block permutations of `y`, gathered chunk by chunk in row order from row 0
-/// (`next` fills `buf[t][l]` with row `k + t` of lane `l`'s permutation).
-pub(super) struct Chunks<'a, 'b> {
-    y: &'a [f64],
-    block: usize,
-    lanes: &'a [BlockLane<'b>; LANES],
-    cur: [Cursor; LANES],
-    k: usize,
-}
-
-impl<'a, 'b> Chunks<'a, 'b> {
-    /// Starts at row 0 (asking for the first blocks' rows).
-    #[inline(always)]
-    fn new(y: &'a [f64], block: usize, lanes: &'a [BlockLane<'b>; LANES]) -> Self {
-        let n = y.len();
-        for lane in lanes {
-            for &b in lane.order.iter().take(PREFETCH_BLOCKS) {
-                prefetch(&y[wrap(b * block + lane.offset, n)..]);
-            }
-        }
-        Chunks {
-            y,
-            block,
-            lanes,
-            cur: [Cursor::default(); LANES],
-            k: 0,
-        }
-    }
-
-    /// Gathers the next chunk into `buf` (at most `buf.len()` rows): its first row and its
-    /// length, `None` after the last row.
-    #[inline(always)]
-    fn next(&mut self, buf: &mut [[f64; LANES]]) -> Option<(usize, usize)> {
-        let k = self.k;
-        let c = buf.len().min(self.y.len() - k);
-        if c == 0 {
-            return None;
-        }
-        for (l, lane) in self.lanes.iter().enumerate() {
-            gather_lane(self.y, self.block, lane, l, &mut self.cur[l], &mut buf[..c]);
-        }
-        self.k += c;
-        Some((k, c))
-    }
-}
-
-/// `v[l]·d` for every lane (one vector multiplication).
-#[inline(always)]
-pub(super) fn scale_lanes(v: &[f64; LANES], d: f64) -> [f64; LANES] {
-    let mut w = [0.0; LANES];
-    for l in 0..LANES {
-        w[l] = v[l] * d;
-    }
-    w
-}
-
-/// `a[l]·b[l]` for every lane (one vector multiplication).
-#[inline(always)]
-pub(super) fn mul_lanes(a: &[f64; LANES], b: &[f64; LANES]) -> [f64; LANES] {
-    let mut w = [0.0; LANES];
-    for l in 0..LANES {
-        w[l] = a[l] * b[l];
-    }
-    w
-}
-
-/// `a[l] += v[l]` for every lane (one vector addition; each lane its own IEEE sum).
-#[inline(always)]
-pub(super) fn add_lanes(a: &mut [f64; LANES], v: &[f64; LANES]) {
-    for l in 0..LANES {
-        a[l] += v[l];
-    }
-}
-
-impl SlotTable {
-    /// [`SlotTable::accumulate_permuted`] of [`LANES`] block permutations (blocks of `block`
-    /// rows > 1) at once: `acc[s][l]` is lane `l`'s sum of slot `s`, `acc_signed` the same
-    /// for the signed residual (permuted × `direction`; unused, and may be empty, when no
-    /// feature is signed). Returns each lane's Σ of the signed residual in row order (−0 when
-    /// none is signed) and Σ of its squares (0 when none is signed). Each lane's sums take the same additions in the same order as
-    /// [`SlotTable::accumulate_permuted`] of that lane's permutation, so they are the same
-    /// bits (tested); the lanes of one row are added by one vector instruction. Runs the
-    /// AVX2 copy when the CPU has it (lane-wise additions and products, no fused
-    /// multiply-add: the same results).
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn accumulate_lanes(
-        &self,
-        y: &[f64],
-        block: usize,
-        lanes: &[BlockLane<'_>; LANES],
-        direction: &[i8],
-        buf: &mut Vec<[f64; LANES]>,
-        acc: &mut Vec<[f64; LANES]>,
-        acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> ([f64; LANES], [f64; LANES]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe {
-                self.accumulate_lanes_avx512(y, block, lanes, direction, buf, acc, acc_signed)
-            };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe {
-                self.accumulate_lanes_avx2(y, block, lanes, direction, buf, acc, acc_signed)
-            };
-        }
-        self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
-    }
-
-    /// [`SlotTable::accumulate_lanes`] compiled for AVX-512F (the lanes' sums in one
-    /// register; each lane's additions the same, in the same order, as any other build's).
-    ///
-    /// # Safety
-    /// The CPU must support AVX-512F.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn accumulate_lanes_avx512(
-        &self,
-        y: &[f64],
-        block: usize,
-        lanes: &[BlockLane<'_>; LANES],
-        direction: &[i8],
-        buf: &mut Vec<[f64; LANES]>,
-        acc: &mut Vec<[f64; LANES]>,
-        acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> ([f64; LANES], [f64; LANES]) {
-        self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
-    }
-
-    /// [`SlotTable::accumulate_lanes`] compiled for AVX2.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn accumulate_lanes_avx2(
-        &self,
-        y: &[f64],
-        block: usize,
-        lanes: &[BlockLane<'_>; LANES],
-        direction: &[i8],
-        buf: &mut Vec<[f64; LANES]>,
-        acc: &mut Vec<[f64; LANES]>,
-        acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> ([f64; LANES], [f64; LANES]) {
-        self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
-    }
-
-    /// [`SlotTable::accumulate_lanes`] for any CPU.
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn accumulate_lanes_portable(
-        &self,
-        y: &[f64],
-        block: usize,
-        lanes: &[BlockLane<'_>; LANES],
-        direction: &[i8],
-        buf: &mut Vec<[f64; LANES]>,
-        acc: &mut Vec<[f64; LANES]>,
-        acc_signed: &mut Vec<[f64; LANES]>,
-    ) -> ([f64; LANES], [f64; LANES]) {
-        let m = self.m;
-        let mut sum = [-0.0; LANES];
-        let mut sq = [0.0; LANES];
-        acc.clear();
-        acc.resize(self.len(), [0.0; LANES]);
-        if m == 0 {
-            return (sum, sq);
-        }
-        let ms = self.signed;
-        if ms > 0 {
-            acc_signed.clear();
-            acc_signed.resize(self.len(), [0.0; LANES]);
-        }
-        let offset = &self.offset[..m];
-        let codes = &self.codes[..];
-        let (acc, acc_signed) = (&mut acc[..], &mut acc_signed[..]);
-        buf.resize(CHUNK, [0.0; LANES]);
-        let mut chunks = Chunks::new(y, block, lanes);
-        while let Some((k, c)) = chunks.next(buf) {
-            let chunk = &buf[..c];
-            let rows = &codes[k * m..(k + c) * m];
-            if ms == 0 {
-                for (row, v) in rows.chunks_exact(m).zip(chunk) {
-                    // A local copy: one register, not reloaded after every store to `acc`.
-                    let v = *v;
-                    for (&c, &o) in row.iter().zip(offset) {
-                        add_lanes(&mut acc[o + c as usize], &v);
-                    }
-                }
-            } else {
-                let d = &direction[k..k + chunk.len()];
-                for ((row, v), &dt) in rows.chunks_exact(m).zip(chunk).zip(d) {
-                    let v = *v;
-                    let w = scale_lanes(&v, f64::from(dt));
-                    add_lanes(&mut sum, &w);
-                    add_lanes(&mut sq, &mul_lanes(&w, &w));
-                    for (&c, &o) in row.iter().zip(offset) {
-                        add_lanes(&mut acc[o + c as usize], &v);
-                    }
-                    for (&c, &o) in row[..ms].iter().zip(offset) {
-                        add_lanes(&mut acc_signed[o + c as usize], &w);
-                    }
-                }
-            }
-        }
-        (sum, sq)
     }
 }
 

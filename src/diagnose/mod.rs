@@ -108,6 +108,7 @@ mod features;
 mod forward;
 mod ftest;
 mod kernels;
+mod lanes;
 mod model;
 mod pairs;
 mod permutation;

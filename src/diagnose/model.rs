@@ -96,7 +96,9 @@ pub fn diagnose_model(
     for t in model_terms(model) {
         config.add_existing_term(t);
     }
-    d.absorbed = super::absorbed(model, &table, &mut prediction, &config)?;
+    // The shares of the residual alone come from its own diagnosis, `d`.
+    let absorbed = super::absorbed(model, &table, &mut prediction, &config, &d.features)?;
+    d.absorbed = absorbed;
     d.warnings = super::rate_warnings(model);
     d.summary = super::text::extend_summary(&d);
     Ok(d)

@@ -8,7 +8,8 @@ use crate::numeric::rng::SimRng;
 use crate::numeric::stats;
 
 use super::ftest::{FTest, sst_of_sums, sst_one_pass};
-use super::kernels::{self, BlockLane, LANES, Permuted, SlotTable};
+use super::kernels::{self, Permuted, SlotTable};
+use super::lanes::{BlockLane, LANES};
 use super::smoother::{Binned, Unusable};
 use super::{DiagnoseConfig, FeatureOrigin, values};
 
@@ -86,9 +87,9 @@ pub(crate) fn null_block_len(y: &[f64]) -> usize {
     let n = y.len();
     let cap = MAX_NULL_BLOCK.min(n / 8).max(1);
     let longest = cap.div_ceil(NULL_BLOCK_FACTOR);
-    let k0 = (1..=longest)
-        .find(|&lag| stats::autocorrelation(y, lag) < NULL_ACF)
-        .unwrap_or(longest);
+    // The first lag below NULL_ACF, as `autocorrelation` lag by lag finds it (the same bits;
+    // several lags a pass).
+    let k0 = stats::first_lag_below(y, longest, NULL_ACF).unwrap_or(longest);
     (NULL_BLOCK_FACTOR * k0).clamp(1, cap)
 }
 

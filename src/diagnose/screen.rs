@@ -97,13 +97,26 @@ pub(super) struct Prepared {
     pub(super) null_block: usize,
 }
 
-/// Checks the input and makes everything the permutation test reads ([`Prepared`]): the first
-/// half of [`screen`], shared with the pooled screen of a fleet.
-pub(super) fn prepare(
+/// The screen's input made ready up to the permutation test's blocks: the clipped, centred
+/// residual, its folds and direction, and every column analysed ([`prepare`] without the null
+/// blocks).
+pub(super) struct Analysis {
+    pub(super) y: Vec<f64>,
+    pub(super) sst: f64,
+    pub(super) variance: f64,
+    pub(super) residual_std: f64,
+    pub(super) fold: Vec<u8>,
+    pub(super) direction: Option<Vec<i8>>,
+    pub(super) analysed: Vec<Result<Analysed, Unusable>>,
+}
+
+/// Checks the input, clips and centres the residual, and analyses every column: the first
+/// part of [`prepare`].
+pub(super) fn analyse(
     table: &FeatureTable,
     residuals: &[f64],
     config: &CheckedDiagnoseConfig,
-) -> Result<Prepared, DiagnoseError> {
+) -> Result<Analysis, DiagnoseError> {
     let n = table.len();
     let block_len = check_input(table, residuals, config)?;
 
@@ -141,7 +154,63 @@ pub(super) fn prepare(
         },
         config,
     );
+    Ok(Analysis {
+        y,
+        sst,
+        variance,
+        residual_std,
+        fold,
+        direction,
+        analysed,
+    })
+}
 
+/// Every column's out-of-sample explained share of `residuals`, in table order, as
+/// [`diagnose`]`(table, residuals, config)` reports it (0 for a column it skips): [`analyse`]
+/// alone. The tests' reference of the shares the absorbed-effect rule reads.
+#[cfg(test)]
+pub(super) fn explained_shares(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+) -> Result<Vec<f64>, DiagnoseError> {
+    let a = analyse(table, residuals, config)?;
+    Ok(a.analysed
+        .iter()
+        .map(|a| a.as_ref().map_or(0.0, |a| a.explained))
+        .collect())
+}
+
+/// Checks the input and makes everything the permutation test reads ([`Prepared`]): the first
+/// half of [`screen`], shared with the pooled screen of a fleet.
+pub(super) fn prepare(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+) -> Result<Prepared, DiagnoseError> {
+    Ok(prepare_analysed(
+        table,
+        analyse(table, residuals, config)?,
+        config,
+    ))
+}
+
+/// [`prepare`] of the [`analyse`]d input (`analysis` of `table`): the null blocks added.
+fn prepare_analysed(
+    table: &FeatureTable,
+    analysis: Analysis,
+    config: &CheckedDiagnoseConfig,
+) -> Prepared {
+    let n = table.len();
+    let Analysis {
+        y,
+        sst,
+        variance,
+        residual_std,
+        fold,
+        direction,
+        analysed,
+    } = analysis;
     let null_block = config
         .null_block
         .unwrap_or_else(|| null_block_len(&y))
@@ -159,7 +228,7 @@ pub(super) fn prepare(
             _ => null_block,
         })
         .collect();
-    Ok(Prepared {
+    Prepared {
         y,
         sst,
         variance,
@@ -169,7 +238,7 @@ pub(super) fn prepare(
         analysed,
         blocks,
         null_block,
-    })
+    }
 }
 
 /// The one-dimensional screen of [`diagnose`]: every feature's smoother, the permutation
@@ -180,6 +249,31 @@ pub(super) fn screen(
     config: &CheckedDiagnoseConfig,
     which: Reports,
 ) -> Result<Screened, DiagnoseError> {
+    let prepared = prepare(table, residuals, config)?;
+    Ok(screen_prepared(table, residuals, config, which, prepared))
+}
+
+/// [`screen`] of `residuals` already [`analyse`]d (`analysis`, of `table` with `config`): the
+/// same result (a caller that read the analysis first, to see whether it needs the rest).
+pub(super) fn screen_analysed(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+    which: Reports,
+    analysis: Analysis,
+) -> Screened {
+    let prepared = prepare_analysed(table, analysis, config);
+    screen_prepared(table, residuals, config, which, prepared)
+}
+
+/// [`screen`] from its [`Prepared`] input.
+fn screen_prepared(
+    table: &FeatureTable,
+    residuals: &[f64],
+    config: &CheckedDiagnoseConfig,
+    which: Reports,
+    prepared: Prepared,
+) -> Screened {
     let Prepared {
         y,
         sst,
@@ -190,7 +284,7 @@ pub(super) fn screen(
         mut analysed,
         blocks,
         null_block,
-    } = prepare(table, residuals, config)?;
+    } = prepared;
     let (p_raw, p_adj) = permutation_test(
         &mut analysed,
         &y,
@@ -268,7 +362,7 @@ pub(super) fn screen(
     // diagnosis's peak of memory otherwise).
     drop(analysed);
     drop(signed_residuals);
-    Ok(Screened {
+    Screened {
         reports,
         residual_std,
         null_block,
@@ -276,7 +370,7 @@ pub(super) fn screen(
         fold,
         direction,
         variance,
-    })
+    }
 }
 
 /// Checks the residuals against `table` and `config` (one finite residual per row, enough rows

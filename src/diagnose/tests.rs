@@ -5,7 +5,7 @@
 use super::smoother::*;
 use super::*;
 use super::{forward::*, permutation::*, screen::*};
-use super::{ftest::*, kernels::*};
+use super::{ftest::*, kernels::*, lanes::*};
 use crate::log::{ColumnMap, Log, LogWriter};
 use crate::numeric::rng::SimRng;
 
@@ -961,8 +961,6 @@ fn lanes_of_block_permutations_equal_the_materialised_ones() {
         .iter()
         .map(|v| v.unwrap_or(0.0))
         .collect();
-    // The direction as the diagnosis holds it (bytes); `dir` is the plain reference.
-    let dir8: Vec<i8> = dir.iter().map(|&d| d as i8).collect();
     let r = residuals(&t, 6, 1.0, |i| 0.3 * dir[i]);
     let bins: Vec<Binned> = t
         .columns()
@@ -971,49 +969,163 @@ fn lanes_of_block_permutations_equal_the_materialised_ones() {
         .collect();
     assert!(bins.len() >= 8);
     let refs: Vec<&Binned> = bins.iter().collect();
-    let n = r.len();
-    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     for signed in [0, 5] {
         let table = SlotTable::new(&refs, signed).expect("few slots");
-        for block in [2, 7, 64, 1500, n] {
-            for seed in 0..2u64 {
-                let stream = |l: usize| SimRng::substream(seed, 11 + l as u64);
-                let mut orders: [Vec<usize>; LANES] = Default::default();
-                let mut offsets = [0usize; LANES];
-                for (l, order) in orders.iter_mut().enumerate() {
-                    offsets[l] = draw_blocks(n, block, order, &mut stream(l));
-                }
-                let lanes: [BlockLane; LANES] = std::array::from_fn(|l| BlockLane {
-                    offset: offsets[l],
-                    order: &orders[l],
-                });
-                let d: &[i8] = if signed > 0 { &dir8 } else { &[] };
-                let (mut buf, mut acc, mut acc_s) = (Vec::new(), Vec::new(), Vec::new());
-                let (sum, sq) =
-                    table.accumulate_lanes(&r, block, &lanes, d, &mut buf, &mut acc, &mut acc_s);
-                for l in 0..LANES {
-                    let mut materialised = vec![0.0; n];
-                    block_permute_reference(&r, block, &mut materialised, &mut stream(l));
-                    let product: Vec<f64> =
-                        materialised.iter().zip(&dir).map(|(a, b)| a * b).collect();
-                    let (mut want, mut want_s) = (vec![0.0; table.len()], vec![0.0; table.len()]);
-                    table.accumulate(&materialised, &product, &mut want, &mut want_s);
-                    let got: Vec<f64> = acc.iter().map(|a| a[l]).collect();
-                    assert_eq!(
-                        bits(&got),
-                        bits(&want),
-                        "block {block} seed {seed} lane {l}"
-                    );
-                    if signed > 0 {
-                        let end: usize = bins[..signed].iter().map(|b| b.n_fine + 1).sum();
-                        let got_s: Vec<f64> = acc_s[..end].iter().map(|a| a[l]).collect();
-                        assert_eq!(bits(&got_s), bits(&want_s[..end]), "signed {block} {l}");
-                        let what = format!("block {block} seed {seed} lane {l}");
-                        assert_signed_sums(&product, sum[l], sq[l], &what);
-                    }
+        // Several panels, the signed features split over more than one.
+        let panels = Plan::of(&table, r.len(), PANEL_BYTES).units;
+        assert!(panels.len() >= 3, "{panels:?}");
+        assert_lanes_equal_materialised(&table, &refs[..signed], &r, &dir);
+    }
+}
+
+/// [`lanes_of_block_permutations_equal_the_materialised_ones`] on a table whose features
+/// keep their slot for long runs of rows (ramps, slow waves, a few steps) beside busy ones:
+/// the held units — signed and unsigned, of one to four features — and the panels must give
+/// the bits of the materialised pass.
+#[test]
+fn held_units_of_the_lanes_equal_the_materialised_pass() {
+    let n = 9001;
+    let mut rng = SimRng::new(77);
+    let mut busy = |_: usize| rng.uniform();
+    let cols: Vec<Vec<f64>> = vec![
+        (0..n).map(|i| i as f64).collect(),
+        (0..n).map(|i| (i as f64 / 900.0).sin()).collect(),
+        (0..n).map(&mut busy).collect(),
+        (0..n).map(|i| ((i / 2000) % 3) as f64).collect(),
+        (0..n).map(|i| -(i as f64).sqrt()).collect(),
+        (0..n).map(&mut busy).collect(),
+        (0..n).map(|i| (i as f64 / 1500.0).cos()).collect(),
+        (0..n).map(&mut busy).collect(),
+        (0..n).map(|i| ((i / 700) % 5) as f64).collect(),
+        (0..n).map(|i| (i as f64).ln_1p()).collect(),
+        (0..n).map(&mut busy).collect(),
+    ];
+    let bins: Vec<Binned> = cols
+        .iter()
+        .map(|c| Binned::new(c, 64, 10, 12).expect("binned"))
+        .collect();
+    let refs: Vec<&Binned> = bins.iter().collect();
+    let mut rng = SimRng::new(78);
+    let dir: Vec<f64> = (0..n)
+        .map(|_| [-1.0, 0.0, 1.0][rng.below(3) as usize])
+        .collect();
+    let r: Vec<f64> = (0..n).map(|i| rng.normal() + 0.01 * i as f64).collect();
+    let mut kinds = std::collections::BTreeSet::new();
+    for signed in [0, 3, 6, 11] {
+        let table = SlotTable::new(&refs, signed).expect("few slots");
+        let plan = Plan::of(&table, n, PANEL_BYTES);
+        let mut seen = vec![0; refs.len()];
+        for u in &plan.units {
+            let (features, kind) = match u {
+                Unit::Held { features, signed } => (features, (features.len(), *signed)),
+                Unit::Panel { features, .. } => (features, (0, false)),
+            };
+            kinds.insert(kind);
+            features.iter().for_each(|&j| seen[j] += 1);
+        }
+        assert_eq!(seen, vec![1; refs.len()], "every feature in one unit");
+        assert_lanes_equal_materialised(&table, &refs[..signed], &r, &dir);
+    }
+    // Held units signed and not, of 1 to 4 features, and panels.
+    for k in [
+        (1, true),
+        (3, true),
+        (4, true),
+        (2, false),
+        (4, false),
+        (0, false),
+    ] {
+        assert!(kinds.contains(&k), "{k:?} in {kinds:?}");
+    }
+}
+
+/// Reference: the fused pass over each materialised permutation ([`SlotTable::accumulate`] of
+/// [`block_permute_reference`]'s output and its product with the direction) and
+/// the sum and sum of squares of that product in row order. [`SlotTable::accumulate_lanes`] —
+/// [`LANES`] block permutations gathered chunk by chunk and summed side by side in the lanes
+/// of one vector — must give every lane the same sums, signed sum and signed sum of squares
+/// bit for bit, for blocks that do and do not divide the length, blocks longer than a chunk,
+/// a length that is not a whole number of chunks, with and without signed features (`signed`:
+/// the table's signed features' bins).
+fn assert_lanes_equal_materialised(table: &SlotTable, signed: &[&Binned], r: &[f64], dir: &[f64]) {
+    // The direction as the diagnosis holds it (bytes); `dir` is the plain reference.
+    let dir8: Vec<i8> = dir.iter().map(|&d| d as i8).collect();
+    let n = r.len();
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for block in [2, 7, 64, 1500, n] {
+        for seed in 0..2u64 {
+            let stream = |l: usize| SimRng::substream(seed, 11 + l as u64);
+            let mut orders: [Vec<usize>; LANES] = Default::default();
+            let mut offsets = [0usize; LANES];
+            for (l, order) in orders.iter_mut().enumerate() {
+                offsets[l] = draw_blocks(n, block, order, &mut stream(l));
+            }
+            let lanes: [BlockLane; LANES] = std::array::from_fn(|l| BlockLane {
+                offset: offsets[l],
+                order: &orders[l],
+            });
+            let d: &[i8] = if signed.is_empty() { &[] } else { &dir8 };
+            let (mut buf, mut acc, mut acc_s) = (Vec::new(), Vec::new(), Vec::new());
+            let (sum, sq) =
+                table.accumulate_lanes(r, block, &lanes, d, &mut buf, &mut acc, &mut acc_s);
+            for l in 0..LANES {
+                let mut materialised = vec![0.0; n];
+                block_permute_reference(r, block, &mut materialised, &mut stream(l));
+                let product: Vec<f64> = materialised.iter().zip(dir).map(|(a, b)| a * b).collect();
+                let (mut want, mut want_s) = (vec![0.0; table.len()], vec![0.0; table.len()]);
+                table.accumulate(&materialised, &product, &mut want, &mut want_s);
+                let got: Vec<f64> = acc.iter().map(|a| a[l]).collect();
+                assert_eq!(
+                    bits(&got),
+                    bits(&want),
+                    "block {block} seed {seed} lane {l}"
+                );
+                if !signed.is_empty() {
+                    let end: usize = signed.iter().map(|b| b.n_fine + 1).sum();
+                    let got_s: Vec<f64> = acc_s[..end].iter().map(|a| a[l]).collect();
+                    assert_eq!(bits(&got_s), bits(&want_s[..end]), "signed {block} {l}");
+                    let what = format!("block {block} seed {seed} lane {l}");
+                    assert_signed_sums(&product, sum[l], sq[l], &what);
                 }
             }
         }
+    }
+}
+
+/// The screen alone ([`screen`] of every column) gives the features of [`diagnose`] bit for
+/// bit, and [`explained_shares`] each column's explained share as `diagnose` reports it (0
+/// for a skipped column): what the absorbed-effect rule reads instead of two diagnoses.
+#[test]
+fn screen_alone_and_explained_shares_equal_the_diagnosis() {
+    let t = table(31, 3000);
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|v| v.unwrap_or(0.0))
+        .collect();
+    let temp = values(&t, "temp_c");
+    let r = residuals(&t, 5, 1.0, |i| 0.4 * dir[i] + 0.05 * temp[i].unwrap_or(0.0));
+    let config = DiagnoseConfig::default().check().unwrap();
+    let d = diagnose(&t, &r, &config).expect("diagnosis");
+    let screened = screen(&t, &r, &config, Reports::All)
+        .expect("screen")
+        .reports;
+    let json = |f: &[FeatureReport]| serde_json::to_string(f).expect("json");
+    assert_eq!(json(&screened), json(&d.features));
+    let shares = explained_shares(&t, &r, &config).expect("shares");
+    assert_eq!(shares.len(), t.columns().len());
+    assert!(shares.iter().any(|&s| s > 0.0));
+    for (c, s) in t.columns().iter().zip(&shares) {
+        let want = d.feature(&c.name).expect("reported").explained;
+        assert_eq!(s.to_bits(), want.to_bits(), "{}", c.name);
+    }
+    // A column's share does not depend on the other columns: those of the table without the
+    // time features (the absorbed-effect rule's) are the whole table's.
+    let reduced = t.without(|c| is_time(c.origin));
+    assert!(reduced.columns().len() < t.columns().len());
+    let fewer = explained_shares(&reduced, &r, &config).expect("shares");
+    for (c, s) in reduced.columns().iter().zip(&fewer) {
+        let want = d.feature(&c.name).expect("reported").explained;
+        assert_eq!(s.to_bits(), want.to_bits(), "{}", c.name);
     }
 }
 

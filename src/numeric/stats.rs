@@ -8,9 +8,12 @@
 
 use serde::{Deserialize, Serialize};
 
+mod acf;
 mod dip_table;
 #[cfg(test)]
 mod dip_tests;
+
+pub(crate) use acf::{autocorrelations, first_lag_below};
 
 /// Arithmetic mean; `None` for an empty slice.
 pub fn mean(x: &[f64]) -> Option<f64> {
@@ -1086,10 +1089,12 @@ pub(crate) fn ljung_box(x: &[f64], lags: usize) -> Option<(f64, f64)> {
         return None;
     }
     let nf = n as f64;
+    // All lags from one pass: the bits of `autocorrelation(x, k)` for each k.
+    let acf = autocorrelations(x, lags);
     let q = nf
         * (nf + 2.0)
         * (1..=lags)
-            .map(|k| autocorrelation(x, k).powi(2) / (nf - k as f64))
+            .map(|k| acf[k - 1].powi(2) / (nf - k as f64))
             .sum::<f64>();
     Some((q, chi2_sf(q, lags as f64)))
 }
