@@ -40,8 +40,9 @@ pub(crate) struct Refits {
     /// Values of searched nonlinear parameters found before, by term name (the value in the
     /// search coordinate, [`crate::model::term::Nonlinear::value`]): a term of that name starts
     /// there and is searched near it, to [`super::search::WARM_TOLERANCE`] of its interval,
-    /// instead of over its whole interval (`diagnose`'s verification: the model's values on
-    /// the whole log, for refits on its folds). Empty: the cold search of `fit`.
+    /// instead of over its whole interval (`diagnose`'s verification: the values the refit of
+    /// the model as it is found on the same fold, for each edited model's refit of that fold).
+    /// Empty: the cold search of `fit`.
     pub warm: Vec<(String, f64)>,
 }
 
