@@ -2,6 +2,7 @@
 //! boundary every call crosses: a library error becomes its exception with the library's
 //! message; a panic is caught and raised as `BiasctlError`, never unwound into Python.
 
+use biasctl::Field;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -69,15 +70,110 @@ impl Failure {
 }
 
 impl From<Failure> for PyErr {
+    /// The exception of the failure's kind, its message naming settings as Python sets them
+    /// ([`with_keywords`]).
     fn from(f: Failure) -> PyErr {
+        let message = with_keywords(&f.message);
         match f.kind {
-            Kind::Base => BiasctlError::new_err(f.message),
-            Kind::Log => LogError::new_err(f.message),
-            Kind::Model => ModelError::new_err(f.message),
-            Kind::Fit => FitError::new_err(f.message),
-            Kind::Settle => SettleError::new_err(f.message),
+            Kind::Base => BiasctlError::new_err(message),
+            Kind::Log => LogError::new_err(message),
+            Kind::Model => ModelError::new_err(message),
+            Kind::Fit => FitError::new_err(message),
+            Kind::Settle => SettleError::new_err(message),
         }
     }
+}
+
+/// The keyword argument of this package that sets each library setting (`read_log(...,
+/// track_col=...)`, `fit(..., grid=...)`, `simulate(..., span=...)`, `diagnose(...,
+/// verify_folds=...)`, …); a settle setting is `settle`'s keyword of its file key
+/// ([`Field::file_key`]: `settle(window_um=...)`). A setting this package does not expose keeps
+/// the library's name.
+const KEYWORDS: [(Field, &str); 23] = [
+    (Field::TimeColumn, "time_col"),
+    (Field::TrackColumn, "track_col"),
+    (Field::BiasColumn, "bias_col"),
+    (Field::BiasUnit, "bias_unit"),
+    (Field::PositionUnit, "track_unit"),
+    (Field::Sequence, "sequence"),
+    (Field::Disabled, "disable"),
+    (Field::SeekCount, "n"),
+    (Field::Span, "span"),
+    (Field::Center, "center"),
+    (Field::DwellMin, "dwell_min"),
+    (Field::DwellMax, "dwell_max"),
+    (Field::RankTolerance, "rank_tolerance"),
+    (Field::Grid, "grid"),
+    (Field::Refine, "refine"),
+    (Field::Folds, "folds"),
+    (Field::Alpha, "alpha"),
+    (Field::Permutations, "permutations"),
+    (Field::VerifyFolds, "verify_folds"),
+    (Field::MaxSteps, "max_steps"),
+    (Field::LadderTerms, "terms"),
+    (Field::PanelTop, "top"),
+    (Field::OutlierThreshold, "threshold"),
+];
+
+/// How this package names `field` in a message: its keyword (`track_col`, `window_um`), or
+/// the library's name where no argument sets it.
+fn keyword(field: Field) -> &'static str {
+    KEYWORDS
+        .iter()
+        .find(|(f, _)| *f == field)
+        .map(|(_, k)| *k)
+        .or(field.file_key())
+        .unwrap_or(field.name())
+}
+
+/// The length of the value a hint gives after a setting's name (`ColumnMap::track position_m`
+/// in "name it with …" or "name them: … …"): the bytes of ` VALUE` where one word follows the
+/// name and ends the clause (the text's end, `,`, `;`, `)`, or the next setting's name at
+/// `next`, an offset into `rest`); 0 elsewhere.
+fn hinted_value(rest: &str, next: Option<usize>) -> usize {
+    let Some(tail) = rest.strip_prefix(' ') else {
+        return 0;
+    };
+    let word = tail
+        .find(|c: char| c.is_whitespace() || matches!(c, ',' | ';' | ')'))
+        .unwrap_or(tail.len());
+    let after = &tail[word..];
+    let ends = after.is_empty()
+        || after.starts_with([',', ';', ')'])
+        || next == Some(1 + word + (after.len() - after.trim_start().len()));
+    if word == 0 || !ends { 0 } else { 1 + word }
+}
+
+/// `text` with every whole occurrence of a library setting name ([`Field::find_in`]) replaced
+/// by this package's name for it ([`keyword`]), and a hint's value after it written as the
+/// argument (`ColumnMap::track position_m` → `track_col="position_m"`): the Python side of the
+/// command line's `--track-col position_m` in the same messages.
+pub(crate) fn with_keywords(text: &str) -> String {
+    let mut found: Vec<(std::ops::Range<usize>, Field)> = Field::ALL
+        .iter()
+        .flat_map(|&f| f.find_in(text).into_iter().map(move |r| (r, f)))
+        .collect();
+    found.sort_by_key(|(r, _)| r.start);
+    let mut out = String::with_capacity(text.len());
+    let mut at = 0;
+    let starts: Vec<usize> = found.iter().map(|(r, _)| r.start).collect();
+    for (i, (r, f)) in found.into_iter().enumerate() {
+        if r.start < at {
+            continue;
+        }
+        out.push_str(&text[at..r.start]);
+        let name = keyword(f);
+        let next = starts.get(i + 1).map(|s| s - r.end);
+        let value = hinted_value(&text[r.end..], next);
+        if value > 0 {
+            out.push_str(&format!("{name}=\"{}\"", &text[r.end + 1..r.end + value]));
+        } else {
+            out.push_str(name);
+        }
+        at = r.end + value;
+    }
+    out.push_str(&text[at..]);
+    out
 }
 
 /// Maps a library error to a [`Failure`] of `kind` with the library's message (its causes

@@ -190,3 +190,27 @@ def test_a_nan_covariate_is_a_missing_value_as_an_empty_cell(cli, tmp_path):
     ref = biasctl.read_log(p)
     assert log.columns == ref.columns and log.notes == [n.replace(str(p), "<arrays>") for n in ref.notes]
     np.testing.assert_array_equal(log.to_pandas().to_numpy(), ref.to_pandas().to_numpy())
+
+
+def test_messages_name_settings_by_the_keyword_that_sets_them(tmp_path, cli):
+    # A rig's log: the CLI's hint names the flags, the package's the keywords, for the same
+    # columns; the call the hint gives reads the log.
+    p = tmp_path / "rig.csv"
+    p.write_text("time_s,position_m,force_N\n0,1,2\n1,2,3\n2,3,4\n")
+    with pytest.raises(biasctl.LogError) as e:
+        biasctl.read_log(p)
+    msg = str(e.value)
+    assert 'track_col="position_m"' in msg and 'bias_col="force_N"' in msg, msg
+    assert "ColumnMap::" not in msg, msg
+    cli_err = cli.run("check", "--data", p, ok=False)
+    assert cli_err.returncode == 2
+    assert "--track-col position_m" in cli_err.stderr, cli_err.stderr
+    log = biasctl.read_log(p, track_col="position_m", bias_col="force_N")
+    assert len(log) == 3
+    # A setting out of range: its keyword, not the library's field.
+    with pytest.raises(biasctl.FitError) as e:
+        biasctl.fit(log, "poly2", grid=2)
+    assert "grid: 2 is not in" in str(e.value) and "FitOptions::" not in str(e.value), str(e.value)
+    with pytest.raises(biasctl.SettleError) as e:
+        biasctl.settle(window_um=-1.0)
+    assert "window_um" in str(e.value) and "SettleSpec::" not in str(e.value), str(e.value)
