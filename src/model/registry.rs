@@ -488,6 +488,45 @@ mod tests {
         }
     }
 
+    /// Every registry row's term, prepared on a log, says in `TermCaps::searches_itself`
+    /// whether it has its own search (`Term::search` answers): a warm-started refit
+    /// (`crate::fit::Refits::warm`) leaves such a term to it and searches the others by golden
+    /// section near a value, which for a term with its own search (two parameters, a scan)
+    /// would be wrong. The search is asked with the log's bias as the residual and a constant
+    /// RSS: the test asks whether the term searches, not what it finds.
+    #[test]
+    fn every_term_with_its_own_search_says_so() {
+        use crate::model::term::SearchContext;
+        let log = log();
+        let data = FitData::new(&log);
+        let residual: Vec<f64> = (0..log.len()).filter_map(|i| log.bias(i)).collect();
+        let residual_fn = || -> &[f64] { &residual };
+        let rss = |_: &Arc<dyn crate::model::term::Term>| 1.0;
+        let ctx = SearchContext::new(&data, &residual_fn, &rss, residual.len() - 3);
+        let mut own = Vec::new();
+        for b in BUILTINS {
+            let text = example(b);
+            let spec = (b.parse)(&TermText::new(&text)).unwrap_or_else(|e| panic!("{text}: {e}"));
+            let term = spec
+                .prepare(&data)
+                .unwrap_or_else(|e| panic!("{text}: {e}"));
+            let searches = term.search(&ctx).is_some();
+            assert_eq!(
+                searches,
+                term.caps().searches_itself,
+                "{text}: Term::search vs TermCaps::searches_itself"
+            );
+            if searches {
+                own.push(b.head);
+            }
+        }
+        assert_eq!(
+            own,
+            ["preisach", "bump", "step"],
+            "the terms with their own search"
+        );
+    }
+
     /// Within each pattern the ranks of the terms that answer it are distinct (the candidate
     /// order is theirs alone).
     #[test]
