@@ -231,6 +231,32 @@ impl Field {
             })
             .collect()
     }
+
+    /// `text` with every whole occurrence of a setting name ([`Field::find_in`]) replaced, in
+    /// order: `rename(field, rest)` gets the field and the text after its name and gives the
+    /// replacement and how many bytes of `rest` it takes in too (a value it rewrites with the
+    /// name; 0 for none). The command line's messages name flags this way, the Python
+    /// package's keywords.
+    pub fn rename_in(text: &str, rename: impl Fn(Field, &str) -> (String, usize)) -> String {
+        let mut found: Vec<(std::ops::Range<usize>, Field)> = Field::ALL
+            .iter()
+            .flat_map(|&f| f.find_in(text).into_iter().map(move |r| (r, f)))
+            .collect();
+        found.sort_by_key(|(r, _)| r.start);
+        let mut out = String::with_capacity(text.len());
+        let mut at = 0;
+        for (r, f) in found {
+            if r.start < at {
+                continue;
+            }
+            out.push_str(&text[at..r.start]);
+            let (name, taken) = rename(f, &text[r.end..]);
+            out.push_str(&name);
+            at = r.end + taken;
+        }
+        out.push_str(&text[at..]);
+        out
+    }
 }
 
 impl fmt::Display for Field {

@@ -128,9 +128,9 @@ fn keyword(field: Field) -> &'static str {
 
 /// The length of the value a hint gives after a setting's name (`ColumnMap::track position_m`
 /// in "name it with …" or "name them: … …"): the bytes of ` VALUE` where one word follows the
-/// name and ends the clause (the text's end, `,`, `;`, `)`, or the next setting's name at
-/// `next`, an offset into `rest`); 0 elsewhere.
-fn hinted_value(rest: &str, next: Option<usize>) -> usize {
+/// name and ends the clause (the text's end, `,`, `;`, `)`, or the next setting's name); 0
+/// elsewhere.
+fn hinted_value(rest: &str) -> usize {
     let Some(tail) = rest.strip_prefix(' ') else {
         return 0;
     };
@@ -138,42 +138,22 @@ fn hinted_value(rest: &str, next: Option<usize>) -> usize {
         .find(|c: char| c.is_whitespace() || matches!(c, ',' | ';' | ')'))
         .unwrap_or(tail.len());
     let after = &tail[word..];
+    let next = after.trim_start();
     let ends = after.is_empty()
         || after.starts_with([',', ';', ')'])
-        || next == Some(1 + word + (after.len() - after.trim_start().len()));
+        || Field::ALL.iter().any(|f| next.starts_with(f.name()));
     if word == 0 || !ends { 0 } else { 1 + word }
 }
 
-/// `text` with every whole occurrence of a library setting name ([`Field::find_in`]) replaced
-/// by this package's name for it ([`keyword`]), and a hint's value after it written as the
-/// argument (`ColumnMap::track position_m` → `track_col="position_m"`): the Python side of the
-/// command line's `--track-col position_m` in the same messages.
+/// `text` with every whole occurrence of a library setting name replaced by this package's
+/// name for it ([`keyword`], through [`Field::rename_in`]), and a hint's value after it written
+/// as the argument (`ColumnMap::track position_m` → `track_col="position_m"`): the Python side
+/// of the command line's `--track-col position_m` in the same messages.
 pub(crate) fn with_keywords(text: &str) -> String {
-    let mut found: Vec<(std::ops::Range<usize>, Field)> = Field::ALL
-        .iter()
-        .flat_map(|&f| f.find_in(text).into_iter().map(move |r| (r, f)))
-        .collect();
-    found.sort_by_key(|(r, _)| r.start);
-    let mut out = String::with_capacity(text.len());
-    let mut at = 0;
-    let starts: Vec<usize> = found.iter().map(|(r, _)| r.start).collect();
-    for (i, (r, f)) in found.into_iter().enumerate() {
-        if r.start < at {
-            continue;
-        }
-        out.push_str(&text[at..r.start]);
-        let name = keyword(f);
-        let next = starts.get(i + 1).map(|s| s - r.end);
-        let value = hinted_value(&text[r.end..], next);
-        if value > 0 {
-            out.push_str(&format!("{name}=\"{}\"", &text[r.end + 1..r.end + value]));
-        } else {
-            out.push_str(name);
-        }
-        at = r.end + value;
-    }
-    out.push_str(&text[at..]);
-    out
+    Field::rename_in(text, |f, rest| match hinted_value(rest) {
+        0 => (keyword(f).to_string(), 0),
+        n => (format!("{}=\"{}\"", keyword(f), &rest[1..n]), n),
+    })
 }
 
 /// Maps a library error to a [`Failure`] of `kind` with the library's message (its causes

@@ -78,23 +78,10 @@ fn cli_name(field: Field) -> String {
     }
 }
 
-/// `text` with every whole occurrence of a library setting name ([`Field::find_in`]) replaced
-/// by the CLI's name for it ([`cli_name`]).
+/// `text` with every whole occurrence of a library setting name replaced by the CLI's name for
+/// it ([`cli_name`], through [`Field::rename_in`]).
 pub(crate) fn with_flags(text: &str) -> String {
-    let mut found: Vec<(std::ops::Range<usize>, Field)> = Field::ALL
-        .iter()
-        .flat_map(|&f| f.find_in(text).into_iter().map(move |r| (r, f)))
-        .collect();
-    found.sort_by_key(|(r, _)| r.start);
-    let mut out = String::with_capacity(text.len());
-    let mut at = 0;
-    for (r, f) in found {
-        out.push_str(&text[at..r.start]);
-        out.push_str(&cli_name(f));
-        at = r.end;
-    }
-    out.push_str(&text[at..]);
-    out
+    Field::rename_in(text, |f, _| (cli_name(f), 0))
 }
 
 /// Column-name and unit flags accepted by every command that reads a log.
