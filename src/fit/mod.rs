@@ -53,5 +53,5 @@ pub(crate) use sharing::{Refits, fit_sharing};
 
 /// Fits `spec` to the measured rows of `log`.
 pub fn fit(spec: &ModelSpec, log: &Log, opts: &CheckedFitOptions) -> Result<FittedModel, FitError> {
-    fit_sharing(spec, log, opts, &Refits::default())
+    fit_sharing(spec, log, opts, &Refits::default(), &[])
 }

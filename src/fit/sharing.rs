@@ -37,13 +37,6 @@ pub(crate) struct Refits {
     /// out-of-sample residuals skips them: the fitted terms and coefficients are the same bit
     /// for bit, the standard errors in the model's report `None`.
     pub nonlinear_se: bool,
-    /// Values of searched nonlinear parameters found before, by term name (the value in the
-    /// search coordinate, [`crate::model::term::Nonlinear::value`]): a term of that name starts
-    /// there and is searched near it, to [`super::search::WARM_TOLERANCE`] of its interval,
-    /// instead of over its whole interval (`diagnose`'s verification: the values the refit of
-    /// the model as it is found on the same fold, for each edited model's refit of that fold).
-    /// Empty: the cold search of `fit`.
-    pub warm: Vec<(String, f64)>,
 }
 
 impl Default for Refits {
@@ -54,18 +47,23 @@ impl Default for Refits {
             history: None,
             fixed_budget: STORED_FIXED_BYTES,
             nonlinear_se: true,
-            warm: Vec::new(),
         }
     }
 }
 
 /// [`fit`](fn@crate::fit::fit), taking what `shared` holds instead of computing it again: the
-/// same model bit for bit (tested in `diagnose::tests_verify`).
+/// same model bit for bit (tested in `diagnose::tests_verify`). `warm` holds values of searched
+/// nonlinear parameters found before, by term name (the value in the search coordinate,
+/// [`crate::model::term::Nonlinear::value`]): a term of that name starts there and is searched
+/// near it, to [`super::search::WARM_TOLERANCE`] of its interval, instead of over its whole
+/// interval (`diagnose`'s verification: the values the refit of the model as it is found on the
+/// same fold, for each edited model's refit of that fold). Empty: the cold search of `fit`.
 pub(crate) fn fit_sharing(
     spec: &ModelSpec,
     log: &Log,
     opts: &CheckedFitOptions,
     shared: &Refits,
+    warm: &[(String, f64)],
 ) -> Result<FittedModel, FitError> {
     let Prepared {
         mut data,
@@ -81,7 +79,7 @@ pub(crate) fn fit_sharing(
         opts,
         (measured, p),
         shared.nonlinear_se,
-        &shared.warm,
+        warm,
     );
 
     // The prediction of every term before the adaptive ones, per measured row, where those

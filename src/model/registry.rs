@@ -490,9 +490,9 @@ mod tests {
 
     /// Every registry row's term, prepared on a log, says in `TermCaps::searches_itself`
     /// whether it has its own search (`Term::search` answers): a warm-started refit
-    /// (`crate::fit::Refits::warm`) leaves such a term to it and searches the others by golden
-    /// section near a value, which for a term with its own search (two parameters, a scan)
-    /// would be wrong. The search is asked with the log's bias as the residual and a constant
+    /// (`crate::fit::fit_sharing`'s `warm`) leaves such a term to it and searches the others by
+    /// golden section near a value, which for a term with its own search (two parameters, a
+    /// scan) would be wrong. The search is asked with the log's bias as the residual and a constant
     /// RSS: the test asks whether the term searches, not what it finds.
     #[test]
     fn every_term_with_its_own_search_says_so() {

@@ -148,7 +148,7 @@ pub struct TermCaps {
     /// Whether the term searches its own nonlinear parameters ([`Term::search`]: `bump`'s
     /// centre and width, `step`'s threshold, `preisach`'s smoothing) instead of the fit's
     /// golden-section search of [`Term::nonlinear`]. A warm-started refit
-    /// (`crate::fit::Refits::warm`) searches such a term as a cold fit does.
+    /// (`crate::fit::fit_sharing`'s `warm`) searches such a term as a cold fit does.
     pub searches_itself: bool,
 }
 

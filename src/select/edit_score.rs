@@ -66,7 +66,7 @@ pub(crate) fn score_edits(
         })
         .collect();
     // The model as it is first: each of its folds' searched values start the edited models'
-    // searches on the same fold, as the verification's refits start (`Refits::warm`).
+    // searches on the same fold, as the verification's refits start (`fit_sharing`'s `warm`).
     let (before, warm) =
         match cv_residuals_sharing(spec, log, config.folds, &config.fit, &shared, &[]) {
             Ok(r) => (Ok(r.residuals), r.searched),

@@ -40,7 +40,7 @@ pub(super) struct Refitted {
     pub(super) residuals: Vec<f64>,
     /// Per fold, the values its fit found for the terms searched by the fit's golden-section
     /// search (not the terms that search themselves), by term name, in the search coordinate:
-    /// where a later refit of the same fold starts those terms ([`Refits::warm`]).
+    /// where a later refit of the same fold starts those terms ([`fit_sharing`]'s `warm`).
     pub(super) searched: Vec<Vec<(String, f64)>>,
 }
 
@@ -87,8 +87,6 @@ pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
         fixed_budget: REFIT_FIXED_BYTES,
         // Only the refits' out-of-sample residuals are read: no standard errors.
         nonlinear_se: false,
-        // Cold: a fold's refit is warm-started by `cv_residuals_sharing`'s `warm`.
-        warm: Vec::new(),
     }
 }
 
@@ -116,10 +114,10 @@ pub(super) fn fold_starts(log: &Log, folds: usize) -> Vec<usize> {
 }
 
 /// [`cv_residuals`] with what the refits share given (`shared`, from [`refits_of`]): the same
-/// residuals bit for bit where `shared.warm` is empty (tested against the reference that shares
-/// nothing and keeps an index per row, `tests_verify`); with warm values, each fold's search
-/// starts from them ([`Refits::warm`]). `warm`: per fold, the values a refit of the same fold
-/// found ([`Refitted::searched`]; empty: cold searches). Also the folds' searched values.
+/// residuals bit for bit where `warm` is empty (tested against the reference that shares
+/// nothing and keeps an index per row, `tests_verify`). `warm`: per fold, the values a refit of
+/// the same fold found ([`Refitted::searched`]), where that fold's search starts
+/// ([`fit_sharing`]'s `warm`); empty: cold searches. Also the folds' searched values.
 pub(super) fn cv_residuals_sharing(
     spec: &ModelSpec,
     log: &Log,
@@ -145,18 +143,8 @@ pub(super) fn cv_residuals_sharing(
                 masked.set_bias(i, None);
             }
             // The fold's own warm values, where a refit of it gave some.
-            let warmed;
-            let shared = match warm.get(k) {
-                Some(w) if !w.is_empty() => {
-                    warmed = Refits {
-                        warm: w.clone(),
-                        ..shared.clone()
-                    };
-                    &warmed
-                }
-                _ => shared,
-            };
-            let model = fit_sharing(spec, &masked, opts, shared).map_err(|source| {
+            let warm = warm.get(k).map_or(&[][..], Vec::as_slice);
+            let model = fit_sharing(spec, &masked, opts, shared, warm).map_err(|source| {
                 ModelDiagnosisError::Fit {
                     step: k,
                     terms: terms.clone(),

@@ -176,7 +176,7 @@ pub(super) struct RoundResiduals {
 /// the out-of-sample residual of `spec` when a round before has it (it is not refitted then);
 /// with it every edit is judged at the strict bar (the second round). The candidates' refits
 /// start their searched parameters where the folds of `spec`'s refit (or of `given`) found them
-/// ([`crate::fit::Refits::warm`]).
+/// ([`crate::fit::fit_sharing`]'s `warm`).
 pub(super) fn verify_round(
     spec: &ModelSpec,
     log: &Log,
