@@ -4,7 +4,7 @@
 //! permutation code, seeds and block lengths as [`super::diagnose`].
 
 use super::permutation::{NullStatistics, p_values, permutation_statistics};
-use super::screen::{Prepared, prepare};
+use super::screen::{Analysis, Prepared, prepare};
 use super::{CheckedDiagnoseConfig, DiagnoseError, FeatureOrigin, FeatureTable};
 
 /// One log's screen statistics: per feature (in the table's order) its observed statistic (ln
@@ -50,10 +50,14 @@ pub fn screen_statistics(
     config: &CheckedDiagnoseConfig,
 ) -> Result<ScreenStatistics, DiagnoseError> {
     let Prepared {
-        y,
-        sst,
-        direction,
-        mut analysed,
+        analysis:
+            Analysis {
+                y,
+                sst,
+                direction,
+                mut analysed,
+                ..
+            },
         blocks,
         ..
     } = prepare(table, residuals, config)?;

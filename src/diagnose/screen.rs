@@ -83,16 +83,11 @@ pub(super) struct Screened {
     pub(super) variance: f64,
 }
 
-/// The screen's input made ready: the clipped, centred residual, its folds and direction, every
-/// column analysed (binned, cross-validated, its observed statistic) and each one's null block.
+/// The screen's input made ready: the [`Analysis`] (the clipped, centred residual, its folds
+/// and direction, every column analysed: binned, cross-validated, its observed statistic) and
+/// each column's null block.
 pub(super) struct Prepared {
-    pub(super) y: Vec<f64>,
-    pub(super) sst: f64,
-    pub(super) variance: f64,
-    pub(super) residual_std: f64,
-    pub(super) fold: Vec<u8>,
-    pub(super) direction: Option<Vec<i8>>,
-    pub(super) analysed: Vec<Result<Analysed, Unusable>>,
+    pub(super) analysis: Analysis,
     pub(super) blocks: Vec<usize>,
     pub(super) null_block: usize,
 }
@@ -202,24 +197,16 @@ fn prepare_analysed(
     config: &CheckedDiagnoseConfig,
 ) -> Prepared {
     let n = table.len();
-    let Analysis {
-        y,
-        sst,
-        variance,
-        residual_std,
-        fold,
-        direction,
-        analysed,
-    } = analysis;
     let null_block = config
         .null_block
-        .unwrap_or_else(|| null_block_len(&y))
+        .unwrap_or_else(|| null_block_len(&analysis.y))
         .clamp(1, n.max(1));
     // Each feature's null keeps as much serial structure as the pair (feature, residual)
     // has: the residual's block where the feature is as slow as the residual, shorter blocks
     // for a feature that decorrelates sooner (the cross-products decorrelate with the faster
     // of the two), single rows for the time features.
-    let blocks: Vec<usize> = analysed
+    let blocks: Vec<usize> = analysis
+        .analysed
         .par_iter()
         .zip(table.columns())
         .map(|(a, col)| match a {
@@ -229,13 +216,7 @@ fn prepare_analysed(
         })
         .collect();
     Prepared {
-        y,
-        sst,
-        variance,
-        residual_std,
-        fold,
-        direction,
-        analysed,
+        analysis,
         blocks,
         null_block,
     }
@@ -275,13 +256,16 @@ fn screen_prepared(
     prepared: Prepared,
 ) -> Screened {
     let Prepared {
-        y,
-        sst,
-        variance,
-        residual_std,
-        fold,
-        direction,
-        mut analysed,
+        analysis:
+            Analysis {
+                y,
+                sst,
+                variance,
+                residual_std,
+                fold,
+                direction,
+                mut analysed,
+            },
         blocks,
         null_block,
     } = prepared;
