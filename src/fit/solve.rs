@@ -694,23 +694,7 @@ mod tests {
     /// chunk and on several (1 and 2 threads; the same bits on both). Measured: about 1e-11.
     #[test]
     fn a_preisach_solve_with_folded_runs_equals_the_dense_one() {
-        use crate::numeric::rng::SimRng;
-        let mut rng = SimRng::new(5);
-        let (mut x, mut v, mut target) = (0.0f64, 0.0f64, 1.0f64);
-        let mut z = 0.0f64;
-        let mut text = String::from("time_s,track,bias\n");
-        for k in 0..30_000 {
-            if (target - x).abs() < 1e-3 {
-                target = 2.0 * rng.normal();
-            }
-            v = 0.99 * v + 0.01 * (target - x).signum() * 0.004;
-            x += v;
-            z = z.clamp(x - 0.4, x + 0.4);
-            let y = 1.0 + 0.3 * x + 2.0 * (x - z) + 0.05 * rng.normal();
-            text.push_str(&format!("{},{x},{y}\n", k as f64 * 1e-3));
-        }
-        let log = crate::log::Log::from_reader("dense.csv", text.as_bytes(), &Default::default())
-            .unwrap();
+        let log = crate::fit::statistics::tests::dense_log(30_000);
         let spec = ModelSpec::parse("poly2,preisach:8").unwrap();
         let opts = FitOptions::default().check().unwrap();
         let run = |threads: usize, dense: bool| fit_on(&spec, &log, &opts, threads, dense);

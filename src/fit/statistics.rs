@@ -364,7 +364,7 @@ pub(super) fn set_statistics(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::fit::solve::{solve_chunk_rows, solve_marking};
     use crate::fit::{FitData, FitOptions, fit};
@@ -592,8 +592,8 @@ mod tests {
     ];
 
     /// A smooth trajectory sampled at 1 kHz (relay states held over runs of tens of rows)
-    /// through a play operator, a line and noise.
-    fn dense_log(n: usize) -> Log {
+    /// through a play operator, a line and noise (the Preisach solve's test reads it too).
+    pub(in crate::fit) fn dense_log(n: usize) -> Log {
         let mut rng = SimRng::new(5);
         let (mut x, mut v, mut target, mut z) = (0.0f64, 0.0f64, 1.0f64, 0.0f64);
         let mut text = String::from("time_s,track,bias\n");
