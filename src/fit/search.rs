@@ -9,8 +9,18 @@ use super::projection::Projection;
 use super::solve::{slow_rss, slow_rss_of, solve};
 use crate::model::data::FitData;
 use crate::model::term::Term;
-use crate::numeric::search::{golden_min, golden_min_batched};
+use crate::numeric::search::{golden_min, golden_min_batched, zoom_min_batched};
 use std::sync::Arc;
+
+/// How [`search_nonlinear`] searches, besides its schedule.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SearchMode {
+    /// Whether each searched parameter's standard error is computed (three full solves).
+    pub(super) se: bool,
+    /// Whether a whole-interval search refines its grid's best cell by [`zoom_min_batched`]
+    /// (to [`WARM_TOLERANCE`] of the interval) instead of golden section.
+    pub(super) zoom: bool,
+}
 
 /// What the searches of the nonlinear parameters found besides the terms' values.
 pub(super) struct NonlinearFit {
@@ -24,8 +34,10 @@ pub(super) struct NonlinearFit {
 
 /// Variable projection over the nonlinear parameters of `terms` (coordinate-wise if several:
 /// two cycles), each term replaced by its version at the value found; `measured` rows, `p`
-/// design columns. With `se`, each searched parameter's standard error (three full solves);
-/// without, `None` (and the edge of the interval alone says whether the search converged).
+/// design columns. With `mode.se`, each searched parameter's standard error (three full
+/// solves); without, `None` (and the edge of the interval alone says whether the search
+/// converged). With `mode.zoom`, a whole-interval search refines its grid's best cell by
+/// [`zoom_min_batched`] to [`WARM_TOLERANCE`] of the interval instead of by golden section.
 ///
 /// `warm` holds values found before for terms of the same name (a verification's refits: the
 /// values the refit of the model as it is found on the same fold). Where any term has one, the search is warm-started
@@ -38,7 +50,7 @@ pub(super) fn search_nonlinear(
     data: &FitData<'_>,
     opts: &CheckedFitOptions,
     (measured, p): (usize, usize),
-    se: bool,
+    mode: SearchMode,
     warm: &[(String, f64)],
 ) -> NonlinearFit {
     let nl_terms: Vec<usize> = (0..terms.len())
@@ -56,6 +68,7 @@ pub(super) fn search_nonlinear(
                 .collect()
         }
     };
+    let mut moved = Moves::new(terms.len());
     for (k, reach) in schedule {
         let Some(nl) = terms[k].nonlinear() else {
             continue;
@@ -69,52 +82,18 @@ pub(super) fn search_nonlinear(
             evaluations += found.evaluations;
             converged &= found.converged;
             terms[k] = found.term;
+            moved.searched(k, f64::NAN);
             continue;
         }
-        // The search compares RSS values from the variable projection; the standard
-        // error below differentiates the RSS twice, so it takes three full solves.
-        // Used where the term allows it (`TermCaps::search_by_projection`: the `dahl` rate,
-        // `memsum`'s length and a lag's τ, each search tested to end where the full solves'
-        // does or at an RSS equal to 1e-12);
-        // `stribeck`'s search keeps the full solve per candidate: its velocity-scale search
-        // compares RSS values that differ by rounding only, and ends elsewhere within that
-        // noise with the projection (its unit-invariance test, 1e-9 of the prediction, then
-        // fails by 1.5×).
-        let proj = terms[k]
-            .caps()
-            .search_by_projection
-            .then(|| Projection::new(terms, k, data, opts))
-            .flatten();
-        let min = |lo: f64, hi: f64, grid: usize, iters: usize| match &proj {
-            // The projected RSS is cheaper per candidate in batches (one replay for
-            // several): the same points, compared in the same order.
-            Some(p) => golden_min_batched(
-                &|ts: &[f64]| p.rss_many(terms, ts, opts),
-                lo,
-                hi,
-                grid,
-                iters,
-            ),
-            None => golden_min(
-                &|t: f64| slow_rss(terms, k, t, data, opts),
-                lo,
-                hi,
-                grid,
-                iters,
-            ),
-        };
-        let (t, ev) = match reach {
-            Reach::Whole => {
-                let (t, _, ev) = min(nl.lo, nl.hi, opts.grid, opts.refine);
-                (t, ev)
-            }
-            Reach::Near => local_search(&nl, (opts.grid, opts.refine), &min),
-        };
-        drop(proj);
+        if reach == Reach::Near && moved.settled(k) {
+            continue;
+        }
+        let (t, rss, ev) = search_term(terms, k, &nl, (reach, mode.zoom), data, opts);
+        moved.searched(k, rss);
         evaluations += ev;
         let span = nl.hi - nl.lo;
         converged &= t > nl.lo + 1e-3 * span && t < nl.hi - 1e-3 * span;
-        if se {
+        if mode.se {
             let rss_at = |t: f64| slow_rss(terms, k, t, data, opts);
             let ft = rss_at(t);
             // Standard error from the curvature of the RSS: var(t) ≈ 2 s² / RSS''(t).
@@ -133,6 +112,136 @@ pub(super) fn search_nonlinear(
         evaluations,
         converged,
         se: nl_se,
+    }
+}
+
+/// One search of term `k`'s nonlinear parameter `nl` over its interval, by golden section
+/// (with `zoom`: [`zoom_min_batched`]) after the grid, or near its value ([`local_search`]), on
+/// the variable projection's RSS where the term allows it, else on full solves. Returns the
+/// value, its RSS and the count of evaluations.
+fn search_term(
+    terms: &[Arc<dyn Term>],
+    k: usize,
+    nl: &crate::model::term::Nonlinear,
+    (reach, zoom_whole): (Reach, bool),
+    data: &FitData<'_>,
+    opts: &CheckedFitOptions,
+) -> (f64, f64, usize) {
+    // The search compares RSS values from the variable projection (the standard error
+    // differentiates the RSS twice, so it takes three full solves: `search_nonlinear`).
+    // Used where the term allows it (`TermCaps::search_by_projection`: the `dahl` rate,
+    // `memsum`'s length and a lag's τ, each search tested to end where the full solves'
+    // does or at an RSS equal to 1e-12);
+    // `stribeck`'s search keeps the full solve per candidate: its velocity-scale search
+    // compares RSS values that differ by rounding only, and ends elsewhere within that
+    // noise with the projection (its unit-invariance test, 1e-9 of the prediction, then
+    // fails by 1.5×).
+    let proj = terms[k]
+        .caps()
+        .search_by_projection
+        .then(|| Projection::new(terms, k, data, opts))
+        .flatten();
+    let min = |lo: f64, hi: f64, grid: usize, iters: usize| match &proj {
+        // The projected RSS is cheaper per candidate in batches (one replay for
+        // several): the same points, compared in the same order.
+        Some(p) => golden_min_batched(
+            &|ts: &[f64]| p.rss_many(terms, ts, opts),
+            lo,
+            hi,
+            grid,
+            iters,
+        ),
+        None => golden_min(
+            &|t: f64| slow_rss(terms, k, t, data, opts),
+            lo,
+            hi,
+            grid,
+            iters,
+        ),
+    };
+    // Near a value: a batch at a time, following the RSS's parabola (the projection's
+    // replay evaluates a batch for the price of about one point; the full solves take
+    // the batch's points one by one).
+    let zoom_over = |lo: f64, hi: f64, grid: usize, width: f64| match &proj {
+        Some(p) => zoom_min_batched(
+            &|ts: &[f64]| p.rss_many(terms, ts, opts),
+            lo,
+            hi,
+            grid,
+            LOCAL_GRID,
+            width,
+        ),
+        None => zoom_min_batched(
+            &|ts: &[f64]| {
+                ts.iter()
+                    .map(|&t| slow_rss(terms, k, t, data, opts))
+                    .collect()
+            },
+            lo,
+            hi,
+            grid,
+            LOCAL_GRID,
+            width,
+        ),
+    };
+    let zoom = |lo: f64, hi: f64, width: f64| zoom_over(lo, hi, LOCAL_GRID, width);
+    match reach {
+        Reach::Whole if zoom_whole => {
+            let width = WARM_TOLERANCE * (nl.hi - nl.lo);
+            zoom_over(nl.lo, nl.hi, opts.grid, width)
+        }
+        Reach::Whole => min(nl.lo, nl.hi, opts.grid, opts.refine),
+        Reach::Near => local_search(nl, (opts.grid, opts.refine), &zoom, &min),
+    }
+}
+
+/// A warm-started search's improvement of the RSS below which a coordinate's next near search
+/// is skipped ([`Moves`]), relative to the RSS: a coordinate search's next gain is about its
+/// last one times the cycle's rate of convergence (below 1), so what is left unsearched is of the
+/// order of 10⁻⁹ of the training RSS: the out-of-sample residuals then move by far less than the
+/// 10⁻⁶ of the gain to which a verdict is compared (`benches/verdicts.py`).
+pub(crate) const SETTLED: f64 = 1e-9;
+
+/// The coordinate searches' bookkeeping of a warm-started [`search_nonlinear`]: per term, whether
+/// any other term's search since its own last search lowered the RSS by more than [`SETTLED`]
+/// (else its next near search would start where it is optimal and is skipped).
+struct Moves {
+    /// The RSS after the last search (NaN: not known, as after a term's own search).
+    rss: f64,
+    /// Per term: searched at least once, and moved by another term since.
+    searched: Vec<bool>,
+    stirred: Vec<bool>,
+}
+
+impl Moves {
+    fn new(n: usize) -> Self {
+        Self {
+            rss: f64::NAN,
+            searched: vec![false; n],
+            stirred: vec![false; n],
+        }
+    }
+
+    /// Whether term `k` was searched before and nothing moved the RSS since.
+    fn settled(&self, k: usize) -> bool {
+        self.searched[k] && !self.stirred[k]
+    }
+
+    /// Term `k` was searched and the RSS is now `rss` (NaN: not known).
+    fn searched(&mut self, k: usize, rss: f64) {
+        let gain = self.rss - rss;
+        // A gain not known (NaN) counts as a move.
+        let settled = gain <= SETTLED * rss.abs();
+        let moved = gain.is_nan() || !settled;
+        for (j, s) in self.stirred.iter_mut().enumerate() {
+            if j == k {
+                *s = false;
+            } else if moved {
+                *s = true;
+            }
+        }
+        self.searched[k] = true;
+        self.rss = rss;
     }
 }
 
@@ -208,33 +317,29 @@ fn warm_schedule(
 }
 
 /// A term's search near its current value `nl.value`: [`LOCAL_GRID`] points over the two cells
-/// either side of it of the cold search's grid (`grid` points over the interval), then
-/// golden-section steps until the bracket is [`WARM_TOLERANCE`] of the interval wide. Where the
-/// best value is at the edge of that bracket (the minimum lies beyond it) the whole interval is
-/// searched as the cold search searches it (`grid` points, `refine` steps). `min(lo, hi, grid,
-/// iters)` is the search of [`search_nonlinear`]. Returns the value and the count of
-/// evaluations.
+/// either side of it of the cold search's grid (`grid` points over the interval), then batches
+/// of as many points that follow the RSS's parabola until the bracket about the best point is
+/// [`WARM_TOLERANCE`] of the interval wide (`zoom(lo, hi, width)`: [`zoom_min_batched`]). Where
+/// the best value is at the edge of the first grid's bracket (the minimum lies beyond it) the
+/// whole interval is searched as the cold search searches it (`grid` points, `refine` steps:
+/// `min(lo, hi, grid, iters)`). Returns the value, its RSS and the count of evaluations.
 fn local_search(
     nl: &crate::model::term::Nonlinear,
     (grid, refine): (usize, usize),
+    zoom: &dyn Fn(f64, f64, f64) -> (f64, f64, usize),
     min: &dyn Fn(f64, f64, usize, usize) -> (f64, f64, usize),
-) -> (f64, usize) {
+) -> (f64, f64, usize) {
     let span = nl.hi - nl.lo;
     let reach = 2.0 * span / (grid.max(3) - 1) as f64;
     let (lo, hi) = ((nl.value - reach).max(nl.lo), (nl.value + reach).min(nl.hi));
-    // The bracket after the grid: two of its cells; each golden-section step keeps 0.618 of it.
     let cell = (hi - lo) / (LOCAL_GRID - 1) as f64;
-    let phi = 0.5 * (5f64.sqrt() - 1.0);
-    let steps = ((2.0 * cell / (WARM_TOLERANCE * span)).ln() / (1.0 / phi).ln())
-        .ceil()
-        .max(0.0) as usize;
-    let (t, _, ev) = min(lo, hi, LOCAL_GRID, steps);
+    let (t, f, ev) = zoom(lo, hi, WARM_TOLERANCE * span);
     let at_edge = (t - lo < cell && lo > nl.lo) || (hi - t < cell && hi < nl.hi);
     if !at_edge || span.is_nan() || span <= 0.0 {
-        return (t, ev);
+        return (t, f, ev);
     }
-    let (t, _, more) = min(nl.lo, nl.hi, grid, refine);
-    (t, ev + more)
+    let (t, f, more) = min(nl.lo, nl.hi, grid, refine);
+    (t, f, ev + more)
 }
 
 /// Term `k`'s own search ([`Term::search`]), if it has one: the residual of the other terms
@@ -314,7 +419,20 @@ mod tests {
     use crate::model::ModelSpec;
     use crate::numeric::rng::SimRng;
 
-    /// Reference: the cold search (`warm` empty) of the same terms on the same rows. Started
+    /// `fit`'s search: golden section over whole intervals, no standard errors.
+    const COLD: SearchMode = SearchMode {
+        se: false,
+        zoom: false,
+    };
+    /// A verification refit's: whole intervals refined by zooming.
+    const ZOOMED: SearchMode = SearchMode {
+        se: false,
+        zoom: true,
+    };
+
+    /// Reference: the cold search (`warm` empty) of the same terms on the same rows. A refit's
+    /// search (whole intervals refined by [`zoom_min_batched`]), cold or warm, and `fit`'s, warm,
+    /// must end alike. Started
     /// near the values it found (both 1 % or 3 % of the interval away) or one of them far (40 %:
     /// beyond the local bracket, so that search falls back to the whole interval), the warm-started
     /// search of `dahl`'s rate and `memsum`'s length ends at an RSS no larger (to 1e-9
@@ -344,14 +462,20 @@ mod tests {
         };
         let rss = |ts: &[Arc<dyn Term>]| solve(ts, &data, &opts).unwrap().rss;
         let mut cold = prepared();
-        search_nonlinear(&mut cold, &data, &opts, shape, false, &[]);
+        search_nonlinear(&mut cold, &data, &opts, shape, COLD, &[]);
         let found = searched(&cold);
         assert_eq!(found.len(), 2, "{found:?}");
         let want = rss(&cold);
-        for shifts in [[0.01, 0.01], [-0.03, -0.03], [0.0, 0.4], [0.4, 0.0]] {
+        let shifted = [[0.01, 0.01], [-0.03, -0.03], [0.0, 0.4], [0.4, 0.0]];
+        let cases = std::iter::once((ZOOMED, None)).chain(
+            shifted
+                .iter()
+                .flat_map(|s| [(COLD, Some(*s)), (ZOOMED, Some(*s))]),
+        );
+        for (mode, shifts) in cases {
             let warm: Vec<(String, f64)> = found
                 .iter()
-                .zip(shifts)
+                .zip(shifts.into_iter().flatten())
                 .map(|((n, nl), shift)| {
                     let v = nl.value + shift * (nl.hi - nl.lo);
                     // Beyond an end: the same distance inside from the other side.
@@ -364,16 +488,16 @@ mod tests {
                 })
                 .collect();
             let mut terms = prepared();
-            search_nonlinear(&mut terms, &data, &opts, shape, false, &warm);
+            search_nonlinear(&mut terms, &data, &opts, shape, mode, &warm);
             let got = rss(&terms);
             assert!(
                 got <= want * (1.0 + 1e-9),
-                "shifts {shifts:?}: RSS {got} vs cold {want}"
+                "{mode:?}, shifts {shifts:?}: RSS {got} vs cold {want}"
             );
             for ((name, a), (_, b)) in found.iter().zip(searched(&terms)) {
                 assert!(
                     (a.value - b.value).abs() <= 1e-3 * (a.hi - a.lo),
-                    "shifts {shifts:?}, {name}: {} vs cold {}",
+                    "{mode:?}, shifts {shifts:?}, {name}: {} vs cold {}",
                     b.value,
                     a.value
                 );

@@ -85,8 +85,9 @@ pub(super) fn refits_of(log: &Log, opts: &CheckedFitOptions) -> Refits {
         sampling: Some(sampling),
         history,
         fixed_budget: REFIT_FIXED_BYTES,
-        // Only the refits' out-of-sample residuals are read: no standard errors.
-        nonlinear_se: false,
+        // Only the refits' out-of-sample residuals are read: no standard errors, and the
+        // whole-interval searches refined by zooming.
+        residuals_only: true,
     }
 }
 

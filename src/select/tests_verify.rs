@@ -1408,7 +1408,11 @@ fn fold_starts_cut_where_the_measured_index_does() {
 /// variable projection with its fixed block stored and, at a zero budget, replayed per pass,
 /// and an adaptive `drift` fed every measured row. The reference replays each fold's model
 /// over the whole log; the fast path stops at the end of the fold's stretch (the replay is
-/// causal).
+/// causal). The refits' own searches (`Refits::residuals_only`: whole intervals refined by
+/// zooming, no standard errors) are set aside for the bit-for-bit comparison; with them, the
+/// residuals of the models without a searched parameter are the same bits, and the others'
+/// lie within 10⁻⁶ of the residuals' spread of the reference (their searches end within 10⁻⁷
+/// of each interval of where golden section ends).
 #[test]
 fn shared_refits_equal_the_reference_bit_for_bit() {
     let log = gappy_log(11, 1500);
@@ -1418,6 +1422,7 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
         matches!(shared.history, Some((_, SharedHistory::Features(_)))),
         "a short log shares its features"
     );
+    assert!(shared.residuals_only, "the refits search as refits do");
     for terms in [
         "poly2,direction",
         "table:20,direction",
@@ -1431,6 +1436,7 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
         let reference = cv_residuals_reference(&spec, &log, 3, &opts);
         for budget in [super::refit::REFIT_FIXED_BYTES, 0] {
             shared.fixed_budget = budget;
+            shared.residuals_only = false;
             let fast = super::refit::cv_residuals_sharing(&spec, &log, 3, &opts, &shared, &[])
                 .unwrap()
                 .residuals;
@@ -1440,6 +1446,22 @@ fn shared_refits_equal_the_reference_bit_for_bit() {
                 .zip(&reference)
                 .all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "{terms} at budget {budget}");
+            shared.residuals_only = true;
+            let zoomed = super::refit::cv_residuals_sharing(&spec, &log, 3, &opts, &shared, &[])
+                .unwrap()
+                .residuals;
+            let searched = spec.terms.iter().any(|t| {
+                t.prepare(&crate::model::data::FitData::new(&log))
+                    .is_ok_and(|t| t.nonlinear().is_some())
+            });
+            let spread = crate::numeric::stats::std_dev(&reference).unwrap();
+            for (a, b) in zoomed.iter().zip(&reference) {
+                if searched {
+                    assert!((a - b).abs() <= 1e-6 * spread, "{terms}: {a} vs {b}");
+                } else {
+                    assert_eq!(a.to_bits(), b.to_bits(), "{terms}");
+                }
+            }
         }
         // The public path (nothing shared) is the same too.
         let plain = super::refit::cv_residuals(&spec, &log, 3, &opts).unwrap();
@@ -1462,7 +1484,9 @@ fn long_log_refits_sharing_history_columns_equal_the_reference() {
     let rows = crate::model::data::FEATURE_CACHE_ROWS + 1_000;
     let log = gappy_log(12, rows);
     let opts = CheckedFitOptions::default();
-    let shared = super::refit::refits_of(&log, &opts);
+    let mut shared = super::refit::refits_of(&log, &opts);
+    // The refits' own searches (zooming) aside: the same bits as `fit`'s.
+    shared.residuals_only = false;
     assert!(
         matches!(shared.history, Some((_, SharedHistory::Columns(_)))),
         "a long log keeps no feature cache and shares its history columns"
