@@ -328,22 +328,20 @@ pub fn write_predictions_csv<R: Read>(
         .into_inner()
         .map_err(|e| ReplayError::Sink(e.into_error()))?;
     let mut rows = crate::io::number::NumberRows::new(out);
+    // One row's cells, NaN for an empty one (a non-finite value is written as an empty cell).
+    let mut cells: Vec<f64> = Vec::new();
     let summary = replay_stream(model, reader, start, |row, p: &RowPrediction, contrib| {
-        rows.cell(Some(row.time_s));
-        rows.cell(Some(row.track));
-        rows.cell(row.bias);
-        for &c in &row.covariates {
-            // A missing value (an empty cell of a covariate no term reads) stays empty.
-            rows.cell((!c.is_nan()).then_some(c));
-        }
-        rows.cell(Some(p.predicted));
-        rows.cell(p.residual);
+        cells.clear();
+        // A missing covariate value (NaN: an empty cell of a covariate no term reads) stays
+        // empty.
+        cells.extend([row.time_s, row.track, row.bias.unwrap_or(f64::NAN)]);
+        cells.extend_from_slice(&row.covariates);
+        cells.extend([p.predicted, p.residual.unwrap_or(f64::NAN)]);
         if start.is_some() {
-            rows.cell(p.integrator_start);
+            cells.push(p.integrator_start.unwrap_or(f64::NAN));
         }
-        for &c in contrib {
-            rows.cell(Some(c));
-        }
+        cells.extend_from_slice(contrib);
+        rows.cells(&cells);
         rows.end_row()?;
         if flush_each {
             rows.flush()?;
