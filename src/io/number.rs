@@ -143,16 +143,16 @@ fn lay_out_exponent(text: &[u8], out: &mut Vec<u8>) {
     }
 }
 
-/// Rows of numeric CSV cells written straight into a reused byte buffer (flushed to `out` in
-/// pieces of about 64 KiB): the text a `csv::Writer` in biasctl's dialect (`log::csv_writer`)
-/// writes for the same cells, without its per-field quoting scan — a number's text
-/// ([`write_shortest`]: digits, `-`, `.`) never needs quoting, and every row has several cells,
-/// so an empty cell is written empty. A non-finite value is written as an empty cell, never as
-/// text. Nothing is allocated per row.
-pub(crate) struct NumberRows<'a> {
-    out: &'a mut dyn std::io::Write,
-    /// The gathered text is `buf[..len]`; the rest is room, already zeroed, so a number is
-    /// copied in with fixed-size moves ([`copy_short`]).
+/// Rows of numeric CSV cells gathered as text in a reused byte buffer: the text a
+/// `csv::Writer` in biasctl's dialect (`log::csv_writer`) writes for the same cells, without its
+/// per-field quoting scan — a number's text ([`write_shortest`]: digits, `-`, `.`) never needs
+/// quoting, and every row has several cells, so an empty cell is written empty. A non-finite
+/// value is written as an empty cell, never as text. Nothing is allocated per row.
+/// [`NumberRows`] hands the text to a writer in pieces; `predict`'s formatting thread hands
+/// whole chunks of it on ([`RowText::take`]).
+pub(crate) struct RowText {
+    /// The gathered text is `buf[..len]`; the rest is room (initialised, its contents unused),
+    /// so a number is copied in with fixed-size moves ([`copy_short`]).
     buf: Vec<u8>,
     len: usize,
     /// A number outside [`zmij_as_is`]'s range, laid out by [`write_shortest`].
@@ -160,30 +160,47 @@ pub(crate) struct NumberRows<'a> {
     row_start: bool,
 }
 
-/// Values [`NumberRows::cells`] formats before it copies their texts.
+/// Values [`RowText::cells`] formats before it copies their texts.
 const BATCH: usize = 8;
 
-/// Bytes gathered before [`NumberRows`] hands them on.
-const ROWS_FLUSH_AT: usize = 1 << 16;
-
-impl<'a> NumberRows<'a> {
-    /// Writes rows to `out`.
-    pub(crate) fn new(out: &'a mut dyn std::io::Write) -> Self {
+impl RowText {
+    /// An empty text with room for about `room` bytes before it grows.
+    pub(crate) fn new(room: usize) -> Self {
         Self {
-            out,
-            buf: vec![0; ROWS_FLUSH_AT + 4096],
+            buf: vec![0; room.max(BATCH * (SHORT + 1))],
             len: 0,
             scratch: Vec::new(),
             row_start: true,
         }
     }
 
+    /// The rows gathered so far.
+    pub(crate) fn text(&self) -> &[u8] {
+        &self.buf[..self.len]
+    }
+
+    /// Forgets the gathered rows (keeps the room).
+    pub(crate) fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// The gathered rows as a vector of their length; gathering goes on in `room` (any vector,
+    /// its contents unused: one taken before, handed back to be reused).
+    pub(crate) fn take(&mut self, mut room: Vec<u8>) -> Vec<u8> {
+        room.resize(room.capacity().max(BATCH * (SHORT + 1)), 0);
+        let mut text = std::mem::replace(&mut self.buf, room);
+        text.truncate(self.len);
+        self.len = 0;
+        text
+    }
+
     /// Appends one cell per value of `xs`: its text ([`write_shortest`]), or nothing for NaN or
-    /// another non-finite value (an empty cell); cells are separated by `,`. The values are formatted in batches of
-    /// [`BATCH`], each into its own buffer, and copied after the batch: a number's bytes are
-    /// read back long after zmij stored them, not while its stores are still on their way
-    /// (a read of 16 bytes over stores of a few bytes each must wait for them: at the
-    /// copy right after the formatting, that wait was a third of the row writer's time).
+    /// another non-finite value (an empty cell); cells are separated by `,`. The values are
+    /// formatted in batches of [`BATCH`], each into its own buffer, and copied after the batch:
+    /// a number's bytes are read back long after zmij stored them, not while its stores are
+    /// still on their way (a read of 16 bytes over stores of a few bytes each must wait for
+    /// them: at the copy right after the formatting, that wait was a third of the row writer's
+    /// time).
     #[inline]
     pub(crate) fn cells(&mut self, xs: &[f64]) {
         let mut bufs = [(); BATCH].map(|_| zmij::Buffer::new());
@@ -229,26 +246,57 @@ impl<'a> NumberRows<'a> {
         self.len += n;
     }
 
-    /// Ends the row (`\n`); hands the gathered rows on when there are enough.
+    /// Ends the row (`\n`).
     #[inline]
-    pub(crate) fn end_row(&mut self) -> std::io::Result<()> {
+    pub(crate) fn end_row(&mut self) {
         if self.len == self.buf.len() {
             self.buf.resize(2 * self.buf.len(), 0);
         }
         self.buf[self.len] = b'\n';
         self.len += 1;
         self.row_start = true;
-        if self.len >= ROWS_FLUSH_AT {
-            self.out.write_all(&self.buf[..self.len])?;
-            self.len = 0;
+    }
+}
+
+/// [`RowText`] rows handed to `out` in pieces of about 64 KiB.
+pub(crate) struct NumberRows<'a> {
+    out: &'a mut dyn std::io::Write,
+    text: RowText,
+}
+
+/// Bytes gathered before [`NumberRows`] hands them on.
+const ROWS_FLUSH_AT: usize = 1 << 16;
+
+impl<'a> NumberRows<'a> {
+    /// Writes rows to `out`.
+    pub(crate) fn new(out: &'a mut dyn std::io::Write) -> Self {
+        Self {
+            out,
+            text: RowText::new(ROWS_FLUSH_AT + 4096),
+        }
+    }
+
+    /// Appends one cell per value of `xs` ([`RowText::cells`]).
+    #[inline]
+    pub(crate) fn cells(&mut self, xs: &[f64]) {
+        self.text.cells(xs);
+    }
+
+    /// Ends the row (`\n`); hands the gathered rows on when there are enough.
+    #[inline]
+    pub(crate) fn end_row(&mut self) -> std::io::Result<()> {
+        self.text.end_row();
+        if self.text.len >= ROWS_FLUSH_AT {
+            self.out.write_all(self.text.text())?;
+            self.text.clear();
         }
         Ok(())
     }
 
     /// Hands every gathered row on and flushes `out`.
     pub(crate) fn flush(&mut self) -> std::io::Result<()> {
-        self.out.write_all(&self.buf[..self.len])?;
-        self.len = 0;
+        self.out.write_all(self.text.text())?;
+        self.text.clear();
         self.out.flush()
     }
 }
@@ -399,6 +447,7 @@ mod tests {
         {
             let mut rows = NumberRows::new(&mut got);
             let mut cells = Vec::new();
+            let (mut text, mut taken, mut spare) = (RowText::new(64), Vec::new(), Vec::new());
             for r in 0..60_000 {
                 cells.clear();
                 for c in 0..1 + r % 23 {
@@ -425,8 +474,23 @@ mod tests {
                 rows.cells(b);
                 want.push(b'\n');
                 rows.end_row().unwrap();
+                // The same rows gathered in a `RowText` and taken every 37 rows, the taken
+                // vector handed back as room.
+                text.cells(a);
+                text.cells(b);
+                text.end_row();
+                if r % 37 == 0 {
+                    let t = text.take(std::mem::take(&mut spare));
+                    taken.extend_from_slice(&t);
+                    spare = t;
+                }
             }
             rows.flush().unwrap();
+            taken.extend_from_slice(text.text());
+            assert!(
+                taken == want,
+                "the taken rows differ from the cells written one by one"
+            );
         }
         assert!(want.len() > 10 * ROWS_FLUSH_AT, "{}", want.len());
         assert!(
