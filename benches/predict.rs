@@ -1,7 +1,9 @@
 //! `biasctl predict` on 1,000,000 rows: streaming a 1M-seek random log (held in memory as CSV
 //! text) through the `calibration` model (eq. 1, fitted on the calibration run of the built-in
 //! drive) with `write_predictions_csv` (what `biasctl predict` calls; input columns,
-//! `predicted`, `residual`, one column per term) into a `Vec<u8>`; and the same replay into a
+//! `predicted`, `residual`, one column per term; the rows formatted on a second thread, so
+//! `benches/peers/run.sh` times it by the process's CPU time) into a `Vec<u8>`; and the same
+//! replay into a
 //! sink that drops the rows (`replay_stream`), to separate the writer's share. The set-up checks
 //! the output byte for byte against the real `biasctl predict` on a small log.
 

@@ -3,8 +3,8 @@
 # polars and pandas, builds biasctl, runs biasctl's criterion benches and the peers in the same
 # run, checks every peer against biasctl's output on a small input, and prints the ratio table
 # of README's Benchmarks section. Optional; not part of `cargo test`. Takes ~10 min (more on a
-# loaded machine). Criterion measures thread CPU time (BIASCTL_BENCH_CPU=1; the fit bench process
-# CPU time, since its solve also runs on rayon's pool) in the benches built with `bench_main!`, and peers.py times their peers by CPU time too (see its docstring).
+# loaded machine). Criterion measures thread CPU time (BIASCTL_BENCH_CPU=1; the fit and predict benches
+# process CPU time, since fit's solve also runs on rayon's pool and predict formats on a second thread) in the benches built with `bench_main!`, and peers.py times their peers by CPU time too (see its docstring).
 #   benches/peers/run.sh [--only dahl,handoff,read,fit,write]   (PEERS_VENV=dir: the venv elsewhere)
 # `--only` selects the sections: only their criterion benches run, then only their peers.
 set -euo pipefail
@@ -53,6 +53,7 @@ if picked fit; then
     BIASCTL_BENCH_CPU=process cargo bench --quiet --features bench --bench fit "${crit[@]}"
 fi
 if picked write; then
-    cargo bench --quiet --features bench --bench predict "${crit[@]}" 'predict/replay_and_write_1M_rows'
+    # predict formats its rows on a second thread: count every thread's CPU time
+    BIASCTL_BENCH_CPU=process cargo bench --quiet --features bench --bench predict "${crit[@]}" 'predict/replay_and_write_1M_rows'
 fi
 "$venv/bin/python" "$here/peers.py" --root "$root" --exe "$root/target/release/biasctl" --work "$work" "${args[@]}"

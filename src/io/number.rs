@@ -143,16 +143,16 @@ fn lay_out_exponent(text: &[u8], out: &mut Vec<u8>) {
     }
 }
 
-/// Rows of numeric CSV cells written straight into a reused byte buffer (flushed to `out` in
-/// pieces of about 64 KiB): the text a `csv::Writer` in biasctl's dialect (`log::csv_writer`)
-/// writes for the same cells, without its per-field quoting scan — a number's text
-/// ([`write_shortest`]: digits, `-`, `.`) never needs quoting, and every row has several cells,
-/// so an empty cell is written empty. A non-finite value is written as an empty cell, never as
-/// text. Nothing is allocated per row.
-pub(crate) struct NumberRows<'a> {
-    out: &'a mut dyn std::io::Write,
-    /// The gathered text is `buf[..len]`; the rest is room, already zeroed, so a number is
-    /// copied in with fixed-size moves ([`copy_short`]).
+/// Rows of numeric CSV cells gathered as text in a reused byte buffer: the text a
+/// `csv::Writer` in biasctl's dialect (`log::csv_writer`) writes for the same cells, without its
+/// per-field quoting scan — a number's text ([`write_shortest`]: digits, `-`, `.`) never needs
+/// quoting, and every row has several cells, so an empty cell is written empty. A non-finite
+/// value is written as an empty cell, never as text. Nothing is allocated per row.
+/// [`NumberRows`] hands the text to a writer in pieces; `predict`'s formatting thread hands
+/// whole chunks of it on ([`RowText::take`]).
+pub(crate) struct RowText {
+    /// The gathered text is `buf[..len]`; the rest is room (initialised, its contents unused),
+    /// so a number is copied in with fixed-size moves ([`copy_short`]).
     buf: Vec<u8>,
     len: usize,
     /// A number outside [`zmij_as_is`]'s range, laid out by [`write_shortest`].
@@ -160,44 +160,80 @@ pub(crate) struct NumberRows<'a> {
     row_start: bool,
 }
 
-/// Bytes gathered before [`NumberRows`] hands them on.
-const ROWS_FLUSH_AT: usize = 1 << 16;
+/// Values [`RowText::cells`] formats before it copies their texts.
+const BATCH: usize = 8;
 
-impl<'a> NumberRows<'a> {
-    /// Writes rows to `out`.
-    pub(crate) fn new(out: &'a mut dyn std::io::Write) -> Self {
+impl RowText {
+    /// An empty text with room for about `room` bytes before it grows.
+    pub(crate) fn new(room: usize) -> Self {
         Self {
-            out,
-            buf: vec![0; ROWS_FLUSH_AT + 4096],
+            buf: vec![0; room.max(BATCH * (SHORT + 1))],
             len: 0,
             scratch: Vec::new(),
             row_start: true,
         }
     }
 
-    /// Appends one cell: `x`'s text, or nothing for `None` or a non-finite value.
+    /// The rows gathered so far.
+    pub(crate) fn text(&self) -> &[u8] {
+        &self.buf[..self.len]
+    }
+
+    /// Forgets the gathered rows (keeps the room).
+    pub(crate) fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// The gathered rows as a vector of their length; gathering goes on in `room` (any vector,
+    /// its contents unused: one taken before, handed back to be reused).
+    pub(crate) fn take(&mut self, mut room: Vec<u8>) -> Vec<u8> {
+        room.resize(room.capacity().max(BATCH * (SHORT + 1)), 0);
+        let mut text = std::mem::replace(&mut self.buf, room);
+        text.truncate(self.len);
+        self.len = 0;
+        text
+    }
+
+    /// Appends one cell per value of `xs`: its text ([`write_shortest`]), or nothing for NaN or
+    /// another non-finite value (an empty cell); cells are separated by `,`. The values are
+    /// formatted in batches of [`BATCH`], each into its own buffer, and copied after the batch:
+    /// a number's bytes are read back long after zmij stored them, not while its stores are
+    /// still on their way (a read of 16 bytes over stores of a few bytes each must wait for
+    /// them: at the copy right after the formatting, that wait was a third of the row writer's
+    /// time).
     #[inline]
-    pub(crate) fn cell(&mut self, x: Option<f64>) {
-        // Room for a comma, a number and the fixed-size moves past its end.
-        if self.len + SHORT + 1 > self.buf.len() {
-            self.buf.resize(2 * self.buf.len(), 0);
-        }
-        if !self.row_start {
-            self.buf[self.len] = b',';
-            self.len += 1;
-        }
-        self.row_start = false;
-        let Some(v) = x.filter(|v| v.is_finite()) else {
-            return;
-        };
-        let mut z = zmij::Buffer::new();
-        if let Some(text) = zmij_as_is(v, &mut z) {
-            copy_short(&mut self.buf[self.len..], text);
-            self.len += text.len();
-        } else {
-            self.scratch.clear();
-            write_shortest(v, &mut self.scratch);
-            self.write(self.scratch.len());
+    pub(crate) fn cells(&mut self, xs: &[f64]) {
+        let mut bufs = [(); BATCH].map(|_| zmij::Buffer::new());
+        for batch in xs.chunks(BATCH) {
+            // Room for every cell of the batch, with its comma and the fixed-size moves.
+            if self.len + BATCH * (SHORT + 1) > self.buf.len() {
+                self.buf.resize(2 * self.buf.len() + BATCH * (SHORT + 1), 0);
+            }
+            let mut texts: [Option<&[u8]>; BATCH] = [None; BATCH];
+            for ((t, b), &v) in texts.iter_mut().zip(bufs.iter_mut()).zip(batch) {
+                if v.is_finite() {
+                    *t = zmij_as_is(v, b);
+                }
+            }
+            for (t, &v) in texts.iter().zip(batch) {
+                if !self.row_start {
+                    self.buf[self.len] = b',';
+                    self.len += 1;
+                }
+                self.row_start = false;
+                match t {
+                    Some(text) => {
+                        copy_short(&mut self.buf[self.len..], text);
+                        self.len += text.len();
+                    }
+                    None if v.is_finite() => {
+                        self.scratch.clear();
+                        write_shortest(v, &mut self.scratch);
+                        self.write(self.scratch.len());
+                    }
+                    None => {}
+                }
+            }
         }
     }
 
@@ -210,26 +246,57 @@ impl<'a> NumberRows<'a> {
         self.len += n;
     }
 
-    /// Ends the row (`\n`); hands the gathered rows on when there are enough.
+    /// Ends the row (`\n`).
     #[inline]
-    pub(crate) fn end_row(&mut self) -> std::io::Result<()> {
+    pub(crate) fn end_row(&mut self) {
         if self.len == self.buf.len() {
             self.buf.resize(2 * self.buf.len(), 0);
         }
         self.buf[self.len] = b'\n';
         self.len += 1;
         self.row_start = true;
-        if self.len >= ROWS_FLUSH_AT {
-            self.out.write_all(&self.buf[..self.len])?;
-            self.len = 0;
+    }
+}
+
+/// [`RowText`] rows handed to `out` in pieces of about 64 KiB.
+pub(crate) struct NumberRows<'a> {
+    out: &'a mut dyn std::io::Write,
+    text: RowText,
+}
+
+/// Bytes gathered before [`NumberRows`] hands them on.
+const ROWS_FLUSH_AT: usize = 1 << 16;
+
+impl<'a> NumberRows<'a> {
+    /// Writes rows to `out`.
+    pub(crate) fn new(out: &'a mut dyn std::io::Write) -> Self {
+        Self {
+            out,
+            text: RowText::new(ROWS_FLUSH_AT + 4096),
+        }
+    }
+
+    /// Appends one cell per value of `xs` ([`RowText::cells`]).
+    #[inline]
+    pub(crate) fn cells(&mut self, xs: &[f64]) {
+        self.text.cells(xs);
+    }
+
+    /// Ends the row (`\n`); hands the gathered rows on when there are enough.
+    #[inline]
+    pub(crate) fn end_row(&mut self) -> std::io::Result<()> {
+        self.text.end_row();
+        if self.text.len >= ROWS_FLUSH_AT {
+            self.out.write_all(self.text.text())?;
+            self.text.clear();
         }
         Ok(())
     }
 
     /// Hands every gathered row on and flushes `out`.
     pub(crate) fn flush(&mut self) -> std::io::Result<()> {
-        self.out.write_all(&self.buf[..self.len])?;
-        self.len = 0;
+        self.out.write_all(self.text.text())?;
+        self.text.clear();
         self.out.flush()
     }
 }
@@ -371,7 +438,7 @@ mod tests {
 
     #[test]
     fn number_rows_equal_cells_written_one_by_one() {
-        // Reference: `write_shortest` of each cell, `,` between cells, `\n` after each row,
+        // Reference: `write_shortest` of each cell (an empty cell for NaN), `,` between cells, `\n` after each row,
         // collected in one vector. Rows of every kind of cell (empty, non-finite, zeros,
         // numbers in and out of the copied range, the longest texts), many times the flush
         // size, handed on in pieces to a writer that keeps them.
@@ -379,7 +446,10 @@ mod tests {
         let (mut want, mut got) = (Vec::new(), Vec::new());
         {
             let mut rows = NumberRows::new(&mut got);
+            let mut cells = Vec::new();
+            let (mut text, mut taken, mut spare) = (RowText::new(64), Vec::new(), Vec::new());
             for r in 0..60_000 {
+                cells.clear();
                 for c in 0..1 + r % 23 {
                     let x = match rng.below(9) {
                         0 => None,
@@ -396,12 +466,31 @@ mod tests {
                     if let Some(v) = x {
                         write_shortest(v, &mut want);
                     }
-                    rows.cell(x);
+                    cells.push(x.unwrap_or(f64::NAN));
                 }
+                // A row in one call or in two (the second may be empty).
+                let (a, b) = cells.split_at(if r % 3 == 0 { r % cells.len() } else { 0 });
+                rows.cells(a);
+                rows.cells(b);
                 want.push(b'\n');
                 rows.end_row().unwrap();
+                // The same rows gathered in a `RowText` and taken every 37 rows, the taken
+                // vector handed back as room.
+                text.cells(a);
+                text.cells(b);
+                text.end_row();
+                if r % 37 == 0 {
+                    let t = text.take(std::mem::take(&mut spare));
+                    taken.extend_from_slice(&t);
+                    spare = t;
+                }
             }
             rows.flush().unwrap();
+            taken.extend_from_slice(text.text());
+            assert!(
+                taken == want,
+                "the taken rows differ from the cells written one by one"
+            );
         }
         assert!(want.len() > 10 * ROWS_FLUSH_AT, "{}", want.len());
         assert!(

@@ -12,6 +12,7 @@
 pub(crate) mod cue;
 pub(crate) mod data;
 mod error;
+mod predict_csv;
 pub(crate) mod predictor;
 pub(crate) mod preset;
 pub(crate) mod registry;
@@ -20,9 +21,10 @@ pub(crate) mod term;
 pub(crate) mod term_text;
 pub mod terms;
 
+pub use predict_csv::write_predictions_csv;
 pub use predictor::{
     IntegratorStart, NextPrediction, Predictor, ReplaySummary, RowPrediction, predict_next,
-    replay_stream, write_predictions_csv,
+    replay_stream,
 };
 
 use crate::io::{OutputError, write_string_atomic};

@@ -296,64 +296,6 @@ pub fn replay_stream<R: Read>(
     Ok(summary)
 }
 
-/// Streams `reader` through `model` ([`replay_stream`]) and writes `biasctl predict`'s CSV to
-/// `out`: the header (time, track and bias columns as the log names them, its covariates,
-/// `predicted`, `residual`, with `start` also `integrator_start`, then one column per term),
-/// then one row per log row as soon as it is read. Numbers are written with every digit they
-/// need to read back exactly (`crate::io::number::write_shortest`, the text of
-/// `to_string()`); an unmeasured bias, its residual, a missing covariate value, or a start value
-/// that does not exist is an empty cell. With `flush_each`, every row is flushed as written (a stream answered row by
-/// row). Nothing is allocated per row.
-pub fn write_predictions_csv<R: Read>(
-    model: &FittedModel,
-    reader: &mut LogReader<R>,
-    start: Option<&dyn IntegratorStart>,
-    out: &mut dyn std::io::Write,
-    flush_each: bool,
-) -> Result<ReplaySummary, ReplayError> {
-    let s = reader.schema().clone();
-    let mut w = crate::log::csv_writer(out);
-    let mut header: Vec<String> = vec![s.map.time.clone(), s.map.track.clone(), s.map.bias.clone()];
-    header.extend(s.covariates.iter().cloned());
-    header.extend(["predicted".to_string(), "residual".to_string()]);
-    if start.is_some() {
-        header.push("integrator_start".into());
-    }
-    header.extend(model.terms.iter().map(|t| t.term.name()));
-    let sink_err = |e: csv::Error| ReplayError::Sink(e.into());
-    w.write_record(&header).map_err(sink_err)?;
-    w.flush().map_err(ReplayError::Sink)?;
-    // The rows: numbers only, written without the csv writer's quoting scan (same text).
-    let out = w
-        .into_inner()
-        .map_err(|e| ReplayError::Sink(e.into_error()))?;
-    let mut rows = crate::io::number::NumberRows::new(out);
-    let summary = replay_stream(model, reader, start, |row, p: &RowPrediction, contrib| {
-        rows.cell(Some(row.time_s));
-        rows.cell(Some(row.track));
-        rows.cell(row.bias);
-        for &c in &row.covariates {
-            // A missing value (an empty cell of a covariate no term reads) stays empty.
-            rows.cell((!c.is_nan()).then_some(c));
-        }
-        rows.cell(Some(p.predicted));
-        rows.cell(p.residual);
-        if start.is_some() {
-            rows.cell(p.integrator_start);
-        }
-        for &c in contrib {
-            rows.cell(Some(c));
-        }
-        rows.end_row()?;
-        if flush_each {
-            rows.flush()?;
-        }
-        Ok(())
-    })?;
-    rows.flush().map_err(ReplayError::Sink)?;
-    Ok(summary)
-}
-
 /// The bias a model predicts for one seek after a replayed log (what `settle --model` feeds to
 /// the handoff).
 #[derive(Debug, Clone, Copy, PartialEq)]
