@@ -185,13 +185,17 @@ fn search_term(
         ),
     };
     let zoom = |lo: f64, hi: f64, width: f64| zoom_over(lo, hi, LOCAL_GRID, width);
-    match reach {
-        Reach::Whole if zoom_whole => {
-            let width = WARM_TOLERANCE * (nl.hi - nl.lo);
-            zoom_over(nl.lo, nl.hi, opts.grid, width)
+    // The whole interval: `opts.grid` points, then golden section or (`zoom_whole`) zooming.
+    let whole = |lo: f64, hi: f64, grid: usize, iters: usize| {
+        if zoom_whole {
+            zoom_over(lo, hi, grid, WARM_TOLERANCE * (nl.hi - nl.lo))
+        } else {
+            min(lo, hi, grid, iters)
         }
-        Reach::Whole => min(nl.lo, nl.hi, opts.grid, opts.refine),
-        Reach::Near => local_search(nl, (opts.grid, opts.refine), &zoom, &min),
+    };
+    match reach {
+        Reach::Whole => whole(nl.lo, nl.hi, opts.grid, opts.refine),
+        Reach::Near => local_search(nl, (opts.grid, opts.refine), &zoom, &whole),
     }
 }
 
@@ -321,8 +325,9 @@ fn warm_schedule(
 /// of as many points that follow the RSS's parabola until the bracket about the best point is
 /// [`WARM_TOLERANCE`] of the interval wide (`zoom(lo, hi, width)`: [`zoom_min_batched`]). Where
 /// the best value is at the edge of the first grid's bracket (the minimum lies beyond it) the
-/// whole interval is searched as the cold search searches it (`grid` points, `refine` steps:
-/// `min(lo, hi, grid, iters)`). Returns the value, its RSS and the count of evaluations.
+/// whole interval is searched as a whole-interval search of the same fit searches it (`grid`
+/// points, then `refine` golden-section steps or zooming: `min(lo, hi, grid, iters)`). Returns
+/// the value, its RSS and the count of evaluations.
 fn local_search(
     nl: &crate::model::term::Nonlinear,
     (grid, refine): (usize, usize),
