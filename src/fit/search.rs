@@ -159,9 +159,8 @@ fn search_term(
             iters,
         ),
     };
-    // Near a value: a batch at a time, following the RSS's parabola (the projection's
-    // replay evaluates a batch for the price of about one point; the full solves take
-    // the batch's points one by one).
+    // A batch at a time, following the RSS's parabola (the projection's replay evaluates a
+    // batch for about the price of one point; the full solves take its points one by one).
     let zoom_over = |lo: f64, hi: f64, grid: usize, width: f64| match &proj {
         Some(p) => zoom_min_batched(
             &|ts: &[f64]| p.rss_many(terms, ts, opts),
@@ -204,7 +203,7 @@ fn search_term(
 /// last one times the cycle's rate of convergence (below 1), so what is left unsearched is of the
 /// order of 10⁻⁹ of the training RSS: the out-of-sample residuals then move by far less than the
 /// 10⁻⁶ of the gain to which a verdict is compared (`benches/verdicts.py`).
-pub(crate) const SETTLED: f64 = 1e-9;
+const SETTLED: f64 = 1e-9;
 
 /// The coordinate searches' bookkeeping of a warm-started [`search_nonlinear`]: per term, whether
 /// any other term's search since its own last search lowered the RSS by more than [`SETTLED`]
@@ -212,8 +211,10 @@ pub(crate) const SETTLED: f64 = 1e-9;
 struct Moves {
     /// The RSS after the last search (NaN: not known, as after a term's own search).
     rss: f64,
-    /// Per term: searched at least once, and moved by another term since.
+    /// Per term: searched at least once.
     searched: Vec<bool>,
+    /// Per term: another term's search since its own last one lowered the RSS by more than
+    /// [`SETTLED`] of it (or by an amount not known).
     stirred: Vec<bool>,
 }
 
@@ -434,6 +435,33 @@ mod tests {
         se: false,
         zoom: true,
     };
+
+    /// Reference: the rule written out. A term is skipped only when it was searched before and
+    /// every search since lowered the RSS by at most 10⁻⁹ of it; a search whose RSS is not
+    /// known (a term's own search) counts as a move.
+    #[test]
+    fn a_coordinate_is_skipped_only_when_nothing_moved_since_its_search() {
+        let mut m = Moves::new(3);
+        assert!(!m.settled(0) && !m.settled(1), "never searched");
+        m.searched(0, 10.0);
+        assert!(!m.settled(1), "1 was never searched");
+        assert!(m.settled(0), "nothing searched since 0");
+        m.searched(1, 9.0);
+        assert!(!m.settled(0), "1 lowered the RSS by 10 %");
+        m.searched(0, 9.0 - 1e-9);
+        assert!(m.settled(1), "0 lowered it by 1.1e-10 of it");
+        m.searched(1, 9.0 - 1e-9 - 1e-7);
+        assert!(!m.settled(0), "1 lowered it by 1.1e-8 of it");
+        m.searched(0, 9.0 - 2e-7);
+        m.searched(2, f64::NAN);
+        assert!(
+            !m.settled(0) && !m.settled(1),
+            "a search of unknown RSS moves the others"
+        );
+        m.searched(0, 8.0);
+        m.searched(1, 8.0);
+        assert!(m.settled(0), "an RSS unchanged is no move");
+    }
 
     /// Reference: the cold search (`warm` empty) of the same terms on the same rows. A refit's
     /// search (whole intervals refined by [`zoom_min_batched`]), cold or warm, and `fit`'s, warm,
