@@ -29,8 +29,9 @@ impl std::ops::Index<usize> for Lanes {
 }
 
 /// Rows per chunk of [`SlotTable::accumulate_lanes`]: the lanes' permuted rows are gathered
-/// into a chunk of `CHUNK × LANES` values (32 KiB, in L1/L2) before they are summed.
-pub(super) const CHUNK: usize = 512;
+/// into a chunk of `CHUNK × LANES` values (16 KiB: with a panel's sums, in the L1 cache)
+/// before they are summed.
+pub(super) const CHUNK: usize = 256;
 
 /// One lane's block permutation, read in place: the residual rotated by `offset`, cut into
 /// blocks of `block` rows taken in `order` (as [`Permuted::Blocks`]).
@@ -298,7 +299,7 @@ impl SlotTable {
 
 /// Most bytes of lane sums (plain and signed) of one panel of [`SlotTable::accumulate_lanes`]
 /// (at least one feature a panel): less than the L1 data cache, with room for the rows read.
-pub(super) const PANEL_BYTES: usize = 24 * 1024;
+pub(super) const PANEL_BYTES: usize = 32 * 1024;
 
 /// Most features of a held unit ([`Unit::Held`]): their sums, plain and signed, in registers.
 pub(super) const HELD_LANES: usize = 4;
