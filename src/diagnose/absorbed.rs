@@ -154,9 +154,11 @@ pub(crate) fn absorbed(
         if !any {
             continue;
         }
-        // Only the features are read: the screen without the pair screen and the residual's
-        // own statistics (the same reports as `diagnose`'s, tested).
-        let with = screen_analysed(&reduced, &y, config, Reports::All, analysis).reports;
+        // Only the flagged features and the strongest are read: the screen without the pair
+        // screen, the residual's own statistics and the other features' reports (the same
+        // reports as `diagnose`'s, in its order, and the same strongest; tested).
+        let which = Reports::FlaggedAndStrongest;
+        let with = screen_analysed(&reduced, &y, config, which, analysis).reports;
         let reported = with.iter().filter(|f| f.flagged && absorbs(f));
         let slow = slow_column(&with, &reduced).filter(|f| absorbs(f));
         for f in reported.chain(slow) {
@@ -192,7 +194,10 @@ fn with_binned_column(f: &FeatureReport) -> Vec<String> {
 /// adaptive term's contribution against `table`) that explains most of it, when it is a
 /// logged column or a lag of one, not flagged (a flagged one is reported by the family-wise
 /// rule), and its per-feature permutation p-value is at most [`SLOW_RAW_P`].
-fn slow_column<'a>(with: &'a [FeatureReport], table: &FeatureTable) -> Option<&'a FeatureReport> {
+pub(super) fn slow_column<'a>(
+    with: &'a [FeatureReport],
+    table: &FeatureTable,
+) -> Option<&'a FeatureReport> {
     let top = with
         .iter()
         .max_by(|a, b| a.explained.total_cmp(&b.explained))?;

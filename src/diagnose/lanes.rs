@@ -12,9 +12,26 @@ use super::kernels::{PREFETCH_BLOCKS, STEADY_ROWS, SlotTable, prefetch, wrap};
 /// 256-bit ones with AVX2).
 pub(crate) const LANES: usize = 8;
 
+/// The [`LANES`] values of one slot's sums or of one gathered row, on one 64-byte cache line:
+/// a `Vec` of bare `[f64; LANES]` is only 16-byte aligned, so every vector load and store of
+/// the sums straddled two lines (a split access, which the store-to-load forwarding of a
+/// slot's next addition does not take either).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[repr(C, align(64))]
+pub(crate) struct Lanes(pub(crate) [f64; LANES]);
+
+impl std::ops::Index<usize> for Lanes {
+    type Output = f64;
+    #[inline(always)]
+    fn index(&self, l: usize) -> &f64 {
+        &self.0[l]
+    }
+}
+
 /// Rows per chunk of [`SlotTable::accumulate_lanes`]: the lanes' permuted rows are gathered
-/// into a chunk of `CHUNK × LANES` values (32 KiB, in L1/L2) before they are summed.
-pub(super) const CHUNK: usize = 512;
+/// into a chunk of `CHUNK × LANES` values (16 KiB: with a panel's sums, in the L1 cache)
+/// before they are summed.
+pub(super) const CHUNK: usize = 256;
 
 /// One lane's block permutation, read in place: the residual rotated by `offset`, cut into
 /// blocks of `block` rows taken in `order` (as [`Permuted::Blocks`]).
@@ -43,7 +60,7 @@ pub(super) fn gather_lane(
     lane: &BlockLane<'_>,
     slot: usize,
     cur: &mut Cursor,
-    out: &mut [[f64; LANES]],
+    out: &mut [Lanes],
 ) {
     let n = y.len();
     let mut t = 0;
@@ -55,10 +72,10 @@ pub(super) fn gather_lane(
         let start = wrap(b * block + lane.offset + cur.pos, n);
         let first = take.min(n - start);
         for (o, &v) in out[t..t + first].iter_mut().zip(&y[start..start + first]) {
-            o[slot] = v;
+            o.0[slot] = v;
         }
         for (o, &v) in out[t + first..t + take].iter_mut().zip(&y[..take - first]) {
-            o[slot] = v;
+            o.0[slot] = v;
         }
         t += take;
         cur.pos += take;
@@ -106,7 +123,7 @@ impl<'a, 'b> Chunks<'a, 'b> {
     /// Gathers the next chunk into `buf` (at most `buf.len()` rows): its first row and its
     /// length, `None` after the last row.
     #[inline(always)]
-    fn next(&mut self, buf: &mut [[f64; LANES]]) -> Option<(usize, usize)> {
+    fn next(&mut self, buf: &mut [Lanes]) -> Option<(usize, usize)> {
         let k = self.k;
         let c = buf.len().min(self.y.len() - k);
         if c == 0 {
@@ -165,9 +182,9 @@ impl SlotTable {
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
         direction: &[i8],
-        buf: &mut Vec<[f64; LANES]>,
-        acc: &mut Vec<[f64; LANES]>,
-        acc_signed: &mut Vec<[f64; LANES]>,
+        buf: &mut Vec<Lanes>,
+        acc: &mut Vec<Lanes>,
+        acc_signed: &mut Vec<Lanes>,
     ) -> ([f64; LANES], [f64; LANES]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx512f") {
@@ -200,9 +217,9 @@ impl SlotTable {
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
         direction: &[i8],
-        buf: &mut Vec<[f64; LANES]>,
-        acc: &mut Vec<[f64; LANES]>,
-        acc_signed: &mut Vec<[f64; LANES]>,
+        buf: &mut Vec<Lanes>,
+        acc: &mut Vec<Lanes>,
+        acc_signed: &mut Vec<Lanes>,
     ) -> ([f64; LANES], [f64; LANES]) {
         self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
     }
@@ -220,9 +237,9 @@ impl SlotTable {
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
         direction: &[i8],
-        buf: &mut Vec<[f64; LANES]>,
-        acc: &mut Vec<[f64; LANES]>,
-        acc_signed: &mut Vec<[f64; LANES]>,
+        buf: &mut Vec<Lanes>,
+        acc: &mut Vec<Lanes>,
+        acc_signed: &mut Vec<Lanes>,
     ) -> ([f64; LANES], [f64; LANES]) {
         self.accumulate_lanes_portable(y, block, lanes, direction, buf, acc, acc_signed)
     }
@@ -236,27 +253,27 @@ impl SlotTable {
         block: usize,
         lanes: &[BlockLane<'_>; LANES],
         direction: &[i8],
-        buf: &mut Vec<[f64; LANES]>,
-        acc: &mut Vec<[f64; LANES]>,
-        acc_signed: &mut Vec<[f64; LANES]>,
+        buf: &mut Vec<Lanes>,
+        acc: &mut Vec<Lanes>,
+        acc_signed: &mut Vec<Lanes>,
     ) -> ([f64; LANES], [f64; LANES]) {
         let m = self.m;
         let mut sum = [-0.0; LANES];
         let mut sq = [0.0; LANES];
         acc.clear();
-        acc.resize(self.len(), [0.0; LANES]);
+        acc.resize(self.len(), Lanes::default());
         if m == 0 {
             return (sum, sq);
         }
         let ms = self.signed;
         if ms > 0 {
             acc_signed.clear();
-            acc_signed.resize(self.len(), [0.0; LANES]);
+            acc_signed.resize(self.len(), Lanes::default());
         }
         let plan = Plan::of(self, y.len(), PANEL_BYTES);
         let codes = &self.codes[..];
         let (acc, acc_signed) = (&mut acc[..], &mut acc_signed[..]);
-        buf.resize(CHUNK, [0.0; LANES]);
+        buf.resize(CHUNK, Lanes::default());
         let mut chunks = Chunks::new(y, block, lanes);
         while let Some((k, c)) = chunks.next(buf) {
             let chunk = &buf[..c];
@@ -267,7 +284,7 @@ impl SlotTable {
                 d: if ms > 0 { &direction[k..k + c] } else { &[] },
             };
             for (v, &dt) in chunk.iter().zip(at.d) {
-                let w = scale_lanes(v, f64::from(dt));
+                let w = scale_lanes(&v.0, f64::from(dt));
                 add_lanes(&mut sum, &w);
                 add_lanes(&mut sq, &mul_lanes(&w, &w));
             }
@@ -282,7 +299,7 @@ impl SlotTable {
 
 /// Most bytes of lane sums (plain and signed) of one panel of [`SlotTable::accumulate_lanes`]
 /// (at least one feature a panel): less than the L1 data cache, with room for the rows read.
-pub(super) const PANEL_BYTES: usize = 24 * 1024;
+pub(super) const PANEL_BYTES: usize = 32 * 1024;
 
 /// Most features of a held unit ([`Unit::Held`]): their sums, plain and signed, in registers.
 pub(super) const HELD_LANES: usize = 4;
@@ -326,7 +343,7 @@ impl Plan {
         }
         let size = |j: usize| {
             (table.offset[j + 1] - table.offset[j])
-                * std::mem::size_of::<[f64; LANES]>()
+                * std::mem::size_of::<Lanes>()
                 * (1 + usize::from(j < ms))
         };
         let mut panel: Vec<usize> = Vec::new();
@@ -358,7 +375,7 @@ impl Plan {
 struct Rows<'a> {
     codes: &'a [u8],
     m: usize,
-    chunk: &'a [[f64; LANES]],
+    chunk: &'a [Lanes],
     d: &'a [i8],
 }
 
@@ -366,13 +383,7 @@ impl Unit {
     /// Adds the chunk's lanes `chunk[t]` (and `chunk[t]·d[t]` for a signed feature) into the
     /// unit's features' slots of row `t`, row by row.
     #[inline(always)]
-    fn add(
-        &self,
-        at: &Rows<'_>,
-        offset: &[usize],
-        acc: &mut [[f64; LANES]],
-        acc_signed: &mut [[f64; LANES]],
-    ) {
+    fn add(&self, at: &Rows<'_>, offset: &[usize], acc: &mut [Lanes], acc_signed: &mut [Lanes]) {
         match self {
             Unit::Panel { features, signed } => {
                 add_panel(at, features, *signed, offset, acc, acc_signed);
@@ -400,38 +411,129 @@ impl Unit {
 }
 
 /// A panel's additions: every row's lanes into each feature's slot in memory, and the signed
-/// lanes into the first `signed` features' signed slots.
+/// lanes into the first `signed` features' signed slots. Runs of up to [`PANEL_FIXED`]
+/// features go to [`add_panel_fixed`] (their slots' offsets in registers, the loop over them
+/// unrolled): first the plain and signed sums of the signed features, then the plain sums of
+/// the others, each a pass over the chunk. Every slot still takes its rows in row order, so
+/// the sums are the bits of [`add_panel_reference`]'s (tested).
 #[inline(always)]
 fn add_panel(
     at: &Rows<'_>,
     features: &[usize],
     signed: usize,
     offset: &[usize],
-    acc: &mut [[f64; LANES]],
-    acc_signed: &mut [[f64; LANES]],
+    acc: &mut [Lanes],
+    acc_signed: &mut [Lanes],
 ) {
-    let off: Vec<usize> = features.iter().map(|&j| offset[j]).collect();
-    let rows = at.codes.chunks_exact(at.m);
-    if signed == 0 {
-        for (row, v) in rows.zip(at.chunk) {
-            // A local copy: one register, not reloaded after every store to `acc`.
-            let v = *v;
-            for (&j, &o) in features.iter().zip(&off) {
-                add_lanes(&mut acc[o + row[j] as usize], &v);
-            }
-        }
-    } else {
-        for ((row, v), &dt) in rows.zip(at.chunk).zip(at.d) {
-            let v = *v;
-            let w = scale_lanes(&v, f64::from(dt));
-            for (&j, &o) in features.iter().zip(&off) {
-                add_lanes(&mut acc[o + row[j] as usize], &v);
-            }
-            for (&j, &o) in features[..signed].iter().zip(&off) {
-                add_lanes(&mut acc_signed[o + row[j] as usize], &w);
+    let signed = signed.min(features.len());
+    for part in features[..signed].chunks(PANEL_FIXED) {
+        add_panel_part::<true>(at, part, offset, acc, acc_signed);
+    }
+    for part in features[signed..].chunks(PANEL_FIXED) {
+        add_panel_part::<false>(at, part, offset, acc, acc_signed);
+    }
+}
+
+/// Most features of one pass of [`add_panel_fixed`].
+pub(super) const PANEL_FIXED: usize = 6;
+
+/// [`add_panel_fixed`] for `features.len()` (1 to [`PANEL_FIXED`]) features, all signed if `S`.
+#[inline(always)]
+fn add_panel_part<const S: bool>(
+    at: &Rows<'_>,
+    features: &[usize],
+    offset: &[usize],
+    acc: &mut [Lanes],
+    acc_signed: &mut [Lanes],
+) {
+    match features.len() {
+        1 => add_panel_fixed::<1, S>(at, features, offset, acc, acc_signed),
+        2 => add_panel_fixed::<2, S>(at, features, offset, acc, acc_signed),
+        3 => add_panel_fixed::<3, S>(at, features, offset, acc, acc_signed),
+        4 => add_panel_fixed::<4, S>(at, features, offset, acc, acc_signed),
+        5 => add_panel_fixed::<5, S>(at, features, offset, acc, acc_signed),
+        _ => add_panel_fixed::<PANEL_FIXED, S>(at, features, offset, acc, acc_signed),
+    }
+}
+
+/// The additions of `M` features (the first `M` of `features`), each row's lanes into each
+/// one's slot, and (`S`) the signed lanes into its signed slot: the features' columns and
+/// offsets held in registers, one vector addition per feature and row.
+#[inline(always)]
+fn add_panel_fixed<const M: usize, const S: bool>(
+    at: &Rows<'_>,
+    features: &[usize],
+    offset: &[usize],
+    acc: &mut [Lanes],
+    acc_signed: &mut [Lanes],
+) {
+    let js: [usize; M] = std::array::from_fn(|i| features[i]);
+    let off: [usize; M] = std::array::from_fn(|i| offset[js[i]]);
+    assert!(js.iter().all(|&j| j < at.m));
+    let rows = at.codes.chunks_exact(at.m).zip(at.chunk);
+    for (t, (row, v)) in rows.enumerate() {
+        // A local copy: one register, not reloaded after every store to `acc`.
+        let v = v.0;
+        let w = if S {
+            scale_lanes(&v, f64::from(at.d[t]))
+        } else {
+            v
+        };
+        for i in 0..M {
+            // SAFETY: `js[i] < at.m` (asserted above) and `row` has `at.m` bytes.
+            let c = unsafe { *row.get_unchecked(js[i]) };
+            let s = off[i] + c as usize;
+            add_lanes(&mut acc[s].0, &v);
+            if S {
+                add_lanes(&mut acc_signed[s].0, &w);
             }
         }
     }
+}
+
+/// [`add_panel`] written plainly, every feature of every row in one loop (the reference it
+/// is tested against).
+#[cfg(test)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn add_panel_reference(
+    codes: &[u8],
+    m: usize,
+    chunk: &[Lanes],
+    d: &[i8],
+    features: &[usize],
+    signed: usize,
+    offset: &[usize],
+    acc: &mut [Lanes],
+    acc_signed: &mut [Lanes],
+) {
+    for (t, (row, v)) in codes.chunks_exact(m).zip(chunk).enumerate() {
+        for (i, &j) in features.iter().enumerate() {
+            let s = offset[j] + row[j] as usize;
+            add_lanes(&mut acc[s].0, &v.0);
+            if i < signed {
+                add_lanes(&mut acc_signed[s].0, &scale_lanes(&v.0, f64::from(d[t])));
+            }
+        }
+    }
+}
+
+/// [`add_panel`] of one chunk (`codes`: `m` bytes a row, `chunk` its lanes, `d` its
+/// directions), for the tests.
+#[cfg(test)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn add_panel_chunk(
+    codes: &[u8],
+    m: usize,
+    chunk: &[Lanes],
+    d: &[i8],
+    features: &[usize],
+    signed: usize,
+    offset: &[usize],
+    acc: &mut [Lanes],
+    acc_signed: &mut [Lanes],
+) {
+    let at = Rows { codes, m, chunk, d };
+    add_panel(&at, features, signed, offset, acc, acc_signed);
 }
 
 /// A held unit's additions ([`Unit::Held`], `M` features, all signed if `S`): each feature's
@@ -444,8 +546,8 @@ fn add_held<const M: usize, const S: bool>(
     at: &Rows<'_>,
     features: &[usize],
     offset: &[usize],
-    acc: &mut [[f64; LANES]],
-    acc_signed: &mut [[f64; LANES]],
+    acc: &mut [Lanes],
+    acc_signed: &mut [Lanes],
 ) {
     if at.chunk.is_empty() {
         return;
@@ -453,12 +555,17 @@ fn add_held<const M: usize, const S: bool>(
     let js: [usize; M] = std::array::from_fn(|i| features[i]);
     let off: [usize; M] = std::array::from_fn(|i| offset[js[i]]);
     let mut slot: [usize; M] = std::array::from_fn(|i| off[i] + at.codes[js[i]] as usize);
-    let mut held: [[f64; LANES]; M] = std::array::from_fn(|i| acc[slot[i]]);
-    let mut held_s: [[f64; LANES]; M] =
-        std::array::from_fn(|i| if S { acc_signed[slot[i]] } else { [0.0; LANES] });
+    let mut held: [[f64; LANES]; M] = std::array::from_fn(|i| acc[slot[i]].0);
+    let mut held_s: [[f64; LANES]; M] = std::array::from_fn(|i| {
+        if S {
+            acc_signed[slot[i]].0
+        } else {
+            [0.0; LANES]
+        }
+    });
     let rows = at.codes.chunks_exact(at.m).zip(at.chunk);
     for (t, (row, v)) in rows.enumerate() {
-        let v = *v;
+        let v = v.0;
         let w = if S {
             scale_lanes(&v, f64::from(at.d[t]))
         } else {
@@ -467,11 +574,11 @@ fn add_held<const M: usize, const S: bool>(
         for i in 0..M {
             let s = off[i] + row[js[i]] as usize;
             if s != slot[i] {
-                acc[slot[i]] = held[i];
-                held[i] = acc[s];
+                acc[slot[i]] = Lanes(held[i]);
+                held[i] = acc[s].0;
                 if S {
-                    acc_signed[slot[i]] = held_s[i];
-                    held_s[i] = acc_signed[s];
+                    acc_signed[slot[i]] = Lanes(held_s[i]);
+                    held_s[i] = acc_signed[s].0;
                 }
                 slot[i] = s;
             }
@@ -482,9 +589,9 @@ fn add_held<const M: usize, const S: bool>(
         }
     }
     for i in 0..M {
-        acc[slot[i]] = held[i];
+        acc[slot[i]] = Lanes(held[i]);
         if S {
-            acc_signed[slot[i]] = held_s[i];
+            acc_signed[slot[i]] = Lanes(held_s[i]);
         }
     }
 }

@@ -9,7 +9,7 @@ use crate::numeric::stats;
 
 use super::ftest::{FTest, sst_of_sums, sst_one_pass};
 use super::kernels::{self, Permuted, SlotTable};
-use super::lanes::{BlockLane, LANES};
+use super::lanes::{BlockLane, LANES, Lanes};
 use super::smoother::{Binned, Unusable};
 use super::{DiagnoseConfig, FeatureOrigin, values};
 
@@ -296,9 +296,9 @@ pub(super) struct PermWorker {
     acc: Vec<f64>,
     acc_signed: Vec<f64>,
     /// The same for the lanes of a batch, and the batch's gathered rows.
-    acc_lanes: Vec<[f64; LANES]>,
-    acc_signed_lanes: Vec<[f64; LANES]>,
-    chunk: Vec<[f64; LANES]>,
+    acc_lanes: Vec<Lanes>,
+    acc_signed_lanes: Vec<Lanes>,
+    chunk: Vec<Lanes>,
     /// `stat[l·m + k]`: feature `k`'s statistic in permutation `l` of the batch.
     stat: Vec<f64>,
 }

@@ -69,6 +69,9 @@ pub(super) enum Reports {
     All,
     /// The flagged columns' only ([`flagged_features`]).
     Flagged,
+    /// The flagged columns' and those whose explained share is the largest (every one of a
+    /// tie): what the absorbed-effect rule reads (its flagged features and its strongest).
+    FlaggedAndStrongest,
 }
 
 /// What [`screen`] leaves for the rest of [`diagnose`].
@@ -304,8 +307,18 @@ fn screen_prepared(
                 && a.explained.min(forward.beyond[j].unwrap_or(0.0)) >= config.min_effect
         })
     };
+    // A column's explained share as its report gives it (0 for a skipped column), and the
+    // largest, compared as `total_cmp` orders them (as the absorbed-effect rule picks it).
+    let share = |j: usize| analysed[j].as_ref().map_or(0.0, |a| a.explained);
+    let strongest = (0..analysed.len()).map(share).max_by(|a, b| a.total_cmp(b));
     let wanted: Vec<usize> = (0..analysed.len())
-        .filter(|&j| which == Reports::All || flagged(j))
+        .filter(|&j| match which {
+            Reports::All => true,
+            Reports::Flagged => flagged(j),
+            Reports::FlaggedAndStrongest => {
+                flagged(j) || strongest.is_some_and(|s| share(j).total_cmp(&s).is_eq())
+            }
+        })
         .collect();
     let signed_residuals: Option<Vec<f64>> = direction
         .as_ref()

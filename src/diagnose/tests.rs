@@ -969,11 +969,15 @@ fn lanes_of_block_permutations_equal_the_materialised_ones() {
         .collect();
     assert!(bins.len() >= 8);
     let refs: Vec<&Binned> = bins.iter().collect();
-    for signed in [0, 5] {
+    for signed in [0, 5, 9] {
         let table = SlotTable::new(&refs, signed).expect("few slots");
-        // Several panels, the signed features split over more than one.
+        // Several panels; nine signed features split over more than one.
         let panels = Plan::of(&table, r.len(), PANEL_BYTES).units;
-        assert!(panels.len() >= 3, "{panels:?}");
+        assert!(panels.len() >= 2, "{panels:?}");
+        let with_signed = (panels.iter())
+            .filter(|u| matches!(u, Unit::Panel { signed, .. } if *signed > 0))
+            .count();
+        assert!(signed < 9 || with_signed >= 2, "{panels:?}");
         assert_lanes_equal_materialised(&table, &refs[..signed], &r, &dir);
     }
 }
@@ -1036,6 +1040,75 @@ fn held_units_of_the_lanes_equal_the_materialised_pass() {
         (0, false),
     ] {
         assert!(kinds.contains(&k), "{k:?} in {kinds:?}");
+    }
+}
+
+/// A panel's additions ([`add_panel_chunk`]: the signed features and the others in
+/// passes of up to [`PANEL_FIXED`] features, unrolled) give the bits of the plain loop over
+/// every feature of every row ([`add_panel_reference`]), for panels of 1 to 15 features, any
+/// number of them signed, features in any order and slots that repeat from row to row.
+#[test]
+fn panel_additions_equal_the_plain_loop() {
+    let m = 17;
+    let rows = 300;
+    let mut rng = SimRng::new(91);
+    let slots: Vec<usize> = (0..m).map(|j| 1 + (j * 7) % 40).collect();
+    let mut offset = vec![0usize];
+    for &s in &slots {
+        offset.push(offset.last().copied().unwrap_or(0) + s);
+    }
+    let codes: Vec<u8> = (0..rows * m)
+        .map(|k| {
+            let j = k % m;
+            // Some features keep their slot for several rows.
+            let i = if j % 3 == 0 { (k / m) / 5 } else { k / m };
+            ((i * 31 + rng.below(1 + (j % 2) as u64 * 1000) as usize) % slots[j]) as u8
+        })
+        .collect();
+    let chunk: Vec<Lanes> = (0..rows)
+        .map(|_| Lanes(std::array::from_fn(|_| rng.normal() * 1e3)))
+        .collect();
+    let d: Vec<i8> = (0..rows).map(|_| rng.below(3) as i8 - 1).collect();
+    let bits = |v: &[Lanes]| {
+        v.iter()
+            .flat_map(|a| a.0.iter().map(|x| x.to_bits()))
+            .collect::<Vec<_>>()
+    };
+    for len in 1..=15 {
+        for signed in [0, 1, len / 2, len] {
+            let features: Vec<usize> = (0..len).map(|i| (i * 5 + len) % m).collect();
+            let mut seen = features.clone();
+            seen.sort_unstable();
+            seen.dedup();
+            if seen.len() < len {
+                continue;
+            }
+            let start: Vec<Lanes> = (0..offset[m])
+                .map(|_| Lanes(std::array::from_fn(|_| rng.normal())))
+                .collect();
+            let (mut want, mut want_s) = (start.clone(), start.clone());
+            add_panel_reference(
+                &codes,
+                m,
+                &chunk,
+                &d,
+                &features,
+                signed,
+                &offset,
+                &mut want,
+                &mut want_s,
+            );
+            let (mut got, mut got_s) = (start.clone(), start.clone());
+            add_panel_chunk(
+                &codes, m, &chunk, &d, &features, signed, &offset, &mut got, &mut got_s,
+            );
+            assert_eq!(bits(&got), bits(&want), "{len} features, {signed} signed");
+            assert_eq!(
+                bits(&got_s),
+                bits(&want_s),
+                "{len} features, {signed} signed"
+            );
+        }
     }
 }
 
@@ -1127,6 +1200,55 @@ fn screen_alone_and_explained_shares_equal_the_diagnosis() {
         let want = d.feature(&c.name).expect("reported").explained;
         assert_eq!(s.to_bits(), want.to_bits(), "{}", c.name);
     }
+}
+
+/// The screen's flagged and strongest reports ([`Reports::FlaggedAndStrongest`], what the
+/// absorbed-effect rule reads) are those of every column's screen ([`Reports::All`]) that are
+/// flagged or explain the largest share (every one of a tie), bit for bit and in its order,
+/// and the slow-column rule picks the same report from both: on a residual with effects, on
+/// pure noise (where many columns tie at no share) and on a table without the time features.
+#[test]
+fn flagged_and_strongest_reports_are_those_of_the_whole_screen() {
+    let t = table(31, 3000);
+    let dir: Vec<f64> = values(&t, "direction")
+        .iter()
+        .map(|v| v.unwrap_or(0.0))
+        .collect();
+    let temp = values(&t, "temp_c");
+    let config = DiagnoseConfig::default().check().unwrap();
+    let json = |f: &[&FeatureReport]| serde_json::to_string(f).expect("json");
+    let reduced = t.without(|c| is_time(c.origin));
+    let effects = residuals(&t, 5, 1.0, |i| 0.4 * dir[i] + 0.05 * temp[i].unwrap_or(0.0));
+    let noise = residuals(&t, 6, 1.0, |_| 0.0);
+    let mut tied = false;
+    for (tab, r) in [(&t, &effects), (&t, &noise), (&reduced, &effects)] {
+        let all = screen(tab, r, &config, Reports::All)
+            .expect("screen")
+            .reports;
+        let some = screen(tab, r, &config, Reports::FlaggedAndStrongest)
+            .expect("screen")
+            .reports;
+        let top = all
+            .iter()
+            .map(|f| f.explained)
+            .max_by(|a, b| a.total_cmp(b))
+            .expect("features");
+        let want: Vec<&FeatureReport> = all
+            .iter()
+            .filter(|f| f.flagged || f.explained.total_cmp(&top).is_eq())
+            .collect();
+        tied |= all
+            .iter()
+            .filter(|f| f.explained.total_cmp(&top).is_eq())
+            .count()
+            > 1;
+        assert!(!want.is_empty());
+        assert_eq!(json(&some.iter().collect::<Vec<_>>()), json(&want));
+        let slow =
+            |f: &[FeatureReport]| super::absorbed::slow_column(f, tab).map(|f| f.name.clone());
+        assert_eq!(slow(&some), slow(&all));
+    }
+    assert!(tied, "a tie at the largest share");
 }
 
 /// The signed sums a fused pass returned for the signed residual `product` (materialised):
