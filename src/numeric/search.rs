@@ -4,6 +4,20 @@
 //! result); and a search near a known minimum in batches that follows the parabola through
 //! the best points ([`zoom_min_batched`]).
 
+/// `g` (≥ 2) evenly spaced points from `lo` to `hi`, both included: the searches' grid.
+fn grid_points(lo: f64, hi: f64, g: usize) -> Vec<f64> {
+    (0..g)
+        .map(|i| lo + (hi - lo) * i as f64 / (g - 1) as f64)
+        .collect()
+}
+
+/// The index `i < n` of the lowest `value(i)` (the first of equals; 0 where `n` is 0).
+fn lowest(n: usize, value: impl Fn(usize) -> f64) -> usize {
+    (0..n)
+        .min_by(|&a, &b| value(a).total_cmp(&value(b)))
+        .unwrap_or(0)
+}
+
 /// Minimises `f` on [lo, hi]: `grid` evenly spaced points, then `iters` golden-section steps
 /// in the bracket around the best. Returns (x, f(x), evaluations).
 pub(crate) fn golden_min(
@@ -14,12 +28,10 @@ pub(crate) fn golden_min(
     iters: usize,
 ) -> (f64, f64, usize) {
     let g = grid.max(3);
-    let xs: Vec<f64> = (0..g)
-        .map(|i| lo + (hi - lo) * i as f64 / (g - 1) as f64)
-        .collect();
+    let xs = grid_points(lo, hi, g);
     let fs: Vec<f64> = xs.iter().map(|&x| f(x)).collect();
     let mut evals = g;
-    let best = (0..g).min_by(|&a, &b| fs[a].total_cmp(&fs[b])).unwrap_or(0);
+    let best = lowest(g, |i| fs[i]);
     let (mut a, mut b) = (xs[best.saturating_sub(1)], xs[(best + 1).min(g - 1)]);
     let (mut bx, mut bf) = (xs[best], fs[best]);
     let phi = 0.5 * (5f64.sqrt() - 1.0);
@@ -70,12 +82,10 @@ pub(crate) fn golden_min_batched(
     iters: usize,
 ) -> (f64, f64, usize) {
     let g = grid.max(3);
-    let xs: Vec<f64> = (0..g)
-        .map(|i| lo + (hi - lo) * i as f64 / (g - 1) as f64)
-        .collect();
+    let xs = grid_points(lo, hi, g);
     let fs = f(&xs);
     let mut evals = g;
-    let best = (0..g).min_by(|&a, &b| fs[a].total_cmp(&fs[b])).unwrap_or(0);
+    let best = lowest(g, |i| fs[i]);
     let (mut a, mut b) = (xs[best.saturating_sub(1)], xs[(best + 1).min(g - 1)]);
     let (mut bx, mut bf) = (xs[best], fs[best]);
     let phi = 0.5 * (5f64.sqrt() - 1.0);
@@ -155,8 +165,9 @@ const ZOOM_SPREAD: f64 = 8.0;
 /// of the step from the best point to the vertex (at least about `width`/2): where the objective
 /// is smooth at its minimum the vertex errs by far less than that step, so the bracket shrinks
 /// to 2d, and the next vertex's step is smaller still (golden section shrinks it 1.6 times a
-/// point, about 4 times a batch that looks three steps ahead). On a unimodal objective it ends, as [`golden_min`] does, in a bracket about the
-/// minimum of the grid's best cell. Returns (x, f(x), evaluations).
+/// point, about 4 times a batch that looks three steps ahead). On a unimodal objective it
+/// ends, as [`golden_min`] does, in a bracket about the minimum of the grid's best cell.
+/// Returns (x, f(x), evaluations).
 pub(crate) fn zoom_min_batched(
     f: &dyn Fn(&[f64]) -> Vec<f64>,
     lo: f64,
@@ -167,17 +178,13 @@ pub(crate) fn zoom_min_batched(
 ) -> (f64, f64, usize) {
     let g = grid.max(3);
     let batch = batch.max(4);
-    let xs: Vec<f64> = (0..g)
-        .map(|i| lo + (hi - lo) * i as f64 / (g - 1) as f64)
-        .collect();
+    let xs = grid_points(lo, hi, g);
     let fs = f(&xs);
     let mut evals = g;
     // Evaluated points, in increasing order of x.
     let mut pts: Vec<(f64, f64)> = xs.into_iter().zip(fs).collect();
     for _ in 0..ZOOM_MAX_BATCHES {
-        let i = (0..pts.len())
-            .min_by(|&a, &b| pts[a].1.total_cmp(&pts[b].1))
-            .unwrap_or(0);
+        let i = lowest(pts.len(), |i| pts[i].1);
         let (a, b) = (
             pts[i.saturating_sub(1)].0,
             pts[(i + 1).min(pts.len() - 1)].0,
@@ -224,9 +231,7 @@ pub(crate) fn zoom_min_batched(
             pts.insert(at, (x, y));
         }
     }
-    let i = (0..pts.len())
-        .min_by(|&a, &b| pts[a].1.total_cmp(&pts[b].1))
-        .unwrap_or(0);
+    let i = lowest(pts.len(), |i| pts[i].1);
     (pts[i].0, pts[i].1, evals)
 }
 
