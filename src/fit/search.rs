@@ -141,55 +141,38 @@ fn search_term(
         .search_by_projection
         .then(|| Projection::new(terms, k, data, opts))
         .flatten();
-    let min = |lo: f64, hi: f64, grid: usize, iters: usize| match &proj {
-        // The projected RSS is cheaper per candidate in batches (one replay for
-        // several): the same points, compared in the same order.
-        Some(p) => golden_min_batched(
-            &|ts: &[f64]| p.rss_many(terms, ts, opts),
-            lo,
-            hi,
-            grid,
-            iters,
-        ),
-        None => golden_min(
-            &|t: f64| slow_rss(terms, k, t, data, opts),
-            lo,
-            hi,
-            grid,
-            iters,
-        ),
+    // The RSS at a batch of values: the projected RSS is cheaper per value in batches (one
+    // replay for several); the full solves take the values one by one.
+    let rss_many = |ts: &[f64]| -> Vec<f64> {
+        match &proj {
+            Some(p) => p.rss_many(terms, ts, opts),
+            None => ts
+                .iter()
+                .map(|&t| slow_rss(terms, k, t, data, opts))
+                .collect(),
+        }
     };
-    // A batch at a time, following the RSS's parabola (the projection's replay evaluates a
-    // batch for about the price of one point; the full solves take its points one by one).
-    let zoom_over = |lo: f64, hi: f64, grid: usize, width: f64| match &proj {
-        Some(p) => zoom_min_batched(
-            &|ts: &[f64]| p.rss_many(terms, ts, opts),
-            lo,
-            hi,
-            grid,
-            LOCAL_GRID,
-            width,
-        ),
-        None => zoom_min_batched(
-            &|ts: &[f64]| {
-                ts.iter()
-                    .map(|&t| slow_rss(terms, k, t, data, opts))
-                    .collect()
-            },
-            lo,
-            hi,
-            grid,
-            LOCAL_GRID,
-            width,
-        ),
+    // A batch at a time, following the RSS's parabola.
+    let zoom_over = |lo: f64, hi: f64, grid: usize, width: f64| {
+        zoom_min_batched(&rss_many, lo, hi, grid, LOCAL_GRID, width)
     };
     let zoom = |lo: f64, hi: f64, width: f64| zoom_over(lo, hi, LOCAL_GRID, width);
-    // The whole interval: `opts.grid` points, then golden section or (`zoom_whole`) zooming.
+    // The whole interval: `opts.grid` points, then zooming (`zoom_whole`) or golden section,
+    // in batches where the projection makes them cheap (the same points, compared in the
+    // same order), else one value at a time (no speculative full solves).
     let whole = |lo: f64, hi: f64, grid: usize, iters: usize| {
         if zoom_whole {
             zoom_over(lo, hi, grid, WARM_TOLERANCE * (nl.hi - nl.lo))
+        } else if proj.is_some() {
+            golden_min_batched(&rss_many, lo, hi, grid, iters)
         } else {
-            min(lo, hi, grid, iters)
+            golden_min(
+                &|t: f64| slow_rss(terms, k, t, data, opts),
+                lo,
+                hi,
+                grid,
+                iters,
+            )
         }
     };
     match reach {
