@@ -461,6 +461,17 @@ mod tests {
         }
     }
 
+    /// Row `b`'s [`example`] parsed by the row and prepared on `data`: its text and its term.
+    fn prepared_example(
+        b: &BuiltinTerm,
+        data: &FitData<'_>,
+    ) -> (String, Arc<dyn crate::model::term::Term>) {
+        let text = example(b);
+        let spec = (b.parse)(&TermText::new(&text)).unwrap_or_else(|e| panic!("{text}: {e}"));
+        let term = spec.prepare(data).unwrap_or_else(|e| panic!("{text}: {e}"));
+        (text, term)
+    }
+
     /// Every registry row's term, prepared on a log, either writes itself as C (the rows that
     /// say so) or refuses, and then the export names it: its name has the row's head. A row
     /// whose flag disagrees with its term's `export_c` fails here: fix the row's `exports_c()`
@@ -471,11 +482,7 @@ mod tests {
         let data = FitData::new(&log);
         let ctx = CContext::new(CPrecision::Float64);
         for b in BUILTINS {
-            let text = example(b);
-            let spec = (b.parse)(&TermText::new(&text)).unwrap_or_else(|e| panic!("{text}: {e}"));
-            let term = spec
-                .prepare(&data)
-                .unwrap_or_else(|e| panic!("{text}: {e}"));
+            let (text, term) = prepared_example(b, &data);
             let c = term.export_c(&ctx);
             assert_eq!(
                 c.is_some(),
@@ -505,11 +512,7 @@ mod tests {
         let ctx = SearchContext::new(&data, &residual_fn, &rss, residual.len() - 3);
         let mut own = Vec::new();
         for b in BUILTINS {
-            let text = example(b);
-            let spec = (b.parse)(&TermText::new(&text)).unwrap_or_else(|e| panic!("{text}: {e}"));
-            let term = spec
-                .prepare(&data)
-                .unwrap_or_else(|e| panic!("{text}: {e}"));
+            let (text, term) = prepared_example(b, &data);
             let searches = term.search(&ctx).is_some();
             assert_eq!(
                 searches,
