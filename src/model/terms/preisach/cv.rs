@@ -341,9 +341,7 @@ mod tests {
             let data = FitData::new(&log);
             let [lo, hi] = crate::numeric::stats::range(log.tracks()).unwrap();
             let grid = PreisachGrid { lo, hi, levels: 6 };
-            let cols: Vec<(u8, u8)> = (0..6u8)
-                .flat_map(|i| (0..=i).map(move |j| (i, j)))
-                .collect();
+            let cols: Vec<(u8, u8)> = grid.relays().collect();
             let m = log.measured_count();
             let mut rng = SimRng::new(2);
             let residual: Vec<f64> = (0..m).map(|_| rng.normal()).collect();

@@ -55,6 +55,12 @@ impl PreisachGrid {
         self.levels * (self.levels + 1) / 2
     }
 
+    /// Every relay `(i, j)` (`j ≤ i`) of the grid, in row-major triangle order (the order of
+    /// [`PreisachGrid::cell`]).
+    pub fn relays(&self) -> impl Iterator<Item = (u8, u8)> + use<> {
+        (0..self.levels).flat_map(|i| (0..=i).map(move |j| (i as u8, j as u8)))
+    }
+
     /// Index of relay `(i, j)` (`j ≤ i`) in row-major triangle order.
     pub fn cell(i: usize, j: usize) -> usize {
         i * (i + 1) / 2 + j

@@ -67,8 +67,8 @@ impl TermSpec for PreisachSpec {
             )));
         }
         let keep = cv::identified(data, &grid);
-        let cells: Vec<(u8, u8)> = (0..self.levels)
-            .flat_map(|i| (0..=i).map(move |j| (i as u8, j as u8)))
+        let cells: Vec<(u8, u8)> = grid
+            .relays()
             .filter(|&(i, j)| keep[PreisachGrid::cell(i as usize, j as usize)])
             .collect();
         if cells.is_empty() {

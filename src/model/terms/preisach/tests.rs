@@ -79,9 +79,7 @@ fn staircase_memory_equals_every_relay_updated_every_step() {
         let term = PreisachTerm {
             name: format!("preisach:{levels}"),
             grid,
-            cells: (0..levels)
-                .flat_map(|i| (0..=i).map(move |j| (i as u8, j as u8)))
-                .collect(),
+            cells: grid.relays().collect(),
             log10_lambda: 0.0,
         };
         let mut state = term.start(&[]).unwrap();
@@ -155,9 +153,7 @@ fn same_basis_holds_only_where_no_relay_switches() {
         let term = PreisachTerm {
             name: format!("preisach:{levels}"),
             grid,
-            cells: (0..levels)
-                .flat_map(|i| (0..=i).map(move |j| (i as u8, j as u8)))
-                .collect(),
+            cells: grid.relays().collect(),
             log10_lambda: 0.0,
         };
         let mut state = term.start(&[]).unwrap();
